@@ -1,0 +1,42 @@
+# Two entry points that work on a fresh machine: `make demo` and `make test`.
+# Both create .venv (and install SuiteSparse headers with apt when missing) before running.
+PY      ?= python3
+VENV    := .venv
+BIN     := $(VENV)/bin
+STAMP   := $(VENV)/.installed
+export NUMBA_CACHE_DIR ?= $(CURDIR)/.numba_cache
+
+.PHONY: setup demo test lint format clean
+
+setup: $(STAMP)
+
+$(STAMP): pyproject.toml
+	@if [ ! -f /usr/include/suitesparse/cholmod.h ]; then \
+	  echo "installing SuiteSparse headers (libsuitesparse-dev)"; \
+	  SUDO=$$(command -v sudo >/dev/null && [ "$$(id -u)" != 0 ] && echo sudo); \
+	  $$SUDO apt-get update -qq && $$SUDO apt-get install -y -qq libsuitesparse-dev >/dev/null \
+	    || echo "warning: could not install libsuitesparse-dev; bfemp will use the scipy fallback"; \
+	fi
+	@test -x $(BIN)/python || $(PY) -m venv $(VENV)
+	$(BIN)/python -m pip install -q --upgrade pip
+	$(BIN)/python -m pip install -q -e ".[test]"
+	$(BIN)/python -m pip install -q "scikit-sparse<0.5" \
+	  || echo "warning: scikit-sparse did not build; bfemp will use the scipy fallback"
+	@touch $(STAMP)
+
+demo: setup
+	$(BIN)/python -m bfemp demo --out results/demo
+
+lint: setup
+	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
+
+format: setup
+	$(BIN)/ruff format .
+	$(BIN)/ruff check --fix .
+
+test: lint
+	$(BIN)/python -m pytest -q
+
+clean:
+	rm -rf $(VENV) .numba_cache results .pytest_cache

@@ -1,0 +1,1 @@
+"""Benchmark reproductions and performance measurements: ``python -m benchmarks NAME``."""

@@ -1,0 +1,1 @@
+"""bfemp: coupled MPM-FEM simulation of elastic bodies in contact."""
