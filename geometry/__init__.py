@@ -1,4 +1,5 @@
-"""Geometry only: meshes, shape generators, grids, distances, CCD, broad phase, sampling, level sets.
+"""Geometry only: meshes, shape generators, grids, distances, CCD, broad phase, sampling,
+level sets.
 
 Imports numpy, numba, meshio and python-fcl; never imports ``solvers`` or ``bfemp``.
 """

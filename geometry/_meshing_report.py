@@ -1,0 +1,75 @@
+"""The quality report of :meth:`geometry.mesh.TriMesh.quality_report` (re-exported there)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+def format_indices(idx: np.ndarray, limit: int = 10) -> str:
+    """'[i0, i1, ...]' of the first ``limit`` indices plus the total count when longer."""
+    head = ", ".join(str(int(i)) for i in idx[:limit])
+    return f"[{head}]" if idx.size <= limit else f"[{head}, ...] ({idx.size} in total)"
+
+
+@dataclass(frozen=True, kw_only=True)
+class MeshQualityReport:
+    """Result of :meth:`TriMesh.quality_report` / :meth:`TetMesh.quality_report`.
+
+    Attributes:
+        cell_volumes: (m,) signed area (m^2, 2D) or volume (m^3, 3D) of each cell.
+        cell_quality: (m,) normalised radius ratio in [0, 1], 1 = equilateral.
+        mean_edge_length: mean length of the cells' edges h (m), the scale of the tolerances.
+        degenerate_cells: sorted indices of cells with ``|V| <= volume_tol h^d`` or quality below
+            ``quality_tol``.
+        inverted_cells: sorted indices of cells with ``V < -volume_tol h^d``.
+        unused_points: sorted indices of points referenced by no cell (zero mass in FEM).
+        nonmanifold_facets: (k, d) sorted vertex indices of facets shared by more than two cells.
+    """
+
+    cell_volumes: np.ndarray
+    cell_quality: np.ndarray
+    mean_edge_length: float
+    degenerate_cells: np.ndarray
+    inverted_cells: np.ndarray
+    unused_points: np.ndarray
+    nonmanifold_facets: np.ndarray
+
+    @property
+    def min_quality(self) -> float:
+        """Smallest cell quality (dimensionless)."""
+        return float(self.cell_quality.min())
+
+    @property
+    def ok(self) -> bool:
+        """True when there is no degenerate or inverted cell, unused point or non-manifold facet."""
+        return not (
+            self.degenerate_cells.size
+            or self.inverted_cells.size
+            or self.unused_points.size
+            or self.nonmanifold_facets.size
+        )
+
+    def problems(self) -> list[str]:
+        """Human-readable description of each problem found (empty when :attr:`ok`)."""
+        out = []
+        if self.inverted_cells.size:
+            out.append(
+                f"{self.inverted_cells.size} inverted cell(s) (negative signed volume) at "
+                f"indices {format_indices(self.inverted_cells)}"
+            )
+        if self.degenerate_cells.size:
+            out.append(
+                f"{self.degenerate_cells.size} degenerate cell(s) (near-zero volume or quality) "
+                f"at indices {format_indices(self.degenerate_cells)}"
+            )
+        if self.unused_points.size:
+            out.append(
+                f"{self.unused_points.size} point(s) used by no cell at indices "
+                f"{format_indices(self.unused_points)}"
+            )
+        if self.nonmanifold_facets.size:
+            rows = "; ".join(str(r.tolist()) for r in self.nonmanifold_facets[:10])
+            out.append(f"{len(self.nonmanifold_facets)} facet(s) shared by >2 cells: {rows}")
+        return out
