@@ -1,0 +1,232 @@
+"""Sparse assembly of COO triplets into CSC matrices, with sparsity-pattern reuse.
+
+Every energy term returns its Hessian as :class:`Triplets` (row, column, value; duplicates
+allowed, they are summed).  :class:`TripletAssembler` turns them into a ``scipy.sparse``
+CSC matrix.  The expensive part of assembly is finding, for every triplet, the slot of the
+CSC ``data`` array it adds into (a sort of the (column, row) keys).  That map depends only on
+the ``rows``/``cols`` arrays, so it is cached and reused while the next call brings equal
+arrays; assembly then is a single ``np.bincount`` of the values into the slots.
+
+Elimination of fixed degrees of freedom happens here too: with a ``free`` mask the assembler
+returns the principal submatrix ``A[free][:, free]`` directly (triplets touching a fixed DOF
+go to a discarded slot), so the reduced system needs no extra sparse slicing.
+
+Pattern versions are drawn from one process-wide counter, so two assemblers never hand the
+same version to a linear solver for different patterns (a solver keyed on the version would
+otherwise reuse a wrong symbolic factorisation).
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+__all__ = ["TripletAssembler", "Triplets"]
+
+logger = logging.getLogger(__name__)
+
+# Unique sparsity-pattern versions across all assemblers of the process (0 means "none yet").
+_PATTERN_VERSIONS = itertools.count(1)
+
+
+@dataclass(frozen=True)
+class Triplets:
+    """A sparse matrix in COO form; duplicate (row, col) entries are summed on assembly.
+
+    Attributes:
+        rows: row indices (nnz,) int64.
+        cols: column indices (nnz,) int64.
+        vals: values (nnz,) float64, in the units of the matrix (e.g. N/m for a Hessian of J
+            with respect to positions in m).
+    """
+
+    rows: np.ndarray
+    cols: np.ndarray
+    vals: np.ndarray
+
+    def __post_init__(self) -> None:
+        rows = np.ascontiguousarray(self.rows, dtype=np.int64)
+        cols = np.ascontiguousarray(self.cols, dtype=np.int64)
+        vals = np.ascontiguousarray(self.vals, dtype=np.float64)
+        if rows.ndim != 1 or cols.ndim != 1 or vals.ndim != 1:
+            raise ValueError(
+                "Triplets rows, cols and vals must be 1-D, got shapes "
+                f"{rows.shape}, {cols.shape}, {vals.shape}"
+            )
+        if not rows.shape == cols.shape == vals.shape:
+            raise ValueError(
+                "Triplets rows, cols and vals must have equal lengths, got "
+                f"{rows.size}, {cols.size}, {vals.size}"
+            )
+        object.__setattr__(self, "rows", rows)
+        object.__setattr__(self, "cols", cols)
+        object.__setattr__(self, "vals", vals)
+
+    @property
+    def nnz(self) -> int:
+        """Number of stored triplets (duplicates counted)."""
+        return int(self.vals.size)
+
+    @staticmethod
+    def empty() -> Triplets:
+        """Triplets of the zero matrix (no entries)."""
+        return Triplets(np.empty(0, np.int64), np.empty(0, np.int64), np.empty(0, np.float64))
+
+    @staticmethod
+    def concatenate(parts: list[Triplets]) -> Triplets:
+        """Stack several triplet sets into one (the sum of the matrices they describe)."""
+        if len(parts) == 0:
+            return Triplets.empty()
+        if len(parts) == 1:
+            return parts[0]
+        return Triplets(
+            np.concatenate([t.rows for t in parts]),
+            np.concatenate([t.cols for t in parts]),
+            np.concatenate([t.vals for t in parts]),
+        )
+
+    @staticmethod
+    def from_blocks(block_dofs: np.ndarray, blocks: np.ndarray) -> Triplets:
+        """Scatter dense local blocks into global triplets.
+
+        Args:
+            block_dofs: global DOF index of every local row/column, (S, k) integer.
+            blocks: local matrices (S, k, k); ``blocks[s, a, b]`` goes to
+                ``(block_dofs[s, a], block_dofs[s, b])``.
+
+        Returns:
+            Triplets with ``S * k * k`` entries, block-major.
+        """
+        block_dofs = np.asarray(block_dofs)
+        blocks = np.asarray(blocks, dtype=np.float64)
+        if block_dofs.ndim != 2:
+            raise ValueError(f"block_dofs must be (S, k), got shape {block_dofs.shape}")
+        s, k = block_dofs.shape
+        if blocks.shape != (s, k, k):
+            raise ValueError(f"blocks must have shape {(s, k, k)}, got {blocks.shape}")
+        rows = np.broadcast_to(block_dofs[:, :, None], (s, k, k)).ravel()
+        cols = np.broadcast_to(block_dofs[:, None, :], (s, k, k)).ravel()
+        return Triplets(rows, cols, blocks.ravel())
+
+    def scaled(self, factor: float) -> Triplets:
+        """The same pattern with values multiplied by ``factor`` (arrays of indices shared)."""
+        return Triplets(self.rows, self.cols, self.vals * float(factor))
+
+
+class TripletAssembler:
+    """Assembles :class:`Triplets` into an ``n x n`` (or reduced) CSC matrix, reusing patterns.
+
+    Args:
+        n: size of the full matrix (number of DOFs).
+        free: optional bool mask (n,); when given, :meth:`assemble` returns the principal
+            submatrix on the free DOFs, of size ``n_free x n_free`` (free DOFs renumbered in
+            increasing order). Triplets touching a non-free DOF are dropped.
+
+    Attributes:
+        pattern_changed: whether the last :meth:`assemble` call rebuilt the pattern.
+        pattern_version: process-unique id of the current pattern (0 before the first call).
+        n_rebuilds: number of pattern rebuilds so far.
+    """
+
+    def __init__(self, n: int, *, free: np.ndarray | None = None) -> None:
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 0:
+            raise ValueError(f"TripletAssembler n must be a non-negative int, got {n!r}")
+        self.n = int(n)
+        if free is None:
+            self._full_to_reduced = None
+            self.n_out = self.n
+        else:
+            free = np.asarray(free)
+            if free.dtype != np.bool_ or free.shape != (self.n,):
+                raise ValueError(
+                    f"TripletAssembler free must be a bool mask of shape ({self.n},), "
+                    f"got dtype {free.dtype} and shape {free.shape}"
+                )
+            self.n_out = int(np.count_nonzero(free))
+            full_to_reduced = np.full(self.n, -1, dtype=np.int64)
+            full_to_reduced[free] = np.arange(self.n_out, dtype=np.int64)
+            self._full_to_reduced = full_to_reduced
+        self.pattern_changed = False
+        self.pattern_version = 0
+        self.n_rebuilds = 0
+        self._rows: np.ndarray | None = None
+        self._cols: np.ndarray | None = None
+        self._slots: np.ndarray | None = None
+        self._indices: np.ndarray | None = None
+        self._indptr: np.ndarray | None = None
+
+    def _same_pattern(self, rows: np.ndarray, cols: np.ndarray) -> bool:
+        if self._rows is None or self._rows.size != rows.size:
+            return False
+        return bool(np.array_equal(self._rows, rows) and np.array_equal(self._cols, cols))
+
+    def _rebuild(self, rows: np.ndarray, cols: np.ndarray) -> None:
+        n, m = self.n, self.n_out
+        if rows.size and (rows.min() < 0 or cols.min() < 0 or rows.max() >= n or cols.max() >= n):
+            bad = np.flatnonzero((rows < 0) | (rows >= n) | (cols < 0) | (cols >= n))
+            raise ValueError(
+                f"Triplets index out of range [0, {n}) at triplet(s) {bad[:10].tolist()}: "
+                f"rows {rows[bad[:10]].tolist()}, cols {cols[bad[:10]].tolist()}"
+            )
+        if self._full_to_reduced is None:
+            r, c = rows, cols
+            keep = None
+        else:
+            r = self._full_to_reduced[rows]
+            c = self._full_to_reduced[cols]
+            keep = (r >= 0) & (c >= 0)
+            r, c = r[keep], c[keep]
+        # Column-major keys: sorting them orders entries exactly as CSC stores them.
+        keys = c * m + r
+        unique_keys, inverse = np.unique(keys, return_inverse=True)
+        nnz = unique_keys.size
+        index_dtype = np.int32 if max(nnz, m) < np.iinfo(np.int32).max else np.int64
+        self._indices = (unique_keys % max(m, 1)).astype(index_dtype)
+        col_counts = np.bincount(unique_keys // max(m, 1), minlength=m)
+        indptr = np.zeros(m + 1, dtype=index_dtype)
+        np.cumsum(col_counts, out=indptr[1:])
+        self._indptr = indptr
+        # Dropped triplets (fixed DOFs) add into one extra slot that is cut off afterwards.
+        slots = np.full(rows.size, nnz, dtype=np.int64)
+        if keep is None:
+            slots[:] = inverse.ravel()
+        else:
+            slots[keep] = inverse.ravel()
+        self._slots = slots
+        self._rows = rows.copy()
+        self._cols = cols.copy()
+        self.n_rebuilds += 1
+        self.pattern_version = next(_PATTERN_VERSIONS)
+        logger.debug(
+            "pattern rebuilt: %d triplets -> %d nonzeros in %d x %d (version %d)",
+            rows.size,
+            nnz,
+            m,
+            m,
+            self.pattern_version,
+        )
+
+    def assemble(self, t: Triplets) -> sp.csc_matrix:
+        """Sum the triplets into a CSC matrix (canonical: sorted indices, no duplicates).
+
+        Args:
+            t: triplets with indices in ``[0, n)``.
+
+        Returns:
+            ``csc_matrix`` of shape ``(n_out, n_out)`` (``n_out = n`` without a ``free`` mask).
+            Consecutive results with the same pattern share the memory of ``indices``/``indptr``
+            arrays (do not modify them); ``data`` is always a new array.
+        """
+        if not isinstance(t, Triplets):
+            raise ValueError(f"assemble expects Triplets, got {type(t).__name__}")
+        self.pattern_changed = not self._same_pattern(t.rows, t.cols)
+        if self.pattern_changed:
+            self._rebuild(t.rows, t.cols)
+        nnz = self._indices.size
+        data = np.bincount(self._slots, weights=t.vals, minlength=nnz + 1)[:nnz]
+        m = self.n_out
+        return sp.csc_matrix((data, self._indices, self._indptr), shape=(m, m), copy=False)

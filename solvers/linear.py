@@ -1,0 +1,280 @@
+"""Sparse symmetric positive definite linear solvers for the Newton system ``H p = -g``.
+
+:class:`CholmodSolver` (scikit-sparse / SuiteSparse CHOLMOD, as in the BFEMP paper) splits the
+Cholesky factorisation into the symbolic analysis (fill-reducing ordering and the structure of
+``L``, which depends only on the sparsity pattern) and the numeric factorisation.  The analysis
+is kept while the pattern stays the same, detected by an equal ``pattern_version`` from
+:class:`solvers.assembly.TripletAssembler` or else by equal ``indptr``/``indices`` arrays, so
+Newton iterations and time steps with an unchanged contact set pay for it once.
+
+CHOLMOD may choose a supernodal ``L L^T`` (which fails on a non-positive pivot) or a simplicial
+``L D L^T`` (which does not); after factorising, ``D`` is checked to be positive, so both raise
+:class:`LinearSolveError` for a matrix that is not positive definite.
+
+:class:`ScipySolver` is the fallback without scikit-sparse: SuperLU in symmetric mode with
+diagonal pivoting only; positive definiteness is checked on the pivots the same way.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+import warnings
+from types import ModuleType
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+__all__ = [
+    "CHOLMOD_INSTALL_HINT",
+    "CholmodSolver",
+    "LinearSolveError",
+    "LinearSolver",
+    "ScipySolver",
+    "cholmod_available",
+    "default_linear_solver",
+]
+
+logger = logging.getLogger(__name__)
+
+CHOLMOD_INSTALL_HINT = (
+    "scikit-sparse (CHOLMOD) is not available; falling back to scipy's SuperLU, which is much "
+    "slower for large systems. Install it with `pip install 'scikit-sparse<0.5'` (needs the "
+    "SuiteSparse headers, e.g. `apt-get install libsuitesparse-dev`) or `pip install "
+    "'bfemp[cholmod]'`."
+)
+
+# One fallback warning per process (see default_linear_solver).
+_fallback_warned = False
+
+
+class LinearSolveError(RuntimeError):
+    """The linear system could not be solved (not positive definite, singular, non-finite)."""
+
+
+@runtime_checkable
+class LinearSolver(Protocol):
+    """Solves ``A x = b`` for a sparse symmetric positive definite ``A``.
+
+    Implementations may keep state between calls (symbolic factorisations) and expose
+    ``last_timings: dict[str, float]`` with keys ``analyze``, ``factorize``, ``solve`` (s).
+    """
+
+    def solve(
+        self, A: sp.csc_matrix, b: np.ndarray, *, pattern_version: int | None = None
+    ) -> np.ndarray:
+        """Return x (n,) with ``A x = b``; A (n, n) CSC, b (n,). Raises LinearSolveError."""
+        ...
+
+
+def _import_cholmod() -> ModuleType | None:
+    """Import hook for ``sksparse.cholmod`` (tests monkeypatch it); None if unavailable."""
+    try:
+        from sksparse import cholmod
+    except ImportError:
+        return None
+    return cholmod
+
+
+def cholmod_available() -> bool:
+    """Whether ``sksparse.cholmod`` can be imported."""
+    return _import_cholmod() is not None
+
+
+def _check_system(A: sp.spmatrix, b: np.ndarray) -> tuple[sp.csc_matrix, np.ndarray]:
+    if not sp.issparse(A):
+        raise ValueError(f"A must be a scipy sparse matrix, got {type(A).__name__}")
+    if A.ndim != 2 or A.shape[0] != A.shape[1]:
+        raise ValueError(f"A must be square, got shape {A.shape}")
+    if not isinstance(A, sp.csc_matrix):
+        A = sp.csc_matrix(A)
+    b = np.ascontiguousarray(b, dtype=np.float64)
+    if b.shape != (A.shape[0],):
+        raise ValueError(f"b must have shape ({A.shape[0]},), got {b.shape}")
+    if not np.all(np.isfinite(A.data)):
+        raise LinearSolveError("matrix has non-finite entries")
+    if not np.all(np.isfinite(b)):
+        raise LinearSolveError("right-hand side has non-finite entries")
+    return A, b
+
+
+def _check_pivots(pivots: np.ndarray) -> None:
+    # A symmetric matrix is positive definite iff all pivots of its LDL^T factorisation are > 0.
+    bad = np.flatnonzero(~(pivots > 0.0))
+    if bad.size:
+        raise LinearSolveError(
+            f"matrix is not positive definite: {bad.size} non-positive pivot(s), smallest "
+            f"{np.min(pivots):.3e} (at permuted index {bad[0]})"
+        )
+
+
+class CholmodSolver:
+    """Sparse Cholesky with CHOLMOD, reusing the symbolic analysis across equal patterns.
+
+    Args:
+        mode: CHOLMOD factorisation mode, ``"auto"``, ``"simplicial"`` or ``"supernodal"``.
+        ordering_method: CHOLMOD fill-reducing ordering (``"default"``, ``"amd"``,
+            ``"metis"``, ``"nesdis"``, ``"colamd"``, ``"natural"``, ``"best"``).
+
+    Attributes:
+        n_symbolic: number of symbolic analyses performed.
+        n_numeric: number of numeric factorisations performed.
+        last_timings: seconds of the last call, keys ``analyze`` (pattern comparison plus
+            symbolic analysis; only the comparison when reused), ``factorize``, ``solve``.
+    """
+
+    def __init__(self, *, mode: str = "auto", ordering_method: str = "default") -> None:
+        cholmod = _import_cholmod()
+        if cholmod is None:
+            raise RuntimeError(CHOLMOD_INSTALL_HINT)
+        if mode not in ("auto", "simplicial", "supernodal"):
+            raise ValueError(
+                f"CholmodSolver mode must be 'auto', 'simplicial' or 'supernodal', got {mode!r}"
+            )
+        self._cholmod = cholmod
+        self.mode = mode
+        self.ordering_method = ordering_method
+        self.n_symbolic = 0
+        self.n_numeric = 0
+        self.last_timings = {"analyze": 0.0, "factorize": 0.0, "solve": 0.0}
+        self._factor = None
+        self._version: int | None = None
+        self._shape: tuple[int, int] | None = None
+        self._indptr: np.ndarray | None = None
+        self._indices: np.ndarray | None = None
+
+    def _same_pattern(self, A: sp.csc_matrix, pattern_version: int | None) -> bool:
+        if self._factor is None or A.shape != self._shape:
+            return False
+        if pattern_version is not None and pattern_version == self._version:
+            return True
+        return bool(
+            np.array_equal(A.indptr, self._indptr) and np.array_equal(A.indices, self._indices)
+        )
+
+    def solve(
+        self, A: sp.csc_matrix, b: np.ndarray, *, pattern_version: int | None = None
+    ) -> np.ndarray:
+        """Solve ``A x = b``.
+
+        Args:
+            A: symmetric positive definite matrix (n, n), CSC with sorted indices, full
+                (both triangles) or lower triangle.
+            b: right-hand side (n,).
+            pattern_version: id of A's sparsity pattern (from ``TripletAssembler``); equal ids
+                skip the pattern comparison.
+
+        Returns:
+            x (n,) float64.
+
+        Raises:
+            LinearSolveError: A not positive definite, or a non-finite input or solution.
+        """
+        A, b = _check_system(A, b)
+        if A.shape[0] == 0:
+            return np.zeros(0)
+        timings = {"analyze": 0.0, "factorize": 0.0, "solve": 0.0}
+        self.last_timings = timings
+        t0 = time.perf_counter()
+        if not self._same_pattern(A, pattern_version):
+            self._factor = self._cholmod.analyze(
+                A, mode=self.mode, ordering_method=self.ordering_method
+            )
+            self._shape = A.shape
+            self._indptr = A.indptr.copy()
+            self._indices = A.indices.copy()
+            self.n_symbolic += 1
+            logger.debug("CHOLMOD symbolic analysis of a %d x %d matrix", *A.shape)
+        self._version = pattern_version
+        t1 = time.perf_counter()
+        timings["analyze"] = t1 - t0
+        try:
+            self._factor.cholesky_inplace(A)
+            self.n_numeric += 1
+            _check_pivots(self._factor.D())
+        except (self._cholmod.CholmodError, LinearSolveError) as err:
+            # A failed numeric factorisation may leave the factor unusable: analyse afresh.
+            self._factor = None
+            timings["factorize"] = time.perf_counter() - t1
+            if isinstance(err, LinearSolveError):
+                raise
+            raise LinearSolveError(f"CHOLMOD factorisation failed: {err}") from err
+        t2 = time.perf_counter()
+        timings["factorize"] = t2 - t1
+        x = np.asarray(self._factor.solve_A(b), dtype=np.float64).reshape(-1)
+        timings["solve"] = time.perf_counter() - t2
+        if not np.all(np.isfinite(x)):
+            raise LinearSolveError("CHOLMOD solution has non-finite entries")
+        return x
+
+
+class ScipySolver:
+    """Fallback SPD solver: SuperLU (``scipy.sparse.linalg.splu``) in symmetric mode.
+
+    Every call orders and factorises afresh (SuperLU cannot reuse a symbolic analysis), so
+    ``n_symbolic == n_numeric``. The timings of the joint ordering + factorisation are
+    reported under ``factorize`` (``analyze`` stays 0).
+    """
+
+    def __init__(self) -> None:
+        self.n_symbolic = 0
+        self.n_numeric = 0
+        self.last_timings = {"analyze": 0.0, "factorize": 0.0, "solve": 0.0}
+
+    def solve(
+        self, A: sp.csc_matrix, b: np.ndarray, *, pattern_version: int | None = None
+    ) -> np.ndarray:
+        """Solve ``A x = b`` for a symmetric positive definite A (n, n) given in full (both
+        triangles; unlike CHOLMOD, SuperLU reads all entries), b (n,); see
+        :meth:`CholmodSolver.solve`. ``pattern_version`` is accepted and ignored."""
+        A, b = _check_system(A, b)
+        if A.shape[0] == 0:
+            return np.zeros(0)
+        timings = {"analyze": 0.0, "factorize": 0.0, "solve": 0.0}
+        self.last_timings = timings
+        t0 = time.perf_counter()
+        try:
+            # Symmetric mode with a zero pivot threshold keeps the pivots on the diagonal of
+            # the symmetrically permuted matrix, so diag(U) are the LDL^T pivots.
+            lu = spla.splu(
+                A,
+                permc_spec="MMD_AT_PLUS_A",
+                diag_pivot_thresh=0.0,
+                options={"SymmetricMode": True},
+            )
+        except RuntimeError as err:
+            timings["factorize"] = time.perf_counter() - t0
+            raise LinearSolveError(f"SuperLU factorisation failed: {err}") from err
+        self.n_symbolic += 1
+        self.n_numeric += 1
+        if not np.array_equal(lu.perm_r, lu.perm_c):
+            timings["factorize"] = time.perf_counter() - t0
+            raise LinearSolveError(
+                "matrix is not positive definite: SuperLU needed off-diagonal pivoting"
+            )
+        _check_pivots(lu.U.diagonal())
+        t1 = time.perf_counter()
+        timings["factorize"] = t1 - t0
+        x = lu.solve(b)
+        timings["solve"] = time.perf_counter() - t1
+        if not np.all(np.isfinite(x)):
+            raise LinearSolveError("SuperLU solution has non-finite entries")
+        return x
+
+
+def default_linear_solver() -> LinearSolver:
+    """A :class:`CholmodSolver` if scikit-sparse imports, else a :class:`ScipySolver`.
+
+    The fallback emits one ``RuntimeWarning`` per process (and logs it) naming scikit-sparse
+    and how to install it.
+    """
+    global _fallback_warned
+    if cholmod_available():
+        return CholmodSolver()
+    if not _fallback_warned:
+        _fallback_warned = True
+        logger.warning(CHOLMOD_INSTALL_HINT)
+        warnings.warn(CHOLMOD_INSTALL_HINT, RuntimeWarning, stacklevel=2)
+    return ScipySolver()

@@ -1,0 +1,381 @@
+"""Projected Newton minimisation with a feasible backtracking line search (BFEMP Algorithm 2).
+
+Each iteration at the iterate ``x`` (flattened DOFs, e.g. node positions in m):
+
+1. ``g = grad E(x)`` and the proxy matrix ``H`` = sum of the per-stencil Hessians projected to
+   PSD (``objective.hessian(x, psd=True)``), assembled with sparsity-pattern reuse;
+2. ``H p = -g`` on the free DOFs (fixed DOFs are eliminated: ``p = 0`` there), solved with
+   CHOLMOD whose symbolic analysis is reused while the pattern is unchanged;
+3. stop if ``||p||_inf / step_scale < tol`` (paper Sec. 5: with ``step_scale = dt`` the Newton
+   increment as a velocity, in m/s, a second-order estimate of the distance to the solution);
+   the test comes before the line search, so the returned ``x`` is the iterate where it held;
+4. if ``g.p >= 0`` (possible only without PSD projection) take ``p = -g`` instead;
+5. ``alpha0 = min(1, objective.max_step_size(x, p))`` (CCD / first ``det F = 0``; the paper's
+   0.9 safety factor belongs to the objective) and Armijo backtracking from there.
+
+After a full step (alpha = 1) the next iteration first tries the exact Hessian
+(``NewtonOptions.exact_near_solution``): per-stencil projection changes the Hessian even where
+the global one is positive definite, which would make the final convergence linear. If the exact
+Hessian is not positive definite or gives no descent, projection is used for the rest of the solve.
+
+Choices not fixed by the paper: the convergence test is repeated at the iterate reached after
+``max_iter`` steps (so ``max_iter`` steps may still end ``CONVERGED``); a failed line search
+calls ``objective.solution_changed(x)`` again so the objective's caches match the returned
+``x``; a non-finite energy, gradient or Hessian at an accepted iterate ends the run with
+``NON_FINITE``, while a non-finite trial energy just makes the line search backtrack.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from typing import Protocol
+
+import numpy as np
+
+from solvers.assembly import TripletAssembler, Triplets
+from solvers.line_search import LineSearchResult, backtracking_line_search
+from solvers.linear import LinearSolveError, LinearSolver, default_linear_solver
+from solvers.options import NewtonOptions
+from solvers.result import NewtonIteration, NewtonResult, NewtonStatus
+
+__all__ = ["Objective", "minimize"]
+
+logger = logging.getLogger(__name__)
+
+
+class Objective(Protocol):
+    """The energy contract :func:`minimize` relies on (units: J for E, x in m typically).
+
+    An optional attribute ``fixed_dofs: np.ndarray | None`` (bool mask (n,)) marks DOFs held at
+    their ``x0`` value; it is read with ``getattr(objective, "fixed_dofs", None)``.
+    """
+
+    def solution_changed(self, x: np.ndarray) -> None:
+        """Called once per new iterate x (n,) (line-search trials too), before value/gradient/
+        hessian at that x: refresh x-dependent caches."""
+        ...
+
+    def value(self, x: np.ndarray) -> float:
+        """Energy E(x); may be inf outside the feasible set."""
+        ...
+
+    def gradient(self, x: np.ndarray) -> np.ndarray:
+        """dE/dx (n,)."""
+        ...
+
+    def hessian(self, x: np.ndarray, psd: bool) -> Triplets:
+        """d2E/dx2 as COO triplets (full symmetric), per-stencil PSD-projected when ``psd``."""
+        ...
+
+    def max_step_size(self, x: np.ndarray, p: np.ndarray) -> float:
+        """Largest feasible step along p (n,) from x: a value in (0, 1], or larger."""
+        ...
+
+
+@contextmanager
+def _timed(timings: dict[str, float], key: str) -> Iterator[None]:
+    start = time.perf_counter()
+    try:
+        yield
+    finally:
+        timings[key] += time.perf_counter() - start
+
+
+def _check_x0(x0: np.ndarray) -> np.ndarray:
+    x = np.array(x0, dtype=np.float64, order="C", copy=True)
+    if x.ndim != 1:
+        raise ValueError(f"x0 must be 1-D (n,), got shape {x.shape}")
+    bad = np.flatnonzero(~np.isfinite(x))
+    if bad.size:
+        raise ValueError(f"x0 has non-finite entries at indices {bad[:10].tolist()}")
+    return x
+
+
+def _free_mask(objective: Objective, n: int) -> np.ndarray | None:
+    fixed = getattr(objective, "fixed_dofs", None)
+    if fixed is None:
+        return None
+    fixed = np.asarray(fixed)
+    if fixed.dtype != np.bool_ or fixed.shape != (n,):
+        raise ValueError(
+            f"objective.fixed_dofs must be a bool mask of shape ({n},), "
+            f"got dtype {fixed.dtype} and shape {fixed.shape}"
+        )
+    return None if not fixed.any() else ~fixed
+
+
+def _solve(
+    solver: LinearSolver,
+    assembler: TripletAssembler,
+    triplets: Triplets,
+    rhs: np.ndarray,
+    timings: dict[str, float],
+) -> np.ndarray:
+    with _timed(timings, "assemble"):
+        matrix = assembler.assemble(triplets)
+    if rhs.size == 0:
+        return np.zeros(0)
+    start = time.perf_counter()
+    try:
+        return np.asarray(
+            solver.solve(matrix, rhs, pattern_version=assembler.pattern_version), dtype=np.float64
+        )
+    finally:
+        phases = getattr(solver, "last_timings", None)
+        if isinstance(phases, dict):
+            for key in ("analyze", "factorize", "solve"):
+                timings[key] += float(phases.get(key, 0.0))
+        else:
+            timings["solve"] += time.perf_counter() - start
+
+
+class _NonFiniteHessian(Exception):
+    pass
+
+
+#: Energy changes below this many machine epsilons of |E| are round-off (terms cancel).
+_ROUND_OFF_ULPS = 1e4
+
+
+def _accept_at_round_off(
+    objective: Objective,
+    x: np.ndarray,
+    p: np.ndarray,
+    alpha0: float,
+    energy: float,
+    slope: float,
+    g_free: np.ndarray,
+    free: np.ndarray | None,
+    res: NewtonResult,
+) -> LineSearchResult | None:
+    """Accept ``x + alpha0 p`` when the energy cannot resolve the step but the gradient falls.
+
+    Near a minimiser a Newton step predicts an energy decrease ~ |g.p| that may be below the
+    round-off of E; then no trial passes the Armijo test although the step is good. In that
+    regime (|g.p| alpha0 <= 1e4 eps |E|) the gradient norm is the merit function instead.
+    """
+    if abs(slope) * alpha0 > _ROUND_OFF_ULPS * np.finfo(float).eps * abs(energy):
+        return None
+    trial = x + alpha0 * p
+    objective.solution_changed(trial)
+    fun = float(objective.value(trial))
+    grad = np.asarray(objective.gradient(trial), dtype=np.float64)
+    res.njev += 1
+    g_trial = grad if free is None else grad[free]
+    if not (math.isfinite(fun) and np.all(np.isfinite(g_trial))):
+        return None
+    if np.linalg.norm(g_trial) >= np.linalg.norm(g_free):
+        return None
+    logger.debug("newton: energy at round-off, step accepted on the gradient norm")
+    return LineSearchResult(success=True, alpha=alpha0, x=trial, fun=fun, nfev=1, n_nonfinite=0)
+
+
+def _newton_direction(
+    objective: Objective,
+    x: np.ndarray,
+    exact: bool,
+    solver: LinearSolver,
+    assembler: TripletAssembler,
+    g_free: np.ndarray,
+    timings: dict[str, float],
+    res: NewtonResult,
+) -> np.ndarray:
+    """Solve ``H p = -g`` on the free DOFs with the exact (or per-stencil projected) Hessian."""
+    with _timed(timings, "hessian"):
+        triplets = objective.hessian(x, psd=not exact)
+    res.nhev += 1
+    if not isinstance(triplets, Triplets):
+        raise ValueError(f"objective.hessian must return Triplets, got {type(triplets)}")
+    if not np.all(np.isfinite(triplets.vals)):
+        raise _NonFiniteHessian
+    return _solve(solver, assembler, triplets, -g_free, timings)
+
+
+def minimize(
+    objective: Objective,
+    x0: np.ndarray,
+    *,
+    options: NewtonOptions | None = None,
+    linear_solver: LinearSolver | None = None,
+    callback: Callable[[NewtonIteration], bool | None] | None = None,
+) -> NewtonResult:
+    """Minimise ``objective`` from ``x0`` with projected Newton and a feasible line search.
+
+    Args:
+        objective: implements :class:`Objective` (optionally ``fixed_dofs``).
+        x0: initial guess (n,), finite, in the units of the unknowns (m for positions); it is
+            feasible (finite energy) for a meaningful run and is not modified.
+        options: solver options (defaults: ``NewtonOptions()``).
+        linear_solver: SPD solver; default :func:`solvers.linear.default_linear_solver`. Pass
+            the same instance across calls to keep its symbolic factorisation.
+        callback: called after each accepted iterate with a :class:`NewtonIteration`;
+            returning True or raising StopIteration stops with ``CALLBACK_STOP``.
+
+    Returns:
+        :class:`NewtonResult`; ``success`` is False, with ``status`` and ``message`` saying
+        why, on every failure.
+    """
+    t_start = time.perf_counter()
+    if options is None:
+        options = NewtonOptions()
+    elif not isinstance(options, NewtonOptions):
+        raise ValueError(f"options must be NewtonOptions, got {type(options).__name__}")
+    x = _check_x0(x0)
+    n = x.size
+    free = _free_mask(objective, n)
+    solver = default_linear_solver() if linear_solver is None else linear_solver
+    assembler = TripletAssembler(n, free=free)
+    res = NewtonResult(x=x, success=False, status=NewtonStatus.MAX_ITERATIONS, message="")
+    timings = res.timings
+
+    def finish(status: NewtonStatus, detail: str) -> NewtonResult:
+        res.status = status
+        res.success = status == NewtonStatus.CONVERGED
+        res.message = f"{status.description}: {detail}"
+        timings["total"] = time.perf_counter() - t_start
+        log = logger.debug if res.success else logger.info
+        log("newton %s after %d iterations (%s)", status.name, res.nit, detail)
+        return res
+
+    with _timed(timings, "line_search"):
+        objective.solution_changed(x)
+        energy = float(objective.value(x))
+    res.nfev += 1
+    res.fun = energy
+    if not math.isfinite(energy):
+        return finish(NewtonStatus.NON_FINITE, f"energy at x0 is {energy}")
+
+    try_exact = exact_failed = False
+    while True:
+        with _timed(timings, "gradient"):
+            grad = np.asarray(objective.gradient(x), dtype=np.float64)
+        res.njev += 1
+        if grad.shape != (n,):
+            raise ValueError(f"objective.gradient returned shape {grad.shape}, expected ({n},)")
+        res.jac = grad
+        g_free = grad if free is None else grad[free]
+        if not np.all(np.isfinite(g_free)):
+            return finish(NewtonStatus.NON_FINITE, f"non-finite gradient at iteration {res.nit}")
+        exact = try_exact and not exact_failed
+        try:
+            p_free = _newton_direction(
+                objective,
+                x,
+                exact or not options.project_psd,
+                solver,
+                assembler,
+                g_free,
+                timings,
+                res,
+            )
+            if exact and not float(g_free @ p_free) < 0.0:
+                raise LinearSolveError("exact Hessian gives no descent direction")
+        except LinearSolveError as err:
+            if not exact:
+                return finish(NewtonStatus.LINEAR_SOLVE_FAILED, f"{err} (iteration {res.nit})")
+            # The exact Hessian is indefinite here: projected Newton for the rest of the solve.
+            logger.debug("newton it %d: exact Hessian rejected (%s), projecting", res.nit, err)
+            exact_failed = True
+            try:
+                p_free = _newton_direction(
+                    objective, x, False, solver, assembler, g_free, timings, res
+                )
+            except LinearSolveError as err2:
+                return finish(NewtonStatus.LINEAR_SOLVE_FAILED, f"{err2} (iteration {res.nit})")
+        except _NonFiniteHessian:
+            return finish(NewtonStatus.NON_FINITE, f"non-finite Hessian at iteration {res.nit}")
+        if not np.all(np.isfinite(p_free)):
+            return finish(
+                NewtonStatus.LINEAR_SOLVE_FAILED, f"non-finite Newton step at iteration {res.nit}"
+            )
+        p_inf = float(np.abs(p_free).max()) if p_free.size else 0.0
+        res.step_inf_norm = p_inf
+        if p_inf / options.step_scale < options.tol:
+            return finish(
+                NewtonStatus.CONVERGED,
+                f"||p||_inf / step_scale = {p_inf / options.step_scale:.3e} < tol = "
+                f"{options.tol:.3e}, E = {energy:.10e}",
+            )
+        if res.nit >= options.max_iter:
+            return finish(
+                NewtonStatus.MAX_ITERATIONS,
+                f"max_iter = {options.max_iter}, ||p||_inf / step_scale = "
+                f"{p_inf / options.step_scale:.3e} >= tol = {options.tol:.3e}",
+            )
+
+        slope = float(g_free @ p_free)
+        if not slope < 0.0:
+            # H not positive definite (no projection): fall back to steepest descent.
+            logger.debug("newton it %d: g.p = %.3e >= 0, using -g", res.nit, slope)
+            p_free = -g_free
+            slope = -float(g_free @ g_free)
+            if not slope < 0.0:
+                return finish(
+                    NewtonStatus.LINE_SEARCH_STALLED,
+                    f"no descent direction: zero gradient but ||p||_inf = {p_inf:.3e}",
+                )
+        if free is None:
+            p = p_free
+        else:
+            p = np.zeros(n)
+            p[free] = p_free
+        with _timed(timings, "step_bound"):
+            bound = float(objective.max_step_size(x, p))
+        if not bound > 0.0:
+            return finish(
+                NewtonStatus.LINE_SEARCH_STALLED,
+                f"max_step_size returned {bound} at iteration {res.nit} (no feasible step)",
+            )
+        alpha0 = min(1.0, bound)
+        with _timed(timings, "line_search"):
+            search = _accept_at_round_off(objective, x, p, alpha0, energy, slope, g_free, free, res)
+            if search is None:
+                search = backtracking_line_search(
+                    objective,
+                    x,
+                    p,
+                    energy,
+                    slope,
+                    alpha0,
+                    armijo_c=options.armijo_c,
+                    backtrack_factor=options.backtrack_factor,
+                    min_step=options.min_step,
+                )
+        res.nfev += search.nfev
+        if not search.success:
+            objective.solution_changed(x)
+            return finish(
+                NewtonStatus.LINE_SEARCH_STALLED,
+                f"alpha = {search.alpha:.3e} < min_step = {options.min_step:.3e} at iteration "
+                f"{res.nit} with ||p||_inf = {p_inf:.3e}, alpha0 = {alpha0:.3e}, "
+                f"E = {energy:.10e}, g.p = {slope:.3e}, {search.n_nonfinite} non-finite trial(s)",
+            )
+        x = search.x
+        energy = search.fun
+        res.nit += 1
+        try_exact = options.project_psd and options.exact_near_solution and search.alpha == 1.0
+        res.alphas.append(search.alpha)
+        res.x = x
+        res.fun = energy
+        res.jac = None
+        logger.debug(
+            "newton it %d: E = %.12e, ||p||_inf = %.3e, alpha = %.3e (alpha0 = %.3e, %d trials)",
+            res.nit,
+            energy,
+            p_inf,
+            search.alpha,
+            alpha0,
+            search.nfev,
+        )
+        if callback is not None:
+            info = NewtonIteration(x.copy(), energy, res.nit, p_inf, search.alpha)
+            try:
+                stop = bool(callback(info))
+            except StopIteration:
+                stop = True
+            if stop:
+                return finish(NewtonStatus.CALLBACK_STOP, f"at iteration {res.nit}")

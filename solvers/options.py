@@ -1,0 +1,81 @@
+"""Options of the projected Newton solver (:func:`solvers.newton.minimize`).
+
+The stopping rule is the one of the BFEMP paper (Sec. 5, Algorithm 2, line 13): the Newton
+increment ``p`` (in metres, an update of node positions) divided by the time step ``dt`` is a
+velocity, and the solve stops when ``||p||_inf / dt < eps_d`` with ``eps_d`` in m/s.  Here
+``step_scale`` plays the role of ``dt`` and ``tol`` the role of ``eps_d``; with the defaults
+(``step_scale = 1``) the test is on ``||p||_inf`` itself, in the units of ``x``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+__all__ = ["NewtonOptions"]
+
+
+def _check_positive_finite(name: str, value: float) -> None:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ValueError(f"NewtonOptions.{name} must be a real number, got {value!r}")
+    if not math.isfinite(value) or value <= 0.0:
+        raise ValueError(f"NewtonOptions.{name} must be finite and > 0, got {value!r}")
+
+
+@dataclass(frozen=True, kw_only=True)
+class NewtonOptions:
+    """Projected Newton options; all fields are validated on construction.
+
+    Attributes:
+        tol: stop when ``||p||_inf / step_scale < tol`` (> 0). With ``step_scale = dt`` in s
+            this is the paper's ``eps_d`` in m/s.
+        step_scale: divisor of the increment in the stopping rule (> 0), the time step ``dt``
+            in s for the paper's criterion; 1 makes ``tol`` an increment in the units of ``x``.
+        max_iter: maximal number of accepted Newton iterations (>= 1).
+        armijo_c: sufficient-decrease constant ``c`` in ``E(x + a p) <= E(x) + c a g.p``,
+            in [0, 1). 0 gives the paper's plain ``E(x + a p) <= E(x)``.
+        backtrack_factor: step-size reduction per rejected trial, in (0, 1) (paper: 1/2).
+        min_step: the line search gives up (status ``LINE_SEARCH_STALLED``) once the step
+            size falls below this value, in (0, 1].
+        project_psd: ask the objective for PSD-projected Hessians (projected Newton). With
+            ``False`` the exact Hessian is used and must be positive definite for CHOLMOD.
+        exact_near_solution: with ``project_psd``, after a full step (alpha = 1) try the exact
+            Hessian next: per-stencil projection alters the Hessian even where the global one
+            is positive definite and turns Newton's quadratic convergence into a linear one.
+            If the exact Hessian is not positive definite (or gives no descent) the projected
+            one is used for the rest of the solve.
+    """
+
+    tol: float = 1e-6
+    step_scale: float = 1.0
+    max_iter: int = 200
+    armijo_c: float = 1e-4
+    backtrack_factor: float = 0.5
+    min_step: float = 1e-12
+    project_psd: bool = True
+    exact_near_solution: bool = True
+
+    def __post_init__(self) -> None:
+        _check_positive_finite("tol", self.tol)
+        _check_positive_finite("step_scale", self.step_scale)
+        if isinstance(self.max_iter, bool) or not isinstance(self.max_iter, int):
+            raise ValueError(f"NewtonOptions.max_iter must be an int, got {self.max_iter!r}")
+        if self.max_iter < 1:
+            raise ValueError(f"NewtonOptions.max_iter must be >= 1, got {self.max_iter}")
+        if isinstance(self.armijo_c, bool) or not isinstance(self.armijo_c, (int, float)):
+            raise ValueError(f"NewtonOptions.armijo_c must be a real number, got {self.armijo_c!r}")
+        if not 0.0 <= self.armijo_c < 1.0:
+            raise ValueError(f"NewtonOptions.armijo_c must be in [0, 1), got {self.armijo_c!r}")
+        _check_positive_finite("backtrack_factor", self.backtrack_factor)
+        if self.backtrack_factor >= 1.0:
+            raise ValueError(
+                f"NewtonOptions.backtrack_factor must be in (0, 1), got {self.backtrack_factor!r}"
+            )
+        _check_positive_finite("min_step", self.min_step)
+        if self.min_step > 1.0:
+            raise ValueError(f"NewtonOptions.min_step must be in (0, 1], got {self.min_step!r}")
+        for name in ("project_psd", "exact_near_solution"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(
+                    f"NewtonOptions.{name} must be a bool, got {getattr(self, name)!r}"
+                )

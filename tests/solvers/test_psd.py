@@ -1,0 +1,60 @@
+"""PSD projection of stacks of symmetric blocks."""
+
+import numpy as np
+import pytest
+
+from solvers.psd import is_symmetric_psd, project_psd
+
+
+def _random_symmetric(rng, s, n):
+    a = rng.standard_normal((s, n, n))
+    return 0.5 * (a + a.transpose(0, 2, 1))
+
+
+@pytest.mark.parametrize("n", [2, 3, 6, 9])
+def test_projection_is_symmetric_psd_and_keeps_eigenvectors(n):
+    rng = np.random.default_rng(n)
+    blocks = _random_symmetric(rng, 50, n)
+    assert not is_symmetric_psd(blocks)
+    out = project_psd(blocks)
+    assert out.shape == blocks.shape and out.dtype == np.float64 and out.flags.c_contiguous
+    np.testing.assert_array_equal(out, out.transpose(0, 2, 1))
+    assert is_symmetric_psd(out, rtol=1e-12)
+    w, v = np.linalg.eigh(blocks)
+    # Each eigenvector of the input is an eigenvector of the output, eigenvalue max(w, 0).
+    out_v = out @ v
+    np.testing.assert_allclose(out_v, v * np.maximum(w, 0.0)[:, None, :], atol=1e-12)
+    # Closest PSD matrix in Frobenius norm: the discarded part is exactly the negative spectrum.
+    removed = np.linalg.norm(out - blocks, axis=(1, 2))
+    np.testing.assert_allclose(removed, np.sqrt((np.minimum(w, 0.0) ** 2).sum(axis=1)), rtol=1e-10)
+
+
+def test_psd_input_is_unchanged_and_input_not_modified():
+    rng = np.random.default_rng(7)
+    a = rng.standard_normal((20, 4, 4))
+    psd = a @ a.transpose(0, 2, 1)
+    copy = psd.copy()
+    out = project_psd(psd)
+    np.testing.assert_array_equal(out, psd)
+    np.testing.assert_array_equal(psd, copy)
+    assert out is not psd
+
+
+def test_eps_clamps_eigenvalues_from_below():
+    blocks = np.array([np.diag([-3.0, 0.5, 2.0]), np.diag([1.0, 1.0, 1.0])])
+    out = project_psd(blocks, eps=1.0)
+    np.testing.assert_allclose(np.linalg.eigvalsh(out), [[1.0, 1.0, 2.0], [1.0, 1.0, 1.0]])
+
+
+def test_empty_stack_and_bad_input():
+    assert project_psd(np.zeros((0, 3, 3))).shape == (0, 3, 3)
+    with pytest.raises(ValueError, match="square"):
+        project_psd(np.zeros((2, 3, 2)))
+    with pytest.raises(ValueError, match="eps"):
+        project_psd(np.zeros((1, 2, 2)), eps=-1.0)
+
+
+def test_is_symmetric_psd_rejects_asymmetric():
+    blocks = np.array([[[2.0, 1.0], [0.0, 2.0]]])
+    assert not is_symmetric_psd(blocks)
+    assert is_symmetric_psd(np.array([[[2.0, 1.0], [1.0, 2.0]]]))
