@@ -1,0 +1,182 @@
+"""PNG plots of run metrics and benchmark series.
+
+Figures are built with ``matplotlib.figure.Figure`` on an Agg canvas: importing this module or
+plotting never selects a pyplot backend or touches pyplot's global figure registry, so it works
+headless and inside applications that use another backend. Files are written atomically.
+
+Groups of metrics columns are lists of names or ``fnmatch`` patterns (``"energy_*"``). The default
+groups are: energies (``energy_*``), momenta (``momentum_*``), Newton iterations
+(``newton_iterations``) and timings (``time_*``). A group none of whose columns is in the log is
+skipped; the ``x`` column itself is never plotted as a series.
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import logging
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from bfemp.io.metrics import MetricsLog
+from bfemp.io.vtk import atomic_path
+
+logger = logging.getLogger(__name__)
+
+DEFAULT_GROUPS: Mapping[str, tuple[str, ...]] = {
+    "energies": ("energy_*",),
+    "momenta": ("momentum_*",),
+    "newton_iterations": ("newton_iterations",),
+    "timings": ("time_*",),
+}
+
+_DPI = 110
+
+
+def _resolve_groups(
+    columns: Sequence[str], groups: Mapping[str, Sequence[str]], x: str | None
+) -> dict[str, list[str]]:
+    """Expand the patterns of each group against ``columns``; drop empty groups."""
+    if not isinstance(groups, Mapping):
+        raise ValueError("groups must be a mapping group name -> list of columns/patterns")
+    resolved: dict[str, list[str]] = {}
+    for group, patterns in groups.items():
+        if isinstance(patterns, str) or not isinstance(patterns, Sequence) or not patterns:
+            raise ValueError(f"groups[{group!r}] must be a non-empty list of column names")
+        names: list[str] = []
+        for pattern in patterns:
+            if not isinstance(pattern, str):
+                raise ValueError(f"groups[{group!r}] holds {pattern!r}, not a column name")
+            names += [c for c in columns if fnmatch.fnmatchcase(c, pattern) and c not in names]
+        names = [c for c in names if c != x]
+        if names:
+            resolved[str(group)] = names
+        else:
+            logger.debug("metrics plot: group %r has no columns in the log, skipped", group)
+    return resolved
+
+
+def _save_png(fig: Figure, path: str | Path) -> Path:
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=_DPI)
+    return path
+
+
+def metrics_figure(
+    log: MetricsLog,
+    *,
+    x: str | None = "t",
+    groups: Mapping[str, Sequence[str]] | None = None,
+    title: str | None = None,
+) -> Figure:
+    """Figure with one subplot per group of metrics columns, sharing the x axis.
+
+    Args:
+        log: the metrics table, at least one row.
+        x: column for the abscissa (default time ``t`` [s]); ``None`` plots against the row index.
+        groups: group title -> column names or ``fnmatch`` patterns; default :data:`DEFAULT_GROUPS`.
+        title: figure title.
+
+    Returns:
+        the figure (Agg canvas attached), one axes per group that has columns in ``log``.
+    """
+    if not isinstance(log, MetricsLog):
+        raise ValueError(f"log must be a MetricsLog, got {type(log).__name__}")
+    if len(log) == 0:
+        raise ValueError("log is empty: nothing to plot")
+    if x is not None and x not in log:
+        raise ValueError(f"x column {x!r} is not in the log; columns are {log.columns}")
+    resolved = _resolve_groups(log.columns, DEFAULT_GROUPS if groups is None else groups, x)
+    if not resolved:
+        raise ValueError(f"no column of the log matches any group; columns are {log.columns}")
+    x_values = np.arange(len(log)) if x is None else log.column(x)
+    fig = Figure(figsize=(8.0, 2.4 * len(resolved) + 0.8), layout="constrained")
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(len(resolved), 1, sharex=True, squeeze=False)[:, 0]
+    marker = "." if len(log) <= 200 else None
+    for ax, (group, names) in zip(axes, resolved.items(), strict=True):
+        for name in names:
+            ax.plot(x_values, log.column(name), marker=marker, label=name)
+        ax.set_title(group.replace("_", " "), fontsize="medium")
+        ax.grid(True, alpha=0.3)
+        if len(names) > 1 or names[0] != group:
+            ax.legend(fontsize="small")
+    axes[-1].set_xlabel("step" if x is None else x)
+    if title:
+        fig.suptitle(title)
+    return fig
+
+
+def plot_metrics(
+    log: MetricsLog,
+    path: str | Path,
+    *,
+    x: str | None = "t",
+    groups: Mapping[str, Sequence[str]] | None = None,
+    title: str | None = None,
+) -> Path:
+    """Write a PNG of the metrics (see :func:`metrics_figure` for the arguments).
+
+    Returns:
+        the path written.
+    """
+    return _save_png(metrics_figure(log, x=x, groups=groups, title=title), path)
+
+
+def plot_series(
+    x: np.ndarray,
+    ys: Mapping[str, np.ndarray],
+    path: str | Path,
+    xlabel: str = "",
+    ylabel: str = "",
+    title: str | None = None,
+    logy: bool = False,
+    *,
+    logx: bool = False,
+) -> Path:
+    """Write a PNG of several named curves over one abscissa (benchmark plots).
+
+    Args:
+        x: ``(N,)`` abscissa values (units per ``xlabel``).
+        ys: label -> ``(N,)`` ordinate values; at least one series.
+        path: the PNG file.
+        xlabel, ylabel, title: axis labels and title.
+        logy, logx: logarithmic axes; non-positive values are not drawn on a log axis.
+
+    Returns:
+        the path written.
+    """
+    x = np.asarray(x, dtype=np.float64)
+    if x.ndim != 1 or x.size == 0:
+        raise ValueError(f"x must have shape (N,) with N >= 1, got {x.shape}")
+    if not isinstance(ys, Mapping) or not ys:
+        raise ValueError("ys must be a non-empty mapping label -> (N,) array")
+    series = {}
+    for label, y in ys.items():
+        y = np.asarray(y, dtype=np.float64)
+        if y.shape != x.shape:
+            raise ValueError(f"ys[{label!r}] has shape {y.shape}, expected {x.shape} like x")
+        if logy and np.any(y <= 0.0):
+            logger.warning("plot_series: ys[%r] has non-positive values, hidden on log axis", label)
+        series[str(label)] = y
+    fig = Figure(figsize=(6.4, 4.4), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    marker = "o" if x.size <= 50 else None
+    for label, y in series.items():
+        ax.plot(x, y, marker=marker, label=label)
+    if logy:
+        ax.set_yscale("log")
+    if logx:
+        ax.set_xscale("log")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    if title:
+        ax.set_title(title)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize="small")
+    return _save_png(fig, path)
