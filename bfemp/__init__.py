@@ -1,1 +1,43 @@
-"""bfemp: coupled MPM-FEM simulation of elastic bodies in contact."""
+"""bfemp: coupled MPM-FEM simulation of elastic bodies in contact.
+
+User code imports this package only::
+
+    import bfemp
+    scene = bfemp.Scene(dim=2, gravity=(0.0, -9.81))
+    beam = scene.add_fem(bfemp.shapes.rectangle((0, 0), (4, 0.5), h=0.125),
+                         material=bfemp.NeoHookean(E=5e7, nu=0.3, density=1000.0))
+    sim = bfemp.Simulation(scene, integrator="newmark", dt=1e-2)
+    sim.run(t_end=1.0, out="out/beam")
+"""
+
+import logging
+
+from bfemp import motion, shapes
+from bfemp.integrators import BACKWARD_EULER, NEWMARK, Integrator
+from bfemp.materials import LinearElastic, NeoHookean
+from bfemp.model import FemBody, Model
+from bfemp.scene import Scene
+from bfemp.simulation import Simulation
+from bfemp.state import State
+from bfemp.steppers import StepError, StepReport
+
+logging.getLogger(__name__).addHandler(logging.NullHandler())
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "BACKWARD_EULER",
+    "NEWMARK",
+    "FemBody",
+    "Integrator",
+    "LinearElastic",
+    "Model",
+    "NeoHookean",
+    "Scene",
+    "Simulation",
+    "State",
+    "StepError",
+    "StepReport",
+    "motion",
+    "shapes",
+]

@@ -180,3 +180,43 @@ def plot_series(
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize="small")
     return _save_png(fig, path)
+
+
+def plot_bars(
+    labels: Sequence[str],
+    groups: Mapping[str, Sequence[float]],
+    path: str | Path,
+    *,
+    ylabel: str = "",
+    title: str | None = None,
+    logy: bool = False,
+) -> Path:
+    """Write a PNG of grouped bars: one group per label, one bar per series (benchmark timings).
+
+    Args:
+        labels: ``(K,)`` category names.
+        groups: series name -> ``(K,)`` values (NaN bars are left out).
+        path: the PNG file.
+    """
+    if not labels or not groups:
+        raise ValueError("plot_bars needs at least one label and one series")
+    k = len(labels)
+    for name, values in groups.items():
+        if len(values) != k:
+            raise ValueError(f"groups[{name!r}] has {len(values)} values, expected {k}")
+    fig = Figure(figsize=(6.4, 4.4), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    width = 0.8 / len(groups)
+    base = np.arange(k)
+    for i, (name, values) in enumerate(groups.items()):
+        ax.bar(base + i * width, np.asarray(values, dtype=np.float64), width, label=name)
+    ax.set_xticks(base + 0.4 - width / 2, labels)
+    if logy:
+        ax.set_yscale("log")
+    ax.set_ylabel(ylabel)
+    if title:
+        ax.set_title(title)
+    ax.grid(True, axis="y", alpha=0.3)
+    ax.legend(fontsize="small")
+    return _save_png(fig, path)

@@ -139,26 +139,33 @@ class _NonFiniteHessian(Exception):
 
 #: Energy changes below this many machine epsilons of |E| are round-off (terms cancel).
 _ROUND_OFF_ULPS = 1e4
+#: Within this factor of the tolerance a Newton step is judged by the gradient, not the energy.
+_NEAR_SOLUTION_FACTOR = 1e3
 
 
-def _accept_at_round_off(
+def _accept_near_solution(
     objective: Objective,
     x: np.ndarray,
     p: np.ndarray,
     alpha0: float,
     energy: float,
     slope: float,
+    near: bool,
     g_free: np.ndarray,
     free: np.ndarray | None,
     res: NewtonResult,
 ) -> LineSearchResult | None:
-    """Accept ``x + alpha0 p`` when the energy cannot resolve the step but the gradient falls.
+    """Accept ``x + alpha0 p`` on a falling gradient norm where the energy cannot judge the step.
 
-    Near a minimiser a Newton step predicts an energy decrease ~ |g.p| that may be below the
-    round-off of E; then no trial passes the Armijo test although the step is good. In that
-    regime (|g.p| alpha0 <= 1e4 eps |E|) the gradient norm is the merit function instead.
+    Close to a minimiser a Newton step predicts an energy decrease ~ |g.p| that can be smaller
+    than the round-off of E (the terms of E are evaluated with errors ~ eps times their own
+    scale, e.g. eps mu V for elasticity, much larger than eps |E|). Armijo then rejects good steps
+    or accepts tiny noisy ones and the iteration stalls. In that regime - the increment within
+    ``_NEAR_SOLUTION_FACTOR`` of the tolerance (``near``), or |g.p| below ``_ROUND_OFF_ULPS`` eps
+    |E| - the full step is taken when the gradient norm falls; otherwise None (use Armijo).
     """
-    if abs(slope) * alpha0 > _ROUND_OFF_ULPS * np.finfo(float).eps * abs(energy):
+    round_off = abs(slope) * alpha0 <= _ROUND_OFF_ULPS * np.finfo(float).eps * abs(energy)
+    if not (near or round_off):
         return None
     trial = x + alpha0 * p
     objective.solution_changed(trial)
@@ -170,7 +177,7 @@ def _accept_at_round_off(
         return None
     if np.linalg.norm(g_trial) >= np.linalg.norm(g_free):
         return None
-    logger.debug("newton: energy at round-off, step accepted on the gradient norm")
+    logger.debug("newton: near the solution, full step accepted on the gradient norm")
     return LineSearchResult(success=True, alpha=alpha0, x=trial, fun=fun, nfev=1, n_nonfinite=0)
 
 
@@ -332,7 +339,10 @@ def minimize(
             )
         alpha0 = min(1.0, bound)
         with _timed(timings, "line_search"):
-            search = _accept_at_round_off(objective, x, p, alpha0, energy, slope, g_free, free, res)
+            near = p_inf <= _NEAR_SOLUTION_FACTOR * options.tol * options.step_scale
+            search = _accept_near_solution(
+                objective, x, p, alpha0, energy, slope, near, g_free, free, res
+            )
             if search is None:
                 search = backtracking_line_search(
                     objective,

@@ -139,3 +139,12 @@ def test_plotting_does_not_import_pyplot(tmp_path):
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert result.returncode == 0, result.stderr
     assert (tmp_path / "a.png").read_bytes()[:8] == PNG_MAGIC
+
+
+def test_plot_bars_writes_a_png_and_rejects_mismatched_groups(tmp_path):
+    from bfemp.plotting import plot_bars
+
+    path = plot_bars(["a", "b"], {"x": [1.0, 2.0], "y": [0.5, float("nan")]}, tmp_path / "b.png")
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    with pytest.raises(ValueError, match="groups\\['x'\\]"):
+        plot_bars(["a", "b"], {"x": [1.0]}, tmp_path / "c.png")

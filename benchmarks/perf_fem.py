@@ -1,0 +1,163 @@
+"""Per-Newton-iteration cost of the implicit FEM core on large meshes (issue: implicit FEM core).
+
+Cases (full mode): a 3D box of ~50k tetrahedra and a 2D rectangle of ~100k triangles, Neo-Hookean,
+bottom face clamped, under gravity, one backward-Euler step with a large dt so that Newton takes
+several iterations of large deformation. Quick mode uses ~8k tets / ~16k triangles.
+
+Recorded per case:
+- ``assembly``: value + gradient + projected Hessian (local blocks) + triplet-to-CSC build, at one
+  iterate, median of repeats; ``factorize``: CHOLMOD numeric factorisation of the same matrix;
+  ``analyze``: CHOLMOD symbolic analysis; ``solve``: triangular solves;
+- the Newton step's own timing split (assemble, factorize, line search, ...) and iteration count;
+- ``symbolic_saved_s``: symbolic analyses avoided by reuse times the analysis cost.
+Target: assembly < factorisation.
+"""
+
+from __future__ import annotations
+
+import statistics
+import time
+from pathlib import Path
+
+import numpy as np
+
+import bfemp
+from benchmarks.common import environment, peak_memory_mb, write_json
+from bfemp.integrators import BACKWARD_EULER
+from bfemp.plotting import plot_bars
+from bfemp.steppers.implicit import ImplicitStepper
+from solvers.assembly import TripletAssembler
+from solvers.linear import CholmodSolver, cholmod_available, default_linear_solver
+from solvers.options import NewtonOptions
+
+CASES = {
+    "full": {"3d": dict(n=(24, 12, 12)), "2d": dict(n=(448, 112))},
+    "quick": {"3d": dict(n=(16, 8, 8)), "2d": dict(n=(160, 40))},
+}
+
+
+def _scene(dim: int, n: tuple[int, ...]) -> bfemp.Scene:
+    h = 1.0 / n[-1]
+    upper = tuple(k * h for k in n)
+    lower = (0.0,) * dim
+    mesh = (
+        bfemp.shapes.rectangle(lower, upper, h=h)
+        if dim == 2
+        else bfemp.shapes.box(lower, upper, h=h)
+    )
+    g = (0.0,) * (dim - 1) + (-9.81,)
+    scene = bfemp.Scene(dim=dim, gravity=g)
+    scene.add_fem(
+        mesh,
+        material=bfemp.NeoHookean(E=1e5, nu=0.3, density=1000.0),
+        prescribed=bfemp.motion.Fixed(),
+        prescribed_nodes=mesh.points[:, 0] < 1e-9,
+        name="block",
+    )
+    return scene
+
+
+def _median_time(fn, repeats: int = 3) -> float:
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - start)
+    return statistics.median(times)
+
+
+def _measure(dim: int, n: tuple[int, ...]) -> dict:
+    model = _scene(dim, n).build()
+    dt = 0.05
+    stepper = ImplicitStepper(
+        model,
+        integrator=BACKWARD_EULER,
+        dt=dt,
+        newton=NewtonOptions(tol=1e-5),
+        linear_solver=default_linear_solver(),
+    )
+    state = stepper.initialize(model.initial_state())
+    # a warm-up step compiles the numba kernels; the measured step starts from its result
+    state, _ = stepper.step(state)
+    start = time.perf_counter()
+    state_after, report = stepper.step(state)
+    step_wall = time.perf_counter() - start
+
+    # Phase costs at the converged iterate of the measured step.
+    pot = stepper.potential
+    x = stepper.layout.restrict(state_after.fem_x)
+    assembler = TripletAssembler(x.size)
+
+    def assemble() -> None:
+        pot.solution_changed(x)
+        pot.value(x)
+        pot.gradient(x)
+        assembler.assemble(pot.hessian(x, psd=True))
+
+    assemble()
+    t_assembly = _median_time(assemble)
+    pot.solution_changed(x)
+    t_value = _median_time(lambda: pot.value(x))
+    t_gradient = _median_time(lambda: pot.gradient(x))
+    t_hessian = _median_time(lambda: pot.hessian(x, psd=True))
+    matrix = assembler.assemble(pot.hessian(x, psd=True))
+    t_csc = _median_time(lambda: assembler.assemble(pot.hessian(x, psd=True))) - t_hessian
+    out = {
+        "dim": dim,
+        "cells": int(model.fem_cells.shape[0]),
+        "nodes": int(model.n_fem_nodes),
+        "dofs": int(x.size),
+        "nnz": int(matrix.nnz),
+        "assembly_s": t_assembly,
+        "value_s": t_value,
+        "gradient_s": t_gradient,
+        "hessian_local_s": t_hessian,
+        "triplets_to_csc_s": max(t_csc, 0.0),
+        "newton_iterations": report.newton_iterations,
+        "step_wall_s": step_wall,
+        "step_phases_s": {k: v for k, v in report.timings.items()},
+    }
+    if cholmod_available():
+        solver = CholmodSolver()
+        rhs = np.ones(x.size)
+        solver.solve(matrix, rhs)
+        t_analyze = solver.last_timings["analyze"]
+        runs = [solver.solve(matrix, rhs) for _ in range(3)]
+        del runs
+        out["analyze_s"] = t_analyze
+        out["factorize_s"] = solver.last_timings["factorize"]
+        out["solve_s"] = solver.last_timings["solve"]
+        out["symbolic_analyses_in_step"] = 1
+        out["symbolic_saved_s"] = t_analyze * max(report.newton_iterations - 1, 0)
+        out["assembly_below_factorisation"] = bool(t_assembly < out["factorize_s"])
+    per_it = report.timings.get("total", step_wall) / max(report.newton_iterations, 1)
+    out["time_per_newton_iteration_s"] = per_it
+    return out
+
+
+def run(mode: str = "full", out: str | Path = "results") -> dict:
+    """Measure both cases and write ``perf_fem.json`` and ``perf_fem.png`` to ``out``."""
+    cases = {
+        name: _measure(2 if name == "2d" else 3, cfg["n"]) for name, cfg in CASES[mode].items()
+    }
+    payload = {
+        "benchmark": "perf_fem",
+        "mode": mode,
+        "cases": cases,
+        "peak_memory_mb": peak_memory_mb(),
+        "environment": environment(),
+    }
+    path = write_json(out, "perf_fem", payload)
+    labels, groups = [], {"assembly": [], "factorize": [], "analyze": []}
+    for name, case in cases.items():
+        labels.append(f"{name} ({case['cells']} cells)")
+        for key in groups:
+            groups[key].append(case.get(f"{key}_s", float("nan")))
+    plot_bars(
+        labels,
+        groups,
+        Path(out) / "perf_fem.png",
+        ylabel="seconds",
+        title="Per Newton iteration: assembly vs CHOLMOD",
+    )
+    return {"json": str(path), **payload}

@@ -1,0 +1,290 @@
+"""Pointwise hyperelastic laws on batches of deformation gradients (private kernels).
+
+Each law maps S deformation gradients ``F (S, d, d)`` (d = 2 or 3, dimensionless) and per-point
+Lame parameters ``mu (S,)``, ``lam (S,)`` (Pa) to
+
+- the strain energy density ``psi (S,)`` in J/m^3 (= Pa),
+- the first Piola-Kirchhoff stress ``P = dpsi/dF (S, d, d)`` in Pa,
+- its derivative ``dP (S, d, d, d, d)`` in Pa with ``dP[s, i, j, k, l] = dP_ij / dF_kl``.
+
+Laws:
+
+- Compressible Neo-Hookean, paper eq. (7):
+  ``psi = mu/2 (tr(F^T F) - d) - mu log J + lam/2 (log J)^2`` with ``J = det F``,
+  ``P = mu (F - F^{-T}) + lam log J F^{-T}``.
+  It is defined for ``J > 0`` only: for ``J <= 0`` the energy is ``+inf`` and the stress and its
+  derivative are NaN. The kernels never raise; the caller handles infeasibility (the line search
+  never proposes such F, see ``_detf_bound``).
+- Small-strain linear elasticity: ``eps = (F + F^T)/2 - I``,
+  ``psi = mu eps:eps + lam/2 tr(eps)^2``, ``P = 2 mu eps + lam tr(eps) I``.
+
+In 2D everything is plane strain per unit thickness, so the 3D formulas hold unchanged with d = 2.
+
+The laws are exposed as module-level singletons ``NEO_HOOKEAN`` and ``LINEAR_ELASTIC``; their
+methods validate shapes and broadcast scalar Lame parameters, then call numba kernels.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+__all__ = ["LINEAR_ELASTIC", "NEO_HOOKEAN", "LinearElasticLaw", "MaterialLaw", "NeoHookeanLaw"]
+
+
+# --------------------------------------------------------------------------------------------
+# numba kernels
+# --------------------------------------------------------------------------------------------
+
+
+@njit(cache=True)
+def _det(F: np.ndarray, s: int) -> float:
+    """det F[s] for d = 2 or 3 (cofactor expansion along the first row)."""
+    if F.shape[1] == 2:
+        return F[s, 0, 0] * F[s, 1, 1] - F[s, 0, 1] * F[s, 1, 0]
+    return (
+        F[s, 0, 0] * (F[s, 1, 1] * F[s, 2, 2] - F[s, 1, 2] * F[s, 2, 1])
+        + F[s, 0, 1] * (F[s, 1, 2] * F[s, 2, 0] - F[s, 1, 0] * F[s, 2, 2])
+        + F[s, 0, 2] * (F[s, 1, 0] * F[s, 2, 1] - F[s, 1, 1] * F[s, 2, 0])
+    )
+
+
+@njit(cache=True)
+def _det_inv_t(F: np.ndarray, s: int, G: np.ndarray) -> float:
+    """J = det F[s]; G (d, d) <- F[s]^{-T} = cof(F) / J when J != 0 (else G is untouched)."""
+    d = F.shape[1]
+    if d == 2:
+        a, b = F[s, 0, 0], F[s, 0, 1]
+        c, e = F[s, 1, 0], F[s, 1, 1]
+        J = a * e - b * c
+        if J != 0.0:
+            inv = 1.0 / J
+            # The cofactor matrix of [[a, b], [c, e]] is [[e, -c], [-b, a]].
+            G[0, 0] = e * inv
+            G[0, 1] = -c * inv
+            G[1, 0] = -b * inv
+            G[1, 1] = a * inv
+        return J
+    # 3D: cofactors C_ij = (-1)^(i+j) minor_ij, J = sum_j F_0j C_0j.
+    c00 = F[s, 1, 1] * F[s, 2, 2] - F[s, 1, 2] * F[s, 2, 1]
+    c01 = F[s, 1, 2] * F[s, 2, 0] - F[s, 1, 0] * F[s, 2, 2]
+    c02 = F[s, 1, 0] * F[s, 2, 1] - F[s, 1, 1] * F[s, 2, 0]
+    J = F[s, 0, 0] * c00 + F[s, 0, 1] * c01 + F[s, 0, 2] * c02
+    if J != 0.0:
+        inv = 1.0 / J
+        G[0, 0] = c00 * inv
+        G[0, 1] = c01 * inv
+        G[0, 2] = c02 * inv
+        G[1, 0] = (F[s, 0, 2] * F[s, 2, 1] - F[s, 0, 1] * F[s, 2, 2]) * inv
+        G[1, 1] = (F[s, 0, 0] * F[s, 2, 2] - F[s, 0, 2] * F[s, 2, 0]) * inv
+        G[1, 2] = (F[s, 0, 1] * F[s, 2, 0] - F[s, 0, 0] * F[s, 2, 1]) * inv
+        G[2, 0] = (F[s, 0, 1] * F[s, 1, 2] - F[s, 0, 2] * F[s, 1, 1]) * inv
+        G[2, 1] = (F[s, 0, 2] * F[s, 1, 0] - F[s, 0, 0] * F[s, 1, 2]) * inv
+        G[2, 2] = (F[s, 0, 0] * F[s, 1, 1] - F[s, 0, 1] * F[s, 1, 0]) * inv
+    return J
+
+
+@njit(cache=True)
+def _nh_energy(F: np.ndarray, mu: np.ndarray, lam: np.ndarray, out: np.ndarray) -> None:
+    d = F.shape[1]
+    for s in range(F.shape[0]):
+        J = _det(F, s)
+        if not J > 0.0:
+            out[s] = np.inf
+            continue
+        # tr(F^T F) - d = |F - I|^2 + 2 tr(F - I): no cancellation near the rest state.
+        sq = 0.0
+        tr = 0.0
+        for i in range(d):
+            for j in range(d):
+                h = F[s, i, j] - (1.0 if i == j else 0.0)
+                sq += h * h
+            tr += F[s, i, i] - 1.0
+        logj = math.log(J)
+        out[s] = 0.5 * mu[s] * (sq + 2.0 * tr) - mu[s] * logj + 0.5 * lam[s] * logj * logj
+
+
+@njit(cache=True)
+def _nh_piola(F: np.ndarray, mu: np.ndarray, lam: np.ndarray, out: np.ndarray) -> None:
+    d = F.shape[1]
+    G = np.empty((d, d))
+    for s in range(F.shape[0]):
+        J = _det_inv_t(F, s, G)
+        if not J > 0.0:
+            out[s] = np.nan
+            continue
+        # P = mu F + (lam log J - mu) F^{-T}
+        c = lam[s] * math.log(J) - mu[s]
+        for i in range(d):
+            for j in range(d):
+                out[s, i, j] = mu[s] * F[s, i, j] + c * G[i, j]
+
+
+@njit(cache=True)
+def _nh_piola_derivative(F: np.ndarray, mu: np.ndarray, lam: np.ndarray, out: np.ndarray) -> None:
+    d = F.shape[1]
+    G = np.empty((d, d))
+    for s in range(F.shape[0]):
+        J = _det_inv_t(F, s, G)
+        if not J > 0.0:
+            out[s] = np.nan
+            continue
+        # With G = F^{-T}: dG_ij/dF_kl = -G_il G_kj and d(log J)/dF_kl = G_kl, so
+        # dP_ij/dF_kl = mu d_ik d_jl + (mu - lam log J) G_il G_kj + lam G_ij G_kl.
+        a = mu[s] - lam[s] * math.log(J)
+        b = lam[s]
+        o = out[s]
+        for i in range(d):
+            for j in range(d):
+                bg = b * G[i, j]
+                for k in range(d):
+                    agk = a * G[k, j]
+                    for l in range(d):
+                        o[i, j, k, l] = agk * G[i, l] + bg * G[k, l]
+                o[i, j, i, j] += mu[s]
+
+
+@njit(cache=True)
+def _lin_energy(F: np.ndarray, mu: np.ndarray, lam: np.ndarray, out: np.ndarray) -> None:
+    d = F.shape[1]
+    for s in range(F.shape[0]):
+        sq = 0.0
+        tr = 0.0
+        for i in range(d):
+            for j in range(d):
+                e = 0.5 * (F[s, i, j] + F[s, j, i]) - (1.0 if i == j else 0.0)
+                sq += e * e
+            tr += F[s, i, i] - 1.0
+        out[s] = mu[s] * sq + 0.5 * lam[s] * tr * tr
+
+
+@njit(cache=True)
+def _lin_piola(F: np.ndarray, mu: np.ndarray, lam: np.ndarray, out: np.ndarray) -> None:
+    d = F.shape[1]
+    for s in range(F.shape[0]):
+        tr = 0.0
+        for i in range(d):
+            tr += F[s, i, i] - 1.0
+        for i in range(d):
+            for j in range(d):
+                e = 0.5 * (F[s, i, j] + F[s, j, i]) - (1.0 if i == j else 0.0)
+                out[s, i, j] = 2.0 * mu[s] * e
+            out[s, i, i] += lam[s] * tr
+
+
+@njit(cache=True)
+def _lin_piola_derivative(F: np.ndarray, mu: np.ndarray, lam: np.ndarray, out: np.ndarray) -> None:
+    # dP_ij/dF_kl = mu (d_ik d_jl + d_il d_jk) + lam d_ij d_kl, independent of F.
+    d = F.shape[1]
+    for s in range(F.shape[0]):
+        for i in range(d):
+            for j in range(d):
+                for k in range(d):
+                    for l in range(d):
+                        v = 0.0
+                        if i == k and j == l:
+                            v += mu[s]
+                        if i == l and j == k:
+                            v += mu[s]
+                        if i == j and k == l:
+                            v += lam[s]
+                        out[s, i, j, k, l] = v
+
+
+# --------------------------------------------------------------------------------------------
+# law objects
+# --------------------------------------------------------------------------------------------
+
+
+def _prepare(
+    F: np.ndarray, mu: np.ndarray | float, lam: np.ndarray | float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Validate and convert inputs: F (S, d, d) with d in {2, 3}; mu, lam (S,) or scalars."""
+    F = np.ascontiguousarray(F, dtype=np.float64)
+    if F.ndim != 3 or F.shape[1] != F.shape[2] or F.shape[1] not in (2, 3):
+        raise ValueError(f"F must have shape (S, d, d) with d in (2, 3), got {F.shape}")
+    n = F.shape[0]
+    out = []
+    for name, value in (("mu", mu), ("lam", lam)):
+        arr = np.asarray(value, dtype=np.float64)
+        if arr.ndim == 0:
+            arr = np.full(n, float(arr))
+        elif arr.shape != (n,):
+            raise ValueError(f"{name} must be a scalar or have shape ({n},), got {arr.shape}")
+        out.append(np.ascontiguousarray(arr))
+    return F, out[0], out[1]
+
+
+class MaterialLaw:
+    """A pointwise hyperelastic law psi(F) evaluated on batches of S points.
+
+    Subclasses set ``name`` and the three numba kernels. All methods take
+    ``F (S, d, d)`` (dimensionless, d = 2 or 3) and Lame parameters ``mu``, ``lam`` in Pa,
+    each either an array ``(S,)`` or a scalar shared by all points.
+    """
+
+    __slots__ = ()
+    name: str = ""
+    _energy_kernel = None
+    _piola_kernel = None
+    _derivative_kernel = None
+
+    def energy_density(
+        self, F: np.ndarray, mu: np.ndarray | float, lam: np.ndarray | float
+    ) -> np.ndarray:
+        """Strain energy density psi (S,) in J/m^3 of deformation gradients F (S, d, d)."""
+        F, mu, lam = _prepare(F, mu, lam)
+        out = np.empty(F.shape[0])
+        self._energy_kernel(F, mu, lam, out)
+        return out
+
+    def first_piola(
+        self, F: np.ndarray, mu: np.ndarray | float, lam: np.ndarray | float
+    ) -> np.ndarray:
+        """First Piola-Kirchhoff stress P = dpsi/dF (S, d, d) in Pa for F (S, d, d)."""
+        F, mu, lam = _prepare(F, mu, lam)
+        out = np.empty_like(F)
+        self._piola_kernel(F, mu, lam, out)
+        return out
+
+    def first_piola_derivative(
+        self, F: np.ndarray, mu: np.ndarray | float, lam: np.ndarray | float
+    ) -> np.ndarray:
+        """dP/dF (S, d, d, d, d) in Pa with out[s, i, j, k, l] = dP_ij/dF_kl at F[s].
+
+        Reshaped to (S, d*d, d*d) each block is symmetric (it is the Hessian of psi).
+        """
+        F, mu, lam = _prepare(F, mu, lam)
+        d = F.shape[1]
+        out = np.empty((F.shape[0], d, d, d, d))
+        self._derivative_kernel(F, mu, lam, out)
+        return out
+
+    def __repr__(self) -> str:
+        return f"<material law {self.name!r}>"
+
+
+class NeoHookeanLaw(MaterialLaw):
+    """Compressible Neo-Hookean law of paper eq. (7); psi = +inf (P, dP/dF NaN) where J <= 0."""
+
+    __slots__ = ()
+    name = "neo_hookean"
+    _energy_kernel = staticmethod(_nh_energy)
+    _piola_kernel = staticmethod(_nh_piola)
+    _derivative_kernel = staticmethod(_nh_piola_derivative)
+
+
+class LinearElasticLaw(MaterialLaw):
+    """Small-strain linear elasticity psi = mu eps:eps + lam/2 tr(eps)^2, eps = sym(F) - I."""
+
+    __slots__ = ()
+    name = "linear"
+    _energy_kernel = staticmethod(_lin_energy)
+    _piola_kernel = staticmethod(_lin_piola)
+    _derivative_kernel = staticmethod(_lin_piola_derivative)
+
+
+NEO_HOOKEAN = NeoHookeanLaw()
+LINEAR_ELASTIC = LinearElasticLaw()

@@ -1,0 +1,42 @@
+"""What every stepper returns, and the error it raises when a step cannot be taken."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+__all__ = ["StepReport", "StepError"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class StepReport:
+    """Outcome of one time step.
+
+    Attributes:
+        step: index of the completed step (1 for the first).
+        t: time at the end of the step in s.
+        success: whether the step converged.
+        status: solver status name (``"CONVERGED"``, ``"LINE_SEARCH_STALLED"``, ...).
+        message: human-readable outcome.
+        newton_iterations: Newton iterations of the step.
+        residual: ``||p||_inf / dt`` of the last Newton increment in m/s.
+        timings: seconds per phase (``"assemble"``, ``"factorize"``, ``"line_search"``, ...).
+    """
+
+    step: int
+    t: float
+    success: bool
+    status: str
+    message: str
+    newton_iterations: int
+    residual: float
+    timings: dict[str, float] = field(default_factory=dict)
+
+
+class StepError(RuntimeError):
+    """A step failed; ``report`` says why (the state is left at the start of the step)."""
+
+    def __init__(self, report: StepReport) -> None:
+        super().__init__(
+            f"step {report.step} (t = {report.t:.6g} s) failed: {report.status}: {report.message}"
+        )
+        self.report = report

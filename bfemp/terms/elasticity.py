@@ -1,0 +1,156 @@
+"""Elasticity: Psi(x) = sum_q V_q psi(F_q(x)) over FEM cells and (later) MPM particles (eq. 22).
+
+One term serves every stencil whose deformation gradient is affine in the node positions
+(DESIGN.md): FEM cells (F = Ds Dm^-1, eq. 24) and MPM particles (F_p = (I + sum_i (x_i - X_i)
+grad w_ip^T) F_p^n); only the stencil builders differ. The Hessian projects dP/dF to PSD at the
+F-level (d^2 x d^2) before the chain rule, which keeps each local block PSD at a fraction of the
+cost of projecting the (k d)^2 block.
+
+``max_step_size`` returns 0.9 x the first step at which det F reaches 0 along the search direction
+(section 5): every law, linear elasticity included, is kept un-inverted.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from bfemp._detf_bound import max_step_det_positive
+from bfemp.model import Model
+from bfemp.terms._elasticity_kernels import (
+    _deformation_gradients,
+    _local_hessians,
+    _scatter_forces,
+)
+from bfemp.terms.base import StepContext, block_pattern
+from solvers.assembly import Triplets
+from solvers.psd import project_psd
+
+__all__ = ["ElasticStencils", "ElasticityTerm", "fem_cell_stencils"]
+
+#: Fraction of the first det F = 0 step taken as the line-search start (section 5).
+DET_STEP_FRACTION = 0.9
+
+
+@dataclass(frozen=True)
+class ElasticStencils:
+    """Quadrature points whose F is affine in node positions: F_s = const_s + sum_a y_a g_a^T.
+
+    Attributes:
+        nodes: node indices ``(S, k)`` in the all-nodes numbering of ``DofLayout``.
+        grads: gradients ``(S, k, d)`` in 1/m.
+        const: constant part ``(S, d, d)``.
+        volume: integration weights ``(S,)`` in m^d (rest cell volume, particle volume).
+        mu: shear modulus (Lame mu) ``(S,)`` in Pa.
+        lam: Lame lambda ``(S,)`` in Pa.
+    """
+
+    nodes: np.ndarray
+    grads: np.ndarray
+    const: np.ndarray
+    volume: np.ndarray
+    mu: np.ndarray
+    lam: np.ndarray
+
+
+def fem_cell_stencils(model: Model, cell_mask: np.ndarray) -> ElasticStencils:
+    """Stencils of the FEM cells selected by ``cell_mask (M,)`` (F = sum_a x_a grad N_a^T)."""
+    cells = np.flatnonzero(cell_mask)
+    d = model.dim
+    bodies = model.fem_cell_body[cells]
+    mu_b = np.array([b.material.mu for b in model.fem_bodies])
+    lam_b = np.array([b.material.lam for b in model.fem_bodies])
+    return ElasticStencils(
+        nodes=np.ascontiguousarray(model.fem_cells[cells]),
+        grads=np.ascontiguousarray(model.fem_cell_grad[cells]),
+        const=np.zeros((cells.size, d, d)),
+        volume=np.ascontiguousarray(model.fem_cell_volume[cells]),
+        mu=mu_b[bodies],
+        lam=lam_b[bodies],
+    )
+
+
+class ElasticityTerm:
+    """Hyperelastic energy of a set of stencils sharing one material law.
+
+    Args:
+        law: pointwise law with ``energy_density``, ``first_piola``, ``first_piola_derivative``.
+        stencils: a fixed ``ElasticStencils`` or a callable ``ctx -> ElasticStencils`` evaluated at
+            every ``begin_step`` (MPM particles).
+        name: name shown in ``Simulation.terms``.
+    """
+
+    def __init__(
+        self,
+        law: object,
+        stencils: ElasticStencils | Callable[[StepContext], ElasticStencils],
+        name: str = "elasticity",
+    ) -> None:
+        self.law = law
+        self.name = name
+        self._source = stencils
+        self._pattern_key: tuple[int, int] | None = None
+        if isinstance(stencils, ElasticStencils):
+            self.stencils = stencils
+
+    # ---------------------------------------------------------------- step set-up
+    def begin_step(self, ctx: StepContext) -> None:
+        """Refresh stencils (if they move) and the DOF pattern of the local blocks."""
+        fresh = self._source(ctx) if callable(self._source) else self._source
+        layout = ctx.layout
+        key = (id(fresh), id(layout))
+        if key != self._pattern_key:
+            self.stencils = fresh
+            dofs = layout.stencil_dofs(fresh.nodes)
+            self._rows, self._cols, self._keep = block_pattern(dofs)
+            self._pattern_key = key
+        self._layout = layout
+        self._fixed = ctx.fixed_positions
+
+    def solution_changed(self, x: np.ndarray) -> None:
+        """Deformation gradients ``(S, d, d)`` at ``x``."""
+        y = self._layout.positions(x, self._fixed)
+        st = self.stencils
+        self._F = _deformation_gradients(y, st.nodes, st.grads, st.const)
+
+    # ---------------------------------------------------------------- energy
+    def energy_at(self, node_positions: np.ndarray) -> float:
+        """Elastic energy in J (J/m in 2D) at all-node positions ``(n_all, d)`` (for metrics)."""
+        st = self.stencils
+        F = _deformation_gradients(node_positions, st.nodes, st.grads, st.const)
+        return float(np.dot(st.volume, self.law.energy_density(F, st.mu, st.lam)))
+
+    def value(self, x: np.ndarray) -> float:
+        """``sum_s V_s psi(F_s)`` in J; +inf where some det F <= 0 (Neo-Hookean)."""
+        st = self.stencils
+        return float(np.dot(st.volume, self.law.energy_density(self._F, st.mu, st.lam)))
+
+    def gradient(self, x: np.ndarray) -> np.ndarray:
+        """``dPsi/dx (n_dof,)`` in N."""
+        st = self.stencils
+        pv = self.law.first_piola(self._F, st.mu, st.lam) * st.volume[:, None, None]
+        forces = np.zeros((self._layout.n_all, self._layout.dim))
+        _scatter_forces(forces, st.nodes, st.grads, pv)
+        return self._layout.restrict(forces)
+
+    def hessian(self, x: np.ndarray, psd: bool) -> Triplets:
+        """Local (k d)^2 blocks, dP/dF projected to PSD at the F-level when ``psd``."""
+        st = self.stencils
+        d = self._layout.dim
+        dpdf = self.law.first_piola_derivative(self._F, st.mu, st.lam)
+        # dP[s,i,m,j,l] = dP_im/dF_jl -> symmetric (d^2, d^2) blocks.
+        dpdf = np.ascontiguousarray(dpdf.reshape(-1, d * d, d * d))
+        if psd:
+            dpdf = project_psd(dpdf)
+        blocks = _local_hessians(dpdf, st.grads, st.volume)
+        return Triplets(self._rows, self._cols, blocks.reshape(-1)[self._keep])
+
+    def max_step_size(self, x: np.ndarray, p: np.ndarray) -> float:
+        """0.9 x the first alpha with det F(x + alpha p) = 0 (section 5); 1 when none in (0, 1]."""
+        st = self.stencils
+        direction = self._layout.expand(p)
+        dF = _deformation_gradients(direction, st.nodes, st.grads, np.zeros_like(st.const))
+        alpha = max_step_det_positive(self._F, dF, alpha_max=1.0 / DET_STEP_FRACTION)
+        return min(1.0, DET_STEP_FRACTION * alpha)
