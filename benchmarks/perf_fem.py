@@ -31,7 +31,7 @@ from solvers.linear import CholmodSolver, cholmod_available, default_linear_solv
 from solvers.options import NewtonOptions
 
 CASES = {
-    "full": {"3d": dict(n=(24, 12, 12)), "2d": dict(n=(448, 112))},
+    "full": {"3d": dict(n=(32, 16, 16)), "2d": dict(n=(448, 112))},
     "quick": {"3d": dict(n=(16, 8, 8)), "2d": dict(n=(160, 40))},
 }
 
