@@ -1,0 +1,199 @@
+"""numba kernels of the MPM particle-grid transfers (Tables 1-3 of the BFEMP paper).
+
+Every particle p has a stencil of K = 3**d grid nodes n(p, a) with weights w_pa = w_ip^n and
+gradients g_pa = grad w_ip^n, all evaluated at the start-of-step position x_p^n. P2G scatters
+(serial: several particles write the same node); G2P gathers (prange: each particle writes only
+its own rows).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+#: A Cholesky pivot of D_p below this fraction of tr(D_p)/d marks D_p as singular.
+_PIVOT_REL = 1e-12
+
+
+@njit(cache=True)
+def _p2g(
+    nodes: np.ndarray,
+    weights: np.ndarray,
+    grid_x: np.ndarray,
+    mpm_x: np.ndarray,
+    mpm_mass: np.ndarray,
+    mpm_v: np.ndarray,
+    mpm_C: np.ndarray,
+    affine: bool,
+    mpm_a: np.ndarray,
+    with_a: bool,
+    grid_mass: np.ndarray,
+    grid_mom: np.ndarray,
+    grid_ma: np.ndarray,
+) -> None:
+    """Accumulate m_i, m_i v_i and m_i a_i into the zeroed ``grid_*`` outputs.
+
+    m_i v_i += w_ip m_p (v_p + C_p (x_i - x_p)), the affine term only when ``affine`` (APIC);
+    m_i a_i += w_ip m_p a_p when ``with_a``.
+    """
+    n_p, k = nodes.shape
+    d = grid_x.shape[1]
+    for p in range(n_p):
+        m = mpm_mass[p]
+        for a in range(k):
+            i = nodes[p, a]
+            wm = weights[p, a] * m
+            grid_mass[i] += wm
+            for r in range(d):
+                v = mpm_v[p, r]
+                if affine:
+                    for c in range(d):
+                        v += mpm_C[p, r, c] * (grid_x[i, c] - mpm_x[p, c])
+                grid_mom[i, r] += wm * v
+                if with_a:
+                    grid_ma[i, r] += wm * mpm_a[p, r]
+
+
+@njit(cache=True)
+def _cholesky_solve_rows(D: np.ndarray, B: np.ndarray, C: np.ndarray) -> bool:
+    """C = B D^-1 for symmetric positive definite D (d, d); False when D is numerically singular.
+
+    D is overwritten by its lower Cholesky factor L. Since D is symmetric, each row c_r of C solves
+    D c_r = b_r, i.e. L y = b_r then L^T c_r = y.
+    """
+    d = D.shape[0]
+    scale = 0.0
+    for r in range(d):
+        scale += D[r, r]
+    tiny = _PIVOT_REL * scale / d
+    for j in range(d):
+        s = D[j, j]
+        for m in range(j):
+            s -= D[j, m] * D[j, m]
+        if not s > tiny:
+            return False
+        D[j, j] = np.sqrt(s)
+        for r in range(j + 1, d):
+            t = D[r, j]
+            for m in range(j):
+                t -= D[r, m] * D[j, m]
+            D[r, j] = t / D[j, j]
+    for row in range(d):
+        for j in range(d):
+            t = B[row, j]
+            for m in range(j):
+                t -= D[j, m] * C[row, m]
+            C[row, j] = t / D[j, j]
+        for j in range(d - 1, -1, -1):
+            t = C[row, j]
+            for m in range(j + 1, d):
+                t -= D[m, j] * C[row, m]
+            C[row, j] = t / D[j, j]
+    return True
+
+
+@njit(cache=True, parallel=True)
+def _g2p(
+    nodes: np.ndarray,
+    weights: np.ndarray,
+    grads: np.ndarray,
+    grid_x: np.ndarray,
+    grid_x_new: np.ndarray,
+    grid_v_old: np.ndarray,
+    grid_v_new: np.ndarray,
+    grid_a_new: np.ndarray,
+    mpm_x: np.ndarray,
+    mpm_v: np.ndarray,
+    mpm_F: np.ndarray,
+    flip: bool,
+    apic: bool,
+    with_a: bool,
+    out_x: np.ndarray,
+    out_v: np.ndarray,
+    out_F: np.ndarray,
+    out_C: np.ndarray,
+    out_a: np.ndarray,
+    singular: np.ndarray,
+) -> None:
+    """Gather the end-of-step particle state into the ``out_*`` arrays (Tables 1-3).
+
+    x_p = sum_i w x~_i;  F_p = (sum_i x~_i g^T) F_p^n;  v_p = sum_i w v~_i (PIC, APIC) or
+    v_p^n + sum_i w (v~_i - v_i^n) (FLIP);  a_p = sum_i w a_i;  APIC: C_p = B_p D_p^-1 with the
+    symmetrised B_p of Table 1, ``singular[p]`` set where D_p is not positive definite.
+    """
+    n_p, k = nodes.shape
+    d = grid_x.shape[1]
+    for p in prange(n_p):
+        grid_def = np.zeros((d, d))  # sum_i x~_i g_ip^T
+        for r in range(d):
+            out_x[p, r] = 0.0
+            out_v[p, r] = mpm_v[p, r] if flip else 0.0
+            if with_a:
+                out_a[p, r] = 0.0
+        for a in range(k):
+            i = nodes[p, a]
+            w = weights[p, a]
+            for r in range(d):
+                out_x[p, r] += w * grid_x_new[i, r]
+                if flip:
+                    out_v[p, r] += w * (grid_v_new[i, r] - grid_v_old[i, r])
+                else:
+                    out_v[p, r] += w * grid_v_new[i, r]
+                if with_a:
+                    out_a[p, r] += w * grid_a_new[i, r]
+                for c in range(d):
+                    grid_def[r, c] += grid_x_new[i, r] * grads[p, a, c]
+        for r in range(d):
+            for c in range(d):
+                acc = 0.0
+                for m in range(d):
+                    acc += grid_def[r, m] * mpm_F[p, m, c]
+                out_F[p, r, c] = acc
+        singular[p] = False
+        if not apic:
+            continue
+        # Table 1: B_p = 1/2 sum_i w [v~_i (a_i + b_i)^T + (a_i - b_i) v~_i^T] with
+        # a_i = x_i^n - x_p^n and b_i = x~_i - x_p^{n+1}; D_p = sum_i w a_i a_i^T.
+        B = np.zeros((d, d))
+        D = np.zeros((d, d))
+        for a in range(k):
+            i = nodes[p, a]
+            w = weights[p, a]
+            for r in range(d):
+                ar = grid_x[i, r] - mpm_x[p, r]
+                br = grid_x_new[i, r] - out_x[p, r]
+                for c in range(d):
+                    ac = grid_x[i, c] - mpm_x[p, c]
+                    bc = grid_x_new[i, c] - out_x[p, c]
+                    vr, vc = grid_v_new[i, r], grid_v_new[i, c]
+                    B[r, c] += 0.5 * w * (vr * (ac + bc) + (ar - br) * vc)
+                    D[r, c] += w * ar * ac
+        C = np.empty((d, d))
+        if _cholesky_solve_rows(D, B, C):
+            for r in range(d):
+                for c in range(d):
+                    out_C[p, r, c] = C[r, c]
+        else:
+            singular[p] = True
+            for r in range(d):
+                for c in range(d):
+                    out_C[p, r, c] = 0.0
+
+
+@njit(cache=True, parallel=True)
+def _apic_inertia(
+    nodes: np.ndarray, weights: np.ndarray, grid_x: np.ndarray, mpm_x: np.ndarray
+) -> np.ndarray:
+    """D_p (P, d, d) = sum_i w_ip (x_i - x_p)(x_i - x_p)^T (Table 1)."""
+    n_p, k = nodes.shape
+    d = grid_x.shape[1]
+    out = np.zeros((n_p, d, d))
+    for p in prange(n_p):
+        for a in range(k):
+            i = nodes[p, a]
+            w = weights[p, a]
+            for r in range(d):
+                ar = grid_x[i, r] - mpm_x[p, r]
+                for c in range(d):
+                    out[p, r, c] += w * ar * (grid_x[i, c] - mpm_x[p, c])
+    return out

@@ -1,0 +1,337 @@
+"""MPM particle-grid transfers: P2G and G2P for APIC, PIC and FLIP (BFEMP paper, Tables 1-3).
+
+A time step of the barrier strategy is P2G at the start positions, one implicit solve for the end
+positions x~_i^{n+1} and velocities v~_i^{n+1} of the active grid nodes, then G2P. Both transfers
+use the particle stencils of the step start: ``nodes (P, K)`` into the active grid nodes,
+``weights (P, K)`` = w_ip^n (a partition of unity that reproduces linear functions, as the
+quadratic B-spline does) and ``grads (P, K, d)`` = grad w_ip^n in 1/m.
+
+Choices made here (DESIGN.md leaves them open):
+
+- The APIC state is C_p = B_p D_p^-1 (``mpm_C``), not B_p. D_p = sum_i w_ip (x_i - x_p)(x_i - x_p)^T
+  is computed from the given weights (it equals dx^2/4 I for quadratic B-splines, so the D_p^n used
+  to form C_p at the end of a step is also the D_p^{n+1} of the next P2G).
+- APIC G2P uses the symmetrised B_p of Table 1, which conserves angular momentum for any grid
+  motion: the particles' sum_p m_p (x_p x v_p + eps : B_p^T) equals the grid's
+  sum_i m_i x~_i x v~_i (the antisymmetric part of B_p is sum_i w_ip (x~_i - x_p^{n+1}) x v~_i).
+- FLIP is pure FLIP (Table 3, no PIC blending); the P2G of PIC and FLIP is the same.
+- Accelerations (Newmark) are transferred exactly as PIC transfers the velocity: P2G mass-weighted
+  a_i = sum_p w_ip m_p a_p / m_i (no affine term), G2P a_p = sum_i w_ip a_i, for every scheme.
+- A grid node whose mass is below ``MASS_FLOOR_REL`` x the largest node mass (only possible when
+  all its weights vanish) keeps its mass but gets zero velocity and acceleration, with a warning.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from bfemp.mpm._transfer_kernels import _apic_inertia, _g2p, _p2g
+
+__all__ = [
+    "SCHEMES",
+    "MASS_FLOOR_REL",
+    "GridFields",
+    "ParticleUpdate",
+    "particles_to_grid",
+    "grid_to_particles",
+    "apic_inertia",
+]
+
+logger = logging.getLogger(__name__)
+
+#: Transfer schemes: affine (APIC), particle-in-cell (PIC), fluid-implicit particle (FLIP).
+SCHEMES = ("apic", "pic", "flip")
+
+#: Grid nodes lighter than this fraction of the heaviest node get zero velocity.
+MASS_FLOOR_REL = 1e-14
+
+
+@dataclass(frozen=True, kw_only=True)
+class GridFields:
+    """Grid fields after P2G.
+
+    Attributes:
+        mass: node masses m_i ``(G,)`` in kg (kg/m in 2D plane strain).
+        velocity: node velocities v_i ``(G, d)`` in m/s.
+        acceleration: node accelerations a_i ``(G, d)`` in m/s^2, or None when none was transferred.
+    """
+
+    mass: np.ndarray
+    velocity: np.ndarray
+    acceleration: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        n = self.mass.shape[0]
+        if self.mass.ndim != 1:
+            raise ValueError(f"GridFields.mass must have shape (G,), got {self.mass.shape}")
+        if self.velocity.ndim != 2 or self.velocity.shape[0] != n:
+            raise ValueError(
+                f"GridFields.velocity must have shape ({n}, d), got {self.velocity.shape}"
+            )
+        if self.acceleration is not None and self.acceleration.shape != self.velocity.shape:
+            raise ValueError(
+                f"GridFields.acceleration must have shape {self.velocity.shape}, "
+                f"got {self.acceleration.shape}"
+            )
+
+
+class ParticleUpdate(NamedTuple):
+    """Particle state at the end of a step after G2P (unpacks as a tuple in this order).
+
+    Attributes:
+        mpm_x: positions x_p^{n+1} ``(P, d)`` in m.
+        mpm_v: velocities v_p^{n+1} ``(P, d)`` in m/s.
+        mpm_F: deformation gradients F_p^{n+1} ``(P, d, d)`` (dimensionless).
+        mpm_C: APIC affine velocities C_p^{n+1} ``(P, d, d)`` in 1/s; zeros for PIC and FLIP.
+        mpm_a: accelerations a_p^{n+1} ``(P, d)`` in m/s^2, or None when no grid one was given.
+    """
+
+    mpm_x: np.ndarray
+    mpm_v: np.ndarray
+    mpm_F: np.ndarray
+    mpm_C: np.ndarray
+    mpm_a: np.ndarray | None
+
+
+# --------------------------------------------------------------------------- validation
+def _check_scheme(scheme: str) -> str:
+    if scheme not in SCHEMES:
+        raise ValueError(f"scheme must be one of {SCHEMES}, got {scheme!r}")
+    return scheme
+
+
+def _stencil(
+    nodes: np.ndarray, weights: np.ndarray, grid_x: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Validated contiguous (nodes int64 (P, K), weights (P, K), grid_x (G, d))."""
+    nodes = np.asarray(nodes)
+    if nodes.ndim != 2 or not np.issubdtype(nodes.dtype, np.integer):
+        raise ValueError(
+            f"nodes must be an integer array of shape (P, K), got {nodes.dtype} {nodes.shape}"
+        )
+    grid_x = np.ascontiguousarray(grid_x, dtype=np.float64)
+    if grid_x.ndim != 2 or grid_x.shape[1] < 1:
+        raise ValueError(f"grid_x must have shape (G, d), got {grid_x.shape}")
+    n_grid = grid_x.shape[0]
+    if nodes.size and (nodes.min() < 0 or nodes.max() >= n_grid):
+        bad = np.flatnonzero(((nodes < 0) | (nodes >= n_grid)).any(axis=1))
+        raise ValueError(
+            f"nodes must index the {n_grid} grid nodes; out of range at particles {bad[:10]}"
+        )
+    weights = _float(weights, "weights", nodes.shape)
+    return np.ascontiguousarray(nodes, dtype=np.int64), weights, grid_x
+
+
+def _float(a: np.ndarray, name: str, shape: tuple[int, ...]) -> np.ndarray:
+    """``a`` as C-contiguous float64 of exactly ``shape``; ValueError naming ``name`` if not."""
+    arr = np.ascontiguousarray(a, dtype=np.float64)
+    if arr.shape != shape:
+        raise ValueError(f"{name} must have shape {shape}, got {arr.shape}")
+    return arr
+
+
+# --------------------------------------------------------------------------- transfers
+def particles_to_grid(
+    scheme: str,
+    nodes: np.ndarray,
+    weights: np.ndarray,
+    grid_x: np.ndarray,
+    mpm_x: np.ndarray,
+    mpm_mass: np.ndarray,
+    mpm_v: np.ndarray,
+    mpm_C: np.ndarray | None = None,
+    mpm_a: np.ndarray | None = None,
+) -> GridFields:
+    """P2G (Tables 1-3): grid masses, velocities and optionally accelerations.
+
+    m_i = sum_p w_ip m_p and m_i v_i = sum_p w_ip m_p (v_p + C_p (x_i - x_p)) for APIC, without the
+    C_p term for PIC and FLIP. Accelerations are transferred as PIC transfers velocities:
+    m_i a_i = sum_p w_ip m_p a_p, for every scheme.
+
+    Args:
+        scheme: ``"apic"``, ``"pic"`` or ``"flip"``.
+        nodes: stencil node indices ``(P, K)`` into the active grid nodes.
+        weights: B-spline weights w_ip^n ``(P, K)`` at the particle positions.
+        grid_x: active grid node positions x_i^n ``(G, d)`` in m.
+        mpm_x: particle positions x_p^n ``(P, d)`` in m.
+        mpm_mass: particle masses m_p ``(P,)`` in kg (kg/m in 2D), positive.
+        mpm_v: particle velocities v_p^n ``(P, d)`` in m/s.
+        mpm_C: APIC affine velocities C_p^n ``(P, d, d)`` in 1/s; required for APIC, ignored
+            otherwise.
+        mpm_a: particle accelerations a_p^n ``(P, d)`` in m/s^2 (Newmark), or None.
+
+    Returns:
+        ``GridFields`` with mass ``(G,)``, velocity ``(G, d)`` and acceleration ``(G, d)`` or None.
+    """
+    _check_scheme(scheme)
+    nodes, weights, grid_x = _stencil(nodes, weights, grid_x)
+    n_p, d = nodes.shape[0], grid_x.shape[1]
+    mpm_x = _float(mpm_x, "mpm_x", (n_p, d))
+    mpm_mass = _float(mpm_mass, "mpm_mass", (n_p,))
+    if not np.all(mpm_mass > 0.0):
+        raise ValueError(
+            f"mpm_mass must be positive; not at particles {np.flatnonzero(~(mpm_mass > 0))[:10]}"
+        )
+    mpm_v = _float(mpm_v, "mpm_v", (n_p, d))
+    affine = scheme == "apic"
+    if affine:
+        if mpm_C is None:
+            raise ValueError("mpm_C (P, d, d) is required for scheme 'apic'")
+        mpm_C = _float(mpm_C, "mpm_C", (n_p, d, d))
+    else:
+        mpm_C = np.zeros((0, d, d))
+    with_a = mpm_a is not None
+    mpm_a = _float(mpm_a, "mpm_a", (n_p, d)) if with_a else np.zeros((0, d))
+
+    n_grid = grid_x.shape[0]
+    grid_mass = np.zeros(n_grid)
+    grid_mom = np.zeros((n_grid, d))
+    grid_ma = np.zeros((n_grid, d) if with_a else (0, d))
+    _p2g(
+        nodes,
+        weights,
+        grid_x,
+        mpm_x,
+        mpm_mass,
+        mpm_v,
+        mpm_C,
+        affine,
+        mpm_a,
+        with_a,
+        grid_mass,
+        grid_mom,
+        grid_ma,
+    )
+
+    # v_i = (m_i v_i) / m_i on nodes with mass; zero (and warn) where the weights vanished.
+    floor = MASS_FLOOR_REL * (grid_mass.max() if n_grid else 0.0)
+    heavy = grid_mass > floor
+    inv_mass = np.zeros(n_grid)
+    inv_mass[heavy] = 1.0 / grid_mass[heavy]
+    if not heavy.all():
+        logger.warning(
+            "P2G: %d grid nodes with (near) zero mass get zero velocity: %s",
+            int((~heavy).sum()),
+            np.flatnonzero(~heavy)[:10],
+        )
+    velocity = grid_mom * inv_mass[:, None]
+    acceleration = grid_ma * inv_mass[:, None] if with_a else None
+    return GridFields(mass=grid_mass, velocity=velocity, acceleration=acceleration)
+
+
+def grid_to_particles(
+    scheme: str,
+    nodes: np.ndarray,
+    weights: np.ndarray,
+    grads: np.ndarray,
+    grid_x: np.ndarray,
+    grid_x_new: np.ndarray,
+    grid_v_old: np.ndarray | None,
+    grid_v_new: np.ndarray,
+    grid_a_new: np.ndarray | None,
+    mpm_x: np.ndarray,
+    mpm_v: np.ndarray,
+    mpm_F: np.ndarray,
+) -> ParticleUpdate:
+    """G2P (Tables 1-3): end-of-step particle positions, velocities, F, APIC C and accelerations.
+
+    For every scheme x_p^{n+1} = sum_i w_ip x~_i and F_p^{n+1} = (sum_i x~_i grad w_ip^T) F_p^n.
+    PIC and APIC: v_p = sum_i w_ip v~_i; FLIP: v_p = v_p^n + sum_i w_ip (v~_i - v_i^n). APIC:
+    C_p = B_p D_p^-1 with B_p = 1/2 sum_i w_ip [v~_i (x_i^n - x_p^n + x~_i - x_p^{n+1})^T
+    + (x_i^n - x_p^n - x~_i + x_p^{n+1}) v~_i^T]. Accelerations (when given): a_p = sum_i w_ip a_i.
+
+    Args:
+        scheme: ``"apic"``, ``"pic"`` or ``"flip"``.
+        nodes: stencil node indices ``(P, K)`` (of the step start) into the active grid nodes.
+        weights: weights w_ip^n ``(P, K)`` at the start positions x_p^n.
+        grads: weight gradients grad w_ip^n ``(P, K, d)`` in 1/m.
+        grid_x: start positions x_i^n of the active grid nodes ``(G, d)`` in m.
+        grid_x_new: solved end positions x~_i^{n+1} ``(G, d)`` in m.
+        grid_v_old: P2G velocities v_i^n ``(G, d)`` in m/s; required for FLIP, ignored otherwise.
+        grid_v_new: solved end velocities v~_i^{n+1} ``(G, d)`` in m/s.
+        grid_a_new: end accelerations a_i^{n+1} ``(G, d)`` in m/s^2 (Newmark), or None.
+        mpm_x: start positions x_p^n ``(P, d)`` in m.
+        mpm_v: start velocities v_p^n ``(P, d)`` in m/s (used by FLIP).
+        mpm_F: start deformation gradients F_p^n ``(P, d, d)``.
+
+    Returns:
+        ``ParticleUpdate(mpm_x (P, d), mpm_v (P, d), mpm_F (P, d, d), mpm_C (P, d, d),
+        mpm_a (P, d) or None)``; ``mpm_C`` is zero for PIC and FLIP.
+    """
+    _check_scheme(scheme)
+    nodes, weights, grid_x = _stencil(nodes, weights, grid_x)
+    (n_p, k), (n_grid, d) = nodes.shape, grid_x.shape
+    grads = _float(grads, "grads", (n_p, k, d))
+    grid_x_new = _float(grid_x_new, "grid_x_new", (n_grid, d))
+    grid_v_new = _float(grid_v_new, "grid_v_new", (n_grid, d))
+    flip = scheme == "flip"
+    if flip:
+        if grid_v_old is None:
+            raise ValueError("grid_v_old (G, d) is required for scheme 'flip'")
+        grid_v_old = _float(grid_v_old, "grid_v_old", (n_grid, d))
+    else:
+        grid_v_old = np.zeros((0, d))
+    with_a = grid_a_new is not None
+    grid_a_new = _float(grid_a_new, "grid_a_new", (n_grid, d)) if with_a else np.zeros((0, d))
+    mpm_x = _float(mpm_x, "mpm_x", (n_p, d))
+    mpm_v = _float(mpm_v, "mpm_v", (n_p, d))
+    mpm_F = _float(mpm_F, "mpm_F", (n_p, d, d))
+
+    out_x = np.empty((n_p, d))
+    out_v = np.empty((n_p, d))
+    out_F = np.empty((n_p, d, d))
+    out_C = np.zeros((n_p, d, d))
+    out_a = np.empty((n_p, d) if with_a else (0, d))
+    singular = np.zeros(n_p, dtype=np.bool_)
+    _g2p(
+        nodes,
+        weights,
+        grads,
+        grid_x,
+        grid_x_new,
+        grid_v_old,
+        grid_v_new,
+        grid_a_new,
+        mpm_x,
+        mpm_v,
+        mpm_F,
+        flip,
+        scheme == "apic",
+        with_a,
+        out_x,
+        out_v,
+        out_F,
+        out_C,
+        out_a,
+        singular,
+    )
+    if singular.any():
+        raise ValueError(
+            "APIC inertia D_p = sum_i w_ip (x_i - x_p)(x_i - x_p)^T is singular at particles "
+            f"{np.flatnonzero(singular)[:10]} (degenerate stencil weights or grid_x)"
+        )
+    return ParticleUpdate(
+        mpm_x=out_x, mpm_v=out_v, mpm_F=out_F, mpm_C=out_C, mpm_a=out_a if with_a else None
+    )
+
+
+def apic_inertia(
+    nodes: np.ndarray, weights: np.ndarray, grid_x: np.ndarray, mpm_x: np.ndarray
+) -> np.ndarray:
+    """APIC inertia D_p = sum_i w_ip (x_i - x_p)(x_i - x_p)^T ``(P, d, d)`` in m^2 (Table 1).
+
+    With it B_p = C_p D_p, and a particle's angular momentum is m_p (x_p x v_p + eps : B_p^T).
+
+    Args:
+        nodes: stencil node indices ``(P, K)``.
+        weights: weights w_ip ``(P, K)`` at ``mpm_x``.
+        grid_x: grid node positions ``(G, d)`` in m.
+        mpm_x: particle positions ``(P, d)`` in m.
+    """
+    nodes, weights, grid_x = _stencil(nodes, weights, grid_x)
+    mpm_x = _float(mpm_x, "mpm_x", (nodes.shape[0], grid_x.shape[1]))
+    return _apic_inertia(nodes, weights, grid_x, mpm_x)
