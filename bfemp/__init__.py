@@ -10,12 +10,20 @@ User code imports this package only::
     sim.run(t_end=1.0, out="out/beam")
 """
 
+import os as _os
+
+# numba's OpenMP threading layer spin-waits between parallel regions by default; on small
+# machines that costs milliseconds per kernel call (measured: 8 ms vs 13 us for a 200-particle
+# kernel on 2 cores). Passive waiting must be set before the OpenMP runtime starts.
+_os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
+
 import logging
 
-from bfemp import motion, shapes
+from bfemp import levelset, motion, sample, shapes
 from bfemp.integrators import BACKWARD_EULER, NEWMARK, Integrator
 from bfemp.materials import LinearElastic, NeoHookean
-from bfemp.model import FemBody, Model
+from bfemp.model import FemBody, Model, MpmBody
 from bfemp.scene import Scene
 from bfemp.simulation import Simulation
 from bfemp.state import State
@@ -32,12 +40,15 @@ __all__ = [
     "Integrator",
     "LinearElastic",
     "Model",
+    "MpmBody",
     "NeoHookean",
     "Scene",
     "Simulation",
     "State",
     "StepError",
     "StepReport",
+    "levelset",
     "motion",
+    "sample",
     "shapes",
 ]

@@ -16,8 +16,12 @@ import numpy as np
 
 from bfemp.motion import Motion
 from bfemp.state import State
+from geometry.grid import Grid
 
-__all__ = ["FemBody", "Model", "simplex_shape_gradients"]
+__all__ = ["Boundary", "FemBody", "Model", "MpmBody", "simplex_shape_gradients"]
+
+#: Level-set boundary kinds on MPM grid nodes.
+BOUNDARY_KINDS = ("sticky", "slip", "separate")
 
 
 @dataclass(frozen=True)
@@ -44,6 +48,42 @@ class FemBody:
     def v(self, state: State) -> np.ndarray:
         """This body's node velocities ``(n, d)`` in m/s (a view into ``state.fem_v``)."""
         return state.fem_v[self.nodes]
+
+
+@dataclass(frozen=True)
+class MpmBody:
+    """Handle of one MPM body: its name, material and slice of the particle arrays."""
+
+    name: str
+    index: int
+    material: object
+    particles: slice
+
+    @property
+    def n_particles(self) -> int:
+        """Number of particles of this body."""
+        return self.particles.stop - self.particles.start
+
+    def x(self, state: State) -> np.ndarray:
+        """This body's particle positions ``(p, d)`` in m (a view into ``state.mpm_x``)."""
+        return state.mpm_x[self.particles]
+
+    def v(self, state: State) -> np.ndarray:
+        """This body's particle velocities ``(p, d)`` in m/s (a view into ``state.mpm_v``)."""
+        return state.mpm_v[self.particles]
+
+
+@dataclass(frozen=True)
+class Boundary:
+    """A static level-set boundary acting on MPM grid nodes inside it (value <= 0).
+
+    ``kind``: ``"sticky"`` (no-slip: the node does not move), ``"slip"`` (no normal motion,
+    free tangential motion) or ``"separate"`` (slip while the node moves into the boundary, free
+    when it moves away, decided per step from the transferred grid velocity).
+    """
+
+    levelset: object
+    kind: str
 
 
 def simplex_shape_gradients(points: np.ndarray, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -86,6 +126,14 @@ class Model:
         fem_prescribed: whether each node is scripted ``(N,)`` bool.
         fem_bodies: the body handles, in insertion order.
         fem_load: constant external nodal forces ``(N, d)`` in N (N/m in 2D).
+        mpm_X: initial particle positions ``(P, d)`` in m.
+        mpm_v0: initial particle velocities ``(P, d)`` in m/s.
+        mpm_volume: initial particle volumes ``(P,)`` in m^d.
+        mpm_mass: particle masses ``(P,)`` in kg (per unit thickness in 2D).
+        mpm_particle_body: body index of each particle ``(P,)``.
+        mpm_bodies: the MPM body handles, in insertion order.
+        grid: the MPM background grid (None when the scene has no particles).
+        boundaries: level-set boundaries acting on grid nodes.
     """
 
     dim: int
@@ -100,11 +148,24 @@ class Model:
     fem_prescribed: np.ndarray
     fem_bodies: tuple[FemBody, ...]
     fem_load: np.ndarray
+    mpm_X: np.ndarray
+    mpm_v0: np.ndarray
+    mpm_volume: np.ndarray
+    mpm_mass: np.ndarray
+    mpm_particle_body: np.ndarray
+    mpm_bodies: tuple[MpmBody, ...]
+    grid: Grid | None
+    boundaries: tuple[Boundary, ...]
 
     @property
     def n_fem_nodes(self) -> int:
         """Number of FEM nodes over all bodies."""
         return self.fem_X.shape[0]
+
+    @property
+    def n_particles(self) -> int:
+        """Number of MPM particles over all bodies."""
+        return self.mpm_X.shape[0]
 
     @property
     def has_load(self) -> bool:
@@ -141,16 +202,17 @@ class Model:
         return out
 
     def initial_state(self) -> State:
-        """State at t = 0: rest positions, initial velocities, zero accelerations."""
-        d = self.dim
+        """State at t = 0: rest positions, initial velocities, F = I, zero C and accelerations."""
+        d, n_p = self.dim, self.n_particles
         return State(
             t=0.0,
             fem_x=self.fem_X.copy(),
             fem_v=self.fem_v0.copy(),
             fem_a=np.zeros_like(self.fem_X),
-            mpm_x=np.zeros((0, d)),
-            mpm_v=np.zeros((0, d)),
-            mpm_F=np.zeros((0, d, d)),
-            mpm_C=np.zeros((0, d, d)),
-            mpm_a=np.zeros((0, d)),
+            mpm_x=self.mpm_X.copy(),
+            mpm_v=self.mpm_v0.copy(),
+            mpm_F=np.tile(np.eye(d), (n_p, 1, 1)),
+            mpm_C=np.zeros((n_p, d, d)),
+            mpm_a=np.zeros((n_p, d)),
+            mpm_Ca=np.zeros((n_p, d, d)),
         )

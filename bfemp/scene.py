@@ -6,6 +6,7 @@ Every input is validated where it enters; errors name the body and the field, fo
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass
 
@@ -13,13 +14,26 @@ import meshio
 import numpy as np
 
 from bfemp.materials import LinearElastic, NeoHookean
-from bfemp.model import FemBody, Model, simplex_shape_gradients
+from bfemp.model import BOUNDARY_KINDS, Boundary, FemBody, Model, MpmBody, simplex_shape_gradients
 from bfemp.motion import Motion
+from geometry.grid import Grid, particles_per_cell
 from geometry.mesh import TetMesh, TriMesh, from_meshio, mesh_from_arrays
 
 __all__ = ["Scene"]
 
 Material = NeoHookean | LinearElastic
+
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class _MpmSpec:
+    name: str
+    x: np.ndarray  # (p, d)
+    volume: np.ndarray  # (p,)
+    material: Material
+    velocity: np.ndarray  # (p, d)
 
 
 @dataclass(frozen=True)
@@ -50,6 +64,9 @@ class Scene:
         self.gravity = g
         self._fem: list[_FemSpec] = []
         self._loads: list[tuple[int, np.ndarray, np.ndarray]] = []
+        self._mpm: list[_MpmSpec] = []
+        self._grid: Grid | None = None
+        self._boundaries: list[Boundary] = []
 
     # ------------------------------------------------------------------ FEM bodies
     def add_fem(
@@ -95,6 +112,84 @@ class Scene:
         prescribed_mask = self._prescribed_mask(prescribed, prescribed_nodes, n, where)
         self._fem.append(_FemSpec(name, mesh, material, vel, prescribed, prescribed_mask))
         return index
+
+    # ------------------------------------------------------------------ MPM bodies
+    def add_mpm(
+        self,
+        particles: np.ndarray,
+        volumes: np.ndarray,
+        *,
+        material: Material,
+        velocity: tuple[float, ...] | np.ndarray | None = None,
+        name: str | None = None,
+    ) -> int:
+        """Add an MPM body (particles on the shared background grid) and return its index.
+
+        Args:
+            particles: positions ``(p, d)`` in m (e.g. from ``bfemp.sample``).
+            volumes: particle volumes ``(p,)`` in m^d (per unit thickness in 2D).
+            material: ``NeoHookean`` or ``LinearElastic``.
+            velocity: initial velocity ``(d,)`` or ``(p, d)`` in m/s; default zero.
+            name: body name used in messages and output files; default ``mpm{index}``.
+        """
+        index = len(self._mpm)
+        name = f"mpm{index}" if name is None else str(name)
+        if any(spec.name == name for spec in (*self._mpm, *self._fem)):
+            raise ValueError(f"mpm body '{name}': name is already used by another body")
+        where = f"mpm body '{name}'"
+        d = self.dim
+        x = np.asarray(particles, dtype=np.float64)
+        if x.ndim != 2 or x.shape[1] != d or x.shape[0] == 0:
+            raise ValueError(
+                f"{where}: particles must have shape (p, {d}) with p >= 1, got {x.shape}"
+            )
+        bad = np.flatnonzero(~np.all(np.isfinite(x), axis=1))
+        if bad.size:
+            raise ValueError(f"{where}: particles hold NaN or inf at rows {bad[:10].tolist()}")
+        vol = np.asarray(volumes, dtype=np.float64)
+        if vol.shape != (x.shape[0],):
+            raise ValueError(f"{where}: volumes must have shape ({x.shape[0]},), got {vol.shape}")
+        bad = np.flatnonzero(~(np.isfinite(vol) & (vol > 0.0)))
+        if bad.size:
+            raise ValueError(
+                f"{where}: volumes must be positive and finite; bad at rows {bad[:10].tolist()}"
+            )
+        if not isinstance(material, NeoHookean | LinearElastic):
+            raise ValueError(
+                f"{where}: material must be bfemp.NeoHookean or bfemp.LinearElastic, "
+                f"got {type(material).__name__}"
+            )
+        vel = self._velocity(velocity, x.shape[0], where)
+        self._mpm.append(_MpmSpec(name, np.ascontiguousarray(x), vol.copy(), material, vel))
+        return index
+
+    def set_grid(self, dx: float, origin: tuple[float, ...] | None = None) -> None:
+        """The MPM background grid: cell size ``dx`` in m, node ``origin (d,)`` (default 0)."""
+        if not (isinstance(dx, int | float) and math.isfinite(dx) and dx > 0):
+            raise ValueError(f"set_grid: dx must be a positive length in m, got {dx!r}")
+        try:
+            self._grid = Grid.make(float(dx), self.dim, origin)
+        except ValueError as err:
+            raise ValueError(f"set_grid: {err}") from None
+
+    def add_boundary(self, levelset: object, kind: str = "slip") -> None:
+        """A static level-set boundary on the MPM grid nodes inside it (``value <= 0``).
+
+        Args:
+            levelset: e.g. ``bfemp.levelset.HalfPlane(point=..., normal=...)``.
+            kind: ``"sticky"``, ``"slip"`` or ``"separate"``.
+        """
+        if kind not in BOUNDARY_KINDS:
+            raise ValueError(f"add_boundary: kind must be one of {BOUNDARY_KINDS}, got {kind!r}")
+        if not (
+            callable(getattr(levelset, "value", None))
+            and callable(getattr(levelset, "normal", None))
+        ):
+            raise ValueError("add_boundary: levelset must have value(x) and normal(x) methods")
+        ls_dim = getattr(levelset, "dim", None)
+        if ls_dim is not None and ls_dim != self.dim:
+            raise ValueError(f"add_boundary: levelset is {ls_dim}D but the scene is {self.dim}D")
+        self._boundaries.append(Boundary(levelset=levelset, kind=kind))
 
     def add_load(
         self, body: int, force: tuple[float, ...] | np.ndarray, nodes: np.ndarray | None = None
@@ -197,8 +292,10 @@ class Scene:
     def build(self) -> Model:
         """Concatenate the bodies into a ``Model`` (masses lumped, shape gradients precomputed)."""
         d = self.dim
-        if not self._fem:
-            raise ValueError("Scene has no bodies: add one with add_fem")
+        if not self._fem and not self._mpm:
+            raise ValueError("Scene has no bodies: add one with add_fem or add_mpm")
+        if self._mpm and self._grid is None:
+            raise ValueError("Scene has MPM bodies but no grid: call scene.set_grid(dx=...)")
         points, cells, velocity, prescribed, cell_body, bodies = [], [], [], [], [], []
         node_offset = cell_offset = 0
         for index, spec in enumerate(self._fem):
@@ -222,15 +319,17 @@ class Scene:
             )
             node_offset += n
             cell_offset += m
-        fem_X = np.ascontiguousarray(np.concatenate(points), dtype=np.float64)
-        fem_cells = np.ascontiguousarray(np.concatenate(cells), dtype=np.int64)
-        fem_cell_body = np.concatenate(cell_body)
+        fem_X = np.ascontiguousarray(np.concatenate([np.zeros((0, d)), *points]), dtype=np.float64)
+        fem_cells = np.ascontiguousarray(
+            np.concatenate([np.zeros((0, d + 1), dtype=np.int64), *cells]), dtype=np.int64
+        )
+        fem_cell_body = np.concatenate([np.zeros(0, dtype=np.int64), *cell_body])
         grad, volume = simplex_shape_gradients(fem_X, fem_cells)
         density = np.array([spec.material.density for spec in self._fem])[fem_cell_body]
         mass = np.zeros(fem_X.shape[0])
         # Lumped mass: each cell gives rho V / (d + 1) to each of its vertices.
         np.add.at(mass, fem_cells.ravel(), np.repeat(density * volume / (d + 1), d + 1))
-        fem_prescribed = np.concatenate(prescribed)
+        fem_prescribed = np.concatenate([np.zeros(0, dtype=bool), *prescribed])
         load = np.zeros_like(fem_X)
         for body, idx, f in self._loads:
             np.add.at(load, bodies[body].nodes.start + idx, f)
@@ -238,7 +337,7 @@ class Scene:
             dim=d,
             gravity=self.gravity.copy(),
             fem_X=fem_X,
-            fem_v0=np.concatenate(velocity),
+            fem_v0=np.concatenate([np.zeros((0, d)), *velocity]),
             fem_mass=mass,
             fem_cells=fem_cells,
             fem_cell_volume=volume,
@@ -247,6 +346,7 @@ class Scene:
             fem_prescribed=fem_prescribed,
             fem_bodies=tuple(bodies),
             fem_load=load,
+            **self._build_mpm(),
         )
         # Scripted nodes start with their scripted velocity.
         v0 = model.prescribed_velocities(0.0)
@@ -254,3 +354,40 @@ class Scene:
         if not math.isfinite(float(mass.sum())):
             raise ValueError("Scene: non-finite total mass")
         return model
+
+    def _build_mpm(self) -> dict:
+        """MPM fields of the Model (empty arrays without particles; no grid without particles)."""
+        d = self.dim
+        xs, vols, vels, masses, owner, bodies = [], [], [], [], [], []
+        offset = 0
+        for index, spec in enumerate(self._mpm):
+            n = spec.x.shape[0]
+            if self._grid is not None:
+                ppc = particles_per_cell(self._grid, spec.x, spec.volume)
+                if ppc < 1.0:
+                    raise ValueError(
+                        f"mpm body '{spec.name}': {ppc:.3g} particles per grid cell (< 1): the "
+                        f"grid dx = {self._grid.dx:g} m is finer than the particle spacing; "
+                        f"sample with a larger ppc or use a coarser grid"
+                    )
+            xs.append(spec.x)
+            vols.append(spec.volume)
+            vels.append(spec.velocity)
+            masses.append(spec.material.density * spec.volume)
+            owner.append(np.full(n, index, dtype=np.int64))
+            bodies.append(MpmBody(spec.name, index, spec.material, slice(offset, offset + n)))
+            offset += n
+
+        def cat(parts: list[np.ndarray], shape: tuple[int, ...], dtype: type = np.float64):
+            return np.ascontiguousarray(np.concatenate([np.zeros(shape, dtype=dtype), *parts]))
+
+        return dict(
+            mpm_X=cat(xs, (0, d)),
+            mpm_v0=cat(vels, (0, d)),
+            mpm_volume=cat(vols, (0,)),
+            mpm_mass=cat(masses, (0,)),
+            mpm_particle_body=cat(owner, (0,), np.int64),
+            mpm_bodies=tuple(bodies),
+            grid=self._grid if self._mpm else None,
+            boundaries=tuple(self._boundaries) if self._mpm else (),
+        )

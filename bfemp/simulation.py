@@ -77,6 +77,7 @@ class Simulation:
             dt=self.dt,
             newton=newton,
             linear_solver=linear_solver,
+            transfer=transfer,
         )
         self.state: State = self.stepper.initialize(self.model.initial_state())
         self.metrics = MetricsLog()
@@ -147,10 +148,12 @@ class Simulation:
         elastic = sum(
             term.energy_at(state.fem_x)
             for term in self.stepper.potential.potentials
-            if hasattr(term, "energy_at")
+            if hasattr(term, "energy_at") and not hasattr(term, "particles")
         )
+        if self.model.n_particles:
+            elastic += diagnostics.mpm_elastic_energy(self.model, state)
         out = {
-            "energy_kinetic": diagnostics.kinetic_energy(self.model, state),
+            "energy_kinetic": diagnostics.kinetic_energy(self.model, state, self.transfer),
             "energy_elastic": float(elastic),
             "energy_gravity": diagnostics.gravity_energy(self.model, state),
         }
@@ -165,7 +168,7 @@ class Simulation:
         axes = "xyz"
         for k, p in enumerate(diagnostics.linear_momentum(self.model, self.state)):
             row[f"momentum_{axes[k]}"] = float(p)
-        angular = diagnostics.angular_momentum(self.model, self.state)
+        angular = diagnostics.angular_momentum(self.model, self.state, self.transfer)
         for k, value in enumerate(angular):
             row[f"angular_momentum_{'z' if angular.size == 1 else axes[k]}"] = float(value)
         if report is not None:
@@ -191,6 +194,21 @@ class Simulation:
                     cell_data={"J": j_cells[body.cells], "von_mises": von_mises[body.cells]},
                 )
             )
+        for body in model.mpm_bodies:
+            sl = body.particles
+            blocks.append(
+                Block(
+                    name=body.name,
+                    points=state.mpm_x[sl],
+                    cells=None,
+                    point_data={
+                        "velocity": state.mpm_v[sl],
+                        "J": np.linalg.det(state.mpm_F[sl]),
+                        "von_mises": _von_mises(body.material, state.mpm_F[sl]),
+                        "volume": model.mpm_volume[sl],
+                    },
+                )
+            )
         return blocks
 
     def wall_clock(self) -> float:
@@ -199,29 +217,28 @@ class Simulation:
         return float(np.nansum(self.metrics.column(col))) if col in self.metrics.columns else 0.0
 
 
-def _cell_stress_fields(model: Model, state: State) -> tuple[np.ndarray, np.ndarray]:
-    """Per-cell J ``(M,)`` and von Mises Cauchy stress ``(M,)`` in Pa.
+def _von_mises(material: object, F: np.ndarray) -> np.ndarray:
+    """Von Mises Cauchy stress ``(n,)`` in Pa of deformation gradients ``(n, d, d)``.
 
-    In 2D (plane strain) the in-plane von Mises sqrt(sxx^2 - sxx syy + syy^2 + 3 sxy^2) is reported.
+    In 2D (plane strain) the in-plane sqrt(sxx^2 - sxx syy + syy^2 + 3 sxy^2) is reported.
     """
+    n = F.shape[0]
+    J = np.linalg.det(F)
+    with np.errstate(all="ignore"):
+        P = material.law.first_piola(F, np.full(n, material.mu), np.full(n, material.lam))
+        sigma = P @ np.swapaxes(F, 1, 2) / J[:, None, None]
+    if F.shape[1] == 2:
+        sxx, syy, sxy = sigma[:, 0, 0], sigma[:, 1, 1], sigma[:, 0, 1]
+        return np.sqrt(np.maximum(sxx**2 - sxx * syy + syy**2 + 3 * sxy**2, 0.0))
+    dev = sigma - np.trace(sigma, axis1=1, axis2=2)[:, None, None] * np.eye(3) / 3.0
+    return np.sqrt(1.5 * np.einsum("mij,mij->m", dev, dev))
+
+
+def _cell_stress_fields(model: Model, state: State) -> tuple[np.ndarray, np.ndarray]:
+    """Per-cell J ``(M,)`` and von Mises Cauchy stress ``(M,)`` in Pa."""
     x = state.fem_x[model.fem_cells]  # (M, d+1, d)
     F = np.einsum("mai,maj->mij", x, model.fem_cell_grad)
-    J = np.linalg.det(F)
     vm = np.zeros(F.shape[0])
-    for body in model.fem_bodies:
-        sl = body.cells
-        mat = body.material
-        n = sl.stop - sl.start
-        mu = np.full(n, mat.mu)
-        lam = np.full(n, mat.lam)
-        Fb = F[sl]
-        with np.errstate(all="ignore"):
-            P = mat.law.first_piola(Fb, mu, lam)
-            sigma = P @ np.swapaxes(Fb, 1, 2) / J[sl, None, None]
-        if model.dim == 2:
-            sxx, syy, sxy = sigma[:, 0, 0], sigma[:, 1, 1], sigma[:, 0, 1]
-            vm[sl] = np.sqrt(np.maximum(sxx**2 - sxx * syy + syy**2 + 3 * sxy**2, 0.0))
-        else:
-            dev = sigma - np.trace(sigma, axis1=1, axis2=2)[:, None, None] * np.eye(3) / 3.0
-            vm[sl] = np.sqrt(1.5 * np.einsum("mij,mij->m", dev, dev))
-    return J, vm
+    for body in model.fem_bodies:  # a few bodies; vectorised over cells
+        vm[body.cells] = _von_mises(body.material, F[body.cells])
+    return np.linalg.det(F), vm

@@ -30,7 +30,8 @@ class State:
         mpm_v: particle velocities ``(P, d)`` in m/s.
         mpm_F: particle deformation gradients ``(P, d, d)``.
         mpm_C: APIC affine velocity matrices ``(P, d, d)`` in 1/s.
-        mpm_a: particle accelerations ``(P, d)`` in m/s^2 (transferred like velocities; Newmark).
+        mpm_a: particle accelerations ``(P, d)`` in m/s^2 (Newmark; transferred like velocities).
+        mpm_Ca: APIC affine acceleration matrices ``(P, d, d)`` in 1/s^2 (Newmark with APIC).
     """
 
     t: float
@@ -43,6 +44,7 @@ class State:
     mpm_F: np.ndarray = field(default_factory=lambda: _empty(0, 2, 2))
     mpm_C: np.ndarray = field(default_factory=lambda: _empty(0, 2, 2))
     mpm_a: np.ndarray = field(default_factory=lambda: _empty(0, 2))
+    mpm_Ca: np.ndarray = field(default_factory=lambda: _empty(0, 2, 2))
 
     def copy(self) -> State:
         """A deep copy (arrays copied)."""

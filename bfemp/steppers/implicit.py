@@ -1,8 +1,14 @@
-"""BFEMP's implicit step (Algorithm 1 without MPM transfers and contact, which later plug in here).
+"""BFEMP's implicit step (Algorithm 1; contact plugs into the same potential).
 
-One step: predict x_hat (eq. 21-22), minimise the incremental potential with projected Newton
-(Algorithm 2) from x^n, then a^{n+1} = -M^-1 dPsi/dx(x^{n+1}) and the Newmark velocity update
-(Algorithm 2, line 14). Prescribed nodes follow their motion and are not unknowns.
+One step:
+1. MPM: quadratic B-spline stencils at x_p^n and P2G of mass, velocity (and acceleration for
+   Newmark) per Tables 1-3 (line 2); level-set constraints of the active grid nodes.
+2. Unknowns: free FEM nodes and unconstrained grid nodes, prescribed FEM nodes follow their motion,
+   sticky grid nodes stay, slip grid nodes move tangentially only (rotated frames).
+3. Predict x_hat (eqs. 21-22), minimise the incremental potential with projected Newton from x^n
+   (Algorithm 2), then a^{n+1} = -M^-1 dPsi/dx(x^{n+1}) and the velocity update of eq. 21
+   (Algorithm 2, line 14); constrained components get zero velocity and acceleration.
+4. MPM: G2P of positions, velocities, F (and APIC C, Newmark a) per Tables 1-3 (line 12).
 """
 
 from __future__ import annotations
@@ -14,8 +20,13 @@ from dataclasses import replace
 import numpy as np
 
 from bfemp.dofs import DofLayout
+from bfemp.frames import NodeFrames
 from bfemp.integrators import Integrator
 from bfemp.model import Model
+from bfemp.mpm.boundaries import normal_frames
+from bfemp.mpm.elasticity import MpmElasticityTerm
+from bfemp.mpm.step import MpmStep, prepare_mpm_step
+from bfemp.mpm.transfer import grid_to_particles
 from bfemp.potential import IncrementalPotential
 from bfemp.state import State
 from bfemp.steppers.base import StepError, StepReport
@@ -32,21 +43,32 @@ from solvers.newton import minimize
 from solvers.options import NewtonOptions
 from solvers.result import NewtonResult, NewtonStatus
 
-__all__ = ["ImplicitStepper"]
+__all__ = ["ImplicitStepper", "build_potential"]
 
 log = logging.getLogger(__name__)
+
+
+def _laws(bodies: tuple) -> dict[int, object]:
+    return {id(b.material.law): b.material.law for b in bodies}
 
 
 def build_potential(model: Model) -> IncrementalPotential:
     """The terms this model needs, and nothing else (a scene pays only for what it has)."""
     potentials = []
-    body_law = [body.material.law for body in model.fem_bodies]
-    laws = {id(law): law for law in body_law}
-    for law in laws.values():
+    for law in _laws(model.fem_bodies).values():
         bodies = [b.index for b in model.fem_bodies if b.material.law is law]
         mask = np.isin(model.fem_cell_body, bodies)
         stencils = fem_cell_stencils(model, mask)
         potentials.append(ElasticityTerm(law, stencils, name=f"elasticity[{law.name}]"))
+    for law in _laws(model.mpm_bodies).values():
+        bodies = [b for b in model.mpm_bodies if b.material.law is law]
+        particles = np.concatenate([np.arange(b.particles.start, b.particles.stop) for b in bodies])
+        owner = model.mpm_particle_body[particles]
+        mu = np.array([b.material.mu for b in model.mpm_bodies])[owner]
+        lam = np.array([b.material.lam for b in model.mpm_bodies])[owner]
+        potentials.append(
+            MpmElasticityTerm(law, particles, mu, lam, name=f"mpm_elasticity[{law.name}]")
+        )
     if model.has_gravity:
         potentials.append(GravityTerm(model.gravity))
     if model.has_load:
@@ -63,6 +85,7 @@ class ImplicitStepper:
         dt: time step in s.
         newton: Newton options (``step_scale`` is set to ``dt``: tolerance in m/s).
         linear_solver: defaults to CHOLMOD (scipy fallback with a warning).
+        transfer: MPM particle-grid transfer, ``"apic"``, ``"pic"`` or ``"flip"``.
     """
 
     def __init__(
@@ -73,57 +96,110 @@ class ImplicitStepper:
         dt: float,
         newton: NewtonOptions,
         linear_solver: LinearSolver | None = None,
+        transfer: str = "apic",
     ) -> None:
         self.model = model
         self.integrator = integrator
         self.dt = float(dt)
         self.newton = replace(newton, step_scale=self.dt)
         self.linear_solver = linear_solver if linear_solver is not None else default_linear_solver()
+        self.transfer = transfer
         self.potential = build_potential(model)
-        self.layout = DofLayout(model.dim, ~model.fem_prescribed, model.n_fem_nodes)
-        self.dof_mass = np.repeat(model.fem_mass[self.layout.free_nodes], model.dim)
+        self._fem_layout = DofLayout(model.dim, ~model.fem_prescribed, model.n_fem_nodes)
+        self.layout = self._fem_layout
 
     @property
     def terms(self) -> list[str]:
         """Names of the active energy terms."""
         return [term.name for term in self.potential.terms]
 
-    def _context(self, state: State, t_next: float, x_hat: np.ndarray) -> StepContext:
-        return StepContext(
-            model=self.model,
+    # ------------------------------------------------------------------ step set-up
+    def _setup(
+        self, state: State, t_next: float
+    ) -> tuple[StepContext, MpmStep | None, np.ndarray, np.ndarray, np.ndarray, NodeFrames | None]:
+        """Layout, context and the all-node x^n, v^n, a^n of a step from ``state`` to t_next."""
+        model, d = self.model, self.model.dim
+        fem_fixed = model.prescribed_positions(t_next)
+        if model.n_particles == 0:
+            layout, mpm = self._fem_layout, None
+            x_all, v_all, a_all = state.fem_x, state.fem_v, state.fem_a
+            mass_all, fixed = model.fem_mass, fem_fixed
+        else:
+            mpm = prepare_mpm_step(
+                model, state, self.transfer, with_acceleration=self.integrator.uses_acceleration
+            )
+            grid_x = mpm.stencils.active_x
+            fields = mpm.fields
+            grid_a = mpm.acceleration if mpm.acceleration is not None else 0.0 * grid_x
+            free = np.concatenate([~model.fem_prescribed, ~mpm.constraints.sticky])
+            layout = DofLayout(d, free, model.n_fem_nodes)
+            x_all = np.concatenate([state.fem_x, grid_x])
+            v_all = np.concatenate([state.fem_v, fields.velocity])
+            a_all = np.concatenate([state.fem_a, grid_a])
+            mass_all = np.concatenate([model.fem_mass, fields.mass])
+            fixed = np.concatenate([fem_fixed, grid_x])
+        self.layout = layout
+        x_n, v_n, a_n = layout.restrict(x_all), layout.restrict(v_all), layout.restrict(a_all)
+        ctx = StepContext(
+            model=model,
             state=state,
             dt=self.dt,
-            layout=self.layout,
-            fixed_positions=self.model.prescribed_positions(t_next),
-            x_hat=x_hat,
-            dof_mass=self.dof_mass,
+            layout=layout,
+            fixed_positions=fixed,
+            x_hat=self.integrator.predict(x_n, v_n, a_n, self.dt),
+            dof_mass=np.repeat(mass_all[layout.free_nodes], d),
+            mpm=mpm,
         )
+        frames = None
+        if mpm is not None and mpm.constraints.slip.any():
+            slip_nodes = np.flatnonzero(mpm.constraints.slip)
+            dof_nodes = layout.dof_node[slip_nodes + mpm.node_offset]
+            keep = dof_nodes >= 0
+            frames = NodeFrames(
+                d,
+                layout.n_dof,
+                dof_nodes[keep],
+                normal_frames(mpm.constraints.normals[slip_nodes[keep]]),
+            )
+        return ctx, mpm, x_n, v_n, a_n, frames
 
-    def accelerations(self, state: State) -> np.ndarray:
-        """a = -M^-1 dPsi/dx at ``state`` for the free nodes, as ``(N, d)`` (zero elsewhere)."""
-        x = self.layout.restrict(state.fem_x)
-        self.potential.begin_step(self._context(state, state.t, x), self.integrator.weight(self.dt))
-        self.potential.solution_changed(x)
-        return self.layout.expand(-self.potential.potential_gradient(x) / self.dof_mass)
+    def begin_step(self, state: State) -> np.ndarray:
+        """Set up the potential of the step starting at ``state`` (for inspection and tests).
+
+        Returns the start positions of the unknowns x^n ``(n_dof,)``; ``self.context`` holds the
+        step context.
+        """
+        ctx, _, x_n, _, _, frames = self._setup(state, state.t + self.dt)
+        self.potential.begin_step(ctx, self.integrator.weight(self.dt), frames)
+        self.context = ctx
+        return x_n
 
     def initialize(self, state: State) -> State:
-        """Set a^0 consistently with the forces at t = 0 when the integrator uses it."""
+        """Set a^0 of FEM nodes consistently with the forces at t = 0 (Newmark needs it)."""
         out = state.copy()
-        if self.integrator.uses_acceleration:
-            out.fem_a = self.accelerations(state)
+        if not self.integrator.uses_acceleration or self.model.n_fem_nodes == 0:
+            return out
+        ctx, _, x_n, _, _, _ = self._setup(state, state.t)
+        self.potential.begin_step(ctx, self.integrator.weight(self.dt))
+        self.potential.solution_changed(x_n)
+        accel = -self.potential.potential_gradient(x_n) / ctx.dof_mass
+        all_a = self.layout.expand(accel)
+        out.fem_a = all_a[: self.model.n_fem_nodes]
+        # MPM particles start with a = g (no elastic force in the rest state)
+        if self.model.n_particles:
+            out.mpm_a = np.broadcast_to(self.model.gravity, out.mpm_a.shape).copy()
         return out
 
+    # ------------------------------------------------------------------ the step
     def step(self, state: State) -> tuple[State, StepReport]:
         """Advance ``state`` by ``dt``; raises ``StepError`` when Newton fails."""
         started = time.perf_counter()
-        dt, layout, integ = self.dt, self.layout, self.integrator
+        dt, integ = self.dt, self.integrator
         t_next = state.t + dt
-        x_n = layout.restrict(state.fem_x)
-        v_n = layout.restrict(state.fem_v)
-        a_n = layout.restrict(state.fem_a)
-        x_hat = integ.predict(x_n, v_n, a_n, dt)
-        ctx = self._context(state, t_next, x_hat)
-        self.potential.begin_step(ctx, integ.weight(dt))
+        ctx, mpm, x_n, v_n, a_n, frames = self._setup(state, t_next)
+        layout = ctx.layout
+        self.potential.begin_step(ctx, integ.weight(dt), frames)
+        setup_time = time.perf_counter() - started
         if layout.n_dof == 0:  # every node scripted: nothing to solve
             result = NewtonResult(
                 x=x_n,
@@ -134,7 +210,10 @@ class ImplicitStepper:
             )
         else:
             result = minimize(
-                self.potential, x_n.copy(), options=self.newton, linear_solver=self.linear_solver
+                self.potential,
+                self.potential.to_unknowns(x_n),
+                options=self.newton,
+                linear_solver=self.linear_solver,
             )
         report_args = dict(
             step=state.step + 1,
@@ -147,26 +226,81 @@ class ImplicitStepper:
         )
         if not result.success:
             raise StepError(StepReport(**report_args, timings=dict(result.timings)))
-        x_next = result.x
         # a^{n+1} from the forces at x^{n+1} (Algorithm 2, line 14), then eq. 21 for v.
-        self.potential.solution_changed(x_next)
-        a_next = -self.potential.potential_gradient(x_next) / self.dof_mass
+        x_next = self.potential.to_positions(result.x)
+        if layout.n_dof:
+            self.potential.solution_changed(result.x)
+            a_next = -self.potential.potential_gradient(x_next) / ctx.dof_mass
+        else:
+            a_next = np.zeros(0)
+        if frames is not None:  # no motion, hence no velocity, along slip normals
+            local = frames.to_local(a_next)
+            local[frames.normal_dofs()] = 0.0
+            a_next = frames.to_global(local)
         v_next = integ.velocity(v_n, a_n, a_next, dt)
+        if frames is not None:
+            local = frames.to_local(v_next)
+            local[frames.normal_dofs()] = 0.0
+            v_next = frames.to_global(local)
 
-        new = state.copy()
-        new.t = t_next
-        new.step = state.step + 1
-        new.fem_x = ctx.fixed_positions.copy()
-        new.fem_x[layout.free_nodes] = x_next.reshape(-1, self.model.dim)
-        prescribed = self.model.fem_prescribed
-        v_scripted = self.model.prescribed_velocities(t_next)
-        new.fem_v = v_scripted
-        new.fem_v[layout.free_nodes] = v_next.reshape(-1, self.model.dim)
-        new.fem_a = np.zeros_like(state.fem_a)
-        new.fem_a[prescribed] = (v_scripted[prescribed] - state.fem_v[prescribed]) / dt
-        new.fem_a[layout.free_nodes] = a_next.reshape(-1, self.model.dim)
+        g2p_start = time.perf_counter()
+        new = self._advance(state, ctx, mpm, x_next, v_next, a_next, t_next)
         timings = dict(result.timings)
+        timings["setup"] = setup_time
+        timings["g2p"] = time.perf_counter() - g2p_start
         timings["step"] = time.perf_counter() - started
         report = StepReport(**report_args, timings=timings)
         log.debug("step %d: %d Newton iterations", report.step, report.newton_iterations)
         return new, report
+
+    def _advance(
+        self,
+        state: State,
+        ctx: StepContext,
+        mpm: MpmStep | None,
+        x_next: np.ndarray,
+        v_next: np.ndarray,
+        a_next: np.ndarray,
+        t_next: float,
+    ) -> State:
+        """The new state: FEM nodes from the solve, particles by G2P."""
+        model, layout, n_fem = self.model, ctx.layout, self.model.n_fem_nodes
+        x_all = layout.positions(x_next, ctx.fixed_positions)
+        v_all = layout.expand(v_next)
+        a_all = layout.expand(a_next)
+        new = state.copy()
+        new.t = t_next
+        new.step = state.step + 1
+        prescribed = model.fem_prescribed
+        v_scripted = model.prescribed_velocities(t_next)
+        new.fem_x = x_all[:n_fem].copy()
+        new.fem_v = np.where(prescribed[:, None], v_scripted, v_all[:n_fem])
+        new.fem_a = a_all[:n_fem].copy()
+        new.fem_a[prescribed] = (v_scripted[prescribed] - state.fem_v[prescribed]) / self.dt
+        if mpm is not None:
+            st = mpm.stencils
+            grid_x_new = x_all[n_fem:]
+            args = (self.transfer, st.nodes, st.weights, st.grads, st.active_x, grid_x_new)
+            update = grid_to_particles(
+                *args,
+                mpm.fields.velocity,
+                v_all[n_fem:],
+                None,
+                state.mpm_x,
+                state.mpm_v,
+                state.mpm_F,
+            )
+            new.mpm_x, new.mpm_v, new.mpm_F = update.mpm_x, update.mpm_v, update.mpm_F
+            new.mpm_C = update.mpm_C
+            if mpm.acceleration is not None:  # a^{n+1} crosses back like the velocity
+                accel = grid_to_particles(
+                    *args,
+                    mpm.acceleration,
+                    a_all[n_fem:],
+                    None,
+                    state.mpm_x,
+                    state.mpm_a,
+                    state.mpm_F,
+                )
+                new.mpm_a, new.mpm_Ca = accel.mpm_v, accel.mpm_C
+        return new

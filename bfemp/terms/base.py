@@ -39,6 +39,8 @@ class StepContext:
             their positions at t^{n+1} (free entries are ignored by ``layout.positions``).
         x_hat: inertial prediction ``(n_dof,)`` in m, x^n + dt v^n + alpha (1 - 2 beta) dt^2 a^n.
         dof_mass: lumped mass of each unknown ``(n_dof,)`` in kg.
+        mpm: the MPM part of the step (stencils, grid fields, constraints), None without
+            particles.
     """
 
     model: Model
@@ -48,6 +50,7 @@ class StepContext:
     fixed_positions: np.ndarray
     x_hat: np.ndarray
     dof_mass: np.ndarray
+    mpm: object | None = None
 
 
 class Term(Protocol):

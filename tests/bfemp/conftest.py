@@ -16,12 +16,7 @@ def started_stepper(scene, dt=1e-2, state=None):
         model, integrator=BACKWARD_EULER, dt=dt, newton=NewtonOptions(tol=1e-8)
     )
     state = model.initial_state() if state is None else state
-    layout = stepper.layout
-    x = layout.restrict(state.fem_x)
-    v = layout.restrict(state.fem_v)
-    x_hat = x + dt * v
-    ctx = stepper._context(state, state.t + dt, x_hat)
-    stepper.potential.begin_step(ctx, BACKWARD_EULER.weight(dt))
+    x = stepper.begin_step(state)
     return model, stepper, x
 
 

@@ -1,0 +1,77 @@
+"""Per-node rotated frames of the unknowns, to impose slip exactly (x_i = Q_i y_i).
+
+For a node held on a boundary with unit normal n the unknowns are rotated into Q_i = [n, t1, (t2)]
+and the normal coordinate y_i[0] is fixed: the node can only move tangentially. Everything the
+solver sees is expressed in y: gradients Q^T g and Hessians Q^T H Q, expanded entry by entry from
+the COO triplets (only entries touching a rotated node change; the pattern is fixed for a step).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from solvers.assembly import Triplets
+
+__all__ = ["NodeFrames"]
+
+
+class NodeFrames:
+    """Rotations of some DOF nodes.
+
+    Args:
+        dim: spatial dimension d.
+        n_dof: number of unknowns (d per DOF node).
+        nodes: DOF-node indices ``(r,)`` that are rotated.
+        frames: their orthonormal frames ``(r, d, d)`` (columns: local axes in world coordinates).
+    """
+
+    def __init__(self, dim: int, n_dof: int, nodes: np.ndarray, frames: np.ndarray) -> None:
+        self.dim = dim
+        self.n_dof = n_dof
+        self.nodes = np.asarray(nodes, dtype=np.int64)
+        self.frames = np.asarray(frames, dtype=np.float64)
+        self._slot = np.full(n_dof // dim, -1, dtype=np.int64)
+        self._slot[self.nodes] = np.arange(self.nodes.size)
+
+    def to_local(self, x: np.ndarray) -> np.ndarray:
+        """y ``(n_dof,)`` with y_i = Q_i^T x_i on rotated nodes (also maps gradients)."""
+        y = x.copy().reshape(-1, self.dim)
+        y[self.nodes] = np.einsum("rji,rj->ri", self.frames, y[self.nodes])
+        return y.reshape(-1)
+
+    def to_global(self, y: np.ndarray) -> np.ndarray:
+        """x ``(n_dof,)`` with x_i = Q_i y_i on rotated nodes."""
+        x = y.copy().reshape(-1, self.dim)
+        x[self.nodes] = np.einsum("rij,rj->ri", self.frames, x[self.nodes])
+        return x.reshape(-1)
+
+    def normal_dofs(self) -> np.ndarray:
+        """DOF indices ``(r,)`` of the first local axis (the normal) of each rotated node."""
+        return self.nodes * self.dim
+
+    def rotate(self, t: Triplets) -> Triplets:
+        """Triplets of Q^T H Q from those of H (entries touching rotated nodes expanded)."""
+        d = self.dim
+        row_slot = self._slot[t.rows // d]
+        col_slot = self._slot[t.cols // d]
+        touched = (row_slot >= 0) | (col_slot >= 0)
+        if not touched.any():
+            return t
+        r, c, v = t.rows[touched], t.cols[touched], t.vals[touched]
+        rs, cs = row_slot[touched], col_slot[touched]
+        # coefficient of local axis a for the row: Q_i[rho, a] if rotated, else delta(rho, a)
+        row_coef = np.where(
+            (rs >= 0)[:, None], self.frames[np.maximum(rs, 0), r % d, :], np.eye(d)[r % d]
+        )
+        col_coef = np.where(
+            (cs >= 0)[:, None], self.frames[np.maximum(cs, 0), c % d, :], np.eye(d)[c % d]
+        )
+        comp = np.arange(d)
+        rows = ((r // d) * d)[:, None, None] + comp[None, :, None] + 0 * comp[None, None, :]
+        cols = ((c // d) * d)[:, None, None] + comp[None, None, :] + 0 * comp[None, :, None]
+        vals = v[:, None, None] * row_coef[:, :, None] * col_coef[:, None, :]
+        return Triplets(
+            np.concatenate([t.rows[~touched], rows.reshape(-1)]),
+            np.concatenate([t.cols[~touched], cols.reshape(-1)]),
+            np.concatenate([t.vals[~touched], vals.reshape(-1)]),
+        )

@@ -1,0 +1,77 @@
+"""numba kernels that accumulate MPM particle Hessians into the grid's node-pair pattern.
+
+Two stencil entries a, b of one particle sit at the node offsets o_a, o_b in {0, 1, 2}^d from the
+particle's base node, so their relative offset o_b - o_a lies in {-2, ..., 2}^d: each grid node
+couples with at most 5^d nodes. Blocks are stored per (node, relative offset) - (G, 5^d, d, d) -
+so no (3^d d)^2 per-particle block list is ever materialised.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def _neighbour_table(nodes, weights, grads, pair_code, n_nodes, n_codes):  # noqa: ANN001, ANN202
+    """nbr (G, 5^d): the node at each relative offset of node i, -1 where no particle couples."""
+    nbr = np.full((n_nodes, n_codes), -1, dtype=np.int64)
+    n_p, k = nodes.shape
+    d = grads.shape[2]
+    for p in range(n_p):
+        for a in range(k):
+            if _is_void(weights, grads, p, a, d):
+                continue
+            for b in range(k):
+                if _is_void(weights, grads, p, b, d):
+                    continue
+                nbr[nodes[p, a], pair_code[a, b]] = nodes[p, b]
+    return nbr
+
+
+@njit(cache=True, inline="always")
+def _is_void(weights, grads, p, a, d):  # noqa: ANN001, ANN202
+    """Entries with zero weight and zero gradient (redirected by geometry.grid) contribute 0."""
+    if weights[p, a] != 0.0:
+        return False
+    for c in range(d):
+        if grads[p, a, c] != 0.0:
+            return False
+    return True
+
+
+@njit(cache=True)
+def _accumulate_blocks(nodes, weights, grads, dpdf, volume, pair_code, n_nodes, n_codes):  # noqa: ANN001, ANN202
+    """blocks (G, 5^d, d, d): sum_p V_p g_a^T dP g_b (d x d per node pair; F-level PSD input).
+
+    ``dpdf`` (P, d*d, d*d) holds dP_im/dF_jl at [i*d + m, j*d + l]; ``grads`` are the effective
+    gradients g (P, K, d) with F = sum_a y_a g_a^T.
+    """
+    n_p, k = nodes.shape
+    d = grads.shape[2]
+    blocks = np.zeros((n_nodes, n_codes, d, d))
+    tmp = np.empty((d * d, k * d))
+    for p in range(n_p):
+        # tmp[(i, m), (b, j)] = sum_l dP[(i, m), (j, l)] g_b[l]
+        for r in range(d * d):
+            for b in range(k):
+                for j in range(d):
+                    acc = 0.0
+                    for l in range(d):
+                        acc += dpdf[p, r, j * d + l] * grads[p, b, l]
+                    tmp[r, b * d + j] = acc
+        for a in range(k):
+            if _is_void(weights, grads, p, a, d):
+                continue
+            node_a = nodes[p, a]
+            for b in range(k):
+                if _is_void(weights, grads, p, b, d):
+                    continue
+                code = pair_code[a, b]
+                for i in range(d):
+                    for j in range(d):
+                        acc = 0.0
+                        for m in range(d):
+                            acc += grads[p, a, m] * tmp[i * d + m, b * d + j]
+                        blocks[node_a, code, i, j] += volume[p] * acc
+    return blocks

@@ -1,0 +1,124 @@
+"""Elasticity of MPM particles: the same term as FEM cells, other stencils (DESIGN.md).
+
+F_p(x) = sum_i x_i (grad w_ip)^T F_p^n (paper eq. 25) is affine in the grid-node end positions
+x_i, so F_p = C_p + sum_i x_i g_ip^T with g_ip = (F_p^n)^T grad w_ip and C_p = F_p^n - sum_i x_i^n
+g_ip^T (zero up to round-off by linear completeness). The energy is sum_p V_p^0 psi(F_p).
+
+Only the Hessian assembly differs from FEM cells: blocks are accumulated per (grid node, relative
+offset) in numba, so the (3^d d)^2 per-particle block list is never built.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from bfemp.mpm._hessian_kernels import _accumulate_blocks, _neighbour_table
+from bfemp.terms.base import StepContext
+from bfemp.terms.elasticity import ElasticityTerm, ElasticStencils
+from geometry.grid import stencil_offsets
+from solvers.assembly import Triplets
+from solvers.psd import project_psd
+
+__all__ = ["MpmElasticityTerm", "mpm_particle_stencils", "pair_codes"]
+
+
+def pair_codes(dim: int) -> np.ndarray:
+    """(K, K) code in [0, 5^d) of the relative offset o_b - o_a of stencil entries a, b."""
+    off = stencil_offsets(dim)
+    rel = off[None, :, :] - off[:, None, :] + 2  # in {0..4}^d
+    code = np.zeros(rel.shape[:2], dtype=np.int64)
+    for c in range(dim):
+        code = code * 5 + rel[:, :, c]
+    return code
+
+
+def mpm_particle_stencils(
+    ctx: StepContext, particles: np.ndarray, mu: np.ndarray, lam: np.ndarray
+) -> ElasticStencils:
+    """Elastic stencils of the selected particles ``(p,)`` for this step (grid-offset nodes)."""
+    mpm = ctx.mpm
+    st = mpm.stencils
+    F_n = ctx.state.mpm_F[particles]
+    grads = np.einsum("pji,pkj->pki", F_n, st.grads[particles])  # g = F^nT grad w
+    nodes = st.nodes[particles]
+    x_n = st.active_x[nodes]  # (p, K, d)
+    const = F_n - np.einsum("pki,pkj->pij", x_n, grads)
+    return ElasticStencils(
+        nodes=np.ascontiguousarray(nodes + mpm.node_offset),
+        grads=np.ascontiguousarray(grads),
+        const=np.ascontiguousarray(const),
+        volume=np.ascontiguousarray(ctx.model.mpm_volume[particles]),
+        mu=mu,
+        lam=lam,
+    )
+
+
+class MpmElasticityTerm(ElasticityTerm):
+    """Elastic energy of MPM particles of one material law (stencils rebuilt every step).
+
+    Args:
+        law: the pointwise material law.
+        particles: indices ``(p,)`` of the particles with this law.
+        mu, lam: their Lame parameters ``(p,)`` in Pa.
+    """
+
+    def __init__(
+        self, law: object, particles: np.ndarray, mu: np.ndarray, lam: np.ndarray, name: str
+    ) -> None:
+        super().__init__(law, lambda ctx: mpm_particle_stencils(ctx, particles, mu, lam), name)
+        self.particles = particles
+
+    def begin_step(self, ctx: StepContext) -> None:
+        """New stencils at x^n and the node-pair pattern of this step's active grid."""
+        self.stencils = self._source(ctx)
+        self._layout = ctx.layout
+        self._fixed = ctx.fixed_positions
+        st = ctx.mpm.stencils
+        d = ctx.layout.dim
+        self._n_codes = 5**d
+        self._codes = pair_codes(d)
+        self._local_nodes = np.ascontiguousarray(st.nodes[self.particles])
+        self._weights = np.ascontiguousarray(st.weights[self.particles])
+        self._n_grid = st.n_nodes
+        nbr = _neighbour_table(
+            self._local_nodes,
+            self._weights,
+            self.stencils.grads,
+            self._codes,
+            self._n_grid,
+            self._n_codes,
+        )
+        # rows/cols of every (node, offset) d x d block; prescribed (sticky) DOFs dropped
+        offset = ctx.mpm.node_offset
+        row_node = np.repeat(np.arange(self._n_grid), self._n_codes)
+        col_node = nbr.reshape(-1)
+        has = col_node >= 0
+        dof_row = ctx.layout.dof_node[row_node + offset]
+        dof_col = np.where(has, ctx.layout.dof_node[np.where(has, col_node, 0) + offset], -1)
+        comp = np.arange(d)
+        rows = (dof_row[:, None, None] * d + comp[None, :, None]) * np.ones(d, dtype=np.int64)
+        cols = (dof_col[:, None, None] * d + comp[None, None, :]) * np.ones((d, 1), dtype=np.int64)
+        keep = ((dof_row >= 0) & (dof_col >= 0))[:, None, None] & np.ones((d, d), dtype=bool)
+        self._keep = keep.reshape(-1)
+        self._rows = np.ascontiguousarray(rows.reshape(-1)[self._keep])
+        self._cols = np.ascontiguousarray(cols.reshape(-1)[self._keep])
+
+    def hessian(self, x: np.ndarray, psd: bool) -> Triplets:
+        """Node-pair blocks accumulated over particles, dP/dF projected to PSD when ``psd``."""
+        st = self.stencils
+        d = self._layout.dim
+        dpdf = self.law.first_piola_derivative(self._F, st.mu, st.lam)
+        dpdf = np.ascontiguousarray(dpdf.reshape(-1, d * d, d * d))
+        if psd:
+            dpdf = project_psd(dpdf)
+        blocks = _accumulate_blocks(
+            self._local_nodes,
+            self._weights,
+            st.grads,
+            dpdf,
+            st.volume,
+            self._codes,
+            self._n_grid,
+            self._n_codes,
+        )
+        return Triplets(self._rows, self._cols, blocks.reshape(-1)[self._keep])
