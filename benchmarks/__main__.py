@@ -9,6 +9,7 @@ import sys
 
 #: benchmark name -> module in this package exposing ``run(mode: str, out: Path) -> dict``.
 BENCHMARKS = {
+    "perf_broadphase": "benchmarks.perf_broadphase",
     "perf_fem": "benchmarks.perf_fem",
 }
 
