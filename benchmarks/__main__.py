@@ -11,6 +11,7 @@ import sys
 BENCHMARKS = {
     "perf_broadphase": "benchmarks.perf_broadphase",
     "perf_fem": "benchmarks.perf_fem",
+    "perf_mpm": "benchmarks.perf_mpm",
 }
 
 

@@ -15,19 +15,15 @@ Target: assembly < factorisation.
 
 from __future__ import annotations
 
-import statistics
-import time
 from pathlib import Path
 
-import numpy as np
-
 import bfemp
+from benchmarks._phases import newton_phases
 from benchmarks.common import environment, peak_memory_mb, write_json
 from bfemp.integrators import BACKWARD_EULER
 from bfemp.plotting import plot_bars
 from bfemp.steppers.implicit import ImplicitStepper
-from solvers.assembly import TripletAssembler
-from solvers.linear import CholmodSolver, cholmod_available, default_linear_solver
+from solvers.linear import default_linear_solver
 from solvers.options import NewtonOptions
 
 CASES = {
@@ -57,81 +53,19 @@ def _scene(dim: int, n: tuple[int, ...]) -> bfemp.Scene:
     return scene
 
 
-def _median_time(fn, repeats: int = 3) -> float:
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times)
-
-
 def _measure(dim: int, n: tuple[int, ...]) -> dict:
     model = _scene(dim, n).build()
-    dt = 0.05
     stepper = ImplicitStepper(
         model,
         integrator=BACKWARD_EULER,
-        dt=dt,
+        dt=0.05,
         newton=NewtonOptions(tol=1e-5),
         linear_solver=default_linear_solver(),
     )
     state = stepper.initialize(model.initial_state())
-    # a warm-up step compiles the numba kernels; the measured step starts from its result
-    state, _ = stepper.step(state)
-    start = time.perf_counter()
-    state_after, report = stepper.step(state)
-    step_wall = time.perf_counter() - start
-
-    # Phase costs at the converged iterate of the measured step.
-    pot = stepper.potential
-    x = stepper.layout.restrict(state_after.fem_x)
-    assembler = TripletAssembler(x.size)
-
-    def assemble() -> None:
-        pot.solution_changed(x)
-        pot.value(x)
-        pot.gradient(x)
-        assembler.assemble(pot.hessian(x, psd=True))
-
-    assemble()
-    t_assembly = _median_time(assemble)
-    pot.solution_changed(x)
-    t_value = _median_time(lambda: pot.value(x))
-    t_gradient = _median_time(lambda: pot.gradient(x))
-    t_hessian = _median_time(lambda: pot.hessian(x, psd=True))
-    matrix = assembler.assemble(pot.hessian(x, psd=True))
-    t_csc = _median_time(lambda: assembler.assemble(pot.hessian(x, psd=True))) - t_hessian
-    out = {
-        "dim": dim,
-        "cells": int(model.fem_cells.shape[0]),
-        "nodes": int(model.n_fem_nodes),
-        "dofs": int(x.size),
-        "nnz": int(matrix.nnz),
-        "assembly_s": t_assembly,
-        "value_s": t_value,
-        "gradient_s": t_gradient,
-        "hessian_local_s": t_hessian,
-        "triplets_to_csc_s": max(t_csc, 0.0),
-        "newton_iterations": report.newton_iterations,
-        "step_wall_s": step_wall,
-        "step_phases_s": {k: v for k, v in report.timings.items()},
-    }
-    if cholmod_available():
-        solver = CholmodSolver()
-        rhs = np.ones(x.size)
-        solver.solve(matrix, rhs)
-        t_analyze = solver.last_timings["analyze"]
-        runs = [solver.solve(matrix, rhs) for _ in range(3)]
-        del runs
-        out["analyze_s"] = t_analyze
-        out["factorize_s"] = solver.last_timings["factorize"]
-        out["solve_s"] = solver.last_timings["solve"]
-        out["symbolic_analyses_in_step"] = 1
-        out["symbolic_saved_s"] = t_analyze * max(report.newton_iterations - 1, 0)
-        out["assembly_below_factorisation"] = bool(t_assembly < out["factorize_s"])
-    per_it = report.timings.get("total", step_wall) / max(report.newton_iterations, 1)
-    out["time_per_newton_iteration_s"] = per_it
+    state, _ = stepper.step(state)  # warm-up: compiles the numba kernels
+    out = {"dim": dim, "cells": int(model.fem_cells.shape[0]), "nodes": int(model.n_fem_nodes)}
+    out.update(newton_phases(stepper, state))
     return out
 
 

@@ -1,0 +1,114 @@
+"""Per-Newton-iteration cost of MPM bodies in the implicit potential (issue: MPM bodies).
+
+Cases (full mode): a 2D block of ~100k particles (4 per cell) and a 3D block of ~100k particles
+(8 per cell), Neo-Hookean, resting on a slip floor under gravity, one backward-Euler step.
+Quick mode: ~10k particles each.
+
+Recorded per case: P2G (stencils + transfer) and G2P times, elasticity value / gradient /
+projected-Hessian accumulation into the grid's node-pair pattern, triplet-to-CSC, CHOLMOD symbolic
+and numeric factorisation, the step's own phase split. Targets: assembly faster than the
+factorisation of the same system; P2G + G2P < 10 % of a Newton iteration.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+import bfemp
+from benchmarks._phases import median_time, newton_phases
+from benchmarks.common import environment, peak_memory_mb, write_json
+from bfemp.integrators import BACKWARD_EULER
+from bfemp.mpm.step import prepare_mpm_step
+from bfemp.mpm.transfer import grid_to_particles
+from bfemp.plotting import plot_bars
+from bfemp.steppers.implicit import ImplicitStepper
+from solvers.linear import default_linear_solver
+from solvers.options import NewtonOptions
+
+CASES = {
+    "full": {"2d": dict(cells=(160, 160), ppc=4), "3d": dict(cells=(30, 30, 14), ppc=8)},
+    "quick": {"2d": dict(cells=(50, 50), ppc=4), "3d": dict(cells=(14, 14, 7), ppc=8)},
+}
+
+
+def _scene(dim: int, cells: tuple[int, ...], ppc: int) -> bfemp.Scene:
+    dx = 1.0 / cells[0]
+    upper = tuple(c * dx for c in cells)
+    x, vol = bfemp.sample.box((0.0,) * dim, upper, dx=dx, ppc=ppc)
+    scene = bfemp.Scene(dim=dim, gravity=(0.0,) * (dim - 1) + (-9.81,))
+    scene.add_mpm(x, vol, material=bfemp.NeoHookean(E=1e5, nu=0.3, density=1000.0))
+    scene.set_grid(dx=dx)
+    normal = (0.0,) * (dim - 1) + (1.0,)
+    scene.add_boundary(bfemp.levelset.HalfPlane(point=(0.0,) * dim, normal=normal), "slip")
+    return scene
+
+
+def _measure(dim: int, cells: tuple[int, ...], ppc: int) -> dict:
+    model = _scene(dim, cells, ppc).build()
+    stepper = ImplicitStepper(
+        model,
+        integrator=BACKWARD_EULER,
+        dt=0.01,
+        newton=NewtonOptions(tol=1e-4),
+        linear_solver=default_linear_solver(),
+    )
+    state = stepper.initialize(model.initial_state())
+    state, _ = stepper.step(state)  # warm-up: compiles the numba kernels
+    out = {"dim": dim, "particles": int(model.n_particles)}
+    out["p2g_s"] = median_time(lambda: prepare_mpm_step(model, state, "apic", False))
+    mpm = prepare_mpm_step(model, state, "apic", False)
+    st = mpm.stencils
+    out["grid_nodes"] = int(st.n_nodes)
+    moved = st.active_x + 1e-3
+    out["g2p_s"] = median_time(
+        lambda: grid_to_particles(
+            "apic",
+            st.nodes,
+            st.weights,
+            st.grads,
+            st.active_x,
+            moved,
+            mpm.fields.velocity,
+            mpm.fields.velocity,
+            None,
+            state.mpm_x,
+            state.mpm_v,
+            state.mpm_F,
+        )
+    )
+    out.update(newton_phases(stepper, state))
+    out["transfer_fraction_of_iteration"] = (out["p2g_s"] + out["g2p_s"]) / out[
+        "time_per_newton_iteration_s"
+    ]
+    return out
+
+
+def run(mode: str = "full", out: str | Path = "results") -> dict:
+    """Measure both cases and write ``perf_mpm.json`` and ``perf_mpm.png`` to ``out``."""
+    cases = {
+        name: _measure(2 if name == "2d" else 3, cfg["cells"], cfg["ppc"])
+        for name, cfg in CASES[mode].items()
+    }
+    payload = {
+        "benchmark": "perf_mpm",
+        "mode": mode,
+        "cases": cases,
+        "peak_memory_mb": peak_memory_mb(),
+        "environment": environment(),
+    }
+    path = write_json(out, "perf_mpm", payload)
+    labels = [f"{k} ({c['particles']} particles)" for k, c in cases.items()]
+    groups = {
+        key: [c.get(f"{key}_s", np.nan) for c in cases.values()]
+        for key in ("p2g", "g2p", "assembly", "factorize")
+    }
+    plot_bars(
+        labels,
+        groups,
+        Path(out) / "perf_mpm.png",
+        ylabel="seconds",
+        title="MPM: transfers, assembly and CHOLMOD per Newton iteration",
+    )
+    return {"json": str(path), **payload}
