@@ -134,6 +134,7 @@ class Model:
         mpm_bodies: the MPM body handles, in insertion order.
         grid: the MPM background grid (None when the scene has no particles).
         boundaries: level-set boundaries acting on grid nodes.
+        contact: barrier/friction parameters (None: bodies do not interact through contact).
     """
 
     dim: int
@@ -156,6 +157,7 @@ class Model:
     mpm_bodies: tuple[MpmBody, ...]
     grid: Grid | None
     boundaries: tuple[Boundary, ...]
+    contact: object | None = None
 
     @property
     def n_fem_nodes(self) -> int:

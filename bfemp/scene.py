@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import meshio
 import numpy as np
 
+from bfemp.contact.parameters import ContactParameters
 from bfemp.materials import LinearElastic, NeoHookean
 from bfemp.model import BOUNDARY_KINDS, Boundary, FemBody, Model, MpmBody, simplex_shape_gradients
 from bfemp.motion import Motion
@@ -67,6 +68,7 @@ class Scene:
         self._mpm: list[_MpmSpec] = []
         self._grid: Grid | None = None
         self._boundaries: list[Boundary] = []
+        self._contact: ContactParameters | None = None
 
     # ------------------------------------------------------------------ FEM bodies
     def add_fem(
@@ -171,6 +173,27 @@ class Scene:
             self._grid = Grid.make(float(dx), self.dim, origin)
         except ValueError as err:
             raise ValueError(f"set_grid: {err}") from None
+
+    def set_contact(
+        self,
+        dhat: float,
+        kappa: float | str = 1e7,
+        mu: float = 0.0,
+        eps_v: float = 1e-5,
+        friction_iterations: int = 20,
+    ) -> None:
+        """Barrier contact between MPM particles and FEM boundaries (and between FEM bodies).
+
+        Args:
+            dhat: activation distance in m.
+            kappa: barrier stiffness in Pa, or ``"auto"``.
+            mu: friction coefficient (0 builds no friction term).
+            eps_v: static friction velocity threshold in m/s.
+            friction_iterations: cap of the lagged-friction loop.
+        """
+        self._contact = ContactParameters(
+            dhat=dhat, kappa=kappa, mu=mu, eps_v=eps_v, friction_iterations=friction_iterations
+        )
 
     def add_boundary(self, levelset: object, kind: str = "slip") -> None:
         """A static level-set boundary on the MPM grid nodes inside it (``value <= 0``).
@@ -346,6 +369,7 @@ class Scene:
             fem_prescribed=fem_prescribed,
             fem_bodies=tuple(bodies),
             fem_load=load,
+            contact=self._contact,
             **self._build_mpm(),
         )
         # Scripted nodes start with their scripted velocity.

@@ -174,6 +174,10 @@ class Simulation:
         if report is not None:
             row["newton_iterations"] = report.newton_iterations
             row["residual"] = report.residual
+            if self.stepper.barrier is not None:
+                row["min_distance"] = report.min_distance
+                row["contact_pairs"] = report.contact_pairs
+                row["kappa"] = self.stepper.barrier.kappa
             for phase, seconds in report.timings.items():
                 row[f"time_{phase}"] = seconds
         return row

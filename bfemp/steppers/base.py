@@ -20,6 +20,11 @@ class StepReport:
         newton_iterations: Newton iterations of the step.
         residual: ``||p||_inf / dt`` of the last Newton increment in m/s.
         timings: seconds per phase (``"assemble"``, ``"factorize"``, ``"line_search"``, ...).
+        min_distance: smallest active contact distance at the end of the step in m (NaN when no
+            pair is within d-hat or the scene has no contact).
+        contact_pairs: number of active contact pairs at the end of the step.
+        friction_iterations: lagged-friction updates of the step (0 without friction).
+        friction_converged: whether the friction loop met the tolerance within its cap.
     """
 
     step: int
@@ -30,6 +35,10 @@ class StepReport:
     newton_iterations: int
     residual: float
     timings: dict[str, float] = field(default_factory=dict)
+    min_distance: float = float("nan")
+    contact_pairs: int = 0
+    friction_iterations: int = 0
+    friction_converged: bool = True
 
 
 class StepError(RuntimeError):

@@ -19,6 +19,8 @@ from dataclasses import replace
 
 import numpy as np
 
+from bfemp.contact.adaptive import AdaptiveKappa
+from bfemp.contact.term import BarrierTerm
 from bfemp.dofs import DofLayout
 from bfemp.frames import NodeFrames
 from bfemp.integrators import Integrator
@@ -55,9 +57,13 @@ def _laws(bodies: tuple) -> dict[int, object]:
 def build_potential(model: Model) -> IncrementalPotential:
     """The terms this model needs, and nothing else (a scene pays only for what it has)."""
     potentials = []
+    # cells whose every node is scripted add nothing to the minimisation: no stencil for them
+    moving = ~np.all(model.fem_prescribed[model.fem_cells], axis=1)
     for law in _laws(model.fem_bodies).values():
         bodies = [b.index for b in model.fem_bodies if b.material.law is law]
-        mask = np.isin(model.fem_cell_body, bodies)
+        mask = np.isin(model.fem_cell_body, bodies) & moving
+        if not mask.any():
+            continue
         stencils = fem_cell_stencils(model, mask)
         potentials.append(ElasticityTerm(law, stencils, name=f"elasticity[{law.name}]"))
     for law in _laws(model.mpm_bodies).values():
@@ -73,7 +79,17 @@ def build_potential(model: Model) -> IncrementalPotential:
         potentials.append(GravityTerm(model.gravity))
     if model.has_load:
         potentials.append(ExternalForceTerm(model.fem_load))
+    if has_contact(model):
+        c = model.contact
+        potentials.append(BarrierTerm(c.dhat, 1.0 if c.adaptive_kappa else c.kappa))
     return IncrementalPotential(InertiaTerm(), potentials)
+
+
+def has_contact(model: Model) -> bool:
+    """Contact is on and some pair can exist: FEM facets against particles or another FEM body."""
+    if model.contact is None or not model.fem_bodies:
+        return False
+    return model.n_particles > 0 or len(model.fem_bodies) > 1
 
 
 class ImplicitStepper:
@@ -107,6 +123,31 @@ class ImplicitStepper:
         self.potential = build_potential(model)
         self._fem_layout = DofLayout(model.dim, ~model.fem_prescribed, model.n_fem_nodes)
         self.layout = self._fem_layout
+        self.barrier = next(
+            (t for t in self.potential.potentials if isinstance(t, BarrierTerm)), None
+        )
+        self.adaptive: AdaptiveKappa | None = None
+
+    def _adapt_kappa(self, ctx: StepContext, x_n: np.ndarray) -> None:
+        """kappa = "auto": bounds on the first step, gradient balance when contact appears."""
+        contact = self.model.contact
+        if self.barrier is None or not contact.adaptive_kappa:
+            return
+        if self.adaptive is None:
+            moduli = [b.material.E for b in (*self.model.fem_bodies, *self.model.mpm_bodies)]
+            omega = self.barrier.collisions.omega
+            self.adaptive = AdaptiveKappa.for_scene(moduli, omega, contact.dhat, self.model.dim)
+        if not self.adaptive.initialised:
+            self.barrier.kappa = 1.0
+            self.potential.solution_changed(self.potential.to_unknowns(x_n))
+            if self.barrier.pairs.n_pairs:
+                weight = self.integrator.weight(self.dt)
+                g_barrier = self.barrier.gradient(x_n)
+                g_all = self.potential.inertia.gradient(x_n) + weight * (
+                    self.potential.potential_gradient(x_n) - g_barrier
+                )
+                self.adaptive.initialise(g_all, g_barrier, weight)
+        self.barrier.kappa = self.adaptive.kappa
 
     @property
     def terms(self) -> list[str]:
@@ -199,6 +240,7 @@ class ImplicitStepper:
         ctx, mpm, x_n, v_n, a_n, frames = self._setup(state, t_next)
         layout = ctx.layout
         self.potential.begin_step(ctx, integ.weight(dt), frames)
+        self._adapt_kappa(ctx, x_n)
         setup_time = time.perf_counter() - started
         if layout.n_dof == 0:  # every node scripted: nothing to solve
             result = NewtonResult(
@@ -249,6 +291,12 @@ class ImplicitStepper:
         timings["setup"] = setup_time
         timings["g2p"] = time.perf_counter() - g2p_start
         timings["step"] = time.perf_counter() - started
+        if self.barrier is not None and self.barrier.pairs is not None:
+            min_d = self.barrier.min_distance()
+            report_args["min_distance"] = min_d if np.isfinite(min_d) else float("nan")
+            report_args["contact_pairs"] = self.barrier.pairs.n_pairs
+            if self.adaptive is not None:
+                self.adaptive.after_step(min_d, self.model.contact.dhat)
         report = StepReport(**report_args, timings=timings)
         log.debug("step %d: %d Newton iterations", report.step, report.newton_iterations)
         return new, report

@@ -1,0 +1,70 @@
+"""Contact and friction parameters of a scene (``scene.set_contact``)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+__all__ = ["ContactParameters"]
+
+
+def _positive(name: str, value: object) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ValueError(f"set_contact: {name} must be a number, got {value!r}")
+    value = float(value)
+    if not (math.isfinite(value) and value > 0.0):
+        raise ValueError(f"set_contact: {name} must be positive and finite, got {value!r}")
+    return value
+
+
+@dataclass(frozen=True, kw_only=True)
+class ContactParameters:
+    """Barrier and friction settings (paper section 5: all have a physical meaning).
+
+    Attributes:
+        dhat: contact activation distance d-hat in m (eq. 27).
+        kappa: barrier stiffness in Pa, or ``"auto"`` for an adaptive stiffness chosen from the
+            elasticity and the masses (in the manner of IPC's adaptive kappa).
+        mu: friction coefficient (0: no friction term is built).
+        eps_v: static/sliding velocity threshold in m/s (eq. 36).
+        friction_iterations: cap of the outer lagged-friction loop (Algorithm 1); reaching it is
+            reported, not silent.
+    """
+
+    dhat: float
+    kappa: float | str = 1e7
+    mu: float = 0.0
+    eps_v: float = 1e-5
+    friction_iterations: int = 20
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "dhat", _positive("dhat", self.dhat))
+        if self.kappa != "auto":
+            object.__setattr__(self, "kappa", _positive("kappa", self.kappa))
+        if (
+            isinstance(self.mu, bool)
+            or not isinstance(self.mu, int | float)
+            or not (math.isfinite(self.mu) and self.mu >= 0.0)
+        ):
+            raise ValueError(f"set_contact: mu must be a finite number >= 0, got {self.mu!r}")
+        object.__setattr__(self, "mu", float(self.mu))
+        object.__setattr__(self, "eps_v", _positive("eps_v", self.eps_v))
+        if (
+            isinstance(self.friction_iterations, bool)
+            or not isinstance(self.friction_iterations, int)
+            or self.friction_iterations < 1
+        ):
+            raise ValueError(
+                f"set_contact: friction_iterations must be an int >= 1, "
+                f"got {self.friction_iterations!r}"
+            )
+
+    @property
+    def adaptive_kappa(self) -> bool:
+        """Whether kappa is chosen adaptively."""
+        return self.kappa == "auto"
+
+    @property
+    def has_friction(self) -> bool:
+        """Whether a friction term is needed."""
+        return self.mu > 0.0

@@ -1,0 +1,176 @@
+"""Barrier contact: FD harness in every regime, no crossing at huge steps, momentum, CCD bound."""
+
+import numpy as np
+import pytest
+
+import bfemp
+from bfemp.contact.term import BarrierTerm
+from bfemp.testing import check_term
+from tests.bfemp.conftest import started_stepper
+
+STIFF = bfemp.NeoHookean(E=1e6, nu=0.3, density=1000.0)
+DHAT = 0.05
+
+
+def _particles_scene(dim, particles, *, fem_free=True):
+    """A unit FEM square/cube [0,1]^d (coarse) and the given particles (tiny volumes) above it."""
+    scene = bfemp.Scene(dim=dim)
+    if dim == 2:
+        mesh = bfemp.shapes.rectangle((0.0, 0.0), (1.0, 1.0), h=0.5)
+    else:
+        mesh = bfemp.shapes.box((0.0, 0.0, 0.0), (1.0, 1.0, 1.0), h=1.0)
+    kwargs = {} if fem_free else dict(prescribed=bfemp.motion.Fixed())
+    scene.add_fem(mesh, material=STIFF, name="fem", **kwargs)
+    vol = np.full(len(particles), 1e-4 if dim == 2 else 1e-6)
+    scene.add_mpm(np.asarray(particles, dtype=float), vol, material=STIFF, name="mpm")
+    scene.set_grid(dx=0.25)
+    scene.set_contact(dhat=DHAT, kappa=1e4)
+    return scene
+
+
+def _barrier(stepper):
+    return next(t for t in stepper.potential.potentials if isinstance(t, BarrierTerm))
+
+
+CASES_2D = {
+    # particle above an edge interior, mid-range and very close
+    "edge_mid": [[0.3, 1.0 + 0.5 * DHAT]],
+    "edge_close": [[0.3, 1.0 + 1e-3 * DHAT]],
+    "edge_near_dhat": [[0.3, 1.0 + 0.97 * DHAT]],
+    # next to a boundary vertex (mid-top node x = 0.5): the neighbour edge's endpoint term and
+    # the vertex correction cancel; beyond the corner: the vertex regime. (Exactly over a vertex
+    # lies on a regime boundary, where the polyline distance is C1 but not C2.)
+    "near_vertex": [[0.5 + 0.2 * DHAT, 1.0 + 0.4 * DHAT]],
+    "corner": [[1.0 + 0.3 * DHAT, 1.0 + 0.3 * DHAT]],
+}
+
+
+@pytest.mark.parametrize("case", sorted(CASES_2D))
+def test_barrier_passes_fd_harness_2d(case, rng):
+    scene = _particles_scene(2, CASES_2D[case])
+    _, stepper, x = started_stepper(scene)
+    term = _barrier(stepper)
+    term.solution_changed(x)
+    assert term.pairs.n_pairs >= 1
+    # tiny random motion keeps the regime
+    x = x + 1e-4 * DHAT * rng.standard_normal(x.shape)
+    d = term.min_distance()
+    report = check_term(term, x, eps=1e-4 * d, tol=2e-5)
+    assert report.ok, (case, report)
+
+
+def test_two_fem_bodies_barrier_passes_fd_harness_2d(rng):
+    scene = bfemp.Scene(dim=2)
+    a = bfemp.shapes.rectangle((0.0, 0.0), (1.0, 1.0), h=0.5)
+    b = bfemp.shapes.rectangle((0.25, 1.0 + 0.4 * DHAT), (0.75, 1.5), h=0.25)
+    scene.add_fem(a, material=STIFF, name="a")
+    scene.add_fem(b, material=STIFF, name="b")
+    scene.set_contact(dhat=DHAT, kappa=1e4)
+    _, stepper, x = started_stepper(scene)
+    term = _barrier(stepper)
+    term.solution_changed(x)
+    assert term.pairs.n_pairs >= 2
+    x = x + 1e-5 * rng.standard_normal(x.shape)
+    report = check_term(term, x, eps=1e-6, tol=2e-5)
+    assert report.ok, report
+
+
+CASES_3D = {
+    "face": [[0.3, 0.4, 1.0 + 0.5 * DHAT]],
+    "edge": [[0.5, 1.0 + 0.3 * DHAT, 1.0 + 0.3 * DHAT]],
+    "vertex": [[1.0 + 0.3 * DHAT, 1.0 + 0.3 * DHAT, 1.0 + 0.3 * DHAT]],
+    "close": [[0.3, 0.6, 1.0 + 1e-3 * DHAT]],
+}
+
+
+@pytest.mark.parametrize("case", sorted(CASES_3D))
+def test_barrier_passes_fd_harness_3d(case, rng):
+    scene = _particles_scene(3, CASES_3D[case])
+    _, stepper, x = started_stepper(scene)
+    term = _barrier(stepper)
+    term.solution_changed(x)
+    assert term.pairs.n_pairs >= 1
+    x = x + 1e-4 * DHAT * rng.standard_normal(x.shape)
+    d = term.min_distance()
+    report = check_term(term, x, eps=1e-4 * d, tol=2e-5)
+    assert report.ok, (case, report)
+
+
+def test_vertex_duplicates_count_once_2d():
+    """A particle nearest to a boundary vertex feels one barrier, not one per incident edge."""
+    scene = _particles_scene(2, [[1.0 + 0.3 * DHAT, 1.0 + 0.3 * DHAT]])
+    _, stepper, x = started_stepper(scene)
+    term = _barrier(stepper)
+    term.solution_changed(x)
+    from bfemp.contact.barrier import barrier
+
+    d = np.hypot(0.3 * DHAT, 0.3 * DHAT)
+    omega = term.collisions.omega[-1]
+    assert term.value(x) == pytest.approx(omega * barrier(np.array([d]), DHAT, 1e4)[0])
+
+
+def test_fast_block_never_crosses_a_thin_plate_at_a_huge_step():
+    scene = bfemp.Scene(dim=2)
+    plate = bfemp.shapes.rectangle((-0.5, -0.02), (1.5, 0.0), h=0.02)
+    scene.add_fem(
+        plate,
+        material=bfemp.NeoHookean(E=1e9, nu=0.3, density=1000.0),
+        prescribed=bfemp.motion.Fixed(),
+        name="plate",
+    )
+    x, vol = bfemp.sample.box((0.2, 0.05), (0.8, 0.45), dx=0.1, ppc=4)
+    scene.add_mpm(
+        x,
+        vol,
+        material=bfemp.NeoHookean(E=1e6, nu=0.3, density=1000.0),
+        velocity=(0.0, -200.0),
+        name="block",
+    )
+    scene.set_grid(dx=0.1)
+    scene.set_contact(dhat=1e-3, kappa=1e6)
+    sim = bfemp.Simulation(scene, dt=1e-2, tol=1e-2, max_newton_iterations=500)
+    for _ in range(4):
+        report = sim.step()
+        # the plate is 0.02 m thick and the block moves 2 m per step unimpeded: every particle
+        # must stay above the plate's top face
+        assert sim.state.mpm_x[:, 1].min() > 0.0
+        assert np.linalg.det(sim.state.mpm_F).min() > 0.0
+        assert not np.isfinite(report.min_distance) or report.min_distance > 0.0
+    assert sim.state.mpm_v[:, 1].mean() > 0.0  # it bounced
+
+
+@pytest.mark.parametrize("transfer", ["apic", "pic"])
+def test_free_fem_mpm_collision_conserves_linear_momentum(transfer):
+    scene = bfemp.Scene(dim=2)
+    ring = bfemp.shapes.ring((1.2, 0.5), 0.25, 0.45, h=0.1)
+    scene.add_fem(ring, material=STIFF, velocity=(-3.0, 0.3), name="ring")
+    x, vol = bfemp.sample.box((0.0, 0.2), (0.6, 0.8), dx=0.1, ppc=4)
+    scene.add_mpm(x, vol, material=STIFF, velocity=(3.0, 0.0), name="block")
+    scene.set_grid(dx=0.1)
+    scene.set_contact(dhat=1e-2, kappa=1e5)
+    sim = bfemp.Simulation(scene, transfer=transfer, dt=2e-3, tol=1e-4)
+    p0 = np.array([sim.metrics.column("momentum_x")[0], sim.metrics.column("momentum_y")[0]])
+    scale = sim.model.fem_mass @ np.linalg.norm(sim.model.fem_v0, axis=1) + (
+        sim.model.mpm_mass @ np.linalg.norm(sim.model.mpm_v0, axis=1)
+    )
+    touched = False
+    for _ in range(25):
+        report = sim.step()
+        touched |= report.contact_pairs > 0
+    p = np.array([sim.metrics.column("momentum_x")[-1], sim.metrics.column("momentum_y")[-1]])
+    assert touched
+    assert np.max(np.abs(p - p0)) < 1e-12 * scale
+    assert np.nanmin(sim.metrics.column("min_distance")) > 0.0
+
+
+def test_ccd_bound_stops_before_impact():
+    scene = _particles_scene(2, [[0.3, 1.0 + 2 * DHAT]], fem_free=False)
+    _, stepper, x = started_stepper(scene)
+    term = _barrier(stepper)
+    term.solution_changed(x)
+    # move every grid node down by 4 dhat: the particle would cross the face at alpha = 0.5
+    p = np.zeros_like(x).reshape(-1, 2)
+    p[:, 1] = -4 * DHAT
+    alpha = term.max_step_size(x, p.reshape(-1))
+    assert 0.3 < alpha < 0.5
+    assert term.max_step_size(x, -p.reshape(-1)) == 1.0
