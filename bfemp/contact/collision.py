@@ -3,8 +3,8 @@
 Collision points (DESIGN.md): FEM boundary nodes (identity rows) and MPM particles (B-spline
 images of the grid nodes, x_q = sum_i w_iq x_i, paper eq. 29). Each point c has a stencil of
 all-node indices ``nodes (C, K)`` with weights ``weights (C, K)`` (K = 3^d with particles, 1
-otherwise; padding has weight 0), so its position is ``sum_k weights[c, k] Y[nodes[c, k]]`` and every path
-x + alpha p stays linear, as CCD needs.
+otherwise; padding has weight 0), so its position is ``sum_k weights[c, k] Y[nodes[c, k]]`` and
+every path x + alpha p stays linear, as CCD needs.
 
 Facets are the FEM boundary edges (2D) or triangles (3D) in collision-point indices. For the
 duplicate-removal of eqs. 31-32 every boundary vertex v and (3D) boundary edge e carries a
