@@ -87,39 +87,82 @@ def _det_inv_t(F: np.ndarray, s: int, G: np.ndarray) -> float:
 
 
 @njit(cache=True)
+def _h_invariants(F: np.ndarray, s: int, H: np.ndarray) -> tuple[float, float, float]:
+    """H <- F[s] - I; returns (tr H, J - 1, J - 1 - tr H), all without cancellation near F = I.
+
+    det(I + H) - 1 = tr H + m2(H) + det H (3D; m2 = sum of principal 2x2 minors), tr H + det H
+    (2D): formed from the small H, not as det(F) - 1, so stiff materials at tiny strains keep
+    their energy and stress to relative precision (the line search then resolves small steps).
+    """
+    d = F.shape[1]
+    for i in range(d):
+        for j in range(d):
+            H[i, j] = F[s, i, j] - (1.0 if i == j else 0.0)
+    if d == 2:
+        tr = H[0, 0] + H[1, 1]
+        rest = H[0, 0] * H[1, 1] - H[0, 1] * H[1, 0]
+        return tr, tr + rest, rest
+    tr = H[0, 0] + H[1, 1] + H[2, 2]
+    m2 = (
+        H[0, 0] * H[1, 1]
+        - H[0, 1] * H[1, 0]
+        + H[0, 0] * H[2, 2]
+        - H[0, 2] * H[2, 0]
+        + H[1, 1] * H[2, 2]
+        - H[1, 2] * H[2, 1]
+    )
+    det_h = (
+        H[0, 0] * (H[1, 1] * H[2, 2] - H[1, 2] * H[2, 1])
+        + H[0, 1] * (H[1, 2] * H[2, 0] - H[1, 0] * H[2, 2])
+        + H[0, 2] * (H[1, 0] * H[2, 1] - H[1, 1] * H[2, 0])
+    )
+    return tr, tr + m2 + det_h, m2 + det_h
+
+
+@njit(cache=True)
 def _nh_energy(F: np.ndarray, mu: np.ndarray, lam: np.ndarray, out: np.ndarray) -> None:
     d = F.shape[1]
+    H = np.empty((d, d))
     for s in range(F.shape[0]):
-        J = _det(F, s)
-        if not J > 0.0:
+        tr, jm1, _ = _h_invariants(F, s, H)
+        if not jm1 > -1.0:
             out[s] = np.inf
             continue
-        # tr(F^T F) - d = |F - I|^2 + 2 tr(F - I): no cancellation near the rest state.
+        # tr(F^T F) - d = |H|^2 + 2 tr H and log J = log1p(J - 1): no cancellation near F = I.
         sq = 0.0
-        tr = 0.0
         for i in range(d):
             for j in range(d):
-                h = F[s, i, j] - (1.0 if i == j else 0.0)
-                sq += h * h
-            tr += F[s, i, i] - 1.0
-        logj = math.log(J)
-        out[s] = 0.5 * mu[s] * (sq + 2.0 * tr) - mu[s] * logj + 0.5 * lam[s] * logj * logj
+                sq += H[i, j] * H[i, j]
+        logj = math.log1p(jm1)
+        out[s] = mu[s] * (0.5 * sq + (tr - logj)) + 0.5 * lam[s] * logj * logj
 
 
 @njit(cache=True)
 def _nh_piola(F: np.ndarray, mu: np.ndarray, lam: np.ndarray, out: np.ndarray) -> None:
     d = F.shape[1]
-    G = np.empty((d, d))
+    H = np.empty((d, d))
     for s in range(F.shape[0]):
-        J = _det_inv_t(F, s, G)
-        if not J > 0.0:
+        tr, jm1, rest = _h_invariants(F, s, H)
+        if not jm1 > -1.0:
             out[s] = np.nan
             continue
-        # P = mu F + (lam log J - mu) F^{-T}
-        c = lam[s] * math.log(J) - mu[s]
+        J = 1.0 + jm1
+        logj = math.log1p(jm1)
+        # P = [mu (J F - cof F) + lam log J cof F] / J, with cof F = (1 + tr H) I - H^T (2D) or
+        # (1 + tr H) I - H^T + adj(H)^T (3D), so that J F - cof F = rest I + H + H^T + jm1 H
+        # (- adj(H)^T in 3D) is formed from small quantities only.
         for i in range(d):
             for j in range(d):
-                out[s, i, j] = mu[s] * F[s, i, j] + c * G[i, j]
+                adj_t = 0.0
+                if d == 3:
+                    # adj(H)^T_ij = cofactor of H at (i, j)
+                    i1, i2 = (i + 1) % 3, (i + 2) % 3
+                    j1, j2 = (j + 1) % 3, (j + 2) % 3
+                    adj_t = H[i1, j1] * H[i2, j2] - H[i1, j2] * H[i2, j1]
+                eye = 1.0 if i == j else 0.0
+                cof = (1.0 + tr) * eye - H[j, i] + adj_t
+                diff = rest * eye + H[i, j] + H[j, i] + jm1 * H[i, j] - adj_t
+                out[s, i, j] = (mu[s] * diff + lam[s] * logj * cof) / J
 
 
 @njit(cache=True)

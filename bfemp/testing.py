@@ -61,17 +61,26 @@ def _gradient(term: object, x: np.ndarray) -> np.ndarray:
     return term.gradient(x)
 
 
-def _relative(a: np.ndarray, b: np.ndarray) -> float:
-    scale = max(np.max(np.abs(a)), np.max(np.abs(b)), 1e-300)
+def _relative(a: np.ndarray, b: np.ndarray, floor: float = 1e-300) -> float:
+    scale = max(np.max(np.abs(a)), np.max(np.abs(b)), floor)
     return float(np.max(np.abs(a - b)) / scale)
 
 
-def check_term(term: object, x: np.ndarray, *, eps: float = 1e-6, tol: float = 1e-5) -> FDReport:
+def check_term(
+    term: object,
+    x: np.ndarray,
+    *,
+    eps: float = 1e-6,
+    tol: float = 1e-5,
+    hessian_floor: float = 1e-300,
+) -> FDReport:
     """Run the harness at ``x (n,)`` with step ``eps`` (in the units of ``x``, m).
 
     Returns relative max-norm errors: gradient vs central differences of the value, unprojected
     Hessian vs central differences of the gradient; the asymmetry and smallest eigenvalue
-    (relative to the largest magnitude) of the projected Hessian.
+    (relative to the largest magnitude) of the projected Hessian. ``hessian_floor`` (units of
+    the Hessian) is the smallest scale the Hessian error is relative to, for terms whose
+    Hessian vanishes (e.g. sliding friction in 2D) and whose finite differences are pure noise.
     """
     x = np.asarray(x, dtype=np.float64)
     n = x.size
@@ -91,7 +100,7 @@ def check_term(term: object, x: np.ndarray, *, eps: float = 1e-6, tol: float = 1
     term.solution_changed(x)
     return FDReport(
         gradient_error=_relative(grad, fd_grad),
-        hessian_error=_relative(hess, fd_hess),
+        hessian_error=_relative(hess, fd_hess, hessian_floor),
         asymmetry=asym,
         min_psd_eigenvalue=min_eig,
         tol=tol,

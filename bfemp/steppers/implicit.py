@@ -20,6 +20,7 @@ from dataclasses import replace
 import numpy as np
 
 from bfemp.contact.adaptive import AdaptiveKappa
+from bfemp.contact.friction import FrictionTerm
 from bfemp.contact.term import BarrierTerm
 from bfemp.dofs import DofLayout
 from bfemp.frames import NodeFrames
@@ -81,7 +82,10 @@ def build_potential(model: Model) -> IncrementalPotential:
         potentials.append(ExternalForceTerm(model.fem_load))
     if has_contact(model):
         c = model.contact
-        potentials.append(BarrierTerm(c.dhat, 1.0 if c.adaptive_kappa else c.kappa))
+        barrier = BarrierTerm(c.dhat, 1.0 if c.adaptive_kappa else c.kappa)
+        potentials.append(barrier)
+        if c.has_friction:
+            potentials.append(FrictionTerm(c.mu, c.eps_v, barrier))
     return IncrementalPotential(InertiaTerm(), potentials)
 
 
@@ -125,6 +129,9 @@ class ImplicitStepper:
         self.layout = self._fem_layout
         self.barrier = next(
             (t for t in self.potential.potentials if isinstance(t, BarrierTerm)), None
+        )
+        self.friction = next(
+            (t for t in self.potential.potentials if isinstance(t, FrictionTerm)), None
         )
         self.adaptive: AdaptiveKappa | None = None
 
@@ -191,6 +198,8 @@ class ImplicitStepper:
             dof_mass=np.repeat(mass_all[layout.free_nodes], d),
             mpm=mpm,
         )
+        if self.friction is not None:
+            ctx.sliding = self._sliding_map(layout, x_all, v_all, a_all, fixed, t_next, mpm)
         frames = None
         if mpm is not None and mpm.constraints.slip.any():
             slip_nodes = np.flatnonzero(mpm.constraints.slip)
@@ -203,6 +212,64 @@ class ImplicitStepper:
                 normal_frames(mpm.constraints.normals[slip_nodes[keep]]),
             )
         return ctx, mpm, x_n, v_n, a_n, frames
+
+    def _sliding_map(
+        self,
+        layout: DofLayout,
+        x_all: np.ndarray,
+        v_all: np.ndarray,
+        a_all: np.ndarray,
+        fixed: np.ndarray,
+        t_next: float,
+        mpm: MpmStep | None,
+    ) -> tuple[float, np.ndarray]:
+        """U = s y + c: each node's sliding dt v^{n+1} over the step, affine in its position y.
+
+        Free nodes: dt v^n + dt^2 ((1 - gamma) a^n + gamma a^{n+1}) with a^{n+1} = (y - x_hat) /
+        (2 alpha beta dt^2) (eq. 21), so s = gamma / (2 alpha beta); scripted nodes: dt times
+        their scripted velocity (sticky grid nodes: 0).
+        """
+        integ, dt = self.integrator, self.dt
+        s = integ.gamma / (2.0 * integ.alpha * integ.beta)
+        x_hat = integ.predict(x_all, v_all, a_all, dt)
+        c = dt * v_all + dt * dt * (1.0 - integ.gamma) * a_all - s * x_hat
+        v_end = np.zeros_like(x_all)
+        n_fem = self.model.n_fem_nodes
+        v_end[:n_fem] = self.model.prescribed_velocities(t_next)
+        scripted = layout.dof_node < 0
+        c[scripted] = dt * v_end[scripted] - s * fixed[scripted]
+        return s, c
+
+    def _solve(self, x_n: np.ndarray) -> tuple[NewtonResult, int, bool]:
+        """Minimise; with friction, the outer lagged-friction loop of Algorithm 1.
+
+        The loop ends when a minimisation under freshly lagged friction data needs no Newton
+        step (its first increment is already below the tolerance), or at the cap, which is
+        reported (``friction_converged = False``), not silent.
+        """
+        y = self.potential.to_unknowns(x_n)
+        if self.friction is None:
+            result = minimize(
+                self.potential, y, options=self.newton, linear_solver=self.linear_solver
+            )
+            return result, 0, True
+        cap = self.model.contact.friction_iterations
+        total_it = 0
+        for j in range(cap):
+            self.friction.lag(self.potential.to_positions(y))
+            result = minimize(
+                self.potential, y, options=self.newton, linear_solver=self.linear_solver
+            )
+            total_it += result.nit
+            if not result.success:
+                return result, j + 1, False
+            if j > 0 and result.nit == 0:
+                result.nit = total_it
+                return result, j + 1, True
+            y = result.x
+        result.nit = total_it
+        log.warning("friction loop did not converge in %d iterations", cap)
+        return result, cap, False
 
     def begin_step(self, state: State) -> np.ndarray:
         """Set up the potential of the step starting at ``state`` (for inspection and tests).
@@ -250,14 +317,12 @@ class ImplicitStepper:
                 message="no unknowns",
                 step_inf_norm=0.0,
             )
+            friction_its, friction_ok = 0, True
         else:
-            result = minimize(
-                self.potential,
-                self.potential.to_unknowns(x_n),
-                options=self.newton,
-                linear_solver=self.linear_solver,
-            )
+            result, friction_its, friction_ok = self._solve(x_n)
         report_args = dict(
+            friction_iterations=friction_its,
+            friction_converged=friction_ok,
             step=state.step + 1,
             t=t_next,
             success=bool(result.success),

@@ -41,6 +41,8 @@ class StepContext:
         dof_mass: lumped mass of each unknown ``(n_dof,)`` in kg.
         mpm: the MPM part of the step (stencils, grid fields, constraints), None without
             particles.
+        sliding: ``(s, c)``: every node's sliding over the step is ``s y + c`` (friction, eq. 37),
+            with ``c (n_all, d)`` in m; None without friction.
     """
 
     model: Model
@@ -51,6 +53,7 @@ class StepContext:
     x_hat: np.ndarray
     dof_mass: np.ndarray
     mpm: object | None = None
+    sliding: tuple | None = None
 
 
 class Term(Protocol):

@@ -174,3 +174,53 @@ def test_ccd_bound_stops_before_impact():
     alpha = term.max_step_size(x, p.reshape(-1))
     assert 0.3 < alpha < 0.5
     assert term.max_step_size(x, -p.reshape(-1)) == 1.0
+
+
+def _friction_setup(dim, slide, rng):
+    """A particle resting within dhat of the FEM top face, lagged, then moved by ``slide``."""
+    pos = [0.3, 1.0 + 0.3 * DHAT] if dim == 2 else [0.3, 0.4, 1.0 + 0.3 * DHAT]
+    scene = _particles_scene(dim, [pos])
+    scene.set_contact(dhat=DHAT, kappa=1e4, mu=0.4, eps_v=1e-3)
+    _, stepper, x = started_stepper(scene, dt=1e-2)
+    friction = next(t for t in stepper.potential.potentials if t.name == "friction")
+    friction.lag(x)
+    assert friction.n_contacts >= 1
+    # tangential motion of the grid only (the particle slides over the FEM body), plus noise
+    x = x.reshape(-1, dim).copy()
+    grid_rows = stepper.layout.free_nodes >= stepper.layout.n_fem
+    x[grid_rows, 0] += slide
+    x = x.reshape(-1) + 1e-7 * rng.standard_normal(x.size)
+    return friction, x
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+@pytest.mark.parametrize("regime, slide", [("static", 2e-6), ("sliding", 1e-3)])
+def test_friction_passes_fd_harness(dim, regime, slide, rng):
+    """eps_v dt = 1e-5 m: a 2e-6 m slide is static, 1e-3 m is sliding."""
+    friction, x = _friction_setup(dim, slide, rng)
+    # f0 is cubic in the static zone (third derivative ~ 1/eps^2): a tiny FD step keeps it exact
+    # sliding in 2D: mu lambda |u| is linear in u, its Hessian is exactly 0 (FD = noise)
+    report = check_term(
+        friction, x, eps=1e-9 if regime == "static" else 1e-8, tol=1e-5, hessian_floor=100.0
+    )
+    assert report.ok, (dim, regime, report)
+
+
+def test_friction_force_obeys_the_coulomb_bound():
+    rng = np.random.default_rng(3)
+    friction, x = _friction_setup(2, 1e-2, rng)
+    layout = friction._layout
+    on_particle = layout.free_nodes >= layout.n_fem  # the grid nodes carry the particle's share
+    friction.solution_changed(x)
+    force = -friction.gradient(x).reshape(-1, 2)[on_particle].sum(axis=0)
+    bar = friction.barrier
+    bar.solution_changed(x)
+    normal = -bar.gradient(x).reshape(-1, 2)[on_particle].sum(axis=0)
+    # friction on the particle is tangential and opposes the slide (+x); its magnitude is at
+    # most mu lambda with the lagged normal force lambda (eq. 35), reached when sliding
+    mu_lambda = sum(float(g[3].sum()) for g in friction._groups)
+    assert force[0] < 0.0 and normal[1] > 0.0
+    assert abs(force[1]) < 1e-9 * abs(force[0])
+    assert abs(force[0]) <= mu_lambda * (1 + 1e-12)
+    assert abs(force[0]) > 0.999 * mu_lambda
+    assert mu_lambda == pytest.approx(0.4 * normal[1], rel=1e-3)  # lagged vs current lambda

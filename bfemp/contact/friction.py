@@ -1,0 +1,217 @@
+"""Lagged friction (BFEMP paper section 4.3, eqs. 34-37): the pseudo-potential D(x).
+
+For every active contact, lagged at the iterate x^j of the outer friction loop (Algorithm 1):
+the normal force magnitude lambda_k = -omega_q b'(d_k), an orthonormal tangent basis T_k and the
+closest-point weights c_k (so that the relative sliding of the pair is sum_a c_ka U_a). Then
+
+    D(x) = sum_k mu lambda_k f0(|u_k|),   u_k = T_k^T sum_a c_ka U_a(x),
+
+with f0' = f1 the mollifier of eq. 36 (width eps_v dt). U_a is the point's sliding over the
+step, Delta t v^{n+1} = Delta t v^n + Delta t^2 ((1 - gamma) a^n + gamma a^{n+1}) (eq. 37), affine
+in the unknowns: U = s x + c with s = gamma / (2 alpha beta) (backward Euler: U = x - x^n). For MPM
+it is the interpolated grid motion at the particle, not the particle velocity (section 4.3), which
+makes friction independent of the transfer scheme.
+
+Contacts for friction are the barrier's facet pairs classified by their closest feature
+(vertex, edge or facet interior) and de-duplicated, so a point nearest to a vertex has one contact.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from bfemp.contact._assembly_kernels import _count_entries, _fill_triplets, _scatter_gradient
+from bfemp.contact.barrier import barrier_derivative
+from bfemp.contact.friction_kernels import friction_local, friction_local_psd
+from bfemp.contact.term import BarrierTerm
+from bfemp.terms.base import StepContext
+from geometry import distance as dist
+from geometry import frames
+from solvers.assembly import Triplets
+
+__all__ = ["FrictionTerm"]
+
+
+class FrictionTerm:
+    """Lagged friction of the barrier's contacts.
+
+    Args:
+        mu: friction coefficient.
+        eps_v: static threshold velocity in m/s.
+        barrier: the barrier term whose contacts rub.
+    """
+
+    name = "friction"
+
+    def __init__(self, mu: float, eps_v: float, barrier: BarrierTerm) -> None:
+        self.mu = float(mu)
+        self.eps_v = float(eps_v)
+        self.barrier = barrier
+        self.n_contacts = 0
+
+    def begin_step(self, ctx: StepContext) -> None:
+        """Sliding map U = s x + c of this step; contacts are lagged later with ``lag``."""
+        self._layout = ctx.layout
+        self._fixed = ctx.fixed_positions
+        self._eps = self.eps_v * ctx.dt
+        self._s, self._c = ctx.sliding
+        self._clear()
+
+    def _clear(self) -> None:
+        d = self._layout.dim
+        self._points = np.zeros((0, 2), dtype=np.int64)
+        self._coef = np.zeros((0, 2))
+        self._T = np.zeros((0, d, d - 1))
+        self._mu_lambda = np.zeros(0)
+        self.n_contacts = 0
+
+    # ------------------------------------------------------------------ lagging
+    def lag(self, x: np.ndarray) -> None:
+        """Contacts, normal forces and tangent bases at positions x (Algorithm 1, lines 5/9)."""
+        bar = self.barrier
+        bar.solution_changed(x)
+        pos = bar._pos
+        cs = bar.collisions
+        kind = "pe" if self._layout.dim == 2 else "pt"
+        pts = bar.pairs.points.get(kind, np.zeros((0, 2), dtype=np.int64))
+        if pts.shape[0] == 0:
+            self._clear()
+            return
+        args = [pos[pts[:, a]] for a in range(pts.shape[1])]
+        if kind == "pe":
+            typ = dist.point_edge_type(*args)
+            # canonical contact key: (point, vertex) for endpoints, (point, edge) for interiors
+            feature = np.where(typ == 0, pts[:, 1], np.where(typ == 1, pts[:, 2], -1))
+        else:
+            typ = dist.point_triangle_type(*args)
+            feature = np.where(typ <= 2, pts[np.arange(len(typ)), 1 + np.minimum(typ, 2)], -1)
+        self._build(pos, cs, pts, typ, feature, kind)
+
+    def _build(self, pos, cs, pts, typ, feature, kind) -> None:  # noqa: ANN001
+        d = self._layout.dim
+        groups = []
+        # vertex contacts (one per point and vertex)
+        vmask = feature >= 0
+        if vmask.any():
+            pv = np.unique(np.column_stack([pts[vmask, 0], feature[vmask]]), axis=0)
+            p, q = pos[pv[:, 0]], pos[pv[:, 1]]
+            T = frames.point_point_tangent_basis(p, q)
+            coef = np.tile([1.0, -1.0], (pv.shape[0], 1))
+            groups.append((pv, coef, T, dist.point_point_distance(p, q)))
+        if kind == "pe":
+            e = pts[typ == 2]
+            if e.size:
+                p, a, b = pos[e[:, 0]], pos[e[:, 1]], pos[e[:, 2]]
+                beta = frames.point_edge_closest_parameter(p, a, b)
+                coef = np.column_stack([np.ones(len(beta)), beta - 1.0, -beta])
+                T = frames.point_edge_tangent_basis(p, a, b)
+                groups.append((e, coef, T, dist.point_edge_distance(p, a, b)))
+        else:
+            # edge contacts: (point, edge) unique over triangles whose closest feature is an edge
+            emask = (typ >= 3) & (typ <= 5)
+            if emask.any():
+                local = np.array([[1, 2], [2, 3], [3, 1]])[typ[emask] - 3]
+                rows = np.flatnonzero(emask)
+                edge = np.sort(pts[rows[:, None], local], axis=1)
+                pe = np.unique(np.column_stack([pts[rows, 0], edge]), axis=0)
+                p, a, b = pos[pe[:, 0]], pos[pe[:, 1]], pos[pe[:, 2]]
+                beta = frames.point_edge_closest_parameter(p, a, b)
+                coef = np.column_stack([np.ones(len(beta)), beta - 1.0, -beta])
+                T = frames.point_edge_tangent_basis(p, a, b)
+                groups.append((pe, coef, T, dist.point_edge_distance(p, a, b)))
+            f = pts[typ == 6]
+            if f.size:
+                args = [pos[f[:, k]] for k in range(4)]
+                bary = frames.point_triangle_closest_barycentric(*args)
+                b1, b2 = bary[:, 0], bary[:, 1]
+                coef = np.column_stack([np.ones(len(b1)), b1 + b2 - 1.0, -b1, -b2])
+                T = frames.point_triangle_tangent_basis(*args)
+                groups.append((f, coef, T, dist.point_triangle_distance(*args)))
+        self._groups = []
+        n = 0
+        for points, coef, T, dvals in groups:
+            lam = -cs.omega[points[:, 0]] * barrier_derivative(
+                dvals, self.barrier.dhat, self.barrier.kappa
+            )
+            keep = lam > 0.0
+            self._groups.append(
+                (
+                    np.ascontiguousarray(points[keep]),
+                    np.ascontiguousarray(coef[keep]),
+                    np.ascontiguousarray(T[keep]),
+                    self.mu * lam[keep],
+                )
+            )
+            n += int(keep.sum())
+        self.n_contacts = n
+        del d
+
+    # ------------------------------------------------------------------ energy
+    def solution_changed(self, x: np.ndarray) -> None:
+        """Sliding of every collision point at x: U = s x + c, gathered through the stencils."""
+        if not self.n_contacts:
+            return
+        y = self._layout.positions(x, self._fixed)
+        self._U = self.barrier.collisions.positions(self._s * y + self._c)
+
+    def _u(self, points: np.ndarray, coef: np.ndarray, T: np.ndarray) -> np.ndarray:
+        rel = np.einsum("nm,nmi->ni", coef, self._U[points])
+        return np.einsum("nik,ni->nk", T, rel)
+
+    def value(self, x: np.ndarray) -> float:
+        """D(x) in J (eq. 37)."""
+        total = 0.0
+        for points, coef, T, ml in getattr(self, "_groups", []) if self.n_contacts else []:
+            u = self._u(points, coef, T)
+            total += float(friction_local(u, ml, self._eps)[0].sum())
+        return total
+
+    def gradient(self, x: np.ndarray) -> np.ndarray:
+        """dD/dx ``(n_dof,)`` in N (minus the lagged friction force)."""
+        out = np.zeros((self._layout.n_all, self._layout.dim))
+        if self.n_contacts:
+            cs = self.barrier.collisions
+            for points, coef, T, ml in self._groups:
+                if not points.size:
+                    continue
+                _, g_u, _ = friction_local(self._u(points, coef, T), ml, self._eps)
+                g_rel = np.einsum("nik,nk->ni", T, g_u)  # (n, d)
+                local = self._s * (coef[:, :, None] * g_rel[:, None, :]).reshape(len(coef), -1)
+                _scatter_gradient(out, local, points, cs.nodes, cs.weights)
+        return self._layout.restrict(out)
+
+    def hessian(self, x: np.ndarray, psd: bool) -> Triplets:
+        """s^2 (c c^T) (x) (T H_u T^T) per contact, chained to node DOFs."""
+        parts = []
+        if self.n_contacts:
+            cs = self.barrier.collisions
+            dof_node = self._layout.dof_node
+            d = self._layout.dim
+            local_fn = friction_local_psd if psd else friction_local
+            for points, coef, T, ml in self._groups:
+                if not points.size:
+                    continue
+                _, _, h_u = local_fn(self._u(points, coef, T), ml, self._eps)
+                h_rel = np.einsum("nik,nkl,njl->nij", T, h_u, T)  # (n, d, d)
+                m = coef.shape[1]
+                local = (
+                    (self._s**2)
+                    * (coef[:, :, None, None, None] * coef[:, None, None, :, None])
+                    * h_rel[:, None, :, None, :]
+                )
+                local = np.ascontiguousarray(local.reshape(len(coef), m * d, m * d))
+                counts = _count_entries(points, cs.nodes, cs.weights, dof_node)
+                starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+                total = int(counts.sum()) * d * d
+                rows = np.empty(total, dtype=np.int64)
+                cols = np.empty(total, dtype=np.int64)
+                vals = np.empty(total)
+                _fill_triplets(
+                    local, points, cs.nodes, cs.weights, dof_node, starts, rows, cols, vals
+                )
+                parts.append(Triplets(rows, cols, vals))
+        return Triplets.concatenate(parts) if parts else Triplets.empty()
+
+    def max_step_size(self, x: np.ndarray, p: np.ndarray) -> float:
+        """No feasibility constraint."""
+        return 1.0
