@@ -77,13 +77,16 @@ class MpmBody:
 class Boundary:
     """A static level-set boundary acting on MPM grid nodes inside it (value <= 0).
 
-    ``kind``: ``"sticky"`` (no-slip: the node does not move), ``"slip"`` (no normal motion,
-    free tangential motion) or ``"separate"`` (slip while the node moves into the boundary, free
-    when it moves away, decided per step from the transferred grid velocity).
+    ``kind``: ``"sticky"`` (no-slip: the node moves with the boundary), ``"slip"`` (no normal
+    motion relative to the boundary, free tangential motion) or ``"separate"`` (slip while the
+    node moves into the boundary, free when it moves away, decided per step from the transferred
+    grid velocity). ``motion``: an optional translation of the level set (``bfemp.motion``
+    Linear or a Sequence of Linear segments).
     """
 
     levelset: object
     kind: str
+    motion: Motion | None = None
 
 
 def simplex_shape_gradients(points: np.ndarray, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -9,6 +9,7 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass
+from pathlib import Path
 
 import meshio
 import numpy as np
@@ -47,6 +48,20 @@ class _FemSpec:
     prescribed: np.ndarray  # (n,) bool
 
 
+def _check_translation(motion: object) -> None:
+    """Moving level sets translate: Linear, Fixed, or Sequences of them."""
+    from bfemp.motion import Fixed, Linear, Sequence
+
+    if isinstance(motion, Sequence):
+        for _, part in motion.segments:
+            _check_translation(part)
+    elif not isinstance(motion, Linear | Fixed):
+        raise ValueError(
+            "add_boundary: motion must translate the level set (bfemp.motion.Linear, Fixed or a "
+            f"Sequence of them), got {type(motion).__name__}"
+        )
+
+
 class Scene:
     """A coupled scene under construction.
 
@@ -69,6 +84,9 @@ class Scene:
         self._grid: Grid | None = None
         self._boundaries: list[Boundary] = []
         self._contact: ContactParameters | None = None
+        # (body name, field) -> how a scene file described it (mesh shape or file, node
+        # selection, material name), so that to_toml() writes it back the same way.
+        self._sources: dict[tuple[str, str], object] = {}
 
     # ------------------------------------------------------------------ FEM bodies
     def add_fem(
@@ -195,12 +213,16 @@ class Scene:
             dhat=dhat, kappa=kappa, mu=mu, eps_v=eps_v, friction_iterations=friction_iterations
         )
 
-    def add_boundary(self, levelset: object, kind: str = "slip") -> None:
-        """A static level-set boundary on the MPM grid nodes inside it (``value <= 0``).
+    def add_boundary(
+        self, levelset: object, kind: str = "slip", motion: Motion | None = None
+    ) -> None:
+        """A level-set boundary acting on the MPM grid nodes inside it (``value <= 0``).
 
         Args:
             levelset: e.g. ``bfemp.levelset.HalfPlane(point=..., normal=...)``.
             kind: ``"sticky"``, ``"slip"`` or ``"separate"``.
+            motion: optional translation of the boundary (``bfemp.motion.Linear`` or a
+                ``Sequence`` of them); static when None.
         """
         if kind not in BOUNDARY_KINDS:
             raise ValueError(f"add_boundary: kind must be one of {BOUNDARY_KINDS}, got {kind!r}")
@@ -212,7 +234,9 @@ class Scene:
         ls_dim = getattr(levelset, "dim", None)
         if ls_dim is not None and ls_dim != self.dim:
             raise ValueError(f"add_boundary: levelset is {ls_dim}D but the scene is {self.dim}D")
-        self._boundaries.append(Boundary(levelset=levelset, kind=kind))
+        if motion is not None:
+            _check_translation(motion)
+        self._boundaries.append(Boundary(levelset=levelset, kind=kind, motion=motion))
 
     def add_load(
         self, body: int, force: tuple[float, ...] | np.ndarray, nodes: np.ndarray | None = None
@@ -310,6 +334,55 @@ class Scene:
         mask = np.zeros(n, dtype=bool)
         mask[nodes] = True
         return mask
+
+    # ------------------------------------------------------------------ scene files
+    def to_toml(
+        self,
+        path: str | Path | None = None,
+        *,
+        simulation: dict | None = None,
+        run: dict | None = None,
+        check: dict | None = None,
+    ) -> str:
+        """This scene as scene-file TOML text (see :mod:`bfemp.scenefile` for the format).
+
+        Meshes and particles read from a scene file are written as they were described (shape,
+        file, sampling); those given as arrays are written inline, exactly.
+
+        Args:
+            path: also write the text to this file (atomically); relative mesh paths are not
+                used, files are referenced by absolute path.
+            simulation: ``Simulation`` keyword arguments for a ``[simulation]`` table.
+            run: ``[run]`` settings (``t_end``, ``every``, ``checkpoint_every``, ``out``).
+            check: a ``[check]`` table.
+
+        Returns:
+            the TOML text; ``Scene.from_toml(text)`` builds the same model.
+        """
+        from bfemp import scenefile
+
+        text = scenefile.dumps(self, simulation=simulation, run=run, check=check)
+        if path is not None:
+            scenefile.write_text(path, text)
+        return text
+
+    @classmethod
+    def from_toml(cls, source: str | Path) -> Scene:
+        """A scene from a scene file (a ``Path``, or a ``str`` path ending in ``.toml``) or TOML
+        text (any other ``str``); the ``[simulation]`` and ``[run]`` tables are ignored here
+        (``bfemp.scenefile.load`` returns them too)."""
+        from bfemp import scenefile
+
+        if isinstance(source, Path) or (
+            isinstance(source, str) and "\n" not in source and source.endswith(".toml")
+        ):
+            return scenefile.load(source).scene
+        return scenefile.loads(source).scene
+
+    def _record_source(self, name: str, field: str, value: object) -> None:
+        """Remember how a scene file described ``field`` of body ``name`` (None: nothing)."""
+        if value is not None:
+            self._sources[(name, field)] = value
 
     # ------------------------------------------------------------------ build
     def build(self) -> Model:

@@ -154,6 +154,21 @@ class BarrierTerm:
         return 1.0 if t >= 1.0 else CCD_FRACTION * t
 
     # ------------------------------------------------------------------ reporting
+    def point_forces(self) -> np.ndarray:
+        """Contact forces ``(C, d)`` in N (N/m in 2D) on the collision points at the current
+        iterate: -dB/dy per point, before the chain rule to nodes (FEM boundary nodes first,
+        then particles, as in ``collisions``)."""
+        cs = self.collisions
+        out = np.zeros((cs.n_points, self._layout.dim))
+        for kind, d in self.pairs.distance.items():
+            if not d.size:
+                continue
+            pts, args = self._local(kind)
+            scale = self._scaled(kind) * barrier_derivative(d, self.dhat, self.kappa)
+            local = (scale[:, None] * _GRADIENT[kind](*args)).reshape(len(d), pts.shape[1], -1)
+            np.add.at(out, pts.reshape(-1), -local.reshape(-1, out.shape[1]))
+        return out
+
     def min_distance(self) -> float:
         """Smallest active pair distance at the current iterate (inf when none is active)."""
         return self.pairs.min_distance() if self.pairs is not None else float("inf")

@@ -42,7 +42,13 @@ class MpmStep:
         return self.stencils.n_nodes
 
 
-def prepare_mpm_step(model: Model, state: State, transfer: str, with_acceleration: bool) -> MpmStep:
+def prepare_mpm_step(
+    model: Model,
+    state: State,
+    transfer: str,
+    with_acceleration: bool,
+    dt: float = 0.0,
+) -> MpmStep:
     """Quadratic B-spline stencils of the particles at x^n, P2G (Tables 1-3), constraints."""
     stencils = particle_stencils(model.grid, state.mpm_x)
     apic = transfer == "apic"
@@ -58,5 +64,7 @@ def prepare_mpm_step(model: Model, state: State, transfer: str, with_acceleratio
     accel = None
     if with_acceleration:
         accel = particles_to_grid(*args, state.mpm_a, state.mpm_Ca if apic else None).velocity
-    constraints = grid_constraints(model.boundaries, stencils.active_x, fields.velocity)
+    constraints = grid_constraints(
+        model.boundaries, stencils.active_x, fields.velocity, state.t + dt, dt
+    )
     return MpmStep(stencils, fields, constraints, model.n_fem_nodes, accel)

@@ -25,6 +25,8 @@ class StepReport:
         contact_pairs: number of active contact pairs at the end of the step.
         friction_iterations: lagged-friction updates of the step (0 without friction).
         friction_converged: whether the friction loop met the tolerance within its cap.
+        boundary_forces: per level-set boundary, the reaction force (d,) in N its slip nodes
+            exert on the body (empty without slip constraints).
     """
 
     step: int
@@ -39,6 +41,7 @@ class StepReport:
     contact_pairs: int = 0
     friction_iterations: int = 0
     friction_converged: bool = True
+    boundary_forces: tuple = ()
 
 
 class StepError(RuntimeError):

@@ -165,7 +165,11 @@ class ImplicitStepper:
     def _setup(
         self, state: State, t_next: float
     ) -> tuple[StepContext, MpmStep | None, np.ndarray, np.ndarray, np.ndarray, NodeFrames | None]:
-        """Layout, context and the all-node x^n, v^n, a^n of a step from ``state`` to t_next."""
+        """Layout, context and the all-node x^n, v^n, a^n of a step from ``state`` to t_next.
+
+        ``self.x_start`` is the solver's start: x^n, with nodes on moving slip boundaries moved
+        along with them (their normal coordinate is fixed there).
+        """
         model, d = self.model, self.model.dim
         fem_fixed = model.prescribed_positions(t_next)
         if model.n_particles == 0:
@@ -174,7 +178,11 @@ class ImplicitStepper:
             mass_all, fixed = model.fem_mass, fem_fixed
         else:
             mpm = prepare_mpm_step(
-                model, state, self.transfer, with_acceleration=self.integrator.uses_acceleration
+                model,
+                state,
+                self.transfer,
+                with_acceleration=self.integrator.uses_acceleration,
+                dt=t_next - state.t,
             )
             grid_x = mpm.stencils.active_x
             fields = mpm.fields
@@ -185,9 +193,13 @@ class ImplicitStepper:
             v_all = np.concatenate([state.fem_v, fields.velocity])
             a_all = np.concatenate([state.fem_a, grid_a])
             mass_all = np.concatenate([model.fem_mass, fields.mass])
-            fixed = np.concatenate([fem_fixed, grid_x])
+            fixed = np.concatenate([fem_fixed, grid_x + mpm.constraints.shift])
         self.layout = layout
         x_n, v_n, a_n = layout.restrict(x_all), layout.restrict(v_all), layout.restrict(a_all)
+        self.x_start = x_n
+        if mpm is not None and mpm.constraints.shift.any():
+            shift = np.concatenate([np.zeros((model.n_fem_nodes, d)), mpm.constraints.shift])
+            self.x_start = x_n + layout.restrict(shift)
         ctx = StepContext(
             model=model,
             state=state,
@@ -212,6 +224,27 @@ class ImplicitStepper:
                 normal_frames(mpm.constraints.normals[slip_nodes[keep]]),
             )
         return ctx, mpm, x_n, v_n, a_n, frames
+
+    def _boundary_forces(
+        self, result: NewtonResult, frames: NodeFrames, mpm: MpmStep, layout: DofLayout
+    ) -> tuple[tuple[float, ...], ...]:
+        """Reaction force (d,) in N of each level-set boundary on the body, from slip nodes.
+
+        At the constrained optimum dE/dy_n = h^2 f_n for a fixed normal coordinate y_n: f_n is the
+        force the boundary exerts along its normal (positive pushes the body away, negative pulls
+        it: adhesion). Sticky nodes are not unknowns and are not included.
+        """
+        d = self.model.dim
+        out = np.zeros((len(self.model.boundaries), d))
+        if result.jac is None:
+            return tuple(tuple(row) for row in out)
+        weight = self.integrator.weight(self.dt)
+        f_n = np.asarray(result.jac)[frames.normal_dofs()] / weight
+        normals = frames.frames[:, :, 0]
+        grid_nodes = layout.free_nodes[frames.nodes] - mpm.node_offset
+        owner = mpm.constraints.owner[grid_nodes]
+        np.add.at(out, owner, f_n[:, None] * normals)
+        return tuple(tuple(float(c) for c in row) for row in out)
 
     def _sliding_map(
         self,
@@ -319,7 +352,7 @@ class ImplicitStepper:
             )
             friction_its, friction_ok = 0, True
         else:
-            result, friction_its, friction_ok = self._solve(x_n)
+            result, friction_its, friction_ok = self._solve(self.x_start)
         report_args = dict(
             friction_iterations=friction_its,
             friction_converged=friction_ok,
@@ -340,14 +373,18 @@ class ImplicitStepper:
             a_next = -self.potential.potential_gradient(x_next) / ctx.dof_mass
         else:
             a_next = np.zeros(0)
-        if frames is not None:  # no motion, hence no velocity, along slip normals
+        boundary_forces = None
+        if frames is not None:
+            # along slip normals the node moves with the boundary: its velocity, no acceleration
+            normal_dofs = frames.normal_dofs()
             local = frames.to_local(a_next)
-            local[frames.normal_dofs()] = 0.0
+            local[normal_dofs] = 0.0
             a_next = frames.to_global(local)
+            boundary_forces = self._boundary_forces(result, frames, mpm, layout)
         v_next = integ.velocity(v_n, a_n, a_next, dt)
         if frames is not None:
             local = frames.to_local(v_next)
-            local[frames.normal_dofs()] = 0.0
+            local[normal_dofs] = frames.to_local((self.x_start - x_n) / dt)[normal_dofs]
             v_next = frames.to_global(local)
 
         g2p_start = time.perf_counter()
@@ -362,6 +399,8 @@ class ImplicitStepper:
             report_args["contact_pairs"] = self.barrier.pairs.n_pairs
             if self.adaptive is not None:
                 self.adaptive.after_step(min_d, self.model.contact.dhat)
+        if boundary_forces is not None:
+            report_args["boundary_forces"] = boundary_forces
         report = StepReport(**report_args, timings=timings)
         log.debug("step %d: %d Newton iterations", report.step, report.newton_iterations)
         return new, report
@@ -381,6 +420,9 @@ class ImplicitStepper:
         x_all = layout.positions(x_next, ctx.fixed_positions)
         v_all = layout.expand(v_next)
         a_all = layout.expand(a_next)
+        if mpm is not None and mpm.constraints.sticky.any():  # sticky nodes ride the boundary
+            sticky = np.flatnonzero(mpm.constraints.sticky)
+            v_all[n_fem + sticky] = mpm.constraints.shift[sticky] / self.dt
         new = state.copy()
         new.t = t_next
         new.step = state.step + 1
