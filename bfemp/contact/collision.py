@@ -46,7 +46,8 @@ class CollisionSet:
         n_fem_points: FEM boundary nodes come first: points ``[0, n_fem_points)``.
         facets: boundary facets ``(F, d)`` in point indices; ``facet_body (F,)``.
         edges: (3D) unique boundary edges ``(E, 2)`` with coefficients ``edge_coef (E,)``; empty
-            in 2D.
+            in 2D; ``edge_body (E,)`` their body and ``edge_rest (E, 2, 3)`` their rest end
+            points (for the edge-edge mollifier and weights of FEM-FEM contact).
         vertex_coef: coefficient of each FEM boundary point as a point-point term
             ``(n_fem_points,)``.
     """
@@ -63,6 +64,8 @@ class CollisionSet:
     edges: np.ndarray
     edge_coef: np.ndarray
     vertex_coef: np.ndarray
+    edge_body: np.ndarray = None
+    edge_rest: np.ndarray = None
 
     @property
     def n_points(self) -> int:
@@ -140,6 +143,9 @@ def build_collision_set(model: Model, mpm: object | None) -> CollisionSet:
         particle_index = np.concatenate([particle_index, np.arange(model.n_particles)])
         is_particle = np.concatenate([is_particle, np.ones(model.n_particles, dtype=bool)])
     edges, edge_coef, vertex_coef = _facet_topology(facets_all, n_fem_points, d)
+    point_body_fem = point_body[:n_fem_points]
+    edge_body = point_body_fem[edges[:, 0]] if edges.size else np.zeros(0, dtype=np.int64)
+    edge_rest = model.fem_X[fem_nodes_all[edges]] if edges.size else np.zeros((0, 2, d))
     return CollisionSet(
         nodes=np.ascontiguousarray(nodes),
         weights=np.ascontiguousarray(weights),
@@ -153,4 +159,6 @@ def build_collision_set(model: Model, mpm: object | None) -> CollisionSet:
         edges=edges,
         edge_coef=edge_coef,
         vertex_coef=vertex_coef,
+        edge_body=edge_body,
+        edge_rest=edge_rest,
     )

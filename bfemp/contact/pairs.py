@@ -14,12 +14,12 @@ import numpy as np
 
 from bfemp.contact.collision import CollisionSet
 from geometry import distance as dist
-from geometry.broadphase import point_simplex_candidates
+from geometry.broadphase import edge_edge_candidates, point_simplex_candidates
 
 __all__ = ["ContactPairs", "PAIR_KINDS", "find_pairs", "candidate_pairs"]
 
-#: kind -> number of collision points: point-point, point-edge, point-triangle.
-PAIR_KINDS = {"pp": 2, "pe": 3, "pt": 4}
+#: kind -> number of collision points: point-point, point-edge, point-triangle, edge-edge.
+PAIR_KINDS = {"pp": 2, "pe": 3, "pt": 4, "ee": 4}
 
 
 @dataclass(frozen=True)
@@ -35,6 +35,7 @@ class ContactPairs:
     points: dict[str, np.ndarray]
     coef: dict[str, np.ndarray]
     distance: dict[str, np.ndarray]
+    eps_x: np.ndarray | None = None  # edge-edge mollifier thresholds (n_ee,)
 
     @property
     def n_pairs(self) -> int:
@@ -53,6 +54,8 @@ def _distance(kind: str, pos: np.ndarray, pts: np.ndarray) -> np.ndarray:
         return dist.point_point_distance(*args)
     if kind == "pe":
         return dist.point_edge_distance(*args)
+    if kind == "ee":
+        return dist.edge_edge_distance(*args)
     return dist.point_triangle_distance(*args)
 
 
@@ -118,4 +121,39 @@ def find_pairs(cs: CollisionSet, pos: np.ndarray, dhat: float) -> ContactPairs:
             ecoef = np.zeros(0)
         nz = ecoef != 0.0
         add("pe", pe[nz], ecoef[nz])
-    return ContactPairs(out_pts, out_coef, out_dist)
+    eps_x = None
+    if dim == 3 and cs.edges.shape[0] and np.unique(cs.edge_body).size > 1:
+        ee, w = edge_edge_pairs(cs, pos, dhat)
+        add("ee", ee, w)
+        eps_x = _edge_eps(cs, out_pts["ee"])
+    return ContactPairs(out_pts, out_coef, out_dist, eps_x)
+
+
+def edge_edge_pairs(
+    cs: CollisionSet, pos: np.ndarray, inflation: float, pos_end: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """3D FEM-FEM edge-edge candidates ``(n, 4)`` (point indices ea0 ea1 eb0 eb1) of different
+    bodies, and their weights (m^2): a quarter of the product of the rest edge lengths, the
+    boundary measure an edge pair stands for (the edge-edge analogue of a node's weight)."""
+    nf = cs.n_fem_points
+    cand = edge_edge_candidates(
+        pos[:nf],
+        cs.edges,
+        cs.edges,
+        inflation=inflation,
+        vertices_end=None if pos_end is None else pos_end[:nf],
+    )
+    cand = cand[(cand[:, 0] < cand[:, 1]) & (cs.edge_body[cand[:, 0]] != cs.edge_body[cand[:, 1]])]
+    ee = np.column_stack([cs.edges[cand[:, 0]], cs.edges[cand[:, 1]]])
+    length = np.linalg.norm(cs.edge_rest[:, 1] - cs.edge_rest[:, 0], axis=1)
+    return ee, 0.25 * length[cand[:, 0]] * length[cand[:, 1]]
+
+
+def _edge_eps(cs: CollisionSet, ee: np.ndarray) -> np.ndarray:
+    """IPC's mollifier threshold eps_x = 1e-3 |a0|^2 |b0|^2 from rest positions."""
+    rest = np.zeros((cs.n_fem_points, 3))
+    # rest position of every FEM boundary point, from the edges that reference it
+    rest[cs.edges.reshape(-1)] = cs.edge_rest.reshape(-1, 3)
+    a = rest[ee[:, 1]] - rest[ee[:, 0]]
+    b = rest[ee[:, 3]] - rest[ee[:, 2]]
+    return 1e-3 * np.einsum("ij,ij->i", a, a) * np.einsum("ij,ij->i", b, b)

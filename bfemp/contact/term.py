@@ -17,10 +17,15 @@ import numpy as np
 from bfemp.contact._assembly_kernels import _count_entries, _fill_triplets, _scatter_gradient
 from bfemp.contact.barrier import barrier, barrier_derivative, barrier_second_derivative
 from bfemp.contact.collision import CollisionSet, build_collision_set
-from bfemp.contact.pairs import ContactPairs, candidate_pairs, find_pairs
+from bfemp.contact.pairs import ContactPairs, candidate_pairs, edge_edge_pairs, find_pairs
 from bfemp.terms.base import StepContext
 from geometry import distance as dist
-from geometry.ccd import point_edge_ccd, point_triangle_ccd
+from geometry.ccd import edge_edge_ccd, point_edge_ccd, point_triangle_ccd
+from geometry.mollifier import (
+    edge_edge_mollifier,
+    edge_edge_mollifier_gradient,
+    edge_edge_mollifier_hessian,
+)
 from solvers.assembly import Triplets
 from solvers.psd import project_psd
 
@@ -35,11 +40,13 @@ _GRADIENT = {
     "pp": dist.point_point_distance_gradient,
     "pe": dist.point_edge_distance_gradient,
     "pt": dist.point_triangle_distance_gradient,
+    "ee": dist.edge_edge_distance_gradient,
 }
 _HESSIAN = {
     "pp": dist.point_point_distance_hessian,
     "pe": dist.point_edge_distance_hessian,
     "pt": dist.point_triangle_distance_hessian,
+    "ee": dist.edge_edge_distance_hessian,
 }
 
 
@@ -85,12 +92,29 @@ class BarrierTerm:
         total = 0.0
         for kind, d in self.pairs.distance.items():
             if d.size:
-                total += float(np.dot(self._scaled(kind), barrier(d, self.dhat, self.kappa)))
+                b = barrier(d, self.dhat, self.kappa)
+                if kind == "ee":  # mollified where the edges turn parallel (IPC)
+                    b = b * edge_edge_mollifier(*self._local(kind)[1], self.pairs.eps_x)
+                total += float(np.dot(self._scaled(kind), b))
         return total
 
     def _local(self, kind: str) -> tuple[np.ndarray, list[np.ndarray]]:
         pts = self.pairs.points[kind]
         return pts, [self._pos[pts[:, a]] for a in range(pts.shape[1])]
+
+    def _local_gradient(self, kind: str, d: np.ndarray) -> np.ndarray:
+        """Per-pair gradient ``(n, m d)`` of omega c [m] b(d) w.r.t. the pair's points."""
+        pts, args = self._local(kind)
+        b1 = barrier_derivative(d, self.dhat, self.kappa)
+        grad = self._scaled(kind)[:, None] * b1[:, None] * _GRADIENT[kind](*args)
+        if kind == "ee":  # (m b)' = m' b + m b'
+            eps_x = self.pairs.eps_x
+            mol = edge_edge_mollifier(*args, eps_x)
+            b0 = barrier(d, self.dhat, self.kappa)
+            grad = mol[:, None] * grad + (self._scaled(kind) * b0)[:, None] * (
+                edge_edge_mollifier_gradient(*args, eps_x)
+            )
+        return grad
 
     def gradient(self, x: np.ndarray) -> np.ndarray:
         """dB/dx ``(n_dof,)`` in N."""
@@ -98,9 +122,8 @@ class BarrierTerm:
         for kind, d in self.pairs.distance.items():
             if not d.size:
                 continue
-            pts, args = self._local(kind)
-            scale = self._scaled(kind) * barrier_derivative(d, self.dhat, self.kappa)
-            local = scale[:, None] * _GRADIENT[kind](*args)
+            local = self._local_gradient(kind, d)
+            pts = self.pairs.points[kind]
             _scatter_gradient(out, local, pts, self.collisions.nodes, self.collisions.weights)
         return self._layout.restrict(out)
 
@@ -119,6 +142,14 @@ class BarrierTerm:
             b2 = barrier_second_derivative(d, self.dhat, self.kappa)
             local = (scale * b2)[:, None, None] * grad[:, :, None] * grad[:, None, :]
             local += (scale * b1)[:, None, None] * _HESSIAN[kind](*args)
+            if kind == "ee":  # (m b)'' = m'' b + m' b'^T + b' m'^T + m b''
+                eps_x = self.pairs.eps_x
+                mol = edge_edge_mollifier(*args, eps_x)
+                g_m = edge_edge_mollifier_gradient(*args, eps_x)
+                b0 = barrier(d, self.dhat, self.kappa)
+                cross = (scale * b1)[:, None, None] * g_m[:, :, None] * grad[:, None, :]
+                local = mol[:, None, None] * local + cross + np.swapaxes(cross, 1, 2)
+                local += (scale * b0)[:, None, None] * edge_edge_mollifier_hessian(*args, eps_x)
             if psd:
                 local = project_psd(local)
             counts = _count_entries(pts, cs.nodes, cs.weights, dof_node)
@@ -141,16 +172,20 @@ class BarrierTerm:
         start = self._pos
         end = self.collision_positions(x + p)
         cand = candidate_pairs(cs, start, 0.0, end)
-        if cand.shape[0] == 0:
-            return 1.0
-        q = cand[:, 0]
-        f = cs.facets[cand[:, 1]]
         motion = end - start
-        pts = [start[q]] + [start[f[:, a]] for a in range(f.shape[1])]
-        mot = [motion[q]] + [motion[f[:, a]] for a in range(f.shape[1])]
-        ccd = point_edge_ccd if f.shape[1] == 2 else point_triangle_ccd
-        toi = ccd(*pts, *mot, t_max=1.0)
-        t = float(toi.min())
+        t = 1.0
+        if cand.shape[0]:
+            q = cand[:, 0]
+            f = cs.facets[cand[:, 1]]
+            pts = [start[q]] + [start[f[:, a]] for a in range(f.shape[1])]
+            mot = [motion[q]] + [motion[f[:, a]] for a in range(f.shape[1])]
+            ccd = point_edge_ccd if f.shape[1] == 2 else point_triangle_ccd
+            t = float(ccd(*pts, *mot, t_max=1.0).min())
+        if start.shape[1] == 3 and cs.edges.shape[0] and np.unique(cs.edge_body).size > 1:
+            ee, _ = edge_edge_pairs(cs, start, 0.0, end)
+            if ee.shape[0]:
+                args = [start[ee[:, a]] for a in range(4)] + [motion[ee[:, a]] for a in range(4)]
+                t = min(t, float(edge_edge_ccd(*args, t_max=1.0).min()))
         return 1.0 if t >= 1.0 else CCD_FRACTION * t
 
     # ------------------------------------------------------------------ reporting
@@ -163,9 +198,8 @@ class BarrierTerm:
         for kind, d in self.pairs.distance.items():
             if not d.size:
                 continue
-            pts, args = self._local(kind)
-            scale = self._scaled(kind) * barrier_derivative(d, self.dhat, self.kappa)
-            local = (scale[:, None] * _GRADIENT[kind](*args)).reshape(len(d), pts.shape[1], -1)
+            pts = self.pairs.points[kind]
+            local = self._local_gradient(kind, d).reshape(len(d), pts.shape[1], -1)
             np.add.at(out, pts.reshape(-1), -local.reshape(-1, out.shape[1]))
         return out
 
