@@ -24,7 +24,7 @@ __all__ = ["Boundary", "FemBody", "Model", "MpmBody", "simplex_shape_gradients"]
 BOUNDARY_KINDS = ("sticky", "slip", "separate")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class FemBody:
     """Handle of one FEM body: its name, material, motion and slices of the global arrays."""
 
@@ -35,6 +35,10 @@ class FemBody:
     cells: slice
     prescribed_motion: Motion | None
     boundary: np.ndarray  # (k, d) global node indices of its boundary edges (2D) / faces (3D)
+
+    def __index__(self) -> int:
+        """The body's index, so a handle works wherever an index is expected."""
+        return self.index
 
     @property
     def n_nodes(self) -> int:
@@ -58,6 +62,10 @@ class MpmBody:
     index: int
     material: object
     particles: slice
+
+    def __index__(self) -> int:
+        """The body's index, so a handle works wherever an index is expected."""
+        return self.index
 
     @property
     def n_particles(self) -> int:

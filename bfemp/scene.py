@@ -99,8 +99,8 @@ class Scene:
         prescribed: Motion | None = None,
         prescribed_nodes: np.ndarray | None = None,
         name: str | None = None,
-    ) -> int:
-        """Add a FEM body (triangles in 2D, tetrahedra in 3D) and return its index.
+    ) -> FemBody:
+        """Add a FEM body (triangles in 2D, tetrahedra in 3D) and return its handle.
 
         Args:
             points: node positions ``(n, d)`` in m, or a ``TriMesh``/``TetMesh``/``meshio.Mesh``.
@@ -113,7 +113,8 @@ class Scene:
             name: body name used in messages and output files; default ``fem{index}``.
 
         Returns:
-            The body index; ``Model.fem_bodies[index]`` is its handle.
+            The body's handle (``body.x(sim.state)``: its node positions); it is also its index
+            (``Model.fem_bodies[body]``) wherever an integer is expected.
         """
         index = len(self._fem)
         name = f"fem{index}" if name is None else str(name)
@@ -131,7 +132,18 @@ class Scene:
         vel = self._velocity(velocity, n, where)
         prescribed_mask = self._prescribed_mask(prescribed, prescribed_nodes, n, where)
         self._fem.append(_FemSpec(name, mesh, material, vel, prescribed, prescribed_mask))
-        return index
+        nodes = sum(spec.mesh.points.shape[0] for spec in self._fem[:-1])
+        cells = sum(spec.mesh.cells.shape[0] for spec in self._fem[:-1])
+        boundary = mesh.boundary_edges if self.dim == 2 else mesh.boundary_faces
+        return FemBody(
+            name=name,
+            index=index,
+            material=material,
+            nodes=slice(nodes, nodes + n),
+            cells=slice(cells, cells + mesh.cells.shape[0]),
+            prescribed_motion=prescribed,
+            boundary=np.ascontiguousarray(boundary + nodes, dtype=np.int64),
+        )
 
     # ------------------------------------------------------------------ MPM bodies
     def add_mpm(
@@ -142,8 +154,8 @@ class Scene:
         material: Material,
         velocity: tuple[float, ...] | np.ndarray | None = None,
         name: str | None = None,
-    ) -> int:
-        """Add an MPM body (particles on the shared background grid) and return its index.
+    ) -> MpmBody:
+        """Add an MPM body (particles on the shared background grid) and return its handle.
 
         Args:
             particles: positions ``(p, d)`` in m (e.g. from ``bfemp.sample``).
@@ -181,7 +193,8 @@ class Scene:
             )
         vel = self._velocity(velocity, x.shape[0], where)
         self._mpm.append(_MpmSpec(name, np.ascontiguousarray(x), vol.copy(), material, vel))
-        return index
+        start = sum(spec.x.shape[0] for spec in self._mpm[:-1])
+        return MpmBody(name, index, material, slice(start, start + x.shape[0]))
 
     def set_grid(self, dx: float, origin: tuple[float, ...] | None = None) -> None:
         """The MPM background grid: cell size ``dx`` in m, node ``origin (d,)`` (default 0)."""
@@ -239,17 +252,22 @@ class Scene:
         self._boundaries.append(Boundary(levelset=levelset, kind=kind, motion=motion))
 
     def add_load(
-        self, body: int, force: tuple[float, ...] | np.ndarray, nodes: np.ndarray | None = None
+        self,
+        body: int | FemBody,
+        force: tuple[float, ...] | np.ndarray,
+        nodes: np.ndarray | None = None,
     ) -> None:
         """Apply constant nodal forces to a FEM body (dead load).
 
         Args:
-            body: index returned by ``add_fem``.
+            body: the handle (or index) returned by ``add_fem``.
             force: force per selected node in N (N/m in 2D), ``(d,)`` or ``(k, d)``.
             nodes: bool mask ``(n,)`` or indices ``(k,)`` of the body's nodes; default all.
         """
+        if isinstance(body, FemBody):
+            body = body.index
         if not (isinstance(body, int | np.integer) and 0 <= body < len(self._fem)):
-            raise ValueError(f"add_load: body must be an index returned by add_fem, got {body!r}")
+            raise ValueError(f"add_load: body must be a body returned by add_fem, got {body!r}")
         spec = self._fem[body]
         where = f"fem body '{spec.name}'"
         n, d = spec.mesh.points.shape

@@ -159,3 +159,19 @@ def test_motions_velocity_is_the_time_derivative_of_position(rng):
         bfemp.motion.Linear(velocity=(1.0, float("nan")))
     with pytest.raises(ValueError, match="axis"):
         bfemp.motion.Rotation(center=(0, 0, 0), axis=(0, 0, 0), angular_velocity=1.0)
+
+
+def test_body_handles_read_their_slice_of_the_state():
+    scene = Scene(dim=2)
+    a = scene.add_fem(TRI_POINTS, TRI_CELLS, material=NH, name="a", velocity=(1.0, 0.0))
+    b = scene.add_fem(TRI_POINTS + [3.0, 0.0], TRI_CELLS, material=NH, name="b")
+    x, vol = bfemp.sample.box((0.0, 2.0), (0.5, 2.5), dx=0.25, ppc=4)
+    blob = scene.add_mpm(x, vol, material=NH, velocity=(0.0, -1.0), name="blob")
+    scene.set_grid(dx=0.25)
+    scene.add_load(b, (0.0, -1.0))  # a handle works where an index is expected
+    sim = bfemp.Simulation(scene, dt=1e-3)
+    assert (a.name, b.name, blob.name) == ("a", "b", "blob")
+    assert np.allclose(a.x(sim.state), TRI_POINTS) and np.allclose(a.v(sim.state), [1.0, 0.0])
+    assert np.allclose(b.x(sim.state), TRI_POINTS + [3.0, 0.0])
+    assert np.allclose(blob.x(sim.state), x) and np.allclose(blob.v(sim.state), [0.0, -1.0])
+    assert sim.model.fem_bodies[b].name == "b" and sim.model.mpm_bodies[blob].name == "blob"
