@@ -1,41 +1,219 @@
-"""Command line: ``bfemp demo [--out DIR]``."""
+"""The ``bfemp`` command line.
+
+::
+
+    bfemp demo [--out DIR] [--quiet]
+    bfemp run SCENE.toml [--out DIR] [--t-end T] [--resume] [--quick] [--check] [--quiet]
+                         [--every N] [--checkpoint-every N] [--dry-run]
+    bfemp bench NAME [--quick | --full] [--out DIR]
+    bfemp info RESULT_DIR [--json]
+
+Mistakes in a scene file or argument are printed as ``bfemp: error: <message>`` without a
+traceback and exit with status 2 (``--debug`` shows the traceback); a failed run (a time step
+that does not converge) exits with 1, a failed ``--check`` with 1, Ctrl-C with 130 after writing
+a checkpoint that ``--resume`` continues.
+"""
 
 from __future__ import annotations
 
 import argparse
+import hashlib
+import importlib
+import json
 import logging
+import os
 import sys
+from pathlib import Path
+
+from bfemp.errors import SceneError
 
 __all__ = ["main"]
+
+log = logging.getLogger(__name__)
+
+EXIT_INPUT, EXIT_RUN, EXIT_INTERRUPTED = 2, 1, 130
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="bfemp", description="Coupled MPM-FEM simulation")
+    parser.add_argument("--debug", action="store_true", help="show tracebacks of errors")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    demo = sub.add_parser("demo", help="run the main demo (a cantilever) and write its outputs")
+    demo.add_argument("--out", default="results/demo", help="output folder (default results/demo)")
+    demo.add_argument("--quiet", action="store_true", help="no progress bar")
+
+    run = sub.add_parser("run", help="run a scene file")
+    run.add_argument("scene", help="the scene file (TOML, format: bfemp.scenefile)")
+    run.add_argument("--out", help="output folder (default: [run] out, else results/SCENE_NAME)")
+    run.add_argument("--t-end", type=float, help="end time in s (default: [run] t_end)")
+    run.add_argument("--resume", action="store_true", help="continue from the checkpoint in OUT")
+    run.add_argument("--quick", action="store_true", help="apply the [quick] overrides")
+    run.add_argument("--check", action="store_true", help="evaluate the [check] table")
+    run.add_argument("--every", type=int, help="frame interval in steps")
+    run.add_argument("--checkpoint-every", type=int, help="checkpoint interval in steps")
+    run.add_argument("--dry-run", action="store_true", help="read and check the scene only")
+    run.add_argument("--quiet", action="store_true", help="no progress bar, warnings only")
+    run.add_argument("--verbose", action="store_true", help="log progress messages")
+
+    bench = sub.add_parser("bench", help="run a benchmark (python -m benchmarks NAME)")
+    bench.add_argument("name", help="benchmark name")
+    mode = bench.add_mutually_exclusive_group()
+    mode.add_argument("--quick", action="store_const", const="quick", dest="mode")
+    mode.add_argument("--full", action="store_const", const="full", dest="mode")
+    bench.add_argument("--out", default="results", help="output folder (default results/)")
+
+    info = sub.add_parser("info", help="summarise a result folder")
+    info.add_argument("result_dir", help="the output folder of a run")
+    info.add_argument("--json", action="store_true", help="print the summary as JSON")
+    return parser
+
+
+def _demo(args: argparse.Namespace) -> int:
+    from bfemp.demo import run_demo
+
+    summary = run_demo(args.out, progress=not args.quiet)
+    outputs = summary["outputs"]
+    print(
+        f"demo finished: {summary['steps']} steps, "
+        f"{summary['newton_iterations_total']} Newton iterations"
+    )
+    print(f"  ParaView frames: {outputs['frames']}")
+    print(f"  metrics:         {outputs['metrics']}")
+    print(f"  plots:           {', '.join(outputs['plots'])}")
+    return 0
+
+
+def _positive_int(value: int | None, name: str, minimum: int) -> int | None:
+    if value is not None and value < minimum:
+        raise SceneError(f"must be an integer >= {minimum}, got {value}", field=name)
+    return value
+
+
+def _run(args: argparse.Namespace, argv: list[str]) -> int:
+    from bfemp import scenefile
+    from bfemp.scenefile.checks import CheckRecorder, evaluate_checks
+
+    scene_path = Path(args.scene)
+    sf = scenefile.load(scene_path)
+    settings = sf.run_settings(quick=args.quick, t_end=args.t_end)
+    every = _positive_int(args.every, "--every", 1) or settings["every"]
+    ckpt = _positive_int(args.checkpoint_every, "--checkpoint-every", 0)
+    ckpt = settings["checkpoint_every"] if ckpt is None else ckpt
+    out = Path(args.out or settings.get("out") or Path("results") / scene_path.stem)
+    sim = sf.make_simulation()
+    if args.dry_run:
+        print(
+            f"{scene_path}: ok: {sim.model.n_fem_nodes} FEM nodes, {sim.model.n_particles} "
+            f"particles, terms {', '.join(sim.terms)}; t_end {settings['t_end']:g} s"
+        )
+        return 0
+    if not args.resume:
+        scenefile.write_text(out / "scene.toml", sf.text)
+    metadata = {
+        "scene_file": str(scene_path.resolve()),
+        "scene_sha256": hashlib.sha256(sf.text.encode()).hexdigest(),
+        "command": ["bfemp", *argv],
+        "quick": bool(args.quick),
+    }
+    recorder = CheckRecorder()
+    recorder.record(sim)
+    try:
+        sim.run(
+            settings["t_end"],
+            out=out,
+            every=every,
+            progress=not args.quiet,
+            callback=recorder,
+            checkpoint_every=ckpt,
+            resume=args.resume,
+            metadata=metadata,
+        )
+    except KeyboardInterrupt:
+        print(
+            f"bfemp: interrupted at t = {sim.state.t:.6g} s (step {sim.state.step}); "
+            f"checkpoint in {out}\n  continue with: bfemp run {scene_path} --out {out} --resume",
+            file=sys.stderr,
+        )
+        return EXIT_INTERRUPTED
+    print(f"run finished: t = {sim.state.t:.6g} s, step {sim.state.step}; output in {out}")
+    for pvd in sorted(out.glob("*.pvd")):
+        print(f"  ParaView: {pvd}")
+    print(f"  metrics: {out / 'metrics.csv'}, {out / 'metrics.png'}; manifest: {out}/manifest.json")
+    if args.check:
+        if not sf.check:
+            print("check: the scene file has no [check] table")
+            return 0
+        results = evaluate_checks(sf.check, sim.metrics, recorder)
+        for result in results:
+            print(f"check {result}")
+        if not all(r.ok for r in results):
+            print("bfemp: error: a check failed", file=sys.stderr)
+            return EXIT_RUN
+    return 0
+
+
+def _bench(args: argparse.Namespace) -> int:
+    # The benchmarks are a sibling package, not a dependency of the library: they are looked up
+    # by name at run time (only here), so bfemp itself never imports them.
+    try:
+        registry = importlib.import_module("benchmarks.__main__").BENCHMARKS
+    except ImportError:
+        raise SceneError(
+            "the benchmarks package is not installed",
+            hint="run from a source checkout (pip install -e .)",
+        ) from None
+    if args.name not in registry:
+        raise SceneError(
+            f"unknown benchmark '{args.name}'; available: {', '.join(sorted(registry))}"
+        )
+    module = importlib.import_module(registry[args.name])
+    summary = module.run(args.mode or "full", args.out)
+    print(f"{args.name}: wrote {summary.get('json', args.out)}")
+    return 0
+
+
+def _info(args: argparse.Namespace) -> int:
+    from bfemp.manifest import format_info, run_info
+
+    info = run_info(args.result_dir)
+    print(json.dumps(info, indent=2, default=str) if args.json else format_info(info))
+    return 0
 
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``bfemp`` console script; returns the exit status."""
-    parser = argparse.ArgumentParser(prog="bfemp", description="Coupled MPM-FEM simulation")
-    sub = parser.add_subparsers(dest="command", required=True)
-    demo = sub.add_parser("demo", help="run the main demo and write its outputs")
-    demo.add_argument("--out", default="results/demo", help="output folder (default results/demo)")
-    demo.add_argument("--quiet", action="store_true", help="no progress bar")
-    args = parser.parse_args(argv)
-    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
-    if args.command == "demo":
-        from bfemp.demo import run_demo
+    from bfemp.steppers import StepError
 
-        try:
-            summary = run_demo(args.out, progress=not args.quiet)
-        except (ValueError, RuntimeError) as err:
-            print(f"bfemp demo: error: {err}", file=sys.stderr)
-            return 1
-        outputs = summary["outputs"]
-        print(
-            f"demo finished: {summary['steps']} steps, "
-            f"{summary['newton_iterations_total']} Newton iterations"
-        )
-        print(f"  ParaView frames: {outputs['frames']}")
-        print(f"  metrics:         {outputs['metrics']}")
-        print(f"  plots:           {', '.join(outputs['plots'])}")
+    argv = sys.argv[1:] if argv is None else list(argv)
+    args = _parser().parse_args(argv)
+    quiet, verbose = getattr(args, "quiet", False), getattr(args, "verbose", False)
+    level = logging.INFO if verbose else (logging.ERROR if quiet else logging.WARNING)
+    logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s")
+    commands = {
+        "demo": _demo,
+        "run": lambda a: _run(a, argv),
+        "bench": _bench,
+        "info": _info,
+    }
+    try:
+        return commands[args.command](args)
+    except (StepError, RuntimeError) as err:
+        if args.debug:
+            raise
+        print(f"bfemp: error: {err}", file=sys.stderr)
+        return EXIT_RUN
+    except BrokenPipeError:  # the reader of our output went away (bfemp info DIR | head)
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
-    return 2
+    except (ValueError, OSError) as err:
+        if args.debug:
+            raise
+        print(f"bfemp: error: {err}", file=sys.stderr)
+        return EXIT_INPUT
+    except KeyboardInterrupt:
+        print("bfemp: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
 
 
 if __name__ == "__main__":

@@ -3,13 +3,15 @@
 ``run`` shows a tqdm progress bar (simulated time, Newton iterations, residual, time per step),
 records one metrics row per step (energies, momenta, Newton iterations, per-phase timings), and
 when given an output folder writes VTK frames of every body with a PVD time series for ParaView,
-``metrics.csv`` and ``metrics.png``.
+``metrics.csv``, ``metrics.png``, a run manifest (:mod:`bfemp.manifest`) and checkpoints from which
+``run(..., resume=True)`` continues bit for bit (:mod:`bfemp.checkpoint`; Ctrl-C writes one).
 """
 
 from __future__ import annotations
 
 import logging
 import math
+import numbers
 from collections.abc import Callable
 from pathlib import Path
 
@@ -17,9 +19,16 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from bfemp import diagnostics
+from bfemp.checkpoint import (
+    InterruptGuard,
+    remove_checkpoint,
+    restore_checkpoint,
+    write_checkpoint,
+)
 from bfemp.integrators import integrator_from_name
 from bfemp.io.metrics import MetricsLog
 from bfemp.io.vtk import Block, FrameWriter
+from bfemp.manifest import RunManifest
 from bfemp.model import Model
 from bfemp.plotting import plot_metrics
 from bfemp.scene import Scene
@@ -70,6 +79,15 @@ class Simulation:
         self.strategy = strategy
         self.transfer = transfer
         self.integrator = integrator_from_name(integrator)
+        #: the settings of this simulation (recorded in manifests and checkpoints)
+        self.settings = {
+            "strategy": strategy,
+            "integrator": self.integrator.name,
+            "transfer": transfer,
+            "dt": self.dt,
+            "tol": float(tol),
+            "max_newton_iterations": int(max_newton_iterations),
+        }
         newton = NewtonOptions(tol=tol, max_iter=max_newton_iterations)
         self.stepper = stepper_class(strategy)(
             self.model,
@@ -103,20 +121,102 @@ class Simulation:
         every: int = 1,
         progress: bool = True,
         callback: Callable[[Simulation], None] | None = None,
+        checkpoint_every: int | None = None,
+        resume: bool = False,
+        metadata: dict | None = None,
     ) -> MetricsLog:
         """Step until ``t_end`` s; with ``out``, write a frame every ``every`` steps.
 
         ``callback(sim)`` is called after every step (to record custom quantities).
 
+        With an output folder ``out`` the run also writes ``metrics.csv``, ``metrics.png``, a
+        run manifest (``manifest.json``, see :mod:`bfemp.manifest`) and checkpoints
+        (:mod:`bfemp.checkpoint`): at the end, every ``checkpoint_every`` steps if given, when a
+        step fails (the last good state), and on Ctrl-C: the first Ctrl-C finishes the current
+        step, writes a checkpoint and raises ``KeyboardInterrupt``; a second one aborts at once
+        (the last periodic checkpoint remains). ``resume=True`` continues the run of ``out``
+        from its checkpoint; the continued run equals an uninterrupted one bit for bit (frames,
+        PVD files and metrics; wall-clock ``time_*`` columns excepted).
+
+        Args:
+            t_end: end time in s.
+            out: output folder, or None for no output.
+            every: frame interval in steps (>= 1).
+            progress: show a tqdm progress bar.
+            callback: called as ``callback(sim)`` after every step.
+            checkpoint_every: checkpoint interval in steps (None or 0: only at the end).
+            resume: continue from the checkpoint in ``out``.
+            metadata: extra parameters recorded in the manifest (e.g. the scene file).
+
         Returns the metrics log (also written to ``out/metrics.csv`` and plotted to
         ``out/metrics.png``).
         """
-        if every < 1:
-            raise ValueError(f"Simulation.run: every must be >= 1, got {every}")
-        n_steps = max(0, math.ceil((t_end - self.state.t) / self.dt - 1e-9))
-        writer = FrameWriter(Path(out)) if out is not None else None
-        if writer is not None and self.state.step % every == 0:
+        _check_run_args(t_end, every, checkpoint_every, resume, out)
+        if out is None:
+            self._loop(self._n_steps(t_end), progress, callback)
+            return self.metrics
+        out = Path(out)
+        out.mkdir(parents=True, exist_ok=True)
+        if resume:
+            restore_checkpoint(out, self, every=every)
+        else:
+            remove_checkpoint(out)
+        every, checkpoint_every = int(every), int(checkpoint_every or 0)
+        run = {"t_end": float(t_end), "every": every, "checkpoint_every": checkpoint_every}
+        writer = FrameWriter(out, resume=resume)
+        manifest = RunManifest.start(out, self, run=run, resume=resume, extra=metadata)
+        if not resume and self.state.step % every == 0:
             writer.write_frame(self.state.t, self.frame_blocks())
+        status, message, guard = "failed", "", InterruptGuard()
+        try:
+            with guard:
+                self._loop(
+                    self._n_steps(t_end),
+                    progress,
+                    callback,
+                    writer=writer,
+                    every=every,
+                    checkpoint_every=checkpoint_every,
+                    guard=guard,
+                )
+            status = "completed"
+        except KeyboardInterrupt:
+            status = "interrupted"
+            message = f"interrupted at step {self.state.step} (t = {self.state.t:.6g} s)"
+            raise
+        except Exception as err:
+            message = f"{type(err).__name__}: {err}"
+            raise
+        finally:
+            writer.close()
+            if guard.hard:  # stopped anywhere, maybe mid-update: keep the last checkpoint
+                message += "; aborted without a checkpoint (the last periodic one remains)"
+            else:
+                self.metrics.to_csv(out / "metrics.csv")
+                try:
+                    plot_metrics(self.metrics, out / "metrics.png", title="bfemp run")
+                except (ValueError, RuntimeError, OSError) as err:  # never hide the outcome
+                    log.warning("metrics plot not written: %s", err)
+                write_checkpoint(out, self, every=every)
+            manifest.finish(self, status, message, frames=writer.frame_index)
+            log.info("wrote frames, metrics, manifest and checkpoint to %s", out)
+        return self.metrics
+
+    def _n_steps(self, t_end: float) -> int:
+        return max(0, math.ceil((t_end - self.state.t) / self.dt - 1e-9))
+
+    def _loop(
+        self,
+        n_steps: int,
+        progress: bool,
+        callback: Callable[[Simulation], None] | None,
+        *,
+        writer: FrameWriter | None = None,
+        every: int = 1,
+        checkpoint_every: int = 0,
+        guard: InterruptGuard | None = None,
+    ) -> None:
+        """The time loop: step, callback, progress, frames, checkpoints, interrupt check."""
         bar = tqdm(total=n_steps, disable=not progress, unit="step", desc="bfemp")
         try:
             for _ in range(n_steps):
@@ -130,16 +230,24 @@ class Simulation:
                     res=f"{report.residual:.1e}",
                     ms=f"{1e3 * report.timings.get('step', 0.0):.0f}",
                 )
-                if writer is not None and self.state.step % every == 0:
+                step = self.state.step
+                if writer is not None and step % every == 0:
                     writer.write_frame(self.state.t, self.frame_blocks())
+                if writer is not None and checkpoint_every and step % checkpoint_every == 0:
+                    write_checkpoint(writer.out_dir, self, every=every)
+                if guard is not None and guard.requested:
+                    raise KeyboardInterrupt(f"interrupted after step {step}")
         finally:
             bar.close()
-            if writer is not None:
-                writer.close()
-                self.metrics.to_csv(Path(out) / "metrics.csv")
-                plot_metrics(self.metrics, Path(out) / "metrics.png", title="bfemp run")
-                log.info("wrote frames, metrics.csv and metrics.png to %s", out)
-        return self.metrics
+
+    # ------------------------------------------------------------------ checkpoints
+    def save_checkpoint(self, out: str | Path, *, every: int | None = None) -> Path:
+        """Write a checkpoint of the current state and metrics to the folder ``out``."""
+        return write_checkpoint(out, self, every=every)
+
+    def load_checkpoint(self, out: str | Path) -> None:
+        """Continue from the checkpoint in the folder ``out`` (same model required)."""
+        restore_checkpoint(out, self)
 
     # ------------------------------------------------------------------ output
     def energies(self, state: State | None = None) -> dict[str, float]:
@@ -181,6 +289,25 @@ class Simulation:
             for phase, seconds in report.timings.items():
                 row[f"time_{phase}"] = seconds
         return row
+
+    def contact_forces(self) -> tuple[np.ndarray, np.ndarray]:
+        """Barrier contact forces at the end of the last step, in N (N/m in 2D).
+
+        Returns ``(fem (N, d), mpm (P, d))``: the force on every FEM node (zero off the
+        boundary) and on every particle; both zero before the first step or without contact.
+        """
+        model = self.model
+        fem = np.zeros((model.n_fem_nodes, model.dim))
+        mpm = np.zeros((model.n_particles, model.dim))
+        barrier = self.stepper.barrier
+        if barrier is None or barrier.pairs is None:
+            return fem, mpm
+        forces = barrier.point_forces()
+        cs = barrier.collisions
+        nf = cs.n_fem_points
+        np.add.at(fem, cs.nodes[:nf, 0], forces[:nf])
+        mpm[cs.particle_index[nf:]] = forces[nf:]
+        return fem, mpm
 
     def frame_blocks(self) -> list[Block]:
         """One VTK block per FEM body with velocity, J and von Mises stress."""
@@ -246,3 +373,23 @@ def _cell_stress_fields(model: Model, state: State) -> tuple[np.ndarray, np.ndar
     for body in model.fem_bodies:  # a few bodies; vectorised over cells
         vm[body.cells] = _von_mises(body.material, F[body.cells])
     return np.linalg.det(F), vm
+
+
+def _check_run_args(
+    t_end: object, every: object, checkpoint_every: object, resume: bool, out: object
+) -> None:
+    """Validate the arguments of ``Simulation.run`` (errors name the argument)."""
+    if isinstance(every, bool) or not isinstance(every, numbers.Integral) or every < 1:
+        raise ValueError(f"Simulation.run: every must be an integer >= 1, got {every!r}")
+    if checkpoint_every is not None and (
+        isinstance(checkpoint_every, bool)
+        or not isinstance(checkpoint_every, numbers.Integral)
+        or checkpoint_every < 0
+    ):
+        raise ValueError(
+            f"Simulation.run: checkpoint_every must be an integer >= 0, got {checkpoint_every!r}"
+        )
+    if not (isinstance(t_end, numbers.Real) and math.isfinite(t_end)):
+        raise ValueError(f"Simulation.run: t_end must be a finite time in s, got {t_end!r}")
+    if resume and out is None:
+        raise ValueError("Simulation.run: resume=True needs out, the folder of the run")

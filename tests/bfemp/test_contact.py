@@ -224,3 +224,94 @@ def test_friction_force_obeys_the_coulomb_bound():
     assert abs(force[0]) <= mu_lambda * (1 + 1e-12)
     assert abs(force[0]) > 0.999 * mu_lambda
     assert mu_lambda == pytest.approx(0.4 * normal[1], rel=1e-3)  # lagged vs current lambda
+
+
+def test_contact_forces_balance_and_hold_the_block_up():
+    """A block resting on a fixed plate: contact forces on particles carry its weight and are
+    equal and opposite to those on the plate (the barrier is an internal force)."""
+    scene = bfemp.Scene(dim=2, gravity=(0.0, -9.81))
+    plate = bfemp.shapes.rectangle((-0.5, -0.1), (1.5, 0.0), h=0.1)
+    scene.add_fem(plate, material=STIFF, prescribed=bfemp.motion.Fixed(), name="plate")
+    x, vol = bfemp.sample.box((0.0, 0.0), (1.0, 0.3), dx=0.1, ppc=4)
+    x[:, 1] += 5e-3
+    scene.add_mpm(x, vol, material=STIFF, name="block")
+    scene.set_grid(dx=0.1)
+    scene.set_contact(dhat=1e-2, kappa=1e5)
+    sim = bfemp.Simulation(scene, dt=0.05, tol=1e-8)
+    for _ in range(40):  # backward Euler damps the landing: the block comes to rest
+        sim.step()
+    fem_f, mpm_f = sim.contact_forces()
+    weight = sim.model.mpm_mass.sum() * 9.81
+    assert mpm_f[:, 1].sum() == pytest.approx(weight, rel=1e-3)
+    assert np.allclose(fem_f.sum(axis=0), -mpm_f.sum(axis=0), rtol=1e-9, atol=1e-9 * weight)
+    assert np.all(mpm_f[:, 1] >= 0.0)  # the barrier only pushes
+
+
+def _two_cubes(gap_fraction, edge_case):
+    """Two FEM cubes; with ``edge_case`` the upper one is turned 90 degrees about z and lifted
+    over an edge so that edge-edge pairs are active (crossed edges)."""
+    scene = bfemp.Scene(dim=3)
+    a = bfemp.shapes.box((0.0, 0.0, 0.0), (1.0, 1.0, 1.0), h=1.0)
+    scene.add_fem(a, material=STIFF, name="a")
+    b = bfemp.shapes.box((0.0, 0.0, 0.0), (1.0, 1.0, 1.0), h=1.0)
+    pts = b.points.copy()
+    if edge_case:
+        # a cube standing on an edge, crossing the top edge of `a` at right angles
+        c, s_ = np.cos(np.pi / 4), np.sin(np.pi / 4)
+        rot = np.array([[1, 0, 0], [0, c, -s_], [0, s_, c]])
+        pts = (pts - 0.5) @ rot.T
+        pts[:, 0] += 0.5
+        pts[:, 1] += 1.0
+        pts[:, 2] += 1.0 + np.sqrt(0.5) + gap_fraction * DHAT
+    else:
+        pts[:, :2] = pts[:, :2] * 0.5 + 0.25
+        pts[:, 2] += 1.0 + gap_fraction * DHAT
+    scene.add_fem(pts, b.cells, material=STIFF, name="b")
+    scene.set_contact(dhat=DHAT, kappa=1e4)
+    return scene
+
+
+@pytest.mark.parametrize("edge_case", [False, True])
+def test_two_fem_bodies_barrier_passes_fd_harness_3d(edge_case, rng):
+    _, stepper, x = started_stepper(_two_cubes(0.4, edge_case))
+    term = _barrier(stepper)
+    term.solution_changed(x)
+    if edge_case:
+        assert term.pairs.points["ee"].shape[0] >= 1
+    assert term.pairs.n_pairs >= 1
+    x = x + 1e-6 * rng.standard_normal(x.shape)
+    report = check_term(term, x, eps=1e-7, tol=2e-5)
+    assert report.ok, report
+
+
+def test_edge_edge_ccd_stops_crossing_edges():
+    _, stepper, x = started_stepper(_two_cubes(2.0, True))
+    term = _barrier(stepper)
+    term.solution_changed(x)
+    n_a = 8  # the lower cube's nodes come first
+    p = np.zeros_like(x).reshape(-1, 3)
+    p[n_a:, 2] = -4 * DHAT  # the upper cube's edge would pass through the lower one's edge
+    alpha = term.max_step_size(x, p.reshape(-1))
+    assert alpha < 0.5
+
+
+def test_adaptive_kappa_chooses_a_stiffness_and_keeps_the_bodies_apart():
+    scene = bfemp.Scene(dim=2, gravity=(0.0, -9.81))
+    plate = bfemp.shapes.rectangle((-0.5, -0.1), (1.5, 0.0), h=0.1)
+    scene.add_fem(plate, material=STIFF, prescribed=bfemp.motion.Fixed(), name="plate")
+    x, vol = bfemp.sample.box((0.0, 0.0), (1.0, 0.3), dx=0.1, ppc=4)
+    x[:, 1] += 2e-2
+    scene.add_mpm(x, vol, material=STIFF, velocity=(0.0, -3.0), name="block")
+    scene.set_grid(dx=0.1)
+    scene.set_contact(dhat=1e-2, kappa="auto")
+    sim = bfemp.Simulation(scene, dt=5e-3, tol=1e-6)
+    for _ in range(30):
+        sim.step()
+        assert sim.state.mpm_x[:, 1].min() > 0.0
+    adaptive = sim.stepper.adaptive
+    kappa = sim.metrics.column("kappa")[1:]
+    assert adaptive is not None and adaptive.initialised
+    assert adaptive.kappa_min <= kappa[-1] <= adaptive.kappa_max
+    assert np.nanmin(sim.metrics.column("min_distance")) > 0.0
+    # the block was caught: it moves up or rests, never through the plate
+    assert sim.state.mpm_v[:, 1].mean() > -3.0

@@ -1,0 +1,286 @@
+"""Checkpoints of a run, from which ``--resume`` continues bit for bit.
+
+A checkpoint is ``{out}/checkpoint.npz`` (``np.savez``, written atomically: temporary file, then
+rename) with a human-readable sidecar ``{out}/checkpoint.json``. The ``.npz`` is authoritative
+and holds everything a continued run needs to equal the uninterrupted one:
+
+- ``state.<field>``: every array of the ``State`` (positions, velocities, accelerations, F, C);
+  its scalar fields (``t``, ``step``) are in ``meta`` as JSON numbers (``repr`` of a float
+  reads back to the same float);
+- ``metrics``: the metrics log so far (JSON rows; ints stay ints, NaN stays NaN);
+- ``pvd.<block>``: the text of each ``.pvd`` collection of the run folder, so frames written
+  after the checkpoint are dropped on resume and the frame numbering continues where it was;
+- ``stepper.<name>``: data a stepper carries between steps, when it has any (a stepper may
+  define ``checkpoint_data() -> dict[str, ndarray]`` and ``restore_checkpoint_data(dict)``).
+  The implicit stepper's sparsity patterns and CHOLMOD symbolic factorisation are caches that
+  do not change results; what it does carry is the adaptive barrier stiffness of
+  ``kappa = "auto"`` (``stepper.adaptive``, an ``AdaptiveKappa``), saved in ``meta`` as its
+  fields until the stepper defines the hooks above;
+- ``meta``: JSON with the format version, the model fingerprint (SHA-256 of every array and
+  parameter of the ``Model``), the simulation settings and the frame interval.
+
+Resuming refuses a checkpoint of another model (the scene changed) and warns when the settings
+(dt, tolerance, integrator, ...) differ, since the continuation then differs from an
+uninterrupted run. Wall-clock timing columns (``time_*``) of the metrics differ between any two
+runs by nature; everything else of a resumed run equals the uninterrupted one bit for bit.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import logging
+import signal
+import threading
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from bfemp.errors import SceneError
+from bfemp.io.metrics import MetricsLog
+from bfemp.io.vtk import atomic_path
+from bfemp.state import State
+
+__all__ = [
+    "CHECKPOINT_FILE",
+    "InterruptGuard",
+    "SIDECAR_FILE",
+    "Checkpoint",
+    "model_fingerprint",
+    "read_checkpoint",
+    "remove_checkpoint",
+    "restore_checkpoint",
+    "write_checkpoint",
+]
+
+log = logging.getLogger(__name__)
+
+CHECKPOINT_FILE = "checkpoint.npz"
+SIDECAR_FILE = "checkpoint.json"
+FORMAT_VERSION = 1
+
+
+def _feed(h: object, obj: object) -> None:
+    """Hash ``obj`` recursively: arrays by dtype, shape and bytes; dataclasses by fields."""
+    if isinstance(obj, np.ndarray):
+        h.update(f"nd{obj.dtype.str}{obj.shape}".encode())
+        h.update(np.ascontiguousarray(obj).tobytes())
+    elif dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        h.update(type(obj).__qualname__.encode())
+        for f in dataclasses.fields(obj):
+            h.update(f.name.encode())
+            _feed(h, getattr(obj, f.name))
+    elif isinstance(obj, list | tuple):
+        h.update(f"[{len(obj)}".encode())
+        for item in obj:
+            _feed(h, item)
+    elif isinstance(obj, dict):
+        h.update(f"{{{len(obj)}".encode())
+        for key in sorted(obj, key=repr):
+            _feed(h, key)
+            _feed(h, obj[key])
+    else:
+        h.update(f"{type(obj).__qualname__}:{obj!r}".encode())
+
+
+def model_fingerprint(model: object) -> str:
+    """SHA-256 (hex) of a ``Model``: every array, material, motion, boundary and parameter."""
+    h = hashlib.sha256()
+    _feed(h, model)
+    return h.hexdigest()
+
+
+def _metrics_json(metrics: MetricsLog) -> str:
+    columns = metrics.columns
+    rows = [[row[c] for c in columns] for row in metrics.rows]
+    return json.dumps({"columns": columns, "rows": rows})
+
+
+def _metrics_from_json(text: str) -> MetricsLog:
+    data = json.loads(text)
+    columns = data["columns"]
+    return MetricsLog(dict(zip(columns, row, strict=True)) for row in data["rows"])
+
+
+@dataclass(frozen=True)
+class Checkpoint:
+    """A checkpoint read back.
+
+    Attributes:
+        state: the saved ``State``.
+        metrics: the metrics log up to ``state``.
+        meta: format version, fingerprint, settings, frame interval (``every``), ...
+        pvd: block name -> text of its ``.pvd`` collection at checkpoint time.
+        stepper: data of the stepper (empty for the implicit stepper).
+    """
+
+    state: State
+    metrics: MetricsLog
+    meta: dict
+    pvd: dict[str, str]
+    stepper: dict[str, np.ndarray]
+
+
+def write_checkpoint(out: str | Path, sim: object, *, every: int | None = None) -> Path:
+    """Write the checkpoint of ``sim`` (a ``bfemp.Simulation``) to ``out`` atomically.
+
+    Args:
+        out: the run folder (its ``*.pvd`` files are stored with the checkpoint).
+        sim: the simulation.
+        every: the frame interval of the run (recorded; resuming with another one warns).
+
+    Returns:
+        the path of the ``.npz``.
+    """
+    out = Path(out)
+    state = sim.state
+    arrays: dict[str, np.ndarray] = {}
+    scalars = {}
+    for f in dataclasses.fields(state):
+        value = getattr(state, f.name)
+        if isinstance(value, np.ndarray):
+            arrays[f"state.{f.name}"] = value
+        else:
+            scalars[f.name] = value
+    stepper_data = getattr(sim.stepper, "checkpoint_data", None)
+    for key, value in (stepper_data() if callable(stepper_data) else {}).items():
+        arrays[f"stepper.{key}"] = np.asarray(value)
+    adaptive = getattr(sim.stepper, "adaptive", None)
+    carried = {"adaptive": dataclasses.asdict(adaptive)} if adaptive is not None else {}
+    pvd = {p.stem: p.read_text(encoding="utf-8") for p in sorted(out.glob("*.pvd"))}
+    for name, text in pvd.items():
+        arrays[f"pvd.{name}"] = np.array(text)
+    meta = {
+        "format": FORMAT_VERSION,
+        "t": state.t,
+        "step": state.step,
+        "scalars": scalars,
+        "fingerprint": model_fingerprint(sim.model),
+        "settings": dict(sim.settings),
+        "every": every,
+        "pvd": sorted(pvd),
+        "carried": carried,
+    }
+    arrays["meta"] = np.array(json.dumps(meta))
+    arrays["metrics"] = np.array(_metrics_json(sim.metrics))
+    path = out / CHECKPOINT_FILE
+    with atomic_path(path) as tmp, tmp.open("wb") as fh:
+        np.savez(fh, **arrays)
+    sidecar = {**meta, "metrics_rows": len(sim.metrics), "file": CHECKPOINT_FILE}
+    with atomic_path(out / SIDECAR_FILE) as tmp:
+        tmp.write_text(json.dumps(sidecar, indent=2) + "\n", encoding="utf-8")
+    log.info("checkpoint at step %d (t = %.6g s) written to %s", state.step, state.t, path)
+    return path
+
+
+def read_checkpoint(out: str | Path) -> Checkpoint:
+    """Read ``{out}/checkpoint.npz``; ``SceneError`` when missing or unreadable."""
+    path = Path(out) / CHECKPOINT_FILE
+    if not path.is_file():
+        raise SceneError(
+            f"no checkpoint in {Path(out)} ({CHECKPOINT_FILE} is missing)",
+            hint="run without --resume to start from t = 0",
+        )
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            contents = {key: data[key] for key in data.files}
+        meta = json.loads(str(contents.pop("meta")))
+        metrics = _metrics_from_json(str(contents.pop("metrics")))
+    except (OSError, ValueError, KeyError) as err:
+        raise SceneError(f"cannot read checkpoint {path}: {err}") from None
+    if meta.get("format") != FORMAT_VERSION:
+        raise SceneError(f"checkpoint {path} has format {meta.get('format')}, not {FORMAT_VERSION}")
+    state_arrays = {k[6:]: v for k, v in contents.items() if k.startswith("state.")}
+    state = State(**meta["scalars"], **state_arrays)
+    pvd = {k[4:]: str(v) for k, v in contents.items() if k.startswith("pvd.")}
+    stepper = {k[8:]: v for k, v in contents.items() if k.startswith("stepper.")}
+    return Checkpoint(state=state, metrics=metrics, meta=meta, pvd=pvd, stepper=stepper)
+
+
+def restore_checkpoint(out: str | Path, sim: object, *, every: int | None = None) -> Checkpoint:
+    """Load the checkpoint of ``out`` into ``sim`` and put back the run's ``.pvd`` files.
+
+    Raises ``SceneError`` when the checkpoint belongs to another model; warns when the
+    simulation settings or the frame interval differ from the checkpoint's.
+    """
+    out = Path(out)
+    ckpt = read_checkpoint(out)
+    if ckpt.meta["fingerprint"] != model_fingerprint(sim.model):
+        raise SceneError(
+            f"the checkpoint in {out} was written for another model (the scene changed)",
+            hint="resume with the scene the run started with, or run without --resume",
+        )
+    old, new = ckpt.meta["settings"], dict(sim.settings)
+    changed = sorted(k for k in set(old) | set(new) if old.get(k) != new.get(k))
+    if changed:
+        log.warning(
+            "resuming with settings %s different from the checkpoint's %s: the continued run "
+            "will differ from an uninterrupted one",
+            {k: new.get(k) for k in changed},
+            {k: old.get(k) for k in changed},
+        )
+    if every is not None and ckpt.meta.get("every") not in (None, every):
+        log.warning("resuming with a frame every %d steps instead of %s", every, ckpt.meta["every"])
+    restore = getattr(sim.stepper, "restore_checkpoint_data", None)
+    if ckpt.stepper and not callable(restore):
+        raise SceneError(f"the checkpoint in {out} holds stepper data this stepper cannot take")
+    if callable(restore):
+        restore(dict(ckpt.stepper))
+    carried = ckpt.meta.get("carried", {})
+    if "adaptive" in carried:
+        from bfemp.contact.adaptive import AdaptiveKappa
+
+        sim.stepper.adaptive = AdaptiveKappa(**carried["adaptive"])
+    sim.state = ckpt.state
+    sim.metrics = ckpt.metrics
+    for name, text in ckpt.pvd.items():
+        with atomic_path(out / f"{name}.pvd") as tmp:
+            tmp.write_text(text, encoding="utf-8")
+    log.info(
+        "resumed from step %d (t = %.6g s) of %s", ckpt.state.step, ckpt.state.t, out / "checkpoint"
+    )
+    return ckpt
+
+
+def remove_checkpoint(out: str | Path) -> None:
+    """Delete the checkpoint files of ``out`` (a fresh run must not resume an older one)."""
+    for name in (CHECKPOINT_FILE, SIDECAR_FILE):
+        path = Path(out) / name
+        if path.is_file():
+            path.unlink()
+
+
+class InterruptGuard:
+    """Ctrl-C during a run: the first sets ``requested`` (the loop stops after the current step
+    and a checkpoint is written); the second raises ``KeyboardInterrupt`` at once (``hard``).
+    Only the main thread can own signal handlers; elsewhere the guard does nothing."""
+
+    def __init__(self) -> None:
+        self.requested = False
+        self.hard = False
+        self._previous: object = None
+        self._installed = False
+
+    def _handle(self, signum: int, frame: object) -> None:
+        if self.requested:
+            self.hard = True
+            raise KeyboardInterrupt("aborted by a second Ctrl-C")
+        self.requested = True
+        log.warning(
+            "interrupted: finishing this step, then writing a checkpoint (Ctrl-C again aborts)"
+        )
+
+    def __enter__(self) -> InterruptGuard:
+        if threading.current_thread() is threading.main_thread():
+            self._previous = signal.getsignal(signal.SIGINT)
+            signal.signal(signal.SIGINT, self._handle)
+            self._installed = True
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._installed:
+            previous = self._previous if self._previous is not None else signal.SIG_DFL
+            signal.signal(signal.SIGINT, previous)
+            self._installed = False

@@ -1,0 +1,63 @@
+"""Errors raised for bad user input, carrying where the mistake is.
+
+:class:`SceneError` is a ``ValueError`` (so code that catches ``ValueError`` keeps working) that
+also records the scene file, the body and the field at fault, and a suggested fix. Its message
+reads, for example::
+
+    examples/beam.toml: fem body 'beam': material.nu: must be < 0.5, got 0.5 (hint: nu >= 0.5
+    is incompressible, which these materials cannot represent; use nu <= 0.49)
+
+The command line prints that message after ``bfemp: error:`` without a traceback.
+"""
+
+from __future__ import annotations
+
+__all__ = ["SceneError"]
+
+
+class SceneError(ValueError):
+    """A mistake in a scene (file or API call), located by file, body and field.
+
+    Args:
+        message: what is wrong (without the location).
+        file: the scene file (or the API argument) in which the mistake is, if any.
+        body: kind and name of the body at fault, e.g. ``"fem body 'beam'"``, if any.
+        field: the key path of the field at fault, e.g. ``"material.nu"``, if any.
+        hint: how to fix it, when that is obvious.
+    """
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        file: str | None = None,
+        body: str | None = None,
+        field: str | None = None,
+        hint: str | None = None,
+    ) -> None:
+        self.message = str(message)
+        self.file = None if file is None else str(file)
+        self.body = body
+        self.field = field
+        self.hint = hint
+        super().__init__(self._format())
+
+    def _format(self) -> str:
+        parts = [p for p in (self.file, self.body, self.field) if p]
+        text = ": ".join([*parts, self.message])
+        if self.hint:
+            text += f" (hint: {self.hint})"
+        return text
+
+    def __str__(self) -> str:
+        return self._format()
+
+    def located(self, *, file: str | None = None) -> SceneError:
+        """A copy with the file set (when it was not known where the error was raised)."""
+        return SceneError(
+            self.message,
+            file=self.file if self.file is not None else file,
+            body=self.body,
+            field=self.field,
+            hint=self.hint,
+        )

@@ -1,0 +1,336 @@
+"""The run manifest (``{out}/manifest.json``) and the summary of a result folder (``bfemp info``).
+
+The manifest records what a run was and how it went, so that a result folder explains itself:
+
+- ``parameters``: the simulation settings (strategy, integrator, transfer, dt, tol, ...), the run
+  settings (t_end, frame and checkpoint intervals) and what the caller adds (the command line
+  adds the scene file, its SHA-256 and the command);
+- ``model``: dimension, bodies (nodes, cells, particles, materials), grid, boundaries, contact,
+  and the model fingerprint that checkpoints are matched against;
+- ``versions``: Python, bfemp and the libraries; ``git``: commit (and whether the tree had
+  changes) of the bfemp sources when they are a git checkout;
+- ``sessions``: one entry per ``run`` call (a resumed run adds one): start, end, steps, wall time
+  and status (``running``, ``completed``, ``interrupted`` or ``failed`` with its message);
+- ``status``, ``message`` and ``result`` (t, step, frames, Newton iterations) of the last session.
+
+The file is rewritten atomically at the start and at the end of every session.
+"""
+
+from __future__ import annotations
+
+import datetime
+import importlib.metadata
+import json
+import logging
+import os
+import platform
+import subprocess
+import time
+from pathlib import Path
+
+import numpy as np
+
+from bfemp.checkpoint import SIDECAR_FILE, model_fingerprint
+from bfemp.errors import SceneError
+from bfemp.io.metrics import MetricsLog
+from bfemp.io.vtk import atomic_path, read_pvd
+
+__all__ = ["MANIFEST_FILE", "RunManifest", "format_info", "git_info", "run_info", "versions"]
+
+log = logging.getLogger(__name__)
+
+MANIFEST_FILE = "manifest.json"
+_PACKAGES = (
+    "bfemp",
+    "numpy",
+    "scipy",
+    "numba",
+    "meshio",
+    "python-fcl",
+    "scikit-sparse",
+    "tqdm",
+    "matplotlib",
+)
+
+
+def _now() -> str:
+    return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
+
+
+def versions() -> dict[str, str | None]:
+    """Python and package versions (None for a package that is not installed)."""
+    out: dict[str, str | None] = {"python": platform.python_version()}
+    for name in _PACKAGES:
+        try:
+            out[name] = importlib.metadata.version(name)
+        except importlib.metadata.PackageNotFoundError:
+            out[name] = None
+    return out
+
+
+def git_info() -> dict[str, object]:
+    """``{"commit": sha or None, "dirty": bool or None}`` of the bfemp sources' git checkout."""
+    where = Path(__file__).resolve().parent
+    try:
+        commit = subprocess.run(
+            ["git", "rev-parse", "HEAD"], cwd=where, capture_output=True, text=True, timeout=10
+        )
+        if commit.returncode != 0:
+            return {"commit": None, "dirty": None}
+        status = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"],
+            cwd=where,
+            capture_output=True,
+            text=True,
+            timeout=10,
+        )
+        dirty = bool(status.stdout.strip()) if status.returncode == 0 else None
+        return {"commit": commit.stdout.strip(), "dirty": dirty}
+    except (OSError, subprocess.SubprocessError):
+        return {"commit": None, "dirty": None}
+
+
+def _material(material: object) -> dict:
+    return {
+        "type": getattr(material, "name", type(material).__name__),
+        "E": material.E,
+        "nu": material.nu,
+        "density": material.density,
+    }
+
+
+def model_summary(model: object) -> dict:
+    """Sizes and parameters of a ``Model`` (JSON-friendly)."""
+    fem = [
+        {
+            "name": b.name,
+            "nodes": b.n_nodes,
+            "cells": b.cells.stop - b.cells.start,
+            "prescribed_nodes": int(model.fem_prescribed[b.nodes].sum()),
+            "material": _material(b.material),
+        }
+        for b in model.fem_bodies
+    ]
+    mpm = [
+        {"name": b.name, "particles": b.n_particles, "material": _material(b.material)}
+        for b in model.mpm_bodies
+    ]
+    contact = getattr(model, "contact", None)
+    return {
+        "dim": model.dim,
+        "gravity": model.gravity.tolist(),
+        "fem_bodies": fem,
+        "mpm_bodies": mpm,
+        "grid_dx": None if model.grid is None else model.grid.dx,
+        "boundaries": [
+            {"kind": b.kind, "levelset": type(b.levelset).__name__} for b in model.boundaries
+        ],
+        "contact": None
+        if contact is None
+        else {k: getattr(contact, k) for k in ("dhat", "kappa", "mu", "eps_v")},
+        "fingerprint": model_fingerprint(model),
+    }
+
+
+def _write(path: Path, data: dict) -> None:
+    with atomic_path(path) as tmp:
+        tmp.write_text(json.dumps(data, indent=2, allow_nan=False, default=str) + "\n")
+
+
+def _finite(value: float) -> float | None:
+    return float(value) if np.isfinite(value) else None
+
+
+class RunManifest:
+    """The manifest of one run folder, updated at the start and end of each session.
+
+    Use :meth:`start`, then :meth:`finish`.
+    """
+
+    def __init__(self, out: Path, data: dict) -> None:
+        self.out = out
+        self.data = data
+        self._clock = time.perf_counter()
+
+    @property
+    def path(self) -> Path:
+        """``{out}/manifest.json``."""
+        return self.out / MANIFEST_FILE
+
+    @classmethod
+    def start(
+        cls,
+        out: str | Path,
+        sim: object,
+        *,
+        run: dict,
+        resume: bool,
+        extra: dict | None = None,
+    ) -> RunManifest:
+        """Write the manifest of a starting session (a resumed run keeps its earlier sessions).
+
+        Args:
+            out: the run folder.
+            sim: the ``bfemp.Simulation``.
+            run: run settings (``t_end`` s, ``every``, ``checkpoint_every``).
+            resume: whether this session continues a checkpoint.
+            extra: caller's parameters (e.g. ``{"scene_file": ..., "command": [...]}``).
+        """
+        out = Path(out)
+        data: dict = {}
+        if resume and (out / MANIFEST_FILE).is_file():
+            try:
+                data = json.loads((out / MANIFEST_FILE).read_text())
+            except (OSError, ValueError):
+                log.warning("unreadable %s replaced", out / MANIFEST_FILE)
+        data.setdefault("created", _now())
+        data["parameters"] = {
+            "simulation": dict(sim.settings),
+            "run": dict(run),
+            **(extra or {}),
+        }
+        data["model"] = model_summary(sim.model)
+        data["versions"] = versions()
+        data["git"] = git_info()
+        data["host"] = {"machine": platform.machine(), "cpus": os.cpu_count()}
+        session = {
+            "started": _now(),
+            "resumed": bool(resume),
+            "from_step": sim.state.step,
+            "from_t": sim.state.t,
+        }
+        data.setdefault("sessions", []).append(session)
+        data["status"], data["message"] = "running", ""
+        manifest = cls(out, data)
+        _write(manifest.path, data)
+        return manifest
+
+    def finish(
+        self, sim: object, status: str, message: str = "", frames: int | None = None
+    ) -> None:
+        """Record the end of the session: ``status`` and the result reached."""
+        metrics: MetricsLog = sim.metrics
+        session = self.data["sessions"][-1]
+        session.update(
+            finished=_now(),
+            to_step=sim.state.step,
+            to_t=sim.state.t,
+            wall_s=round(time.perf_counter() - self._clock, 3),
+            status=status,
+        )
+        result = {"t": sim.state.t, "step": sim.state.step, "frames": frames}
+        if "newton_iterations" in metrics.columns:
+            result["newton_iterations_total"] = int(np.nansum(metrics.column("newton_iterations")))
+        if "energy_total" in metrics.columns:
+            e = metrics.column("energy_total")
+            result["energy_total_first"] = _finite(e[0])
+            result["energy_total_last"] = _finite(e[-1])
+        self.data.update(status=status, message=message, result=result, updated=_now())
+        _write(self.path, self.data)
+
+
+def run_info(out: str | Path) -> dict:
+    """Summary of a result folder: manifest, metrics, frames and checkpoint (what exists)."""
+    out = Path(out)
+    if not out.is_dir():
+        raise SceneError(f"result folder not found: {out}")
+    manifest_path, metrics_path = out / MANIFEST_FILE, out / "metrics.csv"
+    if not manifest_path.is_file() and not metrics_path.is_file():
+        raise SceneError(
+            f"{out} has neither {MANIFEST_FILE} nor metrics.csv: not a bfemp result folder",
+            hint="give the --out folder of a run",
+        )
+    info: dict = {"folder": str(out)}
+    if manifest_path.is_file():
+        try:
+            info["manifest"] = json.loads(manifest_path.read_text())
+        except ValueError as err:
+            raise SceneError(f"{manifest_path} is not valid JSON: {err}") from None
+    if metrics_path.is_file():
+        metrics = MetricsLog.from_csv(metrics_path)
+        summary: dict = {"rows": len(metrics)}
+        if len(metrics):
+            summary["t_last"] = float(metrics.column("t")[-1])
+        if "newton_iterations" in metrics.columns and len(metrics) > 1:
+            it = metrics.column("newton_iterations")[1:]
+            summary["newton"] = {
+                "total": int(np.nansum(it)),
+                "mean": float(np.nanmean(it)),
+                "max": int(np.nanmax(it)),
+            }
+        if "energy_total" in metrics.columns:
+            e = metrics.column("energy_total")
+            summary["energy_total"] = [_finite(e[0]), _finite(e[-1])]
+        timings = [c for c in metrics.columns if c.startswith("time_") and c != "time_step"]
+        summary["time_per_phase_s"] = {c[5:]: float(np.nansum(metrics.column(c))) for c in timings}
+        if "time_step" in metrics.columns:
+            summary["time_steps_s"] = float(np.nansum(metrics.column("time_step")))
+        info["metrics"] = summary
+    info["frames"] = {p.stem: len(read_pvd(p)) for p in sorted(out.glob("*.pvd"))}
+    if (out / SIDECAR_FILE).is_file():
+        ckpt = json.loads((out / SIDECAR_FILE).read_text())
+        info["checkpoint"] = {"t": ckpt.get("t"), "step": ckpt.get("step")}
+    return info
+
+
+def _fmt(value: object, unit: str = "") -> str:
+    if isinstance(value, float):
+        return f"{value:.6g}{unit}"
+    return f"{value}{unit}" if value is not None else "?"
+
+
+def format_info(info: dict) -> str:
+    """The text ``bfemp info`` prints for :func:`run_info`."""
+    lines = [f"result folder: {info['folder']}"]
+    man = info.get("manifest", {})
+    if man:
+        note = f" ({man['message']})" if man.get("message") else ""
+        lines.append(f"status:        {man.get('status', '?')}{note}")
+        params = man.get("parameters", {})
+        if "scene_file" in params:
+            lines.append(f"scene file:    {params['scene_file']}")
+        sim, run = params.get("simulation", {}), params.get("run", {})
+        lines.append(
+            "simulation:    "
+            + ", ".join(f"{k} {_fmt(v)}" for k, v in sim.items())
+            + (f"; t_end {_fmt(run.get('t_end'), ' s')}" if run else "")
+        )
+        for body in man.get("model", {}).get("fem_bodies", []):
+            lines.append(
+                f"fem body:      {body['name']}: {body['nodes']} nodes, {body['cells']} cells, "
+                f"{body['material']['type']} E {_fmt(body['material']['E'], ' Pa')}"
+            )
+        for body in man.get("model", {}).get("mpm_bodies", []):
+            lines.append(
+                f"mpm body:      {body['name']}: {body['particles']} particles, "
+                f"{body['material']['type']} E {_fmt(body['material']['E'], ' Pa')}"
+            )
+        sessions = man.get("sessions", [])
+        wall = sum(s.get("wall_s", 0.0) for s in sessions)
+        lines.append(f"sessions:      {len(sessions)} (wall time {wall:.1f} s)")
+        git = man.get("git", {})
+        vers = man.get("versions", {})
+        lines.append(
+            f"versions:      bfemp {vers.get('bfemp')}, numpy {vers.get('numpy')}, "
+            f"git {git.get('commit') or 'unknown'}{' (modified)' if git.get('dirty') else ''}"
+        )
+    met = info.get("metrics")
+    if met:
+        lines.append(f"progress:      t = {_fmt(met.get('t_last'), ' s')}, {met['rows'] - 1} steps")
+        if "newton" in met:
+            n = met["newton"]
+            lines.append(
+                f"newton:        {n['total']} iterations (mean {n['mean']:.2f}, max {n['max']})"
+            )
+        if "energy_total" in met:
+            e0, e1 = met["energy_total"]
+            lines.append(f"energy_total:  {_fmt(e0)} -> {_fmt(e1)} J")
+        if met.get("time_per_phase_s"):
+            phases = ", ".join(f"{k} {v:.2f}" for k, v in met["time_per_phase_s"].items())
+            lines.append(f"time (s):      steps {met.get('time_steps_s', 0.0):.2f}; {phases}")
+    for name, count in info.get("frames", {}).items():
+        lines.append(f"frames:        {name}.pvd: {count}")
+    if "checkpoint" in info:
+        c = info["checkpoint"]
+        lines.append(f"checkpoint:    step {c['step']}, t = {_fmt(c['t'], ' s')}")
+    return "\n".join(lines)

@@ -1,0 +1,298 @@
+"""A parsed scene file (a dict from ``tomllib``) -> ``Scene`` plus run settings.
+
+The tables map one to one onto the Python API (see :mod:`bfemp.scenefile` for the reference).
+Every mistake raises :class:`~bfemp.errors.SceneError` naming the file, the body and the field.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from bfemp.errors import SceneError
+from bfemp.scene import Scene
+from bfemp.scenefile._fields import Table
+from bfemp.scenefile._objects import (
+    read_levelset,
+    read_material,
+    read_mesh_table,
+    read_motion,
+    read_particles,
+    read_selection,
+)
+from bfemp.steppers import STRATEGIES
+
+__all__ = ["TOP_LEVEL", "parse_document"]
+
+#: the tables a scene file may hold.
+TOP_LEVEL = (
+    "scene",
+    "materials",
+    "fem",
+    "mpm",
+    "grid",
+    "contact",
+    "boundary",
+    "load",
+    "simulation",
+    "run",
+    "quick",
+    "check",
+)
+INTEGRATORS = ("backward_euler", "newmark")
+TRANSFERS = ("apic", "pic", "flip")
+_INIT_HINTS = {
+    "inverted": "cells must be counter-clockwise (2D) / right-handed (3D); flip the last two "
+    "vertices of the listed cells, or fix the mesh generator",
+    "degenerate": "remove or repair the cells of (near) zero area or volume",
+}
+
+
+def _strip(message: str, body: str) -> str:
+    """``message`` without a leading ``"<body>: "`` (the location is added again)."""
+    return message[len(body) + 2 :] if message.startswith(body + ": ") else message
+
+
+def _api_error(err: ValueError, t: Table, field: str | None, body: str | None) -> SceneError:
+    if isinstance(err, SceneError):
+        return err
+    msg = _strip(str(err), body or "")
+    hint = next((h for word, h in _INIT_HINTS.items() if word in msg), None)
+    return SceneError(msg, file=t.file, body=body, field=field, hint=hint)
+
+
+def _materials(root: Table) -> dict:
+    out = {}
+    mats = root.sub("materials", default_empty=True)
+    for name in mats.data:
+        out[name] = read_material(mats.sub(name))
+    return out
+
+
+def _material(t: Table, materials: dict) -> tuple[object, str | None]:
+    value = t.raw("material")
+    if isinstance(value, str):
+        if value not in materials:
+            known = ", ".join(sorted(materials)) or "none defined"
+            raise t.error(
+                f"unknown material '{value}' (materials: {known})",
+                "material",
+                f"define it in a [materials.{value}] table, or write the material inline",
+            )
+        return materials[value], value
+    return read_material(t.sub("material")), None
+
+
+def _velocity(t: Table, dim: int, n: int) -> np.ndarray | tuple | None:
+    if not t.has("velocity"):
+        return None
+    value = t.raw("velocity")
+    if isinstance(value, list) and value and isinstance(value[0], list):
+        v = t.array("velocity", np.float64, dim)
+        if v.shape[0] != n:
+            raise t.error(f"must have 1 or {n} rows of {dim} numbers, got {v.shape[0]}", "velocity")
+        return v
+    return t.vector("velocity", dim)
+
+
+def _add_fem(scene: Scene, spec: dict, k: int, materials: dict, ctx: dict) -> None:
+    name = spec.get("name", f"fem{k}")
+    body = f"fem body '{name}'"
+    t = Table(spec, file=ctx["file"], body=body)
+    keys = {"name", "mesh", "material", "velocity", "prescribed", "prescribed_nodes"}
+    t.check_keys(keys, required={"mesh", "material"})
+    name = t.string("name", default=name)
+    mesh, mesh_source = read_mesh_table(t.sub("mesh"), scene.dim, ctx["base_dir"])
+    try:
+        mesh.check_quality(name="mesh")
+    except ValueError as err:
+        raise _api_error(ValueError(str(err).removeprefix("mesh: ")), t, "mesh", body) from None
+    material, material_name = _material(t, materials)
+    velocity = _velocity(t, scene.dim, mesh.n_points)
+    motion = read_motion(t.sub("prescribed"), scene.dim) if t.has("prescribed") else None
+    nodes, nodes_source = None, None
+    if t.has("prescribed_nodes"):
+        if motion is None:
+            raise t.error(
+                "given without a prescribed motion", "prescribed_nodes", "add prescribed = {...}"
+            )
+        nodes, nodes_source = read_selection(t, "prescribed_nodes", mesh.points)
+    try:
+        scene.add_fem(
+            mesh,
+            material=material,
+            velocity=velocity,
+            prescribed=motion,
+            prescribed_nodes=nodes,
+            name=name,
+        )
+    except ValueError as err:
+        raise _api_error(err, t, None, body) from None
+    ctx["fem"].append((name, mesh.points))
+    scene._record_source(name, "mesh", mesh_source)
+    scene._record_source(name, "material", material_name)
+    scene._record_source(name, "prescribed_nodes", nodes_source)
+
+
+def _add_mpm(scene: Scene, spec: dict, k: int, materials: dict, ctx: dict) -> None:
+    name = spec.get("name", f"mpm{k}")
+    body = f"mpm body '{name}'"
+    t = Table(spec, file=ctx["file"], body=body)
+    t.check_keys(
+        {"name", "particles", "volumes", "material", "velocity"}, {"particles", "material"}
+    )
+    name = t.string("name", default=name)
+    source = None
+    if isinstance(t.raw("particles"), list):
+        x = t.array("particles", np.float64, scene.dim)
+        vol = t.array("volumes", np.float64)
+    else:
+        if t.has("volumes"):
+            raise t.error("is only used with inline particle positions", "volumes")
+        x, vol, source = read_particles(t.sub("particles"), scene.dim, ctx["grid"], ctx["base_dir"])
+    material, material_name = _material(t, materials)
+    velocity = _velocity(t, scene.dim, x.shape[0])
+    try:
+        scene.add_mpm(x, vol, material=material, velocity=velocity, name=name)
+    except ValueError as err:
+        raise _api_error(err, t, None, body) from None
+    scene._record_source(name, "particles", source)
+    scene._record_source(name, "material", material_name)
+
+
+def _add_load(scene: Scene, spec: dict, k: int, ctx: dict) -> None:
+    t = Table(spec, file=ctx["file"], path=f"load[{k}]")
+    t.check_keys({"body", "force", "nodes"}, required={"body", "force"})
+    names = [name for name, _ in ctx["fem"]]
+    if not names:
+        raise t.error("loads act on fem bodies, but the scene has none")
+    name = t.string("body", choices=names)
+    index = names.index(name)
+    rest = ctx["fem"][index][1]
+    force = t.raw("force")
+    if isinstance(force, list) and force and isinstance(force[0], list):
+        f = t.array("force", np.float64, scene.dim)
+    else:
+        f = np.array(t.vector("force", scene.dim))
+    nodes = None
+    if isinstance(t.raw("nodes", None), list):  # indices keep their order (rows of force)
+        nodes = t.array("nodes", np.int64)
+        read_selection(t, "nodes", rest)  # range check
+    elif t.has("nodes"):
+        nodes = read_selection(t, "nodes", rest)[0]
+    try:
+        scene.add_load(index, f, nodes)
+    except ValueError as err:
+        raise _api_error(err, t, "force", f"fem body '{name}'") from None
+
+
+def _simulation(root: Table) -> dict:
+    if not root.has("simulation"):
+        return {}
+    t = root.sub("simulation")
+    keys = ("strategy", "integrator", "transfer", "dt", "tol", "max_newton_iterations")
+    t.check_keys(keys)
+    out: dict = {}
+    if t.has("strategy"):
+        out["strategy"] = t.string("strategy", choices=STRATEGIES)
+    if t.has("integrator"):
+        out["integrator"] = t.string("integrator", choices=INTEGRATORS)
+    if t.has("transfer"):
+        out["transfer"] = t.string("transfer", choices=TRANSFERS)
+    if t.has("dt"):
+        out["dt"] = t.number("dt", "time", positive=True, hint="dt is the time step in s")
+    if t.has("tol"):
+        out["tol"] = t.number("tol", "velocity", positive=True)
+    if t.has("max_newton_iterations"):
+        out["max_newton_iterations"] = t.integer("max_newton_iterations", minimum=1)
+    return out
+
+
+def _run(root: Table, key: str) -> dict:
+    if not root.has(key):
+        return {}
+    t = root.sub(key)
+    t.check_keys(
+        {"t_end", "every", "checkpoint_every", "out"} - ({"out"} if key == "quick" else set())
+    )
+    out: dict = {}
+    if t.has("t_end"):
+        out["t_end"] = t.number("t_end", "time", positive=True)
+    if t.has("every"):
+        out["every"] = t.integer("every", minimum=1)
+    if t.has("checkpoint_every"):
+        out["checkpoint_every"] = t.integer("checkpoint_every", minimum=0)
+    if t.has("out"):
+        out["out"] = t.string("out")
+    return out
+
+
+def parse_document(data: dict, *, file: str | None, base_dir: Path | None) -> dict:
+    """Build the scene and read the settings of a parsed scene file.
+
+    Returns:
+        dict with ``scene`` (a ``Scene``), ``simulation`` (``Simulation`` keyword arguments),
+        ``run`` and ``quick`` (``run`` settings and their quick overrides) and ``check`` (the raw
+        ``[check]`` table, validated by :mod:`bfemp.scenefile.checks`).
+    """
+    root = Table(data, file=file)
+    root.check_keys(TOP_LEVEL, required={"scene"})
+    st = root.sub("scene")
+    st.check_keys({"dim", "gravity"}, required={"dim"})
+    dim = st.integer("dim")
+    if dim not in (2, 3):
+        raise st.error(f"must be 2 or 3, got {dim}", "dim")
+    scene = Scene(dim=dim, gravity=st.vector("gravity", dim, default=None))
+    materials = _materials(root)
+    grid = None
+    if root.has("grid"):
+        gt = root.sub("grid")
+        gt.check_keys({"dx", "origin"}, required={"dx"})
+        grid = (gt.number("dx", "length", positive=True), gt.vector("origin", dim, default=None))
+        try:
+            scene.set_grid(grid[0], grid[1])
+        except ValueError as err:
+            raise _api_error(err, gt, None, None) from None
+        grid = (grid[0], grid[1] or (0.0,) * dim)
+    ctx = {"file": file, "base_dir": base_dir, "grid": grid, "fem": []}
+    for k, spec in enumerate(root.tables("fem")):
+        _add_fem(scene, spec, k, materials, ctx)
+    for k, spec in enumerate(root.tables("mpm")):
+        _add_mpm(scene, spec, k, materials, ctx)
+    if root.has("contact"):
+        ct = root.sub("contact")
+        ct.check_keys({"dhat", "kappa", "mu", "eps_v", "friction_iterations"}, {"dhat"})
+        kw: dict = {"dhat": ct.number("dhat", "length", positive=True)}
+        if ct.has("kappa"):
+            auto = ct.raw("kappa") == "auto"
+            kw["kappa"] = "auto" if auto else ct.number("kappa", "pressure", positive=True)
+        if ct.has("mu"):
+            kw["mu"] = ct.number("mu", minimum=0.0)
+        if ct.has("eps_v"):
+            kw["eps_v"] = ct.number("eps_v", "velocity", positive=True)
+        if ct.has("friction_iterations"):
+            kw["friction_iterations"] = ct.integer("friction_iterations", minimum=1)
+        try:
+            scene.set_contact(**kw)
+        except ValueError as err:
+            raise _api_error(err, ct, None, None) from None
+    for k, spec in enumerate(root.tables("boundary")):
+        bt = Table(spec, file=file, path=f"boundary[{k}]")
+        bt.check_keys({"kind", "levelset", "motion"}, required={"levelset"})
+        kind = bt.string("kind", default="slip", choices=("sticky", "slip", "separate"))
+        shape = read_levelset(bt.sub("levelset"), dim)
+        motion = read_motion(bt.sub("motion"), dim) if bt.has("motion") else None
+        try:
+            scene.add_boundary(shape, kind=kind, motion=motion)
+        except ValueError as err:
+            raise _api_error(err, bt, "motion" if motion else None, None) from None
+    for k, spec in enumerate(root.tables("load")):
+        _add_load(scene, spec, k, ctx)
+    return {
+        "scene": scene,
+        "simulation": _simulation(root),
+        "run": _run(root, "run"),
+        "quick": _run(root, "quick"),
+        "check": root.sub("check", default_empty=True).data,
+    }

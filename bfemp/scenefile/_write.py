@@ -1,0 +1,190 @@
+"""``Scene`` -> the plain dict of a scene file (written as TOML by :mod:`._toml`).
+
+What a scene file described (mesh shapes and files, particle sampling, node selections, material
+names) is written back as it was; what came from arrays is written inline: floats are written
+with ``repr``, so positions, volumes and velocities read back bit for bit. Level sets and motions
+are written from their parameters (a normalised direction is written normalised).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from bfemp import levelset as ls
+from bfemp import motion as mo
+from bfemp.errors import SceneError
+from bfemp.materials import LinearElastic, NeoHookean
+
+__all__ = ["levelset_dict", "motion_dict", "scene_dict"]
+
+
+def _uniform_or_rows(a: np.ndarray) -> list:
+    """``a (n, d)`` as one row when every row is bitwise equal to the first, else all rows."""
+    bits = np.ascontiguousarray(a).view(np.int64)
+    if a.shape[0] and np.all(bits == bits[0]):
+        return a[0].tolist()
+    return a.tolist()
+
+
+def material_dict(material: object) -> dict:
+    """``{type, E, nu, density}`` of a material."""
+    kind = {NeoHookean: "neo_hookean", LinearElastic: "linear_elastic"}.get(type(material))
+    if kind is None:
+        raise SceneError(f"material of type {type(material).__name__} cannot be written to TOML")
+    return {"type": kind, "E": material.E, "nu": material.nu, "density": material.density}
+
+
+def motion_dict(motion: mo.Motion, where: str = "prescribed") -> dict:
+    """The scene-file table of a prescribed motion."""
+    if isinstance(motion, mo.Fixed):
+        return {"type": "fixed"}
+    if isinstance(motion, mo.Linear):
+        return {"type": "linear", "velocity": list(motion.velocity)}
+    if isinstance(motion, mo.Rotation):
+        return {
+            "type": "rotation",
+            "center": list(motion.center),
+            "angular_velocity": float(motion.angular_velocity),
+            "axis": list(motion.axis),
+        }
+    if isinstance(motion, mo.Sequence):
+        return {
+            "type": "sequence",
+            "segments": [
+                {"duration": float(d), "motion": motion_dict(m, f"{where}.segments[{k}]")}
+                for k, (d, m) in enumerate(motion.segments)
+            ],
+        }
+    raise SceneError(
+        f"motion of type {type(motion).__name__} cannot be written to TOML", field=where
+    )
+
+
+def levelset_dict(shape: object, where: str = "levelset") -> dict:
+    """The scene-file table of a level set."""
+    if isinstance(shape, ls.HalfPlane):
+        return {"type": "half_plane", "point": list(shape.point), "normal": list(shape.unit_normal)}
+    if isinstance(shape, ls.Box):
+        return {"type": "box", "lower": list(shape.lower), "upper": list(shape.upper)}
+    if isinstance(shape, ls.Disk):
+        return {"type": "disk", "center": list(shape.center), "radius": float(shape.radius)}
+    if isinstance(shape, ls.Union):
+        parts = [levelset_dict(p, f"{where}.parts[{k}]") for k, p in enumerate(shape.parts)]
+        return {"type": "union", "parts": parts}
+    if isinstance(shape, ls.Inverted):
+        return {"type": "inverted", "levelset": levelset_dict(shape.levelset, f"{where}.levelset")}
+    raise SceneError(
+        f"level set of type {type(shape).__name__} cannot be written to TOML", field=where
+    )
+
+
+class _Materials:
+    """Named materials of the document; equal materials share one name."""
+
+    def __init__(self, sources: dict) -> None:
+        self.sources = sources
+        self.tables: dict[str, dict] = {}
+        self._names: dict[object, str] = {}
+
+    def name(self, body: str, material: object) -> str:
+        if material in self._names:
+            return self._names[material]
+        name = self.sources.get((body, "material")) or f"material{len(self.tables)}"
+        while name in self.tables:
+            name = f"{name}_"
+        self.tables[name] = material_dict(material)
+        self._names[material] = name
+        return name
+
+
+def _fem_dict(scene: object, spec: object, materials: _Materials) -> dict:
+    sources = scene._sources
+    out: dict = {"name": spec.name}
+    mesh = sources.get((spec.name, "mesh"))
+    if mesh is None:
+        mesh = {"points": spec.mesh.points.tolist(), "cells": spec.mesh.cells.tolist()}
+    out["mesh"] = mesh
+    out["material"] = materials.name(spec.name, spec.material)
+    if np.any(spec.velocity != 0.0):
+        out["velocity"] = _uniform_or_rows(spec.velocity)
+    if spec.motion is not None:
+        out["prescribed"] = motion_dict(spec.motion)
+        nodes = sources.get((spec.name, "prescribed_nodes"))
+        if nodes is None and not spec.prescribed.all():
+            nodes = np.flatnonzero(spec.prescribed).tolist()
+        if nodes is not None:
+            out["prescribed_nodes"] = nodes
+    return out
+
+
+def _mpm_dict(scene: object, spec: object, materials: _Materials) -> dict:
+    out: dict = {"name": spec.name}
+    source = scene._sources.get((spec.name, "particles"))
+    if source is None:
+        out["particles"] = spec.x.tolist()
+        out["volumes"] = spec.volume.tolist()
+    else:
+        out["particles"] = source
+    out["material"] = materials.name(spec.name, spec.material)
+    if np.any(spec.velocity != 0.0):
+        out["velocity"] = _uniform_or_rows(spec.velocity)
+    return out
+
+
+def scene_dict(
+    scene: object,
+    *,
+    simulation: dict | None = None,
+    run: dict | None = None,
+    check: dict | None = None,
+) -> dict:
+    """The scene-file document of ``scene`` (a ``bfemp.Scene``) and optional settings."""
+    doc: dict = {"scene": {"dim": scene.dim}}
+    if np.any(scene.gravity != 0.0):
+        doc["scene"]["gravity"] = scene.gravity.tolist()
+    if simulation:
+        doc["simulation"] = dict(simulation)
+    if run:
+        doc["run"] = dict(run)
+    materials = _Materials(scene._sources)
+    fem = [_fem_dict(scene, spec, materials) for spec in scene._fem]
+    mpm = [_mpm_dict(scene, spec, materials) for spec in scene._mpm]
+    doc["materials"] = materials.tables
+    if scene._grid is not None:
+        doc["grid"] = {"dx": scene._grid.dx, "origin": list(scene._grid.origin)}
+    contact = scene._contact
+    if contact is not None:
+        doc["contact"] = {
+            "dhat": contact.dhat,
+            "kappa": contact.kappa,
+            "mu": contact.mu,
+            "eps_v": contact.eps_v,
+            "friction_iterations": contact.friction_iterations,
+        }
+    if fem:
+        doc["fem"] = fem
+    if mpm:
+        doc["mpm"] = mpm
+    boundaries = []
+    for k, b in enumerate(scene._boundaries):
+        boundary = {
+            "kind": b.kind,
+            "levelset": levelset_dict(b.levelset, f"boundary[{k}].levelset"),
+        }
+        if getattr(b, "motion", None) is not None:
+            boundary["motion"] = motion_dict(b.motion, f"boundary[{k}].motion")
+        boundaries.append(boundary)
+    if boundaries:
+        doc["boundary"] = boundaries
+    loads = []
+    for body, idx, force in scene._loads:
+        spec = scene._fem[body]
+        load: dict = {"body": spec.name, "force": _uniform_or_rows(force)}
+        if not np.array_equal(idx, np.arange(spec.mesh.n_points)):
+            load["nodes"] = idx.tolist()
+        loads.append(load)
+    if loads:
+        doc["load"] = loads
+    if check:
+        doc["check"] = dict(check)
+    return doc

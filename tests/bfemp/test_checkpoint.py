@@ -1,0 +1,231 @@
+"""Checkpoint/restart: a resumed run equals the uninterrupted one bit for bit (state, metrics
+without the wall-clock time_* columns, VTU frames and PVD files), after a normal stop, a crash
+(frames written after the last checkpoint), Ctrl-C and a double Ctrl-C; refusals and atomicity."""
+
+import json
+import logging
+import os
+import shutil
+import signal
+
+import numpy as np
+import pytest
+
+import bfemp
+from bfemp import checkpoint as ckpt_module
+from bfemp.checkpoint import read_checkpoint
+from bfemp.errors import SceneError
+from bfemp.io.metrics import MetricsLog
+
+DT, EVERY = 0.01, 3
+T_END = 12 * DT
+
+
+def _scene(E=1e5):
+    """A clamped FEM beam beside an MPM block falling on a slip floor (Newmark, APIC)."""
+    scene = bfemp.Scene(dim=2, gravity=(0.0, -9.81))
+    mesh = bfemp.shapes.rectangle((0.0, 1.0), (1.0, 1.2), h=0.1)
+    mat = bfemp.NeoHookean(E=E, nu=0.3, density=500.0)
+    scene.add_fem(
+        mesh,
+        material=mat,
+        name="beam",
+        prescribed=bfemp.motion.Fixed(),
+        prescribed_nodes=mesh.points[:, 0] < 1e-9,
+    )
+    x, vol = bfemp.sample.box((2.0, 0.1), (2.4, 0.5), dx=0.1, ppc=4)
+    scene.add_mpm(x, vol, material=mat, velocity=(0.5, 0.0), name="block")
+    scene.set_grid(dx=0.1)
+    scene.add_boundary(bfemp.levelset.HalfPlane(point=(0.0, 0.0), normal=(0.0, 1.0)), "slip")
+    return scene
+
+
+def _sim(**kwargs):
+    return bfemp.Simulation(_scene(**kwargs), integrator="newmark", dt=DT, tol=1e-8)
+
+
+def _run(sim, out, t_end=T_END, **kwargs):
+    return sim.run(t_end, out=out, every=EVERY, progress=False, **kwargs)
+
+
+@pytest.fixture(scope="module", autouse=True)
+def no_plots():
+    """The metrics PNG (0.6 s per run with matplotlib) is not what these tests check."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(bfemp.simulation, "plot_metrics", lambda *args, **kwargs: None)
+        yield
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory, no_plots):
+    out = tmp_path_factory.mktemp("uninterrupted")
+    sim = _sim()
+    _run(sim, out, checkpoint_every=4)
+    return sim, out
+
+
+def _bits(a):
+    a = np.ascontiguousarray(a, dtype=np.float64)
+    return a.view(np.int64)
+
+
+def _assert_same_run(sim_a, out_a, sim_b, out_b):
+    assert sim_a.state.t == sim_b.state.t and sim_a.state.step == sim_b.state.step
+    arrays_b = sim_b.state.arrays()
+    for name, value in sim_a.state.arrays().items():
+        assert np.array_equal(_bits(value), _bits(arrays_b[name])), name
+    for ma, mb in ((sim_a.metrics, sim_b.metrics), *_csv_pair(out_a, out_b)):
+        cols = [c for c in ma.columns if not c.startswith("time_")]
+        assert cols == [c for c in mb.columns if not c.startswith("time_")]
+        for c in cols:
+            assert np.array_equal(_bits(ma.column(c)), _bits(mb.column(c))), c
+    frames_a = sorted(p.relative_to(out_a) for p in out_a.rglob("*.vtu"))
+    frames_b = sorted(p.relative_to(out_b) for p in out_b.rglob("*.vtu"))
+    assert frames_a == frames_b and len(frames_a) == 2 * (T_END / DT // EVERY + 1)
+    for rel in frames_a:
+        assert (out_a / rel).read_bytes() == (out_b / rel).read_bytes(), rel
+    for name in ("beam.pvd", "block.pvd"):
+        assert (out_a / name).read_bytes() == (out_b / name).read_bytes()
+
+
+def _csv_pair(out_a, out_b):
+    return [
+        (MetricsLog.from_csv(out_a / "metrics.csv"), MetricsLog.from_csv(out_b / "metrics.csv"))
+    ]
+
+
+def test_resume_after_a_stop_equals_the_uninterrupted_run(reference, tmp_path):
+    first = _sim()
+    _run(first, tmp_path, t_end=5 * DT)  # stops between two frames
+    assert read_checkpoint(tmp_path).state.step == 5
+    resumed = _sim()
+    _run(resumed, tmp_path, resume=True)
+    _assert_same_run(*reference, resumed, tmp_path)
+    manifest = json.loads((tmp_path / "manifest.json").read_text())
+    assert [s["resumed"] for s in manifest["sessions"]] == [False, True]
+    assert manifest["sessions"][1]["from_step"] == 5 and manifest["status"] == "completed"
+
+
+def test_resume_after_a_crash_drops_frames_past_the_checkpoint(reference, tmp_path):
+    _run(_sim(), tmp_path, t_end=4 * DT)
+    saved = tmp_path / "saved"
+    saved.mkdir()
+    for name in ("checkpoint.npz", "checkpoint.json"):
+        shutil.copy(tmp_path / name, saved / name)
+    _run(_sim(), tmp_path, t_end=8 * DT, resume=True)  # frames at steps 6 written
+    for name in ("checkpoint.npz", "checkpoint.json"):  # ... then the crash: back to step 4
+        shutil.copy(saved / name, tmp_path / name)
+    shutil.rmtree(saved)
+    resumed = _sim()
+    _run(resumed, tmp_path, resume=True)
+    _assert_same_run(*reference, resumed, tmp_path)
+
+
+def _interrupt_at(step, times):
+    def callback(sim):
+        if sim.state.step == step:
+            for _ in range(times):
+                os.kill(os.getpid(), signal.SIGINT)
+
+    return callback
+
+
+def test_ctrl_c_writes_a_checkpoint_and_the_run_resumes_bit_for_bit(reference, tmp_path):
+    sim = _sim()
+    with pytest.raises(KeyboardInterrupt):
+        _run(sim, tmp_path, callback=_interrupt_at(7, 1))
+    assert sim.state.step == 7 and read_checkpoint(tmp_path).state.step == 7
+    manifest = json.loads((tmp_path / "manifest.json").read_text())
+    assert manifest["status"] == "interrupted" and "step 7" in manifest["message"]
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # handler restored
+    resumed = _sim()
+    _run(resumed, tmp_path, resume=True)
+    _assert_same_run(*reference, resumed, tmp_path)
+
+
+def test_a_second_ctrl_c_aborts_and_the_last_periodic_checkpoint_remains(reference, tmp_path):
+    with pytest.raises(KeyboardInterrupt):
+        _run(_sim(), tmp_path, checkpoint_every=4, callback=_interrupt_at(6, 2))
+    assert read_checkpoint(tmp_path).state.step == 4
+    manifest = json.loads((tmp_path / "manifest.json").read_text())
+    assert "without a checkpoint" in manifest["message"]
+    resumed = _sim()
+    _run(resumed, tmp_path, resume=True)
+    _assert_same_run(*reference, resumed, tmp_path)
+
+
+def test_resume_refuses_another_model_and_warns_on_other_settings(reference, tmp_path, caplog):
+    _run(_sim(), tmp_path, t_end=2 * DT)
+    with pytest.raises(SceneError, match="another model"):
+        _run(_sim(E=2e5), tmp_path, resume=True)
+    other_dt = bfemp.Simulation(_scene(), integrator="newmark", dt=DT / 2, tol=1e-8)
+    with caplog.at_level(logging.WARNING, logger="bfemp.checkpoint"):
+        other_dt.load_checkpoint(tmp_path)
+    assert "will differ from an uninterrupted one" in caplog.text and other_dt.state.step == 2
+    with pytest.raises(SceneError, match="no checkpoint"):
+        _run(_sim(), tmp_path / "empty", resume=True)
+    with pytest.raises(ValueError, match="resume=True needs out"):
+        _sim().run(T_END, resume=True)
+
+
+def test_a_failed_step_leaves_a_checkpoint_of_the_last_good_state(tmp_path):
+    sim = bfemp.Simulation(_scene(), dt=DT, tol=1e-14, max_newton_iterations=1)
+    with pytest.raises(bfemp.StepError):
+        sim.run(T_END, out=tmp_path, progress=False)
+    manifest = json.loads((tmp_path / "manifest.json").read_text())
+    assert manifest["status"] == "failed" and "MAX_ITERATIONS" in manifest["message"]
+    assert read_checkpoint(tmp_path).state.step == 0
+    assert len(MetricsLog.from_csv(tmp_path / "metrics.csv")) == 1
+
+
+def test_checkpoint_writes_are_atomic(tmp_path, monkeypatch):
+    sim = _sim()
+    sim.step()
+    sim.save_checkpoint(tmp_path)
+    before = (tmp_path / "checkpoint.npz").read_bytes()
+    sim.step()
+
+    def broken_savez(fh, **arrays):
+        fh.write(b"half a checkpoint")
+        raise OSError("disk full")
+
+    monkeypatch.setattr(ckpt_module.np, "savez", broken_savez)
+    with pytest.raises(OSError, match="disk full"):
+        sim.save_checkpoint(tmp_path)
+    assert (tmp_path / "checkpoint.npz").read_bytes() == before
+    assert not [p for p in tmp_path.iterdir() if p.name.endswith(".tmp")]
+    monkeypatch.undo()
+    restored = _sim()
+    restored.load_checkpoint(tmp_path)
+    assert restored.state.step == 1 and len(restored.metrics) == 2
+
+
+def _contact_sim():
+    """An MPM block hitting a fixed FEM floor, kappa = "auto" (which doubles during the run:
+    the stepper carries it from step to step) and friction."""
+    scene = bfemp.Scene(dim=2, gravity=(0.0, -9.81))
+    mat = bfemp.NeoHookean(E=1e4, nu=0.3, density=500.0)
+    floor = bfemp.shapes.rectangle((-0.5, -0.2), (1.5, 0.0), h=0.1)
+    scene.add_fem(floor, material=mat, prescribed=bfemp.motion.Fixed(), name="floor")
+    x, vol = bfemp.sample.box((0.2, 0.02), (0.6, 0.42), dx=0.1, ppc=4)
+    scene.add_mpm(x, vol, material=mat, velocity=(0.0, -1.0), name="block")
+    scene.set_grid(dx=0.1)
+    scene.set_contact(dhat=1e-3, kappa="auto", mu=0.1)
+    return bfemp.Simulation(scene, dt=DT, tol=1e-7)
+
+
+def test_contact_with_adaptive_kappa_resumes_bit_for_bit(tmp_path):
+    reference = _contact_sim()
+    reference.run(10 * DT, out=tmp_path / "a", every=2, progress=False)
+    kappa = reference.metrics.column("kappa")
+    assert kappa[-1] > kappa[7] > kappa[1]  # kappa changed after the checkpoint below
+    _contact_sim().run(7 * DT, out=tmp_path / "b", every=2, progress=False)
+    resumed = _contact_sim()
+    resumed.run(10 * DT, out=tmp_path / "b", every=2, progress=False, resume=True)
+    for name, value in reference.state.arrays().items():
+        assert np.array_equal(_bits(value), _bits(resumed.state.arrays()[name])), name
+    for c in reference.metrics.columns:
+        if not c.startswith("time_"):
+            assert np.array_equal(
+                _bits(reference.metrics.column(c)), _bits(resumed.metrics.column(c))
+            ), c

@@ -1,0 +1,191 @@
+"""The command line end to end on a tiny scene: run, resume, info, bench dispatch, and errors
+printed as one line without a traceback (exit 2), failed checks (exit 1), Ctrl-C (exit 130)."""
+
+import json
+import subprocess
+import sys
+import types
+from pathlib import Path
+
+import meshio
+import numpy as np
+import pytest
+
+import bfemp
+from bfemp.cli import main
+from bfemp.io.metrics import MetricsLog
+from bfemp.io.vtk import read_pvd
+
+TINY = """
+[scene]
+dim = 2
+gravity = [0.0, -9.81]
+
+[simulation]
+integrator = "newmark"
+dt = 0.01
+tol = 1e-8
+
+[run]
+t_end = 0.06
+every = 2
+checkpoint_every = 2
+
+[materials.m]
+E = 1e5
+nu = 0.3
+density = 500.0
+
+[[fem]]
+name = "beam"
+material = "m"
+mesh = { shape = "rectangle", lower = [0.0, 0.0], upper = [1.0, 0.2], h = 0.1 }
+prescribed = { type = "fixed" }
+prescribed_nodes = { box = { lower = [-inf, -inf], upper = [1e-9, inf] } }
+
+[check]
+finite = true
+energy_drift_max = 0.01
+"""
+
+
+@pytest.fixture
+def scene_file(tmp_path):
+    path = tmp_path / "tiny.toml"
+    path.write_text(TINY)
+    return path
+
+
+@pytest.fixture
+def no_plots(monkeypatch):
+    """Skip the metrics PNG (0.6 s per run) where a test does not look at it."""
+    monkeypatch.setattr(bfemp.simulation, "plot_metrics", lambda *args, **kwargs: None)
+
+
+def _run(*args):
+    return main(["run", *map(str, args), "--quiet"])
+
+
+def test_run_writes_frames_metrics_manifest_and_checkpoint(scene_file, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert _run(scene_file, "--out", out, "--check") == 0
+    printed = capsys.readouterr().out
+    assert "run finished: t = 0.06 s, step 6" in printed and "check ok" in printed
+    frames = read_pvd(out / "beam.pvd")
+    assert [round(t, 9) for t, _ in frames] == [0.0, 0.02, 0.04, 0.06]
+    last = meshio.read(frames[-1][1])
+    assert last.point_data["velocity"].shape == (last.points.shape[0], 3)
+    assert np.all(last.cell_data["J"][0] > 0) and np.all(last.cell_data["von_mises"][0] >= 0)
+    assert np.any(last.point_data["velocity"][:, 1] < 0)  # the beam falls
+    metrics = MetricsLog.from_csv(out / "metrics.csv")
+    assert len(metrics) == 7 and (out / "metrics.png").stat().st_size > 0
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["status"] == "completed"
+    assert manifest["parameters"]["scene_file"] == str(scene_file.resolve())
+    assert manifest["parameters"]["simulation"]["dt"] == 0.01
+    assert manifest["parameters"]["run"] == {"t_end": 0.06, "every": 2, "checkpoint_every": 2}
+    assert manifest["model"]["fem_bodies"][0]["nodes"] == 33
+    assert manifest["versions"]["numpy"] == np.__version__ and "commit" in manifest["git"]
+    assert (out / "scene.toml").read_text() == TINY
+    assert json.loads((out / "checkpoint.json").read_text())["step"] == 6
+
+
+def test_resume_from_the_command_line_equals_one_run(scene_file, tmp_path, no_plots):
+    whole, parts = tmp_path / "whole", tmp_path / "parts"
+    assert _run(scene_file, "--out", whole) == 0
+    assert _run(scene_file, "--out", parts, "--t-end", 0.03) == 0
+    assert _run(scene_file, "--out", parts, "--resume") == 0
+    a, b = (MetricsLog.from_csv(d / "metrics.csv") for d in (whole, parts))
+    for c in (c for c in a.columns if not c.startswith("time_")):
+        assert np.array_equal(a.column(c), b.column(c), equal_nan=True), c
+    files = sorted(p.relative_to(whole) for p in whole.rglob("*.vtu"))
+    assert files == sorted(p.relative_to(parts) for p in parts.rglob("*.vtu"))
+    for rel in [*files, Path("beam.pvd")]:
+        assert (whole / rel).read_bytes() == (parts / rel).read_bytes(), rel
+    manifest = json.loads((parts / "manifest.json").read_text())
+    assert [s["from_step"] for s in manifest["sessions"]] == [0, 3]
+
+
+def test_info_summarises_a_result_folder(scene_file, tmp_path, capsys, no_plots):
+    out = tmp_path / "out"
+    _run(scene_file, "--out", out)
+    capsys.readouterr()
+    assert main(["info", str(out)]) == 0
+    text = capsys.readouterr().out
+    for fragment in ("status:        completed", "beam: 33 nodes", "6 steps", "beam.pvd: 4"):
+        assert fragment in text, (fragment, text)
+    assert "checkpoint:    step 6, t = 0.06 s" in text
+    assert main(["info", str(out), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["metrics"]["newton"]["total"] >= 6 and info["frames"] == {"beam": 4}
+
+
+def _error(capsys, argv, code=2):
+    assert main(argv) == code
+    err = capsys.readouterr().err
+    assert err.startswith("bfemp: error: ") and "Traceback" not in err, err
+    return err
+
+
+def test_mistakes_print_one_line_and_exit_2(scene_file, tmp_path, capsys):
+    bad = tmp_path / "bad.toml"
+    bad.write_text(TINY.replace("nu = 0.3", "nu = 0.5"))
+    err = _error(capsys, ["run", str(bad)])
+    assert f"{bad}: materials.m.nu: must be < 0.5" in err and "incompressible" in err
+    bad.write_text(TINY.replace("dt = 0.01", 'dt = "1 cm"'))
+    assert "simulation.dt: unit 'cm' is a length" in _error(capsys, ["run", str(bad)])
+    assert "scene file not found" in _error(capsys, ["run", str(tmp_path / "none.toml")])
+    assert "not a bfemp result folder" in _error(capsys, ["info", str(tmp_path)])
+    assert "--every: must be an integer >= 1" in _error(
+        capsys, ["run", str(scene_file), "--every", "0"]
+    )
+    assert "no checkpoint" in _error(
+        capsys, ["run", str(scene_file), "--out", str(tmp_path / "fresh"), "--resume"]
+    )
+    assert "unknown benchmark 'nope'" in _error(capsys, ["bench", "nope"])
+
+
+def test_a_failing_check_exits_1_and_dry_run_only_reads(scene_file, tmp_path, capsys, no_plots):
+    failing = tmp_path / "failing.toml"
+    failing.write_text(TINY + "max = { energy_total = -1e9 }\n")
+    assert _run(failing, "--out", tmp_path / "out", "--check") == 1
+    captured = capsys.readouterr()
+    assert "check FAIL max.energy_total" in captured.out and "a check failed" in captured.err
+    assert _run(scene_file, "--out", tmp_path / "dry", "--dry-run") == 0
+    assert "tiny.toml: ok: 33 FEM nodes" in capsys.readouterr().out
+    assert not (tmp_path / "dry").exists()
+
+
+def test_ctrl_c_exits_130_with_the_resume_command(scene_file, tmp_path, capsys, monkeypatch):
+    def interrupted(self, *args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(bfemp.Simulation, "run", interrupted)
+    assert _run(scene_file, "--out", tmp_path / "out") == 130
+    err = capsys.readouterr().err
+    assert "interrupted at t = 0 s" in err and f"--out {tmp_path / 'out'} --resume" in err
+
+
+def test_bench_calls_the_registered_run(tmp_path, monkeypatch, capsys):
+    import benchmarks.__main__ as registry
+
+    calls = []
+    fake = types.ModuleType("fake_bench")
+    fake.run = lambda mode, out: calls.append((mode, out)) or {"json": f"{out}/fake.json"}
+    monkeypatch.setitem(sys.modules, "fake_bench", fake)
+    monkeypatch.setitem(registry.BENCHMARKS, "fake", "fake_bench")
+    assert main(["bench", "fake", "--quick", "--out", str(tmp_path)]) == 0
+    assert main(["bench", "fake"]) == 0
+    assert calls == [("quick", str(tmp_path)), ("full", "results")]
+    assert f"fake: wrote {tmp_path}/fake.json" in capsys.readouterr().out
+
+
+def test_console_entry_point_reports_errors_without_traceback(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text(TINY.replace("[simulation]", "[simulaton]"))
+    proc = subprocess.run(
+        [sys.executable, "-m", "bfemp", "run", str(bad)], capture_output=True, text=True
+    )
+    assert proc.returncode == 2
+    assert proc.stderr.startswith(f"bfemp: error: {bad}: unknown key 'simulaton'")
+    assert "did you mean 'simulation'" in proc.stderr and "Traceback" not in proc.stderr
