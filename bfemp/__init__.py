@@ -20,7 +20,8 @@ _os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 import logging
 
-from bfemp import levelset, motion, sample, shapes
+from bfemp import levelset, motion, sample, scenefile, shapes
+from bfemp.errors import SceneError
 from bfemp.integrators import BACKWARD_EULER, NEWMARK, Integrator
 from bfemp.materials import LinearElastic, NeoHookean
 from bfemp.model import FemBody, Model, MpmBody
@@ -43,6 +44,7 @@ __all__ = [
     "MpmBody",
     "NeoHookean",
     "Scene",
+    "SceneError",
     "Simulation",
     "State",
     "StepError",
@@ -50,5 +52,6 @@ __all__ = [
     "levelset",
     "motion",
     "sample",
+    "scenefile",
     "shapes",
 ]

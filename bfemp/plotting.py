@@ -30,6 +30,7 @@ DEFAULT_GROUPS: Mapping[str, tuple[str, ...]] = {
     "energies": ("energy_*",),
     "momenta": ("momentum_*",),
     "newton_iterations": ("newton_iterations",),
+    "min_distance": ("min_distance",),
     "timings": ("time_*",),
 }
 

@@ -34,6 +34,7 @@ from bfemp.plotting import plot_metrics
 from bfemp.scene import Scene
 from bfemp.state import State
 from bfemp.steppers import StepReport, stepper_class
+from bfemp.validation import validate_initial
 from solvers.linear import LinearSolver
 from solvers.options import NewtonOptions
 
@@ -75,6 +76,9 @@ class Simulation:
         if transfer not in _TRANSFERS:
             raise ValueError(f"Simulation.transfer must be one of {_TRANSFERS}, got {transfer!r}")
         self.model = scene.build() if isinstance(scene, Scene) else scene
+        if self.model.contact is not None:
+            # the barrier is finite only for bodies that start apart (and beyond d-hat)
+            validate_initial(self.model)
         self.dt = float(dt)
         self.strategy = strategy
         self.transfer = transfer
@@ -314,6 +318,7 @@ class Simulation:
         blocks = []
         model, state = self.model, self.state
         j_cells, von_mises = _cell_stress_fields(model, state)
+        fem_force, mpm_force = self.contact_forces()
         for body in model.fem_bodies:
             cells = model.fem_cells[body.cells] - body.nodes.start
             blocks.append(
@@ -321,7 +326,10 @@ class Simulation:
                     name=body.name,
                     points=state.fem_x[body.nodes],
                     cells=cells,
-                    point_data={"velocity": state.fem_v[body.nodes]},
+                    point_data={
+                        "velocity": state.fem_v[body.nodes],
+                        "contact_force": fem_force[body.nodes],
+                    },
                     cell_data={"J": j_cells[body.cells], "von_mises": von_mises[body.cells]},
                 )
             )
@@ -337,6 +345,7 @@ class Simulation:
                         "J": np.linalg.det(state.mpm_F[sl]),
                         "von_mises": _von_mises(body.material, state.mpm_F[sl]),
                         "volume": model.mpm_volume[sl],
+                        "contact_force": mpm_force[sl],
                     },
                 )
             )

@@ -315,3 +315,34 @@ def test_adaptive_kappa_chooses_a_stiffness_and_keeps_the_bodies_apart():
     assert np.nanmin(sim.metrics.column("min_distance")) > 0.0
     # the block was caught: it moves up or rests, never through the plate
     assert sim.state.mpm_v[:, 1].mean() > -3.0
+
+
+def test_simulation_refuses_particles_inside_or_within_dhat_of_a_fem_body():
+    inside = _particles_scene(2, [[0.3, 0.9]])
+    with pytest.raises(ValueError, match=r"mpm.*fem|fem.*mpm"):
+        bfemp.Simulation(inside, dt=1e-3)
+    close = _particles_scene(2, [[0.3, 1.0 + 0.2 * DHAT]])
+    with pytest.raises(ValueError, match="dhat"):
+        bfemp.Simulation(close, dt=1e-3)
+
+
+def test_frames_carry_contact_forces(tmp_path):
+    import meshio
+
+    scene = bfemp.Scene(dim=2, gravity=(0.0, -9.81))
+    plate = bfemp.shapes.rectangle((-0.5, -0.1), (1.5, 0.0), h=0.1)
+    scene.add_fem(plate, material=STIFF, prescribed=bfemp.motion.Fixed(), name="plate")
+    x, vol = bfemp.sample.box((0.0, 0.0), (1.0, 0.3), dx=0.1, ppc=4)
+    x[:, 1] += 2e-2
+    scene.add_mpm(x, vol, material=STIFF, name="block")
+    scene.set_grid(dx=0.1)
+    scene.set_contact(dhat=1e-2, kappa=1e5)
+    sim = bfemp.Simulation(scene, dt=0.05, tol=1e-6)  # backward Euler: it lands and rests
+    sim.run(1.0, out=tmp_path, every=10, progress=False)
+    last = sorted((tmp_path / "block").glob("*.vtu"))[-1]
+    force = meshio.read(last).point_data["contact_force"]
+    plate_force = meshio.read(sorted((tmp_path / "plate").glob("*.vtu"))[-1]).point_data[
+        "contact_force"
+    ]
+    assert force[:, 1].max() > 0.0  # the plate pushes particles up
+    assert np.isclose(force[:, :2].sum(axis=0), -plate_force[:, :2].sum(axis=0)).all()

@@ -48,12 +48,13 @@ def test_plot_metrics_writes_png_with_one_panel_per_group(tmp_path):
     _assert_real_png(path)
     fig = metrics_figure(log)
     titles = [ax.get_title() for ax in fig.axes]
-    assert titles == ["energies", "momenta", "newton iterations", "timings"]
+    assert titles == ["energies", "momenta", "newton iterations", "min distance", "timings"]
     labels = [[line.get_label() for line in ax.get_lines()] for ax in fig.axes]
     assert labels == [
         ["energy_kinetic", "energy_elastic"],
         ["momentum_x", "momentum_y"],
         ["newton_iterations"],
+        ["min_distance"],
         ["time_assembly"],
     ]
     np.testing.assert_array_equal(fig.axes[0].get_lines()[0].get_xdata(), log.column("t"))
