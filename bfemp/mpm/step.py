@@ -13,7 +13,7 @@ velocity update, an O(1) drift over a fixed time that refining dt does not remov
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -23,7 +23,10 @@ from bfemp.mpm.transfer import GridFields, particles_to_grid
 from bfemp.state import State
 from geometry.grid import ParticleStencils, particle_stencils
 
-__all__ = ["MpmStep", "prepare_mpm_step"]
+__all__ = ["LIGHT_NODE_REL", "MpmStep", "prepare_mpm_step"]
+
+#: Grid nodes lighter than this fraction of the heaviest node are pinned (no unknowns).
+LIGHT_NODE_REL = 1e-10
 
 
 @dataclass(frozen=True)
@@ -67,4 +70,10 @@ def prepare_mpm_step(
     constraints = grid_constraints(
         model.boundaries, stencils.active_x, fields.velocity, state.t + dt, dt
     )
+    # Nodes that only round-off weights reach (a particle exactly on a cell-centre line gets
+    # w ~ 1e-33 for the far node) carry no mass and no stiffness: as unknowns they would make
+    # the Newton system singular. Pin them where they are; the particles do not feel them.
+    light = fields.mass < LIGHT_NODE_REL * fields.mass.max()
+    if light.any():
+        constraints = replace(constraints, sticky=constraints.sticky | light)
     return MpmStep(stencils, fields, constraints, model.n_fem_nodes, accel)
