@@ -166,11 +166,26 @@ class BarrierTerm:
     # ------------------------------------------------------------------ feasibility
     def max_step_size(self, x: np.ndarray, p: np.ndarray) -> float:
         """0.9 x the earliest time of impact along x -> x + p (CCD, section 5); at most 1."""
-        cs = self.collisions
-        if cs.facets.shape[0] == 0:
+        if self.collisions.facets.shape[0] == 0:
             return 1.0
-        start = self._pos
-        end = self.collision_positions(x + p)
+        t = self._earliest_impact(self._pos, self.collision_positions(x + p))
+        return 1.0 if t >= 1.0 else CCD_FRACTION * t
+
+    def scripted_step(self, x: np.ndarray, fixed_from: np.ndarray, fixed_to: np.ndarray) -> float:
+        """How far scripted nodes may move from ``fixed_from`` toward ``fixed_to`` (all-node
+        positions ``(n_all, d)``) with the unknowns held at ``x``: 1 when nothing is in the way,
+        else 0.9 x the earliest time of impact (the stepper moves them part-way and re-solves)."""
+        if self.collisions.facets.shape[0] == 0:
+            return 1.0
+        cs, layout = self.collisions, self._layout
+        start = cs.positions(layout.positions(x, fixed_from))
+        end = cs.positions(layout.positions(x, fixed_to))
+        t = self._earliest_impact(start, end)
+        return 1.0 if t >= 1.0 else CCD_FRACTION * t
+
+    def _earliest_impact(self, start: np.ndarray, end: np.ndarray) -> float:
+        """Earliest time of impact in [0, 1] of collision points moving linearly start -> end."""
+        cs = self.collisions
         cand = candidate_pairs(cs, start, 0.0, end)
         motion = end - start
         t = 1.0
@@ -186,7 +201,7 @@ class BarrierTerm:
             if ee.shape[0]:
                 args = [start[ee[:, a]] for a in range(4)] + [motion[ee[:, a]] for a in range(4)]
                 t = min(t, float(edge_edge_ccd(*args, t_max=1.0).min()))
-        return 1.0 if t >= 1.0 else CCD_FRACTION * t
+        return t
 
     # ------------------------------------------------------------------ reporting
     def point_forces(self) -> np.ndarray:

@@ -273,6 +273,70 @@ class ImplicitStepper:
         c[scripted] = dt * v_end[scripted] - s * fixed[scripted]
         return s, c
 
+    #: cap of the part-way moves of scripted nodes within one step
+    SCRIPTED_SUBSTEPS = 64
+
+    def _solve_scripted(
+        self, ctx: StepContext, state: State, mpm: MpmStep | None
+    ) -> tuple[NewtonResult, int, bool]:
+        """Solve with scripted nodes brought to their end-of-step positions without crossing.
+
+        Scripted nodes are not unknowns, so CCD along Newton directions never sees their motion:
+        a scripted body moving farther in a step than its gap would jump over particles. They
+        are therefore moved from their start-of-step positions toward their targets as far as
+        CCD allows (0.9 x the earliest impact, the unknowns held), the step is re-solved there
+        (the barrier pushes what is in the way), and so on until the targets are reached; the
+        last solve, with every scripted node at its target, is the step's result.
+        """
+        target = ctx.fixed_positions.copy()
+        start = target.copy()
+        n_fem = self.model.n_fem_nodes
+        start[:n_fem][self.model.fem_prescribed] = state.fem_x[self.model.fem_prescribed]
+        if mpm is not None:  # sticky nodes of moving level sets start where they are
+            start[n_fem:] = mpm.stencils.active_x
+        if self.barrier is None or np.array_equal(start, target):
+            return self._solve(self.x_start)
+        fixed = ctx.fixed_positions  # the terms read this array: it is updated in place
+        current = start
+        x = self.x_start
+        its, friction_its, friction_ok = 0, 0, True
+        for _ in range(self.SCRIPTED_SUBSTEPS):
+            fixed[:] = current
+            self.potential.solution_changed(self.potential.to_unknowns(x))
+            frac = self.barrier.scripted_step(x, current, target)
+            if frac >= 1.0:
+                break
+            current = current + frac * (target - current)
+            fixed[:] = current
+            result, f_its, f_ok = self._solve(x)
+            its += result.nit
+            friction_its += f_its
+            friction_ok &= f_ok
+            if not result.success:
+                return result, friction_its, friction_ok
+            x = self.potential.to_positions(result.x)
+        else:
+            fixed[:] = target
+            raise StepError(
+                StepReport(
+                    step=state.step + 1,
+                    t=state.t + self.dt,
+                    success=False,
+                    status="SCRIPTED_MOTION_BLOCKED",
+                    message=(
+                        f"scripted nodes could not reach their positions without crossing after "
+                        f"{self.SCRIPTED_SUBSTEPS} part-way moves (something is squeezed "
+                        f"between a scripted body and another boundary?)"
+                    ),
+                    newton_iterations=its,
+                    residual=float("nan"),
+                )
+            )
+        fixed[:] = target
+        result, f_its, f_ok = self._solve(x)
+        result.nit += its
+        return result, friction_its + f_its, friction_ok and f_ok
+
     def _solve(self, x_n: np.ndarray) -> tuple[NewtonResult, int, bool]:
         """Minimise; with friction, the outer lagged-friction loop of Algorithm 1.
 
@@ -352,7 +416,7 @@ class ImplicitStepper:
             )
             friction_its, friction_ok = 0, True
         else:
-            result, friction_its, friction_ok = self._solve(self.x_start)
+            result, friction_its, friction_ok = self._solve_scripted(ctx, state, mpm)
         report_args = dict(
             friction_iterations=friction_its,
             friction_converged=friction_ok,
