@@ -32,6 +32,40 @@ from solvers.assembly import Triplets
 __all__ = ["FrictionTerm"]
 
 
+def _feature_keys(kind: str, pts: np.ndarray, pos: np.ndarray) -> np.ndarray:
+    """Closest feature of barrier terms as keys ``(n, 5)``: (kind, point, v0, v1, v2).
+
+    kind 0: vertex (v0), 1: edge (v0 < v1), 2: face (v0 v1 v2 as stored); unused slots -1.
+    """
+    n = pts.shape[0]
+    keys = np.full((n, 5), -1, dtype=np.int64)
+    keys[:, 1] = pts[:, 0]
+    rows = np.arange(n)
+    if kind == "pp":
+        keys[:, 0] = 0
+        keys[:, 2] = pts[:, 1]
+        return keys
+    args = [pos[pts[:, a]] for a in range(pts.shape[1])]
+    if kind == "pe":
+        typ = dist.point_edge_type(*args)
+        vertex = typ <= 1
+        keys[:, 0] = np.where(vertex, 0, 1)
+        keys[vertex, 2] = pts[rows[vertex], 1 + typ[vertex]]
+        edge = np.sort(pts[~vertex][:, 1:3], axis=1)
+        keys[~vertex, 2:4] = edge
+        return keys
+    typ = dist.point_triangle_type(*args)  # 0-2 vertices, 3-5 edges, 6 face
+    vertex, edge, face = typ <= 2, (typ >= 3) & (typ <= 5), typ == 6
+    keys[vertex, 0] = 0
+    keys[vertex, 2] = pts[rows[vertex], 1 + typ[vertex]]
+    local = np.array([[1, 2], [2, 3], [3, 1]])[typ[edge] - 3]
+    keys[edge, 0] = 1
+    keys[edge, 2:4] = np.sort(pts[rows[edge][:, None], local], axis=1)
+    keys[face, 0] = 2
+    keys[face, 2:5] = pts[face][:, 1:4]
+    return keys
+
+
 class FrictionTerm:
     """Lagged friction of the barrier's contacts.
 
@@ -67,71 +101,68 @@ class FrictionTerm:
 
     # ------------------------------------------------------------------ lagging
     def lag(self, x: np.ndarray) -> None:
-        """Contacts, normal forces and tangent bases at positions x (Algorithm 1, lines 5/9)."""
+        """Contacts, normal forces and tangent bases at positions x (Algorithm 1, lines 5/9).
+
+        Every barrier term (facet pairs and the signed duplicate-removal terms of eqs. 31-32) is
+        mapped to its closest feature (vertex, edge or face) and the signed coefficients are
+        summed per (point, feature): a point over a shared vertex gets one vertex contact
+        (2 - 1), a point over an edge interior next to a vertex gets none from that vertex
+        (1 - 1), so friction sees exactly the contacts the barrier has.
+        """
         bar = self.barrier
         bar.solution_changed(x)
         pos = bar._pos
-        cs = bar.collisions
-        kind = "pe" if self._layout.dim == 2 else "pt"
-        pts = bar.pairs.points.get(kind, np.zeros((0, 2), dtype=np.int64))
-        if pts.shape[0] == 0:
+        pairs = bar.pairs
+        rows, coefs = [], []
+        for kind, pts in pairs.points.items():
+            if kind == "ee" or pts.shape[0] == 0:
+                continue
+            rows.append(_feature_keys(kind, pts, pos))
+            coefs.append(pairs.coef[kind])
+        if not rows:
             self._clear()
             return
-        args = [pos[pts[:, a]] for a in range(pts.shape[1])]
-        if kind == "pe":
-            typ = dist.point_edge_type(*args)
-            # canonical contact key: (point, vertex) for endpoints, (point, edge) for interiors
-            feature = np.where(typ == 0, pts[:, 1], np.where(typ == 1, pts[:, 2], -1))
-        else:
-            typ = dist.point_triangle_type(*args)
-            feature = np.where(typ <= 2, pts[np.arange(len(typ)), 1 + np.minimum(typ, 2)], -1)
-        self._build(pos, cs, pts, typ, feature, kind)
+        keys = np.concatenate(rows)
+        unique, inverse = np.unique(keys, axis=0, return_inverse=True)
+        mult = np.zeros(unique.shape[0])
+        np.add.at(mult, inverse.ravel(), np.concatenate(coefs))
+        keep = mult > 0.5  # multiplicities are integers: 0 where the barrier cancels
+        self._build(pos, bar.collisions, unique[keep], np.rint(mult[keep]))
 
-    def _build(self, pos, cs, pts, typ, feature, kind) -> None:  # noqa: ANN001
-        d = self._layout.dim
+    def _build(self, pos, cs, keys, mult) -> None:  # noqa: ANN001
+        """Friction groups of contacts keyed (kind, point, v0, v1, v2) with multiplicities."""
         groups = []
-        # vertex contacts (one per point and vertex)
-        vmask = feature >= 0
-        if vmask.any():
-            pv = np.unique(np.column_stack([pts[vmask, 0], feature[vmask]]), axis=0)
-            p, q = pos[pv[:, 0]], pos[pv[:, 1]]
-            T = frames.point_point_tangent_basis(p, q)
-            coef = np.tile([1.0, -1.0], (pv.shape[0], 1))
-            groups.append((pv, coef, T, dist.point_point_distance(p, q)))
-        if kind == "pe":
-            e = pts[typ == 2]
-            if e.size:
-                p, a, b = pos[e[:, 0]], pos[e[:, 1]], pos[e[:, 2]]
-                beta = frames.point_edge_closest_parameter(p, a, b)
+        kind = keys[:, 0]
+        for code in (0, 1, 2):
+            sel = kind == code
+            if not sel.any():
+                continue
+            m = code + 2  # points per contact: vertex 2, edge 3, face 4
+            points = np.ascontiguousarray(keys[sel][:, 1 : 1 + m])
+            args = [pos[points[:, a]] for a in range(m)]
+            if code == 0:
+                coef = np.tile([1.0, -1.0], (points.shape[0], 1))
+                T = frames.point_point_tangent_basis(*args)
+                d = dist.point_point_distance(*args)
+            elif code == 1:
+                beta = frames.point_edge_closest_parameter(*args)
                 coef = np.column_stack([np.ones(len(beta)), beta - 1.0, -beta])
-                T = frames.point_edge_tangent_basis(p, a, b)
-                groups.append((e, coef, T, dist.point_edge_distance(p, a, b)))
-        else:
-            # edge contacts: (point, edge) unique over triangles whose closest feature is an edge
-            emask = (typ >= 3) & (typ <= 5)
-            if emask.any():
-                local = np.array([[1, 2], [2, 3], [3, 1]])[typ[emask] - 3]
-                rows = np.flatnonzero(emask)
-                edge = np.sort(pts[rows[:, None], local], axis=1)
-                pe = np.unique(np.column_stack([pts[rows, 0], edge]), axis=0)
-                p, a, b = pos[pe[:, 0]], pos[pe[:, 1]], pos[pe[:, 2]]
-                beta = frames.point_edge_closest_parameter(p, a, b)
-                coef = np.column_stack([np.ones(len(beta)), beta - 1.0, -beta])
-                T = frames.point_edge_tangent_basis(p, a, b)
-                groups.append((pe, coef, T, dist.point_edge_distance(p, a, b)))
-            f = pts[typ == 6]
-            if f.size:
-                args = [pos[f[:, k]] for k in range(4)]
+                T = frames.point_edge_tangent_basis(*args)
+                d = dist.point_edge_distance(*args)
+            else:
                 bary = frames.point_triangle_closest_barycentric(*args)
                 b1, b2 = bary[:, 0], bary[:, 1]
                 coef = np.column_stack([np.ones(len(b1)), b1 + b2 - 1.0, -b1, -b2])
                 T = frames.point_triangle_tangent_basis(*args)
-                groups.append((f, coef, T, dist.point_triangle_distance(*args)))
+                d = dist.point_triangle_distance(*args)
+            groups.append((points, coef, T, d, mult[sel]))
         self._groups = []
         n = 0
-        for points, coef, T, dvals in groups:
-            lam = -cs.omega[points[:, 0]] * barrier_derivative(
-                dvals, self.barrier.dhat, self.barrier.kappa
+        for points, coef, T, dvals, k in groups:
+            lam = (
+                -k
+                * cs.omega[points[:, 0]]
+                * barrier_derivative(dvals, self.barrier.dhat, self.barrier.kappa)
             )
             keep = lam > 0.0
             self._groups.append(
@@ -144,7 +175,6 @@ class FrictionTerm:
             )
             n += int(keep.sum())
         self.n_contacts = n
-        del d
 
     # ------------------------------------------------------------------ energy
     def solution_changed(self, x: np.ndarray) -> None:
