@@ -1,0 +1,414 @@
+"""Critical value of the friction coefficient: a stiff MPM box on a fixed FEM slope (paper 6.4).
+
+Setup (paper section 6.4, figures 11 and 12): a 2D MPM box 0.1 m x 0.02 m of 369 particles
+(a 41 x 9 lattice of spacing dx / 2 with the box edges included; each particle carries 1/369 of
+the box area), grid dx = 0.005 m, Neo-Hookean rho = 100 kg/m^2, E = 4e12 Pa, nu = 0.2, on a fixed
+FEM slope with tan(theta) = 0.2 under g = 5.10 m/s^2; dhat = 1e-3 m, kappa = 1e6 Pa,
+eps_v = 1e-5 m/s, backward Euler, dt = 1e-3 s, Newton tolerance 1e-8 m/s, lagged friction
+iterated until a minimisation under fresh friction data needs no Newton step (cap 100).
+
+Procedure, as in the paper: the box is placed dhat away from the slope and dhat away from an
+extra fixed FEM plane perpendicular to the slope on its downhill side, and settles without
+friction (full mode: 2 s, the paper's settling period; quick mode: 0.02 s, the box is static
+after ~10 steps). The settled state is then continued, for each mu in (0, 0.1, 0.1999, 0.2), in
+a scene without the extra plane (full mode: 1 s, the paper's release period 2 s to 3 s; quick
+mode: 0.06 s). The settled state is carried over as it is (``sim.state`` is replaced, as a
+checkpoint restore does); the box is released with its residual settling velocity (~1e-7 m/s).
+
+Geometry: ``"tilted_gravity"`` lays the slope along the x axis and tilts gravity by theta,
+g = g (-sin theta, -cos theta), so the box and slope are aligned with the MPM grid;
+``"rotated_slope"`` rotates every mesh and the particle lattice by theta about the origin and keeps
+g = (0, -g). Both are the same continuum problem. The slope is a fixed FEM block 1 m x 0.5 m
+(x in [-0.8, 0.2] m, top face y = 0) meshed like the paper's rigid plates: 4 vertices and
+2 triangles, so its top face is one segment and the box never meets a slope vertex. Variants
+(each settled and released on its own):
+
+- ``tilted_gravity`` (the reported ``cases``; quick and full mode);
+- ``rotated_slope`` (full mode);
+- ``fine_slope``: tilted gravity on the slope meshed with h = 0.1 m, whose top vertices sit every
+  0.1 m, two of them under the box's corner particle columns at release (quick mode: mu = 0.1999
+  only; full mode: every mu). It checks that friction near FEM boundary vertices counts each
+  contact once, as the barrier does (eq. 31).
+
+Metric: the centre-of-mass displacement s(t) down the slope is fitted by least squares with a
+quadratic s0 + v0 tau + a tau^2 / 2 over the release window tau >= ``fit_start`` (0.1 s full,
+0.02 s quick; the free v0 absorbs the short start-up where the sliding speed is below eps_v and
+the mollified friction is weaker); ``accel`` = a against the analytic acceleration
+g (sin theta - mu cos theta) (eq. 40; 0 for mu >= tan theta). For mu = 0.2 = tan theta the
+relative error is undefined (null) and the speed is the metric: the mollified static friction
+lets the box creep up to eps_v, where full Coulomb friction balances gravity exactly.
+
+A step that fails (``StepError``) ends its case; the error is kept in the case's ``error`` and in
+``failed_cases``, and the fit uses the steps before it. Known library limits when this was
+written: at tol = 1e-8 m/s the Newton increment of this very stiff box (E = 4e12 Pa) reaches a
+round-off floor of 1e-8 to 4e-8 m/s after a few hundred sliding steps (MAX_ITERATIONS), and the
+friction term counts a particle near a shared FEM boundary vertex twice (``fine_slope``).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+import bfemp
+from benchmarks.common import environment, peak_memory_mb, write_json
+
+log = logging.getLogger(__name__)
+
+NAME = "slope"
+
+PHYSICS = {
+    "box_size_m": (0.1, 0.02),
+    "particle_lattice": (41, 9),
+    "dx_m": 0.005,
+    "density_kg_m2": 100.0,
+    "E_Pa": 4e12,
+    "nu": 0.2,
+    "material": "neo_hookean",
+    "tan_theta": 0.2,
+    "g_m_s2": 5.10,
+    "mus": (0.0, 0.1, 0.1999, 0.2),
+    "dhat_m": 1e-3,
+    "kappa_Pa": 1e6,
+    "eps_v_m_s": 1e-5,
+    "integrator": "backward_euler",
+    "transfer": "apic",
+    "dt_s": 1e-3,
+    "tol_m_s": 1e-8,
+    "friction_iterations_cap": 100,
+    # the box starts this far from the slope and from the extra plane (dhat, plus a relative
+    # 1e-6 so that rounding of the rotated lattice never starts a particle inside dhat)
+    "initial_gap_m": 1e-3 * (1.0 + 1e-6),
+    "slope_lower_upper_m": ((-0.8, -0.5), (0.2, 0.0)),
+    "stop_plane_mesh": "rectangle 0.01 m x 0.037 m, from 3 dhat above the slope, h = 0.01 m",
+}
+
+#: variant -> (frame, slope mesh size h in m)
+VARIANTS = {
+    "tilted_gravity": ("tilted_gravity", 1.0),
+    "rotated_slope": ("rotated_slope", 1.0),
+    "fine_slope": ("tilted_gravity", 0.1),
+}
+
+MODES = {
+    "full": {
+        "settle_steps": 2000,
+        "release_steps": 1000,
+        "fit_start_s": 0.1,
+        "variants": {"tilted_gravity": None, "rotated_slope": None, "fine_slope": None},
+    },
+    "quick": {
+        "settle_steps": 20,
+        "release_steps": 60,
+        "fit_start_s": 0.02,
+        # variant -> the mus it runs (None: all)
+        "variants": {"tilted_gravity": None, "fine_slope": (0.1999,)},
+    },
+}
+
+
+def _rotation(frame: str, theta: float) -> np.ndarray:
+    """World-from-slope rotation ``(2, 2)``: identity, or a rotation by theta (rad)."""
+    if frame == "tilted_gravity":
+        return np.eye(2)
+    if frame == "rotated_slope":
+        c, s = math.cos(theta), math.sin(theta)
+        return np.array([[c, -s], [s, c]])
+    raise ValueError(f"frame must be 'tilted_gravity' or 'rotated_slope', got {frame!r}")
+
+
+def _scene(variant: str, mu: float, with_stop: bool) -> bfemp.Scene:
+    """Slope (+ the downhill stop plane) and the box dhat away from both, in world coordinates."""
+    p = PHYSICS
+    frame, slope_h = VARIANTS[variant]
+    theta = math.atan(p["tan_theta"])
+    R = _rotation(frame, theta)
+    # gravity in slope coordinates (tangent, normal), then into the world frame
+    g_slope = p["g_m_s2"] * np.array([-math.sin(theta), -math.cos(theta)])
+    scene = bfemp.Scene(dim=2, gravity=tuple(R @ g_slope))
+    mat = bfemp.NeoHookean(E=p["E_Pa"], nu=p["nu"], density=p["density_kg_m2"])
+    fixed = bfemp.motion.Fixed()
+    gap, dhat = p["initial_gap_m"], p["dhat_m"]
+    slope = bfemp.shapes.rectangle(*p["slope_lower_upper_m"], h=slope_h)
+    scene.add_fem(slope.points @ R.T, slope.cells, material=mat, prescribed=fixed, name="slope")
+    if with_stop:
+        stop = bfemp.shapes.rectangle((-gap - 0.01, 3.0 * dhat), (-gap, 0.04), h=0.01)
+        scene.add_fem(stop.points @ R.T, stop.cells, material=mat, prescribed=fixed, name="stop")
+    (lx, ly), (nx, ny) = p["box_size_m"], p["particle_lattice"]
+    xs, ys = np.meshgrid(np.linspace(0.0, lx, nx), np.linspace(0.0, ly, ny))
+    particles = np.stack([xs.ravel(), ys.ravel() + gap], axis=1)
+    volumes = np.full(particles.shape[0], lx * ly / particles.shape[0])
+    scene.add_mpm(np.ascontiguousarray(particles @ R.T), volumes, material=mat, name="box")
+    scene.set_grid(dx=p["dx_m"])
+    scene.set_contact(
+        dhat=dhat,
+        kappa=p["kappa_Pa"],
+        mu=mu,
+        eps_v=p["eps_v_m_s"],
+        friction_iterations=p["friction_iterations_cap"],
+    )
+    return scene
+
+
+def _simulation(scene: bfemp.Scene) -> bfemp.Simulation:
+    p = PHYSICS
+    return bfemp.Simulation(
+        scene,
+        integrator=p["integrator"],
+        transfer=p["transfer"],
+        dt=p["dt_s"],
+        tol=p["tol_m_s"],
+    )
+
+
+def _com(sim: bfemp.Simulation) -> tuple[np.ndarray, np.ndarray]:
+    """Centre-of-mass position ``(2,)`` in m and velocity ``(2,)`` in m/s of the box."""
+    m = sim.model.mpm_mass
+    return m @ sim.state.mpm_x / m.sum(), m @ sim.state.mpm_v / m.sum()
+
+
+def _settle(variant: str, steps: int) -> tuple[bfemp.State, dict]:
+    """Frictionless settling against the slope and the stop plane; the settled state."""
+    sim = _simulation(_scene(variant, 0.0, with_stop=True))
+    started, newton = time.perf_counter(), 0
+    for _ in range(steps):
+        newton += sim.step().newton_iterations
+    _, v = _com(sim)
+    info = {
+        "steps": steps,
+        "newton_iterations": newton,
+        "wall_s": time.perf_counter() - started,
+        "com_speed_at_release_m_s": float(np.linalg.norm(v)),
+        "min_gap_at_release_m": float(_min_gap(sim, VARIANTS[variant][0])),
+    }
+    return sim.state.copy(), info
+
+
+def _min_gap(sim: bfemp.Simulation, frame: str) -> float:
+    """Smallest particle height above the slope line in m."""
+    R = _rotation(frame, math.atan(PHYSICS["tan_theta"]))
+    return float((sim.state.mpm_x @ R)[:, 1].min())
+
+
+def _fit_acceleration(tau: np.ndarray, s: np.ndarray, fit_start: float) -> dict:
+    """Least-squares s = s0 + v0 tau + a tau^2 / 2 over tau >= fit_start; a in m/s^2."""
+    window = tau >= fit_start - 1e-12
+    if window.sum() < 4:
+        return {"accel": float("nan"), "fit_window_s": None, "fit_rms_m": None}
+    # shifted to the window's start for conditioning
+    shifted, offset = tau[window] - tau[window][0], s[window] - s[window][0]
+    coef = np.polynomial.polynomial.polyfit(shifted, offset, 2)
+    residual = np.polynomial.polynomial.polyval(shifted, coef) - offset
+    return {
+        "accel": 2.0 * float(coef[2]),
+        "fit_window_s": [float(tau[window][0]), float(tau[-1])],
+        "fit_rms_m": float(np.sqrt(np.mean(residual**2))),
+    }
+
+
+def _release(variant: str, mu: float, settled: bfemp.State, steps: int, fit_start: float) -> dict:
+    """Continue the settled box without the stop plane at friction ``mu``; fit its motion.
+
+    A failed step (``StepError``) ends the case; it is recorded in ``error`` and the fit uses
+    the steps completed before it.
+    """
+    p = PHYSICS
+    theta = math.atan(p["tan_theta"])
+    downhill = _rotation(VARIANTS[variant][0], theta) @ np.array([-1.0, 0.0])
+    sim = _simulation(_scene(variant, mu, with_stop=False))
+    state = sim.state.copy()  # the release model's own (slope-only) FEM arrays
+    state.t, state.step = settled.t, settled.step
+    for key in ("mpm_x", "mpm_v", "mpm_F", "mpm_C", "mpm_a", "mpm_Ca"):
+        setattr(state, key, getattr(settled, key).copy())
+    sim.state = state
+    tau, s, v_along, speed = [], [], [], []
+
+    def record() -> None:
+        x, v = _com(sim)
+        tau.append(sim.state.t - settled.t)
+        s.append(float(x @ downhill))
+        v_along.append(float(v @ downhill))
+        speed.append(float(np.linalg.norm(v)))
+
+    record()
+    newton, friction_max, friction_ok, min_d, error = 0, 0, True, math.inf, None
+    started = time.perf_counter()
+    for _ in range(steps):
+        try:
+            report = sim.step()
+        except bfemp.StepError as err:
+            error = str(err)
+            log.warning("%s mu=%g: %s", variant, mu, error)
+            break
+        newton += report.newton_iterations
+        friction_max = max(friction_max, report.friction_iterations)
+        friction_ok = friction_ok and report.friction_converged
+        if np.isfinite(report.min_distance):
+            min_d = min(min_d, report.min_distance)
+        record()
+    wall = time.perf_counter() - started
+    fit = _fit_acceleration(np.array(tau), np.array(s), fit_start)
+    g = p["g_m_s2"]
+    analytic = g * (math.sin(theta) - mu * math.cos(theta)) if mu < p["tan_theta"] else 0.0
+    accel = fit["accel"] if math.isfinite(fit["accel"]) else None  # None: too few steps
+    return {
+        "mu": mu,
+        "accel": accel,
+        "accel_analytic": analytic,
+        "accel_rel_error": (
+            abs(accel - analytic) / analytic if analytic > 0 and accel is not None else None
+        ),
+        "accel_abs_error": abs(accel - analytic) if accel is not None else None,
+        "max_speed": float(max(speed[1:], default=float("nan"))),
+        "final_speed": float(speed[-1]),
+        "fit_window_s": fit["fit_window_s"],
+        "fit_rms_m": fit["fit_rms_m"],
+        "steps": len(tau) - 1,
+        "error": error,
+        "newton_iterations": newton,
+        "friction_iterations_max": friction_max,
+        "friction_converged": friction_ok,
+        "min_distance_m": min_d if math.isfinite(min_d) else None,
+        "wall_s": wall,
+        "series": {"tau_s": tau, "speed_along_m_s": v_along},
+    }
+
+
+_STYLES = {"tilted_gravity": "-", "rotated_slope": "-.", "fine_slope": ":"}
+
+
+def _plot(results: dict, path: Path, title: str) -> None:
+    """Speed down the slope and per-step acceleration error against time since release.
+
+    Colours are the friction coefficients, line styles the variants; thin dashed lines are the
+    analytic speeds g (sin theta - mu cos theta) t. The error panel shows the reported
+    (``tilted_gravity``) cases only.
+    """
+    p = PHYSICS
+    theta = math.atan(p["tan_theta"])
+    g_sin = p["g_m_s2"] * math.sin(theta)
+    colors = {mu: f"C{k}" for k, mu in enumerate(p["mus"])}
+    fig = Figure(figsize=(12.0, 4.6))
+    FigureCanvasAgg(fig)
+    ax_v, ax_a = fig.subplots(1, 2)
+    for variant, result in results.items():
+        for case in result["cases"]:
+            tau = np.array(case["series"]["tau_s"])
+            v = np.array(case["series"]["speed_along_m_s"])
+            color, style = colors[case["mu"]], _STYLES[variant]
+            rel = case["accel_rel_error"]
+            label = f"{variant}, mu = {case['mu']:g}"
+            fit = f"{label} (fit: {rel:.1e})" if rel is not None else label
+            if case["error"] is not None:
+                fit += " (step failed)"
+            ax_v.plot(tau[1:], np.abs(v[1:]), style, color=color, label=fit)
+            if variant != "tilted_gravity":
+                continue
+            if case["accel_analytic"] > 0:
+                ax_v.plot(tau[1:], case["accel_analytic"] * tau[1:], "--", color="k", lw=0.6)
+            err = np.abs(np.diff(v) / np.diff(tau) - case["accel_analytic"]) / g_sin
+            ax_a.plot(tau[1:], np.maximum(err, 1e-16), style, color=color, label=label, lw=0.8)
+    ax_v.axhline(p["eps_v_m_s"], color="k", lw=0.8, ls=":", label="eps_v")
+    ax_v.set(yscale="log", xlabel="time since release (s)", ylabel="COM speed down the slope (m/s)")
+    ax_v.set_title("COM speed (thin dashed: analytic; fit: relative error of a)", fontsize=9)
+    ax_v.legend(fontsize=6, loc="lower right")
+    ax_a.set(yscale="log", xlabel="time since release (s)")
+    ax_a.set_ylabel("|a_n - a_analytic| / (g sin theta)")
+    ax_a.set_title("per-step COM acceleration error (tilted gravity)", fontsize=9)
+    ax_a.legend(fontsize=7)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+
+
+def _run_variant(variant: str, mus: tuple[float, ...], cfg: dict) -> dict:
+    """Settle once, release at each mu; the variant's settle record and cases."""
+    settled, settle = _settle(variant, cfg["settle_steps"])
+    log.info(
+        "%s: settled in %.1f s, COM speed %.2e m/s",
+        variant,
+        settle["wall_s"],
+        settle["com_speed_at_release_m_s"],
+    )
+    cases = []
+    for mu in mus:
+        case = _release(variant, mu, settled, cfg["release_steps"], cfg["fit_start_s"])
+        log.info(
+            "%s mu=%g: accel %.8g (analytic %.8g), max speed %.3g m/s, %.1f s",
+            variant,
+            mu,
+            case["accel"],
+            case["accel_analytic"],
+            case["max_speed"],
+            case["wall_s"],
+        )
+        cases.append(case)
+    frame, slope_h = VARIANTS[variant]
+    return {"frame": frame, "slope_h_m": slope_h, "settle": settle, "cases": cases}
+
+
+def _strip(cases: list[dict]) -> list[dict]:
+    return [{k: v for k, v in c.items() if k != "series"} for c in cases]
+
+
+def run(mode: str = "full", out: str | Path = "results") -> dict:
+    """Settle, release at each mu, fit the accelerations; write ``slope.json`` and ``slope.png``.
+
+    Args:
+        mode: ``"full"`` (the paper's settling and release periods, every variant) or
+            ``"quick"`` (short periods; the ``fine_slope`` variant at mu = 0.1999 only).
+        out: output folder.
+
+    Returns:
+        ``{"json": path, "png": path, **payload}``; ``payload["cases"]`` are the
+        ``tilted_gravity`` results, ``payload["variants"]`` those of every variant.
+    """
+    if mode not in MODES:
+        raise ValueError(f"mode must be one of {sorted(MODES)}, got {mode!r}")
+    cfg = MODES[mode]
+    out = Path(out)
+    started = time.perf_counter()
+    results = {
+        name: _run_variant(name, PHYSICS["mus"] if mus is None else mus, cfg)
+        for name, mus in cfg["variants"].items()
+    }
+    primary = results["tilted_gravity"]
+    everything = [c for r in results.values() for c in r["cases"]]
+    steps = sum(r["settle"]["steps"] for r in results.values())
+    newton = sum(r["settle"]["newton_iterations"] for r in results.values())
+    payload = {
+        "benchmark": NAME,
+        "mode": mode,
+        "frame": primary["frame"],
+        "cases": _strip(primary["cases"]),
+        "settle": primary["settle"],
+        "variants": {
+            name: {**{k: v for k, v in r.items() if k != "cases"}, "cases": _strip(r["cases"])}
+            for name, r in results.items()
+        },
+        "failed_cases": [
+            f"{name} mu={c['mu']:g}: {c['error']}"
+            for name, r in results.items()
+            for c in r["cases"]
+            if c["error"] is not None
+        ],
+        "wall_s": time.perf_counter() - started,
+        "steps": steps + sum(c["steps"] for c in everything),
+        "newton_iterations": newton + sum(c["newton_iterations"] for c in everything),
+        "peak_memory_mb": peak_memory_mb(),
+        "parameters": {**PHYSICS, **cfg, "variant_specs": VARIANTS},
+        "paper": {"accel_rel_error": 1e-4, "mu_0.2_speed": "around eps_v"},
+        "environment": environment(),
+        "series": {str(c["mu"]): c["series"] for c in primary["cases"]},
+    }
+    path = write_json(out, NAME, payload)
+    png = out / f"{NAME}.png"
+    _plot(results, png, f"MPM box on a FEM slope, tan theta = 0.2 ({mode} mode, dt = 1e-3 s)")
+    return {"json": str(path), "png": str(png), **payload}
