@@ -9,7 +9,7 @@ so no (3^d d)^2 per-particle block list is ever materialised.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 
 @njit(cache=True)
@@ -40,38 +40,44 @@ def _is_void(weights, grads, p, a, d):  # noqa: ANN001, ANN202
     return True
 
 
-@njit(cache=True)
-def _accumulate_blocks(nodes, weights, grads, dpdf, volume, pair_code, n_nodes, n_codes):  # noqa: ANN001, ANN202
+@njit(cache=True, parallel=True)
+def _accumulate_blocks(nodes, weights, grads, dpdf, volume, pair_code, n_nodes, n_codes, n_chunks):  # noqa: ANN001, ANN202, E501
     """blocks (G, 5^d, d, d): sum_p V_p g_a^T dP g_b (d x d per node pair; F-level PSD input).
 
-    ``dpdf`` (P, d*d, d*d) holds dP_im/dF_jl at [i*d + m, j*d + l]; ``grads`` are the effective
-    gradients g (P, K, d) with F = sum_a y_a g_a^T.
+    ``dpdf`` is (S, d*d, d*d) with dP_im/dF_jl at [i*d + m, j*d + l]; ``grads`` are the effective
+    gradients g (P, K, d) with F = sum_a y_a g_a^T. Particles are split into ``n_chunks`` ranges
+    accumulated in parallel into private copies (race-free), then summed.
     """
     n_p, k = nodes.shape
     d = grads.shape[2]
-    blocks = np.zeros((n_nodes, n_codes, d, d))
-    tmp = np.empty((d * d, k * d))
-    for p in range(n_p):
-        # tmp[(i, m), (b, j)] = sum_l dP[(i, m), (j, l)] g_b[l]
-        for r in range(d * d):
-            for b in range(k):
-                for j in range(d):
-                    acc = 0.0
-                    for l in range(d):
-                        acc += dpdf[p, r, j * d + l] * grads[p, b, l]
-                    tmp[r, b * d + j] = acc
-        for a in range(k):
-            if _is_void(weights, grads, p, a, d):
-                continue
-            node_a = nodes[p, a]
-            for b in range(k):
-                if _is_void(weights, grads, p, b, d):
-                    continue
-                code = pair_code[a, b]
-                for i in range(d):
+    partial = np.zeros((n_chunks, n_nodes, n_codes, d, d))
+    for c in prange(n_chunks):
+        blocks = partial[c]
+        tmp = np.empty((d * d, k * d))
+        for p in range(c * n_p // n_chunks, (c + 1) * n_p // n_chunks):
+            # tmp[(i, m), (b, j)] = sum_l dP[(i, m), (j, l)] g_b[l]
+            for r in range(d * d):
+                for b in range(k):
                     for j in range(d):
                         acc = 0.0
-                        for m in range(d):
-                            acc += grads[p, a, m] * tmp[i * d + m, b * d + j]
-                        blocks[node_a, code, i, j] += volume[p] * acc
-    return blocks
+                        for l in range(d):
+                            acc += dpdf[p, r, j * d + l] * grads[p, b, l]
+                        tmp[r, b * d + j] = acc
+            for a in range(k):
+                if _is_void(weights, grads, p, a, d):
+                    continue
+                node_a = nodes[p, a]
+                for b in range(k):
+                    if _is_void(weights, grads, p, b, d):
+                        continue
+                    code = pair_code[a, b]
+                    for i in range(d):
+                        for j in range(d):
+                            acc = 0.0
+                            for m in range(d):
+                                acc += grads[p, a, m] * tmp[i * d + m, b * d + j]
+                            blocks[node_a, code, i, j] += volume[p] * acc
+    out = partial[0].copy()
+    for c in range(1, n_chunks):
+        out += partial[c]
+    return out

@@ -10,6 +10,7 @@ offset) in numba, so the (3^d d)^2 per-particle block list is never built.
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from bfemp.mpm._hessian_kernels import _accumulate_blocks, _neighbour_table
@@ -120,5 +121,6 @@ class MpmElasticityTerm(ElasticityTerm):
             self._codes,
             self._n_grid,
             self._n_codes,
+            max(1, min(numba.get_num_threads(), st.nodes.shape[0] // 256)),
         )
         return Triplets(self._rows, self._cols, blocks.reshape(-1)[self._keep])
