@@ -291,8 +291,9 @@ def test_particles_on_cell_centre_lines_do_not_make_the_system_singular():
     scene = bfemp.Scene(dim=2)
     x, vol = bfemp.sample.box((0.0, 0.0), (0.4, 0.2), dx=dx, ppc=4)
     x[:, 0] -= dx / 4
-    scene.add_mpm(x, vol, material=bfemp.NeoHookean(E=1e8, nu=0.3, density=1000.0),
-                  velocity=(0.0, -40.0))
+    scene.add_mpm(
+        x, vol, material=bfemp.NeoHookean(E=1e8, nu=0.3, density=1000.0), velocity=(0.0, -40.0)
+    )
     scene.set_grid(dx=dx)
     sim = bfemp.Simulation(scene, dt=1e-4, tol=1e-6)
     report = sim.step()
