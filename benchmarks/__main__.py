@@ -9,9 +9,15 @@ import sys
 
 #: benchmark name -> module in this package exposing ``run(mode: str, out: Path) -> dict``.
 BENCHMARKS = {
+    "extremes": "benchmarks.extremes",
+    "hertz": "benchmarks.hertz",
     "perf_broadphase": "benchmarks.perf_broadphase",
+    "perf_contact": "benchmarks.perf_contact",
     "perf_fem": "benchmarks.perf_fem",
     "perf_mpm": "benchmarks.perf_mpm",
+    "rings": "benchmarks.rings",
+    "sine_boundary": "benchmarks.sine_boundary",
+    "slope": "benchmarks.slope",
 }
 
 
