@@ -16,6 +16,8 @@ EXAMPLES = sorted((Path(__file__).resolve().parents[2] / "examples").glob("*.tom
 def test_the_promised_examples_ship():
     names = {p.stem for p in EXAMPLES}
     assert {"cantilever", "mpm_block_slip_floor", "fem_mpm_no_contact"} <= names
+    # one scene per quick contact benchmark (rings, slope, hertz, sine_boundary)
+    assert {"rings", "slope", "hertz", "sine_boundary"} <= names
 
 
 @pytest.mark.parametrize("path", EXAMPLES, ids=[p.stem for p in EXAMPLES])
