@@ -201,6 +201,14 @@ def test_cantilever_example_is_the_demo_scene():
     assert sf.simulation["integrator"] == "newmark" and sf.simulation["dt"] == 0.01
 
 
+def test_rings_example_is_the_demo_scene():
+    from bfemp.demo import colliding_rings_scene
+
+    sf = scenefile.load("examples/rings.toml")
+    assert model_fingerprint(sf.scene.build()) == model_fingerprint(colliding_rings_scene().build())
+    assert sf.simulation["integrator"] == "newmark" and sf.simulation["dt"] == 2e-3
+
+
 def test_units_are_converted_and_settings_read():
     sf = scenefile.loads(BEAM)
     assert sf.simulation == {"integrator": "newmark", "dt": 0.01, "tol": 1e-6}

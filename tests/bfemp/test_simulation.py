@@ -1,12 +1,13 @@
 """The runner: frames and metrics written and readable; the demo; the scipy fallback path."""
 
+import json
 from pathlib import Path
 
 import meshio
 import numpy as np
 
 import bfemp
-from bfemp.demo import run_demo
+from bfemp.demo import run_cantilever_demo, run_demo
 from bfemp.io.vtk import read_pvd
 from solvers.linear import ScipySolver
 
@@ -51,8 +52,19 @@ def test_scipy_fallback_gives_the_same_trajectory_as_cholmod():
     assert np.allclose(a.state.fem_x, b.state.fem_x, atol=1e-11)
 
 
-def test_demo_writes_its_outputs_and_conserves_energy(tmp_path):
-    summary = run_demo(tmp_path, t_end=0.5, progress=False)
+def test_rings_demo_writes_its_outputs_conserves_momentum_and_keeps_the_rings_apart(tmp_path):
+    summary = run_demo(tmp_path, t_end=0.04, progress=False)  # contact starts at 0.025 s
+    outputs = summary["outputs"]
+    for path in (*outputs["frames"], outputs["metrics"], *outputs["plots"], outputs["summary"]):
+        assert Path(path).exists(), path
+    assert json.loads(Path(outputs["summary"]).read_text())["steps"] == summary["steps"] == 20
+    assert summary["contact_window_s"] is not None  # the rings did meet
+    assert 0.0 < summary["min_distance"] < 1e-2  # inside the barrier's range, never touching
+    assert summary["momentum_drift_rel"] < 1e-9
+
+
+def test_cantilever_demo_writes_its_outputs_and_conserves_energy(tmp_path):
+    summary = run_cantilever_demo(tmp_path, t_end=0.5, progress=False)
     outputs = summary["outputs"]
     for path in (outputs["frames"], outputs["metrics"], *outputs["plots"]):
         assert Path(path).exists(), path
