@@ -9,6 +9,16 @@ at x^{n+1} (Algorithm 2, line 14), and the velocity follows (21).
 
 Backward Euler: alpha = 1, beta = 1/2, gamma = 1. Mid-point Newmark (trapezoidal, energy
 conserving for linear problems): alpha = 1/2, beta = 1/4, gamma = 1/2.
+
+Damped Newmark (``"newmark_damped"``, not in the paper): alpha = 1/2, gamma = 0.55,
+beta = (gamma + 1/2)^2 / 4, Newmark's own dissipative member (unconditionally stable for linear
+problems, damps modes with omega dt >> 1, first order in dt). Why: the trapezoidal rule is not
+energy-stable for nonlinear problems, and a stiff barrier that switches on within a step pumps
+energy into the contact zone's unresolved modes. Measured on two FEM Neo-Hookean rings (the
+paper's rings at h = 0.25 m, 40 m/s each, dt = 2e-4 s, the whole 0.3 s collision): the total
+energy peaks at 2.41 x its start under mid-point Newmark, at 1.054 x under damped Newmark (and
+ends at 0.967 x). It curbs the growth, it does not rule it out: a 40 m/s block hitting a plate
+with dhat = 1e-3 m at dt = 1e-4 s still gains 47 %; only backward Euler never gains.
 """
 
 from __future__ import annotations
@@ -17,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Integrator", "BACKWARD_EULER", "NEWMARK", "integrator_from_name"]
+__all__ = ["Integrator", "BACKWARD_EULER", "NEWMARK", "NEWMARK_DAMPED", "integrator_from_name"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -51,12 +61,13 @@ class Integrator:
 
 BACKWARD_EULER = Integrator(name="backward_euler", alpha=1.0, beta=0.5, gamma=1.0)
 NEWMARK = Integrator(name="newmark", alpha=0.5, beta=0.25, gamma=0.5)
+NEWMARK_DAMPED = Integrator(name="newmark_damped", alpha=0.5, beta=0.25 * 1.05**2, gamma=0.55)
 
-_BY_NAME = {i.name: i for i in (BACKWARD_EULER, NEWMARK)}
+_BY_NAME = {i.name: i for i in (BACKWARD_EULER, NEWMARK, NEWMARK_DAMPED)}
 
 
 def integrator_from_name(name: str | Integrator) -> Integrator:
-    """``"backward_euler"`` or ``"newmark"`` (or an ``Integrator``) to an ``Integrator``."""
+    """``"backward_euler"``, ``"newmark"``, ``"newmark_damped"`` (or an ``Integrator``)."""
     if isinstance(name, Integrator):
         return name
     try:

@@ -13,11 +13,12 @@ Format (``#`` comments; numbers in SI units, scalars may also be strings with a 
 
     [simulation]                  # Simulation(...) keyword arguments
     strategy = "barrier"          # coupling strategy
-    integrator = "newmark"        # or "backward_euler"
+    integrator = "newmark"        # or "backward_euler", "newmark_damped"
     transfer = "apic"             # or "pic", "flip" (MPM bodies)
     dt = 0.01                     # s
     tol = 1e-6                    # Newton tolerance on ||p||_inf / dt, m/s
     max_newton_iterations = 200
+    warm_start = false            # true: Newton starts from the predicted x^{n+1} (no contact)
 
     [run]                         # Simulation.run(...) settings; the command line may override
     t_end = 2.0                   # s

@@ -40,7 +40,7 @@ TOP_LEVEL = (
     "quick",
     "check",
 )
-INTEGRATORS = ("backward_euler", "newmark")
+INTEGRATORS = ("backward_euler", "newmark", "newmark_damped")
 TRANSFERS = ("apic", "pic", "flip")
 _INIT_HINTS = {
     "inverted": "cells must be counter-clockwise (2D) / right-handed (3D); flip the last two "
@@ -191,7 +191,15 @@ def _simulation(root: Table) -> dict:
     if not root.has("simulation"):
         return {}
     t = root.sub("simulation")
-    keys = ("strategy", "integrator", "transfer", "dt", "tol", "max_newton_iterations")
+    keys = (
+        "strategy",
+        "integrator",
+        "transfer",
+        "dt",
+        "tol",
+        "max_newton_iterations",
+        "warm_start",
+    )
     t.check_keys(keys)
     out: dict = {}
     if t.has("strategy"):
@@ -206,6 +214,8 @@ def _simulation(root: Table) -> dict:
         out["tol"] = t.number("tol", "velocity", positive=True)
     if t.has("max_newton_iterations"):
         out["max_newton_iterations"] = t.integer("max_newton_iterations", minimum=1)
+    if t.has("warm_start"):
+        out["warm_start"] = t.boolean("warm_start")
     return out
 
 

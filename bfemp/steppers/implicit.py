@@ -106,6 +106,8 @@ class ImplicitStepper:
         newton: Newton options (``step_scale`` is set to ``dt``: tolerance in m/s).
         linear_solver: defaults to CHOLMOD (scipy fallback with a warning).
         transfer: MPM particle-grid transfer, ``"apic"``, ``"pic"`` or ``"flip"``.
+        warm_start: start Newton from the predicted x^{n+1} (see ``_warm_started``) instead of
+            from x^n.
     """
 
     def __init__(
@@ -117,8 +119,10 @@ class ImplicitStepper:
         newton: NewtonOptions,
         linear_solver: LinearSolver | None = None,
         transfer: str = "apic",
+        warm_start: bool = False,
     ) -> None:
         self.model = model
+        self.warm_start = bool(warm_start)
         self.integrator = integrator
         self.dt = float(dt)
         self.newton = replace(newton, step_scale=self.dt)
@@ -295,7 +299,7 @@ class ImplicitStepper:
         if mpm is not None:  # sticky nodes of moving level sets start where they are
             start[n_fem:] = mpm.stencils.active_x
         if self.barrier is None or np.array_equal(start, target):
-            return self._solve(self.x_start)
+            return self._solve(self._warm_started(self.x_start, self._predicted))
         fixed = ctx.fixed_positions  # the terms read this array: it is updated in place
         current = start
         x = self.x_start
@@ -336,6 +340,41 @@ class ImplicitStepper:
         result, f_its, f_ok = self._solve(x)
         result.nit += its
         return result, friction_its + f_its, friction_ok and f_ok
+
+    def _warm_started(self, x_n: np.ndarray, predicted: np.ndarray) -> np.ndarray:
+        """Newton's start: x^n moved toward a predicted x^{n+1} ``(n_dof,)`` in m.
+
+        The prediction (eq. 21 with a^{n+1} = a^n; slip-normal coordinates stay fixed) is taken
+        only when no contact pair is active at x^n, the whole move passes the line search's
+        feasibility filter (no contact or det F = 0 before 1 / 0.9 of it, section 5) and it
+        lowers E; otherwise Newton starts at x^n. Measured (hence off by default): rings demo to
+        t = 0.1 s, 390 Newton iterations against 386 from x^n (free-flight steps far from
+        contact need 0 instead of 1, but steps where contact was lost at x^n need more; taken in
+        contact too, cut short at the filter, it cost 23 % more, as the prediction ignores the
+        contact forces); cantilever demo, 2 per step either way (the prediction is not within
+        the 1e-6 m/s tolerance).
+        """
+        pot = self.potential
+        if not self.warm_start or x_n.size == 0:
+            return x_n
+        y_n = pot.to_unknowns(x_n)
+        p = pot.to_unknowns(predicted - x_n)
+        if pot.fixed_dofs is not None:
+            p[pot.fixed_dofs] = 0.0
+        if not np.any(p):
+            return x_n
+        pot.solution_changed(y_n)
+        in_contact = self.barrier is not None and self.barrier.pairs.n_pairs > 0
+        if in_contact or pot.max_step_size(y_n, p) < 1.0:
+            return x_n
+        e_n = pot.value(y_n)
+        y = y_n + p
+        pot.solution_changed(y)
+        e = pot.value(y)
+        if not (np.isfinite(e) and e < e_n):
+            pot.solution_changed(y_n)
+            return x_n
+        return pot.to_positions(y)
 
     def _solve(self, x_n: np.ndarray) -> tuple[NewtonResult, int, bool]:
         """Minimise; with friction, the outer lagged-friction loop of Algorithm 1.
@@ -416,6 +455,8 @@ class ImplicitStepper:
             )
             friction_its, friction_ok = 0, True
         else:
+            # a^{n+1} ~ a^n in eq. 21: x^{n+1} ~ x_hat + 2 alpha beta dt^2 a^n (warm start)
+            self._predicted = ctx.x_hat + integ.weight(dt) * a_n
             result, friction_its, friction_ok = self._solve_scripted(ctx, state, mpm)
         report_args = dict(
             friction_iterations=friction_its,
