@@ -209,6 +209,22 @@ class CholmodSolver:
             raise LinearSolveError("CHOLMOD solution has non-finite entries")
         return x
 
+    def solve_again(self, b: np.ndarray) -> np.ndarray | None:
+        """Solve with the last numeric factorisation (a back-solve, no new factorisation).
+
+        Args:
+            b: right-hand side ``(n,)`` of the size of the last factorised matrix.
+
+        Returns:
+            x ``(n,)``, or None when no factorisation is kept, b has another size or x is not
+            finite.
+        """
+        if self._factor is None or self._shape is None or b.shape != (self._shape[0],):
+            return None
+        x = np.asarray(self._factor.solve_A(np.asarray(b, dtype=np.float64)), dtype=np.float64)
+        x = x.reshape(-1)
+        return x if np.all(np.isfinite(x)) else None
+
 
 class ScipySolver:
     """Fallback SPD solver: SuperLU (``scipy.sparse.linalg.splu``) in symmetric mode.
@@ -222,6 +238,7 @@ class ScipySolver:
         self.n_symbolic = 0
         self.n_numeric = 0
         self.last_timings = {"analyze": 0.0, "factorize": 0.0, "solve": 0.0}
+        self._lu: spla.SuperLU | None = None
 
     def solve(
         self, A: sp.csc_matrix, b: np.ndarray, *, pattern_version: int | None = None
@@ -255,6 +272,7 @@ class ScipySolver:
                 "matrix is not positive definite: SuperLU needed off-diagonal pivoting"
             )
         _check_pivots(lu.U.diagonal())
+        self._lu = lu
         t1 = time.perf_counter()
         timings["factorize"] = t1 - t0
         x = lu.solve(b)
@@ -262,6 +280,13 @@ class ScipySolver:
         if not np.all(np.isfinite(x)):
             raise LinearSolveError("SuperLU solution has non-finite entries")
         return x
+
+    def solve_again(self, b: np.ndarray) -> np.ndarray | None:
+        """Solve with the last factorisation; see :meth:`CholmodSolver.solve_again`."""
+        if self._lu is None or b.shape != (self._lu.shape[0],):
+            return None
+        x = self._lu.solve(np.asarray(b, dtype=np.float64))
+        return x if np.all(np.isfinite(x)) else None
 
 
 def default_linear_solver() -> LinearSolver:

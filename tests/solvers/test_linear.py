@@ -47,6 +47,21 @@ def test_solvers_agree_on_random_spd_system():
     np.testing.assert_allclose(solutions[0], solutions[-1], rtol=1e-9, atol=1e-12)
 
 
+def test_solve_again_back_solves_with_the_last_factorisation():
+    rng = np.random.default_rng(1)
+    n = 200
+    A = _spd(rng, n)
+    for solver in _solvers():
+        assert solver.solve_again(np.ones(n)) is None  # nothing factorised yet
+        solver.solve(A, rng.standard_normal(n))
+        factorisations = solver.n_numeric
+        b = rng.standard_normal(n)
+        x = solver.solve_again(b)
+        np.testing.assert_allclose(A @ x, b, atol=1e-10 * np.abs(b).max())
+        assert solver.n_numeric == factorisations
+        assert solver.solve_again(np.ones(n + 1)) is None  # another size: no answer
+
+
 @needs_cholmod
 def test_cholmod_reuses_symbolic_analysis_while_pattern_is_unchanged():
     rng = np.random.default_rng(1)
