@@ -51,7 +51,9 @@ class Objective(Protocol):
     """The energy contract :func:`minimize` relies on (units: J for E, x in m typically).
 
     An optional attribute ``fixed_dofs: np.ndarray | None`` (bool mask (n,)) marks DOFs held at
-    their ``x0`` value; it is read with ``getattr(objective, "fixed_dofs", None)``.
+    their ``x0`` value; it is read with ``getattr(objective, "fixed_dofs", None)``. An optional
+    method ``increment_norm(p) -> float`` (p (n,), zero on fixed DOFs) replaces ``||p||_inf`` in
+    the stopping rule (e.g. measured on what the unknowns move, not on the unknowns).
     """
 
     def solution_changed(self, x: np.ndarray) -> None:
@@ -181,6 +183,20 @@ def _accept_near_solution(
     return LineSearchResult(success=True, alpha=alpha0, x=trial, fun=fun, nfev=1, n_nonfinite=0)
 
 
+def _increment_norm(
+    objective: Objective, p_free: np.ndarray, free: np.ndarray | None, n: int
+) -> float:
+    """The stopping rule's size of the increment: ``objective.increment_norm`` or ||p||_inf."""
+    norm = getattr(objective, "increment_norm", None)
+    if norm is None:
+        return float(np.abs(p_free).max()) if p_free.size else 0.0
+    if free is None:
+        return float(norm(p_free))
+    p = np.zeros(n)
+    p[free] = p_free
+    return float(norm(p))
+
+
 def _newton_direction(
     objective: Objective,
     x: np.ndarray,
@@ -299,7 +315,7 @@ def minimize(
             return finish(
                 NewtonStatus.LINEAR_SOLVE_FAILED, f"non-finite Newton step at iteration {res.nit}"
             )
-        p_inf = float(np.abs(p_free).max()) if p_free.size else 0.0
+        p_inf = _increment_norm(objective, p_free, free, n)
         res.step_inf_norm = p_inf
         if p_inf / options.step_scale < options.tol:
             return finish(

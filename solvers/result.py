@@ -74,8 +74,8 @@ class NewtonResult:
         fun: energy at ``x`` (J for an incremental potential); nan if never finite.
         jac: gradient at ``x`` (n,), or None when it was not evaluated there.
         nfev: number of ``value`` calls; njev: ``gradient`` calls; nhev: ``hessian`` calls.
-        step_inf_norm: ``||p||_inf`` of the last computed Newton increment (units of ``x``),
-            nan if none was computed.
+        step_inf_norm: ``||p||_inf`` of the last computed Newton increment (units of ``x``;
+            the objective's ``increment_norm`` where it has one), nan if none was computed.
         alphas: accepted line-search step sizes, one per iteration.
         timings: wall-clock seconds per phase, keys :data:`TIMING_KEYS`.
     """

@@ -426,8 +426,13 @@ class ImplicitStepper:
         pot.solution_changed(y)
         grad = pot.gradient(y)
         free = None if pot.fixed_dofs is None else ~pot.fixed_dofs
-        p = solve_again(-(grad if free is None else grad[free]))
-        if p is None or not np.max(np.abs(p), initial=0.0) < self.newton.tol * self.dt:
+        p_free = solve_again(-(grad if free is None else grad[free]))
+        if p_free is None:
+            return False
+        p = p_free if free is None else np.zeros(grad.size)
+        if free is not None:
+            p[free] = p_free
+        if not pot.increment_norm(p) < self.newton.tol * self.dt:
             return False
         result.jac = grad
         return True
