@@ -301,3 +301,35 @@ def test_particles_on_cell_centre_lines_do_not_make_the_system_singular():
     report = sim.step()
     assert report.success and report.newton_iterations <= 3
     assert np.allclose(sim.state.mpm_v, [0.0, -40.0])
+
+
+def test_newton_increment_norm_ignores_nodes_the_particles_barely_reach():
+    """The stopping rule measures what an increment moves (particle positions and dx dF): a
+    node reached with weight ~1e-12 moving 1e-6 m counts ~1e-12 m, a heavy node counts fully,
+    and the measure never exceeds ||p||_inf."""
+    from tests.bfemp.conftest import started_stepper
+
+    scene = bfemp.Scene(dim=2)
+    # one particle a hair off a half-integer grid coordinate: its far nodes get w ~ 1e-12
+    x = np.array([[0.5 + 1.5e-6, 0.3]])
+    scene.add_mpm(x, np.array([1e-2]), material=bfemp.NeoHookean(E=1e5, nu=0.3, density=1.0))
+    scene.set_grid(dx=1.0)
+    _, stepper, _ = started_stepper(scene)
+    pot, layout = stepper.potential, stepper.layout
+    weights = stepper.context.mpm.stencils.weights[0]
+    light = int(np.argmin(weights))
+    heavy = int(np.argmax(weights))
+    assert weights[light] < 1e-11
+    for node, expected in ((light, weights[light]), (heavy, weights[heavy])):
+        dof_node = layout.dof_node[
+            stepper.context.mpm.node_offset + stepper.context.mpm.stencils.nodes[0, node]
+        ]
+        p = np.zeros(layout.n_dof)
+        p[2 * dof_node] = 1e-6
+        size = pot.increment_norm(p)
+        assert size <= 1e-6
+        assert size >= 1e-6 * expected  # the particle moves by w p at least
+        if node == light:
+            assert size < 1e-11
+        else:
+            assert size > 1e-7
