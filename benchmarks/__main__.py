@@ -1,4 +1,10 @@
-"""``python -m benchmarks NAME [--quick | --full] [--out DIR]``: run one benchmark."""
+"""``python -m benchmarks NAME [--quick | --full] [--out DIR]``: run one benchmark.
+
+A benchmark module may add options of its own: ``add_arguments(parser)`` extends the parser and
+``main_from_args(args) -> int`` then runs it instead of ``run`` (``tradeoff``: ``--scenes``,
+``--knobs``, ``--workers``, ``--scheduler``, ``--replay``, ...). Its ``ValueError`` is printed
+as a usage error (exit status 2).
+"""
 
 from __future__ import annotations
 
@@ -18,19 +24,37 @@ BENCHMARKS = {
     "rings": "benchmarks.rings",
     "sine_boundary": "benchmarks.sine_boundary",
     "slope": "benchmarks.slope",
+    "tradeoff": "benchmarks.tradeoff",
 }
 
 
-def main(argv: list[str] | None = None) -> int:
+def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="python -m benchmarks")
     parser.add_argument("name", choices=sorted(BENCHMARKS))
     mode = parser.add_mutually_exclusive_group()
     mode.add_argument("--quick", action="store_const", const="quick", dest="mode")
     mode.add_argument("--full", action="store_const", const="full", dest="mode")
     parser.add_argument("--out", default="results", help="output folder (default results/)")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    parser = _parser()
+    # first pass: only the name, to add the options of the chosen benchmark (--help included)
+    first = argparse.ArgumentParser(add_help=False)
+    first.add_argument("name", nargs="?")
+    name = first.parse_known_args(argv)[0].name
+    module = importlib.import_module(BENCHMARKS[name]) if name in BENCHMARKS else None
+    if module is not None and hasattr(module, "add_arguments"):
+        module.add_arguments(parser)
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
-    module = importlib.import_module(BENCHMARKS[args.name])
+    if hasattr(module, "main_from_args"):
+        try:
+            return module.main_from_args(args)
+        except ValueError as err:
+            parser.error(str(err))
     summary = module.run(args.mode or "full", args.out)
     print(f"{args.name}: wrote {summary['json']}")
     return 0

@@ -189,7 +189,8 @@ def _scene(cfg: dict, material: str, top_plate: str = "elastic") -> tuple[bfemp.
     disk = MATERIALS[material](E=E, nu=NU, density=RHO)
     scene = bfemp.Scene(dim=2)
     scene.add_mpm(x, volume, material=disk, name="disk")
-    gap = DHAT * GAP_FACTOR
+    dhat = cfg.get("dhat", DHAT)
+    gap = dhat * GAP_FACTOR
     y_bottom = float(x[:, 1].min()) - gap  # top face of the bottom plate
     y_top = float(x[:, 1].max()) + gap  # bottom face of the top plate
     w = PLATE_HALF_WIDTH
@@ -213,7 +214,7 @@ def _scene(cfg: dict, material: str, top_plate: str = "elastic") -> tuple[bfemp.
             name="top_plate",
         )
     scene.set_grid(dx=cfg["dx"])
-    scene.set_contact(dhat=DHAT, kappa=KAPPA, mu=cfg["mu"], eps_v=cfg["eps_v"])
+    scene.set_contact(dhat=dhat, kappa=KAPPA, mu=cfg["mu"], eps_v=cfg["eps_v"])
     geo = dict(y_bottom=y_bottom, outer=outer, bottom=bottom, top=top, particles=x.shape[0])
     return scene, geo
 
@@ -265,13 +266,14 @@ def _run_material(cfg: dict, material: str, top_plate: str = "elastic") -> dict:
     scene, geo = _scene(cfg, material, top_plate)
     sim = bfemp.Simulation(
         scene,
-        strategy="barrier",
+        strategy=cfg.get("strategy", "barrier"),
         integrator="backward_euler",
         dt=cfg["dt"],
         tol=cfg["tol"],
         max_newton_iterations=cfg["max_newton_iterations"],
     )
     model = sim.model
+    dhat = cfg.get("dhat", DHAT)
     bottom = model.fem_bodies[geo["bottom"]].nodes
     top = model.fem_bodies[geo["top"]].nodes
     x_mean0 = sim.state.mpm_x[:, 0].mean()
@@ -292,11 +294,11 @@ def _run_material(cfg: dict, material: str, top_plate: str = "elastic") -> dict:
         rows["t"].append(sim.state.t)
         rows["F"].append(-float(fem_f[bottom, 1].sum()))
         rows["F_top"].append(float(fem_f[top, 1].sum()))
-        rows["a"].append(contact_half_width(x, geo["y_bottom"], DHAT))
+        rows["a"].append(contact_half_width(x, geo["y_bottom"], dhat))
         rows["a_interpolated"].append(
-            interpolated_half_width(x[geo["outer"]], geo["y_bottom"], DHAT)
+            interpolated_half_width(x[geo["outer"]], geo["y_bottom"], dhat)
         )
-        rows["n_contact"].append(int(np.count_nonzero(x[:, 1] - geo["y_bottom"] < DHAT)))
+        rows["n_contact"].append(int(np.count_nonzero(x[:, 1] - geo["y_bottom"] < dhat)))
         rows["newton"].append(report.newton_iterations)
         rows["friction_iterations"].append(report.friction_iterations)
         log.info(
@@ -346,6 +348,56 @@ def _run_material(cfg: dict, material: str, top_plate: str = "elastic") -> dict:
             "newton_iterations": s["newton"].astype(int).tolist(),
         },
     }
+
+
+#: the keys of a ``run_point`` settings dict (the trade study's knobs and fixed settings)
+POINT_KEYS = (
+    "dx",
+    "spacing",
+    "dt",
+    "dhat",
+    "eps_v",
+    "tol",
+    "strategy",
+    "material",
+    "mu",
+    "t_end",
+    "max_newton_iterations",
+    "boundary_refine",
+    "grid_offset_cells",
+)
+
+
+def run_point(settings: dict) -> dict:
+    """Compress the disk of one material at one setting of the discretisation knobs
+    (``benchmarks.tradeoff``).
+
+    Args:
+        settings: every key of ``POINT_KEYS``: grid ``dx`` (m), particle ``spacing`` (m, interior
+            rings), time step ``dt`` (s), barrier ``dhat`` (m; also the distance that defines
+            the contact width), friction ``eps_v`` (m/s), Newton ``tol`` (m/s), the library's
+            ``strategy`` name, ``material`` (a key of ``MATERIALS``), friction ``mu``, ``t_end``
+            (s), ``max_newton_iterations``, ``boundary_refine`` and ``grid_offset_cells``.
+
+    Returns:
+        JSON-ready scalars of ``_run_material`` (no samples): ``rel_error`` =
+        ``|C_fit / C_hertz - 1|`` (NaN with fewer than 3 samples in the fit range),
+        ``C_fit_over_C_hertz``, ``fit_samples``, ``steps``, ``newton_iterations``,
+        ``particles``, and the ``StepError`` message in ``failure``.
+    """
+    missing = [key for key in POINT_KEYS if key not in settings]
+    unknown = sorted(set(settings) - set(POINT_KEYS))
+    if missing or unknown:
+        raise ValueError(f"hertz.run_point: missing settings {missing}, unknown {unknown}")
+    if settings["material"] not in MATERIALS:
+        raise ValueError(
+            f"hertz: settings.material must be one of {sorted(MATERIALS)}, "
+            f"got {settings['material']!r}"
+        )
+    run = _run_material(dict(settings), settings["material"])
+    out = {k: v for k, v in run.items() if k not in ("samples", "error")}
+    out["failure"] = run["error"]
+    return out
 
 
 def _grid_sweep() -> dict:

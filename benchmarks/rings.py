@@ -107,7 +107,7 @@ def _scene(cfg: dict) -> bfemp.Scene:
     mesh = bfemp.shapes.ring((centre, 0.0), R_INNER, R_OUTER, h=cfg["fem_h"])
     scene.add_fem(mesh, material=material, velocity=(-SPEED, 0.0), name="fem_ring")
     scene.set_grid(dx=cfg["dx"], origin=_grid_origin(cfg))
-    scene.set_contact(dhat=DHAT, kappa=KAPPA)
+    scene.set_contact(dhat=cfg.get("dhat", DHAT), kappa=KAPPA)
     return scene
 
 
@@ -169,7 +169,12 @@ def _run_one(cfg: dict, transfer: str) -> dict:
     """One transfer: run to ``t_end`` and reduce the metrics table."""
     scene = _scene(cfg)
     sim = bfemp.Simulation(
-        scene, strategy="barrier", integrator="newmark", transfer=transfer, dt=cfg["dt"], tol=TOL
+        scene,
+        strategy=cfg.get("strategy", "barrier"),
+        integrator="newmark",
+        transfer=transfer,
+        dt=cfg["dt"],
+        tol=cfg.get("tol", TOL),
     )
     model = sim.model
     check = _PenetrationCheck(sim)
@@ -227,6 +232,47 @@ def _run_one(cfg: dict, transfer: str) -> dict:
             "drift": drift,
             "min_distance": m.column("min_distance"),
         },
+    }
+
+
+#: the keys of a ``run_point`` settings dict (the trade study's knobs and fixed settings)
+POINT_KEYS = ("dx", "ppc", "fem_h", "dt", "t_end", "dhat", "tol", "strategy", "transfer")
+
+
+def run_point(settings: dict) -> dict:
+    """One transfer at one setting of the discretisation knobs (``benchmarks.tradeoff``).
+
+    Args:
+        settings: every key of ``POINT_KEYS``: MPM grid ``dx`` (m), particles per cell ``ppc``
+            (a square), FEM mesh size ``fem_h`` (m), time step ``dt`` (s), ``t_end`` (s, at least
+            0.293), barrier ``dhat`` (m), Newton ``tol`` (m/s), the library's ``strategy`` name
+            and the ``transfer``.
+
+    Returns:
+        JSON-ready scalars: ``energy_loss_pct`` and ``contact_duration_s`` (last minus first step
+        with a contact pair; None without contact), the run's ``steps``, ``newton_iterations``,
+        ``momentum_drift_rel``, ``min_distance`` (m), ``penetrations``, ``particles`` and the
+        ``StepError`` message in ``failure`` (None when every step converged).
+    """
+    missing = [key for key in POINT_KEYS if key not in settings]
+    unknown = sorted(set(settings) - set(POINT_KEYS))
+    if missing or unknown:
+        raise ValueError(f"rings.run_point: missing settings {missing}, unknown {unknown}")
+    run = _run_one(dict(settings), settings["transfer"])
+    window = run["contact_window_s"]
+    return {
+        "energy_loss_pct": run["energy_loss_pct"],
+        "contact_window_s": window,
+        "contact_duration_s": window[1] - window[0] if window else None,
+        "steps": run["steps"],
+        "newton_iterations": run["newton_iterations"],
+        "newton_iterations_max": run["newton_iterations_max"],
+        "momentum_drift_rel": run["momentum_drift_rel"],
+        "min_distance": run["min_distance"],
+        "penetrations": run["penetrations"],
+        "particles": run["particles"],
+        "fem_vertices": run["fem_vertices"],
+        "failure": run["error"],
     }
 
 

@@ -123,9 +123,11 @@ def _rotation(frame: str, theta: float) -> np.ndarray:
     raise ValueError(f"frame must be 'tilted_gravity' or 'rotated_slope', got {frame!r}")
 
 
-def _scene(variant: str, mu: float, with_stop: bool) -> bfemp.Scene:
-    """Slope (+ the downhill stop plane) and the box dhat away from both, in world coordinates."""
-    p = PHYSICS
+def _scene(variant: str, mu: float, with_stop: bool, p: dict = PHYSICS) -> bfemp.Scene:
+    """Slope (+ the downhill stop plane) and the box dhat away from both, in world coordinates.
+
+    ``p`` is ``PHYSICS`` or a copy with some entries changed (``run_point``).
+    """
     frame, slope_h = VARIANTS[variant]
     theta = math.atan(p["tan_theta"])
     R = _rotation(frame, theta)
@@ -156,10 +158,10 @@ def _scene(variant: str, mu: float, with_stop: bool) -> bfemp.Scene:
     return scene
 
 
-def _simulation(scene: bfemp.Scene) -> bfemp.Simulation:
-    p = PHYSICS
+def _simulation(scene: bfemp.Scene, p: dict = PHYSICS) -> bfemp.Simulation:
     return bfemp.Simulation(
         scene,
+        strategy=p.get("strategy", "barrier"),
         integrator=p["integrator"],
         transfer=p["transfer"],
         dt=p["dt_s"],
@@ -173,9 +175,9 @@ def _com(sim: bfemp.Simulation) -> tuple[np.ndarray, np.ndarray]:
     return m @ sim.state.mpm_x / m.sum(), m @ sim.state.mpm_v / m.sum()
 
 
-def _settle(variant: str, steps: int) -> tuple[bfemp.State, dict]:
+def _settle(variant: str, steps: int, p: dict = PHYSICS) -> tuple[bfemp.State, dict]:
     """Frictionless settling against the slope and the stop plane; the settled state."""
-    sim = _simulation(_scene(variant, 0.0, with_stop=True))
+    sim = _simulation(_scene(variant, 0.0, with_stop=True, p=p), p)
     started, newton = time.perf_counter(), 0
     for _ in range(steps):
         newton += sim.step().newton_iterations
@@ -212,16 +214,22 @@ def _fit_acceleration(tau: np.ndarray, s: np.ndarray, fit_start: float) -> dict:
     }
 
 
-def _release(variant: str, mu: float, settled: bfemp.State, steps: int, fit_start: float) -> dict:
+def _release(
+    variant: str,
+    mu: float,
+    settled: bfemp.State,
+    steps: int,
+    fit_start: float,
+    p: dict = PHYSICS,
+) -> dict:
     """Continue the settled box without the stop plane at friction ``mu``; fit its motion.
 
     A failed step (``StepError``) ends the case; it is recorded in ``error`` and the fit uses
     the steps completed before it.
     """
-    p = PHYSICS
     theta = math.atan(p["tan_theta"])
     downhill = _rotation(VARIANTS[variant][0], theta) @ np.array([-1.0, 0.0])
-    sim = _simulation(_scene(variant, mu, with_stop=False))
+    sim = _simulation(_scene(variant, mu, with_stop=False, p=p), p)
     state = sim.state.copy()  # the release model's own (slope-only) FEM arrays
     state.t, state.step = settled.t, settled.step
     for key in ("mpm_x", "mpm_v", "mpm_F", "mpm_C", "mpm_a", "mpm_Ca"):
@@ -356,6 +364,97 @@ def _run_variant(variant: str, mus: tuple[float, ...], cfg: dict) -> dict:
 
 def _strip(cases: list[dict]) -> list[dict]:
     return [{k: v for k, v in c.items() if k != "series"} for c in cases]
+
+
+#: the keys of a ``run_point`` settings dict (the trade study's knobs and fixed settings)
+POINT_KEYS = (
+    "dt",
+    "dx",
+    "ppc",
+    "dhat",
+    "eps_v",
+    "tol",
+    "strategy",
+    "mu",
+    "settle_s",
+    "release_s",
+    "fit_start_s",
+)
+
+
+def point_physics(settings: dict) -> dict:
+    """``PHYSICS`` with the knobs of a ``run_point`` settings dict applied.
+
+    The particle lattice keeps the box edges: ``k = sqrt(ppc)`` particles per cell and axis at
+    spacing ``dx / k``, i.e. ``(round(0.1 k / dx) + 1) x (round(0.02 k / dx) + 1)`` particles
+    (41 x 9 at the paper's dx = 0.005 m, ppc = 4); the box starts ``dhat (1 + 1e-6)`` from the
+    slope and the stop plane, as in ``PHYSICS``.
+    """
+    k = round(math.sqrt(settings["ppc"]))
+    if k < 1 or k * k != settings["ppc"]:
+        raise ValueError(
+            f"slope: settings.ppc must be a square (1, 4, 9, ...), got {settings['ppc']}"
+        )
+    lx, ly = PHYSICS["box_size_m"]
+    spacing = settings["dx"] / k
+    return {
+        **PHYSICS,
+        "dt_s": settings["dt"],
+        "dx_m": settings["dx"],
+        "particle_lattice": (round(lx / spacing) + 1, round(ly / spacing) + 1),
+        "dhat_m": settings["dhat"],
+        "initial_gap_m": settings["dhat"] * (1.0 + 1e-6),
+        "eps_v_m_s": settings["eps_v"],
+        "tol_m_s": settings["tol"],
+        "strategy": settings["strategy"],
+    }
+
+
+def run_point(settings: dict) -> dict:
+    """Settle and release the ``tilted_gravity`` box at one friction coefficient and one setting of
+    the discretisation knobs (``benchmarks.tradeoff``).
+
+    Args:
+        settings: every key of ``POINT_KEYS``: time step ``dt`` (s), grid ``dx`` (m), particles
+            per cell ``ppc`` (a square), barrier ``dhat`` (m), friction ``eps_v`` (m/s), Newton
+            ``tol`` (m/s), the library's ``strategy`` name, friction coefficient ``mu`` (below
+            tan theta = 0.2), the settling and release periods ``settle_s``, ``release_s`` and
+            the fit's start ``fit_start_s`` (s after release).
+
+    Returns:
+        JSON-ready scalars of the release (``_release`` without its series): ``accel``,
+        ``accel_analytic`` (m/s^2), ``accel_rel_error``, ``steps``, ``newton_iterations`` (settling
+        and release), ``particles``, and the ``StepError`` message in ``failure``.
+    """
+    missing = [key for key in POINT_KEYS if key not in settings]
+    unknown = sorted(set(settings) - set(POINT_KEYS))
+    if missing or unknown:
+        raise ValueError(f"slope.run_point: missing settings {missing}, unknown {unknown}")
+    p = point_physics(settings)
+    dt = settings["dt"]
+    try:
+        settled, settle = _settle("tilted_gravity", round(settings["settle_s"] / dt), p)
+    except bfemp.StepError as err:  # no release without a settled box
+        log.warning("slope settling: %s", err)
+        return {"accel": None, "accel_rel_error": None, "steps": None, "failure": str(err)}
+    case = _release(
+        "tilted_gravity",
+        settings["mu"],
+        settled,
+        round(settings["release_s"] / dt),
+        settings["fit_start_s"],
+        p,
+    )
+    out = {k: v for k, v in case.items() if k not in ("series", "error")}
+    nx, ny = p["particle_lattice"]
+    out.update(
+        steps=settle["steps"] + case["steps"],
+        newton_iterations=settle["newton_iterations"] + case["newton_iterations"],
+        release_newton_iterations=case["newton_iterations"],
+        particles=nx * ny,
+        failure=case["error"],
+    )
+    return out
 
 
 def run(mode: str = "full", out: str | Path = "results") -> dict:

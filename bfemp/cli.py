@@ -6,6 +6,9 @@
     bfemp run SCENE.toml [--out DIR] [--t-end T] [--resume] [--quick] [--check] [--quiet]
                          [--every N] [--checkpoint-every N] [--dry-run]
     bfemp bench NAME [--quick | --full] [--out DIR]
+    bfemp sweep [--quick | --full] [--out DIR] [--scenes S,..] [--knobs K,..] [--workers N]
+                [--scheduler tcp://HOST:PORT] [--threads-per-point N] [--point-timeout S]
+    bfemp sweep --replay TRADEOFF.json --id ID | --point JSON
     bfemp info RESULT_DIR [--json]
 
 Mistakes in a scene file or argument are printed as ``bfemp: error: <message>`` without a
@@ -70,6 +73,45 @@ def _parser() -> argparse.ArgumentParser:
     mode.add_argument("--quick", action="store_const", const="quick", dest="mode")
     mode.add_argument("--full", action="store_const", const="full", dest="mode")
     bench.add_argument("--out", default="results", help="output folder (default results/)")
+
+    sweep = sub.add_parser(
+        "sweep",
+        help="trade study: accuracy against cost of the discretisation knobs "
+        "(python -m benchmarks tradeoff)",
+    )
+    mode = sweep.add_mutually_exclusive_group()
+    mode.add_argument(
+        "--quick", action="store_const", const="quick", dest="mode", help="tiny sweep (minutes)"
+    )
+    mode.add_argument(
+        "--full",
+        action="store_const",
+        const="full",
+        dest="mode",
+        help="sweep around the paper's settings (the default; about a day of CPU)",
+    )
+    sweep.add_argument("--out", default="results", help="output folder (default results/)")
+    # the options of benchmarks.tradeoff.add_arguments (a test keeps both in step)
+    sweep.add_argument("--scenes", help="comma-separated scenes (default: all)")
+    sweep.add_argument("--knobs", help="comma-separated knobs (default: all of each scene)")
+    sweep.add_argument("--workers", type=int, help="local point processes at once (default: cores)")
+    sweep.add_argument("--scheduler", help="run the points on a Dask scheduler (tcp://host:port)")
+    sweep.add_argument(
+        "--threads-per-point", type=int, default=1, help="threads of each point (default 1)"
+    )
+    sweep.add_argument("--point-timeout", type=float, help="wall-time limit of one point in s")
+    sweep.add_argument(
+        "--cost",
+        choices=("wall", "cpu"),
+        default="wall",
+        help="cost axis: the points' wall time (default) or CPU time (steadier on a busy machine)",
+    )
+    sweep.add_argument(
+        "--replay", metavar="JSON", help="re-run a recorded point (record or tradeoff.json)"
+    )
+    sweep.add_argument("--id", help="with --replay: the point's id in tradeoff.json")
+    sweep.add_argument("--point", metavar="JSON", help="re-run the point given as a JSON record")
+    sweep.add_argument("--verbose", action="store_true", help="log every point as it finishes")
 
     info = sub.add_parser("info", help="summarise a result folder")
     info.add_argument("result_dir", help="the output folder of a run")
@@ -170,16 +212,22 @@ def _run(args: argparse.Namespace, argv: list[str]) -> int:
     return 0
 
 
-def _bench(args: argparse.Namespace) -> int:
+def _benchmark_module(name: str) -> object:
     # The benchmarks are a sibling package, not a dependency of the library: they are looked up
     # by name at run time (only here), so bfemp itself never imports them.
     try:
-        registry = importlib.import_module("benchmarks.__main__").BENCHMARKS
-    except ImportError:
+        return importlib.import_module(name)
+    except ModuleNotFoundError as err:
+        if not (err.name or "").startswith("benchmarks"):
+            raise
         raise SceneError(
             "the benchmarks package is not installed",
             hint="run from a source checkout (pip install -e .)",
         ) from None
+
+
+def _bench(args: argparse.Namespace) -> int:
+    registry = _benchmark_module("benchmarks.__main__").BENCHMARKS
     if args.name not in registry:
         raise SceneError(
             f"unknown benchmark '{args.name}'; available: {', '.join(sorted(registry))}"
@@ -188,6 +236,12 @@ def _bench(args: argparse.Namespace) -> int:
     summary = module.run(args.mode or "full", args.out)
     print(f"{args.name}: wrote {summary.get('json', args.out)}")
     return 0
+
+
+def _sweep(args: argparse.Namespace) -> int:
+    # sweep, or replay one point; its ValueErrors (unknown knob, scene, bad scheduler address)
+    # are input errors (exit 2), a point that does not reproduce its error exits 1
+    return _benchmark_module("benchmarks.tradeoff").main_from_args(args)
 
 
 def _info(args: argparse.Namespace) -> int:
@@ -211,6 +265,7 @@ def main(argv: list[str] | None = None) -> int:
         "demo": _demo,
         "run": lambda a: _run(a, argv),
         "bench": _bench,
+        "sweep": _sweep,
         "info": _info,
     }
     try:

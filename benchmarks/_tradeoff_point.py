@@ -1,0 +1,227 @@
+"""Running the points of the trade study (``benchmarks.tradeoff``), each in a fresh process.
+
+``execute_point(point)`` is the pure function that both executors run (a local thread pool and a
+Dask cluster): it starts ``python -m benchmarks._tradeoff_point SPEC RESULT`` with the point's
+settings in ``SPEC`` and reads the measurement back from ``RESULT``. A fresh process per point
+makes the peak resident memory (``ru_maxrss``) that point's own and keeps numba and BLAS thread
+counts identical wherever the point runs: the child's ``NUMBA_NUM_THREADS``,
+``OMP_NUM_THREADS``, ``OPENBLAS_NUM_THREADS`` and ``MKL_NUM_THREADS`` are the point's
+``threads`` (Dask workers set some of these to 1 for their own tasks).
+
+``execute_local`` runs a list of points on a pool of local processes, ``execute_dask`` on a Dask
+cluster; both return the measurements in the order of the points.
+
+The measurement (JSON): ``metrics`` (what the scene's ``run_point`` returns), ``wall_s`` (s, the
+``run_point`` call: scene build and time loop, without interpreter start and imports),
+``cpu_s`` (s, the CPU time of the process over that call, all its threads: with one thread per
+point it is the wall time without the waits for a busy machine's cores),
+``process_wall_s`` (s, the whole child process, measured by the parent), ``peak_memory_mb``
+(MiB, the child's peak resident memory) and ``failure`` (None, or why the child produced no
+metrics: an exception, a crash, a timeout).
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+import logging
+import math
+import os
+import re
+import subprocess
+import sys
+import tempfile
+import time
+import traceback
+from concurrent.futures import ThreadPoolExecutor, as_completed
+from pathlib import Path
+
+log = logging.getLogger(__name__)
+
+#: environment variables that fix the thread count of a point's process
+THREAD_VARIABLES = (
+    "NUMBA_NUM_THREADS",
+    "OMP_NUM_THREADS",
+    "OPENBLAS_NUM_THREADS",
+    "MKL_NUM_THREADS",
+)
+_STDERR_TAIL = 2000  # characters of a failed child's stderr kept in ``failure``
+
+
+def execute_point(point: dict) -> dict:
+    """Run one point in a fresh Python process and return its measurement (see module doc).
+
+    Args:
+        point: at least ``module`` (the scene's benchmark module, exposing ``run_point``),
+            ``settings`` (what ``run_point`` takes), ``threads`` (threads of the child) and
+            ``timeout_s`` (s, None for none).
+
+    Returns:
+        the measurement dict; never raises for a failing point (``failure`` says why).
+    """
+    env = {**os.environ, **{name: str(int(point["threads"])) for name in THREAD_VARIABLES}}
+    with tempfile.TemporaryDirectory(prefix="bfemp-tradeoff-") as tmp:
+        spec, result = Path(tmp) / "point.json", Path(tmp) / "result.json"
+        spec.write_text(json.dumps({"module": point["module"], "settings": point["settings"]}))
+        started = time.perf_counter()
+        try:
+            proc = subprocess.run(
+                [sys.executable, "-m", __name__, str(spec), str(result)],
+                env=env,
+                capture_output=True,
+                text=True,
+                timeout=point.get("timeout_s"),
+                check=False,
+            )
+        except subprocess.TimeoutExpired:
+            return _failed(f"timed out after {point['timeout_s']} s", started)
+        if proc.returncode != 0 or not result.exists():
+            tail = proc.stderr[-_STDERR_TAIL:].strip()
+            return _failed(f"point process exited with status {proc.returncode}: {tail}", started)
+        measurement = json.loads(result.read_text())
+    measurement["process_wall_s"] = time.perf_counter() - started
+    return measurement
+
+
+def _log_done(point_id: str, measurement: dict) -> None:
+    metrics = measurement.get("metrics") or {}
+    log.info(
+        "%s: %.1f s, %s Newton iterations%s",
+        point_id,
+        measurement.get("wall_s") or float("nan"),
+        metrics.get("newton_iterations"),
+        f", FAILED: {measurement['failure']}" if measurement.get("failure") else "",
+    )
+
+
+def execute_local(ids: list[str], jobs: list[dict], workers: int) -> list[dict]:
+    """``execute_point`` of every job, ``workers`` point processes at once.
+
+    Args:
+        ids: ``(n,)`` point ids (for the log); jobs: ``(n,)`` arguments of ``execute_point``;
+        workers: processes at once (>= 1).
+
+    Returns:
+        ``(n,)`` measurements, in the order of ``jobs``.
+    """
+    results: list[dict | None] = [None] * len(jobs)
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        futures = {pool.submit(execute_point, job): k for k, job in enumerate(jobs)}
+        for future in as_completed(futures):
+            k = futures[future]
+            results[k] = future.result()
+            _log_done(ids[k], results[k])
+    return results
+
+
+_ADDRESS = re.compile(r"(tcp|tls|ws|wss|ucx)://(\[[0-9a-fA-F:.]+\]|[^\s:/\[\]]+):(\d{1,5})")
+
+
+def check_scheduler(address: str) -> str:
+    """``address`` (stripped) if it reads like a Dask scheduler address (``tcp://host:port``)."""
+    match = _ADDRESS.fullmatch(address.strip())
+    if match is None or not 0 < int(match.group(3)) < 65536:
+        raise ValueError(
+            f"--scheduler must be a Dask scheduler address like tcp://host:8786, got {address!r}"
+        )
+    return address.strip()
+
+
+def execute_dask(ids: list[str], jobs: list[dict], address: str, timeout_s: float) -> list[dict]:
+    """``execute_point`` of every job on the Dask cluster of the scheduler at ``address``.
+
+    Args:
+        ids, jobs: as for ``execute_local``.
+        address: ``tcp://host:port`` of the scheduler.
+        timeout_s: seconds to wait for the connection to the scheduler.
+
+    Returns:
+        ``(n,)`` measurements, in the order of ``jobs``.
+
+    Raises:
+        ValueError: a malformed address, no ``distributed`` package, or no scheduler reached.
+    """
+    address = check_scheduler(address)
+    try:
+        import distributed
+    except ImportError:
+        raise ValueError(
+            "--scheduler needs the Dask 'distributed' package (pip install distributed)"
+        ) from None
+    try:
+        client = distributed.Client(address, timeout=timeout_s)
+    except (OSError, TimeoutError) as err:
+        raise ValueError(f"cannot reach the Dask scheduler at {address}: {err}") from None
+    with client:
+        # pure=False: a replayed or repeated point runs again instead of reusing a result
+        futures = client.map(execute_point, jobs, pure=False)
+        index = {future.key: k for k, future in enumerate(futures)}
+        for future in distributed.as_completed(futures):
+            _log_done(ids[index[future.key]], future.result())
+        return client.gather(futures)
+
+
+def _failed(why: str, started: float) -> dict:
+    return {
+        "metrics": None,
+        "wall_s": None,
+        "cpu_s": None,
+        "peak_memory_mb": None,
+        "process_wall_s": time.perf_counter() - started,
+        "failure": why,
+    }
+
+
+def measure(module: str, settings: dict) -> dict:
+    """In this process: ``module.run_point(settings)``, its wall time and the peak memory."""
+    from benchmarks.common import peak_memory_mb
+
+    run_point = importlib.import_module(module).run_point
+    started, cpu_started = time.perf_counter(), time.process_time()
+    try:
+        metrics = run_point(settings)
+    except Exception as err:  # recorded as the point's failure; the sweep goes on
+        log.error("%s.run_point failed:\n%s", module, traceback.format_exc())
+        return {
+            "metrics": None,
+            "wall_s": time.perf_counter() - started,
+            "cpu_s": time.process_time() - cpu_started,
+            "peak_memory_mb": peak_memory_mb(),
+            "failure": f"{type(err).__name__}: {err}",
+        }
+    wall, cpu = time.perf_counter() - started, time.process_time() - cpu_started
+    return {
+        "metrics": metrics,
+        "wall_s": wall,
+        "cpu_s": cpu,
+        "peak_memory_mb": peak_memory_mb(),
+        "failure": metrics.get("failure"),
+    }
+
+
+def main(argv: list[str]) -> int:
+    """``python -m benchmarks._tradeoff_point SPEC RESULT``: measure the point in ``SPEC``."""
+    logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    spec_path, result_path = argv
+    spec = json.loads(Path(spec_path).read_text())
+    measurement = measure(spec["module"], spec["settings"])
+    # NaN is not JSON: the parent reads it back as None
+    Path(result_path).write_text(json.dumps(_finite(measurement)))
+    return 0
+
+
+def _finite(value: object) -> object:
+    """``value`` with NaN and infinities replaced by None (recursively; numpy scalars too)."""
+    if isinstance(value, dict):
+        return {str(k): _finite(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_finite(v) for v in value]
+    if hasattr(value, "item") and not isinstance(value, str):  # numpy scalar
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

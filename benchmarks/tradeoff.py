@@ -1,0 +1,637 @@
+"""Trade study (issue 6): accuracy against cost of the discretisation knobs of three benchmarks.
+
+``python -m benchmarks tradeoff [--quick | --full] [--scenes rings,slope] [--knobs dt,dx]
+[--workers N | --scheduler tcp://host:port] [--cost wall|cpu] [--out DIR]``, also
+``bfemp sweep`` with the same options. Replay one point:
+``python -m benchmarks tradeoff --replay tradeoff.json --id ID`` or
+``--point '<record as JSON>'``.
+
+Scenes and errors (one scalar per point, dimensionless):
+
+- ``slope`` (``benchmarks.slope.run_point``): the MPM box settles and slides down the FEM slope
+  at mu = 0.1; error = ``|a_fit - a_analytic| / a_analytic`` (eq. 40).
+- ``hertz`` (``benchmarks.hertz.run_point``): the linear-elastic disk between the plates;
+  error = ``|C_fit / C_hertz - 1|`` (eq. 39).
+- ``rings`` (``benchmarks.rings.run_point``, APIC): no analytic value; error = the larger of the
+  relative differences of the energy loss over the collision window and of the contact duration
+  from a reference run made with the finest value of every swept knob at once (one-at-a-time
+  points never reach it, except the point that is the reference, whose error is 0). The rings
+  are frictionless: ``eps_v`` is no knob of theirs.
+
+Knobs (``KNOBS``): ``strategy`` (coupling strategy, categorical; ``"bfemp"`` is the library's
+``"barrier"`` stepper, the only one so far; other names registered in ``bfemp.steppers`` are
+accepted as they are), ``dt`` (s), ``dx`` (MPM grid, m; the rings' FEM mesh size ``fem_h`` stays
+fixed, the slope's particle lattice follows the grid at fixed ppc, the disk's particles stay),
+``ppc`` (particles per cell, a square; rings and slope), ``spacing`` (the disk's particle
+spacing in m; hertz), ``dhat`` (m), ``eps_v`` (m/s) and ``tol`` (Newton, m/s). The sweeps are
+one at a time around a base setting (``SCENES[scene]["modes"][mode]``): every point differs from
+the base in one knob. Points with equal settings run once (the base belongs to every sweep).
+
+Modes: ``quick`` is a tiny sweep of coarse settings (seconds per point; 29 points, 3.5 min on
+2 busy cores); its errors are those of coarse discretisations (the rings' energy loss is far
+from converged) and only show the harness at work. ``full`` sweeps around the paper's settings
+(35 points). Expected full-mode costs on the 2-core development machine, extrapolated from the
+recorded single runs (``benchmarks/records``): slope ~3-15 min per point (3000 steps at
+~0.07 s), 13 points; hertz ~10-40 min per point (60 steps of 45k particles), 11 points; rings
+1-5 h per point (1500-3000 steps of 20k-35k particles; the partial record ran 1500 steps of 2.2k
+particles in 9 min), 11 points with the reference (dt = 1e-4 s, ppc = 16, dhat = 5e-3 m) the
+costliest: about a day of CPU for all three, meant for a Dask cluster (``--scheduler``).
+
+Every point runs in a fresh Python process (``benchmarks._tradeoff_point``) with ``threads``
+numba/BLAS threads (``--threads-per-point``, default 1): its wall time (``run_point``: scene
+build and time loop), CPU time and peak memory are its own. The cost axis of the fronts is the
+wall time (``--cost cpu``: the CPU time, which a busy machine, where points wait for cores,
+inflates less). Local runs use ``--workers`` processes at once (default: the number of cores);
+with ``--scheduler`` the same pure function ``execute_point`` is submitted to a Dask cluster
+(``distributed.Client``). Before the timed points a few steps of each scene (``warmup``) fill
+numba's on-disk cache, so that no point's time holds compilation (on a Dask cluster of several
+machines only the machines those runs land on are warmed).
+
+Outputs in ``--out`` (default ``results/``): ``tradeoff.json`` (every point's record, the Pareto
+fronts, the knob effects), ``tradeoff_<scene>.png`` (error against cost, log-log, the
+Pareto front and every point labelled by its settings) and ``tradeoff.md`` (per scene: what
+each knob buys per second, the best knob, the front, a table of the points).
+
+A point's record holds everything to run it again: ``scene``, ``settings`` (every input of
+``run_point``, the knobs included), ``strategy``, ``mode``, ``threads`` and, for rings, the
+``reference`` (its settings and the metrics the error is taken against), and the ``commit``
+that ran it. Replaying a record re-runs the point and recomputes the error; the runs are
+deterministic (one process per point, fixed thread counts), so at the same commit the error is
+reproduced exactly (the wall time is not).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import logging
+import math
+import os
+import shlex
+import time
+from pathlib import Path
+
+import numpy as np
+
+from benchmarks._tradeoff_point import (
+    check_scheduler,
+    execute_dask,
+    execute_local,
+    execute_point,
+)
+from benchmarks._tradeoff_report import (
+    COSTS,
+    best_knob,
+    knob_effect,
+    markdown,
+    pareto_front,
+    plot_scene,
+)
+from benchmarks._tradeoff_scenes import FINER, KNOBS, SCENES, STRATEGIES
+from benchmarks.common import environment, git_commit, write_json
+
+log = logging.getLogger(__name__)
+
+NAME = "tradeoff"
+MODES = ("quick", "full")
+CONNECT_TIMEOUT_S = 10.0  # s, to reach a Dask scheduler
+
+
+# ----------------------------------------------------------------------------- planning
+def _short(value: object) -> str:
+    """A compact label of a knob value: 2e-3, 0.5, 0.333, 4, bfemp."""
+    if isinstance(value, str) or isinstance(value, int) and not isinstance(value, bool):
+        return str(value)
+    value = float(value)
+    if value == 0.0:
+        return "0"
+    exponent = math.floor(math.log10(abs(value)))
+    if -1 <= exponent < 3:
+        return format(value, ".3g")
+    return f"{format(value / 10.0**exponent, '.3g')}e{exponent}"
+
+
+def _names(value: str | list[str] | tuple[str, ...] | None, what: str, allowed: tuple) -> list:
+    """Validated names from a comma-separated string or a list; None: every allowed one."""
+    if value is None:
+        return list(allowed)
+    names = value.split(",") if isinstance(value, str) else list(value)
+    names = [n.strip() for n in names if n.strip()]
+    if not names:
+        raise ValueError(f"--{what}s: give at least one {what}; available: {', '.join(allowed)}")
+    for name in names:
+        if name not in allowed:
+            raise ValueError(f"unknown {what} {name!r}; available: {', '.join(allowed)}")
+    return list(dict.fromkeys(names))
+
+
+def _strategies() -> tuple[str, ...]:
+    """Strategy names a point accepts: the trade study's and the library's registered ones."""
+    registry = getattr(importlib.import_module("bfemp.steppers"), "STRATEGIES", {})
+    return tuple(dict.fromkeys([*STRATEGIES, *registry]))
+
+
+def _check_value(scene: str, knob: str, value: object) -> None:
+    if knob == "strategy":
+        if value not in _strategies():
+            raise ValueError(
+                f"{scene}: unknown strategy {value!r}; available: {', '.join(_strategies())}"
+            )
+        return
+    ok = isinstance(value, int | float) and not isinstance(value, bool)
+    if not ok or not math.isfinite(value) or value <= 0:
+        raise ValueError(f"{scene}: knob {knob} must be a positive number, got {value!r}")
+
+
+def scene_knobs(scene: str, mode: str, knobs: list[str], sweeps: dict | None) -> dict:
+    """The sweeps of ``scene``: knob -> values, for the chosen knobs the scene has."""
+    spec = SCENES[scene]
+    values = dict(spec["modes"][mode]["sweeps"])
+    for knob, override in (sweeps or {}).get(scene, {}).items():
+        if knob not in spec["knobs"]:
+            raise ValueError(
+                f"sweeps[{scene!r}]: {scene} has no knob {knob!r}; its knobs: "
+                f"{', '.join(spec['knobs'])}"
+            )
+        override = tuple(override) if isinstance(override, list | tuple) else (override,)
+        if not override:
+            raise ValueError(f"sweeps[{scene!r}][{knob!r}] is empty")
+        values[knob] = override
+    chosen = {k: tuple(values[k]) for k in knobs if k in spec["knobs"]}
+    for knob, vals in chosen.items():
+        for value in vals:
+            _check_value(scene, knob, value)
+    return chosen
+
+
+def plan(
+    mode: str,
+    scenes: str | list[str] | None = None,
+    knobs: str | list[str] | None = None,
+    *,
+    sweeps: dict | None = None,
+    threads: int = 1,
+) -> list[dict]:
+    """The points of a sweep (records without results), in run order.
+
+    Args:
+        mode: ``"quick"`` or ``"full"``.
+        scenes: names or a comma-separated string (None: every scene).
+        knobs: names or a comma-separated string (None: every knob of each scene). A scene that
+            has none of the chosen knobs is skipped (logged); no scene left is an error.
+        sweeps: ``{scene: {knob: values}}`` replacing the mode's values of those knobs.
+        threads: numba/BLAS threads of each point's process.
+
+    Returns:
+        one dict per distinct point: ``id`` (``scene/label``), ``scene``, ``label``, ``role``
+        (``"base"``, ``"sweep"`` or ``"reference"``), ``knob`` and ``value`` (None for base and
+        reference), ``sweeps`` (the knobs whose sweep holds the point), ``is_reference``,
+        ``settings``, ``strategy``, ``mode``, ``threads``.
+    """
+    if mode not in MODES:
+        raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+    if not (isinstance(threads, int) and threads >= 1):
+        raise ValueError(f"--threads-per-point must be an integer >= 1, got {threads!r}")
+    scenes = _names(scenes, "scene", tuple(sorted(SCENES)))
+    knobs = _names(knobs, "knob", KNOBS)
+    for scene in sweeps or {}:
+        if scene not in SCENES:
+            raise ValueError(f"sweeps: unknown scene {scene!r}; available: {sorted(SCENES)}")
+    points = []
+    for scene in scenes:
+        chosen = scene_knobs(scene, mode, knobs, sweeps)
+        if not chosen:
+            log.warning(
+                "%s has none of the knobs %s (its knobs: %s): skipped",
+                scene,
+                ", ".join(knobs),
+                ", ".join(SCENES[scene]["knobs"]),
+            )
+            continue
+        points += _scene_points(scene, mode, chosen, threads)
+    if not points:
+        raise ValueError(
+            f"no scene among {', '.join(scenes)} has any of the knobs {', '.join(knobs)}; "
+            + "; ".join(f"{s}: {', '.join(SCENES[s]['knobs'])}" for s in scenes)
+        )
+    return points
+
+
+def _scene_points(scene: str, mode: str, chosen: dict, threads: int) -> list[dict]:
+    spec = SCENES[scene]
+    base = dict(spec["modes"][mode]["base"])
+    by_settings: dict[str, dict] = {}
+
+    def add(settings: dict, role: str, knob: str | None, label: str) -> dict:
+        key = json.dumps(settings, sort_keys=True)
+        if key not in by_settings:
+            by_settings[key] = {
+                "id": f"{scene}/{label}",
+                "scene": scene,
+                "label": label,
+                "role": role,
+                "knob": knob,
+                "value": settings[knob] if knob else None,
+                "sweeps": [],
+                "is_reference": False,
+                "settings": settings,
+                "strategy": settings["strategy"],
+                "mode": mode,
+                "threads": threads,
+            }
+        record = by_settings[key]
+        if knob and knob not in record["sweeps"]:
+            record["sweeps"].append(knob)
+        return record
+
+    add(base, "base", None, "base")
+    for knob, values in chosen.items():
+        for value in values:
+            add({**base, knob: value}, "sweep", knob, f"{knob}={_short(value)}")
+    if "reference_keys" in spec:
+        finest = {
+            knob: max(values, key=lambda v, s=FINER[knob]: s * v)
+            for knob, values in chosen.items()
+            if knob in FINER
+        }
+        add({**base, **finest}, "reference", None, "reference")["is_reference"] = True
+    return list(by_settings.values())
+
+
+# ----------------------------------------------------------------------------- running
+def _job(record: dict, timeout_s: float | None) -> dict:
+    """What ``execute_point`` runs for a record: the library's strategy name in the settings."""
+    settings = dict(record["settings"])
+    settings["strategy"] = STRATEGIES.get(settings["strategy"], settings["strategy"])
+    return {
+        "module": SCENES[record["scene"]]["module"],
+        "settings": settings,
+        "threads": int(record.get("threads", 1)),
+        "timeout_s": timeout_s,
+    }
+
+
+def point_error(scene: str, measurement: dict, reference: dict | None) -> tuple:
+    """The point's error and its parts (``(None, {})`` for a failed point or reference).
+
+    Args:
+        scene: the scene name.
+        measurement: ``execute_point``'s result.
+        reference: for scenes without an analytic value, ``{"metrics": ...}`` of the reference
+            run (None or no metrics: no error).
+    """
+    metrics = measurement.get("metrics")
+    if measurement.get("failure") or not metrics:
+        return None, {}
+    spec = SCENES[scene]
+    if "error_key" in spec:
+        return metrics.get(spec["error_key"]), {}
+    ref = (reference or {}).get("metrics")
+    if not ref:
+        return None, {}
+    parts = {}
+    for key in spec["reference_keys"]:
+        value, target = metrics.get(key), ref.get(key)
+        if value is None or not target:
+            return None, {}
+        parts[key] = abs(value - target) / abs(target)
+    return max(parts.values()), parts
+
+
+def _finish(record: dict, measurement: dict, reference: dict | None) -> dict:
+    """A record with its measurement and error."""
+    error, parts = point_error(record["scene"], measurement, reference)
+    metrics = measurement.get("metrics")
+    return {
+        **record,
+        "error": error,
+        "error_parts": parts,
+        "wall_s": measurement.get("wall_s"),
+        "cpu_s": measurement.get("cpu_s"),
+        "process_wall_s": measurement.get("process_wall_s"),
+        "newton_iterations": (metrics or {}).get("newton_iterations"),
+        "peak_memory_mb": measurement.get("peak_memory_mb"),
+        "failure": measurement.get("failure"),
+        "metrics": metrics,
+        "reference": reference,
+    }
+
+
+def _warmup_job(scene: str, threads: int) -> dict:
+    """A few steps of the scene's quick base (``SCENES[scene]["warmup"]``): fills numba's cache
+    before the timed points (a cold cache would put compilation into the first points' times)."""
+    settings = {**SCENES[scene]["modes"]["quick"]["base"], **SCENES[scene]["warmup"]}
+    return _job({"scene": scene, "settings": settings, "threads": threads}, None)
+
+
+def _reference(records: list[dict], results: list[dict]) -> dict[str, dict]:
+    """scene -> the reference run's id, settings and metrics (scenes with a reference only)."""
+    out = {}
+    for record, result in zip(records, results, strict=True):
+        if record["is_reference"]:
+            keys = SCENES[record["scene"]]["reference_keys"]
+            ok = result.get("metrics") and not result.get("failure")
+            out[record["scene"]] = {
+                "id": record["id"],
+                "settings": record["settings"],
+                "metrics": {k: result["metrics"].get(k) for k in keys} if ok else None,
+                "failure": result.get("failure"),
+            }
+    return out
+
+
+# ----------------------------------------------------------------------------- analysis
+def analyse(records: list[dict], scenes: list[str], cost: str = "wall_s") -> tuple[dict, dict]:
+    """Mark the Pareto points (``record["pareto"]``); per scene, the knob effects and best knob.
+
+    ``cost`` is the record key of the cost axis: ``"wall_s"`` or ``"cpu_s"``.
+    """
+    effects, best = {}, {}
+    for scene in scenes:
+        recs = [r for r in records if r["scene"] == scene]
+        seconds = np.array([r[cost] if r[cost] else np.nan for r in recs], dtype=float)
+        err = np.array([np.nan if r["error"] is None else r["error"] for r in recs], dtype=float)
+        front = set(pareto_front(seconds, err).tolist())
+        for k, r in enumerate(recs):
+            r["pareto"] = k in front
+        knobs = [k for k in KNOBS if any(k in r["sweeps"] for r in recs)]
+        effects[scene] = {}
+        for knob in knobs:
+            sweep = [r for r in recs if knob in r["sweeps"]]
+            if knob not in FINER:  # categorical: the points are compared on the plot
+                effects[scene][knob] = {**knob_effect([], 1), "points": len(sweep)}
+                continue
+            rows = [
+                {"value": r["settings"][knob], "error": r["error"], "time_s": r[cost]}
+                for r in sweep
+            ]
+            effects[scene][knob] = knob_effect(rows, FINER[knob])
+        best[scene] = best_knob(effects[scene])
+    return effects, best
+
+
+# ----------------------------------------------------------------------------- entry points
+def sweep(
+    mode: str = "quick",
+    out: str | Path = "results",
+    *,
+    scenes: str | list[str] | None = None,
+    knobs: str | list[str] | None = None,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    threads: int = 1,
+    timeout_s: float | None = None,
+    sweeps: dict | None = None,
+    cost: str = "wall",
+    warmup: bool = True,
+) -> dict:
+    """Run the trade study and write ``tradeoff.json``, ``tradeoff.md``, ``tradeoff_<scene>.png``.
+
+    Args:
+        mode, scenes, knobs, sweeps, threads: see :func:`plan`.
+        out: output folder.
+        workers: local point processes at once (default: the number of cores); ignored with
+            ``scheduler``.
+        scheduler: a Dask scheduler address (``tcp://host:port``) to run the points on.
+        timeout_s: wall-time limit of one point's process in s (None: none).
+        cost: the cost axis of the Pareto fronts and knob effects: ``"wall"`` (the points' wall
+            time, the default) or ``"cpu"`` (their CPU time: steadier on a busy machine).
+        warmup: first run a few steps of each scene to fill numba's cache (untimed).
+
+    Returns:
+        ``{"json": path, "markdown": path, "png": {scene: path}, **payload}``.
+    """
+    if scheduler is not None:
+        check_scheduler(scheduler)
+    if cost not in ("wall", "cpu"):
+        raise ValueError(f"--cost must be 'wall' or 'cpu', got {cost!r}")
+    cost_key = f"{cost}_s"
+    workers = (os.cpu_count() or 1) if workers is None else workers
+    if not (isinstance(workers, int) and workers >= 1):
+        raise ValueError(f"--workers must be an integer >= 1, got {workers!r}")
+    records = plan(mode, scenes, knobs, sweeps=sweeps, threads=threads)
+    scene_names = list(dict.fromkeys(r["scene"] for r in records))
+    env = environment()
+    out = Path(out)
+    json_path = out / f"{NAME}.json"
+    jobs = [_job(r, timeout_s) for r in records]
+    log.info("tradeoff (%s): %d points of %s", mode, len(jobs), ", ".join(scene_names))
+
+    def execute(ids: list[str], batch: list[dict]) -> list[dict]:
+        if scheduler is not None:
+            return execute_dask(ids, batch, scheduler, CONNECT_TIMEOUT_S)
+        return execute_local(ids, batch, workers)
+
+    started = time.perf_counter()
+    warmed = execute(
+        [f"{scene}/warmup" for scene in (scene_names if warmup else [])],
+        [_warmup_job(scene, threads) for scene in (scene_names if warmup else [])],
+    )
+    warmup_s = time.perf_counter() - started
+    started = time.perf_counter()
+    results = execute([r["id"] for r in records], jobs)
+    elapsed = time.perf_counter() - started
+    references = _reference(records, results)
+    finished = []
+    for record, result in zip(records, results, strict=True):
+        done = _finish(record, result, references.get(record["scene"]))
+        done["commit"] = env["commit"]
+        done["replay"] = (
+            f"python -m benchmarks tradeoff --replay {shlex.quote(str(json_path))} "
+            f"--id {shlex.quote(record['id'])}"
+        )
+        finished.append(done)
+    effects, best = analyse(finished, scene_names, cost_key)
+    payload = {
+        "benchmark": NAME,
+        "mode": mode,
+        "scenes": scene_names,
+        "knobs": {
+            s: sorted({k for r in finished if r["scene"] == s for k in r["sweeps"]})
+            for s in scene_names
+        },
+        "errors": {s: SCENES[s]["error"] for s in scene_names},
+        "executor": {
+            "kind": "dask" if scheduler else "local",
+            "workers": None if scheduler else workers,
+            "scheduler": scheduler,
+            "threads_per_point": threads,
+            "timeout_s": timeout_s,
+        },
+        "cost": cost_key,
+        "warmup_s": warmup_s,
+        "warmup_failures": [w["failure"] for w in warmed if w.get("failure")],
+        "wall_s": elapsed,
+        "point_wall_s_total": sum(r["wall_s"] or 0.0 for r in finished),
+        "failed": [r["id"] for r in finished if r["failure"]],
+        "pareto": {
+            s: [r["id"] for r in finished if r["scene"] == s and r["pareto"]] for s in scene_names
+        },
+        "knob_effects": effects,
+        "best_knob": best,
+        "references": references,
+        "points": finished,
+        "environment": env,
+    }
+    path = write_json(out, NAME, payload)
+    md = out / f"{NAME}.md"
+    md.write_text(markdown(payload))
+    pngs = {}
+    for scene in scene_names:
+        recs = [r for r in finished if r["scene"] == scene]
+        title = f"{scene}: error against {COSTS[cost_key]} ({mode} mode, best knob: {best[scene]})"
+        label = "reference error" if "reference_keys" in SCENES[scene] else "error vs analytic"
+        pngs[scene] = str(plot_scene(recs, out / f"{NAME}_{scene}.png", title, label, cost_key))
+    for scene in scene_names:
+        log.info("%s: best knob %s, Pareto front %s", scene, best[scene], payload["pareto"][scene])
+    return {"json": str(path), "markdown": str(md), "png": pngs, **payload}
+
+
+def run(mode: str = "full", out: str | Path = "results") -> dict:
+    """The registry's entry point (``python -m benchmarks tradeoff``): every scene and knob."""
+    return sweep(mode, out)
+
+
+def load_record(
+    path: str | Path | None = None, point_id: str | None = None, point: str | None = None
+) -> dict:
+    """The record to replay: from a JSON file (one record, or a ``tradeoff.json`` and an id) or
+    from a JSON string."""
+    if point is not None:
+        try:
+            data = json.loads(point)
+        except json.JSONDecodeError as err:
+            raise ValueError(f"--point is not valid JSON: {err}") from None
+    else:
+        try:
+            data = json.loads(Path(path).read_text())
+        except FileNotFoundError:
+            raise ValueError(f"--replay: no file {path}") from None
+        except json.JSONDecodeError as err:
+            raise ValueError(f"--replay: {path} is not valid JSON: {err}") from None
+    if isinstance(data, dict) and "points" in data:
+        ids = [p["id"] for p in data["points"]]
+        if point_id is None:
+            if len(ids) != 1:
+                raise ValueError(
+                    f"{path or '--point'} holds {len(ids)} points; choose one with --id "
+                    f"(e.g. {', '.join(ids[:3])})"
+                )
+            point_id = ids[0]
+        if point_id not in ids:
+            raise ValueError(f"no point {point_id!r} in {path or '--point'}; ids: {', '.join(ids)}")
+        data = data["points"][ids.index(point_id)]
+    if not isinstance(data, dict) or "scene" not in data or "settings" not in data:
+        raise ValueError("a point record needs at least 'scene' and 'settings'")
+    if data["scene"] not in SCENES:
+        raise ValueError(f"unknown scene {data['scene']!r}; available: {', '.join(sorted(SCENES))}")
+    return data
+
+
+def _check_settings(record: dict) -> None:
+    """The record's settings are those its scene's ``run_point`` takes, with valid knobs."""
+    scene = record["scene"]
+    keys = importlib.import_module(SCENES[scene]["module"]).POINT_KEYS
+    settings = record["settings"]
+    missing = [k for k in keys if k not in settings]
+    unknown = [k for k in settings if k not in keys]
+    if missing or unknown:
+        raise ValueError(f"{scene} settings: missing {missing}, unknown {unknown}")
+    for knob in SCENES[scene]["knobs"]:
+        _check_value(scene, knob, settings[knob])
+
+
+def replay(record: dict, timeout_s: float | None = None) -> dict:
+    """Run a recorded point again (fresh process) and recompute its error.
+
+    For scenes with a reference run the error is taken against ``record["reference"]`` (the
+    stored reference metrics). Returns the new record plus ``recorded_error`` and
+    ``reproduced`` (the new error equals the recorded one to 1e-9, relative).
+    """
+    _check_settings(record)
+    point = {
+        "id": record.get("id", f"{record['scene']}/point"),
+        "scene": record["scene"],
+        "label": record.get("label", "point"),
+        "settings": record["settings"],
+        "threads": int(record.get("threads", 1)),
+    }
+    measurement = execute_point(_job(point, timeout_s))
+    done = _finish({**record, **point}, measurement, record.get("reference"))
+    recorded = record.get("error")
+    new = done["error"]
+    if recorded is None or new is None:
+        same = recorded is None and new is None
+    else:
+        same = math.isclose(new, recorded, rel_tol=1e-9, abs_tol=1e-300)
+    done["commit"] = git_commit()
+    if record.get("commit") not in (None, done["commit"]):
+        log.warning(
+            "%s was recorded at commit %s, replayed at %s: the error may differ",
+            point["id"],
+            record["commit"],
+            done["commit"],
+        )
+    return {**done, "recorded_error": recorded, "reproduced": same}
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The trade study's options (``python -m benchmarks tradeoff``; ``bfemp sweep`` repeats
+    them, a test keeps the two in step)."""
+    group = parser.add_argument_group("trade study")
+    group.add_argument(
+        "--scenes", help=f"comma-separated scenes (default: all: {', '.join(sorted(SCENES))})"
+    )
+    group.add_argument("--knobs", help=f"comma-separated knobs (default: all: {', '.join(KNOBS)})")
+    group.add_argument("--workers", type=int, help="local point processes at once (default: cores)")
+    group.add_argument("--scheduler", help="run the points on a Dask scheduler (tcp://host:port)")
+    group.add_argument(
+        "--threads-per-point", type=int, default=1, help="threads of each point (default 1)"
+    )
+    group.add_argument("--point-timeout", type=float, help="wall-time limit of one point in s")
+    group.add_argument(
+        "--cost",
+        choices=("wall", "cpu"),
+        default="wall",
+        help="cost axis: the points' wall time (default) or CPU time (steadier on a busy machine)",
+    )
+    group.add_argument(
+        "--replay", metavar="JSON", help="re-run a recorded point (record or tradeoff.json)"
+    )
+    group.add_argument("--id", help="with --replay: the point's id in tradeoff.json")
+    group.add_argument("--point", metavar="JSON", help="re-run the point given as a JSON record")
+
+
+def main_from_args(args: argparse.Namespace) -> int:
+    """Run the sweep, or replay one point, from parsed command-line options; the exit status."""
+    if args.replay is not None or args.point is not None:
+        if args.replay is not None and args.point is not None:
+            raise ValueError("give --replay or --point, not both")
+        record = load_record(args.replay, args.id, args.point)
+        result = replay(record, timeout_s=args.point_timeout)
+        status = "reproduced" if result["reproduced"] else "NOT reproduced"
+        print(
+            f"{result['id']}: error {result['error']} (recorded {result['recorded_error']}): "
+            f"{status}; wall {result['wall_s']} s, {result['newton_iterations']} Newton "
+            f"iterations, peak {result['peak_memory_mb']} MiB"
+            + (f"; failure: {result['failure']}" if result["failure"] else "")
+        )
+        return 0 if result["reproduced"] else 1
+    if args.id is not None:
+        raise ValueError("--id goes with --replay")
+    summary = sweep(
+        args.mode or "full",
+        args.out,
+        scenes=args.scenes,
+        knobs=args.knobs,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        threads=args.threads_per_point,
+        timeout_s=args.point_timeout,
+        cost=args.cost,
+    )
+    print(f"tradeoff: wrote {summary['json']}, {summary['markdown']}")
+    for scene in summary["scenes"]:
+        print(f"  {scene}: best knob {summary['best_knob'][scene]}; plot {summary['png'][scene]}")
+    return 0
