@@ -21,9 +21,10 @@
    ``Candidates.build`` + dropping its vertex-vertex candidates + ``NormalCollisions.build``.
    Levels timed:
 
-   - ``kernel`` (bfemp): the pointwise kernels alone on the pair arrays (``geometry.distance``
-     value, gradient and Hessian; ``bfemp.contact.barrier`` b, b', b''; local Hessian and its
-     PSD projection): no pair search, no chain rule, no scatter;
+   - ``kernel`` (bfemp): the pointwise kernels alone on the pair arrays (the pairs' distances;
+     ``bfemp.contact.barrier`` b, b', b''; ``bfemp.contact._barrier_kernels``: per pair the
+     distance gradient and Hessian, the local barrier gradient and Hessian and its PSD
+     projection): no pair search, no chain rule, no scatter;
    - ``collision`` (ipctk): value + gradient + Hessian (CLAMP projection) w.r.t. the collision
      vertices, assembled into its CSC matrix (ipctk's own level);
    - ``dofs`` (both): w.r.t. the simulation unknowns, assembled. bfemp: ``value`` + ``gradient``
@@ -31,10 +32,9 @@
      (``TripletAssembler``, pattern reused); ipctk: collision level + ``to_full_dof`` of the
      gradient and the Hessian (its matrix also has rows for the prescribed FEM nodes, bfemp's
      only for the unknowns). ``barrier_pairs_per_s`` (the headline) = active pairs / this time.
-     A 3D particle-triangle pair yields (27 x 3)^2 = 6561 triplets, so where the Hessian would
-     pass ``TRIPLET_BUDGET`` triplets (3D full mode) this level runs on a configuration of
-     ``TRIPLET_BUDGET // 6561`` pairs and its time is scaled to the full pair count (recorded as
-     ``dofs_level_pairs``).
+     bfemp's chain rule sums the pairs' node blocks as it goes (one triplet per coupled DOF
+     pair), so this level runs on all pairs in 3D too (it used to emit (27 x 3)^2 = 6561 triplets
+     per 3D pair and ran on a smaller configuration, its time scaled).
 
    The pair search is timed apart (bfemp ``solution_changed``: collision positions, broad phase,
    distances, which ``value`` then reuses; ipctk as above, whose ``value`` recomputes them) and
@@ -78,10 +78,15 @@ and the one that survives a loaded 2-core machine (with two threads, a parallel 
 its slowest thread while other jobs deschedule threads at random). The rings breakdown uses the
 default threads. ipctk is optional (``pip install .[bench]``); without it its columns are
 ``null``.
+
+``before_after``: where the output folder already holds a record of the same mode, ``[that
+record, this run]`` for the headline rates, CCD times and the rings' per-iteration phases (and
+the record's commit); ``null`` otherwise.
 """
 
 from __future__ import annotations
 
+import json
 import logging
 import math
 import time
@@ -96,15 +101,15 @@ from matplotlib.figure import Figure
 import bfemp
 from benchmarks._phases import newton_phases
 from benchmarks.common import environment, peak_memory_mb, write_json
+from bfemp.contact._barrier_kernels import _barrier_gradients, _barrier_hessians
 from bfemp.contact.barrier import barrier, barrier_derivative, barrier_second_derivative
-from bfemp.contact.pairs import candidate_pairs
+from bfemp.contact.pairs import _distance, candidate_pairs
+from bfemp.contact.term import _KERNEL_KIND
 from bfemp.integrators import BACKWARD_EULER
 from bfemp.steppers.implicit import ImplicitStepper
-from geometry import distance as dist
 from solvers.assembly import TripletAssembler
 from solvers.linear import default_linear_solver
 from solvers.options import NewtonOptions
-from solvers.psd import project_psd
 
 try:  # optional benchmark dependency
     import ipctk
@@ -127,8 +132,6 @@ APPROACH_T = 0.02  # s: free flight with 10 dt up to here (contact at 0.025 s)
 CONTACT_STEPS = 5  # steps of dt after the first step with a contact pair, before timing
 #: Threads of both libraries in the barrier and CCD comparisons (numba and ipctk's TBB).
 COMPARE_THREADS = 1
-#: Largest barrier Hessian (triplets) built at once: 80M triplets = 1.9 GB (3D: ~12k pairs).
-TRIPLET_BUDGET = 80_000_000
 
 
 # --------------------------------------------------------------------------- configurations
@@ -220,24 +223,19 @@ def _configuration(dim: int, n_pairs: int, seed: int = 7) -> dict:
 
 
 # --------------------------------------------------------------------------- bfemp side
-_KERNELS = {
-    "pe": (dist.point_edge_distance, dist.point_edge_distance_gradient),
-    "pt": (dist.point_triangle_distance, dist.point_triangle_distance_gradient),
-}
-_HESSIANS = {"pe": dist.point_edge_distance_hessian, "pt": dist.point_triangle_distance_hessian}
-
-
-def _kernel(kind: str, args: list[np.ndarray]) -> tuple[float, np.ndarray, np.ndarray]:
-    """Pointwise barrier of pairs ``args`` (m points each (n, d)): sum b, (n, m d) gradients and
-    PSD-projected (n, m d, m d) Hessians of b(d(x)) w.r.t. the pair's points (no weights)."""
-    value_fn, grad_fn = _KERNELS[kind]
-    d = value_fn(*args)
-    g = grad_fn(*args)
+def _kernel(kind: str, pos: np.ndarray, pts: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    """Pointwise barrier of the pairs ``pts (n, m)`` at collision positions ``pos (C, d)``: sum
+    b, (n, m d) gradients and PSD-projected (n, m d, m d) Hessians of b(d(x)) w.r.t. the pair's
+    points (no weights), through bfemp's kernels."""
+    d = _distance(kind, pos, pts)
     b1 = barrier_derivative(d, DHAT, KAPPA)
     b2 = barrier_second_derivative(d, DHAT, KAPPA)
-    hess = b2[:, None, None] * g[:, :, None] * g[:, None, :]
-    hess += b1[:, None, None] * _HESSIANS[kind](*args)
-    return float(barrier(d, DHAT, KAPPA).sum()), b1[:, None] * g, project_psd(hess)
+    code = _KERNEL_KIND[kind]
+    return (
+        float(barrier(d, DHAT, KAPPA).sum()),
+        _barrier_gradients(pos, pts, code, b1),
+        _barrier_hessians(pos, pts, code, b1, b2, True),
+    )
 
 
 def _bfemp_ops(case: dict, dofs: bool) -> tuple[dict, dict]:
@@ -249,12 +247,11 @@ def _bfemp_ops(case: dict, dofs: bool) -> tuple[dict, dict]:
     term.solution_changed(x)
     pts = term.pairs.points[kind]
     pos = term.collision_positions(x)
-    args = [np.ascontiguousarray(pos[pts[:, a]]) for a in range(pts.shape[1])]
     ops = {
         "pair_search": lambda: term.solution_changed(x),
         "value": lambda: term.value(x),
         "gradient": lambda: term.gradient(x),
-        "kernel": lambda: _kernel(kind, args),
+        "kernel": lambda: _kernel(kind, pos, pts),
     }
     info = {
         "pairs": int(term.pairs.n_pairs),
@@ -463,21 +460,9 @@ def _ccd(case: dict, ip: dict | None, repeats: int) -> dict:
 
 # --------------------------------------------------------------------------- one case
 def _measure_case(dim: int, n_pairs: int, repeats: int) -> dict:
-    """Barrier levels, agreement and CCD of one configuration; the ``dofs`` level runs on a
-    smaller configuration when its Hessian triplets would pass ``TRIPLET_BUDGET``."""
+    """Barrier levels, agreement and CCD of one configuration."""
     case = _configuration(dim, n_pairs)
-    per_pair = (3**dim * dim) ** 2  # triplets of one particle-facet pair (prescribed facet)
-    n_small = min(n_pairs, TRIPLET_BUDGET // per_pair)
-    bf, ip = _barrier_levels(case, repeats, dofs=n_small == n_pairs)
-    if n_small < n_pairs:  # chain rule + assembly at the budget size, scaled per pair
-        bf_small, ip_small = _barrier_levels(_configuration(dim, n_small), repeats, dofs=True)
-        for res, res_small in ((bf, bf_small), (ip, ip_small)):
-            if res is not None:
-                res["dofs_level_pairs"] = res_small["pairs"]
-                res["dofs_s"] = res_small["dofs_s"] * res["pairs"] / res_small["pairs"]
-                res["dofs_level"] = {
-                    k: v for k, v in res_small.items() if k not in ("mesh", "vertex_gradient")
-                }
+    bf, ip = _barrier_levels(case, repeats, dofs=True)
     out = {
         "dim": dim,
         "pairs": bf["pairs"],
@@ -569,6 +554,28 @@ def _rings_breakdown(resolution: str, repeats: int) -> dict:
 
 
 # --------------------------------------------------------------------------- report
+def _before_after(previous: dict | None, payload: dict) -> dict | None:
+    """``[previous record, this run]`` of the headline metrics, where ``out`` held a record of
+    the same mode (its commit and the ipctk columns tell how comparable the two runs are: both
+    libraries ran on the same shared machine, ipctk's drift is the load's)."""
+    if not previous or previous.get("mode") != payload["mode"]:
+        return None
+    out: dict = {"before_commit": previous.get("environment", {}).get("commit")}
+    for group in ("barrier_pairs_per_s", "ccd_s"):
+        for dim_key, new in payload[group].items():
+            old = previous.get(group, {}).get(dim_key, {})
+            for lib, value in new.items():
+                out[f"{group}_{dim_key}_{lib}"] = [old.get(lib), value]
+    ring_old = previous.get("rings_breakdown", {})
+    ring_new = payload["rings_breakdown"]
+    for key in ("time_per_newton_iteration_s", "pair_search_s", "ccd_s"):
+        out[f"rings_{key}"] = [ring_old.get(key), ring_new.get(key)]
+    phases_old = ring_old.get("step_phases_per_iteration_s", {})
+    for key, value in ring_new["step_phases_per_iteration_s"].items():
+        out[f"rings_per_iteration_{key}_s"] = [phases_old.get(key), value]
+    return out
+
+
 def _per_s(pairs: int, seconds: float | None) -> float | None:
     return None if seconds is None or seconds <= 0.0 else pairs / seconds
 
@@ -709,7 +716,6 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
             "gap_range_dhat": [0.05, 0.95],
             "ccd_translation_dhat": MOTION,
             "geometry": {f"{d}d": g for d, g in GEOMETRY.items()},
-            "triplet_budget": TRIPLET_BUDGET,
             "rings_resolution": cfg["rings"],
             "rings_dt_s": RINGS_DT,
             "compare_threads": COMPARE_THREADS,
@@ -719,6 +725,9 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
         "cases": cases,
         "environment": environment(),
     }
+    record = out / f"{NAME}.json"
+    previous = json.loads(record.read_text()) if record.exists() else None
+    payload["before_after"] = _before_after(previous, payload)
     path = write_json(out, NAME, payload)
     png = out / f"{NAME}.png"
     _plot(payload, png)

@@ -204,6 +204,27 @@ def _types(V: np.ndarray, kind: int) -> np.ndarray:
 
 
 @njit(cache=True)
+def _pair_derivatives(
+    X: np.ndarray,
+    kind: int,
+    squared: bool,
+    order: int,
+    y: np.ndarray,
+    gy: np.ndarray,
+    Hy: np.ndarray,
+) -> tuple[float, int]:
+    """d (or D) of one pair X (nv, dim) and its closest-feature type; with ``order`` >= 1 (2)
+    the gradient (Hessian) w.r.t. the feature's difference vectors in gy[:na dim]
+    (Hy[:na dim, :na dim]), na = _NA[feature]; ``_scatter`` pulls them back to the pair's
+    vertices. y (3, dim), gy (3 dim,), Hy (3 dim, 3 dim) are workspace / output."""
+    typ, D = _classify(X, kind)
+    feat = _FEATURE[kind, typ]
+    _differences(feat, X, _BLOCKS[kind, typ], y)
+    q = _feature(feat, y, gy, Hy, order)
+    return _finish(q, feat >= FEAT_PLANE, squared, gy, Hy, _NA[feat] * X.shape[1], order), typ
+
+
+@njit(cache=True)
 def _evaluate(
     V: np.ndarray, kind: int, squared: bool, order: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -223,15 +244,13 @@ def _evaluate(
     Hy = np.empty((3 * dim, 3 * dim))
     no_hess = np.empty((0, 0))
     for i in range(n):
-        typ, D = _classify(V[i], kind)
         if order == 0:
+            D = _classify(V[i], kind)[1]
             value[i] = D if squared else math.sqrt(D)
             continue
+        value[i], typ = _pair_derivatives(V[i], kind, squared, order, y, gy, Hy)
         feat = _FEATURE[kind, typ]
         blocks = _BLOCKS[kind, typ]
-        _differences(feat, V[i], blocks, y)
-        q = _feature(feat, y, gy, Hy, order)
-        value[i] = _finish(q, feat >= FEAT_PLANE, squared, gy, Hy, _NA[feat] * dim, order)
         if order >= 2:
             _scatter(feat, blocks, dim, gy, Hy, grad[i], hess[i], order)
         else:

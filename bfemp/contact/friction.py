@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bfemp.contact._assembly_kernels import _count_entries, _fill_triplets, _scatter_gradient
+from bfemp.contact._assembly_kernels import _chain_hessian, _scatter_gradient
 from bfemp.contact.barrier import barrier_derivative
 from bfemp.contact.friction_kernels import friction_local, friction_local_psd
 from bfemp.contact.term import BarrierTerm
@@ -230,15 +230,7 @@ class FrictionTerm:
                     * h_rel[:, None, :, None, :]
                 )
                 local = np.ascontiguousarray(local.reshape(len(coef), m * d, m * d))
-                counts = _count_entries(points, cs.nodes, cs.weights, dof_node)
-                starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-                total = int(counts.sum()) * d * d
-                rows = np.empty(total, dtype=np.int64)
-                cols = np.empty(total, dtype=np.int64)
-                vals = np.empty(total)
-                _fill_triplets(
-                    local, points, cs.nodes, cs.weights, dof_node, starts, rows, cols, vals
-                )
+                rows, cols, vals = _chain_hessian(local, points, cs.nodes, cs.weights, dof_node)
                 parts.append(Triplets(rows, cols, vals))
         return Triplets.concatenate(parts) if parts else Triplets.empty()
 

@@ -3,7 +3,8 @@
 Point side: every particle and (for FEM-FEM contact) every FEM boundary node; facet side: FEM
 boundary facets of another body. Never particle-particle, never a body against itself. The broad
 phase (spatial hash, boxes inflated by d-hat) proposes (point, facet) candidates; the point-point
-(vertex) and 3D point-edge terms of the duplicate removal are derived from the candidates' facets.
+(vertex) and 3D point-edge terms of the duplicate removal are derived from the facets of the
+candidates within d-hat (a facet's vertex or edge is never closer than the facet).
 """
 
 from __future__ import annotations
@@ -12,14 +13,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bfemp.contact._barrier_kernels import _pair_distances
 from bfemp.contact.collision import CollisionSet
-from geometry import distance as dist
+from geometry._distance_kernels import KIND_EE, KIND_PE, KIND_PP, KIND_PT
 from geometry.broadphase import edge_edge_candidates, point_simplex_candidates
 
-__all__ = ["ContactPairs", "PAIR_KINDS", "find_pairs", "candidate_pairs"]
+__all__ = ["ContactPairs", "PAIR_KINDS", "candidate_pairs", "edge_edge_active", "find_pairs"]
 
 #: kind -> number of collision points: point-point, point-edge, point-triangle, edge-edge.
 PAIR_KINDS = {"pp": 2, "pe": 3, "pt": 4, "ee": 4}
+_KIND = {"pp": KIND_PP, "pe": KIND_PE, "pt": KIND_PT, "ee": KIND_EE}
 
 
 @dataclass(frozen=True)
@@ -49,14 +52,19 @@ class ContactPairs:
 
 
 def _distance(kind: str, pos: np.ndarray, pts: np.ndarray) -> np.ndarray:
-    args = [pos[pts[:, a]] for a in range(pts.shape[1])]
-    if kind == "pp":
-        return dist.point_point_distance(*args)
-    if kind == "pe":
-        return dist.point_edge_distance(*args)
-    if kind == "ee":
-        return dist.edge_edge_distance(*args)
-    return dist.point_triangle_distance(*args)
+    """Unsigned distances ``(n,)`` of the pairs ``pts (n, m)`` of a kind at ``pos (C, d)``."""
+    if pts.shape[0] == 0:
+        return np.zeros(0)
+    return _pair_distances(pos, np.ascontiguousarray(pts), _KIND[kind])
+
+
+def _unique(keys: np.ndarray) -> np.ndarray:
+    """Sorted unique values of the int64 ``keys`` (n,): a sort and a mask (numpy 2's
+    ``np.unique`` hashes first and was 30x slower here)."""
+    keys = np.sort(keys)
+    if keys.size:
+        keys = keys[np.concatenate(([True], keys[1:] != keys[:-1]))]
+    return keys
 
 
 def candidate_pairs(
@@ -84,15 +92,15 @@ def candidate_pairs(
 def find_pairs(cs: CollisionSet, pos: np.ndarray, dhat: float) -> ContactPairs:
     """All terms of eqs. 31-32 with distance below ``dhat`` at positions ``pos (C, d)``."""
     dim = pos.shape[1]
+    bad = ~np.isfinite(pos).all(axis=1)
+    if bad.any():
+        raise ValueError(f"collision positions are not finite in rows {np.flatnonzero(bad)[:10]}")
     cand = candidate_pairs(cs, pos, dhat)
     facet_kind = "pe" if dim == 2 else "pt"
     out_pts, out_coef, out_dist = {}, {}, {}
 
     def add(kind: str, pts: np.ndarray, coef: np.ndarray) -> None:
-        if pts.shape[0] == 0:
-            d = np.zeros(0)
-        else:
-            d = _distance(kind, pos, pts)
+        d = _distance(kind, pos, pts)
         active = d < dhat
         out_pts[kind] = np.ascontiguousarray(pts[active])
         out_coef[kind] = np.ascontiguousarray(coef[active])
@@ -100,33 +108,47 @@ def find_pairs(cs: CollisionSet, pos: np.ndarray, dhat: float) -> ContactPairs:
 
     q = cand[:, 0]
     facets = cs.facets[cand[:, 1]]
-    add(facet_kind, np.column_stack([q, facets]), np.ones(cand.shape[0]))
-    # vertex (point-point) terms of the candidates' facets, once per (point, vertex)
-    pv = np.unique(np.column_stack([np.repeat(q, dim), facets.ravel()]), axis=0)
-    vcoef = cs.vertex_coef[pv[:, 1]] if pv.size else np.zeros(0)
+    pts = np.column_stack([q, facets])
+    d = _distance(facet_kind, pos, pts)
+    out_pts[facet_kind] = np.ascontiguousarray(pts[d < dhat])
+    out_coef[facet_kind] = np.ones(out_pts[facet_kind].shape[0])
+    out_dist[facet_kind] = np.ascontiguousarray(d[d < dhat])
+    # Vertex and edge terms only of facets within dhat (a vertex or an edge of a facet is no
+    # closer than the facet itself; the margin covers the round-off of the two formulas).
+    near = d < dhat * (1.0 + 1e-9)
+    q, facets = q[near], facets[near]
+    nf = cs.n_fem_points
+    # vertex (point-point) terms of those facets, once per (point, vertex): int64 keys q nf + v
+    keys = _unique(np.repeat(q, dim) * nf + facets.ravel())
+    vertex = keys % max(nf, 1)
+    vcoef = cs.vertex_coef[vertex]
     nz = vcoef != 0.0
-    add("pp", pv[nz], vcoef[nz])
+    add("pp", np.column_stack([keys[nz] // max(nf, 1), vertex[nz]]), vcoef[nz])
     if dim == 3:
-        # edge (point-edge) terms of the candidates' triangles, once per (point, edge)
+        # edge (point-edge) terms of those triangles, once per (point, edge): keys q E + edge
         tri_edges = np.sort(
             np.concatenate([facets[:, [0, 1]], facets[:, [1, 2]], facets[:, [2, 0]]]), axis=1
         )
-        pe = np.unique(np.column_stack([np.tile(q, 3), tri_edges]), axis=0)
-        if pe.size:
-            # coefficient of each edge: look up in the sorted unique edge list
-            key = cs.edges[:, 0] * (cs.n_fem_points + 1) + cs.edges[:, 1]
-            where = np.searchsorted(key, pe[:, 1] * (cs.n_fem_points + 1) + pe[:, 2])
-            ecoef = cs.edge_coef[where]
-        else:
-            ecoef = np.zeros(0)
+        n_edges = max(cs.edges.shape[0], 1)
+        edge_key = cs.edges[:, 0] * (nf + 1) + cs.edges[:, 1]  # sorted (unique edges)
+        edge = np.searchsorted(edge_key, tri_edges[:, 0] * (nf + 1) + tri_edges[:, 1])
+        keys = _unique(np.tile(q, 3) * n_edges + edge)
+        edge = keys % n_edges
+        ecoef = cs.edge_coef[edge]
         nz = ecoef != 0.0
-        add("pe", pe[nz], ecoef[nz])
+        add("pe", np.column_stack([keys[nz] // n_edges, cs.edges[edge[nz]]]), ecoef[nz])
     eps_x = None
-    if dim == 3 and cs.edges.shape[0] and np.unique(cs.edge_body).size > 1:
+    if dim == 3 and edge_edge_active(cs):
         ee, w = edge_edge_pairs(cs, pos, dhat)
         add("ee", ee, w)
         eps_x = _edge_eps(cs, out_pts["ee"])
     return ContactPairs(out_pts, out_coef, out_dist, eps_x)
+
+
+def edge_edge_active(cs: CollisionSet) -> bool:
+    """Whether edge-edge terms can occur: 3D boundary edges of more than one FEM body."""
+    body = cs.edge_body
+    return bool(cs.edges.shape[0] and body is not None and np.any(body != body[0]))
 
 
 def edge_edge_pairs(

@@ -4,8 +4,10 @@ B(x) = sum over active pairs of omega_q c b(d), with b the clamped log barrier o
 duplicate-removal coefficient (1 for facets) and omega_q the point's integration weight (section
 4.2). Derivatives chain from the unsigned distance to the pair's collision points, then to nodes
 through the affine collision map (eq. 29). Local Hessians are projected to PSD per pair before the
-chain rule. ``max_step_size`` returns 0.9 x the earliest time of impact of any point against any
-facet along the linear path x -> x + p (section 5), so no iterate ever crosses a boundary.
+chain rule (in the closest feature's difference coordinates, :mod:`._barrier_kernels`), and the
+chain rule sums all pairs' blocks per (node, node) pair (:mod:`._assembly_kernels`).
+``max_step_size`` returns 0.9 x the earliest time of impact of any point against any facet along
+the linear path x -> x + p (section 5), so no iterate ever crosses a boundary.
 """
 
 from __future__ import annotations
@@ -14,12 +16,20 @@ import logging
 
 import numpy as np
 
-from bfemp.contact._assembly_kernels import _count_entries, _fill_triplets, _scatter_gradient
+from bfemp.contact._assembly_kernels import _chain_hessian, _scatter_gradient
+from bfemp.contact._barrier_kernels import _barrier_gradients, _barrier_hessians
 from bfemp.contact.barrier import barrier, barrier_derivative, barrier_second_derivative
 from bfemp.contact.collision import CollisionSet, build_collision_set
-from bfemp.contact.pairs import ContactPairs, candidate_pairs, edge_edge_pairs, find_pairs
+from bfemp.contact.pairs import (
+    ContactPairs,
+    candidate_pairs,
+    edge_edge_active,
+    edge_edge_pairs,
+    find_pairs,
+)
 from bfemp.terms.base import StepContext
 from geometry import distance as dist
+from geometry._distance_kernels import KIND_PE, KIND_PP, KIND_PT
 from geometry.ccd import edge_edge_ccd, point_edge_ccd, point_triangle_ccd
 from geometry.mollifier import (
     edge_edge_mollifier,
@@ -36,18 +46,9 @@ log = logging.getLogger(__name__)
 #: Fraction of the earliest time of impact used as the line-search start (section 5).
 CCD_FRACTION = 0.9
 
-_GRADIENT = {
-    "pp": dist.point_point_distance_gradient,
-    "pe": dist.point_edge_distance_gradient,
-    "pt": dist.point_triangle_distance_gradient,
-    "ee": dist.edge_edge_distance_gradient,
-}
-_HESSIAN = {
-    "pp": dist.point_point_distance_hessian,
-    "pe": dist.point_edge_distance_hessian,
-    "pt": dist.point_triangle_distance_hessian,
-    "ee": dist.edge_edge_distance_hessian,
-}
+#: Pair kinds with fused numba kernels (distance, barrier and PSD projection per pair); the
+#: mollified edge-edge terms go through the batched distance functions.
+_KERNEL_KIND = {"pp": KIND_PP, "pe": KIND_PE, "pt": KIND_PT}
 
 
 class BarrierTerm:
@@ -104,17 +105,19 @@ class BarrierTerm:
 
     def _local_gradient(self, kind: str, d: np.ndarray) -> np.ndarray:
         """Per-pair gradient ``(n, m d)`` of omega c [m] b(d) w.r.t. the pair's points."""
-        pts, args = self._local(kind)
         b1 = barrier_derivative(d, self.dhat, self.kappa)
-        grad = self._scaled(kind)[:, None] * b1[:, None] * _GRADIENT[kind](*args)
-        if kind == "ee":  # (m b)' = m' b + m b'
-            eps_x = self.pairs.eps_x
-            mol = edge_edge_mollifier(*args, eps_x)
-            b0 = barrier(d, self.dhat, self.kappa)
-            grad = mol[:, None] * grad + (self._scaled(kind) * b0)[:, None] * (
-                edge_edge_mollifier_gradient(*args, eps_x)
-            )
-        return grad
+        if kind in _KERNEL_KIND:
+            pts = self.pairs.points[kind]
+            return _barrier_gradients(self._pos, pts, _KERNEL_KIND[kind], self._scaled(kind) * b1)
+        # mollified edge-edge: (m b)' = m' b + m b'
+        _, args = self._local(kind)
+        grad = self._scaled(kind)[:, None] * b1[:, None] * dist.edge_edge_distance_gradient(*args)
+        eps_x = self.pairs.eps_x
+        mol = edge_edge_mollifier(*args, eps_x)
+        b0 = barrier(d, self.dhat, self.kappa)
+        return mol[:, None] * grad + (self._scaled(kind) * b0)[:, None] * (
+            edge_edge_mollifier_gradient(*args, eps_x)
+        )
 
     def gradient(self, x: np.ndarray) -> np.ndarray:
         """dB/dx ``(n_dof,)`` in N."""
@@ -135,33 +138,37 @@ class BarrierTerm:
         for kind, d in self.pairs.distance.items():
             if not d.size:
                 continue
-            pts, args = self._local(kind)
-            grad = _GRADIENT[kind](*args)
+            pts = self.pairs.points[kind]
             scale = self._scaled(kind)
             b1 = barrier_derivative(d, self.dhat, self.kappa)
             b2 = barrier_second_derivative(d, self.dhat, self.kappa)
-            local = (scale * b2)[:, None, None] * grad[:, :, None] * grad[:, None, :]
-            local += (scale * b1)[:, None, None] * _HESSIAN[kind](*args)
-            if kind == "ee":  # (m b)'' = m'' b + m' b'^T + b' m'^T + m b''
-                eps_x = self.pairs.eps_x
-                mol = edge_edge_mollifier(*args, eps_x)
-                g_m = edge_edge_mollifier_gradient(*args, eps_x)
-                b0 = barrier(d, self.dhat, self.kappa)
-                cross = (scale * b1)[:, None, None] * g_m[:, :, None] * grad[:, None, :]
-                local = mol[:, None, None] * local + cross + np.swapaxes(cross, 1, 2)
-                local += (scale * b0)[:, None, None] * edge_edge_mollifier_hessian(*args, eps_x)
-            if psd:
-                local = project_psd(local)
-            counts = _count_entries(pts, cs.nodes, cs.weights, dof_node)
-            starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-            dd = self._layout.dim**2
-            total = int(counts.sum()) * dd
-            rows = np.empty(total, dtype=np.int64)
-            cols = np.empty(total, dtype=np.int64)
-            vals = np.empty(total)
-            _fill_triplets(local, pts, cs.nodes, cs.weights, dof_node, starts, rows, cols, vals)
+            if kind in _KERNEL_KIND:
+                local = _barrier_hessians(
+                    self._pos, pts, _KERNEL_KIND[kind], scale * b1, scale * b2, psd
+                )
+            else:
+                local = self._edge_edge_hessian(d, scale, b1, b2, psd)
+            rows, cols, vals = _chain_hessian(local, pts, cs.nodes, cs.weights, dof_node)
             parts.append(Triplets(rows, cols, vals))
         return Triplets.concatenate(parts) if parts else Triplets.empty()
+
+    def _edge_edge_hessian(
+        self, d: np.ndarray, scale: np.ndarray, b1: np.ndarray, b2: np.ndarray, psd: bool
+    ) -> np.ndarray:
+        """Local Hessians ``(n, 12, 12)`` of the mollified edge-edge terms m(x) c b(d(x))."""
+        _, args = self._local("ee")
+        grad = dist.edge_edge_distance_gradient(*args)
+        local = (scale * b2)[:, None, None] * grad[:, :, None] * grad[:, None, :]
+        local += (scale * b1)[:, None, None] * dist.edge_edge_distance_hessian(*args)
+        # (m b)'' = m'' b + m' b'^T + b' m'^T + m b''
+        eps_x = self.pairs.eps_x
+        mol = edge_edge_mollifier(*args, eps_x)
+        g_m = edge_edge_mollifier_gradient(*args, eps_x)
+        b0 = barrier(d, self.dhat, self.kappa)
+        cross = (scale * b1)[:, None, None] * g_m[:, :, None] * grad[:, None, :]
+        local = mol[:, None, None] * local + cross + np.swapaxes(cross, 1, 2)
+        local += (scale * b0)[:, None, None] * edge_edge_mollifier_hessian(*args, eps_x)
+        return project_psd(local) if psd else local
 
     # ------------------------------------------------------------------ feasibility
     def max_step_size(self, x: np.ndarray, p: np.ndarray) -> float:
@@ -196,7 +203,7 @@ class BarrierTerm:
             mot = [motion[q]] + [motion[f[:, a]] for a in range(f.shape[1])]
             ccd = point_edge_ccd if f.shape[1] == 2 else point_triangle_ccd
             t = float(ccd(*pts, *mot, t_max=1.0).min())
-        if start.shape[1] == 3 and cs.edges.shape[0] and np.unique(cs.edge_body).size > 1:
+        if start.shape[1] == 3 and edge_edge_active(cs):
             ee, _ = edge_edge_pairs(cs, start, 0.0, end)
             if ee.shape[0]:
                 args = [start[ee[:, a]] for a in range(4)] + [motion[ee[:, a]] for a in range(4)]

@@ -58,3 +58,28 @@ def test_is_symmetric_psd_rejects_asymmetric():
     blocks = np.array([[[2.0, 1.0], [0.0, 2.0]]])
     assert not is_symmetric_psd(blocks)
     assert is_symmetric_psd(np.array([[[2.0, 1.0], [1.0, 2.0]]]))
+
+
+@pytest.mark.parametrize("n", [1, 4, 12])
+def test_projection_matches_eigh_on_degenerate_blocks(n):
+    """Repeated, zero and tiny eigenvalues (rank-deficient blocks like the barrier's): the
+    result is V max(w, 0) V^T of numpy's eigh up to round-off."""
+    rng = np.random.default_rng(n)
+    q, _ = np.linalg.qr(rng.standard_normal((30, n, n)))
+    w = rng.choice([-2.0, 0.0, 1e-14, 1.0, 1.0, 3.0], (30, n))
+    blocks = (q * w[:, None, :]) @ q.transpose(0, 2, 1)
+    blocks = 0.5 * (blocks + blocks.transpose(0, 2, 1))
+    ew, ev = np.linalg.eigh(blocks)
+    expected = (ev * np.maximum(ew, 0.0)[:, None, :]) @ ev.transpose(0, 2, 1)
+    out = project_psd(blocks)
+    np.testing.assert_allclose(out, expected, atol=1e-13 * np.abs(blocks).max(), rtol=0.0)
+    assert is_symmetric_psd(out, rtol=1e-12)
+
+
+def test_non_finite_blocks_become_nan_and_leave_the_others():
+    blocks = np.array([np.eye(3), np.full((3, 3), np.inf), -np.eye(3)])
+    blocks[1, 0, 0] = np.nan
+    out = project_psd(blocks)
+    np.testing.assert_array_equal(out[0], np.eye(3))
+    assert np.isnan(out[1]).all()
+    np.testing.assert_array_equal(out[2], np.zeros((3, 3)))
