@@ -24,6 +24,7 @@ BENCHMARKS = {
     "rings": "benchmarks.rings",
     "sine_boundary": "benchmarks.sine_boundary",
     "slope": "benchmarks.slope",
+    "speed_knobs": "benchmarks.speed_knobs",
     "tradeoff": "benchmarks.tradeoff",
 }
 
