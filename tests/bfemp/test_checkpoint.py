@@ -132,12 +132,14 @@ def _interrupt_at(step, times):
 
 def test_ctrl_c_writes_a_checkpoint_and_the_run_resumes_bit_for_bit(reference, tmp_path):
     sim = _sim()
+    # the handler in place before the run (Python's default, or SIG_IGN under nohup / `&`)
+    before = signal.getsignal(signal.SIGINT)
     with pytest.raises(KeyboardInterrupt):
         _run(sim, tmp_path, callback=_interrupt_at(7, 1))
     assert sim.state.step == 7 and read_checkpoint(tmp_path).state.step == 7
     manifest = json.loads((tmp_path / "manifest.json").read_text())
     assert manifest["status"] == "interrupted" and "step 7" in manifest["message"]
-    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # handler restored
+    assert signal.getsignal(signal.SIGINT) is before  # handler restored
     resumed = _sim()
     _run(resumed, tmp_path, resume=True)
     _assert_same_run(*reference, resumed, tmp_path)
