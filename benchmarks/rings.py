@@ -28,7 +28,7 @@ dt = 5e-5 s no gain). Partial and full modes therefore also run ``integrator="ne
 ``energy_peak_over_start``, momentum, distances, diagnostics); every run records
 ``energy_peak_over_start`` (max of kinetic + elastic + barrier over its value at t = 0).
 Recorded (partial): ``newmark_damped`` loses 17.5 % (APIC) and 16.4 % (FLIP), about twice the
-paper's 8.6 / 9.7 % at half its MPM resolution (APIC's transfer dissipation falls with dx).
+paper's 8.6 / 9.7 %, at half the paper's MPM resolution (full mode not run here).
 
 Besides, every step is checked independently of the solver for particles inside the deformed FEM
 ring (even-odd ray casting against the FEM boundary polygon): ``penetrations`` is the largest
