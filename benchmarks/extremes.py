@@ -16,8 +16,8 @@ Every step of every case is checked independently of the solver:
 - J > 0 for every FEM cell (``F = sum_a x_a grad N_a^T``) and every particle (``det mpm_F``);
 - no NaN or inf in positions, velocities, F or the energies;
 - bounded energy: ``(E(t) - E(0)) / E_ref < ENERGY_TOL[integrator]`` with ``E = energy_total`` of
-  ``sim.metrics`` (kinetic + elastic + gravity; the barrier energy is not part of it, so contact
-  lowers it) and ``E_ref = E(0)`` (the block's kinetic energy), or the block's weight times its
+  ``sim.metrics`` (kinetic + elastic + gravity + barrier) and ``E_ref = E(0)`` (the block's
+  kinetic energy), or the block's weight times its
   height for the resting case; no friction or external work enters these scenes (friction only
   dissipates), so backward Euler must not gain energy; Newmark gets a small allowance;
 - resting case: the block's mean height must not drift by more than ``DRIFT_TOL`` dhat over the
