@@ -297,8 +297,9 @@ def _for_json(run: dict) -> dict:
     return out
 
 
-def _plot(runs: dict, path: Path, title: str) -> None:
-    """Figure 7 style: energies of each transfer over time, and the momentum drift."""
+def _plot(runs: dict, path: Path, title: str, damped: dict | None = None) -> None:
+    """Figure 7 style: energies of each transfer over time (with ``damped``, the total energy
+    of the ``newmark_damped`` runs too), and the momentum drift."""
     fig = Figure(figsize=(8.0, 9.0), layout="constrained")
     FigureCanvasAgg(fig)
     axes = fig.subplots(3, 1, sharex=True)
@@ -311,6 +312,11 @@ def _plot(runs: dict, path: Path, title: str) -> None:
             ("contact", "C2:", "barrier"),
         ):
             ax.plot(s["t"], s[key] / 1e6, style, label=label)
+        if damped and transfer in damped:
+            other = damped[transfer]
+            loss = other["energy_loss_pct"]
+            label = f"total, newmark_damped (lost {loss:.2f} %)"
+            ax.plot(other["series"]["t"], other["series"]["total"] / 1e6, "C3--", label=label)
         ax.set_title(
             f"{transfer.upper()}: energy lost over the window {run['energy_loss_pct']:.2f} % "
             f"(paper {PAPER['energy_loss_pct'][transfer]:.2f} %)",
@@ -408,11 +414,12 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
             "wall_s": sum(r["wall_s"] for r in damped.values()),
             "newton_iterations": sum(r["newton_iterations"] for r in damped.values()),
             "diagnostics": {k: r["diagnostics"] for k, r in damped.items()},
+            "runs": {k: _for_json(r) for k, r in damped.items()},
         }
         payload["wall_s"] += payload["newmark_damped"]["wall_s"]
     path = write_json(out, NAME, payload)
     png = out / f"{NAME}.png"
-    _plot(runs, png, f"Colliding rings, MPM (left) vs FEM (right), {mode} mode")
+    _plot(runs, png, f"Colliding rings, MPM (left) vs FEM (right), {mode} mode", damped)
     log.info(
         "rings: drift %.2e, min distance %.3e m, energy loss %s",
         payload["momentum_drift_rel"],
