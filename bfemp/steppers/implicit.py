@@ -486,7 +486,7 @@ class ImplicitStepper:
             friction_its, friction_ok = 0, True
         else:
             # a^{n+1} ~ a^n in eq. 21: x^{n+1} ~ x_hat + 2 alpha beta dt^2 a^n (warm start)
-            self._predicted = ctx.x_hat + integ.weight(dt) * a_n
+            self._predicted = ctx.x_hat + integ.weight(dt) * a_n if self.warm_start else None
             result, friction_its, friction_ok = self._solve_scripted(ctx, state, mpm)
         report_args = dict(
             friction_iterations=friction_its,

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 import bfemp
+from benchmarks.speed_knobs import block_on_floor
 from bfemp.contact.term import BarrierTerm
 from bfemp.steppers.implicit import ImplicitStepper
 from bfemp.testing import check_term
@@ -419,26 +420,15 @@ def test_a_scripted_plate_never_jumps_over_particles(dt):
     assert forces[:, 1].sum() < 0.0 and report.contact_pairs > 0  # it presses the block
 
 
-def _block_on_floor(mu: float) -> bfemp.Scene:
-    scene = bfemp.Scene(dim=2, gravity=(2.0, -9.81))
-    floor = bfemp.shapes.rectangle((-0.5, -0.2), (2.0, 0.0), h=0.1)
-    scene.add_fem(floor, material=STIFF, prescribed=bfemp.motion.Fixed())
-    x, vol = bfemp.sample.box((0.0, 0.0011), (0.3, 0.1011), dx=0.025, ppc=4)
-    scene.add_mpm(x, vol, material=STIFF)
-    scene.set_grid(dx=0.025)
-    scene.set_contact(dhat=1e-3, kappa=1e4, mu=mu, eps_v=1e-4)
-    return scene
-
-
 def test_friction_loop_stops_by_back_solve_with_the_same_result(monkeypatch):
     """The friction loop's stopping test reuses the last factorisation: same trajectory as a
     full Newton solve under the refreshed friction data, fewer factorisations (sticking block:
-    measured 307 -> 247 over 0.3 s)."""
+    measured 284 -> 224 over 0.3 s, benchmarks/records/speed_knobs.json)."""
     sims = {}
     for cheap in (True, False):
         if not cheap:
             monkeypatch.setattr(ImplicitStepper, "_increment_below_tol", lambda *args: False)
-        sim = bfemp.Simulation(_block_on_floor(0.5), dt=5e-3, tol=1e-6)
+        sim = bfemp.Simulation(block_on_floor(0.5), dt=5e-3, tol=1e-6)
         sim.run(0.1, progress=False)
         sims[cheap] = sim
     assert np.abs(sims[True].state.mpm_x - sims[False].state.mpm_x).max() < 1e-9
