@@ -35,6 +35,9 @@ def _parser() -> argparse.ArgumentParser:
     mode = parser.add_mutually_exclusive_group()
     mode.add_argument("--quick", action="store_const", const="quick", dest="mode")
     mode.add_argument("--full", action="store_const", const="full", dest="mode")
+    mode.add_argument(
+        "--mode", dest="mode", help="another mode of the benchmark (rings: partial; hertz: refined)"
+    )
     parser.add_argument("--out", default="results", help="output folder (default results/)")
     return parser
 

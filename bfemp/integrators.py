@@ -19,6 +19,30 @@ paper's rings at h = 0.25 m, 40 m/s each, dt = 2e-4 s, the whole 0.3 s collision
 energy peaks at 2.41 x its start under mid-point Newmark, at 1.054 x under damped Newmark (and
 ends at 0.967 x). It curbs the growth, it does not rule it out: a 40 m/s block hitting a plate
 with dhat = 1e-3 m at dt = 1e-4 s still gains 47 %; only backward Euler never gains.
+
+Newmark with implicit contact (``"newmark_implicit_contact"``, not in the paper): mid-point
+Newmark for everything but contact; the barrier and friction forces enter as Newmark's
+beta = 1/2, gamma = 1 member, i.e. with no memory: they are left out of a^n (so out of x_hat and
+of the (1 - gamma) a^n velocity term) and weighted alpha dt^2 in eq. 22 instead of
+2 alpha beta dt^2. The step is still one minimisation,
+
+    E(x) = 1/2 ||x - x_hat||_M^2 + 2 alpha beta dt^2 Psi(x) + alpha dt^2 (B(x) + D(x)),
+
+and v^{n+1} = v^n + dt ((1 - gamma) a_e^n + gamma a_e^{n+1}) + dt a_c^{n+1}, with a_e the
+elastic (and body-force) acceleration and a_c = -M^-1 grad(B + D). As gamma = 2 beta,
+x^{n+1} - x^n = dt (v^n + v^{n+1}) / 2 still holds for every node, so the friction sliding map
+and the trapezoidal kinematics are those of mid-point Newmark. The idea is that of the
+contact-implicit and contact-stabilised Newmark schemes of the dynamic-contact literature
+(Kane et al. 1999; Deuflhard, Krause and Ertel 2008): the trapezoidal rule carries a
+contact force from one step into the next through a^n, and a stiff barrier that is on at t^n and
+off at t^{n+1} (or the reverse) then pumps energy into the contact nodes' chatter at the
+Nyquist frequency. Without that memory the contact impulse is implicit and dissipative (a
+boundary node's normal approach speed is lost at impact, which vanishes as the mesh is refined)
+while elastic waves keep the trapezoidal rule's energy conservation. Measured on a 1D elastic
+bar (E = 1e8 Pa, rho = 1000, 10 m, h = 0.05 m) hitting a barrier wall at 40 m/s (dhat = 1e-2 m):
+mid-point Newmark ends with 1.0 to 1.28 x the energy at dt = 2e-4 s and 15 to 18 x at
+dt = 1e-4 s, depending on the impact phase; implicit contact 0.996 to 0.997 x at both, damped
+Newmark 0.97 to 0.99 x, backward Euler 0.90 / 0.93 x.
 """
 
 from __future__ import annotations
@@ -27,21 +51,47 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Integrator", "BACKWARD_EULER", "NEWMARK", "NEWMARK_DAMPED", "integrator_from_name"]
+__all__ = [
+    "Integrator",
+    "BACKWARD_EULER",
+    "NEWMARK",
+    "NEWMARK_DAMPED",
+    "NEWMARK_IMPLICIT_CONTACT",
+    "INTEGRATOR_NAMES",
+    "integrator_from_name",
+]
 
 
 @dataclass(frozen=True, kw_only=True)
 class Integrator:
-    """Parameters ``alpha``, ``beta``, ``gamma`` of eqs. 21-22."""
+    """Parameters ``alpha``, ``beta``, ``gamma`` of eqs. 21-22.
+
+    ``implicit_contact``: barrier and friction forces enter with beta = 1/2, gamma = 1 (no
+    memory, weight ``alpha dt^2``; see the module docstring); needs gamma = 2 beta.
+    """
 
     name: str
     alpha: float
     beta: float
     gamma: float
+    implicit_contact: bool = False
+
+    def __post_init__(self) -> None:
+        if self.implicit_contact and not np.isclose(self.gamma, 2.0 * self.beta):
+            raise ValueError(
+                f"integrator {self.name!r}: implicit_contact needs gamma = 2 beta (so that the "
+                f"contact and the elastic parts share x^{{n+1}} - x^n = dt (v^n + v^{{n+1}}) / 2), "
+                f"got gamma = {self.gamma}, beta = {self.beta}"
+            )
 
     def weight(self, dt: float) -> float:
         """The potential weight 2 alpha beta dt^2 in s^2 (eq. 22)."""
         return 2.0 * self.alpha * self.beta * dt * dt
+
+    def contact_weight(self, dt: float) -> float:
+        """The weight in s^2 of the contact terms (barrier, friction): ``alpha dt^2`` with
+        ``implicit_contact`` (beta = 1/2), else ``weight(dt)``."""
+        return self.alpha * dt * dt if self.implicit_contact else self.weight(dt)
 
     @property
     def uses_acceleration(self) -> bool:
@@ -58,16 +108,26 @@ class Integrator:
         """v^{n+1} = v^n + dt ((1 - gamma) a^n + gamma a^{n+1}) in m/s (eq. 21)."""
         return v + dt * ((1.0 - self.gamma) * a_old + self.gamma * a_new)
 
+    def contact_velocity(self, v: np.ndarray, a_contact: np.ndarray, dt: float) -> np.ndarray:
+        """Add the implicit contact impulse: v + dt a_c^{n+1} in m/s (gamma = 1, no memory)."""
+        return v + dt * a_contact
+
 
 BACKWARD_EULER = Integrator(name="backward_euler", alpha=1.0, beta=0.5, gamma=1.0)
 NEWMARK = Integrator(name="newmark", alpha=0.5, beta=0.25, gamma=0.5)
 NEWMARK_DAMPED = Integrator(name="newmark_damped", alpha=0.5, beta=0.25 * 1.05**2, gamma=0.55)
+NEWMARK_IMPLICIT_CONTACT = Integrator(
+    name="newmark_implicit_contact", alpha=0.5, beta=0.25, gamma=0.5, implicit_contact=True
+)
 
-_BY_NAME = {i.name: i for i in (BACKWARD_EULER, NEWMARK, NEWMARK_DAMPED)}
+_BY_NAME = {i.name: i for i in (BACKWARD_EULER, NEWMARK, NEWMARK_DAMPED, NEWMARK_IMPLICIT_CONTACT)}
+#: the names ``integrator_from_name`` (and the scene file's ``integrator``) accept
+INTEGRATOR_NAMES = tuple(_BY_NAME)
 
 
 def integrator_from_name(name: str | Integrator) -> Integrator:
-    """``"backward_euler"``, ``"newmark"``, ``"newmark_damped"`` (or an ``Integrator``)."""
+    """``"backward_euler"``, ``"newmark"``, ``"newmark_damped"``,
+    ``"newmark_implicit_contact"`` (or an ``Integrator``)."""
     if isinstance(name, Integrator):
         return name
     try:

@@ -2,7 +2,9 @@
 
     E(x) = 1/2 ||x - x_hat||_M^2 + 2 alpha beta dt^2 (Psi(x) + gravity + contact + friction).
 
-This is the only place where terms are summed and where the weight 2 alpha beta dt^2 is applied.
+This is the only place where terms are summed and where the weights are applied: 2 alpha beta
+dt^2, and for the contact terms (those with ``contact = True``: barrier, friction) the
+integrator's ``contact_weight`` (alpha dt^2 under ``"newmark_implicit_contact"``).
 It implements the objective protocol of ``solvers.newton.minimize``. With ``frames`` (slip
 boundaries) the solver's unknowns are y, x = Q y, and the normal coordinates are fixed DOFs.
 """
@@ -17,7 +19,12 @@ from bfemp.frames import NodeFrames
 from bfemp.terms.base import StepContext, Term
 from solvers.assembly import Triplets
 
-__all__ = ["IncrementalPotential"]
+__all__ = ["IncrementalPotential", "is_contact"]
+
+
+def is_contact(term: Term) -> bool:
+    """Whether a term is a contact force (barrier, friction): its ``contact`` attribute."""
+    return bool(getattr(term, "contact", False))
 
 
 class IncrementalPotential:
@@ -32,6 +39,8 @@ class IncrementalPotential:
         self.inertia = inertia
         self.potentials = list(potentials)
         self.weight = 1.0
+        self.contact_weight = 1.0
+        self._weights = [1.0] * len(self.potentials)
         self.fixed_dofs: np.ndarray | None = None
         self.frames: NodeFrames | None = None
         self._particles: tuple | None = None  # (nodes, weights, grads, node offset, dx)
@@ -41,9 +50,20 @@ class IncrementalPotential:
         """Inertia first, then the potentials."""
         return [self.inertia, *self.potentials]
 
-    def begin_step(self, ctx: StepContext, weight: float, frames: NodeFrames | None = None) -> None:
-        """Start a step; ``weight`` = 2 alpha beta dt^2 in s^2 (eq. 22); optional slip frames."""
+    def begin_step(
+        self,
+        ctx: StepContext,
+        weight: float,
+        frames: NodeFrames | None = None,
+        contact_weight: float | None = None,
+    ) -> None:
+        """Start a step; ``weight`` = 2 alpha beta dt^2 in s^2 (eq. 22), ``contact_weight`` that
+        of the contact terms (default: ``weight``); optional slip frames."""
         self.weight = float(weight)
+        self.contact_weight = self.weight if contact_weight is None else float(contact_weight)
+        self._weights = [
+            self.contact_weight if is_contact(term) else self.weight for term in self.potentials
+        ]
         self.n_dof = ctx.layout.n_dof
         self._layout = ctx.layout
         self._particles = None
@@ -77,30 +97,36 @@ class IncrementalPotential:
         """E in J at the current iterate."""
         x = self._x
         total = self.inertia.value(x)
-        for term in self.potentials:
-            total += self.weight * term.value(x)
+        for weight, term in zip(self._weights, self.potentials, strict=True):
+            total += weight * term.value(x)
         return total
 
     def gradient(self, y: np.ndarray) -> np.ndarray:
         """dE/dy ``(n_dof,)`` at the current iterate."""
         x = self._x
-        g = self.inertia.gradient(x) + self.weight * self.potential_gradient(x)
+        g = self.inertia.gradient(x)
+        for weight, term in zip(self._weights, self.potentials, strict=True):
+            g += weight * term.gradient(x)
         return self.to_unknowns(g)
 
-    def potential_gradient(self, x: np.ndarray) -> np.ndarray:
-        """Unweighted gradient of the potentials ``(n_dof,)`` in N (minus the total force)."""
+    def potential_gradient(self, x: np.ndarray, contact: bool | None = None) -> np.ndarray:
+        """Unweighted gradient of the potentials ``(n_dof,)`` in N (minus the total force).
+
+        ``contact``: None sums every potential, True only the contact terms, False the others.
+        """
         g = np.zeros(self.n_dof)
         for term in self.potentials:
-            g += term.gradient(x)
+            if contact is None or is_contact(term) == contact:
+                g += term.gradient(x)
         return g
 
     def hessian(self, y: np.ndarray, psd: bool) -> Triplets:
         """All terms' triplets (potentials scaled by the weight), in the unknowns' frames."""
         x = self._x
         parts = [self.inertia.hessian(x, psd)]
-        for term in self.potentials:
+        for weight, term in zip(self._weights, self.potentials, strict=True):
             t = term.hessian(x, psd)
-            parts.append(Triplets(t.rows, t.cols, self.weight * t.vals))
+            parts.append(Triplets(t.rows, t.cols, weight * t.vals))
         total = Triplets.concatenate(parts)
         return total if self.frames is None else self.frames.rotate(total)
 

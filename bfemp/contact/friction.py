@@ -4,11 +4,14 @@ For every active contact, lagged at the iterate x^j of the outer friction loop (
 the normal force magnitude lambda_k = -omega_q b'(d_k), an orthonormal tangent basis T_k and the
 closest-point weights c_k (so that the relative sliding of the pair is sum_a c_ka U_a). Then
 
-    D(x) = sum_k mu lambda_k f0(|u_k|),   u_k = T_k^T sum_a c_ka U_a(x),
+    D(x) = sum_k mu lambda_k f0(|u_k|) / s,   u_k = T_k^T sum_a c_ka U_a(x),
 
 with f0' = f1 the mollifier of eq. 36 (width eps_v dt). U_a is the point's sliding over the
 step, Delta t v^{n+1} = Delta t v^n + Delta t^2 ((1 - gamma) a^n + gamma a^{n+1}) (eq. 37), affine
-in the unknowns: U = s x + c with s = gamma / (2 alpha beta) (backward Euler: U = x - x^n). For MPM
+in the unknowns: U = s x + c with s = gamma / (2 alpha beta) (backward Euler: U = x - x^n). The
+1 / s makes -dD/dx the friction force of eq. 37, mu lambda_k T_k f1(|u_k|) u_k / |u_k|, whatever
+the integrator: without it the chain rule through U scales the force by s (2 under mid-point
+Newmark, which then doubled mu: a box on a slope with mu = 0.1 and tan theta = 0.2 stuck). For MPM
 it is the interpolated grid motion at the particle, not the particle velocity (section 4.3), which
 makes friction independent of the transfer scheme.
 
@@ -76,6 +79,7 @@ class FrictionTerm:
     """
 
     name = "friction"
+    contact = True  # weighted by the integrator's contact_weight
 
     def __init__(self, mu: float, eps_v: float, barrier: BarrierTerm) -> None:
         self.mu = float(mu)
@@ -189,12 +193,12 @@ class FrictionTerm:
         return np.einsum("nik,ni->nk", T, rel)
 
     def value(self, x: np.ndarray) -> float:
-        """D(x) in J (eq. 37)."""
+        """D(x) in J (eq. 37, divided by s: see the module docstring)."""
         total = 0.0
         for points, coef, T, ml in getattr(self, "_groups", []) if self.n_contacts else []:
             u = self._u(points, coef, T)
             total += float(friction_local(u, ml, self._eps)[0].sum())
-        return total
+        return total / self._s
 
     def gradient(self, x: np.ndarray) -> np.ndarray:
         """dD/dx ``(n_dof,)`` in N (minus the lagged friction force)."""
@@ -206,12 +210,14 @@ class FrictionTerm:
                     continue
                 _, g_u, _ = friction_local(self._u(points, coef, T), ml, self._eps)
                 g_rel = np.einsum("nik,nk->ni", T, g_u)  # (n, d)
-                local = self._s * (coef[:, :, None] * g_rel[:, None, :]).reshape(len(coef), -1)
+                # d/dx of f0(|u|) / s: the chain rule's s cancels the 1 / s
+                local = (coef[:, :, None] * g_rel[:, None, :]).reshape(len(coef), -1)
                 _scatter_gradient(out, local, points, cs.nodes, cs.weights)
         return self._layout.restrict(out)
 
     def hessian(self, x: np.ndarray, psd: bool) -> Triplets:
-        """s^2 (c c^T) (x) (T H_u T^T) per contact, chained to node DOFs."""
+        """s (c c^T) (x) (T H_u T^T) per contact (s^2 from the chain rule, 1 / s from D),
+        chained to node DOFs."""
         parts = []
         if self.n_contacts:
             cs = self.barrier.collisions
@@ -225,7 +231,7 @@ class FrictionTerm:
                 h_rel = np.einsum("nik,nkl,njl->nij", T, h_u, T)  # (n, d, d)
                 m = coef.shape[1]
                 local = (
-                    (self._s**2)
+                    self._s
                     * (coef[:, :, None, None, None] * coef[:, None, None, :, None])
                     * h_rel[:, None, :, None, :]
                 )

@@ -61,6 +61,7 @@ class BarrierTerm:
     """
 
     name = "barrier"
+    contact = True  # weighted by the integrator's contact_weight
 
     def __init__(self, dhat: float, kappa: float) -> None:
         self.dhat = float(dhat)

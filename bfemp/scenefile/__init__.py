@@ -13,7 +13,8 @@ Format (``#`` comments; numbers in SI units, scalars may also be strings with a 
 
     [simulation]                  # Simulation(...) keyword arguments
     strategy = "barrier"          # coupling strategy
-    integrator = "newmark"        # or "backward_euler", "newmark_damped"
+    integrator = "newmark"        # or "backward_euler", "newmark_damped",
+                                  #    "newmark_implicit_contact"
     transfer = "apic"             # or "pic", "flip" (MPM bodies)
     dt = 0.01                     # s
     tol = 1e-6                    # Newton tolerance on ||p||_inf / dt, m/s

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from bfemp.errors import SceneError
+from bfemp.integrators import INTEGRATOR_NAMES
 from bfemp.scene import Scene
 from bfemp.scenefile._fields import Table
 from bfemp.scenefile._objects import (
@@ -40,7 +41,7 @@ TOP_LEVEL = (
     "quick",
     "check",
 )
-INTEGRATORS = ("backward_euler", "newmark", "newmark_damped")
+INTEGRATORS = INTEGRATOR_NAMES
 TRANSFERS = ("apic", "pic", "flip")
 _INIT_HINTS = {
     "inverted": "cells must be counter-clockwise (2D) / right-handed (3D); flip the last two "

@@ -7,7 +7,9 @@ One step:
    sticky grid nodes stay, slip grid nodes move tangentially only (rotated frames).
 3. Predict x_hat (eqs. 21-22), minimise the incremental potential with projected Newton from x^n
    (Algorithm 2), then a^{n+1} = -M^-1 dPsi/dx(x^{n+1}) and the velocity update of eq. 21
-   (Algorithm 2, line 14); constrained components get zero velocity and acceleration.
+   (Algorithm 2, line 14); constrained components get zero velocity and acceleration. Under an
+   integrator with ``implicit_contact`` the contact forces are kept out of a^{n+1} and added to
+   the velocity as an impulse (``bfemp.integrators``).
 4. MPM: G2P of positions, velocities, F (and APIC C, Newmark a) per Tables 1-3 (line 12).
 """
 
@@ -157,7 +159,7 @@ class ImplicitStepper:
                 g_all = self.potential.inertia.gradient(x_n) + weight * (
                     self.potential.potential_gradient(x_n) - g_barrier
                 )
-                self.adaptive.initialise(g_all, g_barrier, weight)
+                self.adaptive.initialise(g_all, g_barrier, self.integrator.contact_weight(self.dt))
         self.barrier.kappa = self.adaptive.kappa
 
     @property
@@ -437,6 +439,19 @@ class ImplicitStepper:
         result.jac = grad
         return True
 
+    def _begin_potential(self, ctx: StepContext, frames: NodeFrames | None) -> None:
+        """Start the step's potential with the integrator's weights (eq. 22)."""
+        integ = self.integrator
+        self.potential.begin_step(
+            ctx, integ.weight(self.dt), frames, contact_weight=integ.contact_weight(self.dt)
+        )
+
+    def _memory_gradient(self, x: np.ndarray) -> np.ndarray:
+        """The gradient ``(n_dof,)`` in N whose force is carried as a^n into the next step: all
+        potentials, or all but the contact terms under ``implicit_contact``."""
+        contact = False if self.integrator.implicit_contact else None
+        return self.potential.potential_gradient(x, contact=contact)
+
     def begin_step(self, state: State) -> np.ndarray:
         """Set up the potential of the step starting at ``state`` (for inspection and tests).
 
@@ -444,7 +459,7 @@ class ImplicitStepper:
         step context.
         """
         ctx, _, x_n, _, _, frames = self._setup(state, state.t + self.dt)
-        self.potential.begin_step(ctx, self.integrator.weight(self.dt), frames)
+        self._begin_potential(ctx, frames)
         self.context = ctx
         return x_n
 
@@ -454,9 +469,9 @@ class ImplicitStepper:
         if not self.integrator.uses_acceleration or self.model.n_fem_nodes == 0:
             return out
         ctx, _, x_n, _, _, _ = self._setup(state, state.t)
-        self.potential.begin_step(ctx, self.integrator.weight(self.dt))
+        self._begin_potential(ctx, None)
         self.potential.solution_changed(x_n)
-        accel = -self.potential.potential_gradient(x_n) / ctx.dof_mass
+        accel = -self._memory_gradient(x_n) / ctx.dof_mass
         all_a = self.layout.expand(accel)
         out.fem_a = all_a[: self.model.n_fem_nodes]
         # MPM particles start with a = g (no elastic force in the rest state)
@@ -472,7 +487,7 @@ class ImplicitStepper:
         t_next = state.t + dt
         ctx, mpm, x_n, v_n, a_n, frames = self._setup(state, t_next)
         layout = ctx.layout
-        self.potential.begin_step(ctx, integ.weight(dt), frames)
+        self._begin_potential(ctx, frames)
         self._adapt_kappa(ctx, x_n)
         setup_time = time.perf_counter() - started
         if layout.n_dof == 0:  # every node scripted: nothing to solve
@@ -501,11 +516,15 @@ class ImplicitStepper:
         )
         if not result.success:
             raise StepError(StepReport(**report_args, timings=dict(result.timings)))
-        # a^{n+1} from the forces at x^{n+1} (Algorithm 2, line 14), then eq. 21 for v.
+        # a^{n+1} from the forces at x^{n+1} (Algorithm 2, line 14), then eq. 21 for v; with
+        # implicit contact, a^{n+1} leaves the contact forces out and they act as an impulse.
         x_next = self.potential.to_positions(result.x)
+        a_contact = None
         if layout.n_dof:
             self.potential.solution_changed(result.x)
-            a_next = -self.potential.potential_gradient(x_next) / ctx.dof_mass
+            a_next = -self._memory_gradient(x_next) / ctx.dof_mass
+            if integ.implicit_contact and self.barrier is not None:
+                a_contact = -self.potential.potential_gradient(x_next, contact=True) / ctx.dof_mass
         else:
             a_next = np.zeros(0)
         boundary_forces = None
@@ -517,6 +536,8 @@ class ImplicitStepper:
             a_next = frames.to_global(local)
             boundary_forces = self._boundary_forces(result, frames, mpm, layout)
         v_next = integ.velocity(v_n, a_n, a_next, dt)
+        if a_contact is not None:
+            v_next = integ.contact_velocity(v_next, a_contact, dt)
         if frames is not None:
             local = frames.to_local(v_next)
             local[normal_dofs] = frames.to_local((self.x_start - x_n) / dt)[normal_dofs]

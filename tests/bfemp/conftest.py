@@ -4,16 +4,19 @@ import numpy as np
 import pytest
 
 import bfemp
-from bfemp.integrators import BACKWARD_EULER
+from bfemp.integrators import BACKWARD_EULER, integrator_from_name
 from bfemp.steppers.implicit import ImplicitStepper
 from solvers.options import NewtonOptions
 
 
-def started_stepper(scene, dt=1e-2, state=None):
+def started_stepper(scene, dt=1e-2, state=None, integrator=BACKWARD_EULER):
     """An implicit stepper whose potential has begun a step from the scene's initial state."""
     model = scene.build()
     stepper = ImplicitStepper(
-        model, integrator=BACKWARD_EULER, dt=dt, newton=NewtonOptions(tol=1e-8)
+        model,
+        integrator=integrator_from_name(integrator),
+        dt=dt,
+        newton=NewtonOptions(tol=1e-8),
     )
     state = model.initial_state() if state is None else state
     x = stepper.begin_step(state)

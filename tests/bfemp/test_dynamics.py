@@ -181,3 +181,20 @@ def test_det_f_guard_keeps_j_positive_through_violent_compression():
         min_j.append(np.linalg.det(F).min())
     assert min(min_j) > 0.0
     assert min_j[0] < 0.2  # the first step really crushed the block (an undefended step inverts)
+
+
+def test_newmark_with_implicit_contact_is_newmark_without_contact():
+    """Implicit contact changes only how contact forces enter: a contact-free vibration follows
+    mid-point Newmark to the last bit."""
+    plain, _ = _vibrating_cantilever("newmark", periods=2)
+    implicit, _ = _vibrating_cantilever("newmark_implicit_contact", periods=2)
+    assert np.array_equal(plain, implicit)
+
+
+def test_implicit_contact_needs_gamma_twice_beta():
+    from bfemp.integrators import Integrator
+
+    with pytest.raises(ValueError, match="gamma = 2 beta"):
+        Integrator(name="x", alpha=0.5, beta=0.3025, gamma=0.55, implicit_contact=True)
+    with pytest.raises(ValueError, match="newmark_implicit_contact"):  # the names are listed
+        bfemp.integrators.integrator_from_name("implicit_contact")
