@@ -24,7 +24,8 @@ Each case changes one knob of the base (see ``CASES``); choices where the issue 
   grid-cell centres, where a quadratic B-spline stencil holds nodes of weight exactly 0;
 - kappa far too small: 1 Pa (stopping the block would need d / dhat below the smallest double);
   far too large: 1e16 Pa (1e8 times E);
-- newmark_coarse: Newmark at dx = h = 0.05 m in both modes;
+- newmark_coarse: Newmark at dx = h = 0.05 m in both modes; implicit_contact and
+  implicit_contact_coarse: the same two with ``"newmark_implicit_contact"``;
 - resting: the slab fixed, gravity 9.81 m/s^2, the block at rest, dt = 5e-3 s, 0.5 s (quick) /
   5 s (full) = 100 / 1000 steps.
 """
@@ -68,7 +69,7 @@ class CaseConfig:
         mu: friction coefficient (0: no friction term).
         eps_v: static friction velocity threshold in m/s.
         geometry: one of ``GEOMETRIES``.
-        integrator: ``"backward_euler"`` or ``"newmark"``.
+        integrator: ``"backward_euler"``, ``"newmark"`` or ``"newmark_implicit_contact"``.
         duration: simulated time in quick mode in s.
         duration_full: simulated time in full mode in s (None: ``duration`` times the mode's
             ``duration_factor``).
@@ -193,6 +194,19 @@ CASES: tuple[Case, ...] = (
         "integrator",
         "Newmark, dx = h = 0.05 m (the quick resolution) in every mode",
         integrator="newmark",
+        dx=0.05,
+    ),
+    _case(
+        "implicit_contact",
+        "integrator",
+        "Newmark with implicit contact (memory-free contact forces)",
+        integrator="newmark_implicit_contact",
+    ),
+    _case(
+        "implicit_contact_coarse",
+        "integrator",
+        "Newmark with implicit contact, dx = h = 0.05 m in every mode (newmark_coarse's setting)",
+        integrator="newmark_implicit_contact",
         dx=0.05,
     ),
     _case(

@@ -3,8 +3,8 @@
 Two identical 2D Neo-Hookean rings (inner radius 3 m, outer radius 4 m, E = 1e8 Pa, nu = 0.2,
 rho = 1000 kg/m^2) fly at each other at 40 m/s each; the left ring is MPM, the right ring FEM, the
 gap between their outer surfaces is 2 m, so they touch at t = 2 m / 80 m/s = 0.025 s. No gravity,
-no friction; barrier contact with dhat = 1e-2 m, kappa = 1e7 Pa; Newmark (average acceleration),
-dt = 2e-4 s, Newton tolerance 1e-6 m/s. The run is repeated with APIC and with FLIP transfers.
+no friction; barrier contact with dhat = 1e-2 m, kappa = 1e7 Pa; Newmark, dt = 2e-4 s, Newton
+tolerance 1e-6 m/s. The run is repeated with APIC and with FLIP transfers.
 
 Metrics (top level of ``rings.json``):
 
@@ -19,16 +19,22 @@ Metrics (top level of ``rings.json``):
   at or after 0.293 s (both exact steps at dt = 2e-4 s);
 - ``steps`` (per run), ``wall_s`` (all runs).
 
-Energy under Newmark (measured): at the paper's dt the closing speed (80 m/s) carries a point
-through dhat (1e-2 m) within one step, and the trapezoidal rule, energy-stable only for linear
-problems, gains energy at every such stiff barrier onset (partial mode: +25 % over the window
-instead of the paper's 8.6 % loss; two FEM rings alone: the energy peaks at 2.4 x its start; at
-dt = 5e-5 s no gain). Partial and full modes therefore also run ``integrator="newmark_damped"``
-(gamma = 0.55, :mod:`bfemp.integrators`) and record it under ``newmark_damped`` (energy loss,
-``energy_peak_over_start``, momentum, distances, diagnostics); every run records
-``energy_peak_over_start`` (max of kinetic + elastic + barrier over its value at t = 0).
-Recorded (partial): ``newmark_damped`` loses 17.5 % (APIC) and 16.4 % (FLIP), about twice the
-paper's 8.6 / 9.7 %, at half the paper's MPM resolution (full mode not run here).
+Integrator (``INTEGRATOR``): ``"newmark_implicit_contact"``, mid-point Newmark for both rings
+with the barrier forces memory-free (:mod:`bfemp.integrators`). The paper's mid-point Newmark
+read literally, with the barrier inside the trapezoidal rule, gains energy here: at the paper's
+dt the closing speed (80 m/s) carries a point through dhat (1e-2 m) within one step, and the
+trapezoidal rule carries the stiff barrier force of one step into the next through a^n, which
+pumps energy into the contact nodes (partial mode: +25 % over the window instead of the paper's
+8.6 % loss; two FEM rings alone: the energy peaks at 2.4 x its start; at dt = 5e-5 s no gain).
+Partial and full modes also run it (``COMPARED_INTEGRATORS``, unless ``compare=False``) and
+record it under ``compared_integrators``. Every run records ``energy_peak_over_start`` (max of
+kinetic + elastic + barrier over its value at t = 0).
+
+Recorded (``benchmarks/records/rings.json``): full mode (compare=False, ``newmark`` at full
+resolution not run) loses 8.45 % (APIC) and FLIP_FULL % (FLIP) against the paper's 8.57 / 9.67 %,
+with the energy never above its start, momentum drift MOM_FULL and closest approach MIN_FULL m.
+Partial mode: ``newmark_implicit_contact`` 15.3 % / 13.0 %, ``newmark`` -24.9 % / -23.8 % (gains),
+``newmark_damped`` (gamma = 0.55, at 8f0e5c1) 17.5 % / 16.4 %.
 
 Besides, every step is checked independently of the solver for particles inside the deformed FEM
 ring (even-odd ray casting against the FEM boundary polygon): ``penetrations`` is the largest
@@ -49,8 +55,9 @@ Choices where the paper is silent (recorded in the JSON ``parameters``):
 - Quick mode keeps the geometry and the physics and coarsens the discretisation: dx = 1/3 m
   (three cells across the ring), ppc = 4, FEM h = 1/3 m, dt = 2e-3 s, t_end = 0.3 s (both
   transfers in < 60 s on 2 cores). Its energy loss is not expected to match the paper.
-- Partial mode (``run("partial")``, for machines where full mode takes hours): the paper's dt,
-  FEM mesh and physics, MPM grid dx = 0.2 m with ppc = 4 (2196 particles).
+- Partial mode (``run("partial")``, ``--mode partial``): the paper's dt, FEM mesh and physics,
+  MPM grid dx = 0.2 m with ppc = 4 (2196 particles); a few minutes per run where full mode
+  takes 15-20 (2 cores).
 """
 
 from __future__ import annotations
@@ -346,13 +353,15 @@ def _plot(runs: dict, path: Path, title: str, compared: dict | None = None) -> N
     fig.savefig(path, dpi=110)
 
 
-def run(mode: str = "full", out: str | Path = "results") -> dict:
+def run(mode: str = "full", out: str | Path = "results", compare: bool = True) -> dict:
     """Run both transfers and write ``rings.json`` and ``rings.png`` to ``out``.
 
     Args:
         mode: ``"full"`` (paper resolution), ``"partial"`` (paper dt and FEM mesh, MPM grid
             2x coarser) or ``"quick"`` (coarse, < 60 s).
         out: output folder.
+        compare: in partial and full modes, also run ``COMPARED_INTEGRATORS`` (doubles the
+            time).
 
     Returns:
         ``{"json": path, "png": path, ...}`` with the top-level metrics.
@@ -365,7 +374,7 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
     out.mkdir(parents=True, exist_ok=True)
     runs = {transfer: _run_one(cfg, transfer) for transfer in TRANSFERS}
     compared = {}
-    if mode != "quick":  # the paper's literal mid-point Newmark (see the docstring)
+    if compare and mode != "quick":  # the paper's literal mid-point Newmark (see the docstring)
         compared = {
             name: {t: _run_one({**cfg, "integrator": name}, t) for t in TRANSFERS}
             for name in COMPARED_INTEGRATORS

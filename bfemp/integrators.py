@@ -38,11 +38,12 @@ contact force from one step into the next through a^n, and a stiff barrier that 
 off at t^{n+1} (or the reverse) then pumps energy into the contact nodes' chatter at the
 Nyquist frequency. Without that memory the contact impulse is implicit and dissipative (at
 impact the contact nodes lose their normal approach speed, a share of the energy expected to
-shrink with the boundary nodes' mass as the mesh is refined) while elastic waves keep the trapezoidal rule's energy conservation. Measured on two FEM
-Neo-Hookean rings (the paper's rings at h = 0.5 m, 40 m/s each, dt = 1e-4 s, 0.05 s): the
-total energy peaks at 1.213 x its start under mid-point Newmark, 1.025 x under damped Newmark,
-and never exceeds it under implicit contact (ends at 0.983 x) or backward Euler (0.940 x); the
-linear momentum is kept to round-off by all four (``tests/bfemp/test_contact.py``).
+shrink with the boundary nodes' mass as the mesh is refined) while elastic waves keep the
+trapezoidal rule's energy conservation. Measured on two FEM Neo-Hookean rings (the paper's
+rings at h = 0.5 m, 40 m/s each, dt = 1e-4 s, 0.05 s): the total energy peaks at 1.213 x its
+start under mid-point Newmark, 1.025 x under damped Newmark, and never exceeds it under
+implicit contact (ends at 0.983 x) or backward Euler (0.940 x); the linear momentum is kept to
+round-off by all four (``tests/bfemp/test_contact.py``).
 """
 
 from __future__ import annotations

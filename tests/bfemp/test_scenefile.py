@@ -206,7 +206,8 @@ def test_rings_example_is_the_demo_scene():
 
     sf = scenefile.load("examples/rings.toml")
     assert model_fingerprint(sf.scene.build()) == model_fingerprint(colliding_rings_scene().build())
-    assert sf.simulation["integrator"] == "newmark" and sf.simulation["dt"] == 2e-3
+    assert sf.simulation["integrator"] == "newmark_implicit_contact"
+    assert sf.simulation["dt"] == 2e-3
 
 
 def test_units_are_converted_and_settings_read():
