@@ -59,7 +59,10 @@ def main(argv: list[str] | None = None) -> int:
             return module.main_from_args(args)
         except ValueError as err:
             parser.error(str(err))
-    summary = module.run(args.mode or "full", args.out)
+    try:
+        summary = module.run(args.mode or "full", args.out)
+    except ValueError as err:  # a mode the benchmark does not have, named by it
+        parser.error(f"{args.name}: {err}")
     print(f"{args.name}: wrote {summary['json']}")
     return 0
 

@@ -176,8 +176,21 @@ def test_bench_calls_the_registered_run(tmp_path, monkeypatch, capsys):
     monkeypatch.setitem(registry.BENCHMARKS, "fake", "fake_bench")
     assert main(["bench", "fake", "--quick", "--out", str(tmp_path)]) == 0
     assert main(["bench", "fake"]) == 0
-    assert calls == [("quick", str(tmp_path)), ("full", "results")]
+    assert main(["bench", "fake", "--mode", "partial"]) == 0
+    assert calls == [("quick", str(tmp_path)), ("full", "results"), ("partial", "results")]
     assert f"fake: wrote {tmp_path}/fake.json" in capsys.readouterr().out
+
+
+def test_bench_names_a_mode_the_benchmark_lacks(capsys):
+    """Both command lines pass --mode through; the benchmark's own error names the modes."""
+    import benchmarks.__main__ as bench_main
+
+    message = _error(capsys, ["bench", "rings", "--mode", "fastest"])
+    assert "bench rings: mode must be one of ['full', 'partial', 'quick']" in message
+    with pytest.raises(SystemExit) as exc:
+        bench_main.main(["hertz", "--mode", "fastest"])
+    assert exc.value.code == 2
+    assert "mode must be one of ['full', 'quick', 'refined']" in capsys.readouterr().err
 
 
 def test_console_entry_point_reports_errors_without_traceback(tmp_path):
