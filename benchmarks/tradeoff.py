@@ -12,11 +12,11 @@ Scenes and errors (one scalar per point, dimensionless):
   at mu = 0.1; error = ``|a_fit - a_analytic| / a_analytic`` (eq. 40).
 - ``hertz`` (``benchmarks.hertz.run_point``): the linear-elastic disk between the plates;
   error = ``|C_fit / C_hertz - 1|`` (eq. 39).
-- ``rings`` (``benchmarks.rings.run_point``, APIC): no analytic value; error = the larger of the
-  relative differences of the energy loss over the collision window and of the contact duration
-  from a reference run made with the finest value of every swept knob at once (one-at-a-time
-  points never reach it, except the point that is the reference, whose error is 0). The rings
-  are frictionless: ``eps_v`` is no knob of theirs.
+- ``rings`` (``benchmarks.rings.run_point``, APIC, ``rings.INTEGRATOR``): no analytic value;
+  error = the larger of the relative differences of the energy loss over the collision window
+  and of the contact duration from a reference run made with the finest value of every swept
+  knob at once (one-at-a-time points never reach it, except the point that is the reference,
+  whose error is 0). The rings are frictionless: ``eps_v`` is no knob of theirs.
 
 Knobs (``KNOBS``): ``strategy`` (coupling strategy, categorical; ``"bfemp"`` is the library's
 ``"barrier"`` stepper, the only one so far; other names registered in ``bfemp.steppers`` are
