@@ -93,6 +93,7 @@ def _parser() -> argparse.ArgumentParser:
         dest="mode",
         help="sweep around the paper's settings (the default; about a day of CPU)",
     )
+    mode.add_argument("--mode", dest="mode", help="quick or full (as --quick, --full)")
     sweep.add_argument("--out", default="results", help="output folder (default results/)")
     # the options of benchmarks.tradeoff.add_arguments (a test keeps both in step)
     sweep.add_argument("--scenes", help="comma-separated scenes (default: all)")
