@@ -31,8 +31,10 @@ at the paper's dx = 0.025; sweep 1.37, 1.28, 1.24, 1.16 at dx = 0.05, 0.04, 0.03
 Neo-Hookean disk misses it by 0.5 points); one grid step finer it holds with margin:
 ``refined`` mode (dx = 0.02 m, 70,636 particles, ``hertz_refined.json``) gives 1.116 (linear)
 and 1.119 (Neo-Hookean), 1.100 / 1.106 with the interpolated a, as the sweep's trend predicted.
-Quick mode (dx = 0.04, ~1.3, the finest grid that runs both materials in well under a minute on
-2 cores) asserts ``QUICK_TOLERANCE`` instead.
+Quick mode keeps that grid (dx = 0.02 m) with coarse steps and particles (spacing 0.01 m,
+33,926 particles, 10 steps of 6e-2 s, Newton tolerance 1e-4 m/s; about 1.5 min per material on
+2 cores) and meets the 15 % target too: 1.132 (linear) and 1.138 (Neo-Hookean), measured at
+f31e3e9; at dx = 0.04 m it gave ~1.3.
 
 Choices where the paper is silent or the library forces a change (recorded in the JSON):
 
@@ -127,7 +129,7 @@ MODES = {
         eps_v=EPS_V,
         grid_offset_cells=0.25,
     ),
-    "quick": dict(dx=0.04, spacing=0.02, **_FAST),
+    "quick": dict(dx=0.02, spacing=0.01, **_FAST),
 }
 #: One grid step finer than the paper's: the full settings at dx = 0.02 m, particle spacing
 #: scaled with dx. Written to ``hertz_refined.json``; ``full`` stays the paper's grid.
@@ -135,8 +137,6 @@ MODES["refined"] = {**MODES["full"], "dx": 0.02, "spacing": MODES["full"]["spaci
 #: Grid sweep of the full mode: linear material, ``_FAST`` settings with dt = 3e-2, spacing dx/2.
 SWEEP_DX = (0.05, 0.04, 1.0 / 30.0, 0.025)
 SWEEP_DT = 3e-2
-#: Quick-mode bound on |C_fit / C_hertz - 1| (the 15 % target needs the paper's grid, see above).
-QUICK_TOLERANCE = 0.35
 
 
 def hertz_constant(radius: float = RADIUS, E: float = E, nu: float = NU) -> float:
@@ -494,7 +494,7 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
     Args:
         mode: ``"full"`` (paper resolution, with the grid sweep), ``"refined"`` (the full
             settings at dx = 0.02 m, no sweep; written to ``hertz_refined.json``) or
-            ``"quick"`` (coarse, < 60 s).
+            ``"quick"`` (coarse steps on the refined grid, ~3 min).
         out: output folder.
 
     Returns:
@@ -516,7 +516,6 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
         "fit_range_m": [FIT_MIN_CELLS * cfg["dx"], FIT_MAX_A_OVER_R * RADIUS],
         "target": f"|C_fit / C_hertz - 1| < {TARGET_REL_ERROR} for both materials",
         "target_met": all(r["rel_error"] < TARGET_REL_ERROR for r in runs.values()),
-        "quick_tolerance": QUICK_TOLERANCE,
         "grid_convergence": sweep,
         "steps": max(r["steps"] for r in runs.values()),
         "steps_total": sum(r["steps"] for r in runs.values()),

@@ -34,11 +34,13 @@ def test_writes_json_and_plot(result):
 
 
 def test_fit_matches_hertz(result):
-    """(T) at quick resolution: see QUICK_TOLERANCE in benchmarks.hertz for why not 15 %."""
+    """(T) least-squares F = C a^2 within 15 % of Hertz's C, both materials (quick mode runs
+    one grid step finer than the paper's; measured 1.132 and 1.138)."""
     _, data, _ = result
+    assert data["target_met"]
     for name, run in data["materials"].items():
         assert run["fit_samples"] >= 3, name
-        assert run["rel_error"] < hertz.QUICK_TOLERANCE, (name, run["C_fit_over_C_hertz"])
+        assert run["rel_error"] < hertz.TARGET_REL_ERROR, (name, run["C_fit_over_C_hertz"])
 
 
 def test_force_and_width_grow_with_compression(result):
