@@ -1,32 +1,150 @@
-"""What every stepper returns, and the error it raises when a step cannot be taken."""
+"""The contract between ``Simulation`` and a coupling strategy.
+
+Every strategy (``"barrier"``, ``"single_field"``, ``"augury"``, ``"lr"``, ``"two_stage"``) is a
+class that implements :class:`Stepper`, registered by name in :mod:`bfemp.steppers`. The way every
+energy implements one term contract, every stepper implements this one, so that ``Simulation``,
+metrics, frames, checkpoints and the trade study never look inside a stepper:
+
+- construction ``cls(model, integrator=, transfer=, dt=, options=)`` with ``options`` an instance
+  of the class's ``Options`` (a frozen keyword-only dataclass, one documented field each, units);
+- ``initialize(state) -> State`` once before the first step;
+- ``step(state) -> (State, StepReport)``; a failed step raises :class:`StepError`;
+- ``stable_dt(state)``: the explicit stable step in s (``inf`` for implicit strategies);
+- ``contact() -> ContactView``: forces, closest distance, active pairs and contact energy of the
+  last step (NaN where a strategy has none);
+- ``terms``: the names of the active energy terms or stages;
+- ``checkpoint_data()`` / ``restore_checkpoint_data(data)``: the strategy's own carried state
+  (declared by every stepper; an empty dict when there is none).
+"""
 
 from __future__ import annotations
 
+import dataclasses
+import math
+import types
+import typing
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Any, ClassVar, Protocol, runtime_checkable
 
-__all__ = ["StepReport", "StepError"]
+import numpy as np
+
+__all__ = [
+    "ContactView",
+    "StepError",
+    "StepReport",
+    "Stepper",
+    "StepperOptions",
+    "options_from_mapping",
+    "options_to_dict",
+]
+
+
+@dataclass(frozen=True, kw_only=True)
+class StepperOptions:
+    """Base of every strategy's options: a frozen keyword-only dataclass.
+
+    Subclasses declare one field per setting with a docstring line (``Attributes:``) giving its
+    meaning and unit, and validate in ``__post_init__`` with messages that name the field.
+    """
+
+    #: the strategy these options belong to (set by each subclass)
+    strategy: ClassVar[str] = ""
+
+
+def options_to_dict(options: StepperOptions) -> dict[str, Any]:
+    """The options as plain JSON-able values (recorded in manifests and checkpoints).
+
+    Objects that are not numbers, strings, booleans or None (an injected linear solver) are
+    recorded by their class name.
+    """
+    out: dict[str, Any] = {}
+    for f in dataclasses.fields(options):
+        value = getattr(options, f.name)
+        if value is None or isinstance(value, bool | int | float | str):
+            out[f.name] = value
+        elif isinstance(value, tuple | list):
+            out[f.name] = list(value)
+        else:
+            out[f.name] = type(value).__name__
+    return out
+
+
+def _matches(value: object, hint: object) -> bool:
+    """Whether ``value`` (from a scene file or keyword) fits the field's annotation ``hint``."""
+    if hint is Any:
+        return True
+    origin = typing.get_origin(hint)
+    if origin in (typing.Union, types.UnionType):
+        return any(_matches(value, h) for h in typing.get_args(hint))
+    if hint is type(None):
+        return value is None
+    if hint is bool:
+        return isinstance(value, bool)
+    if hint is int:
+        return isinstance(value, int) and not isinstance(value, bool)
+    if hint is float:
+        return isinstance(value, int | float) and not isinstance(value, bool)
+    if typing.get_origin(hint) is typing.Literal:
+        return value in typing.get_args(hint)
+    if isinstance(hint, type):
+        return isinstance(value, hint)
+    return True
+
+
+def options_from_mapping(
+    cls: type[StepperOptions], values: Mapping[str, Any], *, where: str = "options"
+) -> StepperOptions:
+    """Build ``cls`` from a mapping (``[simulation.options]``), refusing what does not fit.
+
+    Raises ``ValueError`` naming the field: an unknown field (with the strategy's fields listed),
+    or a value of the wrong type.
+    """
+    hints = typing.get_type_hints(cls)
+    names = [f.name for f in dataclasses.fields(cls) if f.init]
+    for key, value in values.items():
+        if key not in names:
+            raise ValueError(
+                f"{where}: unknown option {key!r} for strategy {cls.strategy!r} "
+                f"(its options: {', '.join(names)})"
+            )
+        if not _matches(value, hints[key]):
+            raise ValueError(
+                f"{where}.{key}: expected {_hint_name(hints[key])}, got {value!r} "
+                f"({type(value).__name__})"
+            )
+    return cls(**dict(values))
+
+
+def _hint_name(hint: object) -> str:
+    if isinstance(hint, type):
+        return hint.__name__
+    return str(hint).replace("typing.", "")
 
 
 @dataclass(frozen=True, kw_only=True)
 class StepReport:
-    """Outcome of one time step.
+    """Outcome of one time step, common to every strategy.
 
     Attributes:
         step: index of the completed step (1 for the first).
         t: time at the end of the step in s.
         success: whether the step converged.
-        status: solver status name (``"CONVERGED"``, ``"LINE_SEARCH_STALLED"``, ...).
+        status: status name (``"CONVERGED"``, ``"LINE_SEARCH_STALLED"``, ``"EXPLICIT"``, ...).
         message: human-readable outcome.
-        newton_iterations: Newton iterations of the step.
-        residual: ``||p||_inf / dt`` of the last Newton increment in m/s.
-        timings: seconds per phase (``"assemble"``, ``"factorize"``, ``"line_search"``, ...).
+        iterations: iteration counts of the step by name (``{"newton": 7, "friction": 2}``,
+            ``{"augury": 1}``); metrics get one ``iterations_<name>`` column each.
+        residual: the strategy's convergence measure in m/s (barrier: ``||p||_inf / dt`` of the
+            last Newton increment); NaN for explicit strategies.
+        timings: seconds per phase (``"assemble"``, ``"factorize"``, ``"p2g"``, ...).
         min_distance: smallest active contact distance at the end of the step in m (NaN when no
-            pair is within d-hat or the scene has no contact).
-        contact_pairs: number of active contact pairs at the end of the step.
-        friction_iterations: lagged-friction updates of the step (0 without friction).
+            pair is within d-hat or the strategy has no distance).
+        contact_pairs: number of active contact pairs (or contact nodes) at the end of the step.
         friction_converged: whether the friction loop met the tolerance within its cap.
         boundary_forces: per level-set boundary, the reaction force (d,) in N its slip nodes
             exert on the body (empty without slip constraints).
+        notes: named observations of the step (``"SCRIPTED_FOREGROUND: ..."``), never silent.
     """
 
     step: int
@@ -34,14 +152,27 @@ class StepReport:
     success: bool
     status: str
     message: str
-    newton_iterations: int
-    residual: float
+    iterations: Mapping[str, int] = field(default_factory=dict)
+    residual: float = float("nan")
     timings: dict[str, float] = field(default_factory=dict)
     min_distance: float = float("nan")
     contact_pairs: int = 0
-    friction_iterations: int = 0
     friction_converged: bool = True
     boundary_forces: tuple = ()
+    notes: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "iterations", MappingProxyType(dict(self.iterations)))
+
+    @property
+    def newton_iterations(self) -> int:
+        """Newton iterations of the step (0 for strategies without Newton)."""
+        return int(self.iterations.get("newton", 0))
+
+    @property
+    def friction_iterations(self) -> int:
+        """Lagged-friction updates of the step (0 without friction)."""
+        return int(self.iterations.get("friction", 0))
 
 
 class StepError(RuntimeError):
@@ -52,3 +183,71 @@ class StepError(RuntimeError):
             f"step {report.step} (t = {report.t:.6g} s) failed: {report.status}: {report.message}"
         )
         self.report = report
+
+
+@dataclass(frozen=True)
+class ContactView:
+    """What a strategy knows of contact at the end of its last step.
+
+    Attributes:
+        fem_forces: contact force on every FEM node ``(N, d)`` in N (N/m in 2D); zero off the
+            boundary.
+        particle_forces: contact force on every particle ``(P, d)`` in N (N/m in 2D).
+        min_distance: closest active distance in m (NaN when the strategy measures none).
+        pairs: number of active pairs (or contact nodes).
+        energy: contact (barrier) energy in J (J/m in 2D); NaN when the strategy has no
+            contact energy.
+        parameters: strategy-specific scalars worth recording per step (barrier: ``kappa``).
+    """
+
+    fem_forces: np.ndarray
+    particle_forces: np.ndarray
+    min_distance: float = float("nan")
+    pairs: int = 0
+    energy: float = float("nan")
+    parameters: Mapping[str, float] = field(default_factory=dict)
+
+    @classmethod
+    def empty(cls, n_fem_nodes: int, n_particles: int, dim: int, **kwargs: Any) -> ContactView:
+        """No contact force anywhere (before the first step, or a strategy without contact)."""
+        return cls(np.zeros((n_fem_nodes, dim)), np.zeros((n_particles, dim)), **kwargs)
+
+
+@runtime_checkable
+class Stepper(Protocol):
+    """What every coupling strategy implements (see the module docstring)."""
+
+    #: registry name of the strategy
+    name: ClassVar[str]
+    #: the strategy's options class (a ``StepperOptions`` subclass)
+    Options: ClassVar[type[StepperOptions]]
+    #: implicit strategies solve for positions (``stable_dt`` is inf); explicit ones do not
+    explicit: ClassVar[bool]
+
+    def initialize(self, state: Any) -> Any:
+        """The state with the strategy's start-up quantities (a^0, augury's B, ...)."""
+
+    def step(self, state: Any) -> tuple[Any, StepReport]:
+        """Advance ``state`` by dt; raises ``StepError`` when the step cannot be taken."""
+
+    def stable_dt(self, state: Any) -> float:
+        """The largest stable time step in s for ``state`` (inf for implicit strategies)."""
+
+    def contact(self) -> ContactView:
+        """Contact forces, distances, pairs and energy at the end of the last step."""
+
+    @property
+    def terms(self) -> list[str]:
+        """Names of the active energy terms or stages."""
+
+    def checkpoint_data(self) -> dict[str, np.ndarray]:
+        """The strategy's carried state as arrays (empty when none)."""
+
+    def restore_checkpoint_data(self, data: Mapping[str, np.ndarray]) -> None:
+        """Take back what ``checkpoint_data`` returned."""
+
+
+def finite_or_nan(value: float) -> float:
+    """``value`` as a float, NaN when not finite (an 'inf' distance means none measured)."""
+    value = float(value)
+    return value if math.isfinite(value) else float("nan")

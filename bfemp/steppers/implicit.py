@@ -91,6 +91,11 @@ def build_potential(model: Model) -> IncrementalPotential:
     return IncrementalPotential(InertiaTerm(), potentials)
 
 
+def _iterations(newton: int, friction: int, with_friction: bool) -> dict[str, int]:
+    """The step's iteration counts: Newton, and lagged-friction updates when friction is on."""
+    return {"newton": newton, "friction": friction} if with_friction else {"newton": newton}
+
+
 def has_contact(model: Model) -> bool:
     """Contact is on and some pair can exist: FEM facets against particles or another FEM body."""
     if model.contact is None or not model.fem_bodies:
@@ -334,8 +339,7 @@ class ImplicitStepper:
                         f"{self.SCRIPTED_SUBSTEPS} part-way moves (something is squeezed "
                         f"between a scripted body and another boundary?)"
                     ),
-                    newton_iterations=its,
-                    residual=float("nan"),
+                    iterations={"newton": its},
                 )
             )
         fixed[:] = target
@@ -504,14 +508,13 @@ class ImplicitStepper:
             self._predicted = ctx.x_hat + integ.weight(dt) * a_n if self.warm_start else None
             result, friction_its, friction_ok = self._solve_scripted(ctx, state, mpm)
         report_args = dict(
-            friction_iterations=friction_its,
             friction_converged=friction_ok,
             step=state.step + 1,
             t=t_next,
             success=bool(result.success),
             status=result.status.name,
             message=result.message,
-            newton_iterations=int(result.nit),
+            iterations=_iterations(int(result.nit), friction_its, self.friction is not None),
             residual=float(result.step_inf_norm) / dt,
         )
         if not result.success:
