@@ -106,10 +106,9 @@ from bfemp.contact.barrier import barrier, barrier_derivative, barrier_second_de
 from bfemp.contact.pairs import _distance, candidate_pairs
 from bfemp.contact.term import _KERNEL_KIND
 from bfemp.integrators import BACKWARD_EULER
-from bfemp.steppers.implicit import ImplicitStepper
+from bfemp.steppers.barrier import BarrierOptions, BarrierStepper
 from solvers.assembly import TripletAssembler
 from solvers.linear import default_linear_solver
-from solvers.options import NewtonOptions
 
 try:  # optional benchmark dependency
     import ipctk
@@ -202,8 +201,8 @@ def _configuration(dim: int, n_pairs: int, seed: int = 7) -> dict:
     scene.set_grid(dx=geo["dx"])
     scene.set_contact(dhat=DHAT, kappa=KAPPA)
     model = scene.build()
-    stepper = ImplicitStepper(
-        model, integrator=BACKWARD_EULER, dt=1e-3, newton=NewtonOptions(tol=1e-6)
+    stepper = BarrierStepper(
+        model, integrator=BACKWARD_EULER, dt=1e-3, options=BarrierOptions(tol=1e-6)
     )
     x = stepper.begin_step(model.initial_state())
     term = stepper.barrier

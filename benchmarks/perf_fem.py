@@ -22,9 +22,7 @@ from benchmarks._phases import newton_phases
 from benchmarks.common import environment, peak_memory_mb, write_json
 from bfemp.integrators import BACKWARD_EULER
 from bfemp.plotting import plot_bars
-from bfemp.steppers.implicit import ImplicitStepper
-from solvers.linear import default_linear_solver
-from solvers.options import NewtonOptions
+from bfemp.steppers.barrier import BarrierOptions, BarrierStepper
 
 CASES = {
     "full": {"3d": dict(n=(32, 16, 16)), "2d": dict(n=(448, 112))},
@@ -55,12 +53,11 @@ def _scene(dim: int, n: tuple[int, ...]) -> bfemp.Scene:
 
 def _measure(dim: int, n: tuple[int, ...]) -> dict:
     model = _scene(dim, n).build()
-    stepper = ImplicitStepper(
+    stepper = BarrierStepper(
         model,
         integrator=BACKWARD_EULER,
         dt=0.05,
-        newton=NewtonOptions(tol=1e-5),
-        linear_solver=default_linear_solver(),
+        options=BarrierOptions(tol=1e-5),
     )
     state = stepper.initialize(model.initial_state())
     state, _ = stepper.step(state)  # warm-up: compiles the numba kernels

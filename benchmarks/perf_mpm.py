@@ -23,9 +23,7 @@ from bfemp.integrators import BACKWARD_EULER
 from bfemp.mpm.step import prepare_mpm_step
 from bfemp.mpm.transfer import grid_to_particles
 from bfemp.plotting import plot_bars
-from bfemp.steppers.implicit import ImplicitStepper
-from solvers.linear import default_linear_solver
-from solvers.options import NewtonOptions
+from bfemp.steppers.barrier import BarrierOptions, BarrierStepper
 
 CASES = {
     "full": {"2d": dict(cells=(160, 160), ppc=4), "3d": dict(cells=(30, 30, 14), ppc=8)},
@@ -47,12 +45,11 @@ def _scene(dim: int, cells: tuple[int, ...], ppc: int) -> bfemp.Scene:
 
 def _measure(dim: int, cells: tuple[int, ...], ppc: int) -> dict:
     model = _scene(dim, cells, ppc).build()
-    stepper = ImplicitStepper(
+    stepper = BarrierStepper(
         model,
         integrator=BACKWARD_EULER,
         dt=0.01,
-        newton=NewtonOptions(tol=1e-4),
-        linear_solver=default_linear_solver(),
+        options=BarrierOptions(tol=1e-4),
     )
     state = stepper.initialize(model.initial_state())
     state, _ = stepper.step(state)  # warm-up: compiles the numba kernels

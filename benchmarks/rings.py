@@ -230,7 +230,7 @@ def _run_one(cfg: dict, transfer: str) -> dict:
     dist = m.column("min_distance")[1:]
     pairs = m.column("contact_pairs")[1:]
     touching = t[1:][pairs > 0]
-    iters = m.column("newton_iterations")[1:]
+    iters = m.column("iterations_newton")[1:]
     e0, e1 = _window_energies(t, energy)
     return {
         "transfer": transfer,

@@ -4,7 +4,7 @@ Knobs:
 
 - ``friction_back_solve``: the friction loop of Algorithm 1 stops when the Newton increment under
   refreshed friction data is below the tolerance. On: that increment comes from a back-solve with
-  the last factorisation (``ImplicitStepper._increment_below_tol``); off: from a full Newton
+  the last factorisation (``ScriptedSolve._increment_below_tol``); off: from a full Newton
   iteration (assembly + factorisation). Scenes: an MPM block on a tilted FEM floor, sticking
   (mu = 0.5) and sliding (mu = 0.1), backward Euler, 0.3 s.
 - ``warm_start``: Newton starts from the predicted x^{n+1} where no contact is active
@@ -37,7 +37,7 @@ import numpy as np
 import bfemp
 from benchmarks.common import environment, peak_memory_mb, write_json
 from bfemp.demo import cantilever_scene, colliding_rings_scene
-from bfemp.steppers.implicit import ImplicitStepper
+from bfemp.steppers._barrier_solve import ScriptedSolve
 
 log = logging.getLogger(__name__)
 
@@ -72,7 +72,7 @@ def _measure(make: Callable[[], bfemp.Simulation], t_end: float, repeats: int) -
         walls.append(time.perf_counter() - start)
     positions = np.concatenate([sim.state.fem_x.ravel(), sim.state.mpm_x.ravel()])
     return {
-        "newton_iterations": int(np.nansum(sim.metrics.column("newton_iterations"))),
+        "newton_iterations": int(np.nansum(sim.metrics.column("iterations_newton"))),
         "factorisations": int(sim.stepper.linear_solver.n_numeric),
         "wall_s": min(walls),
         "_positions": positions,
@@ -87,11 +87,11 @@ def _pair(off: dict, on: dict) -> dict:
 
 def _friction_back_solve(cfg: dict) -> dict:
     out = {}
-    original = ImplicitStepper._increment_below_tol
+    original = ScriptedSolve._increment_below_tol
     for label, mu in (("sticking_mu_0.5", 0.5), ("sliding_mu_0.1", 0.1)):
         runs = {}
         for on in (False, True):
-            ImplicitStepper._increment_below_tol = original if on else (lambda *args: False)
+            ScriptedSolve._increment_below_tol = original if on else (lambda *args: False)
             try:
                 runs[on] = _measure(
                     lambda mu=mu: bfemp.Simulation(block_on_floor(mu), dt=5e-3, tol=1e-6),
@@ -99,7 +99,7 @@ def _friction_back_solve(cfg: dict) -> dict:
                     cfg["repeats"],
                 )
             finally:
-                ImplicitStepper._increment_below_tol = original
+                ScriptedSolve._increment_below_tol = original
         out[label] = _pair(runs[False], runs[True])
     return out
 

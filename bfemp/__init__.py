@@ -28,7 +28,14 @@ from bfemp.model import FemBody, Model, MpmBody
 from bfemp.scene import Scene
 from bfemp.simulation import Simulation
 from bfemp.state import State
-from bfemp.steppers import StepError, StepReport
+from bfemp.steppers import (
+    STRATEGIES,
+    BarrierOptions,
+    ContactView,
+    StepError,
+    StepperOptions,
+    StepReport,
+)
 
 logging.getLogger(__name__).addHandler(logging.NullHandler())
 
@@ -37,6 +44,9 @@ __version__ = "0.1.0"
 __all__ = [
     "BACKWARD_EULER",
     "NEWMARK",
+    "STRATEGIES",
+    "BarrierOptions",
+    "ContactView",
     "FemBody",
     "Integrator",
     "LinearElastic",
@@ -49,6 +59,7 @@ __all__ = [
     "State",
     "StepError",
     "StepReport",
+    "StepperOptions",
     "levelset",
     "motion",
     "sample",

@@ -59,7 +59,7 @@ log = logging.getLogger(__name__)
 
 CHECKPOINT_FILE = "checkpoint.npz"
 SIDECAR_FILE = "checkpoint.json"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
 
 
 def _feed(h: object, obj: object) -> None:
@@ -144,11 +144,8 @@ def write_checkpoint(out: str | Path, sim: object, *, every: int | None = None) 
             arrays[f"state.{f.name}"] = value
         else:
             scalars[f.name] = value
-    stepper_data = getattr(sim.stepper, "checkpoint_data", None)
-    for key, value in (stepper_data() if callable(stepper_data) else {}).items():
+    for key, value in sim.stepper.checkpoint_data().items():
         arrays[f"stepper.{key}"] = np.asarray(value)
-    adaptive = getattr(sim.stepper, "adaptive", None)
-    carried = {"adaptive": dataclasses.asdict(adaptive)} if adaptive is not None else {}
     pvd = {p.stem: p.read_text(encoding="utf-8") for p in sorted(out.glob("*.pvd"))}
     for name, text in pvd.items():
         arrays[f"pvd.{name}"] = np.array(text)
@@ -161,7 +158,6 @@ def write_checkpoint(out: str | Path, sim: object, *, every: int | None = None) 
         "settings": dict(sim.settings),
         "every": every,
         "pvd": sorted(pvd),
-        "carried": carried,
     }
     arrays["meta"] = np.array(json.dumps(meta))
     arrays["metrics"] = np.array(_metrics_json(sim.metrics))
@@ -223,16 +219,12 @@ def restore_checkpoint(out: str | Path, sim: object, *, every: int | None = None
         )
     if every is not None and ckpt.meta.get("every") not in (None, every):
         log.warning("resuming with a frame every %d steps instead of %s", every, ckpt.meta["every"])
-    restore = getattr(sim.stepper, "restore_checkpoint_data", None)
-    if ckpt.stepper and not callable(restore):
-        raise SceneError(f"the checkpoint in {out} holds stepper data this stepper cannot take")
-    if callable(restore):
-        restore(dict(ckpt.stepper))
-    carried = ckpt.meta.get("carried", {})
-    if "adaptive" in carried:
-        from bfemp.contact.adaptive import AdaptiveKappa
-
-        sim.stepper.adaptive = AdaptiveKappa(**carried["adaptive"])
+    try:
+        sim.stepper.restore_checkpoint_data(dict(ckpt.stepper))
+    except ValueError as err:
+        raise SceneError(
+            f"the checkpoint in {out} holds stepper data this stepper cannot take: {err}"
+        ) from None
     sim.state = ckpt.state
     sim.metrics = ckpt.metrics
     for name, text in ckpt.pvd.items():

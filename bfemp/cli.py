@@ -11,6 +11,9 @@
     bfemp sweep --replay TRADEOFF.json --id ID | --point JSON
     bfemp info RESULT_DIR [--json]
 
+``bench`` and ``sweep`` come from the ``benchmarks`` package of a source checkout, which registers
+them under the ``bfemp.commands`` entry points (the library never imports it).
+
 Mistakes in a scene file or argument are printed as ``bfemp: error: <message>`` without a
 traceback and exit with status 2 (``--debug`` shows the traceback); a failed run (a time step
 that does not converge) exits with 1, a failed ``--check`` with 1, Ctrl-C with 130 after writing
@@ -21,11 +24,11 @@ from __future__ import annotations
 
 import argparse
 import hashlib
-import importlib
 import json
 import logging
 import os
 import sys
+from importlib import metadata
 from pathlib import Path
 
 from bfemp.errors import SceneError
@@ -67,60 +70,30 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--quiet", action="store_true", help="no progress bar, warnings only")
     run.add_argument("--verbose", action="store_true", help="log progress messages")
 
-    bench = sub.add_parser("bench", help="run a benchmark (python -m benchmarks NAME)")
-    bench.add_argument("name", help="benchmark name")
-    mode = bench.add_mutually_exclusive_group()
-    mode.add_argument("--quick", action="store_const", const="quick", dest="mode")
-    mode.add_argument("--full", action="store_const", const="full", dest="mode")
-    mode.add_argument(
-        "--mode", dest="mode", help="another mode of the benchmark (rings: partial; hertz: refined)"
-    )
-    bench.add_argument("--out", default="results", help="output folder (default results/)")
-
-    sweep = sub.add_parser(
-        "sweep",
-        help="trade study: accuracy against cost of the discretisation knobs "
-        "(python -m benchmarks tradeoff)",
-    )
-    mode = sweep.add_mutually_exclusive_group()
-    mode.add_argument(
-        "--quick", action="store_const", const="quick", dest="mode", help="tiny sweep (minutes)"
-    )
-    mode.add_argument(
-        "--full",
-        action="store_const",
-        const="full",
-        dest="mode",
-        help="sweep around the paper's settings (the default; about a day of CPU)",
-    )
-    mode.add_argument("--mode", dest="mode", help="quick or full (as --quick, --full)")
-    sweep.add_argument("--out", default="results", help="output folder (default results/)")
-    # the options of benchmarks.tradeoff.add_arguments (a test keeps both in step)
-    sweep.add_argument("--scenes", help="comma-separated scenes (default: all)")
-    sweep.add_argument("--knobs", help="comma-separated knobs (default: all of each scene)")
-    sweep.add_argument("--workers", type=int, help="local point processes at once (default: cores)")
-    sweep.add_argument("--scheduler", help="run the points on a Dask scheduler (tcp://host:port)")
-    sweep.add_argument(
-        "--threads-per-point", type=int, default=1, help="threads of each point (default 1)"
-    )
-    sweep.add_argument("--point-timeout", type=float, help="wall-time limit of one point in s")
-    sweep.add_argument(
-        "--cost",
-        choices=("wall", "cpu"),
-        default="wall",
-        help="cost axis: the points' wall time (default) or CPU time (steadier on a busy machine)",
-    )
-    sweep.add_argument(
-        "--replay", metavar="JSON", help="re-run a recorded point (record or tradeoff.json)"
-    )
-    sweep.add_argument("--id", help="with --replay: the point's id in tradeoff.json")
-    sweep.add_argument("--point", metavar="JSON", help="re-run the point given as a JSON record")
-    sweep.add_argument("--verbose", action="store_true", help="log every point as it finishes")
-
     info = sub.add_parser("info", help="summarise a result folder")
     info.add_argument("result_dir", help="the output folder of a run")
     info.add_argument("--json", action="store_true", help="print the summary as JSON")
     return parser
+
+
+#: entry-point group through which installed packages add sub-commands (``benchmarks`` adds
+#: ``bench`` and ``sweep``); each entry point is ``add_commands(subparsers) -> {name: handler}``
+COMMAND_GROUP = "bfemp.commands"
+
+
+def _parser_and_plugins() -> tuple[argparse.ArgumentParser, dict]:
+    """The parser with the commands of installed plugins, and their handlers."""
+    parser = _parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    handlers: dict = {}
+    for entry in sorted(metadata.entry_points(group=COMMAND_GROUP), key=lambda e: e.name):
+        try:
+            add_commands = entry.load()
+        except ImportError as err:  # a broken plugin must not take the command line down
+            log.warning("bfemp command plugin %r not loaded: %s", entry.value, err)
+            continue
+        handlers.update(add_commands(sub))
+    return parser, handlers
 
 
 def _demo(args: argparse.Namespace) -> int:
@@ -216,41 +189,6 @@ def _run(args: argparse.Namespace, argv: list[str]) -> int:
     return 0
 
 
-def _benchmark_module(name: str) -> object:
-    # The benchmarks are a sibling package, not a dependency of the library: they are looked up
-    # by name at run time (only here), so bfemp itself never imports them.
-    try:
-        return importlib.import_module(name)
-    except ModuleNotFoundError as err:
-        if not (err.name or "").startswith("benchmarks"):
-            raise
-        raise SceneError(
-            "the benchmarks package is not installed",
-            hint="run from a source checkout (pip install -e .)",
-        ) from None
-
-
-def _bench(args: argparse.Namespace) -> int:
-    registry = _benchmark_module("benchmarks.__main__").BENCHMARKS
-    if args.name not in registry:
-        raise SceneError(
-            f"unknown benchmark '{args.name}'; available: {', '.join(sorted(registry))}"
-        )
-    module = importlib.import_module(registry[args.name])
-    try:
-        summary = module.run(args.mode or "full", args.out)
-    except ValueError as err:  # a mode the benchmark does not have, named by it
-        raise SceneError(f"bench {args.name}: {err}") from None
-    print(f"{args.name}: wrote {summary.get('json', args.out)}")
-    return 0
-
-
-def _sweep(args: argparse.Namespace) -> int:
-    # sweep, or replay one point; its ValueErrors (unknown knob, scene, bad scheduler address)
-    # are input errors (exit 2), a point that does not reproduce its error exits 1
-    return _benchmark_module("benchmarks.tradeoff").main_from_args(args)
-
-
 def _info(args: argparse.Namespace) -> int:
     from bfemp.manifest import format_info, run_info
 
@@ -264,16 +202,16 @@ def main(argv: list[str] | None = None) -> int:
     from bfemp.steppers import StepError
 
     argv = sys.argv[1:] if argv is None else list(argv)
-    args = _parser().parse_args(argv)
+    parser, plugins = _parser_and_plugins()
+    args = parser.parse_args(argv)
     quiet, verbose = getattr(args, "quiet", False), getattr(args, "verbose", False)
     level = logging.INFO if verbose else (logging.ERROR if quiet else logging.WARNING)
     logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s")
     commands = {
         "demo": _demo,
         "run": lambda a: _run(a, argv),
-        "bench": _bench,
-        "sweep": _sweep,
         "info": _info,
+        **plugins,
     }
     try:
         return commands[args.command](args)

@@ -87,7 +87,7 @@ def run_cantilever_demo(
     )
     summary = {
         "steps": n_steps,
-        "newton_iterations_total": int(np.nansum(metrics.column("newton_iterations"))),
+        "newton_iterations_total": int(np.nansum(metrics.column("iterations_newton"))),
         "min_tip_deflection_m": float(min(deflection)),
         "energy_total_first": float(metrics.column("energy_total")[0]),
         "energy_total_last": float(metrics.column("energy_total")[-1]),
@@ -178,7 +178,7 @@ def run_demo(
     _plot_rings(t, metrics, drift, out / "demo.png")
     summary = {
         "steps": int(len(t) - 1),
-        "newton_iterations_total": int(np.nansum(metrics.column("newton_iterations"))),
+        "newton_iterations_total": int(np.nansum(metrics.column("iterations_newton"))),
         "momentum_drift_rel": float(drift.max()),
         "min_distance": float(np.nanmin(dist)) if np.isfinite(dist).any() else float("nan"),
         "contact_window_s": [float(t[touching[0]]), float(t[touching[-1]])]

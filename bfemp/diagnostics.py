@@ -12,9 +12,11 @@ import numpy as np
 
 from bfemp.model import Model
 from bfemp.state import State
+from bfemp.terms.elasticity import fem_elastic_groups, stencil_energy
 
 __all__ = [
     "angular_momentum",
+    "fem_elastic_energy",
     "gravity_energy",
     "kinetic_energy",
     "linear_momentum",
@@ -47,6 +49,17 @@ def gravity_energy(model: Model, state: State) -> float:
 def load_energy(model: Model, state: State) -> float:
     """-sum_i f_i . x_i in J for the constant external nodal forces."""
     return -float(np.sum(model.fem_load * state.fem_x))
+
+
+def fem_elastic_energy(model: Model, state: State, groups: list | None = None) -> float:
+    """sum_e V_e psi(F_e) in J (J/m in 2D) over the FEM cells that can deform.
+
+    Cells whose every node is scripted are left out (scripted motions are rigid: no energy).
+    ``groups``: ``bfemp.terms.fem_elastic_groups(model)``, computed here when None (pass it to
+    evaluate many states of one model).
+    """
+    groups = fem_elastic_groups(model) if groups is None else groups
+    return float(sum(stencil_energy(law, st, state.fem_x) for law, st in groups))
 
 
 def mpm_elastic_energy(model: Model, state: State) -> float:

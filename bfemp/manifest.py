@@ -219,8 +219,8 @@ class RunManifest:
             status=status,
         )
         result = {"t": sim.state.t, "step": sim.state.step, "frames": frames}
-        if "newton_iterations" in metrics.columns:
-            result["newton_iterations_total"] = int(np.nansum(metrics.column("newton_iterations")))
+        if "iterations_newton" in metrics.columns:
+            result["newton_iterations_total"] = int(np.nansum(metrics.column("iterations_newton")))
         if "energy_total" in metrics.columns:
             e = metrics.column("energy_total")
             result["energy_total_first"] = _finite(e[0])
@@ -251,8 +251,8 @@ def run_info(out: str | Path) -> dict:
         summary: dict = {"rows": len(metrics)}
         if len(metrics):
             summary["t_last"] = float(metrics.column("t")[-1])
-        if "newton_iterations" in metrics.columns and len(metrics) > 1:
-            it = metrics.column("newton_iterations")[1:]
+        if "iterations_newton" in metrics.columns and len(metrics) > 1:
+            it = metrics.column("iterations_newton")[1:]
             summary["newton"] = {
                 "total": int(np.nansum(it)),
                 "mean": float(np.nanmean(it)),

@@ -29,7 +29,7 @@ logger = logging.getLogger(__name__)
 DEFAULT_GROUPS: Mapping[str, tuple[str, ...]] = {
     "energies": ("energy_*",),
     "momenta": ("momentum_*",),
-    "newton_iterations": ("newton_iterations",),
+    "iterations": ("iterations_*",),
     "min_distance": ("min_distance",),
     "timings": ("time_*",),
 }

@@ -9,7 +9,6 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass
-from pathlib import Path
 
 import meshio
 import numpy as np
@@ -85,7 +84,7 @@ class Scene:
         self._boundaries: list[Boundary] = []
         self._contact: ContactParameters | None = None
         # (body name, field) -> how a scene file described it (mesh shape or file, node
-        # selection, material name), so that to_toml() writes it back the same way.
+        # selection, material name), so that bfemp.scenefile.save() writes it back the same way.
         self._sources: dict[tuple[str, str], object] = {}
 
     # ------------------------------------------------------------------ FEM bodies
@@ -352,50 +351,6 @@ class Scene:
         mask = np.zeros(n, dtype=bool)
         mask[nodes] = True
         return mask
-
-    # ------------------------------------------------------------------ scene files
-    def to_toml(
-        self,
-        path: str | Path | None = None,
-        *,
-        simulation: dict | None = None,
-        run: dict | None = None,
-        check: dict | None = None,
-    ) -> str:
-        """This scene as scene-file TOML text (see :mod:`bfemp.scenefile` for the format).
-
-        Meshes and particles read from a scene file are written as they were described (shape,
-        file, sampling); those given as arrays are written inline, exactly.
-
-        Args:
-            path: also write the text to this file (atomically); relative mesh paths are not
-                used, files are referenced by absolute path.
-            simulation: ``Simulation`` keyword arguments for a ``[simulation]`` table.
-            run: ``[run]`` settings (``t_end``, ``every``, ``checkpoint_every``, ``out``).
-            check: a ``[check]`` table.
-
-        Returns:
-            the TOML text; ``Scene.from_toml(text)`` builds the same model.
-        """
-        from bfemp import scenefile
-
-        text = scenefile.dumps(self, simulation=simulation, run=run, check=check)
-        if path is not None:
-            scenefile.write_text(path, text)
-        return text
-
-    @classmethod
-    def from_toml(cls, source: str | Path) -> Scene:
-        """A scene from a scene file (a ``Path``, or a ``str`` path ending in ``.toml``) or TOML
-        text (any other ``str``); the ``[simulation]`` and ``[run]`` tables are ignored here
-        (``bfemp.scenefile.load`` returns them too)."""
-        from bfemp import scenefile
-
-        if isinstance(source, Path) or (
-            isinstance(source, str) and "\n" not in source and source.endswith(".toml")
-        ):
-            return scenefile.load(source).scene
-        return scenefile.loads(source).scene
 
     def _record_source(self, name: str, field: str, value: object) -> None:
         """Remember how a scene file described ``field`` of body ``name`` (None: nothing)."""

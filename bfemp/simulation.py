@@ -25,24 +25,32 @@ from bfemp.checkpoint import (
     restore_checkpoint,
     write_checkpoint,
 )
-from bfemp.integrators import integrator_from_name
+from bfemp.integrators import Integrator, integrator_from_name
 from bfemp.io.metrics import MetricsLog
 from bfemp.io.vtk import Block, FrameWriter
 from bfemp.manifest import RunManifest
 from bfemp.model import Model
+from bfemp.mpm.transfer import SCHEMES
 from bfemp.plotting import plot_metrics
 from bfemp.scene import Scene
 from bfemp.state import State
-from bfemp.steppers import StepReport, stepper_class
+from bfemp.steppers import (
+    StepperOptions,
+    StepReport,
+    options_for,
+    options_to_dict,
+    stepper_class,
+)
+from bfemp.terms import fem_elastic_groups
 from bfemp.validation import validate_initial
 from solvers.linear import LinearSolver
-from solvers.options import NewtonOptions
 
 __all__ = ["Simulation"]
 
 log = logging.getLogger(__name__)
 
-_TRANSFERS = ("apic", "pic", "flip")
+#: the flat keywords of ``Simulation`` that are ``BarrierOptions`` fields (kept for "barrier")
+_BARRIER_KEYWORDS = ("tol", "max_newton_iterations", "linear_solver", "warm_start")
 
 
 class Simulation:
@@ -50,19 +58,19 @@ class Simulation:
 
     Args:
         scene: a ``Scene`` (built here) or a ``Model``.
-        strategy: coupling strategy name (``"barrier"``: BFEMP implicit).
+        strategy: coupling strategy name, one of ``bfemp.steppers.STRATEGIES`` (``"barrier"``:
+            BFEMP implicit).
         integrator: ``"backward_euler"``, ``"newmark"``, ``"newmark_damped"`` or
             ``"newmark_implicit_contact"`` (mid-point Newmark with memory-free contact forces:
             no energy gain at stiff impacts; see :mod:`bfemp.integrators`), or an
-            ``Integrator``.
+            ``Integrator``; explicit strategies take ``"symplectic_euler"``. None: the
+            strategy's default (``backward_euler`` for ``barrier``).
         transfer: particle-grid transfer for MPM bodies (``"apic"``, ``"pic"``, ``"flip"``).
-        dt: time step in s.
-        tol: Newton tolerance on ``||p||_inf / dt`` in m/s (section 5).
-        max_newton_iterations: Newton iteration cap per step.
-        linear_solver: override the linear solver (default CHOLMOD, scipy fallback).
-        warm_start: start each step's Newton solve from the predicted x^{n+1} where no contact
-            is active (see ``ImplicitStepper``); off by default: it saved no Newton iterations
-            on the rings and cantilever demos (measured, see the tradeoff record).
+        dt: time step in s, or ``"auto"`` for an explicit strategy's stable step.
+        options: the strategy's options (``bfemp.BarrierOptions`` for ``barrier``, ...); None
+            for its defaults.
+        tol, max_newton_iterations, linear_solver, warm_start: the ``BarrierOptions`` fields as
+            flat keywords (``barrier`` only; not together with ``options``).
     """
 
     def __init__(
@@ -70,51 +78,60 @@ class Simulation:
         scene: Scene | Model,
         *,
         strategy: str = "barrier",
-        integrator: str = "backward_euler",
+        integrator: str | Integrator | None = None,
         transfer: str = "apic",
-        dt: float,
-        tol: float = 1e-6,
-        max_newton_iterations: int = 200,
+        dt: float | str,
+        options: StepperOptions | None = None,
+        tol: float | None = None,
+        max_newton_iterations: int | None = None,
         linear_solver: LinearSolver | None = None,
-        warm_start: bool = False,
+        warm_start: bool | None = None,
     ) -> None:
-        if not (isinstance(dt, int | float) and math.isfinite(dt) and dt > 0):
-            raise ValueError(f"Simulation.dt must be a positive number of seconds, got {dt!r}")
-        if transfer not in _TRANSFERS:
-            raise ValueError(f"Simulation.transfer must be one of {_TRANSFERS}, got {transfer!r}")
+        if transfer not in SCHEMES:
+            raise ValueError(f"Simulation.transfer must be one of {SCHEMES}, got {transfer!r}")
+        stepper_cls = stepper_class(strategy)
+        flat = {
+            "tol": tol,
+            "max_newton_iterations": max_newton_iterations,
+            "linear_solver": linear_solver,
+            "warm_start": warm_start,
+        }
+        options = _merge_flat_options(strategy, options, flat)
         self.model = scene.build() if isinstance(scene, Scene) else scene
+        if integrator is None:
+            integrator = getattr(stepper_cls, "default_integrator", "backward_euler")
+        self.integrator = integrator_from_name(integrator)
+        initial = self.model.initial_state()
+        dt = _resolve_dt(dt, stepper_cls, self.model, initial, options)
         if self.model.contact is not None:
             # the barrier is finite only for bodies that start apart (and beyond d-hat)
             validate_initial(self.model)
-        self.dt = float(dt)
+        self.dt = dt
         self.strategy = strategy
         self.transfer = transfer
-        self.integrator = integrator_from_name(integrator)
+        self.options = options
         #: the settings of this simulation (recorded in manifests and checkpoints)
         self.settings = {
             "strategy": strategy,
             "integrator": self.integrator.name,
             "transfer": transfer,
             "dt": self.dt,
-            "tol": float(tol),
-            "max_newton_iterations": int(max_newton_iterations),
-            "warm_start": bool(warm_start),
+            **options_to_dict(options),  # the strategy's options, one key per field
         }
-        newton = NewtonOptions(tol=tol, max_iter=max_newton_iterations)
-        self.stepper = stepper_class(strategy)(
+        self.stepper = stepper_cls(
             self.model,
             integrator=self.integrator,
-            dt=self.dt,
-            newton=newton,
-            linear_solver=linear_solver,
             transfer=transfer,
-            warm_start=warm_start,
+            dt=self.dt,
+            options=options,
         )
-        self.state: State = self.stepper.initialize(self.model.initial_state())
+        self.state: State = self.stepper.initialize(initial)
         self.metrics = MetricsLog()
         #: named warnings raised during the run (e.g. "ENERGY_GROWTH: ..."), also logged
         self.diagnostics: list[str] = []
         self._closed = _is_closed(self.model)
+        self._fem_groups = fem_elastic_groups(self.model)
+        self._contact_columns = self.model.contact is not None
         self.metrics.append(self._metrics_row(None))
 
     @property
@@ -242,7 +259,7 @@ class Simulation:
                 bar.update(1)
                 bar.set_postfix(
                     t=f"{self.state.t:.4g}",
-                    newton=report.newton_iterations,
+                    **{name: count for name, count in report.iterations.items()},
                     res=f"{report.residual:.1e}",
                     ms=f"{1e3 * report.timings.get('step', 0.0):.0f}",
                 )
@@ -274,11 +291,7 @@ class Simulation:
         nothing external works is what a conservative integrator keeps.
         """
         state = self.state if state is None else state
-        elastic = sum(
-            term.energy_at(state.fem_x)
-            for term in self.stepper.potential.potentials
-            if hasattr(term, "energy_at") and not hasattr(term, "particles")
-        )
+        elastic = diagnostics.fem_elastic_energy(self.model, state, self._fem_groups)
         if self.model.n_particles:
             elastic += diagnostics.mpm_elastic_energy(self.model, state)
         out = {
@@ -288,11 +301,11 @@ class Simulation:
         }
         if self.model.has_load:
             out["energy_load"] = diagnostics.load_energy(self.model, state)
-        barrier = self.stepper.barrier
-        if barrier is not None:
-            current = state is self.state and barrier.pairs is not None
-            out["energy_contact"] = barrier.value(None) if current else 0.0
-        out["energy_total"] = sum(out.values())
+        if self._contact_columns:
+            energy = self.stepper.contact().energy if state is self.state else 0.0
+            out["energy_contact"] = energy
+        # a strategy without a contact energy reports NaN; the total is that of the rest
+        out["energy_total"] = sum(v for v in out.values() if not math.isnan(v))
         return out
 
     def _metrics_row(self, report: StepReport | None) -> dict[str, float]:
@@ -307,12 +320,14 @@ class Simulation:
         for k, value in enumerate(angular):
             row[f"angular_momentum_{'z' if angular.size == 1 else axes[k]}"] = float(value)
         if report is not None:
-            row["newton_iterations"] = report.newton_iterations
+            for name, count in report.iterations.items():
+                row[f"iterations_{name}"] = count
             row["residual"] = report.residual
-            if self.stepper.barrier is not None:
+            if self._contact_columns:
                 row["min_distance"] = report.min_distance
                 row["contact_pairs"] = report.contact_pairs
-                row["kappa"] = self.stepper.barrier.kappa
+                for name, value in self.stepper.contact().parameters.items():
+                    row[name] = value
             for phase, seconds in report.timings.items():
                 row[f"time_{phase}"] = seconds
         return row
@@ -323,18 +338,8 @@ class Simulation:
         Returns ``(fem (N, d), mpm (P, d))``: the force on every FEM node (zero off the
         boundary) and on every particle; both zero before the first step or without contact.
         """
-        model = self.model
-        fem = np.zeros((model.n_fem_nodes, model.dim))
-        mpm = np.zeros((model.n_particles, model.dim))
-        barrier = self.stepper.barrier
-        if barrier is None or barrier.pairs is None:
-            return fem, mpm
-        forces = barrier.point_forces()
-        cs = barrier.collisions
-        nf = cs.n_fem_points
-        np.add.at(fem, cs.nodes[:nf, 0], forces[:nf])
-        mpm[cs.particle_index[nf:]] = forces[nf:]
-        return fem, mpm
+        view = self.stepper.contact()
+        return view.fem_forces, view.particle_forces
 
     #: relative growth of the total energy of a closed scene that triggers ENERGY_GROWTH
     ENERGY_GROWTH_TOL = 1e-2
@@ -466,3 +471,48 @@ def _check_run_args(
         raise ValueError(f"Simulation.run: t_end must be a finite time in s, got {t_end!r}")
     if resume and out is None:
         raise ValueError("Simulation.run: resume=True needs out, the folder of the run")
+
+
+def _merge_flat_options(
+    strategy: str, options: StepperOptions | None, flat: dict[str, object]
+) -> StepperOptions:
+    """The strategy's options, from ``options`` or from the flat barrier keywords."""
+    given = {k: v for k, v in flat.items() if v is not None}
+    if given and strategy != "barrier":
+        raise ValueError(
+            f"Simulation: {', '.join(sorted(given))} belong to strategy 'barrier'; strategy "
+            f"{strategy!r} takes its settings as options={stepper_class(strategy).Options.__name__}"
+            "(...)"
+        )
+    if given and options is not None:
+        raise ValueError(
+            f"Simulation: give either options=BarrierOptions(...) or the flat keywords "
+            f"{', '.join(sorted(given))}, not both"
+        )
+    if given:
+        from bfemp.steppers import BarrierOptions
+
+        try:
+            return BarrierOptions(**given)
+        except ValueError as err:
+            raise ValueError(f"Simulation.{err}") from None
+    return options_for(strategy, options)
+
+
+def _resolve_dt(
+    dt: object, stepper_cls: type, model: Model, state: State, options: StepperOptions
+) -> float:
+    """dt in s: a positive number, or ``"auto"``: an explicit strategy's stable step."""
+    if isinstance(dt, str):
+        auto = getattr(stepper_cls, "auto_dt", None)
+        if dt != "auto":
+            raise ValueError(f"Simulation.dt must be a time in s or 'auto', got {dt!r}")
+        if auto is None:
+            raise ValueError(
+                f"Simulation.dt='auto' needs an explicit strategy with a stable step; strategy "
+                f"{stepper_cls.name!r} is implicit: give dt in s"
+            )
+        return float(auto(model, state, options))
+    if isinstance(dt, bool) or not (isinstance(dt, int | float) and math.isfinite(dt) and dt > 0):
+        raise ValueError(f"Simulation.dt must be a positive number of seconds, got {dt!r}")
+    return float(dt)

@@ -27,6 +27,8 @@ def _p2g(
     affine: bool,
     mpm_a: np.ndarray,
     with_a: bool,
+    mpm_Ca: np.ndarray,
+    affine_a: bool,
     grid_mass: np.ndarray,
     grid_mom: np.ndarray,
     grid_ma: np.ndarray,
@@ -34,7 +36,8 @@ def _p2g(
     """Accumulate m_i, m_i v_i and m_i a_i into the zeroed ``grid_*`` outputs.
 
     m_i v_i += w_ip m_p (v_p + C_p (x_i - x_p)), the affine term only when ``affine`` (APIC);
-    m_i a_i += w_ip m_p a_p when ``with_a``.
+    m_i a_i += w_ip m_p (a_p + Ca_p (x_i - x_p)) when ``with_a``, the affine term only when
+    ``affine_a``.
     """
     n_p, k = nodes.shape
     d = grid_x.shape[1]
@@ -51,7 +54,11 @@ def _p2g(
                         v += mpm_C[p, r, c] * (grid_x[i, c] - mpm_x[p, c])
                 grid_mom[i, r] += wm * v
                 if with_a:
-                    grid_ma[i, r] += wm * mpm_a[p, r]
+                    acc = mpm_a[p, r]
+                    if affine_a:
+                        for c in range(d):
+                            acc += mpm_Ca[p, r, c] * (grid_x[i, c] - mpm_x[p, c])
+                    grid_ma[i, r] += wm * acc
 
 
 @njit(cache=True)
@@ -108,18 +115,24 @@ def _g2p(
     flip: bool,
     apic: bool,
     with_a: bool,
+    grid_a_old: np.ndarray,
+    mpm_a: np.ndarray,
+    a_like_v: bool,
     out_x: np.ndarray,
     out_v: np.ndarray,
     out_F: np.ndarray,
     out_C: np.ndarray,
     out_a: np.ndarray,
+    out_Ca: np.ndarray,
     singular: np.ndarray,
 ) -> None:
     """Gather the end-of-step particle state into the ``out_*`` arrays (Tables 1-3).
 
     x_p = sum_i w x~_i;  F_p = (sum_i x~_i g^T) F_p^n;  v_p = sum_i w v~_i (PIC, APIC) or
-    v_p^n + sum_i w (v~_i - v_i^n) (FLIP);  a_p = sum_i w a_i;  APIC: C_p = B_p D_p^-1 with the
-    symmetrised B_p of Table 1, ``singular[p]`` set where D_p is not positive definite.
+    v_p^n + sum_i w (v~_i - v_i^n) (FLIP);  APIC: C_p = B_p D_p^-1 with the symmetrised B_p of
+    Table 1, ``singular[p]`` set where D_p is not positive definite. Accelerations (``with_a``):
+    a_p = sum_i w a_i, or with ``a_like_v`` exactly like the velocity (FLIP: a_p^n + sum_i w
+    (a_i^{n+1} - a_i^n); APIC: also Ca_p = B^a_p D_p^-1 with a in place of v).
     """
     n_p, k = nodes.shape
     d = grid_x.shape[1]
@@ -129,7 +142,7 @@ def _g2p(
             out_x[p, r] = 0.0
             out_v[p, r] = mpm_v[p, r] if flip else 0.0
             if with_a:
-                out_a[p, r] = 0.0
+                out_a[p, r] = mpm_a[p, r] if (a_like_v and flip) else 0.0
         for a in range(k):
             i = nodes[p, a]
             w = weights[p, a]
@@ -140,7 +153,10 @@ def _g2p(
                 else:
                     out_v[p, r] += w * grid_v_new[i, r]
                 if with_a:
-                    out_a[p, r] += w * grid_a_new[i, r]
+                    if a_like_v and flip:
+                        out_a[p, r] += w * (grid_a_new[i, r] - grid_a_old[i, r])
+                    else:
+                        out_a[p, r] += w * grid_a_new[i, r]
                 for c in range(d):
                     grid_def[r, c] += grid_x_new[i, r] * grads[p, a, c]
         for r in range(d):
@@ -154,7 +170,9 @@ def _g2p(
             continue
         # Table 1: B_p = 1/2 sum_i w [v~_i (a_i + b_i)^T + (a_i - b_i) v~_i^T] with
         # a_i = x_i^n - x_p^n and b_i = x~_i - x_p^{n+1}; D_p = sum_i w a_i a_i^T.
+        affine_a = with_a and a_like_v
         B = np.zeros((d, d))
+        Ba = np.zeros((d, d))
         D = np.zeros((d, d))
         for a in range(k):
             i = nodes[p, a]
@@ -168,6 +186,10 @@ def _g2p(
                     vr, vc = grid_v_new[i, r], grid_v_new[i, c]
                     B[r, c] += 0.5 * w * (vr * (ac + bc) + (ar - br) * vc)
                     D[r, c] += w * ar * ac
+                    if affine_a:
+                        ur, uc = grid_a_new[i, r], grid_a_new[i, c]
+                        Ba[r, c] += 0.5 * w * (ur * (ac + bc) + (ar - br) * uc)
+        D_a = D.copy()  # the solve overwrites D with its factor
         C = np.empty((d, d))
         if _cholesky_solve_rows(D, B, C):
             for r in range(d):
@@ -178,6 +200,10 @@ def _g2p(
             for r in range(d):
                 for c in range(d):
                     out_C[p, r, c] = 0.0
+        if affine_a and _cholesky_solve_rows(D_a, Ba, C):
+            for r in range(d):
+                for c in range(d):
+                    out_Ca[p, r, c] = C[r, c]
 
 
 @njit(cache=True, parallel=True)

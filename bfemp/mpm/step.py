@@ -65,10 +65,14 @@ def prepare_mpm_step(
         state.mpm_x,
         model.mpm_mass,
     )
-    fields = particles_to_grid(*args, state.mpm_v, state.mpm_C if apic else None)
-    accel = None
-    if with_acceleration:
-        accel = particles_to_grid(*args, state.mpm_a, state.mpm_Ca if apic else None).velocity
+    fields = particles_to_grid(
+        *args,
+        state.mpm_v,
+        state.mpm_C if apic else None,
+        state.mpm_a if with_acceleration else None,
+        mpm_Ca=state.mpm_Ca if apic and with_acceleration else None,
+    )
+    accel = fields.acceleration
     constraints = grid_constraints(
         model.boundaries, stencils.active_x, fields.velocity, state.t + dt, dt
     )

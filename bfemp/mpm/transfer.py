@@ -15,8 +15,11 @@ Choices made here (DESIGN.md leaves them open):
   motion: the particles' sum_p m_p (x_p x v_p + eps : B_p^T) equals the grid's
   sum_i m_i x~_i x v~_i (the antisymmetric part of B_p is sum_i w_ip (x~_i - x_p^{n+1}) x v~_i).
 - FLIP is pure FLIP (Table 3, no PIC blending); the P2G of PIC and FLIP is the same.
-- Accelerations (Newmark) are transferred exactly as PIC transfers the velocity: P2G mass-weighted
-  a_i = sum_p w_ip m_p a_p / m_i (no affine term), G2P a_p = sum_i w_ip a_i, for every scheme.
+- Accelerations (Newmark) cross in the same pass as the velocity. Given with their APIC affine
+  matrices (``mpm_Ca``) and, in G2P, with the particles' own ``mpm_a``, they are transferred
+  exactly like the velocity (APIC affine, FLIP increments, PIC interpolation): what the barrier
+  step does (``bfemp.mpm.step``). Without them they are transferred as PIC transfers the
+  velocity: P2G a_i = sum_p w_ip m_p a_p / m_i, G2P a_p = sum_i w_ip a_i, for every scheme.
 - A grid node whose mass is below ``MASS_FLOOR_REL`` x the largest node mass (only possible when
   all its weights vanish) keeps its mass but gets zero velocity and acceleration, with a warning.
 """
@@ -88,6 +91,8 @@ class ParticleUpdate(NamedTuple):
         mpm_F: deformation gradients F_p^{n+1} ``(P, d, d)`` (dimensionless).
         mpm_C: APIC affine velocities C_p^{n+1} ``(P, d, d)`` in 1/s; zeros for PIC and FLIP.
         mpm_a: accelerations a_p^{n+1} ``(P, d)`` in m/s^2, or None when no grid one was given.
+        mpm_Ca: APIC affine accelerations ``(P, d, d)`` in 1/s^2 when the acceleration was
+            transferred like the velocity under APIC, else None.
     """
 
     mpm_x: np.ndarray
@@ -95,6 +100,7 @@ class ParticleUpdate(NamedTuple):
     mpm_F: np.ndarray
     mpm_C: np.ndarray
     mpm_a: np.ndarray | None
+    mpm_Ca: np.ndarray | None = None
 
 
 # --------------------------------------------------------------------------- validation
@@ -145,12 +151,14 @@ def particles_to_grid(
     mpm_v: np.ndarray,
     mpm_C: np.ndarray | None = None,
     mpm_a: np.ndarray | None = None,
+    *,
+    mpm_Ca: np.ndarray | None = None,
 ) -> GridFields:
     """P2G (Tables 1-3): grid masses, velocities and optionally accelerations.
 
     m_i = sum_p w_ip m_p and m_i v_i = sum_p w_ip m_p (v_p + C_p (x_i - x_p)) for APIC, without the
-    C_p term for PIC and FLIP. Accelerations are transferred as PIC transfers velocities:
-    m_i a_i = sum_p w_ip m_p a_p, for every scheme.
+    C_p term for PIC and FLIP. Accelerations, in the same pass: m_i a_i = sum_p w_ip m_p (a_p +
+    Ca_p (x_i - x_p)) with ``mpm_Ca`` under APIC, m_i a_i = sum_p w_ip m_p a_p without it.
 
     Args:
         scheme: ``"apic"``, ``"pic"`` or ``"flip"``.
@@ -163,6 +171,8 @@ def particles_to_grid(
         mpm_C: APIC affine velocities C_p^n ``(P, d, d)`` in 1/s; required for APIC, ignored
             otherwise.
         mpm_a: particle accelerations a_p^n ``(P, d)`` in m/s^2 (Newmark), or None.
+        mpm_Ca: APIC affine accelerations ``(P, d, d)`` in 1/s^2 (with ``mpm_a`` under APIC:
+            the acceleration then crosses affinely, like the velocity), or None.
 
     Returns:
         ``GridFields`` with mass ``(G,)``, velocity ``(G, d)`` and acceleration ``(G, d)`` or None.
@@ -186,6 +196,8 @@ def particles_to_grid(
         mpm_C = np.zeros((0, d, d))
     with_a = mpm_a is not None
     mpm_a = _float(mpm_a, "mpm_a", (n_p, d)) if with_a else np.zeros((0, d))
+    affine_a = affine and with_a and mpm_Ca is not None
+    mpm_Ca = _float(mpm_Ca, "mpm_Ca", (n_p, d, d)) if affine_a else np.zeros((0, d, d))
 
     n_grid = grid_x.shape[0]
     grid_mass = np.zeros(n_grid)
@@ -202,6 +214,8 @@ def particles_to_grid(
         affine,
         mpm_a,
         with_a,
+        mpm_Ca,
+        affine_a,
         grid_mass,
         grid_mom,
         grid_ma,
@@ -236,13 +250,19 @@ def grid_to_particles(
     mpm_x: np.ndarray,
     mpm_v: np.ndarray,
     mpm_F: np.ndarray,
+    *,
+    grid_a_old: np.ndarray | None = None,
+    mpm_a: np.ndarray | None = None,
 ) -> ParticleUpdate:
     """G2P (Tables 1-3): end-of-step particle positions, velocities, F, APIC C and accelerations.
 
     For every scheme x_p^{n+1} = sum_i w_ip x~_i and F_p^{n+1} = (sum_i x~_i grad w_ip^T) F_p^n.
     PIC and APIC: v_p = sum_i w_ip v~_i; FLIP: v_p = v_p^n + sum_i w_ip (v~_i - v_i^n). APIC:
     C_p = B_p D_p^-1 with B_p = 1/2 sum_i w_ip [v~_i (x_i^n - x_p^n + x~_i - x_p^{n+1})^T
-    + (x_i^n - x_p^n - x~_i + x_p^{n+1}) v~_i^T]. Accelerations (when given): a_p = sum_i w_ip a_i.
+    + (x_i^n - x_p^n - x~_i + x_p^{n+1}) v~_i^T]. Accelerations (when given), in the same pass:
+    with the particles' ``mpm_a`` exactly like the velocity (FLIP: a_p^n + sum_i w_ip (a_i^{n+1}
+    - a_i^n), needing ``grid_a_old``; APIC: also Ca_p from B^a_p with a in place of v), without
+    it a_p = sum_i w_ip a_i.
 
     Args:
         scheme: ``"apic"``, ``"pic"`` or ``"flip"``.
@@ -257,10 +277,14 @@ def grid_to_particles(
         mpm_x: start positions x_p^n ``(P, d)`` in m.
         mpm_v: start velocities v_p^n ``(P, d)`` in m/s (used by FLIP).
         mpm_F: start deformation gradients F_p^n ``(P, d, d)``.
+        grid_a_old: P2G accelerations a_i^n ``(G, d)`` in m/s^2 (FLIP with ``mpm_a``).
+        mpm_a: start accelerations a_p^n ``(P, d)`` in m/s^2: given, the acceleration is
+            transferred like the velocity.
 
     Returns:
         ``ParticleUpdate(mpm_x (P, d), mpm_v (P, d), mpm_F (P, d, d), mpm_C (P, d, d),
-        mpm_a (P, d) or None)``; ``mpm_C`` is zero for PIC and FLIP.
+        mpm_a (P, d) or None, mpm_Ca (P, d, d) or None)``; ``mpm_C`` is zero for PIC and FLIP,
+        ``mpm_Ca`` is set only for APIC with ``mpm_a``.
     """
     _check_scheme(scheme)
     nodes, weights, grid_x = _stencil(nodes, weights, grid_x)
@@ -277,6 +301,14 @@ def grid_to_particles(
         grid_v_old = np.zeros((0, d))
     with_a = grid_a_new is not None
     grid_a_new = _float(grid_a_new, "grid_a_new", (n_grid, d)) if with_a else np.zeros((0, d))
+    a_like_v = with_a and mpm_a is not None
+    mpm_a = _float(mpm_a, "mpm_a", (n_p, d)) if a_like_v else np.zeros((0, d))
+    if a_like_v and flip:
+        if grid_a_old is None:
+            raise ValueError("grid_a_old (G, d) is required for scheme 'flip' with mpm_a")
+        grid_a_old = _float(grid_a_old, "grid_a_old", (n_grid, d))
+    else:
+        grid_a_old = np.zeros((0, d))
     mpm_x = _float(mpm_x, "mpm_x", (n_p, d))
     mpm_v = _float(mpm_v, "mpm_v", (n_p, d))
     mpm_F = _float(mpm_F, "mpm_F", (n_p, d, d))
@@ -286,6 +318,8 @@ def grid_to_particles(
     out_F = np.empty((n_p, d, d))
     out_C = np.zeros((n_p, d, d))
     out_a = np.empty((n_p, d) if with_a else (0, d))
+    affine_a = a_like_v and scheme == "apic"
+    out_Ca = np.zeros((n_p, d, d) if affine_a else (0, d, d))
     singular = np.zeros(n_p, dtype=np.bool_)
     _g2p(
         nodes,
@@ -302,11 +336,15 @@ def grid_to_particles(
         flip,
         scheme == "apic",
         with_a,
+        grid_a_old,
+        mpm_a,
+        a_like_v,
         out_x,
         out_v,
         out_F,
         out_C,
         out_a,
+        out_Ca,
         singular,
     )
     if singular.any():
@@ -315,7 +353,12 @@ def grid_to_particles(
             f"{np.flatnonzero(singular)[:10]} (degenerate stencil weights or grid_x)"
         )
     return ParticleUpdate(
-        mpm_x=out_x, mpm_v=out_v, mpm_F=out_F, mpm_C=out_C, mpm_a=out_a if with_a else None
+        mpm_x=out_x,
+        mpm_v=out_v,
+        mpm_F=out_F,
+        mpm_C=out_C,
+        mpm_a=out_a if with_a else None,
+        mpm_Ca=out_Ca if affine_a else None,
     )
 
 

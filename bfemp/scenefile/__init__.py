@@ -1,8 +1,8 @@
 """Scene files: a coupled scene and how to run it, in TOML, one to one with the Python API.
 
-Read with :func:`load` (a file) or :func:`loads` (text); write with :func:`dumps` or
-``scene.to_toml()``. A scene written from Python reads back to the same model. Every mistake
-raises :class:`~bfemp.errors.SceneError` naming the file, the body and the field.
+Read with :func:`load` (a file), :func:`loads` (text) or :func:`read_scene` (the scene alone);
+write with :func:`dumps` or :func:`save`. A scene written from Python reads back to the same model.
+Every mistake raises :class:`~bfemp.errors.SceneError` naming the file, the body and the field.
 
 Format (``#`` comments; numbers in SI units, scalars may also be strings with a unit such as
 ``dt = "2 ms"``, ``E = "50 MPa"``)::
@@ -20,6 +20,13 @@ Format (``#`` comments; numbers in SI units, scalars may also be strings with a 
     tol = 1e-6                    # Newton tolerance on ||p||_inf / dt, m/s
     max_newton_iterations = 200
     warm_start = false            # true: Newton starts from the predicted x^{n+1} (no contact)
+    # tol, max_newton_iterations and warm_start are the barrier strategy's options written flat;
+    # every strategy's options may instead be given as a table, checked field by field
+    # (unknown field, wrong type, options of another strategy are refused by name):
+
+    [simulation.options]          # bfemp.BarrierOptions(...) for "barrier", ...
+    tol = "0.001 mm/s"            # numbers may carry the field's unit
+    linear_solver = "default"     # or "cholmod", "scipy"
 
     [run]                         # Simulation.run(...) settings; the command line may override
     t_end = 2.0                   # s
@@ -97,13 +104,14 @@ from bfemp.scenefile._read import TOP_LEVEL, parse_document
 from bfemp.scenefile._toml import dumps as dumps_toml
 from bfemp.scenefile._write import scene_dict
 from bfemp.scenefile.checks import validate_checks
+from bfemp.simulation import Simulation
 
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
-__all__ = ["TOP_LEVEL", "SceneFile", "dumps", "load", "loads", "write_text"]
+__all__ = ["TOP_LEVEL", "SceneFile", "dumps", "load", "loads", "read_scene", "save", "write_text"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -170,8 +178,6 @@ class SceneFile:
         Args:
             overrides: ``Simulation`` keyword arguments replacing those of the file.
         """
-        from bfemp.simulation import Simulation
-
         kwargs = {**self.simulation, **overrides}
         if "dt" not in kwargs:
             raise SceneError(
@@ -242,3 +248,45 @@ def write_text(path: str | os.PathLike, text: str) -> Path:
     with atomic_path(path) as tmp:
         tmp.write_text(text, encoding="utf-8")
     return path
+
+
+def save(
+    scene: object,
+    path: str | os.PathLike | None = None,
+    *,
+    simulation: dict | None = None,
+    run: dict | None = None,
+    check: dict | None = None,
+) -> str:
+    """A ``Scene`` as scene-file TOML text; also written to ``path`` (atomically) when given.
+
+    Meshes and particles read from a scene file are written as they were described (shape,
+    file, sampling); those given as arrays are written inline, exactly. Relative mesh paths are
+    not used: files are referenced by absolute path.
+
+    Args:
+        scene: the ``bfemp.Scene``.
+        path: also write the text to this file.
+        simulation: ``Simulation`` keyword arguments for a ``[simulation]`` table (``options``:
+            a ``StepperOptions`` or a mapping, written as ``[simulation.options]``).
+        run: ``[run]`` settings (``t_end``, ``every``, ``checkpoint_every``, ``out``).
+        check: a ``[check]`` table.
+
+    Returns:
+        the TOML text; ``read_scene(text)`` builds the same model.
+    """
+    text = dumps(scene, simulation=simulation, run=run, check=check)
+    if path is not None:
+        write_text(path, text)
+    return text
+
+
+def read_scene(source: str | os.PathLike) -> object:
+    """A ``Scene`` from a scene file (a path, or a ``str`` path ending in ``.toml``) or TOML text
+    (any other ``str``); the ``[simulation]`` and ``[run]`` tables are ignored here (``load``
+    returns them too)."""
+    if isinstance(source, os.PathLike) or (
+        isinstance(source, str) and "\n" not in source and source.endswith(".toml")
+    ):
+        return load(source).scene
+    return loads(source).scene

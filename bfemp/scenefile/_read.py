@@ -6,6 +6,7 @@ Every mistake raises :class:`~bfemp.errors.SceneError` naming the file, the body
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -22,7 +23,7 @@ from bfemp.scenefile._objects import (
     read_particles,
     read_selection,
 )
-from bfemp.steppers import STRATEGIES
+from bfemp.steppers import STRATEGIES, options_from_mapping
 
 __all__ = ["TOP_LEVEL", "parse_document"]
 
@@ -197,6 +198,7 @@ def _simulation(root: Table) -> dict:
         "integrator",
         "transfer",
         "dt",
+        "options",
         "tol",
         "max_newton_iterations",
         "warm_start",
@@ -210,14 +212,33 @@ def _simulation(root: Table) -> dict:
     if t.has("transfer"):
         out["transfer"] = t.string("transfer", choices=TRANSFERS)
     if t.has("dt"):
-        out["dt"] = t.number("dt", "time", positive=True, hint="dt is the time step in s")
+        hint = "dt is the time step in s, or 'auto' (an explicit strategy's stable step)"
+        auto = t.raw("dt") == "auto"
+        out["dt"] = "auto" if auto else t.number("dt", "time", positive=True, hint=hint)
     if t.has("tol"):
         out["tol"] = t.number("tol", "velocity", positive=True)
     if t.has("max_newton_iterations"):
         out["max_newton_iterations"] = t.integer("max_newton_iterations", minimum=1)
     if t.has("warm_start"):
         out["warm_start"] = t.boolean("warm_start")
+    if t.has("options"):
+        out["options"] = _options(t.sub("options"), out.get("strategy", "barrier"))
     return out
+
+
+def _options(t: Table, strategy: str) -> object:
+    """``[simulation.options]``: the strategy's options; numbers may carry the field's unit."""
+    cls = STRATEGIES[strategy].Options
+    kinds = {f.name: f.metadata.get("unit") for f in dataclasses.fields(cls)}
+    values = {}
+    for key, value in t.data.items():
+        if kinds.get(key) and isinstance(value, str):
+            value = t.number(key, kinds[key])
+        values[key] = value
+    try:
+        return options_from_mapping(cls, values, where=t.field() or "simulation.options")
+    except ValueError as err:
+        raise SceneError(str(err), file=t.file, field=t.field()) from None
 
 
 def _run(root: Table, key: str) -> dict:

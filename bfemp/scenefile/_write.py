@@ -14,6 +14,7 @@ from bfemp import levelset as ls
 from bfemp import motion as mo
 from bfemp.errors import SceneError
 from bfemp.materials import LinearElastic, NeoHookean
+from bfemp.steppers.base import options_to_dict
 
 __all__ = ["levelset_dict", "motion_dict", "scene_dict"]
 
@@ -144,6 +145,11 @@ def scene_dict(
         doc["scene"]["gravity"] = scene.gravity.tolist()
     if simulation:
         doc["simulation"] = dict(simulation)
+        options = doc["simulation"].get("options")
+        if options is not None and not isinstance(options, dict):  # a StepperOptions
+            doc["simulation"]["options"] = {
+                k: v for k, v in options_to_dict(options).items() if v is not None
+            }
     if run:
         doc["run"] = dict(run)
     materials = _Materials(scene._sources)

@@ -1,17 +1,44 @@
 """Coupling strategies: a ``Stepper`` advances ``(Model, State)`` by one step and reports.
 
-Strategies are looked up by name in one registry so that the same scene can be run with each.
+Strategies are looked up by name in one registry (``STRATEGIES``) so that the same scene can be
+run with each; every class implements the ``Stepper`` protocol of :mod:`bfemp.steppers.base`
+and names its options class (``cls.Options``).
 """
 
 from __future__ import annotations
 
-from bfemp.steppers.base import StepError, StepReport
-from bfemp.steppers.implicit import ImplicitStepper
+from bfemp.steppers.barrier import BarrierOptions, BarrierStepper
+from bfemp.steppers.base import (
+    ContactView,
+    StepError,
+    Stepper,
+    StepperOptions,
+    StepReport,
+    options_from_mapping,
+    options_to_dict,
+)
 
-__all__ = ["STRATEGIES", "StepError", "StepReport", "ImplicitStepper", "stepper_class"]
+__all__ = [
+    "STRATEGIES",
+    "BarrierOptions",
+    "BarrierStepper",
+    "ContactView",
+    "ImplicitStepper",
+    "StepError",
+    "StepReport",
+    "Stepper",
+    "StepperOptions",
+    "options_for",
+    "options_from_mapping",
+    "options_to_dict",
+    "stepper_class",
+]
+
+#: the old name of the barrier stepper
+ImplicitStepper = BarrierStepper
 
 #: strategy name -> stepper class. "barrier" is BFEMP (implicit incremental potential).
-STRATEGIES = {"barrier": ImplicitStepper}
+STRATEGIES: dict[str, type] = {"barrier": BarrierStepper}
 
 
 def stepper_class(strategy: str) -> type:
@@ -22,3 +49,19 @@ def stepper_class(strategy: str) -> type:
         raise ValueError(
             f"strategy must be one of {sorted(STRATEGIES)}, got {strategy!r}"
         ) from None
+
+
+def options_for(strategy: str, options: StepperOptions | None) -> StepperOptions:
+    """``options`` checked against ``strategy`` (its defaults when None).
+
+    Raises ``ValueError`` when the options belong to another strategy.
+    """
+    cls = stepper_class(strategy).Options
+    if options is None:
+        return cls()
+    if not isinstance(options, cls):
+        raise ValueError(
+            f"options: strategy {strategy!r} takes {cls.__name__}, got "
+            f"{type(options).__name__} (the options of strategy {options.strategy!r})"
+        )
+    return options

@@ -28,7 +28,13 @@ from bfemp.terms.base import StepContext, block_pattern
 from solvers.assembly import Triplets
 from solvers.psd import project_psd
 
-__all__ = ["ElasticStencils", "ElasticityTerm", "fem_cell_stencils"]
+__all__ = [
+    "ElasticStencils",
+    "ElasticityTerm",
+    "fem_cell_stencils",
+    "fem_elastic_groups",
+    "stencil_energy",
+]
 
 #: Fraction of the first det F = 0 step taken as the line-search start (section 5).
 DET_STEP_FRACTION = 0.9
@@ -70,6 +76,31 @@ def fem_cell_stencils(model: Model, cell_mask: np.ndarray) -> ElasticStencils:
         mu=mu_b[bodies],
         lam=lam_b[bodies],
     )
+
+
+def fem_elastic_groups(model: Model) -> list[tuple[object, ElasticStencils]]:
+    """The FEM cells that can deform, one stencil set per material law (in body order).
+
+    Cells whose every node is scripted are left out: they add nothing to a minimisation and,
+    scripted motions being rigid, store no energy. The barrier strategy's potential and the
+    metrics' elastic energy both use these groups.
+    """
+    moving = ~np.all(model.fem_prescribed[model.fem_cells], axis=1)
+    laws = {id(b.material.law): b.material.law for b in model.fem_bodies}
+    groups = []
+    for law in laws.values():
+        bodies = [b.index for b in model.fem_bodies if b.material.law is law]
+        mask = np.isin(model.fem_cell_body, bodies) & moving
+        if mask.any():
+            groups.append((law, fem_cell_stencils(model, mask)))
+    return groups
+
+
+def stencil_energy(law: object, stencils: ElasticStencils, node_positions: np.ndarray) -> float:
+    """sum_s V_s psi(F_s) in J (J/m in 2D) of ``stencils`` at all-node positions ``(n, d)``."""
+    st = stencils
+    F = _deformation_gradients(node_positions, st.nodes, st.grads, st.const)
+    return float(np.dot(st.volume, law.energy_density(F, st.mu, st.lam)))
 
 
 class ElasticityTerm:
@@ -118,9 +149,7 @@ class ElasticityTerm:
     # ---------------------------------------------------------------- energy
     def energy_at(self, node_positions: np.ndarray) -> float:
         """Elastic energy in J (J/m in 2D) at all-node positions ``(n_all, d)`` (for metrics)."""
-        st = self.stencils
-        F = _deformation_gradients(node_positions, st.nodes, st.grads, st.const)
-        return float(np.dot(st.volume, self.law.energy_density(F, st.mu, st.lam)))
+        return stencil_energy(self.law, self.stencils, node_positions)
 
     def value(self, x: np.ndarray) -> float:
         """``sum_s V_s psi(F_s)`` in J; +inf where some det F <= 0 (Neo-Hookean)."""

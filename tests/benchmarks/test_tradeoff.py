@@ -158,7 +158,8 @@ def _options(parser: argparse.ArgumentParser) -> set[str]:
 def test_bfemp_sweep_has_the_options_of_the_benchmark():
     bench = bench_main._parser()
     tradeoff.add_arguments(bench)
-    sub = next(a for a in cli._parser()._actions if isinstance(a, argparse._SubParsersAction))
+    parser, _ = cli._parser_and_plugins()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
     assert _options(sub.choices["sweep"]) - {"--verbose"} == _options(bench)
 
 

@@ -5,18 +5,17 @@ import pytest
 
 import bfemp
 from bfemp.integrators import BACKWARD_EULER, integrator_from_name
-from bfemp.steppers.implicit import ImplicitStepper
-from solvers.options import NewtonOptions
+from bfemp.steppers.barrier import BarrierOptions, BarrierStepper
 
 
 def started_stepper(scene, dt=1e-2, state=None, integrator=BACKWARD_EULER):
     """An implicit stepper whose potential has begun a step from the scene's initial state."""
     model = scene.build()
-    stepper = ImplicitStepper(
+    stepper = BarrierStepper(
         model,
         integrator=integrator_from_name(integrator),
         dt=dt,
-        newton=NewtonOptions(tol=1e-8),
+        options=BarrierOptions(tol=1e-8),
     )
     state = model.initial_state() if state is None else state
     x = stepper.begin_step(state)

@@ -6,7 +6,7 @@ import pytest
 import bfemp
 from benchmarks.speed_knobs import block_on_floor
 from bfemp.contact.term import BarrierTerm
-from bfemp.steppers.implicit import ImplicitStepper
+from bfemp.steppers._barrier_solve import ScriptedSolve
 from bfemp.testing import check_term
 from tests.bfemp.conftest import started_stepper
 
@@ -450,7 +450,7 @@ def test_friction_loop_stops_by_back_solve_with_the_same_result(monkeypatch):
     sims = {}
     for cheap in (True, False):
         if not cheap:
-            monkeypatch.setattr(ImplicitStepper, "_increment_below_tol", lambda *args: False)
+            monkeypatch.setattr(ScriptedSolve, "_increment_below_tol", lambda *args: False)
         sim = bfemp.Simulation(block_on_floor(0.5), dt=5e-3, tol=1e-6)
         sim.run(0.1, progress=False)
         sims[cheap] = sim

@@ -40,7 +40,7 @@ def test_run_writes_readable_frames_metrics_and_plot(tmp_path):
     assert (tmp_path / "metrics.csv").exists() and (tmp_path / "metrics.png").exists()
     # the beam sags: gravitational energy went into kinetic and elastic energy
     assert metrics.column("energy_gravity")[-1] < metrics.column("energy_gravity")[0]
-    assert np.all(metrics.column("newton_iterations")[1:] >= 1)
+    assert np.all(metrics.column("iterations_newton")[1:] >= 1)
 
 
 def test_scipy_fallback_gives_the_same_trajectory_as_cholmod():
@@ -87,5 +87,5 @@ def test_warm_start_reaches_the_same_trajectory():
     assert runs[True].settings["warm_start"] and not runs[False].settings["warm_start"]
     x_cold, x_warm = runs[False].state.fem_x, runs[True].state.fem_x
     assert np.abs(x_warm - x_cold).max() < 1e-8  # tol 1e-9 m/s x dt x 20 steps, with margin
-    its = {w: np.nansum(s.metrics.column("newton_iterations")) for w, s in runs.items()}
+    its = {w: np.nansum(s.metrics.column("iterations_newton")) for w, s in runs.items()}
     assert its[True] <= its[False]

@@ -1,0 +1,199 @@
+"""The scaffolding every grid-based step shares: gather all-node fields, write the new state.
+
+A step works on "all nodes": the FEM nodes ``[0, N)`` then the active MPM grid nodes of the step
+``[N, N + G)`` (``bfemp.dofs``). ``gather_nodes`` builds, from the state at t^n, the stencils and
+P2G of the step (Tables 1-3), the level-set constraints, and every node's position, velocity,
+acceleration, mass and scripted end position. ``write_state`` takes every node's end-of-step
+position, velocity and acceleration and returns the new ``State``: FEM nodes copied (scripted
+ones take their motion's velocity), particles by one G2P (positions, velocities, F, APIC C and,
+for Newmark, accelerations, in a single pass over the particles).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from bfemp.dofs import DofLayout
+from bfemp.frames import NodeFrames
+from bfemp.model import Model
+from bfemp.mpm.boundaries import normal_frames
+from bfemp.mpm.step import MpmStep, prepare_mpm_step
+from bfemp.mpm.transfer import grid_to_particles
+from bfemp.state import State
+
+__all__ = ["StepNodes", "gather_nodes", "write_state"]
+
+
+@dataclass(frozen=True)
+class StepNodes:
+    """Every node's fields at the start of a step from t^n to ``t_next``.
+
+    Attributes:
+        t_next: end time of the step in s.
+        dt: step length in s.
+        layout: free nodes (unknowns): free FEM nodes and grid nodes that are not sticky.
+        mpm: stencils, P2G fields and constraints of the step's grid (None without particles).
+        x: positions ``(n_all, d)`` in m at t^n (grid nodes: their start positions).
+        v: velocities ``(n_all, d)`` in m/s (grid: P2G).
+        a: accelerations ``(n_all, d)`` in m/s^2 (grid: P2G for Newmark, else zero).
+        mass: lumped masses ``(n_all,)`` in kg (kg/m in 2D).
+        fixed: end positions ``(n_all, d)`` in m of scripted nodes (FEM: their motion at
+            ``t_next``; grid: start position plus the boundary's shift); free entries unused.
+        shift: ``(n_all, d)`` in m, how far each node's level-set boundary moves over the step
+            (zero for FEM nodes and without moving boundaries).
+        frames: rotated frames of the slip nodes among the unknowns, None without any.
+    """
+
+    t_next: float
+    dt: float
+    layout: DofLayout
+    mpm: MpmStep | None
+    x: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+    mass: np.ndarray
+    fixed: np.ndarray
+    shift: np.ndarray
+    frames: NodeFrames | None
+
+    def start(self) -> np.ndarray:
+        """Start positions of the unknowns ``(n_dof,)`` in m: x^n, with nodes on moving slip
+        boundaries moved along with them (their normal coordinate is fixed there)."""
+        x_n = self.layout.restrict(self.x)
+        if self.mpm is not None and self.mpm.constraints.shift.any():
+            return x_n + self.layout.restrict(self.shift)
+        return x_n
+
+
+def gather_nodes(
+    model: Model,
+    state: State,
+    *,
+    transfer: str,
+    with_acceleration: bool,
+    dt: float,
+    t_next: float,
+) -> StepNodes:
+    """All-node fields of the step from ``state`` to ``t_next`` (P2G included)."""
+    d, n_fem = model.dim, model.n_fem_nodes
+    fem_fixed = model.prescribed_positions(t_next)
+    if model.n_particles == 0:
+        layout = DofLayout(d, ~model.fem_prescribed, n_fem)
+        zeros = np.zeros_like(state.fem_x)
+        return StepNodes(
+            t_next, dt, layout, None, state.fem_x, state.fem_v, state.fem_a, model.fem_mass,
+            fem_fixed, zeros, None,
+        )  # fmt: skip
+    mpm = prepare_mpm_step(
+        model, state, transfer, with_acceleration=with_acceleration, dt=t_next - state.t
+    )
+    grid_x = mpm.stencils.active_x
+    grid_a = mpm.acceleration if mpm.acceleration is not None else 0.0 * grid_x
+    free = np.concatenate([~model.fem_prescribed, ~mpm.constraints.sticky])
+    layout = DofLayout(d, free, n_fem)
+    shift = np.concatenate([np.zeros((n_fem, d)), mpm.constraints.shift])
+    return StepNodes(
+        t_next=t_next,
+        dt=dt,
+        layout=layout,
+        mpm=mpm,
+        x=np.concatenate([state.fem_x, grid_x]),
+        v=np.concatenate([state.fem_v, mpm.fields.velocity]),
+        a=np.concatenate([state.fem_a, grid_a]),
+        mass=np.concatenate([model.fem_mass, mpm.fields.mass]),
+        fixed=np.concatenate([fem_fixed, grid_x + mpm.constraints.shift]),
+        shift=shift,
+        frames=_slip_frames(layout, mpm),
+    )
+
+
+def _slip_frames(layout: DofLayout, mpm: MpmStep) -> NodeFrames | None:
+    """Rotated frames (normal first) of the slip grid nodes among the unknowns."""
+    if not mpm.constraints.slip.any():
+        return None
+    slip_nodes = np.flatnonzero(mpm.constraints.slip)
+    dof_nodes = layout.dof_node[slip_nodes + mpm.node_offset]
+    keep = dof_nodes >= 0
+    return NodeFrames(
+        layout.dim,
+        layout.n_dof,
+        dof_nodes[keep],
+        normal_frames(mpm.constraints.normals[slip_nodes[keep]]),
+    )
+
+
+def write_state(
+    model: Model,
+    state: State,
+    nodes: StepNodes,
+    *,
+    transfer: str,
+    x_end: np.ndarray,
+    v_end: np.ndarray,
+    a_end: np.ndarray,
+) -> State:
+    """The state at ``nodes.t_next`` from every node's end-of-step fields.
+
+    Args:
+        model: the static model.
+        state: the state at t^n.
+        nodes: the step's start fields (``gather_nodes``).
+        transfer: ``"apic"``, ``"pic"`` or ``"flip"``.
+        x_end: end positions ``(n_all, d)`` in m.
+        v_end: end velocities ``(n_all, d)`` in m/s (sticky grid nodes are set here to ride
+            their boundary).
+        a_end: end accelerations ``(n_all, d)`` in m/s^2.
+    """
+    n_fem, dt, t_next = model.n_fem_nodes, nodes.dt, nodes.t_next
+    mpm = nodes.mpm
+    if mpm is not None and mpm.constraints.sticky.any():  # sticky nodes ride the boundary
+        sticky = np.flatnonzero(mpm.constraints.sticky)
+        v_end[n_fem + sticky] = mpm.constraints.shift[sticky] / dt
+    prescribed = model.fem_prescribed
+    v_scripted = model.prescribed_velocities(t_next)
+    fem_a = a_end[:n_fem].copy()
+    fem_a[prescribed] = (v_scripted[prescribed] - state.fem_v[prescribed]) / dt
+    new = State(
+        t=t_next,
+        step=state.step + 1,
+        fem_x=x_end[:n_fem].copy(),
+        fem_v=np.where(prescribed[:, None], v_scripted, v_end[:n_fem]),
+        fem_a=fem_a,
+        mpm_x=state.mpm_x,
+        mpm_v=state.mpm_v,
+        mpm_F=state.mpm_F,
+        mpm_C=state.mpm_C,
+        mpm_a=state.mpm_a,
+        mpm_Ca=state.mpm_Ca,
+    )
+    if mpm is None:
+        return new
+    st = mpm.stencils
+    with_a = mpm.acceleration is not None
+    update = grid_to_particles(
+        transfer,
+        st.nodes,
+        st.weights,
+        st.grads,
+        st.active_x,
+        x_end[n_fem:],
+        mpm.fields.velocity,
+        v_end[n_fem:],
+        mpm_x=state.mpm_x,
+        mpm_v=state.mpm_v,
+        mpm_F=state.mpm_F,
+        grid_a_old=mpm.acceleration if with_a else None,
+        grid_a_new=a_end[n_fem:] if with_a else None,
+        mpm_a=state.mpm_a if with_a else None,
+    )
+    new.mpm_x, new.mpm_v, new.mpm_F, new.mpm_C = (
+        update.mpm_x,
+        update.mpm_v,
+        update.mpm_F,
+        update.mpm_C,
+    )
+    if with_a:  # a^{n+1} crosses back like the velocity (FLIP increments, APIC affine)
+        new.mpm_a, new.mpm_Ca = update.mpm_a, update.mpm_Ca
+    return new

@@ -1,0 +1,472 @@
+"""The ``"barrier"`` strategy: BFEMP's implicit step (Algorithm 1; contact in the same potential).
+
+One step:
+1. MPM: quadratic B-spline stencils at x_p^n and P2G of mass, velocity (and acceleration for
+   Newmark) per Tables 1-3 (line 2); level-set constraints of the active grid nodes
+   (``bfemp.steppers._scaffold.gather_nodes``).
+2. Unknowns: free FEM nodes and unconstrained grid nodes, prescribed FEM nodes follow their motion,
+   sticky grid nodes stay, slip grid nodes move tangentially only (rotated frames).
+3. Predict x_hat (eqs. 21-22), minimise the incremental potential with projected Newton from x^n
+   (Algorithm 2; scripted nodes brought to their targets without crossing, the outer friction
+   loop of Algorithm 1: ``bfemp.steppers._barrier_solve``), then a^{n+1} = -M^-1 dPsi/dx(x^{n+1})
+   and the velocity update of eq. 21 (Algorithm 2, line 14); constrained components get zero
+   velocity and acceleration. Under an integrator with ``implicit_contact`` the contact forces
+   are kept out of a^{n+1} and added to the velocity as an impulse (``bfemp.integrators``).
+4. MPM: one G2P of positions, velocities, F (and APIC C, Newmark a) per Tables 1-3 (line 12)
+   (``bfemp.steppers._scaffold.write_state``).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+import numpy as np
+
+from bfemp.contact.adaptive import AdaptiveKappa
+from bfemp.contact.friction import FrictionTerm
+from bfemp.contact.term import BarrierTerm
+from bfemp.frames import NodeFrames
+from bfemp.integrators import Integrator
+from bfemp.model import Model
+from bfemp.state import State
+from bfemp.steppers._barrier_potential import build_potential, has_contact
+from bfemp.steppers._barrier_solve import ScriptedSolve
+from bfemp.steppers._scaffold import StepNodes, gather_nodes, write_state
+from bfemp.steppers.base import ContactView, StepError, StepperOptions, StepReport, finite_or_nan
+from bfemp.terms import StepContext
+from solvers.linear import LinearSolver, ScipySolver, default_linear_solver
+from solvers.options import NewtonOptions
+from solvers.result import NewtonResult, NewtonStatus
+
+__all__ = ["BarrierOptions", "BarrierStepper", "build_potential", "has_contact"]
+
+log = logging.getLogger(__name__)
+
+#: the names ``BarrierOptions.linear_solver`` accepts
+LINEAR_SOLVERS = ("default", "cholmod", "scipy")
+
+
+@dataclass(frozen=True, kw_only=True)
+class BarrierOptions(StepperOptions):
+    """Numerical settings of the ``barrier`` strategy (``Simulation(options=...)``).
+
+    Attributes:
+        tol: Newton tolerance in m/s: a step has converged when its increment moves no FEM
+            node, particle position or (times dx) particle deformation gradient by more than
+            ``tol * dt`` (section 5).
+        max_newton_iterations: Newton iteration cap per minimisation.
+        warm_start: start Newton from the predicted x^{n+1} where no contact is active instead
+            of from x^n (measured: no gain on the rings and cantilever demos, hence off).
+        linear_solver: ``"default"`` (CHOLMOD, scipy's SuperLU when scikit-sparse is missing),
+            ``"cholmod"``, ``"scipy"``, or a ``solvers.linear.LinearSolver`` object.
+    """
+
+    strategy: ClassVar[str] = "barrier"
+
+    tol: float = field(default=1e-6, metadata={"unit": "velocity"})
+    max_newton_iterations: int = 200
+    warm_start: bool = False
+    linear_solver: str | LinearSolver = "default"
+
+    def __post_init__(self) -> None:
+        if isinstance(self.tol, bool) or not (
+            isinstance(self.tol, int | float) and np.isfinite(self.tol) and self.tol > 0
+        ):
+            raise ValueError(f"tol must be a positive Newton tolerance in m/s, got {self.tol!r}")
+        n = self.max_newton_iterations
+        if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
+            raise ValueError(f"max_newton_iterations must be an integer >= 1, got {n!r}")
+        if not isinstance(self.warm_start, bool | np.bool_):
+            raise ValueError(f"warm_start must be true or false, got {self.warm_start!r}")
+        solver = self.linear_solver
+        if isinstance(solver, str) and solver not in LINEAR_SOLVERS:
+            raise ValueError(f"linear_solver must be one of {LINEAR_SOLVERS}, got {solver!r}")
+        if not isinstance(solver, str) and not callable(getattr(solver, "solve", None)):
+            raise ValueError(
+                f"linear_solver must be a name {LINEAR_SOLVERS} or a LinearSolver, got {solver!r}"
+            )
+
+    def make_linear_solver(self) -> LinearSolver:
+        """The linear solver these options name."""
+        if not isinstance(self.linear_solver, str):
+            return self.linear_solver
+        if self.linear_solver == "scipy":
+            return ScipySolver()
+        if self.linear_solver == "cholmod":
+            from solvers.linear import CholmodSolver
+
+            return CholmodSolver()
+        return default_linear_solver()
+
+
+class BarrierStepper:
+    """The ``"barrier"`` strategy: one incremental-potential minimisation per step.
+
+    Args:
+        model: the static model.
+        integrator: Newmark-family parameters (implicit; ``bfemp.integrators``).
+        transfer: MPM particle-grid transfer, ``"apic"``, ``"pic"`` or ``"flip"``.
+        dt: time step in s.
+        options: ``BarrierOptions`` (defaults when None).
+    """
+
+    name: ClassVar[str] = "barrier"
+    Options: ClassVar[type] = BarrierOptions
+    explicit: ClassVar[bool] = False
+
+    def __init__(
+        self,
+        model: Model,
+        *,
+        integrator: Integrator,
+        transfer: str = "apic",
+        dt: float,
+        options: BarrierOptions | None = None,
+    ) -> None:
+        options = BarrierOptions() if options is None else options
+        if not isinstance(options, BarrierOptions):
+            raise ValueError(
+                f"strategy 'barrier' takes BarrierOptions, got {type(options).__name__}"
+            )
+        if getattr(integrator, "explicit", False):
+            raise ValueError(
+                f"strategy 'barrier' is implicit: integrator {integrator.name!r} is explicit "
+                "(use backward_euler, newmark, newmark_damped or newmark_implicit_contact)"
+            )
+        self.model = model
+        self.options = options
+        self.integrator = integrator
+        self.dt = float(dt)
+        self.newton = NewtonOptions(
+            tol=options.tol, max_iter=options.max_newton_iterations, step_scale=self.dt
+        )
+        self.linear_solver = options.make_linear_solver()
+        self.transfer = transfer
+        self.potential = build_potential(model)
+        self.barrier = next(
+            (t for t in self.potential.potentials if isinstance(t, BarrierTerm)), None
+        )
+        self.friction = next(
+            (t for t in self.potential.potentials if isinstance(t, FrictionTerm)), None
+        )
+        self.adaptive: AdaptiveKappa | None = None
+        self._solver = ScriptedSolve(
+            model,
+            self.potential,
+            self.barrier,
+            self.friction,
+            self.newton,
+            self.linear_solver,
+            self.dt,
+        )
+
+    @property
+    def warm_start(self) -> bool:
+        """Whether Newton starts from the predicted x^{n+1} (``BarrierOptions.warm_start``)."""
+        return self.options.warm_start
+
+    @property
+    def terms(self) -> list[str]:
+        """Names of the active energy terms."""
+        return [term.name for term in self.potential.terms]
+
+    def stable_dt(self, state: State) -> float:
+        """Implicit: no stable-step bound (inf)."""
+        return float("inf")
+
+    # ------------------------------------------------------------------ step set-up
+    def _gather(self, state: State, t_next: float) -> StepNodes:
+        return gather_nodes(
+            self.model,
+            state,
+            transfer=self.transfer,
+            with_acceleration=self.integrator.uses_acceleration,
+            dt=self.dt,
+            t_next=t_next,
+        )
+
+    def _context(self, state: State, nodes: StepNodes, x_hat_all: np.ndarray) -> StepContext:
+        """The terms' view of the step; with friction, the sliding map of eq. 37."""
+        layout, d = nodes.layout, self.model.dim
+        ctx = StepContext(
+            model=self.model,
+            state=state,
+            dt=self.dt,
+            layout=layout,
+            fixed_positions=nodes.fixed,
+            x_hat=layout.restrict(x_hat_all),
+            dof_mass=np.repeat(nodes.mass[layout.free_nodes], d),
+            mpm=nodes.mpm,
+        )
+        if self.friction is not None:
+            ctx.sliding = self._sliding_map(nodes, x_hat_all)
+        return ctx
+
+    def _sliding_map(self, nodes: StepNodes, x_hat_all: np.ndarray) -> tuple[float, np.ndarray]:
+        """U = s y + c: each node's sliding dt v^{n+1} over the step, affine in its position y.
+
+        Free nodes: dt v^n + dt^2 ((1 - gamma) a^n + gamma a^{n+1}) with a^{n+1} = (y - x_hat) /
+        (2 alpha beta dt^2) (eq. 21), so s = gamma / (2 alpha beta); scripted nodes: dt times
+        their scripted velocity (sticky grid nodes: 0).
+        """
+        integ, dt = self.integrator, self.dt
+        s = integ.gamma / (2.0 * integ.alpha * integ.beta)
+        c = dt * nodes.v + dt * dt * (1.0 - integ.gamma) * nodes.a - s * x_hat_all
+        v_end = np.zeros_like(nodes.x)
+        n_fem = self.model.n_fem_nodes
+        v_end[:n_fem] = self.model.prescribed_velocities(nodes.t_next)
+        scripted = nodes.layout.dof_node < 0
+        c[scripted] = dt * v_end[scripted] - s * nodes.fixed[scripted]
+        return s, c
+
+    def _begin_potential(self, ctx: StepContext, frames: NodeFrames | None) -> None:
+        """Start the step's potential with the integrator's weights (eq. 22)."""
+        integ = self.integrator
+        self.potential.begin_step(
+            ctx, integ.weight(self.dt), frames, contact_weight=integ.contact_weight(self.dt)
+        )
+
+    def _adapt_kappa(self, x_n: np.ndarray) -> None:
+        """kappa = "auto": bounds on the first step, gradient balance when contact appears."""
+        contact = self.model.contact
+        if self.barrier is None or not contact.adaptive_kappa:
+            return
+        if self.adaptive is None:
+            moduli = [b.material.E for b in (*self.model.fem_bodies, *self.model.mpm_bodies)]
+            omega = self.barrier.collisions.omega
+            self.adaptive = AdaptiveKappa.for_scene(moduli, omega, contact.dhat, self.model.dim)
+        if not self.adaptive.initialised:
+            self.barrier.kappa = 1.0
+            self.potential.solution_changed(self.potential.to_unknowns(x_n))
+            if self.barrier.pairs.n_pairs:
+                weight = self.integrator.weight(self.dt)
+                g_barrier = self.barrier.gradient(x_n)
+                g_all = self.potential.inertia.gradient(x_n) + weight * (
+                    self.potential.potential_gradient(x_n) - g_barrier
+                )
+                self.adaptive.initialise(g_all, g_barrier, self.integrator.contact_weight(self.dt))
+        self.barrier.kappa = self.adaptive.kappa
+
+    def _memory_gradient(self, x: np.ndarray) -> np.ndarray:
+        """The gradient ``(n_dof,)`` in N whose force is carried as a^n into the next step: all
+        potentials, or all but the contact terms under ``implicit_contact``."""
+        contact = False if self.integrator.implicit_contact else None
+        return self.potential.potential_gradient(x, contact=contact)
+
+    def begin_step(self, state: State) -> np.ndarray:
+        """Set up the potential of the step starting at ``state`` (for inspection and tests).
+
+        Returns the start positions of the unknowns x^n ``(n_dof,)``. For inspection only (no
+        method of the stepper reads them), ``self.context`` and ``self.layout`` keep the step
+        context and DOF layout.
+        """
+        nodes = self._gather(state, state.t + self.dt)
+        x_hat_all = self.integrator.predict(nodes.x, nodes.v, nodes.a, self.dt)
+        ctx = self._context(state, nodes, x_hat_all)
+        self._begin_potential(ctx, nodes.frames)
+        self.context, self.layout = ctx, nodes.layout
+        return nodes.layout.restrict(nodes.x)
+
+    def initialize(self, state: State) -> State:
+        """Set a^0 of FEM nodes consistently with the forces at t = 0 (Newmark needs it)."""
+        out = state.copy()
+        if not self.integrator.uses_acceleration or self.model.n_fem_nodes == 0:
+            return out
+        nodes = self._gather(state, state.t)
+        x_hat_all = self.integrator.predict(nodes.x, nodes.v, nodes.a, self.dt)
+        ctx = self._context(state, nodes, x_hat_all)
+        self._begin_potential(ctx, None)
+        x_n = nodes.layout.restrict(nodes.x)
+        self.potential.solution_changed(x_n)
+        accel = -self._memory_gradient(x_n) / ctx.dof_mass
+        out.fem_a = nodes.layout.expand(accel)[: self.model.n_fem_nodes]
+        # MPM particles start with a = g (no elastic force in the rest state)
+        if self.model.n_particles:
+            out.mpm_a = np.broadcast_to(self.model.gravity, out.mpm_a.shape).copy()
+        return out
+
+    # ------------------------------------------------------------------ the step
+    def step(self, state: State) -> tuple[State, StepReport]:
+        """Advance ``state`` by ``dt``; raises ``StepError`` when Newton fails."""
+        started = time.perf_counter()
+        dt, integ = self.dt, self.integrator
+        t_next = state.t + dt
+        nodes = self._gather(state, t_next)
+        layout = nodes.layout
+        x_hat_all = integ.predict(nodes.x, nodes.v, nodes.a, dt)
+        ctx = self._context(state, nodes, x_hat_all)
+        x_n, v_n, a_n = layout.restrict(nodes.x), layout.restrict(nodes.v), layout.restrict(nodes.a)
+        self._begin_potential(ctx, nodes.frames)
+        self._adapt_kappa(x_n)
+        setup_time = time.perf_counter() - started
+        if layout.n_dof == 0:  # every node scripted: nothing to solve
+            result = NewtonResult(
+                x=x_n,
+                success=True,
+                status=NewtonStatus.CONVERGED,
+                message="no unknowns",
+                step_inf_norm=0.0,
+            )
+            friction_its, friction_ok = 0, True
+        else:
+            # a^{n+1} ~ a^n in eq. 21: x^{n+1} ~ x_hat + 2 alpha beta dt^2 a^n (warm start)
+            predicted = ctx.x_hat + integ.weight(dt) * a_n if self.warm_start else None
+            result, friction_its, friction_ok = self._solver.solve(
+                state, nodes, nodes.start(), predicted
+            )
+        report_args = dict(
+            friction_converged=friction_ok,
+            step=state.step + 1,
+            t=t_next,
+            success=bool(result.success),
+            status=result.status.name,
+            message=result.message,
+            iterations=self._iterations(int(result.nit), friction_its),
+            residual=float(result.step_inf_norm) / dt,
+        )
+        if not result.success:
+            raise StepError(StepReport(**report_args, timings=dict(result.timings)))
+        v_next, a_next, boundary_forces = self._end_velocities(
+            result, nodes, x_n, v_n, a_n, ctx.dof_mass
+        )
+        g2p_start = time.perf_counter()
+        x_all = layout.positions(self.potential.to_positions(result.x), nodes.fixed)
+        new = write_state(
+            self.model,
+            state,
+            nodes,
+            transfer=self.transfer,
+            x_end=x_all,
+            v_end=layout.expand(v_next),
+            a_end=layout.expand(a_next),
+        )
+        timings = dict(result.timings)
+        timings["setup"] = setup_time
+        timings["g2p"] = time.perf_counter() - g2p_start
+        timings["step"] = time.perf_counter() - started
+        if self.barrier is not None and self.barrier.pairs is not None:
+            min_d = self.barrier.min_distance()
+            report_args["min_distance"] = finite_or_nan(min_d)
+            report_args["contact_pairs"] = self.barrier.pairs.n_pairs
+            if self.adaptive is not None:
+                self.adaptive.after_step(min_d, self.model.contact.dhat)
+        if boundary_forces is not None:
+            report_args["boundary_forces"] = boundary_forces
+        report = StepReport(**report_args, timings=timings)
+        log.debug("step %d: %d Newton iterations", report.step, report.newton_iterations)
+        return new, report
+
+    def _iterations(self, newton: int, friction: int) -> dict[str, int]:
+        """The step's iteration counts: Newton, and lagged-friction updates with friction."""
+        if self.friction is None:
+            return {"newton": newton}
+        return {"newton": newton, "friction": friction}
+
+    def _end_velocities(
+        self,
+        result: NewtonResult,
+        nodes: StepNodes,
+        x_n: np.ndarray,
+        v_n: np.ndarray,
+        a_n: np.ndarray,
+        dof_mass: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray, tuple | None]:
+        """v^{n+1}, a^{n+1} ``(n_dof,)`` and the level-set reactions of a converged step.
+
+        a^{n+1} from the forces at x^{n+1} (Algorithm 2, line 14), then eq. 21 for v; with
+        implicit contact, a^{n+1} leaves the contact forces out and they act as an impulse.
+        Along slip normals the node moves with the boundary: its velocity, no acceleration.
+        """
+        integ, dt, frames = self.integrator, self.dt, nodes.frames
+        x_next = self.potential.to_positions(result.x)
+        a_contact = None
+        if nodes.layout.n_dof:
+            self.potential.solution_changed(result.x)
+            a_next = -self._memory_gradient(x_next) / dof_mass
+            if integ.implicit_contact and self.barrier is not None:
+                a_contact = -self.potential.potential_gradient(x_next, contact=True) / dof_mass
+        else:
+            a_next = np.zeros(0)
+        boundary_forces = None
+        if frames is not None:
+            normal_dofs = frames.normal_dofs()
+            local = frames.to_local(a_next)
+            local[normal_dofs] = 0.0
+            a_next = frames.to_global(local)
+            boundary_forces = self._boundary_forces(result, nodes)
+        v_next = integ.velocity(v_n, a_n, a_next, dt)
+        if a_contact is not None:
+            v_next = integ.contact_velocity(v_next, a_contact, dt)
+        if frames is not None:
+            local = frames.to_local(v_next)
+            local[normal_dofs] = frames.to_local((nodes.start() - x_n) / dt)[normal_dofs]
+            v_next = frames.to_global(local)
+        return v_next, a_next, boundary_forces
+
+    def _boundary_forces(self, result: NewtonResult, nodes: StepNodes) -> tuple:
+        """Reaction force (d,) in N of each level-set boundary on the body, from slip nodes.
+
+        At the constrained optimum dE/dy_n = h^2 f_n for a fixed normal coordinate y_n: f_n is the
+        force the boundary exerts along its normal (positive pushes the body away, negative pulls
+        it: adhesion). Sticky nodes are not unknowns and are not included.
+        """
+        d, frames, mpm = self.model.dim, nodes.frames, nodes.mpm
+        out = np.zeros((len(self.model.boundaries), d))
+        if result.jac is None:
+            return tuple(tuple(row) for row in out)
+        f_n = np.asarray(result.jac)[frames.normal_dofs()] / self.integrator.weight(self.dt)
+        normals = frames.frames[:, :, 0]
+        grid_nodes = nodes.layout.free_nodes[frames.nodes] - mpm.node_offset
+        owner = mpm.constraints.owner[grid_nodes]
+        np.add.at(out, owner, f_n[:, None] * normals)
+        return tuple(tuple(float(c) for c in row) for row in out)
+
+    # ------------------------------------------------------------------ contact and checkpoints
+    def contact(self) -> ContactView:
+        """Barrier forces, closest distance, active pairs and energy at the end of the last step.
+
+        Forces in N (N/m in 2D): on every FEM node (zero off the boundary) and every particle;
+        all zero (and energy 0) before the first step or without a barrier.
+        """
+        model = self.model
+        bar = self.barrier
+        kwargs = {"parameters": {"kappa": bar.kappa}} if bar is not None else {}
+        view = ContactView.empty(model.n_fem_nodes, model.n_particles, model.dim, **kwargs)
+        if bar is None or bar.pairs is None:
+            return ContactView(**{**view.__dict__, "energy": 0.0 if bar is not None else np.nan})
+        forces = bar.point_forces()
+        cs = bar.collisions
+        nf = cs.n_fem_points
+        np.add.at(view.fem_forces, cs.nodes[:nf, 0], forces[:nf])
+        view.particle_forces[cs.particle_index[nf:]] = forces[nf:]
+        return ContactView(
+            view.fem_forces,
+            view.particle_forces,
+            min_distance=finite_or_nan(bar.min_distance()),
+            pairs=int(bar.pairs.n_pairs),
+            energy=float(bar.value(None)),
+            parameters={"kappa": float(bar.kappa)},
+        )
+
+    def checkpoint_data(self) -> dict[str, np.ndarray]:
+        """The adaptive-kappa state (``kappa = "auto"``), as a JSON string array."""
+        if self.adaptive is None:
+            return {}
+        import dataclasses
+        import json
+
+        return {"adaptive": np.array(json.dumps(dataclasses.asdict(self.adaptive)))}
+
+    def restore_checkpoint_data(self, data: Mapping[str, np.ndarray]) -> None:
+        """Take back ``checkpoint_data``'s arrays."""
+        import json
+
+        unknown = sorted(set(data) - {"adaptive"})
+        if unknown:
+            raise ValueError(f"barrier stepper: unknown checkpoint data {unknown}")
+        if "adaptive" in data:
+            self.adaptive = AdaptiveKappa(**json.loads(str(data["adaptive"])))
