@@ -19,6 +19,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from bfemp import diagnostics
+from bfemp._run_arguments import check_t_end, newton_options
 from bfemp.checkpoint import (
     InterruptGuard,
     remove_checkpoint,
@@ -36,7 +37,6 @@ from bfemp.state import State
 from bfemp.steppers import StepReport, stepper_class
 from bfemp.validation import validate_initial
 from solvers.linear import LinearSolver
-from solvers.options import NewtonOptions
 
 __all__ = ["Simulation"]
 
@@ -82,6 +82,7 @@ class Simulation:
             raise ValueError(f"Simulation.dt must be a positive number of seconds, got {dt!r}")
         if transfer not in _TRANSFERS:
             raise ValueError(f"Simulation.transfer must be one of {_TRANSFERS}, got {transfer!r}")
+        newton = newton_options(tol, max_newton_iterations)
         self.model = scene.build() if isinstance(scene, Scene) else scene
         if self.model.contact is not None:
             # the barrier is finite only for bodies that start apart (and beyond d-hat)
@@ -100,7 +101,6 @@ class Simulation:
             "max_newton_iterations": int(max_newton_iterations),
             "warm_start": bool(warm_start),
         }
-        newton = NewtonOptions(tol=tol, max_iter=max_newton_iterations)
         self.stepper = stepper_class(strategy)(
             self.model,
             integrator=self.integrator,
@@ -168,6 +168,8 @@ class Simulation:
         ``out/metrics.png``).
         """
         _check_run_args(t_end, every, checkpoint_every, resume, out)
+        if not resume:
+            check_t_end(t_end, self.state.t, self.dt)
         if out is None:
             self._loop(self._n_steps(t_end), progress, callback)
             return self.metrics
@@ -175,6 +177,7 @@ class Simulation:
         out.mkdir(parents=True, exist_ok=True)
         if resume:
             restore_checkpoint(out, self, every=every)
+            check_t_end(t_end, self.state.t, self.dt, f"the checkpoint in {out}")
         else:
             remove_checkpoint(out)
         every, checkpoint_every = int(every), int(checkpoint_every or 0)
