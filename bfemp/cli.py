@@ -126,6 +126,19 @@ def _positive_int(value: int | None, name: str, minimum: int) -> int | None:
     return value
 
 
+def _check_resume_t_end(out: Path, t_end: float, given: bool) -> None:
+    """Refuse ``--resume`` towards an end time before the checkpoint's time (nothing to run)."""
+    from bfemp.checkpoint import read_checkpoint
+
+    t = float(read_checkpoint(out).state.t)
+    if t_end < t * (1.0 - 1e-12):
+        raise SceneError(
+            f"t_end = {t_end:.9g} s is earlier than the checkpoint in {out}, at t = {t:.9g} s",
+            field="--t-end" if given else "run.t_end",
+            hint=f"give --t-end after {t:.9g} s to continue the run, or run without --resume",
+        )
+
+
 def _run(args: argparse.Namespace, argv: list[str]) -> int:
     from bfemp import scenefile
     from bfemp.scenefile.checks import CheckRecorder, evaluate_checks
@@ -144,7 +157,9 @@ def _run(args: argparse.Namespace, argv: list[str]) -> int:
             f"particles, terms {', '.join(sim.terms)}; t_end {settings['t_end']:g} s"
         )
         return 0
-    if not args.resume:
+    if args.resume:
+        _check_resume_t_end(out, settings["t_end"], args.t_end is not None)
+    else:
         scenefile.write_text(out / "scene.toml", sf.text)
     metadata = {
         "scene_file": str(scene_path.resolve()),

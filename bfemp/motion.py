@@ -94,7 +94,8 @@ class Rotation(Motion):
     """Rigid rotation about ``center`` at ``angular_velocity`` rad/s (counter-clockwise positive).
 
     In 3D the rotation is about the line through ``center`` along ``axis`` (normalised here);
-    in 2D ``axis`` is ignored (rotation in the plane).
+    in 2D (a 2-component ``center``) ``axis`` is ignored (rotation in the plane): it is not
+    checked, and one that is not a non-zero 3-vector is replaced by the default.
     """
 
     center: tuple[float, ...]
@@ -109,10 +110,15 @@ class Rotation(Motion):
             raise ValueError(
                 f"Rotation.angular_velocity must be finite, got {self.angular_velocity!r}"
             )
-        a = np.asarray(self.axis, dtype=np.float64)
+        try:
+            a = np.asarray(self.axis, dtype=np.float64)
+        except (TypeError, ValueError):
+            a = np.zeros(0)
         norm = float(np.linalg.norm(a)) if a.shape == (3,) else 0.0
         if not (norm > 0.0 and math.isfinite(norm)):
-            raise ValueError(f"Rotation.axis must be a non-zero 3-vector, got {self.axis!r}")
+            if c.size == 3:
+                raise ValueError(f"Rotation.axis must be a non-zero 3-vector, got {self.axis!r}")
+            a, norm = np.array([0.0, 0.0, 1.0]), 1.0  # 2D: the axis is ignored
         object.__setattr__(self, "center", tuple(float(x) for x in c))
         object.__setattr__(self, "axis", tuple(float(x) for x in a / norm))
 

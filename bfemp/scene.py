@@ -18,9 +18,9 @@ from bfemp.materials import LinearElastic, NeoHookean
 from bfemp.model import BOUNDARY_KINDS, Boundary, FemBody, Model, MpmBody, simplex_shape_gradients
 from bfemp.motion import Motion
 from geometry.grid import Grid, particles_per_cell
-from geometry.mesh import TetMesh, TriMesh, from_meshio, mesh_from_arrays
+from geometry.mesh import SourceNumbering, TetMesh, TriMesh, from_meshio, mesh_from_arrays
 
-__all__ = ["Scene"]
+__all__ = ["Scene", "check_fem_mesh"]
 
 Material = NeoHookean | LinearElastic
 
@@ -45,6 +45,29 @@ class _FemSpec:
     velocity: np.ndarray  # (n, d)
     motion: Motion | None
     prescribed: np.ndarray  # (n,) bool
+    numbering: SourceNumbering | None  # the mesh file's numbering (node indices of the user)
+
+
+def check_fem_mesh(mesh: TriMesh | TetMesh, where: str, *, rigid: bool) -> TriMesh | TetMesh:
+    """The mesh of a FEM body, oriented and checked; ``ValueError`` naming ``where`` if bad.
+
+    A mesh whose cells are all clockwise (2D) / left-handed (3D), as some generators write
+    them, is flipped (logged at INFO); one with both orientations is refused (its negative
+    cells may be folded over). Cells of (near) zero area/volume are refused. Slivers (aspect
+    ratio above 1e3) are refused for deformable bodies only: a ``rigid`` body (every node
+    prescribed) never deforms, so the shape of its cells does not matter.
+    """
+    volumes = mesh.signed_volumes()
+    if np.all(volumes < 0.0):
+        log.info(
+            "%s: all %d cells are %s; flipped to the positive orientation",
+            where,
+            mesh.n_cells,
+            "clockwise" if mesh.dim == 2 else "left-handed",
+        )
+        mesh = mesh.oriented()
+    mesh.check_quality(name=where, quality_tol=0.0 if rigid else 1e-3)
+    return mesh
 
 
 def _check_translation(motion: object) -> None:
@@ -103,13 +126,21 @@ class Scene:
 
         Args:
             points: node positions ``(n, d)`` in m, or a ``TriMesh``/``TetMesh``/``meshio.Mesh``.
+                A mesh whose cells are all clockwise (2D) / left-handed (3D) is flipped; see
+                :func:`check_fem_mesh` for what is refused.
             cells: vertex indices ``(m, d + 1)`` when ``points`` is an array.
             material: ``NeoHookean`` or ``LinearElastic``.
             velocity: initial velocity ``(d,)`` or ``(n, d)`` in m/s; default zero.
             prescribed: a ``bfemp.motion`` Motion scripting some or all nodes.
-            prescribed_nodes: bool mask ``(n,)`` or index array of the scripted nodes; default all
-                nodes when ``prescribed`` is given.
+            prescribed_nodes: bool mask ``(n,)`` or index array of the scripted nodes (at least
+                one); default all nodes when ``prescribed`` is given.
             name: body name used in messages and output files; default ``fem{index}``.
+
+        Node numbering: a ``meshio.Mesh`` (or a mesh read from a file) may hold points that no
+        cell uses; they are pruned and the nodes renumbered. Node indices are then taken in the
+        numbering of the file, the one the user sees, and translated; indices of pruned points
+        are refused. Masks and per-node velocities may have one entry per point of the file
+        (translated) or per node of the pruned mesh (``mesh.points``, taken as they are).
 
         Returns:
             The body's handle (``body.x(sim.state)``: its node positions); it is also its index
@@ -121,16 +152,18 @@ class Scene:
             raise ValueError(f"fem body '{name}': name is already used by another body")
         where = f"fem body '{name}'"
         mesh = self._as_mesh(points, cells, where)
-        mesh.check_quality(name=where)
+        numbering = mesh.source if mesh.source is not None and mesh.source.pruned else None
+        n = mesh.points.shape[0]
+        prescribed_mask = self._prescribed_mask(prescribed, prescribed_nodes, n, where, numbering)
+        mesh = check_fem_mesh(mesh, where, rigid=bool(prescribed_mask.all()))
         if not isinstance(material, NeoHookean | LinearElastic):
             raise ValueError(
                 f"{where}: material must be bfemp.NeoHookean or bfemp.LinearElastic, "
                 f"got {type(material).__name__}"
             )
-        n = mesh.points.shape[0]
-        vel = self._velocity(velocity, n, where)
-        prescribed_mask = self._prescribed_mask(prescribed, prescribed_nodes, n, where)
-        self._fem.append(_FemSpec(name, mesh, material, vel, prescribed, prescribed_mask))
+        vel = self._velocity(velocity, n, where, numbering)
+        spec = _FemSpec(name, mesh, material, vel, prescribed, prescribed_mask, numbering)
+        self._fem.append(spec)
         nodes = sum(spec.mesh.points.shape[0] for spec in self._fem[:-1])
         cells = sum(spec.mesh.cells.shape[0] for spec in self._fem[:-1])
         boundary = mesh.boundary_edges if self.dim == 2 else mesh.boundary_faces
@@ -259,10 +292,16 @@ class Scene:
         """Apply constant nodal forces to a FEM body (dead load).
 
         Args:
-            body: the handle (or index) returned by ``add_fem``.
+            body: the handle (or index) returned by ``add_fem``; loads act on FEM bodies only.
             force: force per selected node in N (N/m in 2D), ``(d,)`` or ``(k, d)``.
-            nodes: bool mask ``(n,)`` or indices ``(k,)`` of the body's nodes; default all.
+            nodes: bool mask ``(n,)`` or indices ``(k,)`` of the body's nodes (in the mesh
+                file's numbering, as for ``add_fem``'s ``prescribed_nodes``); default all.
         """
+        if isinstance(body, MpmBody):
+            raise ValueError(
+                f"add_load: loads act on FEM bodies only, and '{body.name}' is an MPM body; "
+                "MPM bodies feel body forces through the scene's gravity"
+            )
         if isinstance(body, FemBody):
             body = body.index
         if not (isinstance(body, int | np.integer) and 0 <= body < len(self._fem)):
@@ -270,14 +309,19 @@ class Scene:
         spec = self._fem[body]
         where = f"fem body '{spec.name}'"
         n, d = spec.mesh.points.shape
+        numbering = spec.numbering
         if nodes is None:
             idx = np.arange(n)
         else:
             nodes = np.asarray(nodes)
             if nodes.dtype == bool:
+                if numbering is not None and nodes.shape == (numbering.n_source,):
+                    nodes = numbering.mask(nodes, f"{where}: load nodes mask")
                 if nodes.shape != (n,):
                     raise ValueError(f"{where}: load nodes mask must have {n} entries")
                 idx = np.flatnonzero(nodes)
+            elif numbering is not None:
+                idx = numbering.nodes(nodes, f"{where}: load node indices")
             else:
                 idx = nodes.astype(np.int64).ravel()
                 if idx.size and (idx.min() < 0 or idx.max() >= n):
@@ -296,10 +340,21 @@ class Scene:
         if isinstance(points, TriMesh | TetMesh):
             mesh = points
         elif isinstance(points, meshio.Mesh):
-            mesh = from_meshio(points)
+            try:
+                mesh = from_meshio(points, name="the meshio mesh")
+            except ValueError as err:
+                raise ValueError(f"{where}: {err}") from None
         else:
             if cells is None:
                 raise ValueError(f"{where}: cells are required when points is an array")
+            shape = np.shape(cells)
+            if len(shape) == 2 and shape[1] in (3, 4) and shape[1] != self.dim + 1:
+                given = "tetrahedra" if shape[1] == 4 else "triangles"
+                kind = "triangles" if self.dim == 2 else "tetrahedra"
+                raise ValueError(
+                    f"{where}: cells of shape {shape} are {given}, a {shape[1] - 1}D mesh, but "
+                    f"the scene is {self.dim}D: cells must have shape (m, {self.dim + 1}) ({kind})"
+                )
             try:
                 mesh = mesh_from_arrays(np.asarray(points), np.asarray(cells))
             except ValueError as err:
@@ -308,13 +363,17 @@ class Scene:
             raise ValueError(f"{where}: points are {mesh.dim}D but the scene is {self.dim}D")
         return mesh
 
-    def _velocity(self, velocity: object, n: int, where: str) -> np.ndarray:
+    def _velocity(
+        self, velocity: object, n: int, where: str, numbering: SourceNumbering | None = None
+    ) -> np.ndarray:
         d = self.dim
         if velocity is None:
             return np.zeros((n, d))
         v = np.asarray(velocity, dtype=np.float64)
         if v.shape == (d,):
             v = np.broadcast_to(v, (n, d))
+        elif numbering is not None and v.shape == (numbering.n_source, d):
+            v = v[numbering.index]  # one row per point of the file
         if v.shape != (n, d):
             raise ValueError(
                 f"{where}: velocity must have shape ({d},) or ({n}, {d}), got {v.shape}"
@@ -325,7 +384,11 @@ class Scene:
 
     @staticmethod
     def _prescribed_mask(
-        motion: Motion | None, nodes: np.ndarray | None, n: int, where: str
+        motion: Motion | None,
+        nodes: np.ndarray | None,
+        n: int,
+        where: str,
+        numbering: SourceNumbering | None = None,
     ) -> np.ndarray:
         if motion is None:
             if nodes is not None:
@@ -338,18 +401,30 @@ class Scene:
         if nodes is None:
             return np.ones(n, dtype=bool)
         nodes = np.asarray(nodes)
+        field = f"{where}: prescribed_nodes"
         if nodes.dtype == bool:
-            if nodes.shape != (n,):
-                raise ValueError(
-                    f"{where}: prescribed_nodes mask must have {n} entries, got {nodes.shape}"
-                )
-            return nodes.copy()
-        if nodes.ndim != 1 or not np.issubdtype(nodes.dtype, np.integer):
-            raise ValueError(f"{where}: prescribed_nodes must be a bool mask or integer indices")
-        if nodes.size and (nodes.min() < 0 or nodes.max() >= n):
-            raise ValueError(f"{where}: prescribed_nodes indices must lie in [0, {n})")
-        mask = np.zeros(n, dtype=bool)
-        mask[nodes] = True
+            if numbering is not None and nodes.shape == (numbering.n_source,):
+                mask = numbering.mask(nodes, f"{field} mask")
+            elif nodes.shape != (n,):
+                raise ValueError(f"{field} mask must have {n} entries, got {nodes.shape}")
+            else:
+                mask = nodes.copy()
+        elif nodes.size == 0:
+            mask = np.zeros(n, dtype=bool)
+        else:
+            if nodes.ndim != 1 or not np.issubdtype(nodes.dtype, np.integer):
+                raise ValueError(f"{field} must be a bool mask or integer indices")
+            if numbering is not None:
+                nodes = numbering.nodes(nodes, f"{field} indices")
+            elif nodes.min() < 0 or nodes.max() >= n:
+                raise ValueError(f"{field} indices must lie in [0, {n})")
+            mask = np.zeros(n, dtype=bool)
+            mask[nodes] = True
+        if not mask.any():
+            raise ValueError(
+                f"{field} selects no node (a mask with no True entry or no indices): "
+                "select at least one node, or leave out prescribed for a free body"
+            )
         return mask
 
     def _record_source(self, name: str, field: str, value: object) -> None:

@@ -19,6 +19,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from bfemp import diagnostics
+from bfemp._run_arguments import check_t_end
 from bfemp.checkpoint import (
     InterruptGuard,
     remove_checkpoint,
@@ -185,6 +186,8 @@ class Simulation:
         ``out/metrics.png``).
         """
         _check_run_args(t_end, every, checkpoint_every, resume, out)
+        if not resume:
+            check_t_end(t_end, self.state.t, self.dt)
         if out is None:
             self._loop(self._n_steps(t_end), progress, callback)
             return self.metrics
@@ -192,6 +195,7 @@ class Simulation:
         out.mkdir(parents=True, exist_ok=True)
         if resume:
             restore_checkpoint(out, self, every=every)
+            check_t_end(t_end, self.state.t, self.dt, f"the checkpoint in {out}")
         else:
             remove_checkpoint(out)
         every, checkpoint_every = int(every), int(checkpoint_every or 0)

@@ -7,7 +7,10 @@ distance from the other bodies' boundaries, so a contact scene must start withou
 - no two FEM bodies overlapping: no node of one inside the other's mesh, and no boundary edge of
   one crossing a boundary edge (2D) or boundary triangle (3D) of the other;
 - no particle closer than ``dhat`` to a FEM boundary, where it would start with an active
-  barrier force (the scene author almost always meant the bodies to start apart).
+  barrier force (the scene author almost always meant the bodies to start apart);
+- likewise no FEM boundary node closer than ``dhat`` to the boundary of another FEM body
+  (node-facet distances, the pairs of the FEM-FEM barrier; 3D edge-edge distances are not
+  checked). Pairs of two fully prescribed bodies are exempt: their barrier acts on no unknown.
 
 Each failure raises :class:`~bfemp.errors.SceneError` naming the bodies, the offending indices,
 the distance found and a suggested fix. Inside tests use the barycentric point location of
@@ -29,7 +32,7 @@ from geometry.distance import point_edge_distance, point_triangle_distance
 from geometry.mesh import TetMesh, TriMesh
 from geometry.sampling import locate_points
 
-__all__ = ["check_clearance", "check_no_overlap", "validate_initial"]
+__all__ = ["check_clearance", "check_fem_clearance", "check_no_overlap", "validate_initial"]
 
 log = logging.getLogger(__name__)
 
@@ -219,16 +222,70 @@ def check_clearance(
     )
 
 
+def _facet_distance(dim: int, p: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """Distances (m) of points ``p (k, d)`` to facets with vertices ``f (k, d, d)``."""
+    if dim == 2:
+        return point_edge_distance(p, f[:, 0], f[:, 1])
+    return point_triangle_distance(p, f[:, 0], f[:, 1], f[:, 2])
+
+
+def check_fem_clearance(model: Model, dhat: float, fem_x: np.ndarray | None = None) -> None:
+    """Raise ``SceneError`` when a FEM boundary node is closer than ``dhat`` to the boundary of
+    another FEM body (it would start with an active barrier force), as for particles.
+
+    Args:
+        model: the model.
+        dhat: barrier activation distance in m.
+        fem_x: FEM node positions ``(N, d)`` in m (default: rest positions).
+    """
+    fem_x, _ = _positions(model, fem_x, None)
+    bodies = model.fem_bodies
+    if len(bodies) < 2:
+        return
+    node_body = np.empty(model.fem_X.shape[0], dtype=np.int64)
+    for b in bodies:
+        node_body[b.nodes] = b.index
+    rigid = np.array([bool(model.fem_prescribed[b.nodes].all()) for b in bodies])
+    points = np.unique(np.concatenate([b.boundary.ravel() for b in bodies]))
+    facets = np.concatenate([b.boundary for b in bodies])
+    owner = np.concatenate([np.full(len(b.boundary), b.index) for b in bodies])
+    pairs = point_simplex_candidates(fem_x[points], fem_x, facets, inflation=dhat)
+    if pairs.size == 0:
+        return
+    node, facet_body = points[pairs[:, 0]], owner[pairs[:, 1]]
+    mine = node_body[node]
+    keep = (mine != facet_body) & ~(rigid[mine] & rigid[facet_body])
+    node, facet_body, facet = node[keep], facet_body[keep], pairs[keep, 1]
+    dist = _facet_distance(model.dim, fem_x[node], fem_x[facets[facet]])
+    close = dist < dhat
+    if not close.any():
+        return
+    worst = int(np.argmin(np.where(close, dist, np.inf)))
+    a, b = bodies[int(node_body[node[worst]])], bodies[int(facet_body[worst])]
+    same = close & (node_body[node] == a.index) & (facet_body == b.index)
+    nodes = np.unique(node[same]) - a.nodes.start
+    d_min = float(dist[worst])
+    raise SceneError(
+        f"{nodes.size} node(s) start within dhat = {dhat:g} m of fem body '{b.name}' (closest "
+        f"{d_min:.3g} m; nodes {_indices(nodes)})",
+        body=f"fem body '{a.name}'",
+        field="mesh",
+        hint=f"move the bodies at least {dhat - d_min:.3g} m further apart, or use a "
+        f"dhat below {d_min:.3g} m",
+    )
+
+
 def validate_initial(model: Model) -> None:
     """The checks of the initial configuration that apply to ``model``.
 
     With contact (``model.contact`` set): :func:`check_no_overlap`, then :func:`check_clearance`
-    with the contact's ``dhat``. Without contact bodies may pass through each other, so nothing
-    is checked.
+    and :func:`check_fem_clearance` with the contact's ``dhat``. Without contact bodies may pass
+    through each other, so nothing is checked.
     """
     contact = getattr(model, "contact", None)
     if contact is None:
         return
     check_no_overlap(model)
     check_clearance(model, float(contact.dhat))
-    log.debug("initial configuration: no overlap, particles farther than dhat from FEM bodies")
+    check_fem_clearance(model, float(contact.dhat))
+    log.debug("initial configuration: no overlap, boundaries farther than dhat from other bodies")

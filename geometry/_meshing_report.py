@@ -22,10 +22,16 @@ class MeshQualityReport:
         cell_quality: (m,) normalised radius ratio in [0, 1], 1 = equilateral.
         mean_edge_length: mean length of the cells' edges h (m), the scale of the tolerances.
         degenerate_cells: sorted indices of cells with ``|V| <= volume_tol h^d`` or quality below
-            ``quality_tol``.
+            ``quality_tol`` (the union of ``zero_volume_cells`` and ``sliver_cells``).
         inverted_cells: sorted indices of cells with ``V < -volume_tol h^d``.
         unused_points: sorted indices of points referenced by no cell (zero mass in FEM).
         nonmanifold_facets: (k, d) sorted vertex indices of facets shared by more than two cells.
+        zero_volume_cells: sorted indices of cells with ``|V| <= volume_tol h^d``.
+        sliver_cells: sorted indices of the other degenerate cells: a volume above the tolerance
+            but a quality below ``quality_tol``, i.e. an aspect ratio ``1 / quality`` (= R / (d r),
+            circumradius over d times the inradius; 1 for the equilateral simplex) above
+            ``1 / quality_tol``: the shape, not the size, is the problem.
+        quality_tol: the quality limit used (0: shapes were not checked).
     """
 
     cell_volumes: np.ndarray
@@ -35,6 +41,16 @@ class MeshQualityReport:
     inverted_cells: np.ndarray
     unused_points: np.ndarray
     nonmanifold_facets: np.ndarray
+    zero_volume_cells: np.ndarray | None = None
+    sliver_cells: np.ndarray | None = None
+    quality_tol: float = 0.0
+
+    def __post_init__(self) -> None:
+        empty = np.zeros(0, dtype=np.int64)
+        if self.zero_volume_cells is None:  # reports built without the split: all zero volume
+            object.__setattr__(self, "zero_volume_cells", self.degenerate_cells)
+        if self.sliver_cells is None:
+            object.__setattr__(self, "sliver_cells", empty)
 
     @property
     def min_quality(self) -> float:
@@ -59,10 +75,20 @@ class MeshQualityReport:
                 f"{self.inverted_cells.size} inverted cell(s) (negative signed volume) at "
                 f"indices {format_indices(self.inverted_cells)}"
             )
-        if self.degenerate_cells.size:
+        if self.zero_volume_cells.size:
             out.append(
-                f"{self.degenerate_cells.size} degenerate cell(s) (near-zero volume or quality) "
-                f"at indices {format_indices(self.degenerate_cells)}"
+                f"{self.zero_volume_cells.size} degenerate cell(s) (zero or near-zero area/volume) "
+                f"at indices {format_indices(self.zero_volume_cells)}"
+            )
+        if self.sliver_cells.size:
+            aspect = 1.0 / np.maximum(self.cell_quality[self.sliver_cells], 1e-300)
+            worst = int(self.sliver_cells[int(np.argmax(aspect))])
+            out.append(
+                f"{self.sliver_cells.size} degenerate cell(s) (slivers: the shape, not the "
+                f"area, is the problem: aspect ratio up to {aspect.max():.3g} at cell {worst}, "
+                f"limit {1.0 / self.quality_tol:.3g}; aspect ratio = circumradius / (d x "
+                f"inradius), 1 for an equilateral cell) at indices "
+                f"{format_indices(self.sliver_cells)}"
             )
         if self.unused_points.size:
             out.append(

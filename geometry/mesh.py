@@ -18,7 +18,11 @@ Conventions (chosen here, relied upon by contact code):
   quality is below ``quality_tol``; it is inverted when ``V < -volume_tol * h^d``.
 - Files go through meshio. 2D meshes are written with a zero z column (VTK and Gmsh store 3D
   points) and a zero z column is dropped again on reading. Points not referenced by any cell
-  (e.g. Gmsh arc centres) are pruned on import, with a log message.
+  (e.g. Gmsh arc centres) are pruned on import, with a log message; the mesh keeps the map to
+  the file's numbering in :attr:`~TriMesh.source` (:class:`SourceNumbering`), so that node
+  indices given in the file's numbering can be translated (and those of pruned points refused).
+- Orientation is not changed here; ``bfemp.Scene.add_fem`` flips a mesh whose cells are all
+  clockwise (2D) / left-handed (3D), as some generators write them, and refuses mixed ones.
 """
 
 from __future__ import annotations
@@ -34,10 +38,12 @@ import meshio
 import numpy as np
 
 from geometry import _meshing_metrics as mm
+from geometry._mesh_source import SourceNumbering
 from geometry._meshing_report import MeshQualityReport, format_indices
 
 __all__ = [
     "MeshQualityReport",
+    "SourceNumbering",
     "TetMesh",
     "TriMesh",
     "from_meshio",
@@ -60,7 +66,9 @@ class _SimplexMesh:
 
     _DIM: int = 0
 
-    def __init__(self, points: np.ndarray, cells: np.ndarray) -> None:
+    def __init__(
+        self, points: np.ndarray, cells: np.ndarray, *, source: SourceNumbering | None = None
+    ) -> None:
         d, cls = self._DIM, type(self).__name__
         pts = np.array(points, dtype=np.float64, order="C", copy=True)
         if pts.ndim != 2 or pts.shape[1] != d:
@@ -85,8 +93,13 @@ class _SimplexMesh:
         bad = np.flatnonzero((srt[:, 1:] == srt[:, :-1]).any(axis=1))
         if bad.size:
             raise ValueError(f"{cls}.cells {format_indices(bad)} repeat a vertex index")
+        if source is not None and source.index.shape != (pts.shape[0],):
+            raise ValueError(
+                f"{cls}: source numbering has {source.index.size} nodes, the mesh {pts.shape[0]}"
+            )
         self._points = _readonly(pts)
         self._cells = _readonly(cel)
+        self._source = source
 
     # -- basic data -------------------------------------------------------------------------
     @property
@@ -98,6 +111,11 @@ class _SimplexMesh:
     def cells(self) -> np.ndarray:
         """Vertex indices of each cell, shape (m, d+1), int64 (read-only)."""
         return self._cells
+
+    @property
+    def source(self) -> SourceNumbering | None:
+        """The numbering of the file this mesh was read from (None when built from arrays)."""
+        return self._source
 
     @property
     def dim(self) -> int:
@@ -146,7 +164,8 @@ class _SimplexMesh:
         Args:
             volume_tol: a cell with ``|V| <= volume_tol * h^d`` is degenerate (h = mean edge
                 length in metres); one with ``V < -volume_tol * h^d`` is inverted.
-            quality_tol: a cell with radius-ratio quality below this is degenerate.
+            quality_tol: a cell with radius-ratio quality below this is degenerate (a sliver:
+                aspect ratio ``1 / quality`` above ``1 / quality_tol``); 0 checks no shapes.
         """
         if not volume_tol >= 0.0:
             raise ValueError(f"volume_tol must be >= 0, got {volume_tol}")
@@ -161,14 +180,19 @@ class _SimplexMesh:
         directed, inverse, counts = mm.facets(self._cells)
         over = counts[inverse] > 2
         nonmanifold = mm.unique_rows(np.sort(directed[over], axis=1))[0]
+        zero = np.abs(vol) <= tiny
+        sliver = ~zero & (quality < quality_tol)
         return MeshQualityReport(
             cell_volumes=vol,
             cell_quality=quality,
             mean_edge_length=h,
-            degenerate_cells=np.flatnonzero((np.abs(vol) <= tiny) | (quality < quality_tol)),
+            degenerate_cells=np.flatnonzero(zero | sliver),
             inverted_cells=np.flatnonzero(vol < -tiny),
             unused_points=np.flatnonzero(~used),
             nonmanifold_facets=nonmanifold,
+            zero_volume_cells=np.flatnonzero(zero),
+            sliver_cells=np.flatnonzero(sliver),
+            quality_tol=float(quality_tol),
         )
 
     def check_quality(
@@ -185,7 +209,9 @@ class _SimplexMesh:
 
     def oriented(self) -> _SimplexMesh:
         """Copy with every cell of negative signed volume flipped (last two vertices swapped)."""
-        return type(self)(self._points, mm.oriented_cells(self._cells, self._volumes))
+        return type(self)(
+            self._points, mm.oriented_cells(self._cells, self._volumes), source=self._source
+        )
 
     # -- boundary ---------------------------------------------------------------------------
     @cached_property
@@ -276,7 +302,9 @@ class TriMesh(_SimplexMesh):
 
     def oriented(self) -> TriMesh:
         """Copy with every clockwise triangle flipped to counter-clockwise."""
-        return TriMesh(self._points, mm.oriented_cells(self._cells, self._volumes))
+        return TriMesh(
+            self._points, mm.oriented_cells(self._cells, self._volumes), source=self._source
+        )
 
 
 class TetMesh(_SimplexMesh):
@@ -298,10 +326,14 @@ class TetMesh(_SimplexMesh):
 
     def oriented(self) -> TetMesh:
         """Copy with every left-handed tetrahedron flipped to right-handed."""
-        return TetMesh(self._points, mm.oriented_cells(self._cells, self._volumes))
+        return TetMesh(
+            self._points, mm.oriented_cells(self._cells, self._volumes), source=self._source
+        )
 
 
-def mesh_from_arrays(points: np.ndarray, cells: np.ndarray) -> TriMesh | TetMesh:
+def mesh_from_arrays(
+    points: np.ndarray, cells: np.ndarray, *, source: SourceNumbering | None = None
+) -> TriMesh | TetMesh:
     """Build a :class:`TriMesh` (points (n, 2), cells (m, 3)) or :class:`TetMesh` ((n, 3), (m, 4)).
 
     The class is chosen from ``cells.shape[1]``; ``points`` must match (metres).
@@ -309,7 +341,8 @@ def mesh_from_arrays(points: np.ndarray, cells: np.ndarray) -> TriMesh | TetMesh
     shape = np.shape(cells)
     if len(shape) != 2 or shape[1] not in (3, 4):
         raise ValueError(f"cells must have shape (m, 3) or (m, 4), got {shape}")
-    return TriMesh(points, cells) if shape[1] == 3 else TetMesh(points, cells)
+    cls = TriMesh if shape[1] == 3 else TetMesh
+    return cls(points, cells, source=source)
 
 
 def from_meshio(
@@ -319,7 +352,8 @@ def from_meshio(
 
     All blocks of the chosen type are concatenated. For triangles stored with a z column of
     zeros the column is dropped; triangles with non-zero z (a surface in 3D) are rejected.
-    With ``prune_unused`` points referenced by no cell are removed and the cells renumbered.
+    With ``prune_unused`` points referenced by no cell are removed and the cells renumbered;
+    the result's :attr:`~TriMesh.source` maps its nodes to the points of ``mesh``.
 
     Args:
         mesh: the meshio mesh; points in metres.
@@ -351,14 +385,22 @@ def from_meshio(
         out = mesh_from_arrays(points, cells)
     except ValueError as exc:
         raise ValueError(f"{name}: {exc}") from exc
+    used = np.ones(out.n_points, dtype=bool)
     if prune_unused:
-        used = np.zeros(out.n_points, dtype=bool)
+        used[:] = False
         used[out.cells.ravel()] = True
-        if not used.all():
-            logger.info("%s: pruning %d unreferenced point(s)", name, int((~used).sum()))
-            new_index = np.cumsum(used) - 1
-            out = mesh_from_arrays(out.points[used], new_index[out.cells])
-    return out
+    source = SourceNumbering(name=name, index=np.flatnonzero(used), n_source=out.n_points)
+    if not used.all():
+        logger.info(
+            "%s: pruning %d unreferenced point(s) %s; node indices in the file's numbering are "
+            "translated",
+            name,
+            int((~used).sum()),
+            format_indices(np.flatnonzero(~used)),
+        )
+        new_index = np.cumsum(used) - 1
+        return mesh_from_arrays(out.points[used], new_index[out.cells], source=source)
+    return mesh_from_arrays(out.points, out.cells, source=source)
 
 
 def read_mesh(path: str | PathLike, *, prune_unused: bool = True) -> TriMesh | TetMesh:

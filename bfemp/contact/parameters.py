@@ -39,6 +39,11 @@ class ContactParameters:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "dhat", _positive("dhat", self.dhat))
+        if isinstance(self.kappa, str) and self.kappa != "auto":
+            raise ValueError(
+                f"set_contact: kappa must be a positive barrier stiffness in Pa or the string "
+                f"'auto' (adaptive), got {self.kappa!r}"
+            )
         if self.kappa != "auto":
             object.__setattr__(self, "kappa", _positive("kappa", self.kappa))
         if (

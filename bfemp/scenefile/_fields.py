@@ -99,7 +99,7 @@ class Table:
         try:
             out = parse_quantity(value, kind)
         except ValueError as err:
-            raise self.error(str(err), key) from None
+            raise self.error(str(err), key, hint) from None
         unit = f" {SI[kind]}" if kind else ""
         if not math.isfinite(out):
             raise self.error(f"must be a finite number, got {_toml(value)}", key, hint)

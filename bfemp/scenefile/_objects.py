@@ -15,7 +15,7 @@ from bfemp import sample, shapes
 from bfemp.errors import SceneError
 from bfemp.materials import LinearElastic, NeoHookean
 from bfemp.scenefile._fields import Table
-from geometry.mesh import TetMesh, TriMesh, mesh_from_arrays, read_mesh
+from geometry.mesh import SourceNumbering, TetMesh, TriMesh, mesh_from_arrays, read_mesh
 
 __all__ = [
     "MATERIAL_TYPES",
@@ -129,9 +129,11 @@ def read_motion(t: Table, dim: int) -> mo.Motion:
         return mo.Linear(velocity=t.vector("velocity", dim))
     if kind == "rotation":
         t.check_keys({"type", "center", "angular_velocity", "axis"}, {"center", "angular_velocity"})
-        axis = t.vector("axis", 3, default=(0.0, 0.0, 1.0))
-        if not any(axis):
-            raise t.error("must be a non-zero 3-vector", "axis")
+        axis = (0.0, 0.0, 1.0)  # 2D: rotation in the plane, the axis is ignored
+        if dim == 3:
+            axis = t.vector("axis", 3, default=axis)
+            if not any(axis):
+                raise t.error("must be a non-zero 3-vector", "axis")
         return mo.Rotation(
             center=t.vector("center", dim),
             angular_velocity=t.number("angular_velocity"),
@@ -186,19 +188,32 @@ def read_levelset(t: Table, dim: int) -> object:
         raise t.error(str(err)) from None
 
 
-def read_selection(t: Table, key: str, rest: np.ndarray) -> tuple[np.ndarray, object]:
+def read_selection(
+    t: Table, key: str, rest: np.ndarray, numbering: SourceNumbering | None = None
+) -> tuple[np.ndarray, object]:
     """Nodes selected by ``key``: a list of indices, ``{box = {lower, upper}}`` (closed box,
     bounds may be +-inf) or ``{inside = <level set>}`` (value <= 0), at rest positions ``rest
-    (n, d)`` m. Returns a bool mask ``(n,)`` and the canonical value to write back."""
+    (n, d)`` m. Indices are in the numbering of the mesh file when ``numbering`` is given (a
+    file with points that no cell uses: they were pruned; their indices are refused). Returns
+    a bool mask ``(n,)`` and the canonical value to write back."""
     n, dim = rest.shape
     value = t.raw(key)
     if isinstance(value, list):
         idx = t.array(key, np.int64)
-        bad = idx[(idx < 0) | (idx >= n)]
-        if bad.size:
-            raise t.error(f"node indices must lie in [0, {n}), got {bad[:10].tolist()}", key)
+        if idx.size == 0:
+            raise t.error("selects no node (an empty list)", key, "list at least one node")
+        if numbering is not None:
+            try:
+                nodes = numbering.nodes(idx, "node indices")
+            except ValueError as err:
+                raise t.error(str(err), key) from None
+        else:
+            bad = idx[(idx < 0) | (idx >= n)]
+            if bad.size:
+                raise t.error(f"node indices must lie in [0, {n}), got {bad[:10].tolist()}", key)
+            nodes = idx
         mask = np.zeros(n, dtype=bool)
-        mask[idx] = True
+        mask[nodes] = True
         return mask, idx.tolist()
     s = t.sub(key)
     s.check_keys({"box", "inside"})

@@ -13,7 +13,7 @@ import numpy as np
 
 from bfemp.errors import SceneError
 from bfemp.integrators import INTEGRATOR_NAMES
-from bfemp.scene import Scene
+from bfemp.scene import Scene, check_fem_mesh
 from bfemp.scenefile._fields import Table
 from bfemp.scenefile._objects import (
     read_levelset,
@@ -47,6 +47,8 @@ TRANSFERS = ("apic", "pic", "flip")
 _INIT_HINTS = {
     "inverted": "cells must be counter-clockwise (2D) / right-handed (3D); flip the last two "
     "vertices of the listed cells, or fix the mesh generator",
+    "aspect ratio": "re-mesh with better-shaped cells; a rigid body can keep them if every node "
+    "is prescribed",
     "degenerate": "remove or repair the cells of (near) zero area or volume",
 }
 
@@ -86,14 +88,18 @@ def _material(t: Table, materials: dict) -> tuple[object, str | None]:
     return read_material(t.sub("material")), None
 
 
-def _velocity(t: Table, dim: int, n: int) -> np.ndarray | tuple | None:
+def _velocity(t: Table, dim: int, n: int, n_file: int | None = None) -> np.ndarray | tuple | None:
+    """One velocity or one row per node (``n``, or ``n_file``: per point of the mesh file)."""
     if not t.has("velocity"):
         return None
     value = t.raw("velocity")
     if isinstance(value, list) and value and isinstance(value[0], list):
         v = t.array("velocity", np.float64, dim)
-        if v.shape[0] != n:
-            raise t.error(f"must have 1 or {n} rows of {dim} numbers, got {v.shape[0]}", "velocity")
+        if v.shape[0] not in (n, n_file):
+            rows = f"{n} (or {n_file}, the points of the file)" if n_file else f"{n}"
+            raise t.error(
+                f"must have 1 or {rows} rows of {dim} numbers, got {v.shape[0]}", "velocity"
+            )
         return v
     return t.vector("velocity", dim)
 
@@ -106,12 +112,7 @@ def _add_fem(scene: Scene, spec: dict, k: int, materials: dict, ctx: dict) -> No
     t.check_keys(keys, required={"mesh", "material"})
     name = t.string("name", default=name)
     mesh, mesh_source = read_mesh_table(t.sub("mesh"), scene.dim, ctx["base_dir"])
-    try:
-        mesh.check_quality(name="mesh")
-    except ValueError as err:
-        raise _api_error(ValueError(str(err).removeprefix("mesh: ")), t, "mesh", body) from None
-    material, material_name = _material(t, materials)
-    velocity = _velocity(t, scene.dim, mesh.n_points)
+    numbering = mesh.source if mesh.source is not None and mesh.source.pruned else None
     motion = read_motion(t.sub("prescribed"), scene.dim) if t.has("prescribed") else None
     nodes, nodes_source = None, None
     if t.has("prescribed_nodes"):
@@ -119,7 +120,15 @@ def _add_fem(scene: Scene, spec: dict, k: int, materials: dict, ctx: dict) -> No
             raise t.error(
                 "given without a prescribed motion", "prescribed_nodes", "add prescribed = {...}"
             )
-        nodes, nodes_source = read_selection(t, "prescribed_nodes", mesh.points)
+        nodes, nodes_source = read_selection(t, "prescribed_nodes", mesh.points, numbering)
+    rigid = motion is not None and (nodes is None or bool(nodes.all()))
+    try:
+        mesh = check_fem_mesh(mesh, "mesh", rigid=rigid)
+    except ValueError as err:
+        raise _api_error(ValueError(str(err).removeprefix("mesh: ")), t, "mesh", body) from None
+    material, material_name = _material(t, materials)
+    n_file = numbering.n_source if numbering is not None else None
+    velocity = _velocity(t, scene.dim, mesh.n_points, n_file)
     try:
         scene.add_fem(
             mesh,
@@ -131,7 +140,7 @@ def _add_fem(scene: Scene, spec: dict, k: int, materials: dict, ctx: dict) -> No
         )
     except ValueError as err:
         raise _api_error(err, t, None, body) from None
-    ctx["fem"].append((name, mesh.points))
+    ctx["fem"].append((name, mesh.points, numbering))
     scene._record_source(name, "mesh", mesh_source)
     scene._record_source(name, "material", material_name)
     scene._record_source(name, "prescribed_nodes", nodes_source)
@@ -166,12 +175,19 @@ def _add_mpm(scene: Scene, spec: dict, k: int, materials: dict, ctx: dict) -> No
 def _add_load(scene: Scene, spec: dict, k: int, ctx: dict) -> None:
     t = Table(spec, file=ctx["file"], path=f"load[{k}]")
     t.check_keys({"body", "force", "nodes"}, required={"body", "force"})
-    names = [name for name, _ in ctx["fem"]]
+    names = [name for name, _, _ in ctx["fem"]]
+    mpm_names = [spec.name for spec in scene._mpm]
+    if t.raw("body") in mpm_names:
+        raise t.error(
+            f"loads act on FEM bodies only, and '{t.raw('body')}' is an MPM body",
+            "body",
+            "MPM bodies feel body forces through [scene] gravity",
+        )
     if not names:
         raise t.error("loads act on fem bodies, but the scene has none")
     name = t.string("body", choices=names)
     index = names.index(name)
-    rest = ctx["fem"][index][1]
+    _, rest, numbering = ctx["fem"][index]
     force = t.raw("force")
     if isinstance(force, list) and force and isinstance(force[0], list):
         f = t.array("force", np.float64, scene.dim)
@@ -179,8 +195,8 @@ def _add_load(scene: Scene, spec: dict, k: int, ctx: dict) -> None:
         f = np.array(t.vector("force", scene.dim))
     nodes = None
     if isinstance(t.raw("nodes", None), list):  # indices keep their order (rows of force)
-        nodes = t.array("nodes", np.int64)
-        read_selection(t, "nodes", rest)  # range check
+        nodes = t.array("nodes", np.int64)  # in the mesh file's numbering: add_load maps them
+        read_selection(t, "nodes", rest, numbering)  # range check
     elif t.has("nodes"):
         nodes = read_selection(t, "nodes", rest)[0]
     try:
@@ -298,7 +314,10 @@ def parse_document(data: dict, *, file: str | None, base_dir: Path | None) -> di
         kw: dict = {"dhat": ct.number("dhat", "length", positive=True)}
         if ct.has("kappa"):
             auto = ct.raw("kappa") == "auto"
-            kw["kappa"] = "auto" if auto else ct.number("kappa", "pressure", positive=True)
+            hint = 'kappa is the barrier stiffness in Pa (e.g. 1e7 or "10 MPa"), or "auto"'
+            kw["kappa"] = (
+                "auto" if auto else ct.number("kappa", "pressure", positive=True, hint=hint)
+            )
         if ct.has("mu"):
             kw["mu"] = ct.number("mu", minimum=0.0)
         if ct.has("eps_v"):

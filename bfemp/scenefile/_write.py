@@ -98,6 +98,15 @@ class _Materials:
         return name
 
 
+def _file_numbering(scene: object, spec: object) -> np.ndarray | None:
+    """``(n,)`` file point index of each node when the mesh is written as a file with points
+    that no cell uses (node indices are read back in the file's numbering); else None."""
+    mesh = scene._sources.get((spec.name, "mesh"))
+    if spec.numbering is not None and isinstance(mesh, dict) and "file" in mesh:
+        return spec.numbering.index
+    return None
+
+
 def _fem_dict(scene: object, spec: object, materials: _Materials) -> dict:
     sources = scene._sources
     out: dict = {"name": spec.name}
@@ -112,7 +121,9 @@ def _fem_dict(scene: object, spec: object, materials: _Materials) -> dict:
         out["prescribed"] = motion_dict(spec.motion)
         nodes = sources.get((spec.name, "prescribed_nodes"))
         if nodes is None and not spec.prescribed.all():
-            nodes = np.flatnonzero(spec.prescribed).tolist()
+            idx = np.flatnonzero(spec.prescribed)
+            numbering = _file_numbering(scene, spec)
+            nodes = (idx if numbering is None else numbering[idx]).tolist()
         if nodes is not None:
             out["prescribed_nodes"] = nodes
     return out
@@ -187,7 +198,8 @@ def scene_dict(
         spec = scene._fem[body]
         load: dict = {"body": spec.name, "force": _uniform_or_rows(force)}
         if not np.array_equal(idx, np.arange(spec.mesh.n_points)):
-            load["nodes"] = idx.tolist()
+            numbering = _file_numbering(scene, spec)
+            load["nodes"] = (idx if numbering is None else numbering[idx]).tolist()
         loads.append(load)
     if loads:
         doc["load"] = loads

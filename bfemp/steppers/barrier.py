@@ -29,6 +29,7 @@ import numpy as np
 from bfemp.contact.adaptive import AdaptiveKappa
 from bfemp.contact.friction import FrictionTerm
 from bfemp.contact.term import BarrierTerm
+from bfemp.dofs import DofLayout
 from bfemp.frames import NodeFrames
 from bfemp.integrators import Integrator
 from bfemp.model import Model
@@ -73,10 +74,11 @@ class BarrierOptions(StepperOptions):
     linear_solver: str | LinearSolver = "default"
 
     def __post_init__(self) -> None:
-        if isinstance(self.tol, bool) or not (
-            isinstance(self.tol, int | float) and np.isfinite(self.tol) and self.tol > 0
-        ):
-            raise ValueError(f"tol must be a positive Newton tolerance in m/s, got {self.tol!r}")
+        tol = self.tol
+        if isinstance(tol, bool) or not (isinstance(tol, int | float) and np.isfinite(tol)):
+            raise ValueError(f"tol must be a finite number of m/s, got {tol!r}")
+        if not tol > 0.0:
+            raise ValueError(f"tol must be > 0 (a Newton tolerance in m/s), got {tol!r}")
         n = self.max_newton_iterations
         if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
             raise ValueError(f"max_newton_iterations must be an integer >= 1, got {n!r}")
@@ -154,6 +156,9 @@ class BarrierStepper:
             (t for t in self.potential.potentials if isinstance(t, FrictionTerm)), None
         )
         self.adaptive: AdaptiveKappa | None = None
+        #: for inspection only: the DOF layout of the last ``begin_step`` (before any, that of
+        #: the FEM nodes alone)
+        self.layout = DofLayout(model.dim, ~model.fem_prescribed, model.n_fem_nodes)
         self._solver = ScriptedSolve(
             model,
             self.potential,

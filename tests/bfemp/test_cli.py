@@ -106,6 +106,24 @@ def test_resume_from_the_command_line_equals_one_run(scene_file, tmp_path, no_pl
     assert [s["from_step"] for s in manifest["sessions"]] == [0, 3]
 
 
+def test_resume_towards_an_end_time_before_the_checkpoint_is_refused(
+    scene_file, tmp_path, capsys, no_plots
+):
+    out = tmp_path / "out"
+    assert _run(scene_file, "--out", out, "--t-end", 0.04) == 0
+    capsys.readouterr()
+    before = (out / "checkpoint.json").read_text(), (out / "manifest.json").read_text()
+    err = _error(capsys, ["run", str(scene_file), "--out", str(out), "--resume", "--t-end", "0.02"])
+    assert "--t-end: t_end = 0.02 s is earlier than the checkpoint" in err
+    assert "at t = 0.04 s" in err, err
+    # nothing was touched: the run can still be resumed
+    assert ((out / "checkpoint.json").read_text(), (out / "manifest.json").read_text()) == before
+    sim = bfemp.scenefile.load(scene_file).make_simulation()  # the Python API refuses it too
+    with pytest.raises(ValueError, match=r"t_end = 0.02 s is earlier than the time t = 0.04 s of"):
+        sim.run(0.02, out=out, resume=True, progress=False)
+    assert _run(scene_file, "--out", out, "--resume") == 0
+
+
 def test_info_summarises_a_result_folder(scene_file, tmp_path, capsys, no_plots):
     out = tmp_path / "out"
     _run(scene_file, "--out", out)

@@ -12,6 +12,7 @@ from bfemp.checkpoint import model_fingerprint
 from bfemp.errors import SceneError
 from bfemp.scenefile import tomllib  # the standard tomllib, or tomli on Python 3.10
 from bfemp.scenefile._toml import dumps as dumps_toml
+from geometry.mesh import TriMesh
 
 NH = bfemp.NeoHookean(E=1e6, nu=0.3, density=1000.0)
 LE = bfemp.LinearElastic(E=2e5, nu=0.25, density=800.0)
@@ -350,3 +351,120 @@ def test_missing_settings_are_named():
 def test_api_mistakes_name_the_argument(call, fragment):
     with pytest.raises(ValueError, match=fragment):
         call()
+
+
+# --------------------------------------------------------------------------- issue 12 (inputs)
+def _plate_file_with_unused_point(path):
+    """A 1 x 0.2 plate written with meshio, point 0 used by no cell; the file indices of the
+    nodes on x = 0 and on x = 1."""
+    import meshio
+
+    mesh = bfemp.shapes.rectangle((0.0, 0.0), (1.0, 0.2), h=0.1)
+    pts = np.vstack([[0.5, 0.5], mesh.points])
+    meshio.write(
+        path, meshio.Mesh(np.hstack([pts, np.zeros((len(pts), 1))]), [("triangle", mesh.cells + 1)])
+    )
+    left = 1 + np.flatnonzero(mesh.points[:, 0] < 1e-9)
+    right = 1 + np.flatnonzero(mesh.points[:, 0] > 1.0 - 1e-9)
+    return left, right
+
+
+def _file_scene(nodes, load_nodes):
+    return (
+        _replace(
+            'mesh = { shape = "rectangle", lower = [0.0, 0.0], upper = [1.0, 0.2], h = 0.1 }',
+            'mesh = { file = "plate.vtu" }',
+        ).replace(
+            "prescribed_nodes = { box = { lower = [-inf, -inf], upper = [1e-9, inf] } }",
+            f"prescribed_nodes = {nodes}",
+        )
+        + f'\n[[load]]\nbody = "beam"\nforce = [0.0, -1.0]\nnodes = {load_nodes}\n'
+    )
+
+
+def test_node_indices_of_a_mesh_file_with_an_unused_point_use_the_file_numbering(tmp_path):
+    left, right = _plate_file_with_unused_point(tmp_path / "plate.vtu")
+    path = tmp_path / "scene.toml"
+    path.write_text(_file_scene(left.tolist(), right.tolist()))
+    model = scenefile.load(path).scene.build()
+    np.testing.assert_array_equal(model.fem_prescribed, model.fem_X[:, 0] < 1e-9)
+    np.testing.assert_array_equal(model.fem_load[:, 1] < 0, model.fem_X[:, 0] > 1.0 - 1e-9)
+    # written back (the mesh as the file, indices in its numbering) to the same model
+    again = scenefile.loads(scenefile.save(scenefile.load(path).scene))
+    assert model_fingerprint(again.scene.build()) == model_fingerprint(model)
+    assert np.array_equal(again.scene.build().fem_load, model.fem_load)
+
+
+def test_node_indices_of_a_pruned_point_are_refused_naming_index_and_file(tmp_path):
+    left, right = _plate_file_with_unused_point(tmp_path / "plate.vtu")
+    path = tmp_path / "scene.toml"
+    for nodes, load, field in (
+        ([0, *left], right, "prescribed_nodes"),
+        (left, [0], "load[0].nodes"),
+    ):
+        path.write_text(_file_scene(list(map(int, nodes)), list(map(int, load))))
+        with pytest.raises(SceneError) as info:
+            scenefile.load(path)
+        message = str(info.value)
+        assert field in message and "[0] in the numbering of" in message, message
+        assert "plate.vtu" in message and "no cell uses" in message
+
+
+def test_a_clockwise_mesh_file_is_accepted(tmp_path):
+    mesh = bfemp.shapes.rectangle((0.0, 0.0), (1.0, 0.2), h=0.1)
+    TriMesh(mesh.points, mesh.cells[:, [0, 2, 1]]).write(tmp_path / "plate.vtu")
+    text = _replace(
+        'mesh = { shape = "rectangle", lower = [0.0, 0.0], upper = [1.0, 0.2], h = 0.1 }',
+        'mesh = { file = "plate.vtu" }',
+    )
+    (tmp_path / "scene.toml").write_text(text)
+    model = scenefile.load(tmp_path / "scene.toml").scene.build()
+    assert np.all(model.fem_cell_volume > 0)
+    assert model_fingerprint(model) == model_fingerprint(scenefile.loads(BEAM).scene.build())
+
+
+def test_a_rigid_plate_of_slivers_loads_and_a_deformable_one_names_the_aspect_ratio():
+    points, cells = "[[0, 0], [40, 0], [40, 0.01], [0, 0.01]]", "[[0, 1, 2], [0, 2, 3]]"
+    rigid = _mesh_scene(points, cells)  # prescribed = fixed, every node
+    np.testing.assert_allclose(scenefile.loads(rigid).scene.build().fem_cell_volume, [0.2, 0.2])
+    free = rigid.replace('prescribed = { type = "fixed" }', "")
+    with pytest.raises(SceneError) as info:
+        scenefile.loads(free, file="m.toml")
+    message = str(info.value)
+    assert message.startswith("m.toml: fem body 'beam': mesh: ") and "aspect ratio up to" in message
+    assert "indices [0, 1]" in message and "re-mesh" in message
+
+
+@pytest.mark.parametrize(
+    "text, fragments",
+    [
+        (BEAM + '\n[contact]\ndhat = 1e-3\nkappa = "automatic"\n', ["contact.kappa", '"auto"']),
+        (
+            _replace(
+                "prescribed_nodes = { box = { lower = [-inf, -inf], upper = [1e-9, inf] } }",
+                "prescribed_nodes = []",
+            ),
+            ["prescribed_nodes", "selects no node"],
+        ),
+        (
+            BEAM + '\n[grid]\ndx = 0.1\n[[mpm]]\nname = "blob"\nmaterial = "rubber"\n'
+            "particles = [[3.0, 0.0], [3.0, 1.0]]\nvolumes = [0.01, 0.01]\n"
+            '[[load]]\nbody = "blob"\nforce = [0.0, 1.0]\n',
+            ["load[0].body", "FEM bodies only", "'blob' is an MPM body"],
+        ),
+    ],
+)
+def test_unclear_scene_file_inputs_name_the_allowed_values(text, fragments):
+    with pytest.raises(SceneError) as info:
+        scenefile.loads(text, file="bad.toml")
+    for fragment in fragments:
+        assert fragment in str(info.value), (fragment, str(info.value))
+
+
+def test_the_rotation_axis_is_not_checked_in_2d():
+    text = _replace(
+        '{ type = "fixed" }',
+        '{ type = "rotation", center = [0, 0], angular_velocity = 1.0, axis = [0, 0, 0] }',
+    )
+    motion = scenefile.loads(text).scene.build().fem_bodies[0].prescribed_motion
+    assert motion.axis == (0.0, 0.0, 1.0)

@@ -1,12 +1,18 @@
 """Initial-configuration checks of contact scenes: overlap (FEM-FEM, particles in meshes, edges
-crossing without any node inside) and particles within dhat of a FEM boundary, 2D and 3D."""
+crossing without any node inside), particles and FEM nodes within dhat of a FEM boundary, 2D
+and 3D."""
 
 import numpy as np
 import pytest
 
 import bfemp
 from bfemp.errors import SceneError
-from bfemp.validation import check_clearance, check_no_overlap, validate_initial
+from bfemp.validation import (
+    check_clearance,
+    check_fem_clearance,
+    check_no_overlap,
+    validate_initial,
+)
 
 NH = bfemp.NeoHookean(E=1e6, nu=0.3, density=1000.0)
 
@@ -112,3 +118,48 @@ def test_positions_other_than_the_rest_shape_can_be_checked():
         check_no_overlap(model, mpm_x=moved)
     with pytest.raises(ValueError, match="mpm_x must have shape"):
         check_no_overlap(model, mpm_x=moved[:3])
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_fem_nodes_within_dhat_of_another_fem_body_are_refused(dim):
+    # body "top" starts 0.025 m above the top face of "floor"
+    lo, hi = (0.0,) * dim, (1.0,) * dim
+    top_lo = (0.25,) * (dim - 1) + (1.025,)
+    top_hi = (0.75,) * (dim - 1) + (1.525,)
+    model = _fem_scene(dim, {"floor": (lo, hi), "top": (top_lo, top_hi)}, 0.25).build()
+    check_no_overlap(model)
+    check_fem_clearance(model, dhat=0.02)
+    with pytest.raises(SceneError) as info:
+        check_fem_clearance(model, dhat=0.03)
+    message = str(info.value)
+    assert "closest 0.025 m" in message and "0.005 m further apart" in message
+    # the gap is symmetric: either body may be named first, with its nodes facing the other
+    floor, top = model.fem_bodies
+    if message.startswith("fem body 'top': mesh: "):
+        assert "of fem body 'floor'" in message
+        z = model.fem_X[top.nodes, -1]
+        near = np.flatnonzero(z < 1.025 + 1e-9)
+    else:
+        assert message.startswith("fem body 'floor': mesh: ") and "of fem body 'top'" in message
+        x = model.fem_X[floor.nodes]
+        near = np.flatnonzero(
+            (x[:, -1] > 1.0 - 1e-9) & np.all(np.abs(x[:, :-1] - 0.5) < 0.25 + 1e-9, axis=1)
+        )
+    assert f"{near.size} node(s) start within dhat = 0.03 m" in message
+    assert f"nodes {near[:10].tolist()}" in message
+
+
+def test_validate_initial_refuses_fem_bodies_within_dhat_unless_both_are_prescribed():
+    boxes = {"floor": ((0.0, 0.0), (1.0, 1.0)), "top": ((0.25, 1.025), (0.75, 1.525))}
+    scene = _fem_scene(2, boxes, 0.25)
+    scene.set_contact(dhat=0.03)
+    with pytest.raises(SceneError, match=r"node\(s\) start within dhat = 0.03 m of fem body"):
+        validate_initial(scene.build())
+    with pytest.raises(SceneError, match="within dhat"):
+        bfemp.Simulation(scene, dt=1e-3)
+    walls = bfemp.Scene(dim=2)
+    for name, (lo, hi) in boxes.items():
+        mesh = bfemp.shapes.rectangle(lo, hi, h=0.25)
+        walls.add_fem(mesh, material=NH, prescribed=bfemp.motion.Fixed(), name=name)
+    walls.set_contact(dhat=0.03)
+    validate_initial(walls.build())  # their barrier acts on no unknown

@@ -330,3 +330,40 @@ def test_file_errors_name_the_path(tmp_path):
         read_mesh(lines)
     with pytest.raises(ValueError, match="cannot write mesh file .*out.unknownext"):
         grid_mesh(2).write(tmp_path / "out.unknownext")
+
+
+def test_from_meshio_keeps_the_numbering_of_the_file():
+    pts = np.vstack([[[9.0, 9.0]], SQUARE_PTS[:2], [[8.0, 8.0]], SQUARE_PTS[2:]])  # 0, 3 unused
+    raw = meshio.Mesh(np.hstack([pts, np.zeros((6, 1))]), [("triangle", [[1, 2, 4], [1, 4, 5]])])
+    mesh = from_meshio(raw, name="sq.msh")
+    np.testing.assert_allclose(mesh.points, SQUARE_PTS)
+    source = mesh.source
+    assert source.pruned and source.n_source == 6 and source.name == "sq.msh"
+    np.testing.assert_array_equal(source.index, [1, 2, 4, 5])
+    np.testing.assert_array_equal(source.nodes([5, 1, 4]), [3, 0, 2])
+    np.testing.assert_array_equal(source.mask(np.array([0, 1, 0, 0, 0, 1], bool)), [1, 0, 0, 1])
+    with pytest.raises(ValueError, match=r"picked \[0, 3\] in the numbering of sq.msh .*no cell"):
+        source.nodes([1, 0, 3], "picked")
+    with pytest.raises(ValueError, match=r"must lie in \[0, 6\) .*got \[6\]"):
+        source.nodes([6])
+    assert mesh.oriented().source is source  # the numbering survives re-orientation
+    assert not from_meshio(raw, prune_unused=False).source.pruned
+    assert mesh_from_arrays(SQUARE_PTS, SQUARE_TRI).source is None
+
+
+def test_slivers_are_reported_by_aspect_ratio_not_area():
+    # two triangles of 0.2 m^2 making a 40 m x 0.01 m plate: large area, bad shape
+    plate = TriMesh(
+        np.array([[0, 0], [40, 0], [40, 0.01], [0, 0.01]]), np.array([[0, 1, 2], [0, 2, 3]])
+    )
+    report = plate.quality_report()
+    np.testing.assert_array_equal(report.sliver_cells, [0, 1])
+    assert report.zero_volume_cells.size == 0
+    aspect = 1.0 / plate.cell_quality()
+    assert 1e3 < aspect.min()
+    with pytest.raises(ValueError) as info:
+        plate.check_quality("plate")
+    message = str(info.value)
+    assert message.startswith("plate: 2 degenerate cell(s) (slivers: the shape, not the area")
+    assert f"aspect ratio up to {aspect.max():.3g} at cell" in message and "limit 1e+03" in message
+    plate.check_quality("plate", quality_tol=0.0)  # shapes unchecked: only the area counts
