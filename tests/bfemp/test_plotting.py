@@ -59,7 +59,7 @@ def test_plot_metrics_writes_png_with_one_panel_per_group(tmp_path):
     ]
     np.testing.assert_array_equal(fig.axes[0].get_lines()[0].get_xdata(), log.column("t"))
     # Panels share the x axis; the bottom one carries its label.
-    assert fig.axes[-1].get_xlabel() == "t"
+    assert fig.axes[-1].get_xlabel() == "t [s]"
 
 
 def test_plot_metrics_skips_absent_groups_and_takes_custom_groups(tmp_path):
