@@ -3,8 +3,9 @@
 ::
 
     bfemp demo [--out DIR] [--quiet]
-    bfemp run SCENE.toml [--out DIR] [--t-end T] [--resume] [--quick] [--check] [--quiet]
-                         [--every N] [--checkpoint-every N] [--dry-run]
+    bfemp run SCENE.toml [--out DIR] [--t-end T] [--resume | --overwrite] [--quick] [--check]
+                         [--every N] [--checkpoint-every N] [--animate {gif,mp4}] [--dry-run]
+                         [--quiet]
     bfemp bench NAME [--quick | --full | --mode MODE] [--out DIR]
     bfemp sweep [--quick | --full] [--out DIR] [--scenes S,..] [--knobs K,..] [--workers N]
                 [--scheduler tcp://HOST:PORT] [--threads-per-point N] [--point-timeout S]
@@ -59,6 +60,16 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--out", help="output folder (default: [run] out, else results/SCENE_NAME)")
     run.add_argument("--t-end", type=float, help="end time in s (default: [run] t_end)")
     run.add_argument("--resume", action="store_true", help="continue from the checkpoint in OUT")
+    run.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace the outputs of an earlier run in OUT (without it such a folder is refused)",
+    )
+    run.add_argument(
+        "--animate",
+        choices=("gif", "mp4"),
+        help="also write OUT/animation.gif (or .mp4, needs ffmpeg) of every frame",
+    )
     run.add_argument("--quick", action="store_true", help="apply the [quick] overrides")
     run.add_argument("--check", action="store_true", help="evaluate the [check] table")
     run.add_argument("--every", type=int, help="frame interval in steps")
@@ -142,6 +153,7 @@ def _demo(args: argparse.Namespace) -> int:
     print(f"  ParaView frames: {', '.join(frames)}")
     print(f"  metrics:         {outputs['metrics']}")
     print(f"  plots:           {', '.join(outputs['plots'])}")
+    print(f"  scene file:      {outputs['scene']}")
     if "summary" in outputs:
         print(f"  summary (JSON):  {outputs['summary']}")
     return 0
@@ -171,8 +183,6 @@ def _run(args: argparse.Namespace, argv: list[str]) -> int:
             f"particles, terms {', '.join(sim.terms)}; t_end {settings['t_end']:g} s"
         )
         return 0
-    if not args.resume:
-        scenefile.write_text(out / "scene.toml", sf.text)
     metadata = {
         "scene_file": str(scene_path.resolve()),
         "scene_sha256": hashlib.sha256(sf.text.encode()).hexdigest(),
@@ -191,6 +201,9 @@ def _run(args: argparse.Namespace, argv: list[str]) -> int:
             checkpoint_every=ckpt,
             resume=args.resume,
             metadata=metadata,
+            overwrite=args.overwrite,
+            animation=args.animate,
+            scene_toml=sf.text,
         )
     except KeyboardInterrupt:
         print(
@@ -203,6 +216,10 @@ def _run(args: argparse.Namespace, argv: list[str]) -> int:
     for pvd in sorted(out.glob("*.pvd")):
         print(f"  ParaView: {pvd}")
     print(f"  metrics: {out / 'metrics.csv'}, {out / 'metrics.png'}; manifest: {out}/manifest.json")
+    print(
+        f"  pictures: {out / 'snapshots.png'}"
+        + (f", {out}/animation.{args.animate}" if args.animate else "")
+    )
     if args.check:
         if not sf.check:
             print("check: the scene file has no [check] table")

@@ -19,14 +19,11 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from bfemp import diagnostics
-from bfemp.checkpoint import (
-    InterruptGuard,
-    remove_checkpoint,
-    restore_checkpoint,
-    write_checkpoint,
-)
+from bfemp.checkpoint import InterruptGuard, restore_checkpoint, write_checkpoint
 from bfemp.integrators import integrator_from_name
+from bfemp.io import outputs
 from bfemp.io.metrics import MetricsLog
+from bfemp.io.snapshots import check_animation_format, write_animation, write_snapshot_sheet
 from bfemp.io.vtk import Block, FrameWriter
 from bfemp.manifest import RunManifest
 from bfemp.model import Model
@@ -83,6 +80,8 @@ class Simulation:
         if transfer not in _TRANSFERS:
             raise ValueError(f"Simulation.transfer must be one of {_TRANSFERS}, got {transfer!r}")
         self.model = scene.build() if isinstance(scene, Scene) else scene
+        #: the scene this simulation was built from (written to ``out/scene.toml`` by runs)
+        self.scene = scene if isinstance(scene, Scene) else None
         if self.model.contact is not None:
             # the barrier is finite only for bodies that start apart (and beyond d-hat)
             validate_initial(self.model)
@@ -140,6 +139,9 @@ class Simulation:
         checkpoint_every: int | None = None,
         resume: bool = False,
         metadata: dict | None = None,
+        overwrite: bool = False,
+        animation: str | None = None,
+        scene_toml: str | None = None,
     ) -> MetricsLog:
         """Step until ``t_end`` s; with ``out``, write a frame every ``every`` steps.
 
@@ -154,6 +156,12 @@ class Simulation:
         from its checkpoint; the continued run equals an uninterrupted one bit for bit (frames,
         PVD files and metrics; wall-clock ``time_*`` columns excepted).
 
+        A fresh run refuses a folder that holds an earlier run's outputs unless ``overwrite``
+        (then deletes them first: :mod:`bfemp.io.outputs`). Every run with ``out`` writes
+        ``snapshots.png`` (the bodies at up to 6 frame times, coloured by von Mises stress) and
+        ``scene.toml``; ``animation="gif"`` (or ``"mp4"``, with ffmpeg) also writes
+        ``animation.gif`` of every frame (:mod:`bfemp.io.snapshots`).
+
         Args:
             t_end: end time in s.
             out: output folder, or None for no output.
@@ -163,11 +171,17 @@ class Simulation:
             checkpoint_every: checkpoint interval in steps (None or 0: only at the end).
             resume: continue from the checkpoint in ``out``.
             metadata: extra parameters recorded in the manifest (e.g. the scene file).
+            overwrite: replace the outputs of an earlier run in ``out`` (else refused).
+            animation: ``"gif"`` or ``"mp4"``: also write ``out/animation.FMT``.
+            scene_toml: text of ``out/scene.toml`` (default: the scene of this simulation with
+                its settings; nothing for a simulation built from a ``Model``).
 
         Returns the metrics log (also written to ``out/metrics.csv`` and plotted to
         ``out/metrics.png``).
         """
         _check_run_args(t_end, every, checkpoint_every, resume, out)
+        if animation is not None:
+            check_animation_format(animation)
         if out is None:
             self._loop(self._n_steps(t_end), progress, callback)
             return self.metrics
@@ -176,7 +190,8 @@ class Simulation:
         if resume:
             restore_checkpoint(out, self, every=every)
         else:
-            remove_checkpoint(out)
+            outputs.prepare_run_folder(out, overwrite=overwrite)
+            outputs.write_scene_file(out, self, scene_toml)
         every, checkpoint_every = int(every), int(checkpoint_every or 0)
         run = {"t_end": float(t_end), "every": every, "checkpoint_every": checkpoint_every}
         writer = FrameWriter(out, resume=resume)
@@ -207,15 +222,19 @@ class Simulation:
             writer.close()
             if guard.hard:  # stopped anywhere, maybe mid-update: keep the last checkpoint
                 message += "; aborted without a checkpoint (the last periodic one remains)"
-            else:
-                self.metrics.to_csv(out / "metrics.csv")
-                try:
-                    plot_metrics(self.metrics, out / "metrics.png", title="bfemp run")
-                except (ValueError, RuntimeError, OSError) as err:  # never hide the outcome
-                    log.warning("metrics plot not written: %s", err)
-                write_checkpoint(out, self, every=every)
-            manifest.finish(self, status, message, frames=writer.frame_index)
-            log.info("wrote frames, metrics, manifest and checkpoint to %s", out)
+            plots = [
+                (
+                    "metrics.png",
+                    lambda: plot_metrics(self.metrics, out / "metrics.png", title="bfemp run"),
+                ),
+                ("snapshots.png", lambda: write_snapshot_sheet(out)),
+            ]
+            if animation is not None:
+                plots.append((f"animation.{animation}", lambda: write_animation(out, animation)))
+            outputs.finish_outputs(
+                out, self, manifest, status, message, hard=guard.hard, every=every,
+                frames=writer.frame_index, writes=plots,
+            )  # fmt: skip
         return self.metrics
 
     def _n_steps(self, t_end: float) -> int:
@@ -306,6 +325,8 @@ class Simulation:
         angular = diagnostics.angular_momentum(self.model, self.state, self.transfer)
         for k, value in enumerate(angular):
             row[f"angular_momentum_{'z' if angular.size == 1 else axes[k]}"] = float(value)
+        barrier = self.stepper.barrier if report is not None else None
+        row.update(diagnostics.body_metrics(self.model, self.state, self.transfer, barrier))
         if report is not None:
             row["newton_iterations"] = report.newton_iterations
             row["residual"] = report.residual
