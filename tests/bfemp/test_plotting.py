@@ -149,3 +149,25 @@ def test_plot_bars_writes_a_png_and_rejects_mismatched_groups(tmp_path):
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     with pytest.raises(ValueError, match="groups\\['x'\\]"):
         plot_bars(["a", "b"], {"x": [1.0]}, tmp_path / "c.png")
+
+
+def test_metrics_figure_is_readable_at_a_glance():
+    """Every curve of a panel has its own colour, every axis a unit, legends beside the axes."""
+    phases = [f"time_{p}" for p in "abcdefghijkl"]  # 12 timing curves, as a contact run has
+    rows = [{"t": 0.01 * i, "energy_kinetic": 1.0, "energy_elastic": 2.0, "energy_total": 3.0,
+             "momentum_x": 0.1 * i, "momentum_y": 0.0, "min_distance": 1e-3,
+             **{p: 1e-3 * (k + 1) for k, p in enumerate(phases)}} for i in range(20)]  # fmt: skip
+    fig = metrics_figure(MetricsLog(rows))
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    for ax in fig.axes:
+        styles = [(line.get_color(), line.get_linestyle()) for line in ax.get_lines()]
+        assert len(set(styles)) == len(styles), (ax.get_title(), styles)
+        assert "[" in ax.get_ylabel() or "iterations" in ax.get_ylabel(), ax.get_title()
+        legend = ax.get_legend()
+        if legend is not None:  # right of the axes box: over no curve and no tick label
+            assert legend.get_window_extent(renderer).x0 >= ax.get_window_extent(renderer).x1
+    timings = fig.axes[-1]
+    assert len(timings.get_lines()) == 12 and timings.get_yscale() == "log"
+    assert fig.axes[-1].get_xlabel() == "t [s]"
+    assert fig.axes[0].get_ylabel().startswith("energy [J]")
