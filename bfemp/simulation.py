@@ -4,7 +4,9 @@
 records one metrics row per step (energies, momenta, Newton iterations, per-phase timings), and
 when given an output folder writes VTK frames of every body with a PVD time series for ParaView,
 ``metrics.csv``, ``metrics.png``, a run manifest (:mod:`bfemp.manifest`) and checkpoints from which
-``run(..., resume=True)`` continues bit for bit (:mod:`bfemp.checkpoint`; Ctrl-C writes one).
+``run(..., resume=True)`` continues bit for bit (:mod:`bfemp.checkpoint`; Ctrl-C writes one), the
+snapshot sheet and animation (:mod:`bfemp.io.snapshots`) and ``scene.toml``; what a run folder
+holds and the final writes are :mod:`bfemp.io.outputs`.
 """
 
 from __future__ import annotations

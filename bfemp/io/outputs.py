@@ -121,7 +121,9 @@ def write_scene_file(out: str | Path, sim: object, text: str | None = None) -> P
     The scene of ``sim`` is the ``Scene`` it was built from (``sim.scene``), written with the
     simulation settings as ``[simulation]`` (:meth:`bfemp.Scene.to_toml`), so that ``bfemp run
     {out}/scene.toml`` or :func:`bfemp.io.readback.load_run` makes the same simulation. A
-    simulation built from a ``Model`` has no scene to write: nothing is written (None).
+    simulation built from a ``Model`` has no scene to write, nor has a scene with a custom
+    material, motion or level set the format cannot hold: then nothing is written (None, and a
+    warning for the latter).
     """
     from bfemp import scenefile
 
@@ -132,10 +134,11 @@ def write_scene_file(out: str | Path, sim: object, text: str | None = None) -> P
             log.info("no scene.toml written: the simulation was built from a Model")
             return None
         settings = dict(sim.settings)
-        integrator = settings.get("integrator")
-        if not isinstance(integrator, str):
-            settings.pop("integrator")
-        text = scene.to_toml(simulation=settings)
+        try:
+            text = scene.to_toml(simulation=settings)
+        except ValueError as err:  # a custom material, motion or level set: not in the format
+            log.warning("no scene.toml written: the scene cannot be written as TOML (%s)", err)
+            return None
     return scenefile.write_text(path, text)
 
 
