@@ -165,8 +165,9 @@ def test_a_second_run_into_the_same_folder_needs_overwrite(scene_file, tmp_path,
     assert "holds the outputs of an earlier run" in err and "--overwrite" in err
     assert (out / "scene.toml").read_text() == "# the first run's scene\n"  # nothing touched
     (out / "beam").joinpath("frame_00099.vtu").write_text("stale")
-    assert _run(scene_file, "--out", out, "--overwrite") == 0
+    assert _run(scene_file, "--out", out, "--overwrite", "--animate", "gif") == 0
     assert not (out / "beam" / "frame_00099.vtu").exists()
+    assert (out / "animation.gif").read_bytes()[:6] == b"GIF89a"
     assert (out / "scene.toml").read_text() == TINY
     assert json.loads((out / "manifest.json").read_text())["sessions"][0]["resumed"] is False
 

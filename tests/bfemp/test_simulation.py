@@ -184,3 +184,35 @@ def test_per_body_metrics_add_up_and_contact_forces_obey_newtons_third_law(tmp_p
     fem, mpm = sim.contact_forces()
     assert np.allclose(mpm.sum(axis=0), on_cube[-1], rtol=1e-10, atol=1e-12)
     assert np.allclose(fem.sum(axis=0), on_plate[-1], rtol=1e-10, atol=1e-12)
+
+
+def test_contact_forces_are_attributed_to_the_pair_of_bodies_that_touch():
+    """Two MPM blocks fall onto one FEM floor; only the lower one lands within the run."""
+    scene = bfemp.Scene(dim=2, gravity=(0.0, -9.81))
+    mat = bfemp.NeoHookean(E=1e4, nu=0.3, density=500.0)
+    floor = bfemp.shapes.rectangle((-0.5, -0.2), (1.5, 0.0), h=0.1)
+    scene.add_fem(floor, material=mat, prescribed=bfemp.motion.Fixed(), name="floor")
+    for name, y0 in (("low", 0.02), ("high", 0.4)):
+        x0 = 0.0 if name == "low" else 0.8
+        x, vol = bfemp.sample.box((x0, y0), (x0 + 0.3, y0 + 0.3), dx=0.1, ppc=4)
+        scene.add_mpm(x, vol, material=mat, velocity=(0.0, -1.0), name=name)
+    scene.set_grid(dx=0.1)
+    scene.set_contact(dhat=1e-3, kappa=1e4)
+    sim = bfemp.Simulation(scene, dt=1e-2, tol=1e-7)
+    sim.run(0.08, progress=False)
+    m = sim.metrics
+
+    def force(a, b):
+        return np.stack([m.column(f"contact_force.{a}.{b}_{c}") for c in "xy"], axis=1)
+
+    assert "contact_force.low.high_x" not in m  # particles never touch particles
+    low, high = force("low", "floor"), force("high", "floor")
+    assert np.any(low[:, 1] > 0.0) and np.all(low[:, 1] >= 0.0)  # the floor pushes up
+    assert np.all(high == 0.0)  # the high block is still in the air
+    for a, b in (("low", "floor"), ("high", "floor")):
+        assert np.allclose(force(a, b), -force(b, a), rtol=0.0, atol=1e-12)
+    # the pair totals are the per-particle forces of Simulation.contact_forces() summed by body
+    _, mpm = sim.contact_forces()
+    for body in sim.model.mpm_bodies:
+        total = mpm[body.particles].sum(axis=0)
+        assert np.allclose(total, force(body.name, "floor")[-1], rtol=1e-10, atol=1e-12)
