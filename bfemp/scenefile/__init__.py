@@ -179,7 +179,9 @@ class SceneFile:
             )
         model = self.build_model()
         try:
-            return Simulation(model, **kwargs)
+            sim = Simulation(model, **kwargs)
+            sim.scene = self.scene  # runs write it to out/scene.toml
+            return sim
         except SceneError as err:
             raise err.located(file=self.file) from None
         except ValueError as err:

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from bfemp import scenefile
+from bfemp.checkpoint import model_fingerprint
 from bfemp.io.vtk import read_pvd
 from bfemp.scenefile.checks import CheckRecorder, evaluate_checks
 
@@ -47,6 +48,10 @@ def test_example_runs_quick_and_passes_its_checks(path, tmp_path):
         data = {**last.point_data, **last.cell_data}
         assert {"velocity", "J", "von_mises"} <= set(data), (body.name, set(data))
     assert len(names) == len(set(names))
+    # the run's scene.toml rebuilds the same model (the README's promise for every run folder)
+    again = scenefile.load(tmp_path / "scene.toml")
+    assert model_fingerprint(again.build_model()) == model_fingerprint(sim.model)
+    assert again.simulation["dt"] == sim.dt
 
 
 def test_a_failing_check_is_reported():
