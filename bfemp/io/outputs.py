@@ -174,20 +174,18 @@ def finish_outputs(
         KeyboardInterrupt: Ctrl-C during the writes (after the manifest is written).
     """
     if hard:
-        manifest.finish(sim, status, message, frames=frames)
+        with InterruptGuard():
+            manifest.finish(sim, status, message, frames=frames)
         return
     essential = [
         ("metrics.csv", lambda: sim.metrics.to_csv(out / "metrics.csv")),
         ("checkpoint", lambda: write_checkpoint(out, sim, every=every)),
     ]
     done: list[str] = []
-    skipped: list[str] = []
     guard = InterruptGuard()
     try:
         with guard:
             for name, write in essential + list(writes):
-                if guard.hard:
-                    break
                 try:
                     write()
                 except (ValueError, RuntimeError, OSError) as err:
@@ -211,7 +209,8 @@ def finish_outputs(
             note = "interrupted during the final writes"
             note += f" ({', '.join(skipped)} not written)" if skipped else " (all written)"
             message = f"{message}; {note}" if message else note
-        manifest.finish(sim, status, message, frames=frames)
+        with InterruptGuard() as last:  # a Ctrl-C now waits for the manifest's atomic write
+            manifest.finish(sim, status, message, frames=frames)
         log.info("wrote frames, metrics, manifest and checkpoint to %s", out)
-    if guard.requested:
+    if guard.requested or last.requested:
         raise KeyboardInterrupt(message)
