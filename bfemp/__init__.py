@@ -25,6 +25,7 @@ from bfemp.errors import SceneError
 from bfemp.integrators import BACKWARD_EULER, NEWMARK, Integrator
 from bfemp.materials import LinearElastic, NeoHookean
 from bfemp.model import FemBody, Model, MpmBody
+from bfemp.runs import load_run
 from bfemp.scene import Scene
 from bfemp.simulation import Simulation
 from bfemp.state import State
@@ -61,6 +62,7 @@ __all__ = [
     "StepReport",
     "StepperOptions",
     "levelset",
+    "load_run",
     "motion",
     "sample",
     "scenefile",

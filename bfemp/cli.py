@@ -3,8 +3,9 @@
 ::
 
     bfemp demo [--out DIR] [--quiet]
-    bfemp run SCENE.toml [--out DIR] [--t-end T] [--resume] [--quick] [--check] [--quiet]
-                         [--every N] [--checkpoint-every N] [--dry-run]
+    bfemp run SCENE.toml [--out DIR] [--t-end T] [--resume | --overwrite] [--quick] [--check]
+                         [--every N] [--checkpoint-every N] [--animate {gif,mp4}] [--dry-run]
+                         [--quiet]
     bfemp bench NAME [--quick | --full | --mode MODE] [--out DIR]
     bfemp sweep [--quick | --full] [--out DIR] [--scenes S,..] [--knobs K,..] [--workers N]
                 [--scheduler tcp://HOST:PORT] [--threads-per-point N] [--point-timeout S]
@@ -62,6 +63,16 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--out", help="output folder (default: [run] out, else results/SCENE_NAME)")
     run.add_argument("--t-end", type=float, help="end time in s (default: [run] t_end)")
     run.add_argument("--resume", action="store_true", help="continue from the checkpoint in OUT")
+    run.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace the outputs of an earlier run in OUT (without it such a folder is refused)",
+    )
+    run.add_argument(
+        "--animate",
+        choices=("gif", "mp4"),
+        help="also write OUT/animation.gif (or .mp4, needs ffmpeg) of every frame",
+    )
     run.add_argument("--quick", action="store_true", help="apply the [quick] overrides")
     run.add_argument("--check", action="store_true", help="evaluate the [check] table")
     run.add_argument("--every", type=int, help="frame interval in steps")
@@ -115,6 +126,7 @@ def _demo(args: argparse.Namespace) -> int:
     print(f"  ParaView frames: {', '.join(frames)}")
     print(f"  metrics:         {outputs['metrics']}")
     print(f"  plots:           {', '.join(outputs['plots'])}")
+    print(f"  scene file:      {outputs['scene']}")
     if "summary" in outputs:
         print(f"  summary (JSON):  {outputs['summary']}")
     return 0
@@ -142,6 +154,7 @@ def _check_resume_t_end(out: Path, t_end: float, given: bool) -> None:
 def _run(args: argparse.Namespace, argv: list[str]) -> int:
     from bfemp import scenefile
     from bfemp.scenefile.checks import CheckRecorder, evaluate_checks
+    from bfemp.simulation import Simulation
 
     scene_path = Path(args.scene)
     sf = scenefile.load(scene_path)
@@ -150,7 +163,7 @@ def _run(args: argparse.Namespace, argv: list[str]) -> int:
     ckpt = _positive_int(args.checkpoint_every, "--checkpoint-every", 0)
     ckpt = settings["checkpoint_every"] if ckpt is None else ckpt
     out = Path(args.out or settings.get("out") or Path("results") / scene_path.stem)
-    sim = sf.make_simulation()
+    sim = Simulation.from_file(sf)
     if args.dry_run:
         print(
             f"{scene_path}: ok: {sim.model.n_fem_nodes} FEM nodes, {sim.model.n_particles} "
@@ -159,8 +172,6 @@ def _run(args: argparse.Namespace, argv: list[str]) -> int:
         return 0
     if args.resume:
         _check_resume_t_end(out, settings["t_end"], args.t_end is not None)
-    else:
-        scenefile.write_text(out / "scene.toml", sf.text)
     metadata = {
         "scene_file": str(scene_path.resolve()),
         "scene_sha256": hashlib.sha256(sf.text.encode()).hexdigest(),
@@ -179,6 +190,9 @@ def _run(args: argparse.Namespace, argv: list[str]) -> int:
             checkpoint_every=ckpt,
             resume=args.resume,
             metadata=metadata,
+            overwrite=args.overwrite,
+            animation=args.animate,
+            scene_toml=sf.text,
         )
     except KeyboardInterrupt:
         print(
@@ -191,6 +205,10 @@ def _run(args: argparse.Namespace, argv: list[str]) -> int:
     for pvd in sorted(out.glob("*.pvd")):
         print(f"  ParaView: {pvd}")
     print(f"  metrics: {out / 'metrics.csv'}, {out / 'metrics.png'}; manifest: {out}/manifest.json")
+    print(
+        f"  pictures: {out / 'snapshots.png'}"
+        + (f", {out}/animation.{args.animate}" if args.animate else "")
+    )
     if args.check:
         if not sf.check:
             print("check: the scene file has no [check] table")

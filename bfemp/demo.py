@@ -6,7 +6,9 @@ outer radii 3 and 4 m) fly at each other at 40 m/s each, meet through the barrie
 kappa = 1e7 Pa) and bounce apart; Newmark with implicit contact, APIC, dt = 2e-3 s (the paper:
 2e-4 s, dx = 0.1 m, see ``python -m benchmarks rings``). Writes VTK frames (``mpm_ring.pvd``,
 ``fem_ring.pvd``), ``metrics.csv``/``metrics.png``, ``demo.png`` (energies, momentum drift,
-closest approach) and ``demo.json`` with the rings benchmark's headline metrics.
+closest approach), ``snapshots.png`` (the rings at six times, coloured by von Mises stress),
+``scene.toml`` (the scene, to rerun with ``bfemp run``) and ``demo.json`` with the rings
+benchmark's headline metrics. A demo replaces the outputs of an earlier run in ``out``.
 
 ``run_cantilever_demo`` (``bfemp demo --case cantilever``): a 2D Neo-Hookean cantilever, left end
 clamped, swinging under gravity under Newmark; frames ``beam.pvd``, ``demo.png`` (energies) and
@@ -64,7 +66,9 @@ def run_cantilever_demo(
         deflection.append(float(s.state.fem_x[tip, 1]) - tip_y0)
 
     n_steps = int(round(t_end / dt))
-    metrics = sim.run(t_end, out=out, every=5, progress=progress, callback=record_tip)
+    metrics = sim.run(
+        t_end, out=out, every=5, progress=progress, callback=record_tip, overwrite=True
+    )
     t = metrics.column("t")
     plot_series(
         t,
@@ -94,7 +98,13 @@ def run_cantilever_demo(
         "outputs": {
             "frames": str(out / "beam.pvd"),
             "metrics": str(out / "metrics.csv"),
-            "plots": [str(out / "demo.png"), str(out / "tip.png"), str(out / "metrics.png")],
+            "plots": [
+                str(out / "demo.png"),
+                str(out / "tip.png"),
+                str(out / "metrics.png"),
+                str(out / "snapshots.png"),
+            ],
+            "scene": str(out / "scene.toml"),
         },
     }
     (out / "demo.json").write_text(json.dumps(summary, indent=2))
@@ -161,7 +171,7 @@ def run_demo(
     )
     model = sim.model
     started = time.perf_counter()
-    metrics = sim.run(t_end, out=out, every=5, progress=progress)
+    metrics = sim.run(t_end, out=out, every=5, progress=progress, overwrite=True)
     wall = time.perf_counter() - started
     t = metrics.column("t")
     momentum = np.stack([metrics.column("momentum_x"), metrics.column("momentum_y")], axis=1)
@@ -189,8 +199,9 @@ def run_demo(
         "outputs": {
             "frames": [str(out / "mpm_ring.pvd"), str(out / "fem_ring.pvd")],
             "metrics": str(out / "metrics.csv"),
-            "plots": [str(out / "demo.png"), str(out / "metrics.png")],
+            "plots": [str(out / "demo.png"), str(out / "metrics.png"), str(out / "snapshots.png")],
             "summary": str(out / "demo.json"),
+            "scene": str(out / "scene.toml"),
         },
     }
     (out / "demo.json").write_text(json.dumps(summary, indent=2))

@@ -4,6 +4,12 @@
 1/2 m_p |v_p|^2, the kinetic energy of its affine velocity 1/2 m_p tr(C_p D_p C_p^T), and its spin
 m_p eps : (C_p D_p)^T adds to the angular momentum (D_p = dx^2/4 I for quadratic B-splines): these
 are the quantities APIC transfers conserve.
+
+Per body (:func:`per_body_energies`, :func:`per_body_momenta`) the same sums are split by the
+body that owns each node, cell or particle; they add up to the totals. Contact forces between
+bodies (:func:`contact_forces_between_bodies`) are the barrier's per-pair point forces summed by
+the bodies on either side of each pair, so that the force on a from b is minus that on b from a
+(each pair's forces sum to zero).
 """
 
 from __future__ import annotations
@@ -16,12 +22,16 @@ from bfemp.terms.elasticity import fem_elastic_groups, stencil_energy
 
 __all__ = [
     "angular_momentum",
+    "body_metrics",
+    "contact_forces_between_bodies",
     "fem_elastic_energy",
     "gravity_energy",
     "kinetic_energy",
     "linear_momentum",
     "load_energy",
     "mpm_elastic_energy",
+    "per_body_energies",
+    "per_body_momenta",
 ]
 
 
@@ -105,3 +115,120 @@ def angular_momentum(model: Model, state: State, transfer: str = "apic") -> np.n
                 )
                 total = total + m @ spin
     return total
+
+
+def body_names(model: Model) -> list[str]:
+    """Body names in the order used here: FEM bodies, then MPM bodies."""
+    return [b.name for b in model.fem_bodies] + [b.name for b in model.mpm_bodies]
+
+
+def per_body_energies(
+    model: Model, state: State, transfer: str = "apic"
+) -> dict[str, dict[str, float]]:
+    """Kinetic, elastic and gravitational energy of each body, in J (J/m in 2D).
+
+    Returns ``{body name: {"kinetic": ..., "elastic": ..., "gravity": ...}}``; summed over the
+    bodies these are :func:`kinetic_energy`, the elastic energy (FEM cells + particles) and
+    :func:`gravity_energy`.
+    """
+    out: dict[str, dict[str, float]] = {}
+    if model.fem_bodies:
+        x = state.fem_x[model.fem_cells]  # (M, d+1, d)
+        F = np.einsum("mai,maj->mij", x, model.fem_cell_grad)
+        kin = 0.5 * model.fem_mass * _sq(state.fem_v)
+        grav = -model.fem_mass * (state.fem_x @ model.gravity)
+    for body in model.fem_bodies:  # a few bodies; vectorised over nodes and cells
+        mat, cells = body.material, body.cells
+        m = cells.stop - cells.start
+        psi = mat.law.energy_density(F[cells], np.full(m, mat.mu), np.full(m, mat.lam))
+        out[body.name] = {
+            "kinetic": float(kin[body.nodes].sum()),
+            "elastic": float(np.dot(model.fem_cell_volume[cells], psi)),
+            "gravity": float(grav[body.nodes].sum()),
+        }
+    if model.mpm_bodies:
+        kin = 0.5 * model.mpm_mass * _sq(state.mpm_v)
+        if transfer == "apic":
+            c2 = np.einsum("pij,pij->p", state.mpm_C, state.mpm_C)
+            kin = kin + 0.5 * model.grid.dx**2 / 4.0 * model.mpm_mass * c2
+        grav = -model.mpm_mass * (state.mpm_x @ model.gravity)
+    for body in model.mpm_bodies:
+        sl, mat, n = body.particles, body.material, body.n_particles
+        psi = mat.law.energy_density(state.mpm_F[sl], np.full(n, mat.mu), np.full(n, mat.lam))
+        out[body.name] = {
+            "kinetic": float(kin[sl].sum()),
+            "elastic": float(np.dot(model.mpm_volume[sl], psi)),
+            "gravity": float(grav[sl].sum()),
+        }
+    return out
+
+
+def per_body_momenta(model: Model, state: State) -> dict[str, np.ndarray]:
+    """Linear momentum ``(d,)`` in kg m/s (per m in 2D) of each body; they sum to
+    :func:`linear_momentum`."""
+    out = {b.name: model.fem_mass[b.nodes] @ state.fem_v[b.nodes] for b in model.fem_bodies}
+    for b in model.mpm_bodies:
+        out[b.name] = model.mpm_mass[b.particles] @ state.mpm_v[b.particles]
+    return out
+
+
+def contact_forces_between_bodies(
+    model: Model,
+    point_body: np.ndarray,
+    pair_forces: dict[str, tuple[np.ndarray, np.ndarray]],
+) -> np.ndarray:
+    """Total contact force ``(B, B, d)`` in N (N/m in 2D): ``[a, b]`` on body a from body b.
+
+    Args:
+        model: the model (B = FEM bodies + MPM bodies, in :func:`body_names` order).
+        point_body: owning body of each collision point ``(C,)``: FEM bodies 0.., MPM bodies
+            -1 - index (``CollisionSet.point_body``).
+        pair_forces: kind -> ``(points (n, m), forces (n, m, d))`` of the active pairs
+            (``ContactTerm.pair_point_forces()``): the point side is point 0 (point-point,
+            point-edge, point-triangle) or points 0, 1 (edge-edge); the other side the rest.
+    """
+    nf = len(model.fem_bodies)
+    n_bodies = nf + len(model.mpm_bodies)
+    point_body = np.asarray(point_body)
+    body = np.where(point_body >= 0, point_body, nf - 1 - point_body)
+    out = np.zeros((n_bodies, n_bodies, model.dim))
+    for kind, (pts, forces) in pair_forces.items():
+        split = 2 if kind == "ee" else 1  # points of the first side
+        a, b = body[pts[:, 0]], body[pts[:, -1]]
+        np.add.at(out, (a, b), forces[:, :split].sum(axis=1))
+        np.add.at(out, (b, a), forces[:, split:].sum(axis=1))
+    return out
+
+
+def body_metrics(
+    model: Model, state: State, transfer: str = "apic", body_forces: np.ndarray | None = None
+) -> dict[str, float]:
+    """Metrics columns per body and per pair of bodies (see the README for the names).
+
+    ``body.NAME.energy_kinetic`` / ``_elastic`` / ``_gravity`` (J), ``body.NAME.momentum_x``
+    ... (kg m/s), and in a scene with contact ``contact_force.A.B_x`` ... (N): the force on
+    body A from body B, for every ordered pair with a FEM body in it (particles never touch
+    particles), from ``body_forces (B, B, d)`` (``ContactView.body_forces``; None: zeros).
+    2D values are per unit thickness.
+    """
+    axes = "xyz"[: model.dim]
+    row: dict[str, float] = {}
+    for name, e in per_body_energies(model, state, transfer).items():
+        for key, value in e.items():
+            row[f"body.{name}.energy_{key}"] = value
+    for name, p in per_body_momenta(model, state).items():
+        for k, c in enumerate(axes):
+            row[f"body.{name}.momentum_{c}"] = float(p[k])
+    if model.contact is None:
+        return row
+    names = body_names(model)
+    nf = len(model.fem_bodies)
+    forces = body_forces
+    if forces is None:
+        forces = np.zeros((len(names), len(names), model.dim))
+    for a, name_a in enumerate(names):
+        for b, name_b in enumerate(names):
+            if a != b and (a < nf or b < nf):
+                for k, c in enumerate(axes):
+                    row[f"contact_force.{name_a}.{name_b}_{c}"] = float(forces[a, b, k])
+    return row

@@ -5,9 +5,15 @@ plotting never selects a pyplot backend or touches pyplot's global figure regist
 headless and inside applications that use another backend. Files are written atomically.
 
 Groups of metrics columns are lists of names or ``fnmatch`` patterns (``"energy_*"``). The default
-groups are: energies (``energy_*``), momenta (``momentum_*``), Newton iterations
-(``newton_iterations``) and timings (``time_*``). A group none of whose columns is in the log is
-skipped; the ``x`` column itself is never plotted as a series.
+groups are: energies (``energy_*``), momenta (``momentum_*``), iterations (``iterations_*``:
+Newton, friction, ... per step), closest distance, contact forces per body pair
+(``contact_force.*``), per-body energies and momenta (``body.*``) and timings (``time_*``, log
+scale). A group none of whose columns is in the log is skipped; the ``x`` column itself is never
+plotted as a series.
+
+Readable at a glance: every panel's y axis names its quantity and unit (:data:`GROUP_UNITS`), the
+x axis ``t [s]``; every curve of a panel has its own colour (tab10, tab20, then line styles:
+:func:`curve_styles`); legends sit outside the axes, right of the curves.
 """
 
 from __future__ import annotations
@@ -31,8 +37,28 @@ DEFAULT_GROUPS: Mapping[str, tuple[str, ...]] = {
     "momenta": ("momentum_*",),
     "iterations": ("iterations_*",),
     "min_distance": ("min_distance",),
+    "contact_forces": ("contact_force.*",),
+    "body_energies": ("body.*.energy_*",),
+    "body_momenta": ("body.*.momentum_*",),
     "timings": ("time_*",),
 }
+
+#: y-axis label (quantity [unit]) of a group; 2D quantities are per unit thickness
+GROUP_UNITS: Mapping[str, str] = {
+    "energies": "energy [J] (2D: J/m)",
+    "momenta": "momentum [kg m/s] (2D: per m)",
+    "iterations": "iterations per step",
+    "min_distance": "distance [m]",
+    "contact_forces": "force [N] (2D: N/m)",
+    "body_energies": "energy [J] (2D: J/m)",
+    "body_momenta": "momentum [kg m/s] (2D: per m)",
+    "timings": "wall time per step [s]",
+}
+#: x-axis label of a known abscissa column
+X_UNITS: Mapping[str, str] = {"t": "t [s]", "step": "step"}
+#: groups drawn on a logarithmic y axis (values spanning decades)
+LOG_GROUPS = frozenset({"timings"})
+_LINESTYLES = ("-", "--", ":", "-.")
 
 _DPI = 110
 
@@ -83,7 +109,10 @@ def metrics_figure(
         title: figure title.
 
     Returns:
-        the figure (Agg canvas attached), one axes per group that has columns in ``log``.
+        the figure (Agg canvas attached), one axes per group that has columns in ``log``; each
+        axes has a y label with the unit of its group (:data:`GROUP_UNITS`) and, with several
+        curves, a legend outside the axes on the right; each curve of a panel has its own
+        colour (and line style beyond 20 curves).
     """
     if not isinstance(log, MetricsLog):
         raise ValueError(f"log must be a MetricsLog, got {type(log).__name__}")
@@ -95,21 +124,41 @@ def metrics_figure(
     if not resolved:
         raise ValueError(f"no column of the log matches any group; columns are {log.columns}")
     x_values = np.arange(len(log)) if x is None else log.column(x)
-    fig = Figure(figsize=(8.0, 2.4 * len(resolved) + 0.8), layout="constrained")
+    fig = Figure(figsize=(9.5, 2.4 * len(resolved) + 0.8), layout="constrained")
     FigureCanvasAgg(fig)
     axes = fig.subplots(len(resolved), 1, sharex=True, squeeze=False)[:, 0]
     marker = "." if len(log) <= 200 else None
     for ax, (group, names) in zip(axes, resolved.items(), strict=True):
-        for name in names:
-            ax.plot(x_values, log.column(name), marker=marker, label=name)
+        for name, style in zip(names, curve_styles(len(names)), strict=True):
+            ax.plot(x_values, log.column(name), marker=marker, label=name, **style)
         ax.set_title(group.replace("_", " "), fontsize="medium")
+        ax.set_ylabel(GROUP_UNITS.get(group, ""), fontsize="small")
+        if group in LOG_GROUPS and np.any(np.concatenate([log.column(n) for n in names]) > 0):
+            ax.set_yscale("log")
         ax.grid(True, alpha=0.3)
         if len(names) > 1 or names[0] != group:
-            ax.legend(fontsize="small")
-    axes[-1].set_xlabel("step" if x is None else x)
+            # outside the axes, right of the curves: never over a curve or a tick label
+            ax.legend(
+                fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0
+            )
+    axes[-1].set_xlabel("step" if x is None else X_UNITS.get(x, x))
     if title:
         fig.suptitle(title)
     return fig
+
+
+def curve_styles(n: int) -> list[dict[str, object]]:
+    """``n`` distinct (colour, line style) pairs: tab10 up to 10 curves, tab20 up to 20, then
+    20 colours with a new line style for each further 20 curves."""
+    from matplotlib import colormaps
+
+    if n <= 10:
+        return [{"color": colormaps["tab10"](i), "linestyle": "-"} for i in range(n)]
+    tab20 = colormaps["tab20"]
+    return [
+        {"color": tab20(i % 20), "linestyle": _LINESTYLES[(i // 20) % len(_LINESTYLES)]}
+        for i in range(n)
+    ]
 
 
 def plot_metrics(

@@ -4,7 +4,9 @@
 records one metrics row per step (energies, momenta, Newton iterations, per-phase timings), and
 when given an output folder writes VTK frames of every body with a PVD time series for ParaView,
 ``metrics.csv``, ``metrics.png``, a run manifest (:mod:`bfemp.manifest`) and checkpoints from which
-``run(..., resume=True)`` continues bit for bit (:mod:`bfemp.checkpoint`; Ctrl-C writes one).
+``run(..., resume=True)`` continues bit for bit (:mod:`bfemp.checkpoint`; Ctrl-C writes one), the
+snapshot sheet and animation (:mod:`bfemp.io.snapshots`) and ``scene.toml``; what a run folder
+holds and the final writes are :mod:`bfemp.io.outputs`.
 """
 
 from __future__ import annotations
@@ -18,16 +20,14 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
-from bfemp import diagnostics
+from bfemp import diagnostics, scenefile
 from bfemp._run_arguments import check_t_end
-from bfemp.checkpoint import (
-    InterruptGuard,
-    remove_checkpoint,
-    restore_checkpoint,
-    write_checkpoint,
-)
+from bfemp.checkpoint import InterruptGuard, restore_checkpoint, write_checkpoint
+from bfemp.errors import SceneError
 from bfemp.integrators import Integrator, integrator_from_name
+from bfemp.io import outputs
 from bfemp.io.metrics import MetricsLog
+from bfemp.io.snapshots import check_animation_format, write_animation, write_snapshot_sheet
 from bfemp.io.vtk import Block, FrameWriter
 from bfemp.manifest import RunManifest
 from bfemp.model import Model
@@ -99,6 +99,10 @@ class Simulation:
         }
         options = _merge_flat_options(strategy, options, flat)
         self.model = scene.build() if isinstance(scene, Scene) else scene
+        #: the scene this simulation was built from (written to ``out/scene.toml`` by runs)
+        self.scene = scene if isinstance(scene, Scene) else None
+        #: the text of the scene file this simulation was read from (``from_file``), or None
+        self.scene_text: str | None = None
         if integrator is None:
             integrator = getattr(stepper_cls, "default_integrator", "backward_euler")
         self.integrator = integrator_from_name(integrator)
@@ -135,6 +139,58 @@ class Simulation:
         self._contact_columns = self.model.contact is not None
         self.metrics.append(self._metrics_row(None))
 
+    @classmethod
+    def from_file(cls, source: str | Path | scenefile.SceneFile, **overrides: object) -> Simulation:
+        """A simulation of a scene file with its ``[simulation]`` settings.
+
+        Args:
+            source: the scene file's path, or a ``bfemp.scenefile.SceneFile`` already read.
+            overrides: ``Simulation`` keyword arguments replacing those of the file.
+
+        Errors (a missing dt, a bad option, an initial overlap) name the file and the field.
+        """
+        sf = source if isinstance(source, scenefile.SceneFile) else scenefile.load(source)
+        kwargs = {**sf.simulation, **overrides}
+        if "dt" not in kwargs:
+            raise SceneError(
+                "missing key 'dt'", file=sf.file, field="simulation.dt", hint="the time step in s"
+            )
+        model = sf.build_model()
+        try:
+            sim = cls(model, **kwargs)
+        except SceneError as err:
+            raise err.located(file=sf.file) from None
+        except ValueError as err:
+            raise SceneError(str(err), file=sf.file, field="simulation") from None
+        sim.scene, sim.scene_text = sf.scene, sf.text
+        return sim
+
+    def scene_settings(self) -> dict:
+        """The ``[simulation]`` table of this simulation (strategy, integrator, transfer, dt and
+        the strategy's options as ``[simulation.options]``)."""
+        return {
+            "strategy": self.strategy,
+            "integrator": self.integrator.name,
+            "transfer": self.transfer,
+            "dt": self.dt,
+            "options": self.options,
+        }
+
+    def scene_file_text(self) -> str | None:
+        """The scene-file text of this simulation: the file it was read from, else its
+        ``Scene`` with :meth:`scene_settings`; None for a ``Model`` or a scene the format cannot
+        hold (a custom material, motion or level set; logged)."""
+        if self.scene_text is not None:
+            return self.scene_text
+        if self.scene is None:
+            log.info("no scene.toml written: the simulation was built from a Model")
+            return None
+        try:
+            return scenefile.save(self.scene, simulation=self.scene_settings())
+        except ValueError as err:
+            log.warning("no scene.toml written: the scene cannot be written as TOML (%s)", err)
+            return None
+
     @property
     def terms(self) -> list[str]:
         """Names of the energy terms this scene pays for."""
@@ -158,6 +214,9 @@ class Simulation:
         checkpoint_every: int | None = None,
         resume: bool = False,
         metadata: dict | None = None,
+        overwrite: bool = False,
+        animation: str | None = None,
+        scene_toml: str | None = None,
     ) -> MetricsLog:
         """Step until ``t_end`` s; with ``out``, write a frame every ``every`` steps.
 
@@ -172,6 +231,12 @@ class Simulation:
         from its checkpoint; the continued run equals an uninterrupted one bit for bit (frames,
         PVD files and metrics; wall-clock ``time_*`` columns excepted).
 
+        A fresh run refuses a folder that holds an earlier run's outputs unless ``overwrite``
+        (then deletes them first: :mod:`bfemp.io.outputs`). Every run with ``out`` writes
+        ``snapshots.png`` (the bodies at up to 6 frame times, coloured by von Mises stress) and
+        ``scene.toml``; ``animation="gif"`` (or ``"mp4"``, with ffmpeg) also writes
+        ``animation.gif`` of every frame (:mod:`bfemp.io.snapshots`).
+
         Args:
             t_end: end time in s.
             out: output folder, or None for no output.
@@ -181,6 +246,10 @@ class Simulation:
             checkpoint_every: checkpoint interval in steps (None or 0: only at the end).
             resume: continue from the checkpoint in ``out``.
             metadata: extra parameters recorded in the manifest (e.g. the scene file).
+            overwrite: replace the outputs of an earlier run in ``out`` (else refused).
+            animation: ``"gif"`` or ``"mp4"``: also write ``out/animation.FMT``.
+            scene_toml: text of ``out/scene.toml`` (default: the scene of this simulation with
+                its settings; nothing for a simulation built from a ``Model``).
 
         Returns the metrics log (also written to ``out/metrics.csv`` and plotted to
         ``out/metrics.png``).
@@ -188,6 +257,8 @@ class Simulation:
         _check_run_args(t_end, every, checkpoint_every, resume, out)
         if not resume:
             check_t_end(t_end, self.state.t, self.dt)
+        if animation is not None:
+            check_animation_format(animation)
         if out is None:
             self._loop(self._n_steps(t_end), progress, callback)
             return self.metrics
@@ -197,7 +268,10 @@ class Simulation:
             restore_checkpoint(out, self, every=every)
             check_t_end(t_end, self.state.t, self.dt, f"the checkpoint in {out}")
         else:
-            remove_checkpoint(out)
+            outputs.prepare_run_folder(out, overwrite=overwrite)
+            text = scene_toml if scene_toml is not None else self.scene_file_text()
+            if text is not None:
+                outputs.write_scene_file(out, text)
         every, checkpoint_every = int(every), int(checkpoint_every or 0)
         run = {"t_end": float(t_end), "every": every, "checkpoint_every": checkpoint_every}
         writer = FrameWriter(out, resume=resume)
@@ -228,15 +302,19 @@ class Simulation:
             writer.close()
             if guard.hard:  # stopped anywhere, maybe mid-update: keep the last checkpoint
                 message += "; aborted without a checkpoint (the last periodic one remains)"
-            else:
-                self.metrics.to_csv(out / "metrics.csv")
-                try:
-                    plot_metrics(self.metrics, out / "metrics.png", title="bfemp run")
-                except (ValueError, RuntimeError, OSError) as err:  # never hide the outcome
-                    log.warning("metrics plot not written: %s", err)
-                write_checkpoint(out, self, every=every)
-            manifest.finish(self, status, message, frames=writer.frame_index)
-            log.info("wrote frames, metrics, manifest and checkpoint to %s", out)
+            plots = [
+                (
+                    "metrics.png",
+                    lambda: plot_metrics(self.metrics, out / "metrics.png", title="bfemp run"),
+                ),
+                ("snapshots.png", lambda: write_snapshot_sheet(out)),
+            ]
+            if animation is not None:
+                plots.append((f"animation.{animation}", lambda: write_animation(out, animation)))
+            outputs.finish_outputs(
+                out, self, manifest, status, message, hard=guard.hard, every=every,
+                frames=writer.frame_index, writes=plots,
+            )  # fmt: skip
         return self.metrics
 
     def _n_steps(self, t_end: float) -> int:
@@ -323,6 +401,8 @@ class Simulation:
         angular = diagnostics.angular_momentum(self.model, self.state, self.transfer)
         for k, value in enumerate(angular):
             row[f"angular_momentum_{'z' if angular.size == 1 else axes[k]}"] = float(value)
+        forces = self.stepper.contact().body_forces if report is not None else None
+        row.update(diagnostics.body_metrics(self.model, self.state, self.transfer, forces))
         if report is not None:
             for name, count in report.iterations.items():
                 row[f"iterations_{name}"] = count

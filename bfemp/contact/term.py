@@ -212,18 +212,28 @@ class BarrierTerm:
         return t
 
     # ------------------------------------------------------------------ reporting
+    def pair_point_forces(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Per-pair contact forces at the current iterate: kind -> ``(points (n, m), forces
+        (n, m, d))``, the force in N (N/m in 2D) on each of the ``m`` collision points of each
+        active pair (-d(omega c b)/dy); a pair's forces sum to zero (the barrier depends on
+        differences of positions only)."""
+        out = {}
+        for kind, d in self.pairs.distance.items():
+            if not d.size:
+                continue
+            pts = self.pairs.points[kind]
+            local = self._local_gradient(kind, d).reshape(len(d), pts.shape[1], -1)
+            out[kind] = (pts, -local)
+        return out
+
     def point_forces(self) -> np.ndarray:
         """Contact forces ``(C, d)`` in N (N/m in 2D) on the collision points at the current
         iterate: -dB/dy per point, before the chain rule to nodes (FEM boundary nodes first,
         then particles, as in ``collisions``)."""
         cs = self.collisions
         out = np.zeros((cs.n_points, self._layout.dim))
-        for kind, d in self.pairs.distance.items():
-            if not d.size:
-                continue
-            pts = self.pairs.points[kind]
-            local = self._local_gradient(kind, d).reshape(len(d), pts.shape[1], -1)
-            np.add.at(out, pts.reshape(-1), -local.reshape(-1, out.shape[1]))
+        for pts, forces in self.pair_point_forces().values():
+            np.add.at(out, pts.reshape(-1), forces.reshape(-1, out.shape[1]))
         return out
 
     def min_distance(self) -> float:

@@ -104,7 +104,6 @@ from bfemp.scenefile._read import TOP_LEVEL, parse_document
 from bfemp.scenefile._toml import dumps as dumps_toml
 from bfemp.scenefile._write import scene_dict
 from bfemp.scenefile.checks import validate_checks
-from bfemp.simulation import Simulation
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -171,25 +170,6 @@ class SceneFile:
         except ValueError as err:
             raise SceneError(str(err), file=self.file) from None
         return model
-
-    def make_simulation(self, **overrides: object) -> object:
-        """A ``bfemp.Simulation`` of this scene with the ``[simulation]`` settings.
-
-        Args:
-            overrides: ``Simulation`` keyword arguments replacing those of the file.
-        """
-        kwargs = {**self.simulation, **overrides}
-        if "dt" not in kwargs:
-            raise SceneError(
-                "missing key 'dt'", file=self.file, field="simulation.dt", hint="the time step in s"
-            )
-        model = self.build_model()
-        try:
-            return Simulation(model, **kwargs)
-        except SceneError as err:
-            raise err.located(file=self.file) from None
-        except ValueError as err:
-            raise SceneError(str(err), file=self.file, field="simulation") from None
 
 
 def loads(text: str, *, file: str | None = None, base_dir: str | Path | None = None) -> SceneFile:

@@ -29,6 +29,7 @@ import numpy as np
 from bfemp.contact.adaptive import AdaptiveKappa
 from bfemp.contact.friction import FrictionTerm
 from bfemp.contact.term import BarrierTerm
+from bfemp.diagnostics import contact_forces_between_bodies
 from bfemp.dofs import DofLayout
 from bfemp.frames import NodeFrames
 from bfemp.integrators import Integrator
@@ -455,6 +456,9 @@ class BarrierStepper:
             pairs=int(bar.pairs.n_pairs),
             energy=float(bar.value(None)),
             parameters={"kappa": float(bar.kappa)},
+            body_forces=contact_forces_between_bodies(
+                model, cs.point_body, bar.pair_point_forces()
+            ),
         )
 
     def checkpoint_data(self) -> dict[str, np.ndarray]:

@@ -198,6 +198,8 @@ class ContactView:
         energy: contact (barrier) energy in J (J/m in 2D); NaN when the strategy has no
             contact energy.
         parameters: strategy-specific scalars worth recording per step (barrier: ``kappa``).
+        body_forces: total contact force ``(B, B, d)`` in N (N/m in 2D), ``[a, b]`` on body a
+            from body b (FEM bodies first, then MPM bodies); None when not known.
     """
 
     fem_forces: np.ndarray
@@ -206,6 +208,7 @@ class ContactView:
     pairs: int = 0
     energy: float = float("nan")
     parameters: Mapping[str, float] = field(default_factory=dict)
+    body_forces: np.ndarray | None = None
 
     @classmethod
     def empty(cls, n_fem_nodes: int, n_particles: int, dim: int, **kwargs: Any) -> ContactView:

@@ -50,9 +50,11 @@ def _run(sim, out, t_end=T_END, **kwargs):
 
 @pytest.fixture(scope="module", autouse=True)
 def no_plots():
-    """The metrics PNG (0.6 s per run with matplotlib) is not what these tests check."""
+    """The metrics and snapshot PNGs (0.6 s per run with matplotlib) are not what these tests
+    check."""
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(bfemp.simulation, "plot_metrics", lambda *args, **kwargs: None)
+        mp.setattr(bfemp.simulation, "write_snapshot_sheet", lambda *args, **kwargs: None)
         yield
 
 
@@ -231,3 +233,36 @@ def test_contact_with_adaptive_kappa_resumes_bit_for_bit(tmp_path):
             assert np.array_equal(
                 _bits(reference.metrics.column(c)), _bits(resumed.metrics.column(c))
             ), c
+
+
+def test_an_interrupt_in_the_final_writes_leaves_the_manifest_interrupted(tmp_path, monkeypatch):
+    def interrupted_plot(*args, **kwargs):
+        raise KeyboardInterrupt  # Ctrl-C (twice) while the metrics PNG is drawn
+
+    monkeypatch.setattr(bfemp.simulation, "plot_metrics", interrupted_plot)
+    with pytest.raises(KeyboardInterrupt):
+        _run(_sim(), tmp_path, t_end=2 * DT)
+    manifest = json.loads((tmp_path / "manifest.json").read_text())
+    assert manifest["status"] == "interrupted" and manifest["sessions"][-1]["status"] != "running"
+    assert "metrics.png" in manifest["message"] and "not written" in manifest["message"]
+    # the metrics table and the checkpoint come first: the run resumes from its end
+    assert read_checkpoint(tmp_path).state.step == 2
+    assert len(MetricsLog.from_csv(tmp_path / "metrics.csv")) == 3
+
+
+def test_a_first_ctrl_c_in_the_final_writes_lets_them_finish(tmp_path, monkeypatch):
+    written = []
+
+    def plot_then_ctrl_c(*args, **kwargs):
+        os.kill(os.getpid(), signal.SIGINT)
+        written.append("metrics.png")
+
+    monkeypatch.setattr(bfemp.simulation, "plot_metrics", plot_then_ctrl_c)
+    monkeypatch.setattr(
+        bfemp.simulation, "write_snapshot_sheet", lambda out: written.append("snapshots.png")
+    )
+    with pytest.raises(KeyboardInterrupt):
+        _run(_sim(), tmp_path, t_end=2 * DT)
+    assert written == ["metrics.png", "snapshots.png"]
+    manifest = json.loads((tmp_path / "manifest.json").read_text())
+    assert manifest["status"] == "interrupted" and "(all written)" in manifest["message"]

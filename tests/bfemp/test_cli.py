@@ -58,8 +58,9 @@ def scene_file(tmp_path):
 
 @pytest.fixture
 def no_plots(monkeypatch):
-    """Skip the metrics PNG (0.6 s per run) where a test does not look at it."""
+    """Skip the metrics and snapshot PNGs (0.6 s per run) where a test does not look at them."""
     monkeypatch.setattr(bfemp.simulation, "plot_metrics", lambda *args, **kwargs: None)
+    monkeypatch.setattr(bfemp.simulation, "write_snapshot_sheet", lambda *args, **kwargs: None)
 
 
 def _run(*args):
@@ -118,7 +119,7 @@ def test_resume_towards_an_end_time_before_the_checkpoint_is_refused(
     assert "at t = 0.04 s" in err, err
     # nothing was touched: the run can still be resumed
     assert ((out / "checkpoint.json").read_text(), (out / "manifest.json").read_text()) == before
-    sim = bfemp.scenefile.load(scene_file).make_simulation()  # the Python API refuses it too
+    sim = bfemp.Simulation.from_file(scene_file)  # the Python API refuses it too
     with pytest.raises(ValueError, match=r"t_end = 0.02 s is earlier than the time t = 0.04 s of"):
         sim.run(0.02, out=out, resume=True, progress=False)
     assert _run(scene_file, "--out", out, "--resume") == 0
@@ -172,6 +173,21 @@ def test_a_failing_check_exits_1_and_dry_run_only_reads(scene_file, tmp_path, ca
     assert _run(scene_file, "--out", tmp_path / "dry", "--dry-run") == 0
     assert "tiny.toml: ok: 33 FEM nodes" in capsys.readouterr().out
     assert not (tmp_path / "dry").exists()
+
+
+def test_a_second_run_into_the_same_folder_needs_overwrite(scene_file, tmp_path, capsys, no_plots):
+    out = tmp_path / "out"
+    assert _run(scene_file, "--out", out) == 0
+    (out / "scene.toml").write_text("# the first run's scene\n")
+    err = _error(capsys, ["run", str(scene_file), "--out", str(out), "--quiet"])
+    assert "holds the outputs of an earlier run" in err and "--overwrite" in err
+    assert (out / "scene.toml").read_text() == "# the first run's scene\n"  # nothing touched
+    (out / "beam").joinpath("frame_00099.vtu").write_text("stale")
+    assert _run(scene_file, "--out", out, "--overwrite", "--animate", "gif") == 0
+    assert not (out / "beam" / "frame_00099.vtu").exists()
+    assert (out / "animation.gif").read_bytes()[:6] == b"GIF89a"
+    assert (out / "scene.toml").read_text() == TINY
+    assert json.loads((out / "manifest.json").read_text())["sessions"][0]["resumed"] is False
 
 
 def test_ctrl_c_exits_130_with_the_resume_command(scene_file, tmp_path, capsys, monkeypatch):

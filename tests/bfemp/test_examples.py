@@ -6,7 +6,9 @@ import meshio
 import numpy as np
 import pytest
 
+import bfemp
 from bfemp import scenefile
+from bfemp.checkpoint import model_fingerprint
 from bfemp.io.vtk import read_pvd
 from bfemp.scenefile.checks import CheckRecorder, evaluate_checks
 
@@ -26,7 +28,7 @@ def test_example_runs_quick_and_passes_its_checks(path, tmp_path):
     assert set(sf.check) - {"description", "finite"}, "an example must assert something"
     settings = sf.run_settings(quick=True)
     assert settings["t_end"] < sf.run_settings()["t_end"]
-    sim = sf.make_simulation()
+    sim = bfemp.Simulation.from_file(sf)
     recorder = CheckRecorder()
     recorder.record(sim)
     sim.run(
@@ -47,11 +49,15 @@ def test_example_runs_quick_and_passes_its_checks(path, tmp_path):
         data = {**last.point_data, **last.cell_data}
         assert {"velocity", "J", "von_mises"} <= set(data), (body.name, set(data))
     assert len(names) == len(set(names))
+    # the run's scene.toml rebuilds the same model (the README's promise for every run folder)
+    again = scenefile.load(tmp_path / "scene.toml")
+    assert model_fingerprint(again.build_model()) == model_fingerprint(sim.model)
+    assert again.simulation["dt"] == sim.dt
 
 
 def test_a_failing_check_is_reported():
     sf = scenefile.load(EXAMPLES[0])
-    sim = sf.make_simulation()
+    sim = bfemp.Simulation.from_file(sf)
     recorder = CheckRecorder()
     recorder.record(sim)
     sim.step()

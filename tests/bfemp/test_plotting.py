@@ -22,7 +22,7 @@ def _log(n=30):
             "energy_elastic": 0.5 * np.sin(10 * t[i]) ** 2,
             "momentum_x": 1.0,
             "momentum_y": -9.81 * t[i],
-            "newton_iterations": 2 + i % 4,
+            "iterations_newton": 2 + i % 4,
             "time_assembly": 1e-3 * (1 + i % 3),
             "min_distance": 1e-3,
         }
@@ -48,18 +48,18 @@ def test_plot_metrics_writes_png_with_one_panel_per_group(tmp_path):
     _assert_real_png(path)
     fig = metrics_figure(log)
     titles = [ax.get_title() for ax in fig.axes]
-    assert titles == ["energies", "momenta", "newton iterations", "min distance", "timings"]
+    assert titles == ["energies", "momenta", "iterations", "min distance", "timings"]
     labels = [[line.get_label() for line in ax.get_lines()] for ax in fig.axes]
     assert labels == [
         ["energy_kinetic", "energy_elastic"],
         ["momentum_x", "momentum_y"],
-        ["newton_iterations"],
+        ["iterations_newton"],
         ["min_distance"],
         ["time_assembly"],
     ]
     np.testing.assert_array_equal(fig.axes[0].get_lines()[0].get_xdata(), log.column("t"))
     # Panels share the x axis; the bottom one carries its label.
-    assert fig.axes[-1].get_xlabel() == "t"
+    assert fig.axes[-1].get_xlabel() == "t [s]"
 
 
 def test_plot_metrics_skips_absent_groups_and_takes_custom_groups(tmp_path):
@@ -149,3 +149,25 @@ def test_plot_bars_writes_a_png_and_rejects_mismatched_groups(tmp_path):
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     with pytest.raises(ValueError, match="groups\\['x'\\]"):
         plot_bars(["a", "b"], {"x": [1.0]}, tmp_path / "c.png")
+
+
+def test_metrics_figure_is_readable_at_a_glance():
+    """Every curve of a panel has its own colour, every axis a unit, legends beside the axes."""
+    phases = [f"time_{p}" for p in "abcdefghijkl"]  # 12 timing curves, as a contact run has
+    rows = [{"t": 0.01 * i, "energy_kinetic": 1.0, "energy_elastic": 2.0, "energy_total": 3.0,
+             "momentum_x": 0.1 * i, "momentum_y": 0.0, "min_distance": 1e-3,
+             **{p: 1e-3 * (k + 1) for k, p in enumerate(phases)}} for i in range(20)]  # fmt: skip
+    fig = metrics_figure(MetricsLog(rows))
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    for ax in fig.axes:
+        styles = [(line.get_color(), line.get_linestyle()) for line in ax.get_lines()]
+        assert len(set(styles)) == len(styles), (ax.get_title(), styles)
+        assert "[" in ax.get_ylabel() or "iterations" in ax.get_ylabel(), ax.get_title()
+        legend = ax.get_legend()
+        if legend is not None:  # right of the axes box: over no curve and no tick label
+            assert legend.get_window_extent(renderer).x0 >= ax.get_window_extent(renderer).x1
+    timings = fig.axes[-1]
+    assert len(timings.get_lines()) == 12 and timings.get_yscale() == "log"
+    assert fig.axes[-1].get_xlabel() == "t [s]"
+    assert fig.axes[0].get_ylabel().startswith("energy [J]")

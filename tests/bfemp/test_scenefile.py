@@ -219,7 +219,7 @@ def test_units_are_converted_and_settings_read():
     assert sf.scene._fem[0].material.E == 5e6
     assert sf.run_settings() == {"t_end": 0.05, "every": 2, "checkpoint_every": 0}
     assert sf.run_settings(t_end=0.2)["t_end"] == 0.2
-    sim = sf.make_simulation()
+    sim = bfemp.Simulation.from_file(sf)
     assert sim.dt == 0.01 and sim.integrator.name == "newmark"
     clamped = sim.model.fem_prescribed
     assert np.array_equal(clamped, sim.model.fem_X[:, 0] <= 1e-9)
@@ -333,7 +333,7 @@ def test_missing_settings_are_named():
     with pytest.raises(SceneError, match=r"x.toml: run.t_end: missing.*--t-end"):
         sf.run_settings()
     with pytest.raises(SceneError, match=r"x.toml: simulation.dt: missing"):
-        sf.make_simulation()
+        bfemp.Simulation.from_file(sf)
 
 
 @pytest.mark.parametrize(

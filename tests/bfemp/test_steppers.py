@@ -152,7 +152,7 @@ def test_scene_file_options_table_is_read_checked_and_written(tmp_path):
     assert "[simulation.options]" in text
     sf = scenefile.loads(text)
     assert sf.simulation["options"] == BarrierOptions(tol=2e-6, max_newton_iterations=40)
-    sim = sf.make_simulation()
+    sim = bfemp.Simulation.from_file(sf)
     assert sim.settings["tol"] == 2e-6 and sim.settings["max_newton_iterations"] == 40
     sim.run(4e-3, progress=False)
     assert sim.state.step == 4

@@ -1,0 +1,355 @@
+"""Pictures of the bodies without ParaView: a snapshot sheet (PNG) and an animation (GIF, MP4).
+
+Both are drawn from the frames of a run folder (the ``BODY.pvd`` collections and their VTU
+files, read with meshio) or from a list of :class:`Snapshot` (made from ``Simulation.
+frame_blocks()`` with :func:`snapshot_from_blocks`). FEM meshes are drawn as their cells (2D) or
+boundary triangles (3D, mplot3d), coloured by the cells' von Mises stress; MPM particles as dots
+coloured by theirs. One colour scale (0 to the largest stress of the frames drawn, in Pa) and one
+set of axis limits serve every panel, so that panels compare at a glance.
+
+Choices:
+
+- The sheet shows up to :data:`SHEET_PANELS` frames evenly spaced over the run (first and last
+  frame included); only those VTU files are read, so it costs a fraction of a second. The last
+  panel is the last *frame*: with ``every > 1`` the end state is drawn only when it was a frame.
+- Figures are ``matplotlib.figure.Figure`` on an Agg canvas (never pyplot). GIFs are written by
+  matplotlib's ``PillowWriter`` (Pillow comes with matplotlib); MP4 needs ``ffmpeg`` on the
+  ``PATH`` (matplotlib's ``FFMpegWriter``); without it :func:`check_animation_format` raises a
+  ``RuntimeError`` saying so, before a run starts.
+- An animation draws every frame of the folder, at most ``max_frames`` (evenly subsampled).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import meshio
+import numpy as np
+from matplotlib import animation as mpl_animation
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.cm import ScalarMappable
+from matplotlib.colors import Normalize
+from matplotlib.figure import Figure
+
+from bfemp.io.vtk import atomic_path, read_pvd
+
+__all__ = [
+    "SHEET_PANELS",
+    "BodyView",
+    "Snapshot",
+    "check_animation_format",
+    "read_snapshots",
+    "snapshot_figure",
+    "snapshot_from_blocks",
+    "write_animation",
+    "write_snapshot_sheet",
+]
+
+log = logging.getLogger(__name__)
+
+#: number of frames on the snapshot sheet (at most)
+SHEET_PANELS = 6
+_CMAP = "viridis"
+_FACES = np.array([[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]])
+
+
+@dataclass(frozen=True)
+class BodyView:
+    """One body at one instant, as drawn.
+
+    Attributes:
+        name: body name.
+        points: ``(n, d)`` positions in m (d = 2 or 3).
+        cells: ``(m, d + 1)`` cell vertex indices of a FEM mesh, or None for particles.
+        von_mises: ``(m,)`` per cell (FEM) or ``(n,)`` per particle, in Pa.
+    """
+
+    name: str
+    points: np.ndarray
+    cells: np.ndarray | None
+    von_mises: np.ndarray
+
+
+@dataclass(frozen=True)
+class Snapshot:
+    """The bodies at time ``t`` (s)."""
+
+    t: float
+    bodies: tuple[BodyView, ...]
+
+    @property
+    def dim(self) -> int:
+        """Spatial dimension of the bodies (2 or 3)."""
+        return max(b.points.shape[1] for b in self.bodies)
+
+
+def snapshot_from_blocks(t: float, blocks: Sequence[object]) -> Snapshot:
+    """A snapshot from ``bfemp.io.Block`` s (e.g. ``Simulation.frame_blocks()``) at ``t`` s."""
+    bodies = []
+    for b in blocks:
+        data = b.point_data if b.cells is None else b.cell_data
+        vm = np.asarray(
+            data.get("von_mises", np.zeros(len(b.points if b.cells is None else b.cells)))
+        )
+        bodies.append(BodyView(b.name, np.asarray(b.points), b.cells, vm))
+    return Snapshot(float(t), tuple(bodies))
+
+
+def _body_from_mesh(name: str, mesh: meshio.Mesh, dim: int) -> BodyView:
+    block = mesh.cells[0]
+    points = np.asarray(mesh.points[:, :dim], dtype=np.float64)
+    if block.type in ("triangle", "tetra"):
+        vm = mesh.cell_data.get("von_mises", [np.zeros(len(block.data))])[0]
+        return BodyView(name, points, np.asarray(block.data), np.asarray(vm, dtype=np.float64))
+    vm = mesh.point_data.get("von_mises", np.zeros(len(points)))
+    return BodyView(name, points, None, np.asarray(vm, dtype=np.float64))
+
+
+def _collections(out: Path) -> dict[str, dict[float, Path]]:
+    pvds = sorted(Path(out).glob("*.pvd"))
+    if not pvds:
+        raise ValueError(f"{out} holds no .pvd collection: no frames to draw")
+    return {p.stem: dict(read_pvd(p)) for p in pvds}
+
+
+def _evenly(n: int, count: int) -> list[int]:
+    """``count`` indices (at most ``n``) evenly spaced over ``range(n)``, first and last kept."""
+    if n <= count:
+        return list(range(n))
+    return sorted({int(round(i)) for i in np.linspace(0, n - 1, count)})
+
+
+def read_snapshots(out: str | Path, count: int | None = SHEET_PANELS) -> list[Snapshot]:
+    """Snapshots of up to ``count`` frames evenly spaced over the run in folder ``out``.
+
+    ``count=None`` reads every frame. Only the VTU files of the chosen frames are read.
+    """
+    collections = _collections(Path(out))
+    times = sorted({t for entries in collections.values() for t in entries})
+    chosen = [times[i] for i in (_evenly(len(times), count) if count else range(len(times)))]
+    meshes = {
+        t: {name: meshio.read(e[t]) for name, e in collections.items() if t in e} for t in chosen
+    }
+    three_d = any(
+        m.cells[0].type == "tetra" or np.any(m.points[:, 2] != 0.0)
+        for frame in meshes.values()
+        for m in frame.values()
+    )
+    dim = 3 if three_d else 2
+    return [
+        Snapshot(t, tuple(_body_from_mesh(n, m, dim) for n, m in frame.items()))
+        for t, frame in meshes.items()
+    ]
+
+
+def _boundary_faces(cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Boundary triangles ``(f, 3)`` of a tetrahedral mesh and the cell of each ``(f,)``."""
+    faces = cells[:, _FACES].reshape(-1, 3)
+    owner = np.repeat(np.arange(cells.shape[0]), 4)
+    key = np.sort(faces, axis=1)
+    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    once = counts[inverse.reshape(-1)] == 1
+    return faces[once], owner[once]
+
+
+def _limits(snapshots: Sequence[Snapshot], dim: int) -> np.ndarray:
+    """Common axis limits ``(dim, 2)`` in m over all bodies of all snapshots (5 % margin)."""
+    pts = [b.points[np.isfinite(b.points).all(axis=1)] for s in snapshots for b in s.bodies]
+    pts = np.concatenate([p for p in pts if p.size] or [np.zeros((1, dim))])
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    pad = 0.05 * max(float(np.max(hi - lo)), 1e-12)
+    return np.stack([lo - pad, hi + pad], axis=1)
+
+
+def _norm(snapshots: Sequence[Snapshot]) -> Normalize:
+    values = [b.von_mises[np.isfinite(b.von_mises)] for s in snapshots for b in s.bodies]
+    vmax = max((float(v.max()) for v in values if v.size), default=0.0)
+    return Normalize(vmin=0.0, vmax=vmax if vmax > 0.0 else 1.0)
+
+
+def _dot_size(n_points: int) -> float:
+    return float(np.clip(2000.0 / max(n_points, 1), 0.3, 8.0))
+
+
+def _draw(ax: object, snap: Snapshot, norm: Normalize, limits: np.ndarray) -> None:
+    """Draw the bodies of ``snap`` on ``ax`` (2D axes or mplot3d axes)."""
+    cmap = _CMAP
+    dim = limits.shape[0]
+    n_particles = sum(len(b.points) for b in snap.bodies if b.cells is None)
+    if dim == 3:
+        ax.computed_zorder = False  # particles over the meshes, not hidden behind their faces
+    meshes = [b for b in snap.bodies if b.cells is not None]
+    clouds = [b for b in snap.bodies if b.cells is None]
+    for body in meshes:
+        p = body.points
+        if dim == 2:
+            ax.tripcolor(
+                p[:, 0],
+                p[:, 1],
+                body.cells,
+                facecolors=body.von_mises,
+                cmap=cmap,
+                norm=norm,
+                edgecolors="0.25",
+                linewidth=0.2,
+            )
+        else:
+            from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+            faces, owner = _boundary_faces(body.cells)
+            colours = ScalarMappable(norm=norm, cmap=cmap).to_rgba(body.von_mises[owner])
+            ax.add_collection3d(
+                Poly3DCollection(
+                    p[faces], facecolors=colours, edgecolors="0.25", linewidths=0.1, zorder=1
+                )
+            )
+    for body in clouds:
+        p = body.points
+        kw = {"depthshade": False} if dim == 3 else {}
+        ax.scatter(
+            *p[:, :dim].T,
+            c=body.von_mises,
+            cmap=cmap,
+            norm=norm,
+            s=_dot_size(n_particles),
+            edgecolors="white" if dim == 3 else "none",  # unstressed dots stay visible on a mesh
+            linewidths=0.3,
+            zorder=2,
+            **kw,
+        )
+    ax.set_xlim(*limits[0])
+    ax.set_ylim(*limits[1])
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    if dim == 3:
+        ax.set_zlim(*limits[2])
+        ax.set_zlabel("z [m]")
+        ax.set_box_aspect(tuple(np.maximum(limits[:, 1] - limits[:, 0], 1e-12)))
+    else:
+        ax.set_aspect("equal")
+    ax.set_title(f"t = {snap.t:.4g} s", fontsize="medium")
+
+
+def snapshot_figure(snapshots: Sequence[Snapshot], *, title: str | None = None) -> Figure:
+    """A sheet with one panel per snapshot (3 per row) and one von Mises colour bar.
+
+    Returns:
+        the figure (Agg canvas); its panels are the axes titled ``t = ... s``.
+    """
+    if not snapshots:
+        raise ValueError("snapshot_figure: no snapshot to draw")
+    dim = max(s.dim for s in snapshots)
+    n = len(snapshots)
+    ncols = min(3, n)
+    nrows = math.ceil(n / ncols)
+    limits = _limits(snapshots, dim)
+    span = np.maximum(limits[:, 1] - limits[:, 0], 1e-12)
+    aspect = float(np.clip(span[1] / span[0], 0.3, 1.5)) if dim == 2 else 0.9
+    fig = Figure(figsize=(4.0 * ncols + 1.0, 4.0 * aspect * nrows + 0.8), layout="constrained")
+    FigureCanvasAgg(fig)
+    norm = _norm(snapshots)
+    kw = {"projection": "3d"} if dim == 3 else {}
+    axes = [fig.add_subplot(nrows, ncols, i + 1, **kw) for i in range(n)]
+    for ax, snap in zip(axes, snapshots, strict=True):
+        _draw(ax, snap, norm, limits)
+    fig.colorbar(
+        ScalarMappable(norm=norm, cmap=_CMAP), ax=axes, label="von Mises stress [Pa]", shrink=0.9
+    )
+    names = sorted({b.name for s in snapshots for b in s.bodies})
+    fig.suptitle(title or f"bodies: {', '.join(names)}")
+    return fig
+
+
+def write_snapshot_sheet(
+    out: str | Path,
+    path: str | Path | None = None,
+    *,
+    snapshots: Sequence[Snapshot] | None = None,
+    count: int = SHEET_PANELS,
+    title: str | None = None,
+) -> Path:
+    """Write the snapshot sheet PNG (default ``{out}/snapshots.png``) of run folder ``out``.
+
+    Args:
+        out: the run folder (its frames are read unless ``snapshots`` are given).
+        path: the PNG file.
+        snapshots: draw these instead of the folder's frames.
+        count: number of frames drawn (evenly spaced over the run).
+        title: sheet title (default: the body names).
+    """
+    path = Path(out) / "snapshots.png" if path is None else Path(path)
+    snaps = read_snapshots(out, count) if snapshots is None else list(snapshots)
+    fig = snapshot_figure(snaps, title=title)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=100)
+    log.info("snapshot sheet of %d frames written to %s", len(snaps), path)
+    return path
+
+
+def check_animation_format(fmt: str) -> str:
+    """``fmt`` if it is an animation format that can be written here, else an error.
+
+    Raises:
+        ValueError: ``fmt`` is not ``"gif"`` or ``"mp4"``.
+        RuntimeError: ``"mp4"`` without ``ffmpeg`` on the ``PATH``.
+    """
+    if fmt not in ("gif", "mp4"):
+        raise ValueError(f"animation must be 'gif' or 'mp4', got {fmt!r}")
+    if fmt == "mp4" and not mpl_animation.FFMpegWriter.isAvailable():
+        raise RuntimeError(
+            "animation='mp4' needs ffmpeg on the PATH (not found); install ffmpeg or use 'gif'"
+        )
+    return fmt
+
+
+def write_animation(
+    out: str | Path,
+    fmt: str = "gif",
+    path: str | Path | None = None,
+    *,
+    fps: float = 10.0,
+    max_frames: int = 200,
+) -> Path:
+    """Write an animation of the frames of run folder ``out`` (default ``{out}/animation.FMT``).
+
+    Args:
+        out: the run folder.
+        fmt: ``"gif"`` (Pillow) or ``"mp4"`` (ffmpeg).
+        path: the file (its suffix should be ``.FMT``).
+        fps: frames per second.
+        max_frames: at most this many frames (evenly subsampled).
+    """
+    check_animation_format(fmt)
+    path = Path(out) / f"animation.{fmt}" if path is None else Path(path)
+    snaps = read_snapshots(out, None)
+    snaps = [snaps[i] for i in _evenly(len(snaps), max_frames)]
+    dim = max(s.dim for s in snaps)
+    limits, norm = _limits(snaps, dim), _norm(snaps)
+    fig = Figure(figsize=(6.4, 5.0), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(projection="3d") if dim == 3 else fig.add_subplot()
+    fig.colorbar(ScalarMappable(norm=norm, cmap=_CMAP), ax=ax, label="von Mises stress [Pa]")
+
+    def update(i: int) -> list:
+        ax.clear()
+        _draw(ax, snaps[i], norm, limits)
+        return []
+
+    anim = mpl_animation.FuncAnimation(fig, update, frames=len(snaps), blit=False)
+    writer = (
+        mpl_animation.PillowWriter(fps=fps) if fmt == "gif" else mpl_animation.FFMpegWriter(fps=fps)
+    )
+    tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp{path.suffix}")
+    try:
+        anim.save(tmp, writer=writer, dpi=90)
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    log.info("animation of %d frames written to %s", len(snaps), path)
+    return path
