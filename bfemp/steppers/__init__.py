@@ -7,11 +7,12 @@ from __future__ import annotations
 
 from bfemp.steppers.base import StepError, StepReport
 from bfemp.steppers.implicit import ImplicitStepper
+from bfemp.steppers.single_field import SingleFieldStepper
 
 __all__ = ["STRATEGIES", "StepError", "StepReport", "ImplicitStepper", "stepper_class"]
 
 #: strategy name -> stepper class. "barrier" is BFEMP (implicit incremental potential).
-STRATEGIES = {"barrier": ImplicitStepper}
+STRATEGIES = {"barrier": ImplicitStepper, "single_field": SingleFieldStepper}
 
 
 def stepper_class(strategy: str) -> type:
