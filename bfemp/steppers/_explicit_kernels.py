@@ -21,6 +21,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from bfemp.mpm._transfer_kernels import _cholesky_solve_rows
+
 #: the slabs may hold at most this many times the grid; fewer chunks are taken beyond it
 SLAB_BUDGET = 4
 
@@ -169,3 +171,139 @@ def p2g_with_forces(
     out = np.empty((n_grid, 1 + 2 * d))
     _reduce_slabs(scratch, lo, hi, offset, out)
     return out[:, 0].copy(), out[:, 1 : 1 + d].copy(), out[:, 1 + d :].copy()
+
+
+@njit(cache=True, parallel=True)
+def _g2p_explicit(
+    nodes: np.ndarray,
+    weights: np.ndarray,
+    grads: np.ndarray,
+    grid_x: np.ndarray,
+    grid_v_old: np.ndarray,
+    grid_v: np.ndarray,
+    dt: float,
+    mpm_x: np.ndarray,
+    mpm_v: np.ndarray,
+    mpm_F: np.ndarray,
+    flip: bool,
+    apic: bool,
+    n_chunks: int,
+    out_x: np.ndarray,
+    out_v: np.ndarray,
+    out_F: np.ndarray,
+    out_C: np.ndarray,
+    singular: np.ndarray,
+) -> None:
+    """G2P of ``grid_to_particles`` with x~_i = x_i + dt v_i, allocation-free per particle.
+
+    x_p = sum_i w x~_i; F_p = (sum_i x~_i grad w^T) F_p^n; v_p = sum_i w v_i (PIC, APIC) or
+    v_p^n + sum_i w (v_i - v_i^n) (FLIP); APIC: C_p = B_p D_p^-1 with the symmetrised B_p of
+    Table 1 (a_i = x_i - x_p^n, b_i = x~_i - x_p^{n+1}). Each particle writes only its own rows;
+    the d x d scratch matrices are per chunk (no heap allocation per particle).
+    """
+    n_p, k = nodes.shape
+    d = grid_x.shape[1]
+    for c in prange(n_chunks):
+        G = np.empty((d, d))
+        B = np.empty((d, d))
+        D = np.empty((d, d))
+        C = np.empty((d, d))
+        xn = np.empty(d)
+        for p in range(c * n_p // n_chunks, (c + 1) * n_p // n_chunks):
+            for r in range(d):
+                xn[r] = 0.0
+                out_v[p, r] = mpm_v[p, r] if flip else 0.0
+                for s in range(d):
+                    G[r, s] = 0.0
+            for a in range(k):
+                i = nodes[p, a]
+                w = weights[p, a]
+                for r in range(d):
+                    xr = grid_x[i, r] + dt * grid_v[i, r]
+                    xn[r] += w * xr
+                    if flip:
+                        out_v[p, r] += w * (grid_v[i, r] - grid_v_old[i, r])
+                    else:
+                        out_v[p, r] += w * grid_v[i, r]
+                    for s in range(d):
+                        G[r, s] += xr * grads[p, a, s]
+            for r in range(d):
+                out_x[p, r] = xn[r]
+                for s in range(d):
+                    acc = 0.0
+                    for m in range(d):
+                        acc += G[r, m] * mpm_F[p, m, s]
+                    out_F[p, r, s] = acc
+            singular[p] = False
+            if not apic:
+                continue
+            for r in range(d):
+                for s in range(d):
+                    B[r, s] = 0.0
+                    D[r, s] = 0.0
+            for a in range(k):
+                i = nodes[p, a]
+                w = weights[p, a]
+                for r in range(d):
+                    ar = grid_x[i, r] - mpm_x[p, r]
+                    br = grid_x[i, r] + dt * grid_v[i, r] - xn[r]
+                    vr = grid_v[i, r]
+                    for s in range(d):
+                        as_ = grid_x[i, s] - mpm_x[p, s]
+                        bs = grid_x[i, s] + dt * grid_v[i, s] - xn[s]
+                        B[r, s] += 0.5 * w * (vr * (as_ + bs) + (ar - br) * grid_v[i, s])
+                        D[r, s] += w * ar * as_
+            if _cholesky_solve_rows(D, B, C):
+                for r in range(d):
+                    for s in range(d):
+                        out_C[p, r, s] = C[r, s]
+            else:
+                singular[p] = True
+                for r in range(d):
+                    for s in range(d):
+                        out_C[p, r, s] = 0.0
+
+
+def g2p_explicit(
+    scheme: str,
+    nodes: np.ndarray,
+    weights: np.ndarray,
+    grads: np.ndarray,
+    grid_x: np.ndarray,
+    grid_v_old: np.ndarray,
+    grid_v: np.ndarray,
+    dt: float,
+    mpm_x: np.ndarray,
+    mpm_v: np.ndarray,
+    mpm_F: np.ndarray,
+    n_chunks: int,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(mpm_x, mpm_v, mpm_F, mpm_C)`` after G2P of the explicit step (see ``_g2p_explicit``).
+
+    Args:
+        scheme: ``"apic"``, ``"pic"`` or ``"flip"``.
+        nodes, weights, grads: stencils at x_p^n ``(P, K)``, ``(P, K)``, ``(P, K, d)`` (1/m).
+        grid_x: node positions x_i^n ``(G, d)`` in m.
+        grid_v_old: P2G velocities v_i^n ``(G, d)`` in m/s (FLIP).
+        grid_v: end velocities v_i ``(G, d)`` in m/s.
+        dt: time step in s.
+        mpm_x, mpm_v, mpm_F: particle state at t^n.
+        n_chunks: particle ranges processed in parallel.
+    """
+    n_p, d = mpm_x.shape
+    out_x = np.empty((n_p, d))
+    out_v = np.empty((n_p, d))
+    out_F = np.empty((n_p, d, d))
+    out_C = np.zeros((n_p, d, d))
+    singular = np.zeros(n_p, dtype=np.bool_)
+    _g2p_explicit(
+        nodes, weights, grads, grid_x, grid_v_old, grid_v, float(dt), mpm_x, mpm_v, mpm_F,
+        scheme == "flip", scheme == "apic", max(1, min(int(n_chunks), n_p)),
+        out_x, out_v, out_F, out_C, singular,
+    )  # fmt: skip
+    if singular.any():
+        raise ValueError(
+            "APIC inertia D_p = sum_i w_ip (x_i - x_p)(x_i - x_p)^T is singular at particles "
+            f"{np.flatnonzero(singular)[:10]} (degenerate stencil weights)"
+        )
+    return out_x, out_v, out_F, out_C

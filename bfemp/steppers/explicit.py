@@ -17,9 +17,14 @@ One step (symplectic Euler, ``bfemp.integrators.SYMPLECTIC_EULER``; USL for MPM)
    v - v_b removed; separate: as slip while (v* - v_b) . n < 0, free otherwise (decided on v*,
    the velocity the node would move with). The reaction m_i (v - v*) / dt of each boundary's
    nodes is reported in ``StepReport.boundary_forces`` (sticky nodes included).
-6. FEM: x += dt v (scripted nodes: their scripted positions); MPM: G2P
-   (``bfemp.mpm.transfer.grid_to_particles``) with x~_i = x_i + dt v_i, which gives
-   x_p += dt v_p and F_p <- (I + dt grad v) F_p by linear completeness.
+6. FEM: x += dt v (scripted nodes: their scripted positions); MPM: G2P, the transfer of
+   ``bfemp.mpm.transfer.grid_to_particles`` with x~_i = x_i + dt v_i (which gives x_p += dt v_p
+   and F_p <- (I + dt grad v) F_p by linear completeness) in an allocation-free kernel
+   (``_explicit_kernels.g2p_explicit``, the same arithmetic; the general one allocates four
+   d x d matrices per particle, which made it 5x slower at 131k particles).
+
+Stencils come from ``geometry.fast_stencils`` (the same as ``particle_stencils``, compacted in
+numba: its numpy compaction cost 5x the B-spline kernel per step).
 
 Why a fused P2G kernel rather than the terms for MPM: ``MpmElasticityTerm.begin_step`` builds the
 node-pair pattern of the Hessian (a serial neighbour table and (G 5^d d^2) row/column arrays)
@@ -55,10 +60,11 @@ from bfemp.integrators import SYMPLECTIC_EULER, ExplicitIntegrator, integrator_f
 from bfemp.model import Model
 from bfemp.mpm.boundaries import GridConstraints, grid_constraints
 from bfemp.mpm.elasticity import MpmElasticityTerm
-from bfemp.mpm.transfer import SCHEMES, grid_to_particles
+from bfemp.mpm.transfer import SCHEMES
 from bfemp.potential import IncrementalPotential
 from bfemp.state import State
-from bfemp.steppers._explicit_kernels import p2g_with_forces
+from bfemp.steppers._dense2d_kernels import DenseBox, dense_g2p, dense_p2g
+from bfemp.steppers._explicit_kernels import g2p_explicit, p2g_with_forces
 from bfemp.steppers.base import ContactView, StepError, StepperOptions, StepReport
 from bfemp.steppers.stable_dt import StableStep, stable_time_step
 from bfemp.terms import (
@@ -69,7 +75,8 @@ from bfemp.terms import (
     StepContext,
     fem_cell_stencils,
 )
-from geometry.grid import ParticleStencils, particle_stencils
+from geometry.fast_stencils import fast_particle_stencils
+from geometry.grid import Grid, ParticleStencils
 
 __all__ = ["ExplicitOptions", "ExplicitStep", "ExplicitStepper"]
 
@@ -111,7 +118,8 @@ class ExplicitStep:
 
     Attributes:
         t: start time t^n in s; ``t_next`` = t^{n+1}; ``dt`` in s.
-        stencils: particle stencils at x_p^n (None without particles).
+        grid_x: positions x_i^n of the active grid nodes ``(G, d)`` in m (the active nodes and
+            their order are those of ``particle_stencils``; ``stencils()`` gives the stencils).
         grid_mass: node masses ``(G,)`` in kg (kg/m in 2D).
         grid_v: P2G node velocities v_i^n ``(G, d)`` in m/s.
         grid_force: internal + gravity forces on the nodes ``(G, d)`` in N (N/m in 2D).
@@ -122,12 +130,23 @@ class ExplicitStep:
     t: float
     t_next: float
     dt: float
-    stencils: ParticleStencils | None
+    grid_x: np.ndarray
     grid_mass: np.ndarray
     grid_v: np.ndarray
     grid_force: np.ndarray
     fem_force: np.ndarray
     constraints: GridConstraints | None = None
+    _stencils: ParticleStencils | None = None
+    _box: DenseBox | None = None
+    _grid: Grid | None = None
+    _mpm_x: np.ndarray | None = None
+
+    def stencils(self) -> ParticleStencils | None:
+        """Particle stencils at x_p^n on the active nodes (built on first call in 2D, where the
+        engine itself never stores them); None without particles."""
+        if self._stencils is None and self._mpm_x is not None:
+            self._stencils = fast_particle_stencils(self._grid, self._mpm_x)
+        return self._stencils
 
 
 def _fem_terms(model: Model) -> list[ElasticityTerm]:
@@ -159,6 +178,8 @@ class ExplicitStepper:
     name: ClassVar[str] = "explicit"
     Options: ClassVar[type[StepperOptions]] = ExplicitOptions
     explicit: ClassVar[bool] = True
+    #: 2D scenes take the dense-box kernels (``_dense2d_kernels``); False forces the general path
+    dense_2d: ClassVar[bool] = True
 
     def __init__(
         self,
@@ -259,6 +280,7 @@ class ExplicitStepper:
         # MPM: per-particle Lame parameters and the particles of each law
         mpm_terms = []
         self._mpm_laws = []
+        self._n_chunks = min(P2G_MAX_CHUNKS, max(1, model.n_particles // P2G_CHUNK))
         if model.n_particles:
             owner = model.mpm_particle_body
             self._mpm_mu = np.array([b.material.mu for b in model.mpm_bodies])[owner]
@@ -370,32 +392,49 @@ class ExplicitStepper:
         """Stencils, P2G of mass, momentum and forces; FEM forces (steps 1 of the docstring)."""
         model, d = self.model, self.model.dim
         t_next = state.t + self.dt
-        stencils = None
+        stencils = box = None
         grid_mass = np.zeros(0)
-        grid_v = grid_force = np.zeros((0, d))
+        grid_x = grid_v = grid_force = np.zeros((0, d))
         if model.n_particles:
-            started = time.perf_counter()
-            stencils = particle_stencils(model.grid, state.mpm_x)
-            timings["stencils"] = time.perf_counter() - started
             started = time.perf_counter()
             piola = self._mpm_piola(state)
             timings["stress"] = time.perf_counter() - started
             started = time.perf_counter()
-            n_chunks = min(P2G_MAX_CHUNKS, max(1, model.n_particles // P2G_CHUNK))
-            grid_mass, momentum, grid_force = p2g_with_forces(
-                stencils.nodes,
-                stencils.weights,
-                stencils.grads,
-                stencils.active_x,
-                state.mpm_x,
-                model.mpm_mass,
-                state.mpm_v,
-                state.mpm_C if self.transfer == "apic" else None,
-                piola,
-                state.mpm_F,
-                model.mpm_volume,
-                n_chunks,
-            )
+            apic_C = state.mpm_C if self.transfer == "apic" else None
+            dense = None
+            if d == 2 and self.dense_2d:
+                dense = dense_p2g(
+                    np.asarray(model.grid.origin),
+                    model.grid.dx,
+                    state.mpm_x,
+                    model.mpm_mass,
+                    state.mpm_v,
+                    apic_C,
+                    piola,
+                    state.mpm_F,
+                    model.mpm_volume,
+                    self._n_chunks,
+                )
+            if dense is not None:
+                box, grid_mass, momentum, grid_force = dense
+                grid_x = model.grid.node_positions(box.active_ijk())
+            else:
+                stencils = fast_particle_stencils(model.grid, state.mpm_x)
+                grid_x = stencils.active_x
+                grid_mass, momentum, grid_force = p2g_with_forces(
+                    stencils.nodes,
+                    stencils.weights,
+                    stencils.grads,
+                    stencils.active_x,
+                    state.mpm_x,
+                    model.mpm_mass,
+                    state.mpm_v,
+                    apic_C,
+                    piola,
+                    state.mpm_F,
+                    model.mpm_volume,
+                    self._n_chunks,
+                )
             grid_v = momentum * _inverse(grid_mass)[:, None]
             grid_force += np.multiply.outer(grid_mass, model.gravity)
             timings["p2g"] = time.perf_counter() - started
@@ -406,21 +445,23 @@ class ExplicitStepper:
             t=state.t,
             t_next=t_next,
             dt=self.dt,
-            stencils=stencils,
+            grid_x=grid_x,
             grid_mass=grid_mass,
             grid_v=grid_v,
             grid_force=grid_force,
             fem_force=fem_force,
+            _stencils=stencils,
+            _box=box,
+            _grid=model.grid,
+            _mpm_x=state.mpm_x if model.n_particles else None,
         )
 
     def _constrain(self, step: ExplicitStep, grid_v: np.ndarray) -> tuple[np.ndarray, tuple]:
         """Level-set constraints on v* (step 5); returns v and the boundary reactions."""
         model = self.model
-        if not model.boundaries or step.stencils is None:
+        if not model.boundaries or step.grid_x.shape[0] == 0:
             return grid_v, ()
-        cons = grid_constraints(
-            model.boundaries, step.stencils.active_x, grid_v, step.t_next, step.dt
-        )
+        cons = grid_constraints(model.boundaries, step.grid_x, grid_v, step.t_next, step.dt)
         step.constraints = cons
         if not cons.any:
             return grid_v, tuple((0.0,) * model.dim for _ in model.boundaries)
@@ -437,6 +478,38 @@ class ExplicitStepper:
         impulse = step.grid_mass[touched, None] * (v[touched] - v_star[touched]) / step.dt
         np.add.at(reaction, cons.owner[touched], impulse)
         return v, tuple(tuple(float(c) for c in row) for row in reaction)
+
+    def _g2p(
+        self, step: ExplicitStep, state: State, grid_v: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """G2P of the end velocities ``grid_v (G, d)``: ``(mpm_x, mpm_v, mpm_F, mpm_C)``."""
+        if step._box is not None:
+            return dense_g2p(
+                step._box,
+                self.model.grid.dx,
+                self.transfer,
+                step.grid_v,
+                grid_v,
+                self.dt,
+                state.mpm_x,
+                state.mpm_v,
+                state.mpm_F,
+            )
+        st = step.stencils()
+        return g2p_explicit(
+            self.transfer,
+            st.nodes,
+            st.weights,
+            st.grads,
+            st.active_x,
+            step.grid_v,
+            grid_v,
+            self.dt,
+            state.mpm_x,
+            state.mpm_v,
+            state.mpm_F,
+            self._n_chunks,
+        )
 
     def step(self, state: State) -> tuple[State, StepReport]:
         """Advance ``state`` by dt (module docstring); ``StepError`` on a CFL violation."""
@@ -469,22 +542,7 @@ class ExplicitStepper:
         timings["update"] = time.perf_counter() - t0
         if model.n_particles:
             t0 = time.perf_counter()
-            st = step.stencils
-            update = grid_to_particles(
-                self.transfer,
-                st.nodes,
-                st.weights,
-                st.grads,
-                st.active_x,
-                integ.position(st.active_x, grid_v, dt),
-                step.grid_v,
-                grid_v,
-                None,
-                state.mpm_x,
-                state.mpm_v,
-                state.mpm_F,
-            )
-            new.mpm_x, new.mpm_v, new.mpm_F, new.mpm_C = update[:4]
+            new.mpm_x, new.mpm_v, new.mpm_F, new.mpm_C = self._g2p(step, state, grid_v)
             timings["g2p"] = time.perf_counter() - t0
         timings["step"] = time.perf_counter() - started
         report = StepReport(

@@ -5,12 +5,14 @@ import pytest
 
 import bfemp
 from bfemp.integrators import SYMPLECTIC_EULER, integrator_from_name
-from bfemp.mpm.transfer import particles_to_grid
+from bfemp.mpm.transfer import grid_to_particles, particles_to_grid
 from bfemp.steppers import STRATEGIES, StepError, stepper_class
-from bfemp.steppers._explicit_kernels import p2g_with_forces
+from bfemp.steppers._explicit_kernels import g2p_explicit, p2g_with_forces
 from bfemp.steppers.base import Stepper, options_from_mapping
 from bfemp.steppers.single_field import SingleFieldOptions, SingleFieldStepper
 from bfemp.steppers.stable_dt import cell_altitudes
+from geometry.fast_stencils import fast_particle_stencils
+from geometry.grid import particle_stencils
 from tests.bfemp.conftest import started_stepper
 
 SOFT = bfemp.NeoHookean(E=1e4, nu=0.3, density=1000.0)
@@ -315,3 +317,55 @@ def test_bad_options_and_integrators_are_refused_by_name():
         SingleFieldStepper(model, dt=-1.0)
     assert integrator_from_name("symplectic_euler").explicit
     assert not integrator_from_name("newmark").explicit
+
+
+@pytest.mark.parametrize("transfer", ["apic", "pic", "flip"])
+def test_explicit_g2p_equals_grid_to_particles(transfer, rng):
+    scene = bfemp.Scene(dim=2)
+    _block(scene, (0.0, 0.0), (0.5, 0.5), 0.1, None, "block")
+    scene.set_grid(dx=0.1)
+    model = scene.build()
+    n = model.n_particles
+    x = model.mpm_X + 0.01 * rng.standard_normal((n, 2))
+    st = particle_stencils(model.grid, x)
+    v_old, v_new = rng.standard_normal((2, st.n_nodes, 2))
+    mpm_v, mpm_F = rng.standard_normal((n, 2)), np.eye(2) + 0.1 * rng.standard_normal((n, 2, 2))
+    dt = 1e-3
+    ref = grid_to_particles(
+        transfer, st.nodes, st.weights, st.grads, st.active_x, st.active_x + dt * v_new, v_old,
+        v_new, None, x, mpm_v, mpm_F,
+    )  # fmt: skip
+    out = g2p_explicit(
+        transfer, st.nodes, st.weights, st.grads, st.active_x, v_old, v_new, dt, x, mpm_v, mpm_F, 3
+    )
+    for a, b in zip(out, ref[:4], strict=True):
+        assert np.allclose(a, b, rtol=1e-13, atol=1e-13)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_fast_stencils_equal_particle_stencils(dim, rng):
+    grid = bfemp.model.Grid.make(0.1, dim)
+    x = rng.uniform(-0.3, 0.5, (500, dim))
+    x[:5] = 0.05  # on cell-centre lines: exactly zero weights are redirected
+    fast, ref = fast_particle_stencils(grid, x), particle_stencils(grid, x)
+    for name in ("nodes", "weights", "grads", "active_ijk", "active_x"):
+        assert np.array_equal(getattr(fast, name), getattr(ref, name)), name
+
+
+class _GeneralPath(SingleFieldStepper):
+    dense_2d = False
+
+
+@pytest.mark.parametrize("transfer", ["apic", "pic", "flip"])
+def test_dense_2d_kernels_follow_the_general_stencil_path(transfer):
+    scene = _on_floor("slip", (0.3, -0.2))
+    model = scene.build()
+    fast = SingleFieldStepper(model, transfer=transfer, dt="auto")
+    general = _GeneralPath(model, transfer=transfer, dt="auto")
+    a = b = model.initial_state()
+    for _ in range(15):
+        (a, report_a), (b, report_b) = fast.step(a), general.step(b)
+    for name in ("mpm_x", "mpm_v", "mpm_F", "mpm_C"):
+        assert np.allclose(getattr(a, name), getattr(b, name), rtol=0.0, atol=1e-12), name
+    assert np.allclose(report_a.boundary_forces, report_b.boundary_forces, rtol=1e-10)
+    assert np.abs(a.mpm_v - model.mpm_v0).max() > 1e-3  # the floor and the elasticity acted
