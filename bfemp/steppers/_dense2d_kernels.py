@@ -17,6 +17,7 @@ up to round-off (tested). P2G scatters into per-chunk slabs (``_explicit_kernels
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -38,6 +39,38 @@ def _weights(fx: float) -> tuple:
 def _derivatives(fx: float, inv_dx: float) -> tuple:
     """Derivatives in 1/m of the weights of ``_weights``."""
     return (-(1.5 - fx) * inv_dx, -2.0 * (fx - 1.0) * inv_dx, (fx - 0.5) * inv_dx)
+
+
+@njit(cache=True, parallel=True)
+def _grid_units(x, o0, o1, inv_dx, n_chunks, xi):  # noqa: ANN001, ANN201
+    """xi = (x - origin) / dx ``(P, 2)`` and the smallest and largest base node (2,) each."""
+    n_p = x.shape[0]
+    lo = np.empty((n_chunks, 2), dtype=np.int64)
+    hi = np.empty((n_chunks, 2), dtype=np.int64)
+    for c in prange(n_chunks):
+        mn0 = mn1 = np.int64(1) << 62
+        mx0 = mx1 = -(np.int64(1) << 62)
+        for p in range(c * n_p // n_chunks, (c + 1) * n_p // n_chunks):
+            a = (x[p, 0] - o0) * inv_dx
+            b = (x[p, 1] - o1) * inv_dx
+            xi[p, 0] = a
+            xi[p, 1] = b
+            b0 = np.int64(np.floor(a - 0.5))
+            b1 = np.int64(np.floor(b - 0.5))
+            mn0 = min(mn0, b0)
+            mn1 = min(mn1, b1)
+            mx0 = max(mx0, b0)
+            mx1 = max(mx1, b1)
+        lo[c, 0] = mn0
+        lo[c, 1] = mn1
+        hi[c, 0] = mx0
+        hi[c, 1] = mx1
+    out = np.empty(4, dtype=np.int64)
+    out[0] = lo[:, 0].min()
+    out[1] = lo[:, 1].min()
+    out[2] = hi[:, 0].max()
+    out[3] = hi[:, 1].max()
+    return out
 
 
 @njit(cache=True, parallel=True)
@@ -264,14 +297,16 @@ def dense_p2g(
     mpm_F: np.ndarray,
     volume: np.ndarray,
     n_chunks: int,
+    alloc: Callable[[tuple[int, ...]], np.ndarray] = np.empty,
 ) -> tuple[DenseBox, np.ndarray, np.ndarray, np.ndarray] | None:
     """2D P2G with internal forces on a dense box: ``(box, mass (G,), momentum (G, 2),
-    force (G, 2))`` on the active nodes, or None when the box would exceed ``BOX_BUDGET``."""
-    xi = (mpm_x - origin) / dx
-    base = np.floor(xi - 0.5).astype(np.int64)
-    lo = base.min(axis=0)
-    extent = base.max(axis=0) - lo + 3
+    force (G, 2))`` on the active nodes, or None when the box would exceed ``BOX_BUDGET``.
+    ``alloc(shape)`` gives the particle-sized work arrays (``BufferPool.empty``)."""
     n_p = mpm_x.shape[0]
+    xi = alloc((n_p, 2))
+    bounds = _grid_units(mpm_x, float(origin[0]), float(origin[1]), 1.0 / dx, min(n_p, 16), xi)
+    lo = bounds[:2].copy()
+    extent = bounds[2:] - lo + 3
     if float(extent[0]) * float(extent[1]) > BOX_BUDGET * 9 * n_p:
         return None
     stride = int(extent[1])
@@ -285,7 +320,8 @@ def dense_p2g(
         sizes = ranges[1] - ranges[0] + 1
     offset = np.zeros(n_chunks, dtype=np.int64)
     offset[1:] = np.cumsum(sizes)[:-1]
-    scratch = np.zeros((int(sizes.sum()), 5))
+    scratch = alloc((int(sizes.sum()), 5))
+    scratch.fill(0.0)
     affine = mpm_C is not None
     C = mpm_C if affine else np.zeros((0, 2, 2))
     _p2g_2d(
@@ -310,14 +346,16 @@ def dense_g2p(
     mpm_x: np.ndarray,
     mpm_v: np.ndarray,
     mpm_F: np.ndarray,
+    alloc: Callable[[tuple[int, ...]], np.ndarray] = np.empty,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``(mpm_x, mpm_v, mpm_F, mpm_C)`` after the 2D G2P (active-node velocities in m/s)."""
+    """``(mpm_x, mpm_v, mpm_F, mpm_C)`` after the 2D G2P (active-node velocities in m/s);
+    ``alloc(shape)`` gives the output arrays."""
     n_p = mpm_x.shape[0]
     flip = scheme == "flip"
-    out_x = np.empty((n_p, 2))
-    out_v = np.empty((n_p, 2))
-    out_F = np.empty((n_p, 2, 2))
-    out_C = np.empty((n_p, 2, 2))
+    out_x = alloc((n_p, 2))
+    out_v = alloc((n_p, 2))
+    out_F = alloc((n_p, 2, 2))
+    out_C = alloc((n_p, 2, 2))
     box_v_old = box.scatter(grid_v_old) if flip else np.zeros((0, 2))
     _g2p_2d(
         box.xi, dx, int(box.lo[0]), int(box.lo[1]), int(box.extent[1]), box_v_old,

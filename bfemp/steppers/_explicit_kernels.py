@@ -11,12 +11,14 @@ writes only into its own slab of a scratch buffer, which covers the node-index r
 [lo_c, hi_c] its particles touch. Particles sampled lattice-wise (``bfemp.sample``) touch a short
 node range per chunk (active nodes are sorted lexicographically), so the slabs together hold a
 few times the grid (at most ``SLAB_BUDGET`` times: a scattered particle order halves the
-number of chunks until it fits); a final parallel pass sums, for each node, the slabs that
-cover it, in chunk order. The sums therefore depend on the particle order and on ``n_chunks``
+number of chunks until it fits); a final serial pass adds the slabs into the grid in chunk
+order. The sums therefore depend on the particle order and on ``n_chunks``
 only, never on the thread count or scheduling (results are bit-for-bit reproducible).
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable
 
 import numpy as np
 from numba import njit, prange
@@ -107,21 +109,25 @@ def _p2g_force(
                     scratch[row, 1 + d + r] -= f
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def _reduce_slabs(
     scratch: np.ndarray, lo: np.ndarray, hi: np.ndarray, offset: np.ndarray, out: np.ndarray
 ) -> None:
-    """out (G, 1 + 2 d) = sum over chunks c covering node i of their slab rows (chunk order)."""
-    n_grid, width = out.shape
-    n_chunks = lo.shape[0]
-    for i in prange(n_grid):
-        for j in range(width):
-            out[i, j] = 0.0
-        for c in range(n_chunks):
-            if lo[c] <= i and i <= hi[c]:
-                row = offset[c] + i - lo[c]
-                for j in range(width):
-                    out[i, j] += scratch[row, j]
+    """out (G, 1 + 2 d) = the sum of the chunks' slabs, added in chunk order (deterministic).
+
+    Serial: the slabs hold a few times G rows, so this is a few G vector adds (a parallel pass
+    over nodes that tests every chunk's range cost G x n_chunks tests).
+    """
+    width = out.shape[1]
+    out[:] = 0.0
+    for c in range(lo.shape[0]):
+        if hi[c] < lo[c]:
+            continue
+        for r in range(hi[c] - lo[c] + 1):
+            src = offset[c] + r
+            dst = lo[c] + r
+            for j in range(width):
+                out[dst, j] += scratch[src, j]
 
 
 def p2g_with_forces(
@@ -277,6 +283,7 @@ def g2p_explicit(
     mpm_v: np.ndarray,
     mpm_F: np.ndarray,
     n_chunks: int,
+    alloc: Callable[[tuple[int, ...]], np.ndarray] = np.empty,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """``(mpm_x, mpm_v, mpm_F, mpm_C)`` after G2P of the explicit step (see ``_g2p_explicit``).
 
@@ -289,12 +296,14 @@ def g2p_explicit(
         dt: time step in s.
         mpm_x, mpm_v, mpm_F: particle state at t^n.
         n_chunks: particle ranges processed in parallel.
+        alloc: ``alloc(shape)`` gives the output arrays (``BufferPool.empty``).
     """
     n_p, d = mpm_x.shape
-    out_x = np.empty((n_p, d))
-    out_v = np.empty((n_p, d))
-    out_F = np.empty((n_p, d, d))
-    out_C = np.zeros((n_p, d, d))
+    out_x = alloc((n_p, d))
+    out_v = alloc((n_p, d))
+    out_F = alloc((n_p, d, d))
+    out_C = alloc((n_p, d, d))
+    out_C.fill(0.0)
     singular = np.zeros(n_p, dtype=np.bool_)
     _g2p_explicit(
         nodes, weights, grads, grid_x, grid_v_old, grid_v, float(dt), mpm_x, mpm_v, mpm_F,

@@ -2,7 +2,7 @@
 
 One step (symplectic Euler, ``bfemp.integrators.SYMPLECTIC_EULER``; USL for MPM):
 
-1. MPM: quadratic B-spline stencils at x_p^n; one fused parallel P2G of mass, momentum (APIC,
+1. MPM: quadratic B-spline weights at x_p^n; one fused parallel P2G of mass, momentum (APIC,
    PIC, FLIP) and internal force f_i = -sum_p V_p^0 P(F_p^n) (F_p^n)^T grad w_ip, which is
    ``-MpmElasticityTerm.gradient`` at the grid nodes' start positions (F_p(x^n) = F_p^n by
    linear completeness, MPM eq. 25). FEM: f_n = ``-ElasticityTerm.gradient`` of the cells at
@@ -20,11 +20,15 @@ One step (symplectic Euler, ``bfemp.integrators.SYMPLECTIC_EULER``; USL for MPM)
 6. FEM: x += dt v (scripted nodes: their scripted positions); MPM: G2P, the transfer of
    ``bfemp.mpm.transfer.grid_to_particles`` with x~_i = x_i + dt v_i (which gives x_p += dt v_p
    and F_p <- (I + dt grad v) F_p by linear completeness) in an allocation-free kernel
-   (``_explicit_kernels.g2p_explicit``, the same arithmetic; the general one allocates four
-   d x d matrices per particle, which made it 5x slower at 131k particles).
+   (``_explicit_kernels.g2p_explicit``, the same arithmetic; ``grid_to_particles``' kernel
+   allocates four d x d matrices per particle).
 
-Stencils come from ``geometry.fast_stencils`` (the same as ``particle_stencils``, compacted in
-numba: its numpy compaction cost 5x the B-spline kernel per step).
+Two kernel paths, one result (tested to round-off): in 2D the dense-box kernels of
+``_dense2d_kernels`` recompute each particle's weights from x_p and index a dense node box, as
+Taichi does, so no (P, 9) stencil arrays are written or read (``ExplicitStep.stencils()``
+builds them on demand for a strategy that needs them); in 3D (or when the box would be too
+sparse) the stencils of ``geometry.fast_stencils`` (``particle_stencils`` with the compaction
+in numba) feed the general kernels of ``_explicit_kernels``.
 
 Why a fused P2G kernel rather than the terms for MPM: ``MpmElasticityTerm.begin_step`` builds the
 node-pair pattern of the Hessian (a serial neighbour table and (G 5^d d^2) row/column arrays)
@@ -42,7 +46,8 @@ one step) the step raises ``StepError`` with status ``CFL_VIOLATED`` and leaves 
 The slack between the two lets ``dt="auto"`` run while bodies speed up.
 
 MPM bodies all share one grid velocity field here (the P2G over all particles): bodies stick
-on touching. Strategies that keep fields apart override ``after_p2g``/``resolve`` or the P2G.
+tangentially where their stencils overlap (``single_field``). Strategies that keep fields apart
+override ``after_p2g``/``resolve`` or the P2G.
 """
 
 from __future__ import annotations
@@ -63,6 +68,7 @@ from bfemp.mpm.elasticity import MpmElasticityTerm
 from bfemp.mpm.transfer import SCHEMES
 from bfemp.potential import IncrementalPotential
 from bfemp.state import State
+from bfemp.steppers._buffers import BufferPool
 from bfemp.steppers._dense2d_kernels import DenseBox, dense_g2p, dense_p2g
 from bfemp.steppers._explicit_kernels import g2p_explicit, p2g_with_forces
 from bfemp.steppers.base import ContactView, StepError, StepperOptions, StepReport
@@ -281,6 +287,8 @@ class ExplicitStepper:
         mpm_terms = []
         self._mpm_laws = []
         self._n_chunks = min(P2G_MAX_CHUNKS, max(1, model.n_particles // P2G_CHUNK))
+        #: particle-sized output and work arrays, reused once nothing else holds them
+        self._pool = BufferPool()
         if model.n_particles:
             owner = model.mpm_particle_body
             self._mpm_mu = np.array([b.material.mu for b in model.mpm_bodies])[owner]
@@ -370,8 +378,9 @@ class ExplicitStepper:
         """First Piola stresses P(F_p^n) ``(P, d, d)`` in Pa, law by law."""
         F = state.mpm_F
         if len(self._mpm_laws) == 1 and self._mpm_laws[0][1] is None:
-            return self._mpm_laws[0][0].first_piola(F, self._mpm_mu, self._mpm_lam)
-        out = np.empty_like(F)
+            out = self._pool.empty(F.shape)
+            return self._mpm_laws[0][0].first_piola(F, self._mpm_mu, self._mpm_lam, out=out)
+        out = self._pool.empty(F.shape)
         for law, idx in self._mpm_laws:
             out[idx] = law.first_piola(F[idx], self._mpm_mu[idx], self._mpm_lam[idx])
         return out
@@ -414,6 +423,7 @@ class ExplicitStepper:
                     state.mpm_F,
                     model.mpm_volume,
                     self._n_chunks,
+                    self._pool.empty,
                 )
             if dense is not None:
                 box, grid_mass, momentum, grid_force = dense
@@ -494,6 +504,7 @@ class ExplicitStepper:
                 state.mpm_x,
                 state.mpm_v,
                 state.mpm_F,
+                self._pool.empty,
             )
         st = step.stencils()
         return g2p_explicit(
@@ -509,6 +520,7 @@ class ExplicitStepper:
             state.mpm_v,
             state.mpm_F,
             self._n_chunks,
+            self._pool.empty,
         )
 
     def step(self, state: State) -> tuple[State, StepReport]:

@@ -369,3 +369,21 @@ def test_dense_2d_kernels_follow_the_general_stencil_path(transfer):
         assert np.allclose(getattr(a, name), getattr(b, name), rtol=0.0, atol=1e-12), name
     assert np.allclose(report_a.boundary_forces, report_b.boundary_forces, rtol=1e-10)
     assert np.abs(a.mpm_v - model.mpm_v0).max() > 1e-3  # the floor and the elasticity acted
+
+
+def test_states_the_caller_keeps_are_never_overwritten():
+    """The stepper reuses particle arrays only when nothing else holds them (BufferPool)."""
+    model, stepper, state = _stepper(_collision_scene())
+    kept = [state]
+    for _ in range(6):
+        state, _ = stepper.step(state)
+        kept.append(state)
+    snapshot = [s.mpm_F.copy() for s in kept]
+    state, _ = stepper.step(state)
+    view = state.mpm_x[:5]  # a view keeps its base array out of the pool too
+    view_copy = view.copy()
+    for _ in range(6):
+        state, _ = stepper.step(state)  # drops the state the view came from
+    assert all(np.array_equal(s.mpm_F, f) for s, f in zip(kept, snapshot, strict=True))
+    assert np.array_equal(view, view_copy)
+    assert len({id(s.mpm_F) for s in kept}) == len(kept)
