@@ -11,7 +11,6 @@ from bfemp.steppers._explicit_kernels import g2p_explicit, p2g_with_forces
 from bfemp.steppers.base import Stepper, options_from_mapping
 from bfemp.steppers.single_field import SingleFieldOptions, SingleFieldStepper
 from bfemp.steppers.stable_dt import cell_altitudes
-from geometry.fast_stencils import fast_particle_stencils
 from geometry.grid import particle_stencils
 from tests.bfemp.conftest import started_stepper
 
@@ -342,16 +341,6 @@ def test_explicit_g2p_equals_grid_to_particles(transfer, rng):
         assert np.allclose(a, b, rtol=1e-13, atol=1e-13)
 
 
-@pytest.mark.parametrize("dim", [2, 3])
-def test_fast_stencils_equal_particle_stencils(dim, rng):
-    grid = bfemp.model.Grid.make(0.1, dim)
-    x = rng.uniform(-0.3, 0.5, (500, dim))
-    x[:5] = 0.05  # on cell-centre lines: exactly zero weights are redirected
-    fast, ref = fast_particle_stencils(grid, x), particle_stencils(grid, x)
-    for name in ("nodes", "weights", "grads", "active_ijk", "active_x"):
-        assert np.array_equal(getattr(fast, name), getattr(ref, name)), name
-
-
 class _GeneralPath(SingleFieldStepper):
     dense_2d = False
 
@@ -387,3 +376,24 @@ def test_states_the_caller_keeps_are_never_overwritten():
     assert all(np.array_equal(s.mpm_F, f) for s, f in zip(kept, snapshot, strict=True))
     assert np.array_equal(view, view_copy)
     assert len({id(s.mpm_F) for s in kept}) == len(kept)
+
+
+def test_3d_free_fall_of_an_mpm_and_a_fem_body_is_the_symplectic_euler_recursion():
+    g = np.array([0.0, 0.0, -9.81])
+    scene = bfemp.Scene(dim=3, gravity=tuple(g))
+    x, vol = bfemp.sample.box((0.0, 0.0, 0.0), (0.3, 0.3, 0.3), dx=0.1, ppc=8)
+    v0 = np.array([0.2, -0.1, 1.0])
+    spin = 0.5 * np.cross([0.0, 0.0, 1.0], x - 0.15)  # a rotation: elastic forces stay zero
+    scene.add_mpm(x, vol, material=SOFT, velocity=v0 + spin, name="cube")
+    scene.add_fem(bfemp.shapes.box((1.0, 0.0, 0.0), (1.3, 0.3, 0.3), h=0.15), material=SOFT)
+    scene.set_grid(dx=0.1)
+    model, stepper, state = _stepper(scene)
+    m, M = model.mpm_mass, model.fem_mass
+    com_p, com_f = m @ state.mpm_x / m.sum(), M @ state.fem_x / M.sum()
+    v_p, v_f = m @ state.mpm_v / m.sum(), np.zeros(3)
+    for _ in range(20):
+        state, _ = stepper.step(state)
+        v_p, v_f = v_p + stepper.dt * g, v_f + stepper.dt * g
+        com_p, com_f = com_p + stepper.dt * v_p, com_f + stepper.dt * v_f
+    assert np.allclose(m @ state.mpm_x / m.sum(), com_p, rtol=0.0, atol=1e-12)
+    assert np.allclose(M @ state.fem_x / M.sum(), com_f, rtol=0.0, atol=1e-12)
