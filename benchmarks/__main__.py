@@ -19,6 +19,7 @@ BENCHMARKS = {
     "hertz": "benchmarks.hertz",
     "perf_broadphase": "benchmarks.perf_broadphase",
     "perf_contact": "benchmarks.perf_contact",
+    "perf_explicit": "benchmarks.perf_explicit",
     "perf_fem": "benchmarks.perf_fem",
     "perf_mpm": "benchmarks.perf_mpm",
     "rings": "benchmarks.rings",

@@ -284,11 +284,19 @@ class MaterialLaw:
         return out
 
     def first_piola(
-        self, F: np.ndarray, mu: np.ndarray | float, lam: np.ndarray | float
+        self,
+        F: np.ndarray,
+        mu: np.ndarray | float,
+        lam: np.ndarray | float,
+        out: np.ndarray | None = None,
     ) -> np.ndarray:
-        """First Piola-Kirchhoff stress P = dpsi/dF (S, d, d) in Pa for F (S, d, d)."""
+        """First Piola-Kirchhoff stress P = dpsi/dF (S, d, d) in Pa for F (S, d, d), written into
+        ``out`` (float64, C-contiguous, the shape of F) when given."""
         F, mu, lam = _prepare(F, mu, lam)
-        out = np.empty_like(F)
+        if out is None:
+            out = np.empty_like(F)
+        elif out.shape != F.shape or out.dtype != np.float64 or not out.flags.c_contiguous:
+            raise ValueError(f"out must be C-contiguous float64 of shape {F.shape}")
         self._piola_kernel(F, mu, lam, out)
         return out
 

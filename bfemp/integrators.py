@@ -45,17 +45,32 @@ rings at h = 0.5 m, 40 m/s each, dt = 1e-4 s, 0.05 s): the total energy peaks at
 start under mid-point Newmark, 1.025 x under damped Newmark, and never exceeds it under
 implicit contact (ends at 0.983 x) or backward Euler (0.940 x); the linear momentum is kept to
 round-off by all four (``tests/bfemp/test_contact.py``).
+
+Symplectic Euler (``"symplectic_euler"``, explicit strategies only): the explicit Newmark member
+beta = 0, gamma = 1/2 (central differences, AUG eq. 32) written with half-step velocities,
+
+    v^{n+1/2} = v^{n-1/2} + dt a(x^n),    x^{n+1} = x^n + dt v^{n+1/2},
+
+the usual explicit USL step of MPM. The state's velocity is the half-step one (the positions
+are those of central differences; kinetic energy from it is off by O(dt)). It is not an
+``Integrator``: beta = 0 gives eq. 22 a zero potential weight, so an implicit stepper handed it
+would minimise inertia alone. It is an ``ExplicitIntegrator`` whose ``explicit`` is True;
+implicit steppers refuse every integrator whose ``explicit`` is True, explicit ones refuse the
+rest.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
 __all__ = [
+    "ExplicitIntegrator",
     "Integrator",
     "BACKWARD_EULER",
+    "SYMPLECTIC_EULER",
     "NEWMARK",
     "NEWMARK_DAMPED",
     "NEWMARK_IMPLICIT_CONTACT",
@@ -71,6 +86,9 @@ class Integrator:
     ``implicit_contact``: barrier and friction forces enter with beta = 1/2, gamma = 1 (no
     memory, weight ``alpha dt^2``; see the module docstring); needs gamma = 2 beta.
     """
+
+    #: implicit (the solve of eq. 22); see ``ExplicitIntegrator``
+    explicit: ClassVar[bool] = False
 
     name: str
     alpha: float
@@ -115,6 +133,29 @@ class Integrator:
         return v + dt * a_contact
 
 
+@dataclass(frozen=True, kw_only=True)
+class ExplicitIntegrator:
+    """An explicit time integrator (see the module docstring): no solve, a stable-step bound.
+
+    ``beta`` and ``gamma`` name the Newmark member whose positions it reproduces.
+    """
+
+    #: explicit: only explicit strategies accept it
+    explicit: ClassVar[bool] = True
+
+    name: str
+    beta: float = 0.0
+    gamma: float = 0.5
+
+    def velocity(self, v: np.ndarray, a: np.ndarray, dt: float) -> np.ndarray:
+        """v^{n+1/2} = v^{n-1/2} + dt a(x^n) in m/s."""
+        return v + dt * a
+
+    def position(self, x: np.ndarray, v_half: np.ndarray, dt: float) -> np.ndarray:
+        """x^{n+1} = x^n + dt v^{n+1/2} in m."""
+        return x + dt * v_half
+
+
 BACKWARD_EULER = Integrator(name="backward_euler", alpha=1.0, beta=0.5, gamma=1.0)
 NEWMARK = Integrator(name="newmark", alpha=0.5, beta=0.25, gamma=0.5)
 NEWMARK_DAMPED = Integrator(name="newmark_damped", alpha=0.5, beta=0.25 * 1.05**2, gamma=0.55)
@@ -122,15 +163,23 @@ NEWMARK_IMPLICIT_CONTACT = Integrator(
     name="newmark_implicit_contact", alpha=0.5, beta=0.25, gamma=0.5, implicit_contact=True
 )
 
-_BY_NAME = {i.name: i for i in (BACKWARD_EULER, NEWMARK, NEWMARK_DAMPED, NEWMARK_IMPLICIT_CONTACT)}
+SYMPLECTIC_EULER = ExplicitIntegrator(name="symplectic_euler")
+
+_BY_NAME = {
+    i.name: i
+    for i in (BACKWARD_EULER, NEWMARK, NEWMARK_DAMPED, NEWMARK_IMPLICIT_CONTACT, SYMPLECTIC_EULER)
+}
 #: the names ``integrator_from_name`` (and the scene file's ``integrator``) accept
 INTEGRATOR_NAMES = tuple(_BY_NAME)
 
 
-def integrator_from_name(name: str | Integrator) -> Integrator:
+def integrator_from_name(
+    name: str | Integrator | ExplicitIntegrator,
+) -> Integrator | ExplicitIntegrator:
     """``"backward_euler"``, ``"newmark"``, ``"newmark_damped"``,
-    ``"newmark_implicit_contact"`` (or an ``Integrator``)."""
-    if isinstance(name, Integrator):
+    ``"newmark_implicit_contact"``, ``"symplectic_euler"`` (explicit strategies only), or an
+    ``Integrator`` / ``ExplicitIntegrator``."""
+    if isinstance(name, Integrator | ExplicitIntegrator):
         return name
     try:
         return _BY_NAME[name]

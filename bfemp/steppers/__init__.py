@@ -17,10 +17,13 @@ from bfemp.steppers.base import (
     options_from_mapping,
     options_to_dict,
 )
+from bfemp.steppers.single_field import SingleFieldOptions, SingleFieldStepper
 
 __all__ = [
     "STRATEGIES",
     "BarrierOptions",
+    "SingleFieldOptions",
+    "SingleFieldStepper",
     "BarrierStepper",
     "ContactView",
     "ImplicitStepper",
@@ -37,8 +40,9 @@ __all__ = [
 #: the old name of the barrier stepper
 ImplicitStepper = BarrierStepper
 
-#: strategy name -> stepper class. "barrier" is BFEMP (implicit incremental potential).
-STRATEGIES: dict[str, type] = {"barrier": BarrierStepper}
+#: strategy name -> stepper class. "barrier" is BFEMP (implicit incremental potential);
+#: "single_field" the explicit MPM baseline without a contact algorithm.
+STRATEGIES: dict[str, type] = {"barrier": BarrierStepper, "single_field": SingleFieldStepper}
 
 
 def stepper_class(strategy: str) -> type:

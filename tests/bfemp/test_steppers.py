@@ -182,3 +182,95 @@ def test_checkpoint_hooks_are_declared_and_round_trip():
     assert other.adaptive == sim.stepper.adaptive
     with pytest.raises(ValueError, match="unknown checkpoint data"):
         other.restore_checkpoint_data({"augury_B": np.zeros(3)})
+
+
+def _two_blocks_text(strategy_lines: str) -> str:
+    """A scene file of two MPM blocks on a slip floor with the given [simulation] lines."""
+    return f"""
+[scene]
+dim = 2
+gravity = [0.0, -9.81]
+
+[simulation]
+{strategy_lines}
+
+[run]
+t_end = 0.02
+
+[materials.soft]
+type = "neo_hookean"
+E = 1e5
+nu = 0.3
+density = 1000.0
+
+[[mpm]]
+name = "left"
+material = "soft"
+particles = {{ sample = "box", lower = [0.0, 0.1], upper = [0.2, 0.3], ppc = 4 }}
+
+[[mpm]]
+name = "right"
+material = "soft"
+particles = {{ sample = "box", lower = [0.3, 0.1], upper = [0.5, 0.3], ppc = 4 }}
+
+[grid]
+dx = 0.05
+
+[[boundary]]
+kind = "slip"
+levelset = {{ type = "half_plane", point = [0.0, 0.0], normal = [0.0, 1.0] }}
+"""
+
+
+def test_one_scene_file_runs_under_both_strategies_with_their_options():
+    barrier = scenefile.loads(
+        _two_blocks_text('strategy = "barrier"\ndt = 2e-3\n[simulation.options]\ntol = 1e-5')
+    )
+    explicit = scenefile.loads(
+        _two_blocks_text(
+            'strategy = "single_field"\ndt = "auto"\n[simulation.options]\ncfl_safety_mpm = 0.3'
+        )
+    )
+    sims = {}
+    for sf in (barrier, explicit):
+        sim = bfemp.Simulation.from_file(sf)
+        sim.run(sf.run_settings()["t_end"], progress=False)
+        sims[sim.strategy] = sim
+    assert sims["barrier"].settings["tol"] == 1e-5
+    explicit_sim = sims["single_field"]
+    assert explicit_sim.settings["cfl_safety_mpm"] == 0.3
+    assert explicit_sim.integrator.name == "symplectic_euler"
+    assert explicit_sim.dt == pytest.approx(
+        explicit_sim.stepper.stable_dt(explicit_sim.model.initial_state())
+    )
+    # the same metrics columns for energies, momenta and contact; iterations per strategy
+    base = {c for c in sims["barrier"].metrics.columns if not c.startswith(("time_", "iter"))}
+    other = {c for c in explicit_sim.metrics.columns if not c.startswith(("time_", "iter"))}
+    assert base - {"residual"} == other - {"residual"}
+    for sim in sims.values():  # both fell under gravity, onto nothing yet
+        assert 0.02 - 1e-12 <= sim.state.t < 0.02 + sim.dt  # the step that reaches t_end
+        assert sim.metrics.column("momentum_y")[-1] < 0
+    with pytest.raises(SceneError, match=r"unknown option 'tol' for strategy 'single_field'"):
+        scenefile.loads(
+            _two_blocks_text('strategy = "single_field"\ndt = 1e-4\n[simulation.options]\ntol = 1')
+        )
+    with pytest.raises(SceneError, match=r"cfl_safety_mpm must lie in \(0, 1\]"):
+        scenefile.loads(
+            _two_blocks_text(
+                'strategy = "single_field"\ndt = 1e-4\n[simulation.options]\ncfl_safety_mpm = 2.0'
+            )
+        )
+
+
+def test_simulation_refuses_wrong_combinations_of_strategy_and_settings():
+    scene = scenefile.loads(_two_blocks_text('strategy = "barrier"\ndt = 1e-3')).scene
+    with pytest.raises(ValueError, match=r"tol belong to strategy 'barrier'"):
+        bfemp.Simulation(scene, strategy="single_field", dt="auto", tol=1e-6)
+    with pytest.raises(ValueError, match=r"takes SingleFieldOptions, got BarrierOptions"):
+        bfemp.Simulation(scene, strategy="single_field", dt="auto", options=BarrierOptions())
+    with pytest.raises(ValueError, match=r"is explicit: integrator must be 'symplectic_euler'"):
+        bfemp.Simulation(scene, strategy="single_field", dt="auto", integrator="newmark")
+    with pytest.raises(ValueError, match=r"'barrier' is implicit: integrator 'symplectic_euler'"):
+        bfemp.Simulation(scene, dt=1e-3, integrator="symplectic_euler")
+    with pytest.raises(ValueError, match=r"exceeds the explicit stable step .*mpm body"):
+        bfemp.Simulation(scene, strategy="single_field", dt=1.0)

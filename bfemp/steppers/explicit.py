@@ -1,0 +1,548 @@
+"""The explicit engine shared by the explicit strategies (single_field, augury, lr, two_stage).
+
+One step (symplectic Euler, ``bfemp.integrators.SYMPLECTIC_EULER``; USL for MPM):
+
+1. MPM: quadratic B-spline weights at x_p^n; one fused parallel P2G of mass, momentum (APIC,
+   PIC, FLIP) and internal force f_i = -sum_p V_p^0 P(F_p^n) (F_p^n)^T grad w_ip, which is
+   ``-MpmElasticityTerm.gradient`` at the grid nodes' start positions (F_p(x^n) = F_p^n by
+   linear completeness, MPM eq. 25). FEM: f_n = ``-ElasticityTerm.gradient`` of the cells at
+   x^n over an all-free ``DofLayout`` (built once). Gravity m g and dead loads are added.
+2. Hook ``after_p2g(step)`` (default: nothing): a strategy may correct the grid momenta there.
+3. v* = v + dt M^-1 f on the grid nodes and the free FEM nodes (eq. 21 with beta = 0; the stored
+   velocity is the half-step one); scripted FEM nodes take their scripted velocity at t^{n+1}.
+4. Hook ``resolve(step, grid_v, fem_v) -> (grid_v, fem_v)`` (default: unchanged): where a
+   contact algorithm corrects v*.
+5. Level-set boundaries on the grid nodes inside them (``bfemp.mpm.boundaries``, evaluated at
+   x_i^n, the boundary where it is at t^{n+1}): sticky v = v_b; slip: the normal component of
+   v - v_b removed; separate: as slip while (v* - v_b) . n < 0, free otherwise (decided on v*,
+   the velocity the node would move with). The reaction m_i (v - v*) / dt of each boundary's
+   nodes is reported in ``StepReport.boundary_forces`` (sticky nodes included).
+6. FEM: x += dt v (scripted nodes: their scripted positions); MPM: G2P, the transfer of
+   ``bfemp.mpm.transfer.grid_to_particles`` with x~_i = x_i + dt v_i (which gives x_p += dt v_p
+   and F_p <- (I + dt grad v) F_p by linear completeness) in an allocation-free kernel
+   (``_explicit_kernels.g2p_explicit``, the same arithmetic; ``grid_to_particles``' kernel
+   allocates four d x d matrices per particle).
+
+Two kernel paths, one result (tested to round-off): in 2D the dense-box kernels of
+``_dense2d_kernels`` recompute each particle's weights from x_p and index a dense node box, as
+Taichi does, so no (P, 9) stencil arrays are written or read (``ExplicitStep.stencils()``
+builds them on demand for a strategy that needs them); in 3D (or when the box would be too
+sparse) the stencils of ``geometry.grid.particle_stencils`` feed the general kernels of
+``_explicit_kernels``. (Compacting the stencils in numba instead of numpy was tried and
+dropped: 23 ms either way at 131k particles, the cost is that of writing the fresh (P, 9)
+weight and gradient arrays.)
+
+Why a fused P2G kernel rather than the terms for MPM: ``MpmElasticityTerm.begin_step`` builds the
+node-pair pattern of the Hessian (a serial neighbour table and (G 5^d d^2) row/column arrays)
+that an explicit step never uses, and the base ``ElasticityTerm`` route would build the
+(3^d d)^2-per-particle block pattern; the fused kernel reads every stencil once for mass,
+momentum and force. Measured (``benchmarks/records/perf_explicit.json``, 33k particles): the
+term route takes 0.104 s per step (0.090 s of it ``begin_step``), the fused stresses + P2G
+3.9 ms. FEM cells keep the term (fixed stencils, pattern built once).
+
+Stable step: ``bfemp.steppers.stable_dt``. The constructor refuses a dt above the bound (with
+the safety factors of the options) with a ``ValueError`` naming the bound, body and cell or
+particle; ``dt="auto"`` takes it. Every step re-evaluates the bound (particle speeds and cell
+shapes change): above the safety-scaled bound the report carries a ``CFL_ABOVE_SAFETY`` note;
+above the unscaled bound (CFL number 1: a wave or particle crosses a whole cell or altitude in
+one step) the step raises ``StepError`` with status ``CFL_VIOLATED`` and leaves the state alone.
+The slack between the two lets ``dt="auto"`` run while bodies speed up.
+
+MPM bodies all share one grid velocity field here (the P2G over all particles): bodies stick
+tangentially where their stencils overlap (``single_field``). Strategies that keep fields apart
+override ``after_p2g``/``resolve`` or the P2G.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass, replace
+from typing import ClassVar
+
+import numpy as np
+
+from bfemp.dofs import DofLayout
+from bfemp.integrators import SYMPLECTIC_EULER, ExplicitIntegrator, integrator_from_name
+from bfemp.model import Model
+from bfemp.mpm.boundaries import GridConstraints, grid_constraints
+from bfemp.mpm.transfer import SCHEMES
+from bfemp.state import State
+from bfemp.steppers._buffers import BufferPool
+from bfemp.steppers._dense2d_kernels import DenseBox, dense_g2p, dense_p2g
+from bfemp.steppers._explicit_kernels import g2p_explicit, p2g_with_forces
+from bfemp.steppers.base import ContactView, StepError, StepperOptions, StepReport
+from bfemp.steppers.stable_dt import StableStep, stable_time_step
+from bfemp.terms import ElasticityTerm, StepContext, fem_elastic_groups
+from geometry.grid import Grid, ParticleStencils, particle_stencils
+
+__all__ = ["ExplicitOptions", "ExplicitStep", "ExplicitStepper"]
+
+log = logging.getLogger(__name__)
+
+#: particles per chunk of the parallel P2G (fixed, so results do not depend on the thread count)
+P2G_CHUNK = 2048
+#: cap of the number of P2G chunks
+P2G_MAX_CHUNKS = 32
+
+
+@dataclass(frozen=True, kw_only=True)
+class ExplicitOptions(StepperOptions):
+    """Options every explicit strategy has.
+
+    Attributes:
+        cfl_safety_fem: safety factor on the FEM bound h_min / c_p, in (0, 1].
+        cfl_safety_mpm: safety factor on the MPM bound dx / (c_p + |v_p|), in (0, 1].
+    """
+
+    strategy: ClassVar[str] = "explicit"
+
+    cfl_safety_fem: float = 0.5
+    cfl_safety_mpm: float = 0.4
+
+    def __post_init__(self) -> None:
+        for name in ("cfl_safety_fem", "cfl_safety_mpm"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                raise ValueError(f"{type(self).__name__}.{name} must be a number, got {value!r}")
+            if not (math.isfinite(value) and 0.0 < value <= 1.0):
+                raise ValueError(f"{type(self).__name__}.{name} must lie in (0, 1], got {value!r}")
+            object.__setattr__(self, name, float(value))
+
+
+@dataclass
+class ExplicitStep:
+    """What one explicit step knows, handed to the hooks (arrays may be changed in place).
+
+    Attributes:
+        t: start time t^n in s; ``t_next`` = t^{n+1}; ``dt`` in s.
+        grid_x: positions x_i^n of the active grid nodes ``(G, d)`` in m (the active nodes and
+            their order are those of ``particle_stencils``; ``stencils()`` gives the stencils).
+        grid_mass: node masses ``(G,)`` in kg (kg/m in 2D).
+        grid_v: P2G node velocities v_i^n ``(G, d)`` in m/s.
+        grid_force: internal + gravity forces on the nodes ``(G, d)`` in N (N/m in 2D).
+        fem_force: internal + gravity + load forces on the FEM nodes ``(N, d)`` in N.
+        constraints: the level-set constraints applied to the grid (after ``resolve``).
+    """
+
+    t: float
+    t_next: float
+    dt: float
+    grid_x: np.ndarray
+    grid_mass: np.ndarray
+    grid_v: np.ndarray
+    grid_force: np.ndarray
+    fem_force: np.ndarray
+    constraints: GridConstraints | None = None
+    _stencils: ParticleStencils | None = None
+    _box: DenseBox | None = None
+    _grid: Grid | None = None
+    _mpm_x: np.ndarray | None = None
+
+    def stencils(self) -> ParticleStencils | None:
+        """Particle stencils at x_p^n on the active nodes (built on first call in 2D, where the
+        engine itself never stores them); None without particles."""
+        if self._stencils is None and self._mpm_x is not None:
+            self._stencils = particle_stencils(self._grid, self._mpm_x)
+        return self._stencils
+
+
+class ExplicitStepper:
+    """The explicit engine (see the module docstring); strategies subclass it.
+
+    Args:
+        model: the static model.
+        integrator: ``"symplectic_euler"`` (the only explicit integrator) or its object.
+        dt: time step in s, or ``"auto"`` for the stable bound of the initial state.
+        transfer: ``"apic"``, ``"pic"`` or ``"flip"``.
+        options: the strategy's options (``Options()`` when None).
+    """
+
+    name: ClassVar[str] = "explicit"
+    Options: ClassVar[type[StepperOptions]] = ExplicitOptions
+    explicit: ClassVar[bool] = True
+    #: the integrator ``Simulation`` takes when none is given
+    default_integrator: ClassVar[str] = "symplectic_euler"
+    #: 2D scenes take the dense-box kernels (``_dense2d_kernels``); False forces the general path
+    dense_2d: ClassVar[bool] = True
+
+    def __init__(
+        self,
+        model: Model,
+        *,
+        integrator: str | ExplicitIntegrator = "symplectic_euler",
+        dt: float | str,
+        transfer: str = "apic",
+        options: StepperOptions | None = None,
+    ) -> None:
+        self.model = model
+        self.integrator = self._explicit_integrator(integrator)
+        if transfer not in SCHEMES:
+            raise ValueError(f"{self.name}: transfer must be one of {SCHEMES}, got {transfer!r}")
+        self.transfer = transfer
+        options = self.Options() if options is None else options
+        if not isinstance(options, self.Options):
+            raise ValueError(
+                f"{self.name}: options must be {self.Options.__name__}, "
+                f"got {type(options).__name__}"
+            )
+        self.options = options
+        bound = self.auto_dt_bound(model, model.initial_state(), options)
+        if isinstance(dt, str):
+            if dt != "auto":
+                raise ValueError(
+                    f"{self.name}: dt must be a number of seconds or 'auto', got {dt!r}"
+                )
+            if not math.isfinite(bound.dt):
+                raise ValueError(f"{self.name}: dt='auto' needs a body to bound it")
+            dt = bound.dt
+        if (
+            isinstance(dt, bool)
+            or not isinstance(dt, int | float)
+            or not (math.isfinite(dt) and dt > 0.0)
+        ):
+            raise ValueError(f"{self.name}: dt must be a positive number of seconds, got {dt!r}")
+        if dt > bound.dt:
+            raise ValueError(
+                f"{self.name}: dt = {dt:.6g} s exceeds the explicit stable step "
+                f"{bound.describe()}; take dt <= {bound.dt:.6g} s or dt='auto'"
+            )
+        self.dt = float(dt)
+        self._build_forces()
+        self._last_contact: ContactView | None = None
+
+    # ------------------------------------------------------------------ construction
+    def _explicit_integrator(self, integrator: object) -> ExplicitIntegrator:
+        integ = integrator_from_name(integrator)
+        if not getattr(integ, "explicit", False):
+            raise ValueError(
+                f"strategy {self.name!r} is explicit: integrator must be "
+                f"{SYMPLECTIC_EULER.name!r}, got {integ.name!r} (an implicit integrator)"
+            )
+        return integ
+
+    @classmethod
+    def auto_dt_bound(
+        cls, model: Model, state: State, options: StepperOptions | None = None
+    ) -> StableStep:
+        """The stable step of ``state`` under ``options``' safety factors, and who sets it."""
+        options = cls.Options() if options is None else options
+        return stable_time_step(
+            model,
+            state,
+            fem_safety=options.cfl_safety_fem,
+            mpm_safety=options.cfl_safety_mpm,
+        )
+
+    @classmethod
+    def auto_dt(cls, model: Model, state: State | None = None, options: object = None) -> float:
+        """The step ``dt="auto"`` takes, in s (``Simulation`` may ask before constructing)."""
+        state = model.initial_state() if state is None else state
+        return cls.auto_dt_bound(model, state, options).dt
+
+    def _build_forces(self) -> None:
+        model, d = self.model, self.model.dim
+        self._fem_terms = [
+            ElasticityTerm(law, stencils, name=f"elasticity[{law.name}]")
+            for law, stencils in fem_elastic_groups(model)
+        ]
+        if model.n_fem_nodes:
+            layout = DofLayout(d, np.ones(model.n_fem_nodes, dtype=bool), model.n_fem_nodes)
+            ctx = StepContext(
+                model=model,
+                state=model.initial_state(),
+                dt=self.dt,
+                layout=layout,
+                fixed_positions=model.fem_X,
+                x_hat=np.zeros(layout.n_dof),
+                dof_mass=np.repeat(model.fem_mass, d),
+            )
+            for term in self._fem_terms:
+                term.begin_step(ctx)
+            self._fem_layout = layout
+            self._fem_free = ~model.fem_prescribed
+            self._fem_inv_mass = np.zeros(model.n_fem_nodes)
+            heavy = model.fem_mass > 0.0
+            self._fem_inv_mass[heavy] = 1.0 / model.fem_mass[heavy]
+        # MPM: per-particle Lame parameters and the particles of each law
+        self._mpm_laws = []
+        self._n_chunks = min(P2G_MAX_CHUNKS, max(1, model.n_particles // P2G_CHUNK))
+        #: particle-sized output and work arrays, reused once nothing else holds them
+        self._pool = BufferPool()
+        if model.n_particles:
+            owner = model.mpm_particle_body
+            self._mpm_mu = np.array([b.material.mu for b in model.mpm_bodies])[owner]
+            self._mpm_lam = np.array([b.material.lam for b in model.mpm_bodies])[owner]
+            laws = {id(b.material.law): b.material.law for b in model.mpm_bodies}
+            for law in laws.values():
+                bodies = [b.index for b in model.mpm_bodies if b.material.law is law]
+                particles = np.flatnonzero(np.isin(owner, bodies))
+                whole = particles.size == model.n_particles
+                self._mpm_laws.append((law, None if whole else particles))
+        self._term_names = [
+            *(t.name for t in self._fem_terms),
+            *(f"mpm_elasticity[{law.name}]" for law, _ in self._mpm_laws),
+            *(["gravity"] if model.has_gravity else []),
+            *(["external_force"] if model.has_load else []),
+        ]
+
+    # ------------------------------------------------------------------ protocol
+    @property
+    def terms(self) -> list[str]:
+        """Names of the force terms (elasticity per law, gravity, loads)."""
+        return list(self._term_names)
+
+    def initialize(self, state: State) -> State:
+        """Nothing to start: symplectic Euler needs no a^0 (a copy of ``state``)."""
+        return state.copy()
+
+    def stable_dt(self, state: State) -> float:
+        """The stable step of ``state`` in s (safety factors of the options included)."""
+        return self.auto_dt_bound(self.model, state, self.options).dt
+
+    def contact(self) -> ContactView:
+        """No contact algorithm here: zero forces, no pairs, NaN distance and energy."""
+        if self._last_contact is None:
+            m = self.model
+            self._last_contact = ContactView.empty(m.n_fem_nodes, m.n_particles, m.dim)
+        return self._last_contact
+
+    def checkpoint_data(self) -> dict[str, np.ndarray]:
+        """No carried state beyond ``State``."""
+        return {}
+
+    def restore_checkpoint_data(self, data: object) -> None:
+        """Nothing to restore."""
+
+    # ------------------------------------------------------------------ hooks
+    def after_p2g(self, step: ExplicitStep) -> None:
+        """Correct the grid momenta after P2G (default: nothing)."""
+
+    def resolve(
+        self, step: ExplicitStep, grid_v: np.ndarray, fem_v: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Contact correction of the updated velocities v* (default: none)."""
+        return grid_v, fem_v
+
+    # ------------------------------------------------------------------ the step
+    def _check_cfl(self, state: State) -> tuple[str, ...]:
+        bound = self.auto_dt_bound(self.model, state, self.options)
+        if self.dt <= bound.dt:
+            return ()
+        if self.dt > bound.limit:
+            raise StepError(
+                StepReport(
+                    step=state.step + 1,
+                    t=state.t + self.dt,
+                    success=False,
+                    status="CFL_VIOLATED",
+                    message=(
+                        f"dt = {self.dt:.6g} s exceeds the CFL limit {bound.limit:.6g} s "
+                        f"(CFL number 1; stable step {bound.describe()})"
+                    ),
+                )
+            )
+        return (f"CFL_ABOVE_SAFETY: dt = {self.dt:.6g} s above the stable step {bound.describe()}",)
+
+    def _mpm_piola(self, state: State) -> np.ndarray:
+        """First Piola stresses P(F_p^n) ``(P, d, d)`` in Pa, law by law."""
+        F = state.mpm_F
+        if len(self._mpm_laws) == 1 and self._mpm_laws[0][1] is None:
+            out = self._pool.empty(F.shape)
+            return self._mpm_laws[0][0].first_piola(F, self._mpm_mu, self._mpm_lam, out=out)
+        out = self._pool.empty(F.shape)
+        for law, idx in self._mpm_laws:
+            out[idx] = law.first_piola(F[idx], self._mpm_mu[idx], self._mpm_lam[idx])
+        return out
+
+    def _fem_forces(self, state: State) -> np.ndarray:
+        """Internal + gravity + load forces on the FEM nodes ``(N, d)`` in N at x^n."""
+        model = self.model
+        x = state.fem_x.reshape(-1)
+        force = np.multiply.outer(model.fem_mass, model.gravity)
+        for term in self._fem_terms:
+            term.solution_changed(x)
+            force -= term.gradient(x).reshape(-1, model.dim)
+        if model.has_load:
+            force += model.fem_load
+        return force
+
+    def particles_to_grid(self, state: State, timings: dict[str, float]) -> ExplicitStep:
+        """Stencils, P2G of mass, momentum and forces; FEM forces (steps 1 of the docstring)."""
+        model, d = self.model, self.model.dim
+        t_next = state.t + self.dt
+        stencils = box = None
+        grid_mass = np.zeros(0)
+        grid_x = grid_v = grid_force = np.zeros((0, d))
+        if model.n_particles:
+            started = time.perf_counter()
+            piola = self._mpm_piola(state)
+            timings["stress"] = time.perf_counter() - started
+            started = time.perf_counter()
+            apic_C = state.mpm_C if self.transfer == "apic" else None
+            dense = None
+            if d == 2 and self.dense_2d:
+                dense = dense_p2g(
+                    np.asarray(model.grid.origin),
+                    model.grid.dx,
+                    state.mpm_x,
+                    model.mpm_mass,
+                    state.mpm_v,
+                    apic_C,
+                    piola,
+                    state.mpm_F,
+                    model.mpm_volume,
+                    self._n_chunks,
+                    self._pool.empty,
+                )
+            if dense is not None:
+                box, grid_mass, momentum, grid_force = dense
+                grid_x = model.grid.node_positions(box.active_ijk())
+            else:
+                stencils = particle_stencils(model.grid, state.mpm_x)
+                grid_x = stencils.active_x
+                grid_mass, momentum, grid_force = p2g_with_forces(
+                    stencils.nodes,
+                    stencils.weights,
+                    stencils.grads,
+                    stencils.active_x,
+                    state.mpm_x,
+                    model.mpm_mass,
+                    state.mpm_v,
+                    apic_C,
+                    piola,
+                    state.mpm_F,
+                    model.mpm_volume,
+                    self._n_chunks,
+                )
+            grid_v = momentum * _inverse(grid_mass)[:, None]
+            grid_force += np.multiply.outer(grid_mass, model.gravity)
+            timings["p2g"] = time.perf_counter() - started
+        started = time.perf_counter()
+        fem_force = self._fem_forces(state) if model.n_fem_nodes else np.zeros((0, d))
+        timings["fem_forces"] = time.perf_counter() - started
+        return ExplicitStep(
+            t=state.t,
+            t_next=t_next,
+            dt=self.dt,
+            grid_x=grid_x,
+            grid_mass=grid_mass,
+            grid_v=grid_v,
+            grid_force=grid_force,
+            fem_force=fem_force,
+            _stencils=stencils,
+            _box=box,
+            _grid=model.grid,
+            _mpm_x=state.mpm_x if model.n_particles else None,
+        )
+
+    def _constrain(self, step: ExplicitStep, grid_v: np.ndarray) -> tuple[np.ndarray, tuple]:
+        """Level-set constraints on v* (step 5); returns v and the boundary reactions."""
+        model = self.model
+        if not model.boundaries or step.grid_x.shape[0] == 0:
+            return grid_v, ()
+        cons = grid_constraints(model.boundaries, step.grid_x, grid_v, step.t_next, step.dt)
+        step.constraints = cons
+        if not cons.any:
+            return grid_v, tuple((0.0,) * model.dim for _ in model.boundaries)
+        v_star = grid_v
+        v = grid_v.copy()
+        v_b = cons.shift / step.dt  # the boundary's velocity at its nodes
+        v[cons.sticky] = v_b[cons.sticky]
+        slip = cons.slip
+        n = cons.normals[slip]
+        rel = np.einsum("ij,ij->i", v[slip] - v_b[slip], n)
+        v[slip] -= rel[:, None] * n
+        reaction = np.zeros((len(model.boundaries), model.dim))
+        touched = cons.owner >= 0
+        impulse = step.grid_mass[touched, None] * (v[touched] - v_star[touched]) / step.dt
+        np.add.at(reaction, cons.owner[touched], impulse)
+        return v, tuple(tuple(float(c) for c in row) for row in reaction)
+
+    def _g2p(
+        self, step: ExplicitStep, state: State, grid_v: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """G2P of the end velocities ``grid_v (G, d)``: ``(mpm_x, mpm_v, mpm_F, mpm_C)``."""
+        if step._box is not None:
+            return dense_g2p(
+                step._box,
+                self.model.grid.dx,
+                self.transfer,
+                step.grid_v,
+                grid_v,
+                self.dt,
+                state.mpm_x,
+                state.mpm_v,
+                state.mpm_F,
+                self._pool.empty,
+            )
+        st = step.stencils()
+        return g2p_explicit(
+            self.transfer,
+            st.nodes,
+            st.weights,
+            st.grads,
+            st.active_x,
+            step.grid_v,
+            grid_v,
+            self.dt,
+            state.mpm_x,
+            state.mpm_v,
+            state.mpm_F,
+            self._n_chunks,
+            self._pool.empty,
+        )
+
+    def step(self, state: State) -> tuple[State, StepReport]:
+        """Advance ``state`` by dt (module docstring); ``StepError`` on a CFL violation."""
+        started = time.perf_counter()
+        model, dt = self.model, self.dt
+        notes = self._check_cfl(state)
+        timings: dict[str, float] = {"cfl": time.perf_counter() - started}
+        step = self.particles_to_grid(state, timings)
+        self.after_p2g(step)
+        t0 = time.perf_counter()
+        integ = self.integrator
+        grid_a = step.grid_force * _inverse(step.grid_mass)[:, None]
+        grid_v = integ.velocity(step.grid_v, grid_a, dt)
+        fem_v = np.zeros((0, model.dim))
+        if model.n_fem_nodes:
+            fem_a = step.fem_force * self._fem_inv_mass[:, None]
+            fem_v = integ.velocity(state.fem_v, fem_a, dt)
+            scripted_v = model.prescribed_velocities(step.t_next)
+            fem_v[~self._fem_free] = scripted_v[~self._fem_free]
+        grid_v, fem_v = self.resolve(step, grid_v, fem_v)
+        grid_v, reactions = self._constrain(step, grid_v)
+        new = replace(state, t=step.t_next, step=state.step + 1)
+        if model.n_fem_nodes:
+            fem_v[~self._fem_free] = scripted_v[~self._fem_free]
+            fem_x = integ.position(state.fem_x, fem_v, dt)
+            scripted_x = model.prescribed_positions(step.t_next)
+            fem_x[~self._fem_free] = scripted_x[~self._fem_free]
+            new.fem_x, new.fem_v = fem_x, fem_v
+            new.fem_a = (fem_v - state.fem_v) / dt
+        timings["update"] = time.perf_counter() - t0
+        if model.n_particles:
+            t0 = time.perf_counter()
+            new.mpm_x, new.mpm_v, new.mpm_F, new.mpm_C = self._g2p(step, state, grid_v)
+            timings["g2p"] = time.perf_counter() - t0
+        timings["step"] = time.perf_counter() - started
+        report = StepReport(
+            step=new.step,
+            t=new.t,
+            success=True,
+            status="EXPLICIT",
+            message="explicit step",
+            timings=timings,
+            boundary_forces=reactions,
+            notes=notes,
+        )
+        return new, report
+
+
+def _inverse(mass: np.ndarray) -> np.ndarray:
+    """1 / m ``(n,)`` in 1/kg, 0 on massless nodes."""
+    out = np.zeros_like(mass)
+    np.divide(1.0, mass, out=out, where=mass > 0.0)
+    return out
