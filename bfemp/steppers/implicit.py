@@ -6,8 +6,9 @@ One step:
 2. Unknowns: free FEM nodes and unconstrained grid nodes, prescribed FEM nodes follow their motion,
    sticky grid nodes stay, slip grid nodes move tangentially only (rotated frames).
 3. Predict x_hat (eqs. 21-22), minimise the incremental potential with projected Newton from x^n
-   (Algorithm 2), then a^{n+1} = -M^-1 dPsi/dx(x^{n+1}) and the velocity update of eq. 21
-   (Algorithm 2, line 14); constrained components get zero velocity and acceleration. Under an
+   (Algorithm 2), then a^{n+1} from eq. 21 and the solved x^{n+1} (equal to Algorithm 2 line
+   14's -M^-1 dPsi/dx at the exact minimiser; ``Integrator.acceleration`` says why) and the
+   velocity update of eq. 21; constrained components get zero velocity and acceleration. Under an
    integrator with ``implicit_contact`` the contact forces are kept out of a^{n+1} and added to
    the velocity as an impulse (``bfemp.integrators``).
 4. MPM: G2P of positions, velocities, F (and APIC C, Newmark a) per Tables 1-3 (line 12).
@@ -522,9 +523,12 @@ class ImplicitStepper:
         a_contact = None
         if layout.n_dof:
             self.potential.solution_changed(result.x)
-            a_next = -self._memory_gradient(x_next) / ctx.dof_mass
+            # from the solved positions (eq. 21), so that v^{n+1} matches x^{n+1} - x^n
             if integ.implicit_contact and self.barrier is not None:
-                a_contact = -self.potential.potential_gradient(x_next, contact=True) / ctx.dof_mass
+                a_next = -self._memory_gradient(x_next) / ctx.dof_mass
+                a_contact = integ.contact_acceleration(x_next, ctx.x_hat, a_next, dt)
+            else:
+                a_next = integ.acceleration(x_next, ctx.x_hat, dt)
         else:
             a_next = np.zeros(0)
         boundary_forces = None
