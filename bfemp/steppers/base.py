@@ -19,11 +19,17 @@ class StepReport:
         message: human-readable outcome.
         newton_iterations: Newton iterations of the step.
         residual: ``||p||_inf / dt`` of the last Newton increment in m/s.
-        timings: seconds per phase (``"assemble"``, ``"factorize"``, ``"line_search"``, ...).
+        timings: seconds per phase (``"assemble"``, ``"factorize"``, ``"line_search"``, ...),
+            summed over every minimisation of the step (the friction loop's, and the sub-steps'
+            when scripted nodes move); ``"total"`` is the time inside those minimisations,
+            ``"step"`` the whole step.
         min_distance: smallest active contact distance at the end of the step in m (NaN when no
             pair is within d-hat or the scene has no contact).
         contact_pairs: number of active contact pairs at the end of the step.
-        friction_iterations: lagged-friction updates of the step (0 without friction).
+        friction_iterations: lagged-friction updates of the step (0 without friction); when
+            the step is solved in sub-steps (scripted nodes moving), the most that any one
+            sub-step's friction loop took, so it never exceeds the cap
+            (``ContactParameters.friction_iterations``).
         friction_converged: whether the friction loop met the tolerance within its cap.
         boundary_forces: per level-set boundary, the reaction force (d,) in N its slip nodes
             exert on the body (empty without slip constraints).

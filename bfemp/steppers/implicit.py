@@ -47,7 +47,7 @@ from bfemp.terms import (
 from solvers.linear import LinearSolver, default_linear_solver
 from solvers.newton import minimize
 from solvers.options import NewtonOptions
-from solvers.result import NewtonResult, NewtonStatus
+from solvers.result import TIMING_KEYS, NewtonResult, NewtonStatus, add_timings
 
 __all__ = ["ImplicitStepper", "build_potential"]
 
@@ -141,6 +141,7 @@ class ImplicitStepper:
             (t for t in self.potential.potentials if isinstance(t, FrictionTerm)), None
         )
         self.adaptive: AdaptiveKappa | None = None
+        self._timings: dict[str, float] = {}  # phase seconds of the step under way
 
     def _adapt_kappa(self, ctx: StepContext, x_n: np.ndarray) -> None:
         """kappa = "auto": bounds on the first step, gradient balance when contact appears."""
@@ -309,15 +310,17 @@ class ImplicitStepper:
         its, friction_its, friction_ok = 0, 0, True
         for _ in range(self.SCRIPTED_SUBSTEPS):
             fixed[:] = current
+            t0 = time.perf_counter()
             self.potential.solution_changed(self.potential.to_unknowns(x))
             frac = self.barrier.scripted_step(x, current, target)
+            add_timings(self._timings, {"scripted_ccd": time.perf_counter() - t0})
             if frac >= 1.0:
                 break
             current = current + frac * (target - current)
             fixed[:] = current
             result, f_its, f_ok = self._solve(x)
             its += result.nit
-            friction_its += f_its
+            friction_its = max(friction_its, f_its)  # per solve, as capped
             friction_ok &= f_ok
             if not result.success:
                 return result, friction_its, friction_ok
@@ -342,7 +345,7 @@ class ImplicitStepper:
         fixed[:] = target
         result, f_its, f_ok = self._solve(x)
         result.nit += its
-        return result, friction_its + f_its, friction_ok and f_ok
+        return result, max(friction_its, f_its), friction_ok and f_ok
 
     def _warm_started(self, x_n: np.ndarray, predicted: np.ndarray) -> np.ndarray:
         """Newton's start: x^n moved toward a predicted x^{n+1} ``(n_dof,)`` in m.
@@ -388,20 +391,18 @@ class ImplicitStepper:
         """
         y = self.potential.to_unknowns(x_n)
         if self.friction is None:
-            result = minimize(
-                self.potential, y, options=self.newton, linear_solver=self.linear_solver
-            )
-            return result, 0, True
+            return self._minimize(y), 0, True
         cap = self.model.contact.friction_iterations
-        total_it = 0
+        total_it, result = 0, None  # result: set by the first minimisation (j = 0)
         for j in range(cap):
+            t0 = time.perf_counter()
             self.friction.lag(self.potential.to_positions(y))
-            if j > 0 and self._increment_below_tol(y, result):
+            stop = j > 0 and self._increment_below_tol(y, result)
+            add_timings(self._timings, {"friction": time.perf_counter() - t0})
+            if stop:
                 result.nit = total_it
                 return result, j + 1, True
-            result = minimize(
-                self.potential, y, options=self.newton, linear_solver=self.linear_solver
-            )
+            result = self._minimize(y)
             total_it += result.nit
             if not result.success:
                 return result, j + 1, False
@@ -412,6 +413,12 @@ class ImplicitStepper:
         result.nit = total_it
         log.warning("friction loop did not converge in %d iterations", cap)
         return result, cap, False
+
+    def _minimize(self, y: np.ndarray) -> NewtonResult:
+        """One projected Newton solve from ``y``; its phase timings add to the step's."""
+        result = minimize(self.potential, y, options=self.newton, linear_solver=self.linear_solver)
+        add_timings(self._timings, result.timings)
+        return result
 
     def _increment_below_tol(self, y: np.ndarray, result: NewtonResult) -> bool:
         """The friction loop's stopping test, by a back-solve instead of a factorisation.
@@ -484,6 +491,7 @@ class ImplicitStepper:
     def step(self, state: State) -> tuple[State, StepReport]:
         """Advance ``state`` by ``dt``; raises ``StepError`` when Newton fails."""
         started = time.perf_counter()
+        self._timings = dict.fromkeys(TIMING_KEYS, 0.0)
         dt, integ = self.dt, self.integrator
         t_next = state.t + dt
         ctx, mpm, x_n, v_n, a_n, frames = self._setup(state, t_next)
@@ -516,7 +524,8 @@ class ImplicitStepper:
             residual=float(result.step_inf_norm) / dt,
         )
         if not result.success:
-            raise StepError(StepReport(**report_args, timings=dict(result.timings)))
+            raise StepError(StepReport(**report_args, timings=dict(self._timings)))
+        update_start = time.perf_counter()
         # a^{n+1} from the forces at x^{n+1} (Algorithm 2, line 14), then eq. 21 for v; with
         # implicit contact, a^{n+1} leaves the contact forces out and they act as an impulse.
         x_next = self.potential.to_positions(result.x)
@@ -549,8 +558,9 @@ class ImplicitStepper:
 
         g2p_start = time.perf_counter()
         new = self._advance(state, ctx, mpm, x_next, v_next, a_next, t_next)
-        timings = dict(result.timings)
+        timings = dict(self._timings)  # summed over every solve of the step
         timings["setup"] = setup_time
+        timings["update"] = g2p_start - update_start
         timings["g2p"] = time.perf_counter() - g2p_start
         timings["step"] = time.perf_counter() - started
         if self.barrier is not None and self.barrier.pairs is not None:
