@@ -26,6 +26,7 @@ import json
 import logging
 import os
 import sys
+import warnings
 from pathlib import Path
 
 from bfemp.errors import SceneError
@@ -259,6 +260,11 @@ def _info(args: argparse.Namespace) -> int:
     return 0
 
 
+def _log_warning(message, category, filename, lineno, file=None, line=None) -> None:  # noqa: ANN001
+    """Library warnings (the SuperLU fall-back) as one log line each: ``--quiet`` silences them."""
+    log.warning("%s: %s", category.__name__, message)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``bfemp`` console script; returns the exit status."""
     from bfemp.steppers import StepError
@@ -276,7 +282,9 @@ def main(argv: list[str] | None = None) -> int:
         "info": _info,
     }
     try:
-        return commands[args.command](args)
+        with warnings.catch_warnings():
+            warnings.showwarning = _log_warning
+            return commands[args.command](args)
     except (StepError, RuntimeError) as err:
         if args.debug:
             raise
