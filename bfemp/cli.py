@@ -128,6 +128,7 @@ def _demo(args: argparse.Namespace) -> int:
     from bfemp.demo import run_cantilever_demo, run_demo
 
     runner = run_demo if args.case == "rings" else run_cantilever_demo
+    _first_run_notice(args)
     summary = runner(args.out, progress=not args.quiet)
     outputs = summary["outputs"]
     print(
@@ -148,6 +149,15 @@ def _demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def _first_run_notice(args: argparse.Namespace) -> None:
+    """Say that this run compiles the numba kernels when none is cached (unless --quiet)."""
+    from bfemp._numba_cache import first_run_notice
+
+    notice = None if args.quiet else first_run_notice()
+    if notice:
+        print(f"bfemp: {notice}", file=sys.stderr)
+
+
 def _positive_int(value: int | None, name: str, minimum: int) -> int | None:
     if value is not None and value < minimum:
         raise SceneError(f"must be an integer >= {minimum}, got {value}", field=name)
@@ -165,6 +175,8 @@ def _run(args: argparse.Namespace, argv: list[str]) -> int:
     ckpt = _positive_int(args.checkpoint_every, "--checkpoint-every", 0)
     ckpt = settings["checkpoint_every"] if ckpt is None else ckpt
     out = Path(args.out or settings.get("out") or Path("results") / scene_path.stem)
+    if not args.dry_run:
+        _first_run_notice(args)
     sim = sf.make_simulation()
     if args.dry_run:
         print(

@@ -220,3 +220,26 @@ def test_the_superlu_fallback_warning_prints_once_and_not_with_quiet(scene_file,
     )
     assert "ok:" in done.stdout
     assert done.stderr.count("falling back to scipy's SuperLU") == (0 if quiet else 1), done.stderr
+
+
+def test_a_first_run_says_it_compiles_the_kernels_and_where_they_go(
+    scene_file, tmp_path, capsys, monkeypatch, no_plots
+):
+    """An empty numba cache: ``bfemp run`` says that it compiles the kernels and names the
+    cache (not with --quiet); a cache with an index file: nothing is said."""
+    from numba.core import config
+
+    from bfemp._numba_cache import first_run_notice
+
+    cache = tmp_path / "numba_cache"
+    # numba chose each kernel's cache when bfemp was imported: this only moves where we look
+    monkeypatch.setattr(config, "CACHE_DIR", str(cache))
+    assert main(["run", str(scene_file), "--out", str(tmp_path / "a"), "--t-end", "0.02"]) == 0
+    err = capsys.readouterr().err
+    assert "compiling numba kernels on first run" in err and str(cache) in err
+    assert _run(scene_file, "--out", tmp_path / "b", "--t-end", "0.02") == 0
+    assert "compiling" not in capsys.readouterr().err
+    (cache / "bfemp_0").mkdir(parents=True)
+    (cache / "bfemp_0" / "kernel.nbi").write_bytes(b"")
+    assert first_run_notice() is None
+    assert first_run_notice(str(tmp_path / "elsewhere")) is not None
