@@ -142,6 +142,9 @@ class ImplicitStepper:
         )
         self.adaptive: AdaptiveKappa | None = None
         self._timings: dict[str, float] = {}  # phase seconds of the step under way
+        # the phases every step reports (0 when a step has none: same metrics columns each step)
+        self._phases = TIMING_KEYS + ("friction",) * (self.friction is not None)
+        self._phases += ("scripted_ccd",) * (self.barrier is not None)
 
     def _adapt_kappa(self, ctx: StepContext, x_n: np.ndarray) -> None:
         """kappa = "auto": bounds on the first step, gradient balance when contact appears."""
@@ -530,7 +533,7 @@ class ImplicitStepper:
     def step(self, state: State) -> tuple[State, StepReport]:
         """Advance ``state`` by ``dt``; raises ``StepError`` when Newton fails."""
         started = time.perf_counter()
-        self._timings = dict.fromkeys(TIMING_KEYS, 0.0)
+        self._timings = dict.fromkeys(self._phases, 0.0)
         dt, integ = self.dt, self.integrator
         t_next = state.t + dt
         ctx, mpm, x_n, v_n, a_n, frames = self._setup(state, t_next)

@@ -553,7 +553,7 @@ def test_step_timings_and_friction_counts_cover_every_sub_step_of_a_scripted_pla
         t = report.timings
         assert sum(t[k] for k in newton_phases) <= t["total"] <= t["step"]
         outside = ("friction", "scripted_ccd", "setup", "update", "g2p")  # of the minimisations
-        covered += t["total"] + sum(t.get(k, 0.0) for k in outside)
+        covered += t["total"] + sum(t.get(k, 0.0) for k in outside)  # .get: absent before
         step_time += t["step"]
         counts.append(report.friction_iterations)
     assert report.contact_pairs > 0
