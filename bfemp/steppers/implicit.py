@@ -568,13 +568,14 @@ class ImplicitStepper:
         if not result.success:
             raise StepError(StepReport(**report_args, timings=dict(self._timings)))
         update_start = time.perf_counter()
-        # a^{n+1} from the forces at x^{n+1} (Algorithm 2, line 14), then eq. 21 for v; with
-        # implicit contact, a^{n+1} leaves the contact forces out and they act as an impulse.
+        # a^{n+1} from the solved positions (eq. 21; Algorithm 2 line 14's forces agree at the
+        # exact minimiser), then eq. 21 for v, so that v^{n+1} matches x^{n+1} - x^n; with
+        # implicit contact the elastic a^{n+1} comes from the forces and the contact part (the
+        # rest of the motion) acts as an impulse.
         x_next = self.potential.to_positions(result.x)
         a_contact = None
         if layout.n_dof:
             self.potential.solution_changed(result.x)
-            # from the solved positions (eq. 21), so that v^{n+1} matches x^{n+1} - x^n
             if integ.implicit_contact and self.barrier is not None:
                 a_next = -self._memory_gradient(x_next) / ctx.dof_mass
                 a_contact = integ.contact_acceleration(x_next, ctx.x_hat, a_next, dt)
