@@ -29,6 +29,7 @@ import json
 import logging
 import os
 import sys
+import warnings
 from importlib import metadata
 from pathlib import Path
 
@@ -111,6 +112,7 @@ def _demo(args: argparse.Namespace) -> int:
     from bfemp.demo import run_cantilever_demo, run_demo
 
     runner = run_demo if args.case == "rings" else run_cantilever_demo
+    _first_run_notice(args)
     summary = runner(args.out, progress=not args.quiet)
     outputs = summary["outputs"]
     print(
@@ -130,6 +132,15 @@ def _demo(args: argparse.Namespace) -> int:
     if "summary" in outputs:
         print(f"  summary (JSON):  {outputs['summary']}")
     return 0
+
+
+def _first_run_notice(args: argparse.Namespace) -> None:
+    """Say that this run compiles the numba kernels when none is cached (unless --quiet)."""
+    from bfemp._numba_cache import first_run_notice
+
+    notice = None if args.quiet else first_run_notice()
+    if notice:
+        print(f"bfemp: {notice}", file=sys.stderr)
 
 
 def _positive_int(value: int | None, name: str, minimum: int) -> int | None:
@@ -163,6 +174,8 @@ def _run(args: argparse.Namespace, argv: list[str]) -> int:
     ckpt = _positive_int(args.checkpoint_every, "--checkpoint-every", 0)
     ckpt = settings["checkpoint_every"] if ckpt is None else ckpt
     out = Path(args.out or settings.get("out") or Path("results") / scene_path.stem)
+    if not args.dry_run:
+        _first_run_notice(args)
     sim = Simulation.from_file(sf)
     if args.dry_run:
         print(
@@ -230,6 +243,11 @@ def _info(args: argparse.Namespace) -> int:
     return 0
 
 
+def _log_warning(message, category, filename, lineno, file=None, line=None) -> None:  # noqa: ANN001
+    """Library warnings (the SuperLU fall-back) as one log line each: ``--quiet`` silences them."""
+    log.warning("%s: %s", category.__name__, message)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``bfemp`` console script; returns the exit status."""
     from bfemp.steppers import StepError
@@ -247,7 +265,9 @@ def main(argv: list[str] | None = None) -> int:
         **plugins,
     }
     try:
-        return commands[args.command](args)
+        with warnings.catch_warnings():
+            warnings.showwarning = _log_warning
+            return commands[args.command](args)
     except (StepError, RuntimeError) as err:
         if args.debug:
             raise

@@ -263,6 +263,9 @@ class Scene:
     ) -> None:
         """A level-set boundary acting on the MPM grid nodes inside it (``value <= 0``).
 
+        Bodies resting on it stop about one grid cell above it (the dx gap, ``bfemp.levelset``);
+        a prescribed FEM body is a boundary without that gap.
+
         Args:
             levelset: e.g. ``bfemp.levelset.HalfPlane(point=..., normal=...)``.
             kind: ``"sticky"``, ``"slip"`` or ``"separate"``.

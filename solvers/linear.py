@@ -292,14 +292,14 @@ class ScipySolver:
 def default_linear_solver() -> LinearSolver:
     """A :class:`CholmodSolver` if scikit-sparse imports, else a :class:`ScipySolver`.
 
-    The fallback emits one ``RuntimeWarning`` per process (and logs it) naming scikit-sparse
-    and how to install it.
+    The fallback emits one ``RuntimeWarning`` per process naming scikit-sparse and how to
+    install it, and no log record beside it (that printed it twice); the ``bfemp`` command
+    line routes warnings through ``logging``, so ``--quiet`` silences it.
     """
     global _fallback_warned
     if cholmod_available():
         return CholmodSolver()
     if not _fallback_warned:
         _fallback_warned = True
-        logger.warning(CHOLMOD_INSTALL_HINT)
         warnings.warn(CHOLMOD_INSTALL_HINT, RuntimeWarning, stacklevel=2)
     return ScipySolver()

@@ -13,7 +13,7 @@ from enum import IntEnum
 
 import numpy as np
 
-__all__ = ["TIMING_KEYS", "NewtonIteration", "NewtonResult", "NewtonStatus"]
+__all__ = ["TIMING_KEYS", "NewtonIteration", "NewtonResult", "NewtonStatus", "add_timings"]
 
 #: Phases timed by :func:`solvers.newton.minimize`, in s. ``analyze`` is the symbolic
 #: factorisation (just a pattern check while the pattern is reused), ``line_search`` includes every
@@ -29,6 +29,14 @@ TIMING_KEYS: tuple[str, ...] = (
     "step_bound",
     "total",
 )
+
+
+def add_timings(total: dict[str, float], timings: dict[str, float]) -> dict[str, float]:
+    """Add the seconds of ``timings`` to ``total`` phase by phase (in place; returns ``total``):
+    the phases of a time step solved by several minimisations (friction loop, sub-steps)."""
+    for key, seconds in timings.items():
+        total[key] = total.get(key, 0.0) + seconds
+    return total
 
 
 class NewtonStatus(IntEnum):

@@ -179,15 +179,22 @@ class BarrierTerm:
         t = self._earliest_impact(self._pos, self.collision_positions(x + p))
         return 1.0 if t >= 1.0 else CCD_FRACTION * t
 
-    def scripted_step(self, x: np.ndarray, fixed_from: np.ndarray, fixed_to: np.ndarray) -> float:
+    def scripted_step(
+        self,
+        x: np.ndarray,
+        fixed_from: np.ndarray,
+        fixed_to: np.ndarray,
+        x_to: np.ndarray | None = None,
+    ) -> float:
         """How far scripted nodes may move from ``fixed_from`` toward ``fixed_to`` (all-node
-        positions ``(n_all, d)``) with the unknowns held at ``x``: 1 when nothing is in the way,
-        else 0.9 x the earliest time of impact (the stepper moves them part-way and re-solves)."""
+        positions ``(n_all, d)``) while the unknowns move from ``x`` toward ``x_to`` (``(n_dof,)``
+        in m; held at ``x`` when None), both linearly: 1 when nothing is in the way, else 0.9 x
+        the earliest time of impact (the stepper moves them part-way and re-solves)."""
         if self.collisions.facets.shape[0] == 0:
             return 1.0
         cs, layout = self.collisions, self._layout
         start = cs.positions(layout.positions(x, fixed_from))
-        end = cs.positions(layout.positions(x, fixed_to))
+        end = cs.positions(layout.positions(x if x_to is None else x_to, fixed_to))
         t = self._earliest_impact(start, end)
         return 1.0 if t >= 1.0 else CCD_FRACTION * t
 

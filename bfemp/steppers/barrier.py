@@ -8,8 +8,10 @@ One step:
    sticky grid nodes stay, slip grid nodes move tangentially only (rotated frames).
 3. Predict x_hat (eqs. 21-22), minimise the incremental potential with projected Newton from x^n
    (Algorithm 2; scripted nodes brought to their targets without crossing, the outer friction
-   loop of Algorithm 1: ``bfemp.steppers._barrier_solve``), then a^{n+1} = -M^-1 dPsi/dx(x^{n+1})
-   and the velocity update of eq. 21 (Algorithm 2, line 14); constrained components get zero
+   loop of Algorithm 1: ``bfemp.steppers._barrier_solve``), then a^{n+1} from eq. 21 and the
+   solved x^{n+1} (equal to Algorithm 2 line 14's -M^-1 dPsi/dx at the exact minimiser;
+   ``Integrator.acceleration`` says why) and the velocity update of eq. 21; constrained
+   components get zero
    velocity and acceleration. Under an integrator with ``implicit_contact`` the contact forces
    are kept out of a^{n+1} and added to the velocity as an impulse (``bfemp.integrators``).
 4. MPM: one G2P of positions, velocities, F (and APIC C, Newmark a) per Tables 1-3 (line 12)
@@ -322,7 +324,7 @@ class BarrierStepper:
             # a^{n+1} ~ a^n in eq. 21: x^{n+1} ~ x_hat + 2 alpha beta dt^2 a^n (warm start)
             predicted = ctx.x_hat + integ.weight(dt) * a_n if self.warm_start else None
             result, friction_its, friction_ok = self._solver.solve(
-                state, nodes, nodes.start(), predicted
+                state, nodes, nodes.start(), ctx.x_hat, predicted
             )
         report_args = dict(
             friction_converged=friction_ok,
@@ -336,9 +338,8 @@ class BarrierStepper:
         )
         if not result.success:
             raise StepError(StepReport(**report_args, timings=dict(result.timings)))
-        v_next, a_next, boundary_forces = self._end_velocities(
-            result, nodes, x_n, v_n, a_n, ctx.dof_mass
-        )
+        update_start = time.perf_counter()
+        v_next, a_next, boundary_forces = self._end_velocities(result, nodes, x_n, v_n, a_n, ctx)
         g2p_start = time.perf_counter()
         x_all = layout.positions(self.potential.to_positions(result.x), nodes.fixed)
         new = write_state(
@@ -352,6 +353,7 @@ class BarrierStepper:
         )
         timings = dict(result.timings)
         timings["setup"] = setup_time
+        timings["update"] = g2p_start - update_start
         timings["g2p"] = time.perf_counter() - g2p_start
         timings["step"] = time.perf_counter() - started
         if self.barrier is not None and self.barrier.pairs is not None:
@@ -379,22 +381,27 @@ class BarrierStepper:
         x_n: np.ndarray,
         v_n: np.ndarray,
         a_n: np.ndarray,
-        dof_mass: np.ndarray,
+        ctx: StepContext,
     ) -> tuple[np.ndarray, np.ndarray, tuple | None]:
         """v^{n+1}, a^{n+1} ``(n_dof,)`` and the level-set reactions of a converged step.
 
-        a^{n+1} from the forces at x^{n+1} (Algorithm 2, line 14), then eq. 21 for v; with
-        implicit contact, a^{n+1} leaves the contact forces out and they act as an impulse.
-        Along slip normals the node moves with the boundary: its velocity, no acceleration.
+        a^{n+1} from the solved positions (eq. 21; Algorithm 2 line 14's -M^-1 dPsi/dx agrees
+        at the exact minimiser, ``Integrator.acceleration`` says why the positions are taken),
+        then eq. 21 for v, so that v^{n+1} matches x^{n+1} - x^n; with implicit contact the
+        elastic a^{n+1} comes from the forces and the contact part (the rest of the motion)
+        acts as an impulse. Along slip normals the node moves with the boundary: its velocity,
+        no acceleration.
         """
         integ, dt, frames = self.integrator, self.dt, nodes.frames
         x_next = self.potential.to_positions(result.x)
         a_contact = None
         if nodes.layout.n_dof:
             self.potential.solution_changed(result.x)
-            a_next = -self._memory_gradient(x_next) / dof_mass
             if integ.implicit_contact and self.barrier is not None:
-                a_contact = -self.potential.potential_gradient(x_next, contact=True) / dof_mass
+                a_next = -self._memory_gradient(x_next) / ctx.dof_mass
+                a_contact = integ.contact_acceleration(x_next, ctx.x_hat, a_next, dt)
+            else:
+                a_next = integ.acceleration(x_next, ctx.x_hat, dt)
         else:
             a_next = np.zeros(0)
         boundary_forces = None

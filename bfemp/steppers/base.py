@@ -134,10 +134,16 @@ class StepReport:
         status: status name (``"CONVERGED"``, ``"LINE_SEARCH_STALLED"``, ``"EXPLICIT"``, ...).
         message: human-readable outcome.
         iterations: iteration counts of the step by name (``{"newton": 7, "friction": 2}``,
-            ``{"augury": 1}``); metrics get one ``iterations_<name>`` column each.
+            ``{"augury": 1}``); metrics get one ``iterations_<name>`` column each. Barrier:
+            ``"friction"`` is the lagged-friction updates of the step; when the step is solved
+            in sub-steps (scripted nodes moving), the most that any one sub-step's friction loop
+            took, so it never exceeds the cap (``ContactParameters.friction_iterations``).
         residual: the strategy's convergence measure in m/s (barrier: ``||p||_inf / dt`` of the
             last Newton increment); NaN for explicit strategies.
-        timings: seconds per phase (``"assemble"``, ``"factorize"``, ``"p2g"``, ...).
+        timings: seconds per phase (``"assemble"``, ``"factorize"``, ``"p2g"``, ...); barrier:
+            summed over every minimisation of the step (the friction loop's, and the sub-steps'
+            when scripted nodes move); ``"total"`` is the time inside those minimisations,
+            ``"step"`` the whole step.
         min_distance: smallest active contact distance at the end of the step in m (NaN when no
             pair is within d-hat or the strategy has no distance).
         contact_pairs: number of active contact pairs (or contact nodes) at the end of the step.

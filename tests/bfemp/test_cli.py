@@ -2,6 +2,7 @@
 printed as one line without a traceback (exit 2), failed checks (exit 1), Ctrl-C (exit 130)."""
 
 import json
+import os
 import subprocess
 import sys
 import types
@@ -236,3 +237,43 @@ def test_console_entry_point_reports_errors_without_traceback(tmp_path):
     assert proc.returncode == 2
     assert proc.stderr.startswith(f"bfemp: error: {bad}: unknown key 'simulaton'")
     assert "did you mean 'simulation'" in proc.stderr and "Traceback" not in proc.stderr
+
+
+@pytest.mark.parametrize("quiet", [False, True])
+def test_the_superlu_fallback_warning_prints_once_and_not_with_quiet(scene_file, tmp_path, quiet):
+    """Without scikit-sparse the command line says so once (it printed the hint twice: a log
+    line and the RuntimeWarning), and --quiet silences it (the warning ignored it)."""
+    fake = tmp_path / "no_sksparse" / "sksparse"
+    fake.mkdir(parents=True)
+    (fake / "__init__.py").write_text('raise ImportError("hidden by the test")\n')
+    root = Path(bfemp.__file__).resolve().parents[1]
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(fake.parent), str(root)])}
+    args = [sys.executable, "-m", "bfemp", "run", str(scene_file), "--dry-run"]
+    done = subprocess.run(
+        args + (["--quiet"] if quiet else []), env=env, capture_output=True, text=True, check=True
+    )
+    assert "ok:" in done.stdout
+    assert done.stderr.count("falling back to scipy's SuperLU") == (0 if quiet else 1), done.stderr
+
+
+def test_a_first_run_says_it_compiles_the_kernels_and_where_they_go(
+    scene_file, tmp_path, capsys, monkeypatch, no_plots
+):
+    """An empty numba cache: ``bfemp run`` says that it compiles the kernels and names the
+    cache (not with --quiet); a cache with an index file: nothing is said."""
+    from numba.core import config
+
+    from bfemp._numba_cache import first_run_notice
+
+    cache = tmp_path / "numba_cache"
+    # numba chose each kernel's cache when bfemp was imported: this only moves where we look
+    monkeypatch.setattr(config, "CACHE_DIR", str(cache))
+    assert main(["run", str(scene_file), "--out", str(tmp_path / "a"), "--t-end", "0.02"]) == 0
+    err = capsys.readouterr().err
+    assert "compiling numba kernels on first run" in err and str(cache) in err
+    assert _run(scene_file, "--out", tmp_path / "b", "--t-end", "0.02") == 0
+    assert "compiling" not in capsys.readouterr().err
+    (cache / "bfemp_0").mkdir(parents=True)
+    (cache / "bfemp_0" / "kernel.nbi").write_bytes(b"")
+    assert first_run_notice() is None
+    assert first_run_notice(str(tmp_path / "elsewhere")) is not None
