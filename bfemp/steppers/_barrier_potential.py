@@ -11,9 +11,11 @@ import numpy as np
 
 from bfemp.contact.friction import FrictionTerm
 from bfemp.contact.term import BarrierTerm
+from bfemp.diagnostics import contact_forces_between_bodies
 from bfemp.model import Model
 from bfemp.mpm.elasticity import MpmElasticityTerm
 from bfemp.potential import IncrementalPotential
+from bfemp.steppers.base import ContactView, finite_or_nan
 from bfemp.terms import (
     ElasticityTerm,
     ExternalForceTerm,
@@ -22,7 +24,7 @@ from bfemp.terms import (
     fem_elastic_groups,
 )
 
-__all__ = ["build_potential", "has_contact"]
+__all__ = ["build_potential", "contact_view", "has_contact"]
 
 
 def _laws(bodies: tuple) -> dict[int, object]:
@@ -62,3 +64,34 @@ def has_contact(model: Model) -> bool:
     if model.contact is None or not model.fem_bodies:
         return False
     return model.n_particles > 0 or len(model.fem_bodies) > 1
+
+
+def contact_view(model: Model, barrier: BarrierTerm | None) -> ContactView:
+    """What ``barrier`` knows at its current iterate (the end of the last step).
+
+    Forces in N (N/m in 2D): on every FEM node (zero off the boundary) and every particle, and
+    per pair of bodies; all zero (and energy 0) before the first step; energy NaN without a
+    barrier.
+    """
+    kwargs = {"parameters": {"kappa": float(barrier.kappa)}} if barrier is not None else {}
+    view = ContactView.empty(model.n_fem_nodes, model.n_particles, model.dim, **kwargs)
+    if barrier is None or barrier.pairs is None:
+        energy = 0.0 if barrier is not None else np.nan
+        return ContactView(**{**view.__dict__, "energy": energy})
+    cs = barrier.collisions
+    pair_forces = barrier.pair_point_forces()
+    forces = np.zeros((cs.n_points, model.dim))
+    for pts, f in pair_forces.values():
+        np.add.at(forces, pts.reshape(-1), f.reshape(-1, model.dim))
+    nf = cs.n_fem_points
+    np.add.at(view.fem_forces, cs.nodes[:nf, 0], forces[:nf])
+    view.particle_forces[cs.particle_index[nf:]] = forces[nf:]
+    return ContactView(
+        view.fem_forces,
+        view.particle_forces,
+        min_distance=finite_or_nan(barrier.min_distance()),
+        pairs=int(barrier.pairs.n_pairs),
+        energy=float(barrier.value(None)),
+        parameters={"kappa": float(barrier.kappa)},
+        body_forces=contact_forces_between_bodies(model, cs.point_body, pair_forces),
+    )

@@ -23,7 +23,6 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
@@ -31,81 +30,23 @@ import numpy as np
 from bfemp.contact.adaptive import AdaptiveKappa
 from bfemp.contact.friction import FrictionTerm
 from bfemp.contact.term import BarrierTerm
-from bfemp.diagnostics import contact_forces_between_bodies
 from bfemp.dofs import DofLayout
 from bfemp.frames import NodeFrames
 from bfemp.integrators import Integrator
 from bfemp.model import Model
 from bfemp.state import State
-from bfemp.steppers._barrier_potential import build_potential, has_contact
+from bfemp.steppers._barrier_options import LINEAR_SOLVERS, BarrierOptions
+from bfemp.steppers._barrier_potential import build_potential, contact_view, has_contact
 from bfemp.steppers._barrier_solve import ScriptedSolve
 from bfemp.steppers._scaffold import StepNodes, gather_nodes, write_state
-from bfemp.steppers.base import ContactView, StepError, StepperOptions, StepReport, finite_or_nan
+from bfemp.steppers.base import ContactView, StepError, StepReport, finite_or_nan
 from bfemp.terms import StepContext
-from solvers.linear import LinearSolver, ScipySolver, default_linear_solver
 from solvers.options import NewtonOptions
 from solvers.result import NewtonResult, NewtonStatus
 
-__all__ = ["BarrierOptions", "BarrierStepper", "build_potential", "has_contact"]
+__all__ = ["LINEAR_SOLVERS", "BarrierOptions", "BarrierStepper", "build_potential", "has_contact"]
 
 log = logging.getLogger(__name__)
-
-#: the names ``BarrierOptions.linear_solver`` accepts
-LINEAR_SOLVERS = ("default", "cholmod", "scipy")
-
-
-@dataclass(frozen=True, kw_only=True)
-class BarrierOptions(StepperOptions):
-    """Numerical settings of the ``barrier`` strategy (``Simulation(options=...)``).
-
-    Attributes:
-        tol: Newton tolerance in m/s: a step has converged when its increment moves no FEM
-            node, particle position or (times dx) particle deformation gradient by more than
-            ``tol * dt`` (section 5).
-        max_newton_iterations: Newton iteration cap per minimisation.
-        warm_start: start Newton from the predicted x^{n+1} where no contact is active instead
-            of from x^n (measured: no gain on the rings and cantilever demos, hence off).
-        linear_solver: ``"default"`` (CHOLMOD, scipy's SuperLU when scikit-sparse is missing),
-            ``"cholmod"``, ``"scipy"``, or a ``solvers.linear.LinearSolver`` object.
-    """
-
-    strategy: ClassVar[str] = "barrier"
-
-    tol: float = field(default=1e-6, metadata={"unit": "velocity"})
-    max_newton_iterations: int = 200
-    warm_start: bool = False
-    linear_solver: str | LinearSolver = "default"
-
-    def __post_init__(self) -> None:
-        tol = self.tol
-        if isinstance(tol, bool) or not (isinstance(tol, int | float) and np.isfinite(tol)):
-            raise ValueError(f"tol must be a finite number of m/s, got {tol!r}")
-        if not tol > 0.0:
-            raise ValueError(f"tol must be > 0 (a Newton tolerance in m/s), got {tol!r}")
-        n = self.max_newton_iterations
-        if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
-            raise ValueError(f"max_newton_iterations must be an integer >= 1, got {n!r}")
-        if not isinstance(self.warm_start, bool | np.bool_):
-            raise ValueError(f"warm_start must be true or false, got {self.warm_start!r}")
-        solver = self.linear_solver
-        if isinstance(solver, str) and solver not in LINEAR_SOLVERS:
-            raise ValueError(f"linear_solver must be one of {LINEAR_SOLVERS}, got {solver!r}")
-        if not isinstance(solver, str) and not callable(getattr(solver, "solve", None)):
-            raise ValueError(
-                f"linear_solver must be a name {LINEAR_SOLVERS} or a LinearSolver, got {solver!r}"
-            )
-
-    def make_linear_solver(self) -> LinearSolver:
-        """The linear solver these options name."""
-        if not isinstance(self.linear_solver, str):
-            return self.linear_solver
-        if self.linear_solver == "scipy":
-            return ScipySolver()
-        if self.linear_solver == "cholmod":
-            from solvers.linear import CholmodSolver
-
-            return CholmodSolver()
-        return default_linear_solver()
 
 
 class BarrierStepper:
@@ -159,6 +100,7 @@ class BarrierStepper:
             (t for t in self.potential.potentials if isinstance(t, FrictionTerm)), None
         )
         self.adaptive: AdaptiveKappa | None = None
+        self._contact: ContactView | None = None  # contact() of the last step, once asked
         #: for inspection only: the DOF layout of the last ``begin_step`` (before any, that of
         #: the FEM nodes alone)
         self.layout = DofLayout(model.dim, ~model.fem_prescribed, model.n_fem_nodes)
@@ -272,6 +214,7 @@ class BarrierStepper:
         method of the stepper reads them), ``self.context`` and ``self.layout`` keep the step
         context and DOF layout.
         """
+        self._contact = None
         nodes = self._gather(state, state.t + self.dt)
         x_hat_all = self.integrator.predict(nodes.x, nodes.v, nodes.a, self.dt)
         ctx = self._context(state, nodes, x_hat_all)
@@ -301,6 +244,7 @@ class BarrierStepper:
     def step(self, state: State) -> tuple[State, StepReport]:
         """Advance ``state`` by ``dt``; raises ``StepError`` when Newton fails."""
         started = time.perf_counter()
+        self._contact = None
         dt, integ = self.dt, self.integrator
         t_next = state.t + dt
         nodes = self._gather(state, t_next)
@@ -440,33 +384,11 @@ class BarrierStepper:
 
     # ------------------------------------------------------------------ contact and checkpoints
     def contact(self) -> ContactView:
-        """Barrier forces, closest distance, active pairs and energy at the end of the last step.
-
-        Forces in N (N/m in 2D): on every FEM node (zero off the boundary) and every particle;
-        all zero (and energy 0) before the first step or without a barrier.
-        """
-        model = self.model
-        bar = self.barrier
-        kwargs = {"parameters": {"kappa": bar.kappa}} if bar is not None else {}
-        view = ContactView.empty(model.n_fem_nodes, model.n_particles, model.dim, **kwargs)
-        if bar is None or bar.pairs is None:
-            return ContactView(**{**view.__dict__, "energy": 0.0 if bar is not None else np.nan})
-        forces = bar.point_forces()
-        cs = bar.collisions
-        nf = cs.n_fem_points
-        np.add.at(view.fem_forces, cs.nodes[:nf, 0], forces[:nf])
-        view.particle_forces[cs.particle_index[nf:]] = forces[nf:]
-        return ContactView(
-            view.fem_forces,
-            view.particle_forces,
-            min_distance=finite_or_nan(bar.min_distance()),
-            pairs=int(bar.pairs.n_pairs),
-            energy=float(bar.value(None)),
-            parameters={"kappa": float(bar.kappa)},
-            body_forces=contact_forces_between_bodies(
-                model, cs.point_body, bar.pair_point_forces()
-            ),
-        )
+        """Barrier forces, closest distance, active pairs and energy at the end of the last step
+        (``contact_view``; computed once per step)."""
+        if self._contact is None:
+            self._contact = contact_view(self.model, self.barrier)
+        return self._contact
 
     def checkpoint_data(self) -> dict[str, np.ndarray]:
         """The adaptive-kappa state (``kappa = "auto"``), as a JSON string array."""
