@@ -103,8 +103,8 @@ from benchmarks._phases import newton_phases
 from benchmarks.common import environment, peak_memory_mb, write_json
 from bfemp.contact._barrier_kernels import _barrier_gradients, _barrier_hessians
 from bfemp.contact.barrier import barrier, barrier_derivative, barrier_second_derivative
+from bfemp.contact.evaluation import KERNEL_KIND
 from bfemp.contact.pairs import _distance, candidate_pairs
-from bfemp.contact.term import _KERNEL_KIND
 from bfemp.integrators import BACKWARD_EULER
 from bfemp.steppers.barrier import BarrierOptions, BarrierStepper
 from solvers.assembly import TripletAssembler
@@ -229,7 +229,7 @@ def _kernel(kind: str, pos: np.ndarray, pts: np.ndarray) -> tuple[float, np.ndar
     d = _distance(kind, pos, pts)
     b1 = barrier_derivative(d, DHAT, KAPPA)
     b2 = barrier_second_derivative(d, DHAT, KAPPA)
-    code = _KERNEL_KIND[kind]
+    code = KERNEL_KIND[kind]
     return (
         float(barrier(d, DHAT, KAPPA).sum()),
         _barrier_gradients(pos, pts, code, b1),

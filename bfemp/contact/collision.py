@@ -27,7 +27,29 @@ from numba import njit, prange
 from bfemp.contact.barrier import boundary_vertex_weights, particle_contact_weight
 from bfemp.model import Model
 
-__all__ = ["CollisionSet", "build_collision_set"]
+__all__ = ["CollisionSet", "PointStencils", "build_collision_set"]
+
+
+@dataclass(frozen=True)
+class PointStencils:
+    """Where the particles are, as affine images of the unknowns' nodes.
+
+    Attributes:
+        nodes: all-node indices ``(P, K)`` of each particle's stencil (for the barrier step:
+            the particle's grid nodes, offset by the FEM node count; for a strategy whose
+            unknowns are the particles themselves: one node each, K = 1).
+        weights: stencil weights ``(P, K)`` (rows sum to 1).
+    """
+
+    nodes: np.ndarray
+    weights: np.ndarray
+
+    def __post_init__(self) -> None:
+        if self.nodes.shape != self.weights.shape or self.nodes.ndim != 2:
+            raise ValueError(
+                f"PointStencils: nodes {self.nodes.shape} and weights {self.weights.shape} "
+                "must both be (P, K)"
+            )
 
 
 @dataclass(frozen=True)
@@ -107,10 +129,12 @@ def _facet_topology(facets: np.ndarray, n_vertices: int, dim: int):  # noqa: ANN
     return edges.astype(np.int64), edge_coef, vertex_coef
 
 
-def build_collision_set(model: Model, mpm: object | None) -> CollisionSet:
-    """Collision points and facets for a step (``mpm``: the step's MPM data or None)."""
+def build_collision_set(model: Model, particles: PointStencils | None) -> CollisionSet:
+    """Collision points and facets: the FEM boundary nodes (identity rows) and, with
+    ``particles``, every particle through its stencil (all particles, in particle order)."""
     d = model.dim
-    k = 3**d if model.n_particles else 1
+    with_particles = particles is not None and model.n_particles > 0
+    k = particles.nodes.shape[1] if with_particles else 1
     fem_nodes, fem_body, facets, facet_body, omegas = [], [], [], [], []
     for body in model.fem_bodies:  # a few bodies; vectorised inside
         facet = body.boundary  # global node indices (k, d)
@@ -134,10 +158,13 @@ def build_collision_set(model: Model, mpm: object | None) -> CollisionSet:
     omega = np.concatenate([np.zeros(0), *omegas])
     particle_index = np.full(n_fem_points, -1, dtype=np.int64)
     is_particle = np.zeros(n_fem_points, dtype=bool)
-    if mpm is not None and model.n_particles:
-        st = mpm.stencils
-        nodes = np.concatenate([nodes, st.nodes + mpm.node_offset])
-        weights = np.concatenate([weights, st.weights])
+    if with_particles:
+        if particles.nodes.shape[0] != model.n_particles:
+            raise ValueError(
+                f"PointStencils: {particles.nodes.shape[0]} rows for {model.n_particles} particles"
+            )
+        nodes = np.concatenate([nodes, particles.nodes.astype(np.int64)])
+        weights = np.concatenate([weights, particles.weights])
         point_body = np.concatenate([point_body, -1 - model.mpm_particle_body])
         omega = np.concatenate([omega, particle_contact_weight(model.mpm_volume, d)])
         particle_index = np.concatenate([particle_index, np.arange(model.n_particles)])

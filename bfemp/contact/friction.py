@@ -17,22 +17,39 @@ makes friction independent of the transfer scheme.
 
 Contacts for friction are the barrier's facet pairs classified by their closest feature
 (vertex, edge or facet interior) and de-duplicated, so a point nearest to a vertex has one contact.
+
+Contact data and evaluation are apart: ``lag_contacts`` builds the lagged contacts from
+(collision set, point positions, active pairs, barrier parameters, mu), and ``friction_energy``,
+``friction_pair_gradients`` and ``friction_pair_hessians`` evaluate f0 on (contacts, sliding U,
+eps) without any state; ``FrictionTerm`` (the implicit energy term) holds the step's sliding map
+and chains them to nodes. Any strategy with lagged friction (``two_stage``) calls the same code.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
 from bfemp.contact._assembly_kernels import _chain_hessian, _scatter_gradient
 from bfemp.contact.barrier import barrier_derivative
+from bfemp.contact.collision import CollisionSet
 from bfemp.contact.friction_kernels import friction_local, friction_local_psd
+from bfemp.contact.pairs import ContactPairs, find_pairs
 from bfemp.contact.term import BarrierTerm
 from bfemp.terms.base import StepContext
 from geometry import distance as dist
 from geometry import frames
 from solvers.assembly import Triplets
 
-__all__ = ["FrictionTerm"]
+__all__ = [
+    "FrictionContacts",
+    "FrictionTerm",
+    "friction_energy",
+    "friction_pair_gradients",
+    "friction_pair_hessians",
+    "lag_contacts",
+]
 
 
 def _feature_keys(kind: str, pts: np.ndarray, pos: np.ndarray) -> np.ndarray:
@@ -69,13 +86,171 @@ def _feature_keys(kind: str, pts: np.ndarray, pos: np.ndarray) -> np.ndarray:
     return keys
 
 
+@dataclass(frozen=True)
+class FrictionGroup:
+    """Lagged contacts of one closest-feature kind (vertex, edge or face; m = 2, 3, 4 points).
+
+    Attributes:
+        points: collision points of each contact ``(n, m)`` (the point first).
+        coef: closest-point weights ``(n, m)``: the relative sliding is sum_a coef_a U_a.
+        T: orthonormal tangent bases ``(n, d, d - 1)``.
+        mu_lambda: mu times the lagged normal force ``(n,)`` in N (N/m in 2D).
+    """
+
+    points: np.ndarray
+    coef: np.ndarray
+    T: np.ndarray
+    mu_lambda: np.ndarray
+
+
+@dataclass(frozen=True)
+class FrictionContacts:
+    """The lagged friction contacts of one outer-loop iterate (eqs. 34-35)."""
+
+    groups: tuple[FrictionGroup, ...] = ()
+
+    @property
+    def n_contacts(self) -> int:
+        """Number of contacts with a positive normal force."""
+        return int(sum(g.points.shape[0] for g in self.groups))
+
+
+def lag_contacts(
+    collisions: CollisionSet,
+    positions: np.ndarray,
+    pairs: ContactPairs,
+    dhat: float,
+    kappa: float,
+    mu: float,
+) -> FrictionContacts:
+    """Contacts, normal forces and tangent bases at ``positions`` (Algorithm 1, lines 5/9).
+
+    Every barrier term (facet pairs and the signed duplicate-removal terms of eqs. 31-32) is
+    mapped to its closest feature (vertex, edge or face) and the signed coefficients are summed
+    per (point, feature): a point over a shared vertex gets one vertex contact (2 - 1), a point
+    over an edge interior next to a vertex gets none from that vertex (1 - 1), so friction sees
+    exactly the contacts the barrier has.
+
+    Args:
+        collisions: the collision set.
+        positions: collision-point positions ``(C, d)`` in m.
+        pairs: the barrier's active pairs at ``positions``.
+        dhat: barrier activation distance in m; ``kappa``: its stiffness in Pa.
+        mu: friction coefficient.
+    """
+    rows, coefs = [], []
+    for kind, pts in pairs.points.items():
+        if kind == "ee" or pts.shape[0] == 0:
+            continue
+        rows.append(_feature_keys(kind, pts, positions))
+        coefs.append(pairs.coef[kind])
+    if not rows:
+        return FrictionContacts()
+    keys = np.concatenate(rows)
+    unique, inverse = np.unique(keys, axis=0, return_inverse=True)
+    mult = np.zeros(unique.shape[0])
+    np.add.at(mult, inverse.ravel(), np.concatenate(coefs))
+    keep = mult > 0.5  # multiplicities are integers: 0 where the barrier cancels
+    return _contacts(positions, collisions, unique[keep], np.rint(mult[keep]), dhat, kappa, mu)
+
+
+def _contacts(pos, cs, keys, mult, dhat, kappa, mu) -> FrictionContacts:  # noqa: ANN001
+    """Friction groups of contacts keyed (kind, point, v0, v1, v2) with multiplicities."""
+    groups = []
+    kind = keys[:, 0]
+    for code in (0, 1, 2):
+        sel = kind == code
+        if not sel.any():
+            continue
+        m = code + 2  # points per contact: vertex 2, edge 3, face 4
+        points = np.ascontiguousarray(keys[sel][:, 1 : 1 + m])
+        args = [pos[points[:, a]] for a in range(m)]
+        if code == 0:
+            coef = np.tile([1.0, -1.0], (points.shape[0], 1))
+            T = frames.point_point_tangent_basis(*args)
+            d = dist.point_point_distance(*args)
+        elif code == 1:
+            beta = frames.point_edge_closest_parameter(*args)
+            coef = np.column_stack([np.ones(len(beta)), beta - 1.0, -beta])
+            T = frames.point_edge_tangent_basis(*args)
+            d = dist.point_edge_distance(*args)
+        else:
+            bary = frames.point_triangle_closest_barycentric(*args)
+            b1, b2 = bary[:, 0], bary[:, 1]
+            coef = np.column_stack([np.ones(len(b1)), b1 + b2 - 1.0, -b1, -b2])
+            T = frames.point_triangle_tangent_basis(*args)
+            d = dist.point_triangle_distance(*args)
+        lam = -mult[sel] * cs.omega[points[:, 0]] * barrier_derivative(d, dhat, kappa)
+        keep = lam > 0.0
+        groups.append(
+            FrictionGroup(
+                np.ascontiguousarray(points[keep]),
+                np.ascontiguousarray(coef[keep]),
+                np.ascontiguousarray(T[keep]),
+                mu * lam[keep],
+            )
+        )
+    return FrictionContacts(tuple(groups))
+
+
+def _sliding(group: FrictionGroup, U: np.ndarray) -> np.ndarray:
+    """Tangential relative sliding u ``(n, d - 1)`` in m of each contact of ``group``."""
+    rel = np.einsum("nm,nmi->ni", group.coef, U[group.points])
+    return np.einsum("nik,ni->nk", group.T, rel)
+
+
+def friction_energy(contacts: FrictionContacts, U: np.ndarray, eps: float) -> float:
+    """sum_k mu lambda_k f0(|u_k|) in J (J/m in 2D), for point slidings ``U (C, d)`` in m and the
+    mollifier width ``eps`` = eps_v dt in m (eq. 36)."""
+    total = 0.0
+    for g in contacts.groups:
+        if g.points.size:
+            total += float(friction_local(_sliding(g, U), g.mu_lambda, eps)[0].sum())
+    return total
+
+
+def friction_pair_gradients(
+    contacts: FrictionContacts, U: np.ndarray, eps: float
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per-contact gradients of mu lambda f0(|u|) with respect to the contact's point slidings:
+    ``[(points (n, m), grad (n, m d))]`` in N, one entry per group."""
+    out = []
+    for g in contacts.groups:
+        if not g.points.size:
+            continue
+        _, g_u, _ = friction_local(_sliding(g, U), g.mu_lambda, eps)
+        g_rel = np.einsum("nik,nk->ni", g.T, g_u)  # (n, d)
+        out.append((g.points, (g.coef[:, :, None] * g_rel[:, None, :]).reshape(len(g.coef), -1)))
+    return out
+
+
+def friction_pair_hessians(
+    contacts: FrictionContacts, U: np.ndarray, eps: float, psd: bool, scale: float = 1.0
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per-contact Hessians scale (c c^T) (x) (T H_u T^T) with respect to the point slidings:
+    ``[(points (n, m), hess (n, m d, m d))]`` in N/m; H_u projected to PSD when ``psd``."""
+    out = []
+    local_fn = friction_local_psd if psd else friction_local
+    for g in contacts.groups:
+        if not g.points.size:
+            continue
+        _, _, h_u = local_fn(_sliding(g, U), g.mu_lambda, eps)
+        h_rel = np.einsum("nik,nkl,njl->nij", g.T, h_u, g.T)  # (n, d, d)
+        m, d = g.coef.shape[1], g.T.shape[1]
+        cc = scale * (g.coef[:, :, None, None, None] * g.coef[:, None, None, :, None])
+        local = cc * h_rel[:, None, :, None, :]
+        out.append((g.points, np.ascontiguousarray(local.reshape(len(g.coef), m * d, m * d))))
+    return out
+
+
 class FrictionTerm:
-    """Lagged friction of the barrier's contacts.
+    """Lagged friction of the barrier's contacts (the energy term of the implicit strategies).
 
     Args:
         mu: friction coefficient.
         eps_v: static threshold velocity in m/s.
-        barrier: the barrier term whose contacts rub.
+        barrier: the barrier term whose contacts rub (its collision set and parameters; the
+            friction term never changes it).
     """
 
     name = "friction"
@@ -85,7 +260,12 @@ class FrictionTerm:
         self.mu = float(mu)
         self.eps_v = float(eps_v)
         self.barrier = barrier
-        self.n_contacts = 0
+        self.contacts = FrictionContacts()
+
+    @property
+    def n_contacts(self) -> int:
+        """Number of lagged contacts."""
+        return self.contacts.n_contacts
 
     def begin_step(self, ctx: StepContext) -> None:
         """Sliding map U = s x + c of this step; contacts are lagged later with ``lag``."""
@@ -93,92 +273,15 @@ class FrictionTerm:
         self._fixed = ctx.fixed_positions
         self._eps = self.eps_v * ctx.dt
         self._s, self._c = ctx.sliding
-        self._clear()
-
-    def _clear(self) -> None:
-        d = self._layout.dim
-        self._points = np.zeros((0, 2), dtype=np.int64)
-        self._coef = np.zeros((0, 2))
-        self._T = np.zeros((0, d, d - 1))
-        self._mu_lambda = np.zeros(0)
-        self.n_contacts = 0
+        self.contacts = FrictionContacts()
 
     # ------------------------------------------------------------------ lagging
     def lag(self, x: np.ndarray) -> None:
-        """Contacts, normal forces and tangent bases at positions x (Algorithm 1, lines 5/9).
-
-        Every barrier term (facet pairs and the signed duplicate-removal terms of eqs. 31-32) is
-        mapped to its closest feature (vertex, edge or face) and the signed coefficients are
-        summed per (point, feature): a point over a shared vertex gets one vertex contact
-        (2 - 1), a point over an edge interior next to a vertex gets none from that vertex
-        (1 - 1), so friction sees exactly the contacts the barrier has.
-        """
+        """Lag the contacts at unknowns ``x (n_dof,)`` (``lag_contacts``)."""
         bar = self.barrier
-        bar.solution_changed(x)
-        pos = bar._pos
-        pairs = bar.pairs
-        rows, coefs = [], []
-        for kind, pts in pairs.points.items():
-            if kind == "ee" or pts.shape[0] == 0:
-                continue
-            rows.append(_feature_keys(kind, pts, pos))
-            coefs.append(pairs.coef[kind])
-        if not rows:
-            self._clear()
-            return
-        keys = np.concatenate(rows)
-        unique, inverse = np.unique(keys, axis=0, return_inverse=True)
-        mult = np.zeros(unique.shape[0])
-        np.add.at(mult, inverse.ravel(), np.concatenate(coefs))
-        keep = mult > 0.5  # multiplicities are integers: 0 where the barrier cancels
-        self._build(pos, bar.collisions, unique[keep], np.rint(mult[keep]))
-
-    def _build(self, pos, cs, keys, mult) -> None:  # noqa: ANN001
-        """Friction groups of contacts keyed (kind, point, v0, v1, v2) with multiplicities."""
-        groups = []
-        kind = keys[:, 0]
-        for code in (0, 1, 2):
-            sel = kind == code
-            if not sel.any():
-                continue
-            m = code + 2  # points per contact: vertex 2, edge 3, face 4
-            points = np.ascontiguousarray(keys[sel][:, 1 : 1 + m])
-            args = [pos[points[:, a]] for a in range(m)]
-            if code == 0:
-                coef = np.tile([1.0, -1.0], (points.shape[0], 1))
-                T = frames.point_point_tangent_basis(*args)
-                d = dist.point_point_distance(*args)
-            elif code == 1:
-                beta = frames.point_edge_closest_parameter(*args)
-                coef = np.column_stack([np.ones(len(beta)), beta - 1.0, -beta])
-                T = frames.point_edge_tangent_basis(*args)
-                d = dist.point_edge_distance(*args)
-            else:
-                bary = frames.point_triangle_closest_barycentric(*args)
-                b1, b2 = bary[:, 0], bary[:, 1]
-                coef = np.column_stack([np.ones(len(b1)), b1 + b2 - 1.0, -b1, -b2])
-                T = frames.point_triangle_tangent_basis(*args)
-                d = dist.point_triangle_distance(*args)
-            groups.append((points, coef, T, d, mult[sel]))
-        self._groups = []
-        n = 0
-        for points, coef, T, dvals, k in groups:
-            lam = (
-                -k
-                * cs.omega[points[:, 0]]
-                * barrier_derivative(dvals, self.barrier.dhat, self.barrier.kappa)
-            )
-            keep = lam > 0.0
-            self._groups.append(
-                (
-                    np.ascontiguousarray(points[keep]),
-                    np.ascontiguousarray(coef[keep]),
-                    np.ascontiguousarray(T[keep]),
-                    self.mu * lam[keep],
-                )
-            )
-            n += int(keep.sum())
-        self.n_contacts = n
+        pos = bar.collision_positions(x)
+        pairs = find_pairs(bar.collisions, pos, bar.dhat)
+        self.contacts = lag_contacts(bar.collisions, pos, pairs, bar.dhat, bar.kappa, self.mu)
 
     # ------------------------------------------------------------------ energy
     def solution_changed(self, x: np.ndarray) -> None:
@@ -188,30 +291,19 @@ class FrictionTerm:
         y = self._layout.positions(x, self._fixed)
         self._U = self.barrier.collisions.positions(self._s * y + self._c)
 
-    def _u(self, points: np.ndarray, coef: np.ndarray, T: np.ndarray) -> np.ndarray:
-        rel = np.einsum("nm,nmi->ni", coef, self._U[points])
-        return np.einsum("nik,ni->nk", T, rel)
-
     def value(self, x: np.ndarray) -> float:
         """D(x) in J (eq. 37, divided by s: see the module docstring)."""
-        total = 0.0
-        for points, coef, T, ml in getattr(self, "_groups", []) if self.n_contacts else []:
-            u = self._u(points, coef, T)
-            total += float(friction_local(u, ml, self._eps)[0].sum())
-        return total / self._s
+        if not self.n_contacts:
+            return 0.0
+        return friction_energy(self.contacts, self._U, self._eps) / self._s
 
     def gradient(self, x: np.ndarray) -> np.ndarray:
         """dD/dx ``(n_dof,)`` in N (minus the lagged friction force)."""
         out = np.zeros((self._layout.n_all, self._layout.dim))
         if self.n_contacts:
             cs = self.barrier.collisions
-            for points, coef, T, ml in self._groups:
-                if not points.size:
-                    continue
-                _, g_u, _ = friction_local(self._u(points, coef, T), ml, self._eps)
-                g_rel = np.einsum("nik,nk->ni", T, g_u)  # (n, d)
-                # d/dx of f0(|u|) / s: the chain rule's s cancels the 1 / s
-                local = (coef[:, :, None] * g_rel[:, None, :]).reshape(len(coef), -1)
+            # d/dx of f0(|u|) / s: the chain rule's s cancels the 1 / s
+            for points, local in friction_pair_gradients(self.contacts, self._U, self._eps):
                 _scatter_gradient(out, local, points, cs.nodes, cs.weights)
         return self._layout.restrict(out)
 
@@ -222,20 +314,8 @@ class FrictionTerm:
         if self.n_contacts:
             cs = self.barrier.collisions
             dof_node = self._layout.dof_node
-            d = self._layout.dim
-            local_fn = friction_local_psd if psd else friction_local
-            for points, coef, T, ml in self._groups:
-                if not points.size:
-                    continue
-                _, _, h_u = local_fn(self._u(points, coef, T), ml, self._eps)
-                h_rel = np.einsum("nik,nkl,njl->nij", T, h_u, T)  # (n, d, d)
-                m = coef.shape[1]
-                local = (
-                    self._s
-                    * (coef[:, :, None, None, None] * coef[:, None, None, :, None])
-                    * h_rel[:, None, :, None, :]
-                )
-                local = np.ascontiguousarray(local.reshape(len(coef), m * d, m * d))
+            blocks = friction_pair_hessians(self.contacts, self._U, self._eps, psd, self._s)
+            for points, local in blocks:
                 rows, cols, vals = _chain_hessian(local, points, cs.nodes, cs.weights, dof_node)
                 parts.append(Triplets(rows, cols, vals))
         return Triplets.concatenate(parts) if parts else Triplets.empty()

@@ -17,9 +17,12 @@ import logging
 import numpy as np
 
 from bfemp.contact._assembly_kernels import _chain_hessian, _scatter_gradient
-from bfemp.contact._barrier_kernels import _barrier_gradients, _barrier_hessians
-from bfemp.contact.barrier import barrier, barrier_derivative, barrier_second_derivative
-from bfemp.contact.collision import CollisionSet, build_collision_set
+from bfemp.contact.collision import CollisionSet, PointStencils, build_collision_set
+from bfemp.contact.evaluation import (
+    barrier_energy,
+    barrier_pair_gradients,
+    barrier_pair_hessians,
+)
 from bfemp.contact.pairs import (
     ContactPairs,
     candidate_pairs,
@@ -28,16 +31,8 @@ from bfemp.contact.pairs import (
     find_pairs,
 )
 from bfemp.terms.base import StepContext
-from geometry import distance as dist
-from geometry._distance_kernels import KIND_PE, KIND_PP, KIND_PT
 from geometry.ccd import edge_edge_ccd, point_edge_ccd, point_triangle_ccd
-from geometry.mollifier import (
-    edge_edge_mollifier,
-    edge_edge_mollifier_gradient,
-    edge_edge_mollifier_hessian,
-)
 from solvers.assembly import Triplets
-from solvers.psd import project_psd
 
 __all__ = ["BarrierTerm", "CCD_FRACTION"]
 
@@ -45,10 +40,6 @@ log = logging.getLogger(__name__)
 
 #: Fraction of the earliest time of impact used as the line-search start (section 5).
 CCD_FRACTION = 0.9
-
-#: Pair kinds with fused numba kernels (distance, barrier and PSD projection per pair); the
-#: mollified edge-edge terms go through the batched distance functions.
-_KERNEL_KIND = {"pp": KIND_PP, "pe": KIND_PE, "pt": KIND_PT}
 
 
 class BarrierTerm:
@@ -71,7 +62,11 @@ class BarrierTerm:
     # ------------------------------------------------------------------ set-up
     def begin_step(self, ctx: StepContext) -> None:
         """Collision points and facets of this step (particles follow the new stencils)."""
-        self.collisions: CollisionSet = build_collision_set(ctx.model, ctx.mpm)
+        particles = None
+        if ctx.mpm is not None:  # particles: B-spline images of the step's grid nodes
+            st = ctx.mpm.stencils
+            particles = PointStencils(st.nodes + ctx.mpm.node_offset, st.weights)
+        self.collisions: CollisionSet = build_collision_set(ctx.model, particles)
         self._layout = ctx.layout
         self._fixed = ctx.fixed_positions
 
@@ -85,91 +80,33 @@ class BarrierTerm:
         self.pairs = find_pairs(self.collisions, self._pos, self.dhat)
 
     # ------------------------------------------------------------------ energy
-    def _scaled(self, kind: str) -> np.ndarray:
-        pts = self.pairs.points[kind]
-        return self.collisions.omega[pts[:, 0]] * self.pairs.coef[kind]
-
     def value(self, x: np.ndarray) -> float:
         """B(x) in J (J/m in 2D); +inf if a distance is <= 0."""
-        total = 0.0
-        for kind, d in self.pairs.distance.items():
-            if d.size:
-                b = barrier(d, self.dhat, self.kappa)
-                if kind == "ee":  # mollified where the edges turn parallel (IPC)
-                    b = b * edge_edge_mollifier(*self._local(kind)[1], self.pairs.eps_x)
-                total += float(np.dot(self._scaled(kind), b))
-        return total
+        return barrier_energy(self.pairs, self._pos, self.collisions.omega, self.dhat, self.kappa)
 
-    def _local(self, kind: str) -> tuple[np.ndarray, list[np.ndarray]]:
-        pts = self.pairs.points[kind]
-        return pts, [self._pos[pts[:, a]] for a in range(pts.shape[1])]
-
-    def _local_gradient(self, kind: str, d: np.ndarray) -> np.ndarray:
-        """Per-pair gradient ``(n, m d)`` of omega c [m] b(d) w.r.t. the pair's points."""
-        b1 = barrier_derivative(d, self.dhat, self.kappa)
-        if kind in _KERNEL_KIND:
-            pts = self.pairs.points[kind]
-            return _barrier_gradients(self._pos, pts, _KERNEL_KIND[kind], self._scaled(kind) * b1)
-        # mollified edge-edge: (m b)' = m' b + m b'
-        _, args = self._local(kind)
-        grad = self._scaled(kind)[:, None] * b1[:, None] * dist.edge_edge_distance_gradient(*args)
-        eps_x = self.pairs.eps_x
-        mol = edge_edge_mollifier(*args, eps_x)
-        b0 = barrier(d, self.dhat, self.kappa)
-        return mol[:, None] * grad + (self._scaled(kind) * b0)[:, None] * (
-            edge_edge_mollifier_gradient(*args, eps_x)
+    def _pair_gradients(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        return barrier_pair_gradients(
+            self.pairs, self._pos, self.collisions.omega, self.dhat, self.kappa
         )
 
     def gradient(self, x: np.ndarray) -> np.ndarray:
         """dB/dx ``(n_dof,)`` in N."""
         out = np.zeros((self._layout.n_all, self._layout.dim))
-        for kind, d in self.pairs.distance.items():
-            if not d.size:
-                continue
-            local = self._local_gradient(kind, d)
-            pts = self.pairs.points[kind]
-            _scatter_gradient(out, local, pts, self.collisions.nodes, self.collisions.weights)
+        cs = self.collisions
+        for pts, local in self._pair_gradients().values():
+            _scatter_gradient(out, local, pts, cs.nodes, cs.weights)
         return self._layout.restrict(out)
 
     def hessian(self, x: np.ndarray, psd: bool) -> Triplets:
         """Per-pair local Hessians (PSD-projected when ``psd``) chained to node DOFs."""
-        parts = []
         cs = self.collisions
         dof_node = self._layout.dof_node
-        for kind, d in self.pairs.distance.items():
-            if not d.size:
-                continue
-            pts = self.pairs.points[kind]
-            scale = self._scaled(kind)
-            b1 = barrier_derivative(d, self.dhat, self.kappa)
-            b2 = barrier_second_derivative(d, self.dhat, self.kappa)
-            if kind in _KERNEL_KIND:
-                local = _barrier_hessians(
-                    self._pos, pts, _KERNEL_KIND[kind], scale * b1, scale * b2, psd
-                )
-            else:
-                local = self._edge_edge_hessian(d, scale, b1, b2, psd)
-            rows, cols, vals = _chain_hessian(local, pts, cs.nodes, cs.weights, dof_node)
-            parts.append(Triplets(rows, cols, vals))
+        local = barrier_pair_hessians(self.pairs, self._pos, cs.omega, self.dhat, self.kappa, psd)
+        parts = [
+            Triplets(*_chain_hessian(h, pts, cs.nodes, cs.weights, dof_node))
+            for pts, h in local.values()
+        ]
         return Triplets.concatenate(parts) if parts else Triplets.empty()
-
-    def _edge_edge_hessian(
-        self, d: np.ndarray, scale: np.ndarray, b1: np.ndarray, b2: np.ndarray, psd: bool
-    ) -> np.ndarray:
-        """Local Hessians ``(n, 12, 12)`` of the mollified edge-edge terms m(x) c b(d(x))."""
-        _, args = self._local("ee")
-        grad = dist.edge_edge_distance_gradient(*args)
-        local = (scale * b2)[:, None, None] * grad[:, :, None] * grad[:, None, :]
-        local += (scale * b1)[:, None, None] * dist.edge_edge_distance_hessian(*args)
-        # (m b)'' = m'' b + m' b'^T + b' m'^T + m b''
-        eps_x = self.pairs.eps_x
-        mol = edge_edge_mollifier(*args, eps_x)
-        g_m = edge_edge_mollifier_gradient(*args, eps_x)
-        b0 = barrier(d, self.dhat, self.kappa)
-        cross = (scale * b1)[:, None, None] * g_m[:, :, None] * grad[:, None, :]
-        local = mol[:, None, None] * local + cross + np.swapaxes(cross, 1, 2)
-        local += (scale * b0)[:, None, None] * edge_edge_mollifier_hessian(*args, eps_x)
-        return project_psd(local) if psd else local
 
     # ------------------------------------------------------------------ feasibility
     def max_step_size(self, x: np.ndarray, p: np.ndarray) -> float:
@@ -224,14 +161,11 @@ class BarrierTerm:
         (n, m, d))``, the force in N (N/m in 2D) on each of the ``m`` collision points of each
         active pair (-d(omega c b)/dy); a pair's forces sum to zero (the barrier depends on
         differences of positions only)."""
-        out = {}
-        for kind, d in self.pairs.distance.items():
-            if not d.size:
-                continue
-            pts = self.pairs.points[kind]
-            local = self._local_gradient(kind, d).reshape(len(d), pts.shape[1], -1)
-            out[kind] = (pts, -local)
-        return out
+        d = self._pos.shape[1]
+        return {
+            kind: (pts, -local.reshape(len(pts), pts.shape[1], d))
+            for kind, (pts, local) in self._pair_gradients().items()
+        }
 
     def point_forces(self) -> np.ndarray:
         """Contact forces ``(C, d)`` in N (N/m in 2D) on the collision points at the current

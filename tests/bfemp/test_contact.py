@@ -229,7 +229,7 @@ def test_friction_force_obeys_the_coulomb_bound(integrator):
     normal = -bar.gradient(x).reshape(-1, 2)[on_particle].sum(axis=0)
     # friction on the particle is tangential and opposes the slide (+x); its magnitude is at
     # most mu lambda with the lagged normal force lambda (eq. 35), reached when sliding
-    mu_lambda = sum(float(g[3].sum()) for g in friction._groups)
+    mu_lambda = sum(float(g.mu_lambda.sum()) for g in friction.contacts.groups)
     assert force[0] < 0.0 and normal[1] > 0.0
     assert abs(force[1]) < 1e-9 * abs(force[0])
     assert abs(force[0]) <= mu_lambda * (1 + 1e-12)

@@ -1,0 +1,109 @@
+"""Contact data apart from contact evaluation (issue 11): collision sets from point stencils, and
+stateless barrier and friction evaluation on (pairs, positions, parameters)."""
+
+import numpy as np
+import pytest
+
+import bfemp
+from bfemp.contact.collision import PointStencils, build_collision_set
+from bfemp.contact.evaluation import barrier_energy, barrier_pair_gradients, barrier_pair_hessians
+from bfemp.contact.friction import (
+    friction_energy,
+    friction_pair_gradients,
+    lag_contacts,
+)
+from bfemp.contact.pairs import find_pairs
+from tests.bfemp.conftest import started_stepper
+
+MAT = bfemp.NeoHookean(E=1e6, nu=0.3, density=1000.0)
+DHAT = 1e-3
+
+
+def _particle_over_plate(dim, gap=0.3 * DHAT, mu=0.4):
+    scene = bfemp.Scene(dim=dim)
+    if dim == 2:
+        mesh = bfemp.shapes.rectangle((0.0, 0.0), (1.0, 1.0), h=0.5)
+        x = np.array([[0.3, 1.0 + gap]])
+    else:
+        mesh = bfemp.shapes.box((0.0, 0.0, 0.0), (1.0, 1.0, 1.0), h=0.5)
+        x = np.array([[0.3, 0.4, 1.0 + gap]])
+    scene.add_fem(mesh, material=MAT, prescribed=bfemp.motion.Fixed(), name="plate")
+    scene.add_mpm(x, np.full(1, 1e-4 if dim == 2 else 1e-6), material=MAT, name="p")
+    scene.set_grid(dx=0.1)
+    scene.set_contact(dhat=DHAT, kappa=1e4, mu=mu, eps_v=1e-3)
+    return scene
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_particles_as_their_own_stencils_put_collision_points_at_the_particles(dim):
+    """The particles-as-DOFs collision set (what two_stage needs): identity stencils over nodes
+    numbered after the FEM nodes; the points are the particles themselves."""
+    model = _particle_over_plate(dim).build()
+    n_fem, n_p = model.n_fem_nodes, model.n_particles
+    own = PointStencils(n_fem + np.arange(n_p)[:, None], np.ones((n_p, 1)))
+    cs = build_collision_set(model, own)
+    nodes = np.concatenate([model.fem_X, model.initial_state().mpm_x])
+    pos = cs.positions(nodes)
+    np.testing.assert_array_equal(pos[cs.n_fem_points :], model.initial_state().mpm_x)
+    np.testing.assert_array_equal(
+        pos[: cs.n_fem_points], model.fem_X[cs.nodes[: cs.n_fem_points, 0]]
+    )
+    pairs = find_pairs(cs, pos, DHAT)
+    assert pairs.n_pairs >= 1 and 0 < pairs.min_distance() < DHAT
+    with pytest.raises(ValueError, match="rows for 1 particles"):
+        build_collision_set(model, PointStencils(np.zeros((2, 1), int), np.ones((2, 1))))
+    with pytest.raises(ValueError, match=r"must both be \(P, K\)"):
+        PointStencils(np.zeros((1, 2), int), np.ones((1, 3)))
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_stateless_barrier_equals_the_term_and_passes_finite_differences(dim, rng):
+    _, stepper, x = started_stepper(_particle_over_plate(dim), dt=1e-2)
+    bar = stepper.barrier
+    bar.solution_changed(x)
+    cs, pos = bar.collisions, bar.collision_positions(x)
+    pairs = find_pairs(cs, pos, DHAT)
+    energy = barrier_energy(pairs, pos, cs.omega, DHAT, bar.kappa)
+    assert energy == bar.value(x) and energy > 0
+    # the per-pair gradient is the derivative of the energy with respect to the points
+    grads = barrier_pair_gradients(pairs, pos, cs.omega, DHAT, bar.kappa)
+    hess = barrier_pair_hessians(pairs, pos, cs.omega, DHAT, bar.kappa, psd=False)
+    g = np.zeros_like(pos)
+    for pts, local in grads.values():
+        np.add.at(g, pts.reshape(-1), local.reshape(-1, dim))
+    direction = rng.standard_normal(pos.shape) * 1e-9
+    e_plus = barrier_energy(
+        find_pairs(cs, pos + direction, DHAT), pos + direction, cs.omega, DHAT, bar.kappa
+    )
+    e_minus = barrier_energy(
+        find_pairs(cs, pos - direction, DHAT), pos - direction, cs.omega, DHAT, bar.kappa
+    )
+    fd = (e_plus - e_minus) / 2.0
+    assert fd == pytest.approx(float(np.sum(g * direction)), rel=1e-5)
+    for pts, h in hess.values():
+        assert h.shape == (pts.shape[0], pts.shape[1] * dim, pts.shape[1] * dim)
+        np.testing.assert_allclose(h, np.swapaxes(h, 1, 2), atol=1e-9 * np.abs(h).max())
+
+
+def test_lagging_friction_leaves_the_barrier_alone_and_matches_the_stateless_functions(rng):
+    _, stepper, x = started_stepper(_particle_over_plate(2), dt=1e-2)
+    bar, friction = stepper.barrier, stepper.friction
+    bar.solution_changed(x)
+    pairs_before = bar.pairs
+    moved = x + 1e-5 * rng.standard_normal(x.size)
+    friction.lag(moved)
+    assert bar.pairs is pairs_before  # the friction term never changes the barrier's state
+    cs = bar.collisions
+    pos = bar.collision_positions(moved)
+    contacts = lag_contacts(cs, pos, find_pairs(cs, pos, DHAT), DHAT, bar.kappa, 0.4)
+    assert contacts.n_contacts == friction.n_contacts >= 1
+    friction.solution_changed(moved)
+    U = friction._U
+    assert friction.value(moved) == friction_energy(contacts, U, friction._eps) / friction._s
+    ((pts, local),) = friction_pair_gradients(contacts, U, friction._eps)
+    assert local.shape == (pts.shape[0], pts.shape[1] * 2)
+    # a negative control: without contacts there is no friction energy or gradient
+    lifted = pos.copy()
+    lifted[cs.n_fem_points :] += [0.0, 1.0]  # the particle 1 m above the plate
+    empty = lag_contacts(cs, lifted, find_pairs(cs, lifted, DHAT), DHAT, bar.kappa, 0.4)
+    assert empty.n_contacts == 0 and friction_energy(empty, U, 1e-5) == 0.0
