@@ -370,7 +370,10 @@ class Simulation:
 
         The contact (barrier) energy B is that of the current state's active pairs; it is the
         elastic energy stored by the barrier while bodies touch, so the total of a scene on which
-        nothing external works is what a conservative integrator keeps.
+        nothing external works is what a conservative integrator keeps. A strategy without a
+        contact energy reports NaN for it, and the total leaves it out. Explicit strategies store
+        half-step velocities (symplectic Euler), so their kinetic energy is that of v^{n+1/2}:
+        off by O(dt) from the full-step one.
         """
         state = self.state if state is None else state
         elastic = diagnostics.fem_elastic_energy(self.model, state, self._fem_groups)

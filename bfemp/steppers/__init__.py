@@ -3,6 +3,13 @@
 Strategies are looked up by name in one registry (``STRATEGIES``) so that the same scene can be
 run with each; every class implements the ``Stepper`` protocol of :mod:`bfemp.steppers.base`
 and names its options class (``cls.Options``).
+
+Layering inside the strategies (DESIGN.md's rule, made precise here and enforced by
+``tests/test_layering.py``): the explicit grid strategies (``single_field``, ``augury``, ``lr``
+and the explicit engine) never import ``solvers.newton``; ``two_stage``, whose second stage is a
+minimisation, may call the physics-free ``solvers.newton.minimize`` on the same contact terms
+(``bfemp.contact``) as ``barrier``. No strategy imports another strategy's module except the
+explicit engine (``bfemp.steppers.explicit``) it builds on.
 """
 
 from __future__ import annotations
