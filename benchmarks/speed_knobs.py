@@ -91,7 +91,7 @@ def _friction_back_solve(cfg: dict) -> dict:
     for label, mu in (("sticking_mu_0.5", 0.5), ("sliding_mu_0.1", 0.1)):
         runs = {}
         for on in (False, True):
-            ScriptedSolve._increment_below_tol = original if on else (lambda *args: False)
+            ScriptedSolve._increment_below_tol = original if on else (lambda *args: None)
             try:
                 runs[on] = _measure(
                     lambda mu=mu: bfemp.Simulation(block_on_floor(mu), dt=5e-3, tol=1e-6),

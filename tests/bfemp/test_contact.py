@@ -451,7 +451,7 @@ def test_friction_loop_stops_by_back_solve_with_the_same_result(monkeypatch):
     sims = {}
     for cheap in (True, False):
         if not cheap:
-            monkeypatch.setattr(ScriptedSolve, "_increment_below_tol", lambda *args: False)
+            monkeypatch.setattr(ScriptedSolve, "_increment_below_tol", lambda *args: None)
         sim = bfemp.Simulation(block_on_floor(0.5), dt=5e-3, tol=1e-6)
         sim.run(0.1, progress=False)
         sims[cheap] = sim
