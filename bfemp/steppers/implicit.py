@@ -23,6 +23,7 @@ import numpy as np
 
 from bfemp.contact.adaptive import AdaptiveKappa
 from bfemp.contact.friction import FrictionTerm
+from bfemp.contact.intersection import step_intersection
 from bfemp.contact.term import BarrierTerm
 from bfemp.dofs import DofLayout
 from bfemp.frames import NodeFrames
@@ -548,6 +549,12 @@ class ImplicitStepper:
         timings = dict(result.timings)
         timings["setup"] = setup_time
         timings["g2p"] = time.perf_counter() - g2p_start
+        checked = time.perf_counter()  # independent of the barrier: bfemp.contact.intersection
+        crossing = None if self.barrier is None else step_intersection(self.model, state, new)
+        if crossing is not None:
+            report_args.update(success=False, status=crossing.status, message=crossing.message)
+            raise StepError(StepReport(**report_args, timings=timings))
+        timings["intersection"] = time.perf_counter() - checked
         timings["step"] = time.perf_counter() - started
         if self.barrier is not None and self.barrier.pairs is not None:
             min_d = self.barrier.min_distance()

@@ -1,0 +1,173 @@
+"""The end-of-step intersection check: head-on disks at huge steps, hand-made crossed states,
+the point-in-mesh test against brute force, and the stepper's named failure."""
+
+import numpy as np
+import pytest
+
+import bfemp
+from bfemp.contact.intersection import points_inside, step_intersection
+from bfemp.steppers.implicit import ImplicitStepper
+
+STIFF = bfemp.NeoHookean(E=1e6, nu=0.3, density=1000.0)
+
+
+def _disks(h=0.1, speed=20.0, gap=0.2):
+    """Two unit disks 'A' (left) and 'B' (right) ``gap`` apart, closing head-on at 2 speed."""
+    scene = bfemp.Scene(dim=2)
+    c = 0.5 + 0.5 * gap
+    a = scene.add_fem(
+        bfemp.shapes.disk((-c, 0), 0.5, h=h), material=STIFF, velocity=(speed, 0), name="A"
+    )
+    b = scene.add_fem(
+        bfemp.shapes.disk((c, 0), 0.5, h=h), material=STIFF, velocity=(-speed, 0), name="B"
+    )
+    scene.set_contact(dhat=1e-3)
+    return scene, a, b
+
+
+def brute_force_inside(model, state):
+    """(N + P,) bool: FEM nodes then particles strictly inside a cell of another FEM body, by
+    barycentric coordinates of every point in every cell (small scenes only)."""
+    body = np.repeat([b.index for b in model.fem_bodies], [b.n_nodes for b in model.fem_bodies])
+    pts, owner = state.fem_x, body
+    if model.n_particles:
+        pts = np.concatenate([pts, state.mpm_x])
+        owner = np.concatenate([owner, -1 - model.mpm_particle_body])
+    v = state.fem_x[model.fem_cells]  # (C, d + 1, d)
+    dm = np.transpose(v[:, 1:] - v[:, :1], (0, 2, 1))
+    lam = np.einsum("cij,pcj->pci", np.linalg.inv(dm), pts[:, None, :] - v[None, :, 0])
+    bary = np.concatenate([1.0 - lam.sum(axis=2, keepdims=True), lam], axis=2).min(axis=2)
+    other = owner[:, None] != model.fem_cell_body[None, :]
+    return np.any((bary > 1e-12) & other, axis=1)
+
+
+# ------------------------------------------------------------------ the reproducer (issue 12)
+
+
+@pytest.mark.parametrize("dt, h", [(1.0, 0.1), (0.6, 0.1), (1.0, 0.05)])
+def test_head_on_disks_never_pass_through_each_other(dt, h):
+    """At dt = 1 s the frictionless Newton iterates slid A around B to the free-flight
+    prediction (centres at x = +-19.4, every iterate and the end state clear) and the step
+    reported CONVERGED. Now the step either keeps the order of the bodies or fails by name."""
+    scene, a, b = _disks(h=h)
+    sim = bfemp.Simulation(scene, dt=dt)
+    start = sim.state.copy()
+    try:
+        sim.step()
+    except bfemp.StepError as err:
+        assert err.report.status == "TUNNELED"
+        assert "'A'" in err.report.message or "'B'" in err.report.message
+        np.testing.assert_array_equal(sim.state.fem_x, start.fem_x)  # left at the start
+        return
+    assert a.x(sim.state)[:, 0].mean() < b.x(sim.state)[:, 0].mean()
+    assert not brute_force_inside(sim.model, sim.state).any()
+
+
+def test_head_on_disks_at_a_moderate_step_still_converge():
+    """dt = 0.5 s: the disks meet and stay apart; the check lets the step through."""
+    scene, a, b = _disks()
+    sim = bfemp.Simulation(scene, dt=0.5)
+    report = sim.step()
+    assert report.status == "CONVERGED"
+    assert a.x(sim.state)[:, 0].mean() < b.x(sim.state)[:, 0].mean()
+    assert not brute_force_inside(sim.model, sim.state).any()
+    assert np.isfinite(report.timings["intersection"])
+
+
+# ------------------------------------------------------------------ hand-made states
+
+
+def test_check_fires_on_a_hand_made_crossed_end_state():
+    """Negative control: B moved 0.3 m into A gives INTERSECTION, naming a point and a body."""
+    scene, a, b = _disks()
+    model = scene.build()
+    start = model.initial_state()
+    end = start.copy()
+    end.fem_x[b.nodes] -= (0.5, 0.0)  # B overlaps A by 0.3 m
+    found = step_intersection(model, start, end)
+    assert found is not None and found.status == "INTERSECTION" and found.s == 1.0
+    assert found.n_points > 0 and found.body in ("A", "B")
+    assert "inside body" in found.message
+    assert step_intersection(model, start, start) is None
+
+
+def test_check_fires_when_only_the_trajectory_crosses():
+    """Both ends clear, B jumped from the right of A to its left: TUNNELED at an interior s."""
+    scene, a, b = _disks()
+    model = scene.build()
+    start = model.initial_state()
+    end = start.copy()
+    end.fem_x[b.nodes] -= (2.4, 0.0)  # B's mirror image on A's left
+    assert not brute_force_inside(model, end).any()
+    found = step_intersection(model, start, end)
+    assert found is not None and found.status == "TUNNELED" and 0.0 < found.s < 1.0
+
+
+def test_a_sliding_step_past_a_corner_is_not_a_crossing():
+    """A node sliding past a convex boundary vertex at a gap cuts the corner on the chord by
+    less than the depth tolerance: no finding."""
+    scene = bfemp.Scene(dim=2)
+    scene.add_fem(bfemp.shapes.rectangle((0, 0), (1, 1), h=0.5), material=STIFF, name="block")
+    scene.add_fem(
+        np.array([[0.9, 1.01], [1.0, 1.01], [0.95, 1.06]]),
+        np.array([[0, 1, 2]]),
+        material=STIFF,
+        name="tri",
+    )
+    scene.set_contact(dhat=1e-3)
+    model = scene.build()
+    start = model.initial_state()
+    end = start.copy()
+    tri = slice(model.fem_bodies[1].nodes.start, None)
+    end.fem_x[tri] += (0.11, -0.025)  # cuts the block's corner (1, 1) by 0.010-0.015 m
+    assert not brute_force_inside(model, end).any()
+    assert step_intersection(model, start, end) is None
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_points_inside_matches_brute_force(dim, rng):
+    """Random points against two overlapping meshes: hash + kernel equals brute force."""
+    if dim == 2:
+        meshes = [bfemp.shapes.disk((0, 0), 0.5, h=0.2), bfemp.shapes.disk((0.4, 0), 0.5, h=0.2)]
+    else:
+        meshes = [
+            bfemp.shapes.box((0, 0, 0), (1, 1, 1), h=0.5),
+            bfemp.shapes.box((0.6, 0.2, 0.3), (1.4, 1.0, 1.1), h=0.4),
+        ]
+    vertices = np.concatenate([m.points for m in meshes])
+    offset = meshes[0].points.shape[0]
+    cells = np.concatenate([meshes[0].cells, meshes[1].cells + offset])
+    cell_body = np.repeat([0, 1], [meshes[0].cells.shape[0], meshes[1].cells.shape[0]])
+    lo, hi = vertices.min(axis=0) - 0.1, vertices.max(axis=0) + 0.1
+    points = rng.uniform(lo, hi, size=(400, dim))
+    point_body = rng.integers(-1, 2, size=400)  # -1: a particle
+    got = points_inside(points, point_body, vertices, cells, cell_body)
+    v = vertices[cells]
+    dm = np.transpose(v[:, 1:] - v[:, :1], (0, 2, 1))
+    lam = np.einsum("cij,pcj->pci", np.linalg.inv(dm), points[:, None, :] - v[None, :, 0])
+    bary = np.concatenate([1.0 - lam.sum(axis=2, keepdims=True), lam], axis=2).min(axis=2)
+    inside = (bary > 1e-12) & (point_body[:, None] != cell_body[None, :])
+    np.testing.assert_array_equal(got >= 0, inside.any(axis=1))
+    hit = got >= 0
+    assert inside[np.flatnonzero(hit), got[hit]].all()
+    assert 0 < hit.sum() < 400
+
+
+def test_stepper_reports_a_crossed_solve_as_intersection(monkeypatch):
+    """Wiring: a solve whose end state overlaps (forced here) fails with INTERSECTION instead of
+    CONVERGED, and the simulation keeps the start state."""
+    scene, a, b = _disks()
+    sim = bfemp.Simulation(scene, dt=1e-3)
+    advance = ImplicitStepper._advance
+
+    def crossed(self, state, *args):
+        new = advance(self, state, *args)
+        new.fem_x[b.nodes] -= (0.5, 0.0)
+        return new
+
+    monkeypatch.setattr(ImplicitStepper, "_advance", crossed)
+    with pytest.raises(bfemp.StepError) as err:
+        sim.step()
+    assert err.value.report.status == "INTERSECTION"
+    assert not err.value.report.success
+    assert sim.state.t == 0.0
