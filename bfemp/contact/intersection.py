@@ -8,24 +8,25 @@ slide one body *around* the other in configuration space to the free-flight pred
 every iterate is clear, the end state is clear, and yet the bodies have passed through each other
 within the step. This module checks both, with geometry of its own (no barrier, no CCD):
 
-- the end state: every FEM node (interior ones too) and every particle is tested against the
-  cells (triangles / tetrahedra) of every *other* FEM body. Any point strictly inside is an
-  ``"INTERSECTION"``.
-- the trajectory: the same test at interior samples s_k = k / K of the linear-in-time motion
-  (K set so that no two points move more than ``depth`` relative to each other between samples).
-  A point counts only if it lies deeper than ``depth`` inside the other body (farther than that
-  from its boundary): a point sliding past a convex boundary vertex legitimately cuts its corner
-  on the chord by the sagitta, a pass-through does not stay within a quarter edge of the surface.
-  Any deep point is ``"TUNNELED"``. Crossings of regions thicker than 3 x ``depth`` are always
-  found (the sampling step in relative motion is at most ``depth``).
+- the end state: every FEM node (interior ones too), every particle and every FEM cell centroid
+  (which sees bodies overlapping with all vertices on the other's surface, e.g. equal aligned
+  boxes) is tested against the cells (triangles / tetrahedra) of every *other* FEM body. Any
+  point strictly inside is an ``"INTERSECTION"``.
+- the trajectory: the same test at interior samples s_k = k / K of the linear-in-time motion,
+  K set so that no two points move more than ``spacing`` (a quarter of the smallest mean rest
+  boundary-edge length over the FEM bodies) relative to each other between samples. A point
+  counts only if it lies deeper than ``depth`` (the contact's d-hat) inside the other body,
+  farther than that from its boundary: a point sliding past a convex boundary vertex
+  legitimately cuts the corner on the chord by about (slide) x (turn angle) / 4, well below
+  d-hat at resolved speeds (rings demo: ~2e-3 m against d-hat = 1e-2 m). Any deep point is
+  ``"TUNNELED"``. A pass through a region thicker than ``spacing`` + 2 ``depth`` is always found.
 
-``depth`` is a quarter of the smallest mean rest boundary-edge length over the FEM bodies.
 Broad phase: the spatial hash of :mod:`geometry.broadphase` (swept boxes for the trajectory);
 narrow phase: numba kernels over the candidate (point, cell) pairs; along the trajectory the
 swept candidates are rebuilt per chunk of 32 samples, so bodies that only pass near each other
 cost little. Measured on the rings demo (``bfemp.demo.colliding_rings_scene()``, dt = 2e-3 s,
 381 FEM nodes, 784 particles, steps 3-60): 1.3 ms per step, 1.6 % of the step time (a step there
-moves points about one ``depth``, so two or three samples are taken).
+moves points about one ``spacing``, so two or three samples are taken).
 """
 
 from __future__ import annotations
@@ -44,7 +45,7 @@ from geometry.broadphase import point_simplex_candidates
 __all__ = [
     "Intersection",
     "MAX_SAMPLES",
-    "depth_tolerance",
+    "sample_spacing",
     "points_inside",
     "step_intersection",
 ]
@@ -276,7 +277,7 @@ def _hits(
     return cand[_inside_pairs(y0, y1, v0, v1, cells, cand, s)]
 
 
-def depth_tolerance(model: Model) -> float:
+def sample_spacing(model: Model) -> float:
     """A quarter of the smallest mean rest boundary-edge length over the FEM bodies, in m."""
     sizes = []
     for body in model.fem_bodies:
@@ -287,45 +288,58 @@ def depth_tolerance(model: Model) -> float:
 
 
 def _points(model: Model, state: State) -> tuple[np.ndarray, np.ndarray]:
-    """All FEM nodes then all particles ``(N + P, d)`` and their body ids (particles < 0)."""
+    """Test points ``(N + P + M, d)``: FEM nodes, particles, then FEM cell centroids (which see
+    bodies that overlap with every vertex on the other's surface, e.g. equal aligned boxes), and
+    their body ids (particles < 0)."""
     body = np.repeat(
         np.array([b.index for b in model.fem_bodies], dtype=np.int64),
         [b.n_nodes for b in model.fem_bodies],
     )
-    if model.n_particles == 0:
-        return state.fem_x, body
+    centroids = state.fem_x[model.fem_cells].mean(axis=1)
     return (
-        np.concatenate([state.fem_x, state.mpm_x]),
-        np.concatenate([body, -1 - model.mpm_particle_body]),
+        np.concatenate([state.fem_x, state.mpm_x, centroids]),
+        np.concatenate([body, -1 - model.mpm_particle_body, model.fem_cell_body]),
     )
 
 
 def _describe(model: Model, point: int, cell: int, status: str, s: float, n: int) -> Intersection:
-    n_fem = model.n_fem_nodes
+    n_fem, n_mpm = model.n_fem_nodes, model.n_particles
     if point < n_fem:
         owner = next(b for b in model.fem_bodies if b.nodes.start <= point < b.nodes.stop)
         what = f"FEM node {point - owner.nodes.start} of body {owner.name!r}"
-    else:
+    elif point < n_fem + n_mpm:
         p = point - n_fem
         owner = model.mpm_bodies[int(model.mpm_particle_body[p])]
         what = f"particle {p - owner.particles.start} of body {owner.name!r}"
+    else:
+        c = point - n_fem - n_mpm
+        owner = model.fem_bodies[int(model.fem_cell_body[c])]
+        what = f"the centroid of cell {c - owner.cells.start} of body {owner.name!r}"
     body = model.fem_bodies[int(model.fem_cell_body[cell])].name
     return Intersection(status=status, s=s, n_points=n, point=what, body=body)
 
 
 def step_intersection(
-    model: Model, start: State, end: State, depth: float | None = None
+    model: Model,
+    start: State,
+    end: State,
+    *,
+    depth: float | None = None,
+    spacing: float | None = None,
 ) -> Intersection | None:
     """The first crossing of the step ``start -> end``, or None when there is none.
 
     Tests the end state (any point strictly inside another body) and, when points move more than
-    ``depth`` relative to each other, the straight-line trajectory at interior samples (a point
+    ``spacing`` relative to each other, the straight-line trajectory at interior samples (a point
     deeper than ``depth`` inside another body); see the module docstring.
 
     Args:
-        model: the static model (FEM cells, bodies, particles).
+        model: the static model (FEM cells, bodies, particles, contact).
         start, end: states at the start and the end of the step.
-        depth: the trajectory's depth tolerance in m (default :func:`depth_tolerance`).
+        depth: the trajectory's depth tolerance in m (default: the contact's d-hat, else
+            :func:`sample_spacing`).
+        spacing: the largest relative motion between samples in m (default
+            :func:`sample_spacing`).
     """
     if len(model.fem_bodies) == 0:
         return None
@@ -337,19 +351,21 @@ def step_intersection(
     if hits.shape[0]:
         n = np.unique(hits[:, 0]).size
         return _describe(model, int(hits[0, 0]), int(hits[0, 1]), "INTERSECTION", 1.0, n)
-    depth = depth_tolerance(model) if depth is None else float(depth)
-    # relative motion of any two points between samples <= 2 max |y1 - y0| / K <= depth
+    spacing = sample_spacing(model) if spacing is None else float(spacing)
+    if depth is None:
+        depth = model.contact.dhat if model.contact is not None else spacing
+    # relative motion of any two points between samples <= 2 max |y1 - y0| / K <= spacing
     motion = 2.0 * float(np.linalg.norm(y1 - y0, axis=1).max(initial=0.0))
-    n_samples = int(np.ceil(motion / depth))
+    n_samples = int(np.ceil(motion / spacing))
     if n_samples <= 1:
         return None
     if n_samples > _CHUNK and _candidates(y0, y1, body, v0, v1, cells, cell_body).size == 0:
         return None  # nothing comes near another body on the whole step
     if n_samples > MAX_SAMPLES:
         log.warning(
-            "step trajectory sampled %d times, coarser than the depth %.3g m (needs %d)",
+            "step trajectory sampled %d times, coarser than the spacing %.3g m (needs %d)",
             MAX_SAMPLES,
-            depth,
+            spacing,
             n_samples,
         )
         n_samples = MAX_SAMPLES

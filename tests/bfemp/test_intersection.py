@@ -104,24 +104,43 @@ def test_check_fires_when_only_the_trajectory_crosses():
 
 
 def test_a_sliding_step_past_a_corner_is_not_a_crossing():
-    """A node sliding past a convex boundary vertex at a gap cuts the corner on the chord by
-    less than the depth tolerance: no finding."""
+    """A node sliding past a convex boundary vertex cuts the corner on the chord by less than
+    d-hat: no finding; the same slide cut deeper than d-hat is TUNNELED."""
     scene = bfemp.Scene(dim=2)
     scene.add_fem(bfemp.shapes.rectangle((0, 0), (1, 1), h=0.5), material=STIFF, name="block")
     scene.add_fem(
-        np.array([[0.9, 1.01], [1.0, 1.01], [0.95, 1.06]]),
+        np.array([[0.9, 1.03], [1.0, 1.03], [0.95, 1.08]]),
         np.array([[0, 1, 2]]),
         material=STIFF,
         name="tri",
     )
-    scene.set_contact(dhat=1e-3)
+    scene.set_contact(dhat=0.02)
     model = scene.build()
     start = model.initial_state()
     end = start.copy()
     tri = slice(model.fem_bodies[1].nodes.start, None)
-    end.fem_x[tri] += (0.11, -0.025)  # cuts the block's corner (1, 1) by 0.010-0.015 m
+    end.fem_x[tri] += (0.11, -0.045)  # cuts the block's corner (1, 1) by at most 0.015 m
     assert not brute_force_inside(model, end).any()
     assert step_intersection(model, start, end) is None
+    found = step_intersection(model, start, end, depth=0.002)
+    assert found is not None and found.status == "TUNNELED"
+
+
+def test_equal_aligned_boxes_passing_through_are_seen_by_cell_centroids():
+    """3D: two equal cubes, one tet wide, swapped along x with every vertex on the other's
+    surface during the pass: only the cell centroids see the overlap."""
+    scene = bfemp.Scene(dim=3)
+    scene.add_fem(bfemp.shapes.box((-0.7, 0, 0), (-0.1, 0.6, 0.6), h=0.6), material=STIFF, name="A")
+    scene.add_fem(bfemp.shapes.box((0.1, 0, 0), (0.7, 0.6, 0.6), h=0.6), material=STIFF, name="B")
+    scene.set_contact(dhat=1e-3)
+    model = scene.build()
+    start = model.initial_state()
+    end = start.copy()
+    end.fem_x[model.fem_bodies[0].nodes] += (1.6, 0.0, 0.0)
+    end.fem_x[model.fem_bodies[1].nodes] -= (1.6, 0.0, 0.0)
+    found = step_intersection(model, start, end)
+    assert found is not None and found.status == "TUNNELED"
+    assert "centroid" in found.point
 
 
 @pytest.mark.parametrize("dim", [2, 3])
