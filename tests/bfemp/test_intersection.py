@@ -126,6 +126,32 @@ def test_a_sliding_step_past_a_corner_is_not_a_crossing():
     assert found is not None and found.status == "TUNNELED"
 
 
+@pytest.mark.parametrize(
+    "begin, end, found",
+    [((0.99, 1.0005), (1.0005, 0.99), False), ((0.8, 1.0005), (1.0005, 0.5), True)],
+)
+def test_a_particle_sliding_round_a_corner_may_cut_it(begin, end, found):
+    """A particle in contact (0.5 mm, d-hat 1 mm) above the block's top and, at the end of the
+    step, beside its right side, cuts the corner on the chord by 4.75 mm: a corner cut, allowed
+    up to half its 15 mm move. From 0.2 m left of the corner to 0.5 m down the side, the chord
+    cuts 0.14 m deep, beyond the allowance's cap (a quarter of the block's 0.5 m edges):
+    TUNNELED."""
+    scene = bfemp.Scene(dim=2)
+    scene.add_fem(bfemp.shapes.rectangle((0, 0), (1, 1), h=0.5), material=STIFF, name="block")
+    scene.add_mpm(np.array([begin]), np.array([1e-6]), material=STIFF, name="blob")
+    scene.set_grid(dx=0.25)
+    scene.set_contact(dhat=1e-3)
+    model = scene.build()
+    start = model.initial_state()
+    stop = start.copy()
+    stop.mpm_x[0] = end
+    assert not brute_force_inside(model, stop).any()
+    result = step_intersection(model, start, stop, spacing=1e-3)  # sampled finely: the criterion
+    assert (result is not None) == found
+    if found:
+        assert result.status == "TUNNELED" and result.point == "particle 0 of body 'blob'"
+
+
 def test_equal_aligned_boxes_passing_through_are_seen_by_cell_centroids():
     """3D: two equal cubes, one tet wide, swapped along x with every vertex on the other's
     surface during the pass: only the cell centroids see the overlap."""
