@@ -30,8 +30,8 @@ Broad phase: the spatial hash of :mod:`geometry.broadphase` (swept boxes for the
 narrow phase: numba kernels over the candidate (point, cell) pairs; along the trajectory the
 swept candidates are rebuilt per chunk of 32 samples, so bodies that only pass near each other
 cost little. Measured on the rings demo (``bfemp.demo.colliding_rings_scene()``, dt = 2e-3 s,
-381 FEM nodes, 784 particles, 610 cells, steps 3-60): 2.9 ms per step, 1.9-2.1 % of the step
-time in two runs (a step there moves points about one ``spacing``: two or three samples). At
+381 FEM nodes, 784 particles, 610 cells, steps 3-60): 1.4-3.0 ms per step, 1.9-2.5 % of the
+step time in four runs (a step there moves points about one ``spacing``: two or three samples). At
 dt = 1e-2 s the demo's 30 steps to t = 0.3 s all pass the check.
 """
 
