@@ -532,7 +532,7 @@ def _rings_breakdown(resolution: str, repeats: int) -> dict:
     out["step_phases_s"] = best
     nit = max(out["newton_iterations"], 1)
     out["step_phases_per_iteration_s"] = {
-        k: v / nit for k, v in best.items() if k not in ("setup", "g2p", "step")
+        k: v / nit for k, v in best.items() if k not in ("setup", "g2p", "intersection", "step")
     }
     x = stepper.begin_step(state)
     term = stepper.barrier

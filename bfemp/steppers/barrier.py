@@ -16,6 +16,11 @@ One step:
    are kept out of a^{n+1} and added to the velocity as an impulse (``bfemp.integrators``).
 4. MPM: one G2P of positions, velocities, F (and APIC C, Newmark a) per Tables 1-3 (line 12)
    (``bfemp.steppers._scaffold.write_state``).
+5. An independent check (``bfemp.contact.intersection``): no node or particle ends inside
+   another FEM body, or went through one along the step's straight-line motion; otherwise the
+   step fails as ``INTERSECTION`` or ``TUNNELED`` (the barrier keeps every Newton iterate
+   clear, but with |v| dt far above the bodies' size frictionless iterates can take them around
+   each other in configuration space).
 """
 
 from __future__ import annotations
@@ -29,6 +34,7 @@ import numpy as np
 
 from bfemp.contact.adaptive import AdaptiveKappa
 from bfemp.contact.friction import FrictionTerm
+from bfemp.contact.intersection import step_intersection
 from bfemp.contact.term import BarrierTerm
 from bfemp.dofs import DofLayout
 from bfemp.frames import NodeFrames
@@ -299,6 +305,12 @@ class BarrierStepper:
         timings["setup"] = setup_time
         timings["update"] = g2p_start - update_start
         timings["g2p"] = time.perf_counter() - g2p_start
+        checked = time.perf_counter()  # independent of the barrier: bfemp.contact.intersection
+        crossing = None if self.barrier is None else step_intersection(self.model, state, new)
+        if crossing is not None:
+            report_args.update(success=False, status=crossing.status, message=crossing.message)
+            raise StepError(StepReport(**report_args, timings=timings))
+        timings["intersection"] = time.perf_counter() - checked
         timings["step"] = time.perf_counter() - started
         if self.barrier is not None and self.barrier.pairs is not None:
             min_d = self.barrier.min_distance()
@@ -330,7 +342,8 @@ class BarrierStepper:
         """v^{n+1}, a^{n+1} ``(n_dof,)`` and the level-set reactions of a converged step.
 
         a^{n+1} from the solved positions (eq. 21; Algorithm 2 line 14's -M^-1 dPsi/dx agrees
-        at the exact minimiser, ``Integrator.acceleration`` says why the positions are taken),
+        at the exact minimiser, ``Integrator.acceleration`` says why the positions are taken;
+        ``BarrierOptions.velocity_update = "forces"`` takes the forces, as the paper does),
         then eq. 21 for v, so that v^{n+1} matches x^{n+1} - x^n; with implicit contact the
         elastic a^{n+1} comes from the forces and the contact part (the rest of the motion)
         acts as an impulse. Along slip normals the node moves with the boundary: its velocity,
@@ -341,9 +354,16 @@ class BarrierStepper:
         a_contact = None
         if nodes.layout.n_dof:
             self.potential.solution_changed(result.x)
+            from_forces = self.options.velocity_update == "forces"
             if integ.implicit_contact and self.barrier is not None:
                 a_next = -self._memory_gradient(x_next) / ctx.dof_mass
-                a_contact = integ.contact_acceleration(x_next, ctx.x_hat, a_next, dt)
+                if from_forces:
+                    contact = self.potential.potential_gradient(x_next, contact=True)
+                    a_contact = -contact / ctx.dof_mass
+                else:
+                    a_contact = integ.contact_acceleration(x_next, ctx.x_hat, a_next, dt)
+            elif from_forces:
+                a_next = -self._memory_gradient(x_next) / ctx.dof_mass
             else:
                 a_next = integ.acceleration(x_next, ctx.x_hat, dt)
         else:

@@ -65,7 +65,10 @@ def test_options_are_frozen_validated_and_named():
         "max_newton_iterations": 50,
         "warm_start": False,
         "linear_solver": "default",
+        "velocity_update": "positions",
     }
+    with pytest.raises(ValueError, match="velocity_update must be one of"):
+        BarrierOptions(velocity_update="residual")
 
 
 def test_options_from_a_mapping_refuse_unknown_fields_and_wrong_types():
