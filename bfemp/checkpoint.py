@@ -10,12 +10,11 @@ and holds everything a continued run needs to equal the uninterrupted one:
 - ``metrics``: the metrics log so far (JSON rows; ints stay ints, NaN stays NaN);
 - ``pvd.<block>``: the text of each ``.pvd`` collection of the run folder, so frames written
   after the checkpoint are dropped on resume and the frame numbering continues where it was;
-- ``stepper.<name>``: data a stepper carries between steps, when it has any (a stepper may
-  define ``checkpoint_data() -> dict[str, ndarray]`` and ``restore_checkpoint_data(dict)``).
-  The implicit stepper's sparsity patterns and CHOLMOD symbolic factorisation are caches that
-  do not change results; what it does carry is the adaptive barrier stiffness of
-  ``kappa = "auto"`` (``stepper.adaptive``, an ``AdaptiveKappa``), saved in ``meta`` as its
-  fields until the stepper defines the hooks above;
+- ``stepper.<name>``: the data a stepper carries between steps, through the hooks every
+  stepper declares (``checkpoint_data() -> dict[str, ndarray]``, ``restore_checkpoint_data``;
+  ``bfemp.steppers.base.Stepper``). The barrier stepper's sparsity patterns and CHOLMOD
+  symbolic factorisation are caches that do not change results; what it carries is the
+  adaptive barrier stiffness of ``kappa = "auto"`` (an ``AdaptiveKappa``, as JSON);
 - ``meta``: JSON with the format version, the model fingerprint (SHA-256 of every array and
   parameter of the ``Model``), the simulation settings and the frame interval.
 
