@@ -118,6 +118,7 @@ class BarrierStepper:
             self.newton,
             self.linear_solver,
             self.dt,
+            take_last_increment=options.velocity_update == "positions",
         )
 
     @property
