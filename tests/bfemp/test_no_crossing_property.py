@@ -5,6 +5,7 @@ swap order, or the step failed with a named status. FEM-FEM and MPM-FEM, 2D and 
 Bounded for CI: tiny meshes, a few examples per case, two steps, the default Newton cap.
 """
 
+import os
 import re
 
 import numpy as np
@@ -19,10 +20,14 @@ from tests.bfemp.test_intersection import brute_force_inside
 MATERIAL = bfemp.NeoHookean(E=1e6, nu=0.3, density=1000.0)
 STEPS = 2
 NEWTON_CAP = 200  # the default: tunnelling steps need ~100 iterations to reach x-hat
+#: random examples on a developer's machine; under CI (CI=true) the same seeded ones every run,
+#: so that a submission's CI is reproducible (counterexamples found locally are kept in
+#: .hypothesis/ and replayed there first)
 SETTINGS = settings(
     max_examples=12,
     deadline=None,
     suppress_health_check=[HealthCheck.too_slow],
+    derandomize=bool(os.environ.get("CI")),
 )
 
 #: dt log-uniform in [1e-4, 2] s
