@@ -7,6 +7,7 @@ and names its options class (``cls.Options``).
 
 from __future__ import annotations
 
+from bfemp.steppers.augury import AuguryOptions, AuguryStepper
 from bfemp.steppers.barrier import BarrierOptions, BarrierStepper
 from bfemp.steppers.base import (
     ContactView,
@@ -21,6 +22,8 @@ from bfemp.steppers.single_field import SingleFieldOptions, SingleFieldStepper
 
 __all__ = [
     "STRATEGIES",
+    "AuguryOptions",
+    "AuguryStepper",
     "BarrierOptions",
     "SingleFieldOptions",
     "SingleFieldStepper",
@@ -43,6 +46,7 @@ ImplicitStepper = BarrierStepper
 #: strategy name -> stepper class. "barrier" is BFEMP (implicit incremental potential);
 #: "single_field" the explicit MPM baseline without a contact algorithm.
 STRATEGIES: dict[str, type] = {"barrier": BarrierStepper, "single_field": SingleFieldStepper}
+STRATEGIES["augury"] = AuguryStepper  # APIC augury contact (AUG), explicit
 
 
 def stepper_class(strategy: str) -> type:
