@@ -15,6 +15,7 @@ import sys
 
 #: benchmark name -> module in this package exposing ``run(mode: str, out: Path) -> dict``.
 BENCHMARKS = {
+    "augury_gap": "benchmarks.augury_gap",
     "extremes": "benchmarks.extremes",
     "hertz": "benchmarks.hertz",
     "perf_broadphase": "benchmarks.perf_broadphase",

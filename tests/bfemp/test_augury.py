@@ -248,3 +248,13 @@ def test_registered_and_bad_options_refused_by_name():
     with pytest.raises(ValueError, match="tau"):
         AuguryStepper(model, dt=1e-3, options=AuguryOptions(tau=4e-4))
     AuguryStepper(model, dt=1e-3, options=AuguryOptions(tau=5e-4))  # dt / 2 is allowed
+
+
+def test_parallel_and_serial_gathers_agree(rng):
+    from bfemp.contact import _augury_kernels as k
+
+    x, m, st = _cloud(rng, 3, n=k.PARALLEL_MIN + 10)
+    grid_v = rng.normal(size=(st.n_nodes, 3))
+    args = (st.nodes, st.weights, st.node_x, x, grid_v)
+    for a, b in zip(k._g2p_serial(*args), k._g2p_parallel(*args), strict=True):
+        assert np.array_equal(a, b)
