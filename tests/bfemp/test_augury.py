@@ -258,3 +258,28 @@ def test_parallel_and_serial_gathers_agree(rng):
     args = (st.nodes, st.weights, st.node_x, x, grid_v)
     for a, b in zip(k._g2p_serial(*args), k._g2p_parallel(*args), strict=True):
         assert np.array_equal(a, b)
+
+
+@pytest.mark.parametrize("mpm_foreground", [True, False])
+def test_mpm_particles_as_foreground_meet_a_fem_body(mpm_foreground):
+    scene = bfemp.Scene(dim=2)
+    scene.add_fem(
+        bfemp.shapes.rectangle((0.25, 0.0), (0.45, 0.2), h=0.05), material=MAT, velocity=(-1, 0)
+    )
+    x, vol = bfemp.sample.box((0.0, 0.0), (0.2, 0.2), dx=0.05, ppc=4)
+    scene.add_mpm(x, vol, material=MAT, velocity=(1.0, 0.0))
+    scene.set_grid(dx=0.05)
+    opts = AuguryOptions(mpm_foreground=mpm_foreground)
+    sim = bfemp.Simulation(scene, strategy="augury", options=opts, dt="auto")
+    model = sim.model
+    p0 = diagnostics.linear_momentum(model, sim.state)
+    sim.run(t_end=0.15, progress=False)
+    v_fem = model.fem_mass @ sim.state.fem_v / model.fem_mass.sum()
+    v_mpm = model.mpm_mass @ sim.state.mpm_v / model.mpm_mass.sum()
+    approach = v_mpm[0] - v_fem[0]  # 2 m/s at the start
+    assert np.abs(diagnostics.linear_momentum(model, sim.state) - p0).max() < 1e-12
+    if mpm_foreground:
+        assert approach < 0.25 * 2.0  # the contact grid stopped most of the approach
+        assert np.abs(sim.state.aug_Bp).max() > 0.0
+    else:  # negative control: nothing couples the bodies, they pass through each other
+        assert approach == pytest.approx(2.0, rel=1e-9)
