@@ -241,6 +241,7 @@ def test_registered_and_bad_options_refused_by_name():
         (dict(tau=0.0), "tau"),
         (dict(grid_dx=-1.0), "grid_dx"),
         (dict(region="near"), "region"),
+        (dict(normals="mean"), "normals"),
     ):
         with pytest.raises(ValueError, match=f"AuguryOptions.{name}"):
             AuguryOptions(**kwargs)
@@ -283,3 +284,31 @@ def test_mpm_particles_as_foreground_meet_a_fem_body(mpm_foreground):
         assert np.abs(sim.state.aug_Bp).max() > 0.0
     else:  # negative control: nothing couples the bodies, they pass through each other
         assert approach == pytest.approx(2.0, rel=1e-9)
+
+
+def _slide(normals):
+    """A soft block sliding at 1 m/s over a free slab, zero gap, no gravity (2D)."""
+    soft = bfemp.NeoHookean(E=1e6, nu=0.3, density=1000.0)
+    scene = bfemp.Scene(dim=2)
+    scene.add_fem(bfemp.shapes.rectangle((0, -0.2), (2, 0), h=0.1), material=soft)
+    scene.add_fem(
+        bfemp.shapes.rectangle((0.3, 0.0), (0.8, 0.5), h=0.1), material=soft, velocity=(1.0, 0)
+    )
+    model = scene.build()
+    opts = AuguryOptions(mu=0.0, grid_dx=0.05, normals=normals, penetration_check_every=0)
+    stepper = AuguryStepper(model, dt=1e-4, options=opts)
+    state = stepper.initialize(model.initial_state())
+    for _ in range(200):
+        state, report = stepper.step(state)
+    block = model.fem_bodies[1]
+    m = model.fem_mass[block.nodes]
+    assert report.contact_pairs > 0
+    return float(m @ state.fem_v[block.nodes, 0] / m.sum())
+
+
+def test_facing_normals_let_a_frictionless_block_slide_further_than_averaged_ones():
+    # measured: 0.839 m/s ("own": the block's bottom corners push with their 45 degree normals)
+    # and 0.932 m/s ("facing") after 0.02 s from 1 m/s
+    own, facing = _slide("own"), _slide("facing")
+    assert facing > own + 0.05
+    assert facing < 1.0
