@@ -18,6 +18,7 @@ BENCHMARKS = {
     "augury_blocks": "benchmarks.augury_blocks",
     "augury_gap": "benchmarks.augury_gap",
     "augury_ramp": "benchmarks.augury_ramp",
+    "augury_speed": "benchmarks.augury_speed",
     "extremes": "benchmarks.extremes",
     "hertz": "benchmarks.hertz",
     "perf_broadphase": "benchmarks.perf_broadphase",

@@ -188,3 +188,33 @@ def points_in_cells(
                 depth[q] = smallest
                 break
     return found, depth
+
+
+@njit(cache=True)
+def node_body_ranges(
+    nodes: np.ndarray, weights: np.ndarray, body: np.ndarray, v: np.ndarray, n_nodes: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per contact node: whether particles of two or more bodies touch it ``(G,)`` and the
+    componentwise smallest and largest velocity of the particles touching it ``(G, d)`` each
+    (one serial pass over the stencils; entries of zero weight do not touch)."""
+    n_p, k = nodes.shape
+    d = v.shape[1]
+    lo_b = np.full(n_nodes, np.iinfo(np.int64).max)
+    hi_b = np.full(n_nodes, -1)
+    v_lo = np.full((n_nodes, d), np.inf)
+    v_hi = np.full((n_nodes, d), -np.inf)
+    for p in range(n_p):
+        b = body[p]
+        for s in range(k):
+            if weights[p, s] == 0.0:
+                continue
+            i = nodes[p, s]
+            lo_b[i] = min(lo_b[i], b)
+            hi_b[i] = max(hi_b[i], b)
+            for a in range(d):
+                v_lo[i, a] = min(v_lo[i, a], v[p, a])
+                v_hi[i, a] = max(v_hi[i, a], v[p, a])
+    shared = np.zeros(n_nodes, dtype=np.bool_)
+    for i in range(n_nodes):
+        shared[i] = hi_b[i] > lo_b[i]
+    return shared, v_lo, v_hi

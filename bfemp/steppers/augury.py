@@ -49,7 +49,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from bfemp.contact._augury_kernels import points_in_cells
+from bfemp.contact._augury_kernels import node_body_ranges, points_in_cells
 from bfemp.contact.augury import (
     KERNELS,
     MODES,
@@ -270,9 +270,15 @@ class AuguryStepper(ExplicitStepper):
         """Outward unit normals ``(N, d)`` of the FEM boundary nodes at positions ``x`` (area-
         weighted facet normals, AUG section 2.3; zero off the boundary)."""
         n_f = facet_normals(x, self._facets, self._facet_opp)
-        normals = np.zeros_like(x)
-        for j in range(self._facets.shape[1]):  # d corners per facet
-            np.add.at(normals, self._facets[:, j], n_f)
+        n = x.shape[0]
+        flat = self._facets.reshape(-1)  # d corners per facet
+        normals = np.stack(
+            [
+                np.bincount(flat, np.repeat(n_f[:, a], self._facets.shape[1]), n)
+                for a in range(x.shape[1])
+            ],
+            axis=1,
+        )
         return _normalize(normals)
 
     def _facing_normals(
@@ -417,10 +423,13 @@ class AuguryStepper(ExplicitStepper):
                     normals[:n_fem] = self._facing_normals(state.fem_x, st, m, body, normals)
             if n_mpm:
                 normals[n_fem:] = self._mpm_normals(st, n_fem, m[n_fem:], body[n_fem:])
-            shared = _shared_particles(st.nodes, body, st.n_nodes)
+            node_shared, v_lo, v_hi = node_body_ranges(
+                st.nodes, st.weights, body, v_bar, st.n_nodes
+            )
+            shared = (node_shared[st.nodes] & (st.weights > 0.0)).any(axis=1)
             shared_count = int(shared.sum())
             timings["augury_stencils"] = time.perf_counter() - t0
-            notes.extend(self._reach_notes(st, shared, body, v_bar))
+            notes.extend(self._reach_notes(node_shared, v_lo, v_hi, v_bar))
             sel = np.arange(n_all) if self.options.region == "all" else np.flatnonzero(shared)
             if not self.apic:
                 B_bar = np.zeros_like(B_bar)
@@ -488,9 +497,10 @@ class AuguryStepper(ExplicitStepper):
         return new, report
 
     def _reach_notes(
-        self, st: ContactStencils, shared: np.ndarray, body: np.ndarray, v_bar: np.ndarray
+        self, node_shared: np.ndarray, v_lo: np.ndarray, v_hi: np.ndarray, v_bar: np.ndarray
     ) -> list[str]:
-        """AUGURY_REACH / AUGURY_STEP_REACH (section 1.5 item 2)."""
+        """AUGURY_REACH / AUGURY_STEP_REACH (section 1.5 item 2); v_rel is the spread of the
+        predicted velocities at the contact nodes shared by two bodies (an upper bound)."""
         notes = []
         dx = self.grid_dx
         v_max = float(np.sqrt(np.einsum("pd,pd->p", v_bar, v_bar)).max()) if v_bar.size else 0.0
@@ -499,16 +509,9 @@ class AuguryStepper(ExplicitStepper):
                 f"AUGURY_STEP_REACH: dt max|v| = {self.dt * v_max:.4g} m exceeds grid_dx / 2 = "
                 f"{0.5 * dx:.4g} m"
             )
-        if shared.any():
-            flat_nodes = st.nodes.reshape(-1)
-            flat_v = np.repeat(v_bar, st.nodes.shape[1], axis=0)
-            lo = np.full((st.n_nodes, v_bar.shape[1]), np.inf)
-            hi = np.full((st.n_nodes, v_bar.shape[1]), -np.inf)
-            np.minimum.at(lo, flat_nodes, flat_v)
-            np.maximum.at(hi, flat_nodes, flat_v)
-            node_shared = _shared_nodes(st.nodes, body, st.n_nodes)
-            spread = hi[node_shared] - lo[node_shared]
-            v_rel = float(np.sqrt((spread**2).sum(axis=1)).max()) if spread.size else 0.0
+        if node_shared.any():
+            spread = v_hi[node_shared] - v_lo[node_shared]
+            v_rel = float(np.sqrt((spread**2).sum(axis=1)).max())
             if self.tau * v_rel > dx / 3.0:
                 notes.append(
                     f"AUGURY_REACH: tau |v_rel| = {self.tau * v_rel:.4g} m exceeds grid_dx / 3 = "
@@ -609,27 +612,6 @@ def _facet_edge_lengths(x: np.ndarray, facets: np.ndarray) -> np.ndarray:
         np.linalg.norm(p[:, (j + 1) % k] - p[:, j], axis=1) for j in range(k if k > 2 else 1)
     ]
     return np.concatenate(lengths)
-
-
-def _node_body_range(nodes: np.ndarray, body: np.ndarray, n_nodes: int):
-    flat = nodes.reshape(-1)
-    b = np.repeat(body, nodes.shape[1])
-    lo = np.full(n_nodes, np.iinfo(np.int64).max)
-    hi = np.full(n_nodes, -1)
-    np.minimum.at(lo, flat, b)
-    np.maximum.at(hi, flat, b)
-    return lo, hi
-
-
-def _shared_nodes(nodes: np.ndarray, body: np.ndarray, n_nodes: int) -> np.ndarray:
-    """Contact nodes touched by particles of two or more bodies ``(G,)`` bool."""
-    lo, hi = _node_body_range(nodes, body, n_nodes)
-    return lo != hi
-
-
-def _shared_particles(nodes: np.ndarray, body: np.ndarray, n_nodes: int) -> np.ndarray:
-    """Particles with a stencil node touched by another body ``(P,)`` bool."""
-    return _shared_nodes(nodes, body, n_nodes)[nodes].any(axis=1)
 
 
 def _subset(st: ContactStencils, sel: np.ndarray) -> ContactStencils:
