@@ -10,11 +10,15 @@ augury correction (eqs. 29, 36-46) is
                                        V^_{m+1} = V^_m + H W_{m+1} - W_{m+1}
     A^ = (V^_N - V-bar) / tau.
 
-The undesirable part (``undesirable``): mode ``"separate"`` (eq. 38) keeps the change where it
-pulls a particle away from its own body's outward normal direction... precisely: W = {dv, dB}
-where dv . n > 0 (a tensile correction), else 0; mode ``"friction"`` (eqs. 42-46 with the
-misprints of EXPLICIT_STRATEGIES.md A3 fixed): dv^t = (I - n n^T) dv, s = min(|dv^t|, -mu dv.n),
-dv^u = dv^t - s dv^t/|dv^t| where dv . n <= 0, dv^u = dv otherwise; dB^u = dB always.
+The undesirable part (``undesirable``): mode ``"separate"`` (eq. 38): W = {dv, dB} where
+dv . n > 0 (a tensile correction, pulling the particle toward the other body), else 0; mode
+``"friction"`` (eqs. 42-46 with the misprints of EXPLICIT_STRATEGIES.md A3 fixed):
+dv^t = (I - n n^T) dv, s = min(|dv^t|, -mu dv.n), dv^u = dv^t - s dv^t/|dv^t| where
+dv . n <= 0, dv^u = dv otherwise; dB^u = dB always.
+
+Measured limit of one iteration: W is removed only in part where contact nodes are touched by
+one body alone (they carry its W back through H W). A block sliding frictionlessly at 1 m/s over
+a slab (2D, grid_dx 0.05 m, APIC) kept 0.84 / 0.88 / 0.94 m/s after 0.02 s with N = 1 / 3 / 10.
 
 Every G = H - I term carries no net linear momentum (both transfers) and, with APIC and the B
 term, no net angular momentum (eq. 36), so A^ carries none whatever N and the mode.
@@ -243,9 +247,9 @@ def undesirable(
     Args:
         dv: velocity changes ``(P, d)`` in m/s (measured from V-bar, eq. 37).
         dB: B changes ``(P, d, d)`` in m^2/s.
-        normals: outward unit normals of each particle's own body ``(P, d)`` (zero: no normal,
-            then the whole change counts as undesirable only in ``"friction"`` tension... see
-            below: a zero normal gives dv . n = 0, treated as compressive).
+        normals: outward unit normals of each particle's own body ``(P, d)``; a zero normal
+            gives dv . n = 0 (compressive), so ``"separate"`` keeps the whole change and
+            ``"friction"`` removes its tangential part (all of dv).
         mode: ``"separate"`` or ``"friction"``.
         mu: Coulomb coefficient (``"friction"`` only), >= 0.
     """
