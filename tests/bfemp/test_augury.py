@@ -350,3 +350,16 @@ def test_shared_region_conserves_momentum_and_smooths_fewer_particles():
     assert _relative_speed(model, state) < 0.5  # the approach was stopped (1 -> < 0.5 m/s)
     assert np.abs(diagnostics.linear_momentum(model, state) - p0).max() < 1e-12
     assert np.abs(diagnostics.angular_momentum(model, state) - L0).max() < 1e-12
+
+
+def test_checkpoint_carries_the_augury_B(tmp_path):
+    from bfemp.checkpoint import read_checkpoint, write_checkpoint
+
+    sim = bfemp.Simulation(_two_squares(gap=0.01), strategy="augury", dt=1e-3)
+    for _ in range(20):
+        sim.step()
+    assert np.abs(sim.state.aug_B).max() > 0.0
+    write_checkpoint(tmp_path, sim)
+    back = read_checkpoint(tmp_path).state
+    assert np.array_equal(back.aug_B, sim.state.aug_B)
+    assert np.array_equal(back.aug_Bp, sim.state.aug_Bp)
