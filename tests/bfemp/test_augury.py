@@ -363,3 +363,13 @@ def test_checkpoint_carries_the_augury_B(tmp_path):
     back = read_checkpoint(tmp_path).state
     assert np.array_equal(back.aug_B, sim.state.aug_B)
     assert np.array_equal(back.aug_Bp, sim.state.aug_Bp)
+
+
+def test_reach_condition_is_reported_by_name():
+    model = _two_squares(gap=0.01).build()
+    for tau, expected in ((1e-3, False), (0.05, True)):  # tau |v_rel| = 2e-3 / 0.1 m, dx/3 = 0.033
+        stepper = AuguryStepper(model, dt=1e-3, options=AuguryOptions(tau=tau))
+        _, report = stepper.step(stepper.initialize(model.initial_state()))
+        names = [n.split(":")[0] for n in report.notes]
+        assert report.contact_pairs > 0
+        assert ("AUGURY_REACH" in names) == expected
