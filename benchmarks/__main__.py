@@ -15,6 +15,10 @@ import sys
 
 #: benchmark name -> module in this package exposing ``run(mode: str, out: Path) -> dict``.
 BENCHMARKS = {
+    "augury_blocks": "benchmarks.augury_blocks",
+    "augury_gap": "benchmarks.augury_gap",
+    "augury_ramp": "benchmarks.augury_ramp",
+    "augury_speed": "benchmarks.augury_speed",
     "extremes": "benchmarks.extremes",
     "hertz": "benchmarks.hertz",
     "perf_broadphase": "benchmarks.perf_broadphase",

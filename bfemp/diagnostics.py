@@ -98,23 +98,30 @@ def _cross(x: np.ndarray, v: np.ndarray, m: np.ndarray) -> np.ndarray:
 def angular_momentum(model: Model, state: State, transfer: str = "apic") -> np.ndarray:
     """sum m x x v about the origin, ``(1,)`` (z) in 2D or ``(3,)`` in 3D, kg m^2/s.
 
-    With APIC the particles' spin m_p eps : (C_p D_p)^T is included.
+    With APIC the particles' spin m_p eps : (C_p D_p)^T is included; the augury matrices
+    ``state.aug_B`` (FEM nodes) and ``state.aug_Bp`` (particles), where present, add their spin
+    m eps : B^T whatever ``transfer`` (AUG eq. 36: the quantity H_APIC conserves).
     """
     total = _cross(state.fem_x, state.fem_v, model.fem_mass)
+    for B, m in ((state.aug_B, model.fem_mass), (state.aug_Bp, model.mpm_mass)):
+        if B.shape[0] and B.shape[0] == m.shape[0]:
+            total = total + _spin(B, m)
     if model.n_particles:
         total = total + _cross(state.mpm_x, state.mpm_v, model.mpm_mass)
         if transfer == "apic":
             B = state.mpm_C * (model.grid.dx**2 / 4.0)  # C D with D = dx^2/4 I
-            m = model.mpm_mass
-            if model.dim == 2:
-                total = total + np.array([float(m @ (B[:, 1, 0] - B[:, 0, 1]))])
-            else:
-                spin = np.stack(
-                    [B[:, 2, 1] - B[:, 1, 2], B[:, 0, 2] - B[:, 2, 0], B[:, 1, 0] - B[:, 0, 1]],
-                    axis=1,
-                )
-                total = total + m @ spin
+            total = total + _spin(B, model.mpm_mass)
     return total
+
+
+def _spin(B: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """sum_p m_p eps : B_p^T, ``(1,)`` in 2D or ``(3,)`` in 3D (B = C D in m^2/s)."""
+    if B.shape[1] == 2:
+        return np.array([float(m @ (B[:, 1, 0] - B[:, 0, 1]))])
+    spin = np.stack(
+        [B[:, 2, 1] - B[:, 1, 2], B[:, 0, 2] - B[:, 2, 0], B[:, 1, 0] - B[:, 0, 1]], axis=1
+    )
+    return m @ spin
 
 
 def body_names(model: Model) -> list[str]:

@@ -32,6 +32,10 @@ class State:
         mpm_C: APIC affine velocity matrices ``(P, d, d)`` in 1/s.
         mpm_a: particle accelerations ``(P, d)`` in m/s^2 (Newmark; transferred like velocities).
         mpm_Ca: APIC affine acceleration matrices ``(P, d, d)`` in 1/s^2 (Newmark with APIC).
+        aug_B: augury APIC matrices B of the FEM nodes ``(N, d, d)`` in m^2/s (``"augury"``,
+            AUG eq. 21; zero off the foreground; empty for other strategies).
+        aug_Bp: augury APIC matrices B of the particles ``(P, d, d)`` in m^2/s (``"augury"``
+            with MPM foreground; separate from ``mpm_C``; empty otherwise).
     """
 
     t: float
@@ -45,6 +49,8 @@ class State:
     mpm_C: np.ndarray = field(default_factory=lambda: _empty(0, 2, 2))
     mpm_a: np.ndarray = field(default_factory=lambda: _empty(0, 2))
     mpm_Ca: np.ndarray = field(default_factory=lambda: _empty(0, 2, 2))
+    aug_B: np.ndarray = field(default_factory=lambda: _empty(0, 2, 2))
+    aug_Bp: np.ndarray = field(default_factory=lambda: _empty(0, 2, 2))
 
     def copy(self) -> State:
         """A deep copy (arrays copied)."""

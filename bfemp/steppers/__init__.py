@@ -14,6 +14,7 @@ explicit engine (``bfemp.steppers.explicit``) it builds on.
 
 from __future__ import annotations
 
+from bfemp.steppers.augury import AuguryOptions, AuguryStepper
 from bfemp.steppers.barrier import BarrierOptions, BarrierStepper
 from bfemp.steppers.base import (
     ContactView,
@@ -28,6 +29,8 @@ from bfemp.steppers.single_field import SingleFieldOptions, SingleFieldStepper
 
 __all__ = [
     "STRATEGIES",
+    "AuguryOptions",
+    "AuguryStepper",
     "BarrierOptions",
     "SingleFieldOptions",
     "SingleFieldStepper",
@@ -50,6 +53,7 @@ ImplicitStepper = BarrierStepper
 #: strategy name -> stepper class. "barrier" is BFEMP (implicit incremental potential);
 #: "single_field" the explicit MPM baseline without a contact algorithm.
 STRATEGIES: dict[str, type] = {"barrier": BarrierStepper, "single_field": SingleFieldStepper}
+STRATEGIES["augury"] = AuguryStepper  # APIC augury contact (AUG), explicit
 
 
 def stepper_class(strategy: str) -> type:

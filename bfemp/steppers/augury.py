@@ -1,0 +1,625 @@
+"""``"augury"``: APIC augury contact (AUG; EXPLICIT_STRATEGIES.md section 1) on the explicit engine.
+
+Foreground particles are the FEM boundary nodes (AUG) and, as bfemp's extension, the MPM
+particles (section 1.4); they are transferred to their own Cartesian contact grid (spacing
+``grid_dx``, origin 0) by the contact operator H (``bfemp.contact.augury.ContactOperator``: one
+APIC or PIC P2G and one G2P at fixed positions). One step, after the engine's free-flight step
+(``ExplicitStepper.step``: symplectic Euler, forces at x^n; MPM: the engine's USL step on the
+MPM grid, which gives v_p^free and x_p^free):
+
+1. a_p = (v_p^free - v_p^n) / dt (FEM: the mechanical acceleration of the node; MPM: the
+   particle's); prediction (eq. 27) v-bar = v^n + tau a (``predictor="symplectic"``) or
+   v^n + (dt/2 + tau) a (``"paper"``, the velocity-Verlet reading of eq. 32, pitfall A2);
+   B-bar = B^n.
+2. Stencils at x_p^n; V^_0 = H V-bar; N augury iterations remove the undesirable part
+   (``bfemp.contact.augury.augury_correction``: eq. 38 or eqs. 40-46 with mu).
+3. A^ = (V^_N - V-bar) / tau; v^{n+1} = v^free + dt a^, x^{n+1} = x^free + dt^2 a^,
+   B^{n+1} = B^n + dt B-dot^ (so x^{n+1} = x^n + dt v^{n+1} for FEM nodes).
+
+With tau = dt and N = 0 this gives v^{n+1} = H(v^n + dt a) on the foreground exactly (T9).
+
+The engine is used as is: the augury pass runs after ``ExplicitStepper.step`` returns (the hooks
+``after_p2g``/``resolve`` come before G2P, where MPM foreground velocities do not exist yet).
+The FEM result is the same as a correction inside ``resolve`` (v and x are linear in the
+correction), and the MPM particles get theirs after G2P as section 1.4 prescribes; F_p is left as
+the engine's G2P made it (contact reaches F through the next P2G, O(dt)).
+
+Conservation: every H - I term has zero net linear momentum and, with APIC and B, zero net
+angular momentum, so the correction conserves both for FEM-only scenes (angular momentum about
+x^n: the B term of ``bfemp.diagnostics.angular_momentum`` is the one H_APIC keeps). PIC keeps
+linear momentum only. Scripted (prescribed) FEM nodes are left out of the foreground, or, with
+``kinematic_foreground=True``, enter H with their mass and scripted velocity and have their
+correction dropped; the momentum they absorb is reported in a ``SCRIPTED_FOREGROUND`` note.
+
+Named notes in every report where they apply: ``SCRIPTED_FOREGROUND``, ``AUGURY_REACH`` (tau
+times the velocity spread at shared contact nodes above grid_dx / 3, AUG eq. 50),
+``AUGURY_STEP_REACH`` (dt max |v| above grid_dx / 2) and ``INTERPENETRATION`` (foreground nodes
+or particles strictly inside a cell of another FEM body at the end of the step; AUG admits the
+method can let bodies through, pitfall A9). Cost: N + 1 H applications over the foreground set
+(optionally only the particles sharing a contact node with another body, ``region="shared"``).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass, replace
+from typing import ClassVar
+
+import numpy as np
+
+from bfemp.contact._augury_kernels import node_body_ranges, points_in_cells
+from bfemp.contact.augury import (
+    KERNELS,
+    MODES,
+    ContactOperator,
+    ContactStencils,
+    augury_correction,
+    contact_stencils,
+    facet_normals,
+)
+from bfemp.integrators import ExplicitIntegrator
+from bfemp.model import Model
+from bfemp.state import State
+from bfemp.steppers.base import ContactView, StepperOptions, StepReport
+from bfemp.steppers.explicit import ExplicitOptions, ExplicitStepper
+
+__all__ = ["AuguryOptions", "AuguryStepper"]
+
+log = logging.getLogger(__name__)
+
+PREDICTORS = ("symplectic", "paper")
+TRANSFERS = ("apic", "pic")
+REGIONS = ("all", "shared")
+NORMALS = ("own", "facing")
+
+
+@dataclass(frozen=True, kw_only=True)
+class AuguryOptions(ExplicitOptions):
+    """Options of ``"augury"`` (EXPLICIT_STRATEGIES.md section 1.5).
+
+    Attributes:
+        tau: augury time scale tau in s; None: tau = dt (AUG's choice). tau < dt / 2 is refused
+            (the correction v-bar + (dt/tau) G v-bar is unstable beyond).
+        iterations: augury iterations N >= 0 (AUG: 1; N = 0 sticks).
+        mode: ``"friction"`` (eqs. 40-46, Coulomb with ``mu``; mu = 0 is frictionless) or
+            ``"separate"`` (eq. 38: only tensile corrections removed).
+        mu: Coulomb coefficient; None takes ``scene.set_contact(mu=...)`` (0 without contact).
+        grid_dx: contact-grid spacing in m; None: 2 x the mean FEM boundary edge at rest, not
+            below the MPM particle spacing (AUG: about twice the element edge).
+        kernel: contact-grid kernel, ``"quadratic"`` (bfemp's B-spline, 3 nodes per axis),
+            ``"aug_b2avg"`` (AUG App. B, 4 nodes) or ``"linear"`` (hats).
+        predictor: ``"symplectic"`` (v-bar = v^n + tau a) or ``"paper"`` (v^n + (dt/2 + tau) a).
+        contact_transfer: transfer of the contact operator H, ``"apic"`` or ``"pic"``.
+        kinematic_foreground: scripted FEM nodes on the boundary enter H (their correction is
+            dropped; conservation is then lost, stated in the report).
+        mpm_foreground: MPM particles are foreground particles (bfemp's extension).
+        region: ``"all"`` (every foreground particle, AUG) or ``"shared"`` (only those whose
+            stencil touches a contact node with mass from another body).
+        penetration_check_every: check for interpenetration every this many steps (0: never).
+        normals: FEM foreground normals, ``"own"`` (AUG section 2.3: the area-weighted normal
+            of the node's facets) or ``"facing"`` (bfemp's option: of the node's facets, the one
+            whose normal is most opposed to the other bodies' mean normal on the node's stencil;
+            at corners and edges the averaged normal is tilted, so that the normal part of a
+            sliding drag is kept as a push: measured, a block on a 30 degree ramp at mu = 0
+            then barely slides).
+        cfl_safety_fem: safety factor on the FEM bound h_min / c_p, in (0, 1].
+        cfl_safety_mpm: safety factor on the MPM bound dx / (c_p + |v_p|), in (0, 1].
+    """
+
+    strategy: ClassVar[str] = "augury"
+
+    tau: float | None = None
+    iterations: int = 1
+    mode: str = "friction"
+    mu: float | None = None
+    grid_dx: float | None = None
+    kernel: str = "quadratic"
+    predictor: str = "symplectic"
+    contact_transfer: str = "apic"
+    kinematic_foreground: bool = False
+    mpm_foreground: bool = True
+    region: str = "all"
+    penetration_check_every: int = 1
+    normals: str = "own"
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        name = type(self).__name__
+        for field_name in ("tau", "mu", "grid_dx"):
+            value = getattr(self, field_name)
+            if value is None:
+                continue
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                raise ValueError(f"{name}.{field_name} must be a number or None, got {value!r}")
+            low_ok = value >= 0.0 if field_name == "mu" else value > 0.0
+            if not (math.isfinite(value) and low_ok):
+                kind = ">= 0" if field_name == "mu" else "> 0"
+                raise ValueError(f"{name}.{field_name} must be finite and {kind}, got {value!r}")
+            object.__setattr__(self, field_name, float(value))
+        for field_name in ("iterations", "penetration_check_every"):
+            value = getattr(self, field_name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+                raise ValueError(f"{name}.{field_name} must be an integer >= 0, got {value!r}")
+        for field_name, allowed in (
+            ("mode", MODES),
+            ("kernel", tuple(KERNELS)),
+            ("predictor", PREDICTORS),
+            ("contact_transfer", TRANSFERS),
+            ("region", REGIONS),
+            ("normals", NORMALS),
+        ):
+            value = getattr(self, field_name)
+            if value not in allowed:
+                raise ValueError(f"{name}.{field_name} must be one of {allowed}, got {value!r}")
+        for field_name in ("kinematic_foreground", "mpm_foreground"):
+            if not isinstance(getattr(self, field_name), bool):
+                raise ValueError(f"{name}.{field_name} must be True or False")
+
+
+class AuguryStepper(ExplicitStepper):
+    """The ``"augury"`` strategy (module docstring)."""
+
+    name: ClassVar[str] = "augury"
+    Options: ClassVar[type[AuguryOptions]] = AuguryOptions
+    explicit: ClassVar[bool] = True
+
+    def __init__(
+        self,
+        model: Model,
+        *,
+        integrator: str | ExplicitIntegrator = "symplectic_euler",
+        dt: float | str,
+        transfer: str = "apic",
+        options: StepperOptions | None = None,
+    ) -> None:
+        super().__init__(model, integrator=integrator, dt=dt, transfer=transfer, options=options)
+        opts = self.options
+        self.tau = self.dt if opts.tau is None else opts.tau
+        if self.tau < 0.5 * self.dt:
+            raise ValueError(
+                f"augury: tau = {self.tau:.6g} s is below dt / 2 = {0.5 * self.dt:.6g} s "
+                "(the augury correction is unstable there); take tau >= dt / 2 or tau=None"
+            )
+        if opts.mu is not None:
+            self.mu = opts.mu
+        else:
+            self.mu = float(getattr(model.contact, "mu", 0.0) or 0.0)
+        self.apic = opts.contact_transfer == "apic"
+        self._tau_predict = self.tau + (0.5 * self.dt if opts.predictor == "paper" else 0.0)
+        self._setup_foreground()
+        self._last_contact = None
+        self._steps = 0
+        #: steps whose foreground shared a contact node between bodies
+        self.steps_with_contact = 0
+
+    # ------------------------------------------------------------------ construction
+    def _setup_foreground(self) -> None:
+        model, opts, d = self.model, self.options, self.model.dim
+        n = model.n_fem_nodes
+        facets, opposite, owners = [], [], []
+        cell_keys, cell_opp = _cell_faces(model.fem_cells, n, d)
+        for body in model.fem_bodies:
+            f = np.asarray(body.boundary, dtype=np.int64).reshape(-1, d)
+            if f.size == 0:
+                continue
+            key = _face_key(np.sort(f, axis=1), n)
+            pos = np.searchsorted(cell_keys, key)
+            pos = np.minimum(pos, cell_keys.size - 1)
+            if not np.all(cell_keys[pos] == key):
+                raise ValueError(
+                    f"augury: fem body {body.name!r}: boundary facets not on any of its cells"
+                )
+            facets.append(f)
+            opposite.append(cell_opp[pos])
+            owners.append(np.full(f.shape[0], body.index))
+        self._facets = np.concatenate(facets) if facets else np.zeros((0, d), np.int64)
+        self._facet_opp = np.concatenate(opposite) if opposite else np.zeros(0, np.int64)
+        on_boundary = np.zeros(n, dtype=bool)
+        on_boundary[self._facets.reshape(-1)] = True
+        on_boundary &= model.fem_mass > 0.0
+        scripted = model.fem_prescribed.astype(bool)
+        kin = on_boundary & scripted if opts.kinematic_foreground else np.zeros(n, bool)
+        self._fem_fg = np.flatnonzero((on_boundary & ~scripted) | kin)
+        self._fem_fg_movable = ~scripted[self._fem_fg]
+        self._n_kinematic = int(kin.sum())
+        fem_node_body = np.zeros(n, dtype=np.int64)
+        for body in model.fem_bodies:
+            fem_node_body[body.nodes] = body.index
+        self._fem_node_body = fem_node_body
+        self._mpm_fg = bool(opts.mpm_foreground and model.n_particles)
+        n_fem_bodies = len(model.fem_bodies)
+        self._mpm_body = (
+            model.mpm_particle_body + n_fem_bodies if model.n_particles else np.zeros(0, np.int64)
+        )
+        # contact-grid spacing (section 1.5 item 4, A8)
+        edges = _facet_edge_lengths(model.fem_X, self._facets)
+        mean_edge = float(edges.mean()) if edges.size else 0.0
+        spacing = 0.0
+        if self._mpm_fg:
+            spacing = float(np.mean(model.mpm_volume) ** (1.0 / d))
+        if opts.grid_dx is not None:
+            self.grid_dx = opts.grid_dx
+        else:
+            self.grid_dx = max(2.0 * mean_edge, spacing)
+            if self.grid_dx <= 0.0:
+                raise ValueError("augury: no FEM boundary and no MPM foreground to set grid_dx")
+        if edges.size and edges.max() > 1.5 * self.grid_dx:
+            log.warning(
+                "augury: FEM boundary edges up to %.4g m exceed 1.5 grid_dx = %.4g m: particles "
+                "of a body may pass each other's contact nodes (AUG: grid_dx about 2 x the edge)",
+                edges.max(),
+                1.5 * self.grid_dx,
+            )
+        self._cell_body = np.asarray(model.fem_cell_body, dtype=np.int64)
+
+    def initialize(self, state: State) -> State:
+        """A copy of ``state`` with ``aug_B (N, d, d)`` and ``aug_Bp (P, d, d)`` (zeros when
+        absent or of another size)."""
+        out = state.copy()
+        d = self.model.dim
+        if out.aug_B.shape != (self.model.n_fem_nodes, d, d):
+            out.aug_B = np.zeros((self.model.n_fem_nodes, d, d))
+        if out.aug_Bp.shape != (self.model.n_particles, d, d):
+            out.aug_Bp = np.zeros((self.model.n_particles, d, d))
+        return out
+
+    # ------------------------------------------------------------------ geometry per step
+    def fem_normals(self, x: np.ndarray) -> np.ndarray:
+        """Outward unit normals ``(N, d)`` of the FEM boundary nodes at positions ``x`` (area-
+        weighted facet normals, AUG section 2.3; zero off the boundary)."""
+        n_f = facet_normals(x, self._facets, self._facet_opp)
+        n = x.shape[0]
+        flat = self._facets.reshape(-1)  # d corners per facet
+        normals = np.stack(
+            [
+                np.bincount(flat, np.repeat(n_f[:, a], self._facets.shape[1]), n)
+                for a in range(x.shape[1])
+            ],
+            axis=1,
+        )
+        return _normalize(normals)
+
+    def _facing_normals(
+        self,
+        x: np.ndarray,
+        st: ContactStencils,
+        m: np.ndarray,
+        body: np.ndarray,
+        normals: np.ndarray,
+    ) -> np.ndarray:
+        """``"facing"`` normals of the FEM foreground ``(n_fem, d)`` (option ``normals``).
+
+        n-bar_other(p) = sum_i N_ip sum_{q not in body(p)} N_iq m_q n_q (a P2G of m n per body);
+        where it is non-zero the node takes, of its facets' unit normals, the one with the
+        smallest n_f . n-bar_other; elsewhere its own averaged normal.
+        """
+        n_fem = self._fem_fg.size
+        weights = st.weights
+        total = np.zeros((st.n_nodes, x.shape[1]))
+        per_body = {}
+        for b in np.unique(body):
+            sel = body == b
+            field = np.zeros_like(total)
+            flat = st.nodes[sel].reshape(-1)
+            contrib = (weights[sel] * m[sel, None])[:, :, None] * normals[sel][:, None, :]
+            for a in range(x.shape[1]):
+                field[:, a] = np.bincount(flat, contrib[..., a].reshape(-1), st.n_nodes)
+            per_body[b] = field
+            total += field
+        other = np.zeros((n_fem, x.shape[1]))
+        for b, field in per_body.items():
+            sel = np.flatnonzero(body[:n_fem] == b)
+            if sel.size:
+                rest = total - field
+                other[sel] = np.einsum("pk,pkd->pd", weights[sel], rest[st.nodes[sel]])
+        n_f = _normalize(facet_normals(x, self._facets, self._facet_opp))
+        fg_pos = np.full(self.model.n_fem_nodes, -1)
+        fg_pos[self._fem_fg] = np.arange(n_fem)
+        best = np.full(n_fem, np.inf)
+        choice = normals[:n_fem].copy()
+        for j in range(self._facets.shape[1]):
+            p = fg_pos[self._facets[:, j]]
+            ok = p >= 0
+            score = np.einsum("kd,kd->k", n_f[ok], other[p[ok]])
+            order = np.argsort(score)[::-1]  # the last write per node is its smallest score
+            pk, sk, nk = p[ok][order], score[order], n_f[ok][order]
+            better = sk < best[pk]
+            # several facets per node: resolve with a stable minimum per node
+            uniq, first = np.unique(pk[::-1], return_index=True)
+            idx = len(pk) - 1 - first
+            win = better[idx]
+            best[uniq[win]] = sk[idx][win]
+            choice[uniq[win]] = nk[idx][win]
+        has_other = np.einsum("pd,pd->p", other, other) > 0.0
+        return np.where(has_other[:, None], choice, normals[:n_fem])
+
+    def _mpm_normals(
+        self, stencils: ContactStencils, first: int, mass: np.ndarray, body: np.ndarray
+    ) -> np.ndarray:
+        """n_p = normalize(-sum_i N_ip g_i), g_i = sum_{q in body} m_q grad N_iq (section 1.4)."""
+        rows = np.arange(first, first + mass.size)
+        nodes = stencils.nodes[rows]
+        grads = stencils.grads[rows]
+        w = stencils.weights[rows]
+        out = np.zeros((mass.size, self.model.dim))
+        for b in np.unique(body):
+            sel = np.flatnonzero(body == b)
+            g = np.zeros((stencils.n_nodes, self.model.dim))
+            np.add.at(
+                g,
+                nodes[sel].reshape(-1),
+                (mass[sel, None, None] * grads[sel]).reshape(-1, g.shape[1]),
+            )
+            out[sel] = -np.einsum("pk,pkd->pd", w[sel], g[nodes[sel]])
+        return _normalize(out)
+
+    # ------------------------------------------------------------------ the step
+    def step(self, state: State) -> tuple[State, StepReport]:
+        """The engine's free-flight step, then the augury correction (module docstring)."""
+        d = self.model.dim
+        if state.aug_B.shape != (self.model.n_fem_nodes, d, d) or state.aug_Bp.shape != (
+            self.model.n_particles,
+            d,
+            d,
+        ):
+            state = self.initialize(state)
+        new, report = super().step(state)
+        started = time.perf_counter()
+        model, dt, tau, d = self.model, self.dt, self.tau, self.model.dim
+        timings = dict(report.timings)
+        fg = self._fem_fg
+        n_fem = fg.size
+        parts_x, parts_m, parts_vn, parts_free, parts_B, parts_n, parts_body = (
+            [],
+            [],
+            [],
+            [],
+            [],
+            [],
+            [],
+        )
+        if n_fem:
+            parts_x.append(state.fem_x[fg])
+            parts_m.append(model.fem_mass[fg])
+            parts_vn.append(state.fem_v[fg])
+            parts_free.append(new.fem_v[fg])
+            parts_B.append(state.aug_B[fg])
+            parts_n.append(self.fem_normals(state.fem_x)[fg])
+            parts_body.append(self._fem_node_body[fg])
+        n_mpm = model.n_particles if self._mpm_fg else 0
+        if n_mpm:
+            parts_x.append(state.mpm_x)
+            parts_m.append(model.mpm_mass)
+            parts_vn.append(state.mpm_v)
+            parts_free.append(new.mpm_v)
+            parts_B.append(state.aug_Bp)
+            parts_body.append(self._mpm_body)
+        notes = list(report.notes)
+        n_all = n_fem + n_mpm
+        a_hat = np.zeros((n_all, d))
+        shared_count = 0
+        h_applications = 0
+        if n_all:
+            x = np.concatenate(parts_x)
+            m = np.concatenate(parts_m)
+            v_n = np.concatenate(parts_vn)
+            v_free = np.concatenate(parts_free)
+            B_bar = np.concatenate(parts_B)
+            body = np.concatenate(parts_body)
+            movable = np.ones(n_all, dtype=bool)
+            movable[:n_fem] = self._fem_fg_movable
+            accel = (v_free - v_n) / dt
+            v_bar = v_n + self._tau_predict * accel
+            # kinematic nodes move with their scripted velocity
+            v_bar[~movable] = v_free[~movable]
+            t0 = time.perf_counter()
+            st = contact_stencils(x, self.grid_dx, self.options.kernel)
+            normals = np.zeros((n_all, d))
+            if n_fem:
+                normals[:n_fem] = parts_n[0]
+                if self.options.normals == "facing":
+                    normals[:n_fem] = self._facing_normals(state.fem_x, st, m, body, normals)
+            if n_mpm:
+                normals[n_fem:] = self._mpm_normals(st, n_fem, m[n_fem:], body[n_fem:])
+            node_shared, v_lo, v_hi = node_body_ranges(
+                st.nodes, st.weights, body, v_bar, st.n_nodes
+            )
+            shared = (node_shared[st.nodes] & (st.weights > 0.0)).any(axis=1)
+            shared_count = int(shared.sum())
+            timings["augury_stencils"] = time.perf_counter() - t0
+            notes.extend(self._reach_notes(node_shared, v_lo, v_hi, v_bar))
+            sel = np.arange(n_all) if self.options.region == "all" else np.flatnonzero(shared)
+            if not self.apic:
+                B_bar = np.zeros_like(B_bar)
+            v_hat = v_bar.copy()
+            B_hat = B_bar.copy()
+            if sel.size:
+                t0 = time.perf_counter()
+                sub = st if sel.size == n_all else _subset(st, sel)
+                op = ContactOperator(sub, x[sel], m[sel], apic=self.apic)
+                v_s, B_s = augury_correction(
+                    op,
+                    v_bar[sel],
+                    B_bar[sel],
+                    normals[sel],
+                    self.options.iterations,
+                    self.options.mode,
+                    self.mu,
+                    movable[sel],
+                )
+                v_hat[sel], B_hat[sel] = v_s, B_s
+                h_applications = op.applications
+                timings["augury_H"] = time.perf_counter() - t0
+            a_hat = (v_hat - v_bar) / tau
+            Bdot = (B_hat - B_bar) / tau
+            kinematic_impulse = m[~movable] @ a_hat[~movable] if (~movable).any() else None
+            a_hat[~movable] = 0.0
+            Bdot[~movable] = 0.0
+            B_new = B_bar + dt * Bdot
+            if n_fem:
+                mov = self._fem_fg_movable
+                idx = fg[mov]
+                new.fem_v[idx] += dt * a_hat[:n_fem][mov]
+                new.fem_x[idx] += dt * dt * a_hat[:n_fem][mov]
+                new.fem_a = (new.fem_v - state.fem_v) / dt
+                new.aug_B = state.aug_B.copy()
+                new.aug_B[fg] = B_new[:n_fem]
+            if n_mpm:
+                new.mpm_v = new.mpm_v + dt * a_hat[n_fem:]
+                new.mpm_x = new.mpm_x + dt * dt * a_hat[n_fem:]
+                new.aug_Bp = B_new[n_fem:]
+            if kinematic_impulse is not None:
+                notes.append(
+                    f"SCRIPTED_FOREGROUND: {self._n_kinematic} scripted nodes in H; the momentum "
+                    f"rate {np.linalg.norm(kinematic_impulse):.6g} N of their dropped correction "
+                    "is not conserved"
+                )
+        self._steps += 1
+        self.steps_with_contact += shared_count > 0
+        every = self.options.penetration_check_every
+        if every and self._steps % every == 0:
+            t0 = time.perf_counter()
+            notes.extend(self._penetration_notes(new))
+            timings["augury_penetration"] = time.perf_counter() - t0
+        self._store_contact(a_hat, shared_count, n_fem)
+        timings["augury"] = time.perf_counter() - started
+        timings["step"] = report.timings.get("step", 0.0) + timings["augury"]
+        report = replace(
+            report,
+            message="explicit step with augury contact",
+            iterations={"augury": self.options.iterations, "h_applications": h_applications},
+            timings=timings,
+            contact_pairs=shared_count,
+            notes=tuple(notes),
+        )
+        return new, report
+
+    def _reach_notes(
+        self, node_shared: np.ndarray, v_lo: np.ndarray, v_hi: np.ndarray, v_bar: np.ndarray
+    ) -> list[str]:
+        """AUGURY_REACH / AUGURY_STEP_REACH (section 1.5 item 2); v_rel is the spread of the
+        predicted velocities at the contact nodes shared by two bodies (an upper bound)."""
+        notes = []
+        dx = self.grid_dx
+        v_max = float(np.sqrt(np.einsum("pd,pd->p", v_bar, v_bar)).max()) if v_bar.size else 0.0
+        if self.dt * v_max > 0.5 * dx:
+            notes.append(
+                f"AUGURY_STEP_REACH: dt max|v| = {self.dt * v_max:.4g} m exceeds grid_dx / 2 = "
+                f"{0.5 * dx:.4g} m"
+            )
+        if node_shared.any():
+            spread = v_hi[node_shared] - v_lo[node_shared]
+            v_rel = float(np.sqrt((spread**2).sum(axis=1)).max())
+            if self.tau * v_rel > dx / 3.0:
+                notes.append(
+                    f"AUGURY_REACH: tau |v_rel| = {self.tau * v_rel:.4g} m exceeds grid_dx / 3 = "
+                    f"{dx / 3.0:.4g} m (AUG eq. 50: bodies may stop short or overshoot)"
+                )
+        return notes
+
+    def _penetration_notes(self, new: State) -> list[str]:
+        """INTERPENETRATION (pitfall A9): foreground points strictly inside another FEM body."""
+        model = self.model
+        if len(model.fem_bodies) + (len(model.mpm_bodies) if self._mpm_fg else 0) < 2:
+            return []
+        if not model.fem_cells.shape[0]:
+            return []
+        pts = [new.fem_x[self._fem_fg]]
+        owner = [self._fem_node_body[self._fem_fg]]
+        if self._mpm_fg:
+            pts.append(new.mpm_x)
+            owner.append(self._mpm_body)
+        cells = new.fem_x[model.fem_cells]
+        found, depth = points_in_cells(
+            np.ascontiguousarray(np.concatenate(pts)),
+            np.ascontiguousarray(np.concatenate(owner)),
+            np.ascontiguousarray(cells),
+            self._cell_body,
+            1e-9,
+        )
+        inside = found >= 0
+        if not inside.any():
+            return []
+        return [
+            f"INTERPENETRATION: {int(inside.sum())} foreground points strictly inside a cell of "
+            f"another body (deepest barycentric depth {float(depth.max()):.3g})"
+        ]
+
+    def _store_contact(self, a_hat: np.ndarray, shared_count: int, n_fem: int) -> None:
+        model = self.model
+        fem_f = np.zeros((model.n_fem_nodes, model.dim))
+        part_f = np.zeros((model.n_particles, model.dim))
+        if n_fem:
+            fem_f[self._fem_fg] = model.fem_mass[self._fem_fg, None] * a_hat[:n_fem]
+        if self._mpm_fg and model.n_particles:
+            part_f[:] = model.mpm_mass[:, None] * a_hat[n_fem:]
+        largest = float(np.sqrt(np.einsum("pd,pd->p", a_hat, a_hat)).max()) if a_hat.size else 0.0
+        self._last_contact = ContactView(
+            fem_f,
+            part_f,
+            pairs=shared_count,
+            parameters={"augury_max_correction": largest},
+        )
+
+    def contact(self) -> ContactView:
+        """Augury forces m a^ of the last step on the foreground (no distance, no energy)."""
+        if self._last_contact is None:
+            m = self.model
+            self._last_contact = ContactView.empty(
+                m.n_fem_nodes, m.n_particles, m.dim, parameters={"augury_max_correction": 0.0}
+            )
+        return self._last_contact
+
+
+# ---------------------------------------------------------------------- helpers
+def _normalize(v: np.ndarray) -> np.ndarray:
+    norm = np.sqrt(np.einsum("pd,pd->p", v, v))
+    out = np.zeros_like(v)
+    np.divide(v, norm[:, None], out=out, where=norm[:, None] > 0.0)
+    return out
+
+
+def _face_key(faces_sorted: np.ndarray, n: int) -> np.ndarray:
+    """One int64 per sorted facet (n^d < 2^63: n < 2e6 nodes in 3D)."""
+    key = np.zeros(faces_sorted.shape[0], dtype=np.int64)
+    for j in range(faces_sorted.shape[1]):
+        key = key * np.int64(n) + faces_sorted[:, j]
+    return key
+
+
+def _cell_faces(cells: np.ndarray, n: int, d: int) -> tuple[np.ndarray, np.ndarray]:
+    """Sorted keys of every cell face and the vertex opposite each (``(M (d+1),)`` each)."""
+    cells = np.asarray(cells, dtype=np.int64)
+    keys, opp = [], []
+    for j in range(d + 1):
+        face = np.delete(cells, j, axis=1)
+        keys.append(_face_key(np.sort(face, axis=1), n))
+        opp.append(cells[:, j])
+    keys = np.concatenate(keys) if keys else np.zeros(0, np.int64)
+    opp = np.concatenate(opp) if opp else np.zeros(0, np.int64)
+    order = np.argsort(keys, kind="stable")
+    return keys[order], opp[order]
+
+
+def _facet_edge_lengths(x: np.ndarray, facets: np.ndarray) -> np.ndarray:
+    if facets.size == 0:
+        return np.zeros(0)
+    p = x[facets]
+    k = facets.shape[1]
+    lengths = [
+        np.linalg.norm(p[:, (j + 1) % k] - p[:, j], axis=1) for j in range(k if k > 2 else 1)
+    ]
+    return np.concatenate(lengths)
+
+
+def _subset(st: ContactStencils, sel: np.ndarray) -> ContactStencils:
+    """The stencils of the particles ``sel`` (node indices unchanged)."""
+    return replace(
+        st,
+        nodes=np.ascontiguousarray(st.nodes[sel]),
+        weights=np.ascontiguousarray(st.weights[sel]),
+        grads=st.grads[sel],
+        D=st.D[sel],
+    )
