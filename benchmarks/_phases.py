@@ -74,6 +74,11 @@ def newton_phases(
     )
     if n_before is not None:
         out["linear_solves"] = int(n_after - n_before)
+        # one linear solve per iteration plus the convergence test at the last iterate (and
+        # any rejected exact-Hessian try): the cost of one solve's worth of Newton work
+        out["time_per_linear_solve_s"] = report.timings.get("total", step_wall) / max(
+            out["linear_solves"], 1
+        )
     out["linear_solver"] = solver_name
     if cholmod_available() or solver_name != "cholmod":
         solver = make_linear_solver(solver_name, block_size=stepper.model.dim)
@@ -89,6 +94,10 @@ def newton_phases(
         out["factorize_s"] = floor
         out["solve_s"] = best["solve"]
         out["newton_over_factorisation"] = out["time_per_newton_iteration_s"] / max(floor, 1e-12)
+        if "time_per_linear_solve_s" in out:
+            out["linear_solve_over_factorisation"] = out["time_per_linear_solve_s"] / max(
+                floor, 1e-12
+            )
         out["symbolic_saved_s"] = out["analyze_s"] * max(report.newton_iterations - 1, 0)
         out["assembly_below_factorisation"] = bool(out["assembly_s"] < out["factorize_s"])
     return out
