@@ -202,9 +202,8 @@ def linear_algebra() -> dict:
 def format_linear_algebra(report: dict) -> str:
     """Two lines of :func:`linear_algebra`'s report for a console."""
     blas = report["cholmod_blas"]
-    note = "" if blas != "reference" else " (slow: install libopenblas0-pthread)"
     threads = "" if report["blas_threads"] is None else f", {report['blas_threads']} threads"
     have = ", ".join(k for k, v in report["solvers"].items() if v)
     missing = ", ".join(k for k, v in report["solvers"].items() if not v)
     line2 = f"linear solvers: {have}" + (f" (not installed: {missing})" if missing else "")
-    return f"CHOLMOD BLAS: {blas}{threads} {report['cholmod_blas_path']}{note}\n{line2}"
+    return f"CHOLMOD BLAS: {blas}{threads} {report['cholmod_blas_path']}\n{line2}"
