@@ -92,16 +92,25 @@ def classify_blas(path: str) -> str | None:
 
 
 def _mapped_blas(maps_text: str) -> tuple[str, str] | None:
-    """(name, path) of the system BLAS in a ``/proc/self/maps`` text; an optimised one first."""
+    """(name, path) of the system BLAS in a ``/proc/self/maps`` text.
+
+    The library mapped under the soname's file name ``libblas.so*`` is the one the loader
+    resolved for CHOLMOD (Debian's OpenBLAS and reference BLAS both install one); only without
+    it do other BLAS libraries count, MKL last (``pypardiso`` maps its own MKL, which CHOLMOD
+    does not use).
+    """
     found: dict[str, str] = {}
     for line in maps_text.splitlines():
         parts = line.split()
         if len(parts) < 6 or not parts[-1].startswith("/"):
             continue
         name = classify_blas(parts[-1])
-        if name is not None:
-            found.setdefault(name, os.path.realpath(parts[-1]))
-    for name in ("mkl", "openblas", "blis", "atlas", "reference"):
+        if name is None:
+            continue
+        if Path(parts[-1]).name.startswith("libblas.so"):
+            return name, os.path.realpath(parts[-1])
+        found.setdefault(name, os.path.realpath(parts[-1]))
+    for name in ("openblas", "blis", "atlas", "reference", "mkl"):
         if name in found:
             return name, found[name]
     return None
@@ -113,9 +122,11 @@ def _threads(path: str) -> int | None:
         from threadpoolctl import threadpool_info
     except ImportError:
         return None
-    real = os.path.realpath(path)
+    real = Path(os.path.realpath(path))
     for pool in threadpool_info():
-        if os.path.realpath(pool.get("filepath", "")) == real:
+        lib = Path(os.path.realpath(pool.get("filepath", "")))
+        # the libblas.so.3 shim of Debian's OpenBLAS loads libopenblas*.so from its directory
+        if lib == real or (pool.get("user_api") == "blas" and lib.parent == real.parent):
             return int(pool["num_threads"])
     return None
 
@@ -142,7 +153,6 @@ def cholmod_blas(maps_path: str = "/proc/self/maps") -> BlasInfo:
     if hit is None:
         return BlasInfo("unknown", "", None)
     name, path = hit
-    # The threadpoolctl path of OpenBLAS is the libopenblas*.so the libblas.so.3 shim loads.
     return BlasInfo(name, path, _threads(path))
 
 

@@ -67,3 +67,12 @@ def test_reference_blas_is_reported_once_as_a_warning(monkeypatch, caplog):
 def test_set_blas_threads_rejects_bad_counts():
     with pytest.raises(ValueError, match="BLAS threads"):
         blas.set_blas_threads(0)
+
+
+@pytest.mark.skipif(not linear.cholmod_available(), reason="needs scikit-sparse")
+def test_the_libblas_soname_wins_over_an_mkl_mapped_by_pypardiso(tmp_path):
+    shim = "/usr/lib/x86_64-linux-gnu/openblas-pthread/libblas.so.3"
+    mkl = "/venv/lib/libmkl_rt.so.2"
+    assert blas.cholmod_blas(_maps(tmp_path, mkl, shim)).name == "openblas"
+    ref = "/usr/lib/x86_64-linux-gnu/blas/libblas.so.3.11.0"
+    assert blas.cholmod_blas(_maps(tmp_path, mkl, ref)).name == "reference"
