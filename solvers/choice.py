@@ -5,13 +5,28 @@ Names: ``"default"`` (CHOLMOD, the design's solver; scipy's SuperLU without scik
 (CG + smoothed-aggregation AMG, ``pyamg``) and ``"auto"`` (:class:`AutoSolver`).
 
 :class:`AutoSolver` picks on the first matrix it sees, by what was measured on the project's
-own Hessians (``benchmarks/perf_3d.py``, OpenBLAS under CHOLMOD, 2 cores):
+own Hessians (OpenBLAS under CHOLMOD, 2 shared and loaded cores, best of 3 numeric
+factorisations with the analysis reused; perf_fem/perf_mpm quick matrices):
 
-- stencils of FEM meshes and 2D MPM grids (up to ~60 nonzeros per row): PARDISO factorises
-  1.5x to 2.2x faster than CHOLMOD, so PARDISO where ``pypardiso`` is installed, else CHOLMOD;
-- 3D MPM grids (a node couples with 125 nodes: ~300 nonzeros per row): CHOLMOD beats PARDISO
-  (0.33 s vs 0.70 s at 8,670 DOFs), and CG + AMG takes over above ``cg_min_dofs`` unknowns,
-  where the direct factor's fill grows faster than the matrix.
+=====================  ======  ==========  =======  ==============================
+matrix                 DOFs    CHOLMOD     PARDISO  CG + AMG (hierarchy kept)
+=====================  ======  ==========  =======  ==============================
+3D FEM box             3,888   0.033 s     0.015 s  0.046 s
+2D FEM rectangle       13,120  0.022 s     0.012 s  0.381 s
+2D MPM block           5,618   0.042 s     0.026 s  0.088 s
+3D MPM block           8,670   0.326 s     0.695 s  0.321 s
+3D MPM block (100k p)  55,539  11.4 s      12.3 s   13.5 s (first solve 46 s)
+=====================  ======  ==========  =======  ==============================
+
+- FEM meshes and 2D MPM grids (up to ~60 nonzeros per row): PARDISO where ``pypardiso`` is
+  installed, else CHOLMOD;
+- 3D MPM grids (a node couples with 125 nodes: ~300 nonzeros per row): CHOLMOD; CG + AMG only
+  above ``cg_min_dofs`` (default 200,000, beyond what was measured: at 55,539 DOFs CHOLMOD still
+  wins), where the direct factor's fill grows faster than the matrix.
+
+CHOLMOD's ordering on these matrices (default = AMD, METIS tried when AMD's fill is large):
+METIS 0.031 / 0.026 / 0.365 / 0.051 s and AMD 0.033 / 0.018 / 0.486 / 0.054 s on the first four
+rows, i.e. no ordering wins everywhere, so CHOLMOD's own default choice is kept.
 """
 
 from __future__ import annotations
@@ -76,7 +91,7 @@ class AutoSolver:
         chosen: the name of the solver in use (None before the first solve).
     """
 
-    def __init__(self, *, block_size: int = 1, cg_min_dofs: int = 60_000) -> None:
+    def __init__(self, *, block_size: int = 1, cg_min_dofs: int = 200_000) -> None:
         self.block_size = block_size
         self.cg_min_dofs = cg_min_dofs
         self.chosen: str | None = None
