@@ -51,18 +51,21 @@ def reference_blas_env() -> dict | None:
     return env
 
 
-def _child(paths: dict, repeats: int, env: dict) -> dict:
+def _child(paths: dict, repeats: int, env: dict, timeout: float = 1800.0) -> dict:
     root = Path(__file__).resolve().parents[1]
     env = dict(env)
     env["PYTHONPATH"] = os.pathsep.join([str(root), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
-    done = subprocess.run(
-        [sys.executable, "-c", _CHILD, json.dumps(paths), str(repeats)],
-        capture_output=True,
-        text=True,
-        env=env,
-        check=True,
-        timeout=600,
-    )
+    try:
+        done = subprocess.run(
+            [sys.executable, "-c", _CHILD, json.dumps(paths), str(repeats)],
+            capture_output=True,
+            text=True,
+            env=env,
+            check=True,
+            timeout=timeout,
+        )
+    except subprocess.TimeoutExpired:  # recorded, not fatal: the rest of the record stands
+        return {"blas": None, "factorize_s": {}, "error": f"timed out after {timeout:.0f} s"}
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
@@ -91,7 +94,7 @@ def factorisation_by_blas(matrices: dict[str, sp.spmatrix], repeats: int = 3) ->
         env = reference_blas_env()
         reference = None if env is None else _child(paths, repeats, env)
     speedup = {}
-    if reference is not None:
+    if reference is not None and "error" not in reference and "error" not in default:
         for name in matrices:
             speedup[name] = float(
                 reference["factorize_s"][name] / max(default["factorize_s"][name], 1e-12)
