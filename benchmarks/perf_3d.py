@@ -14,6 +14,11 @@ quick mode runs them in this process (``peak_memory_mb`` is then the process's).
 CHOLMOD's factorisation of the same Hessian on the reference BLAS and on the default one, each in
 its own process (``blas_side_by_side``). Target (issue 13): one step in under a minute on 2
 cores; Newton iteration <= 1.5 x the factorisation.
+
+Recorded (``benchmarks/records/perf_3d_full.json``, 2 shared cores, load average ~5): 100,000
+particles, 51,624 unknowns, 16.4M nonzeros; one step (1 Newton iteration, 2 linear solves: the
+iteration and the convergence test) 25.2 s with CHOLMOD (factorisation floor 8.0 s, 11.6 s per
+linear solve, peak 4.5 GB) and 40.6 s with CG + AMG (peak 3.3 GB). PARDISO was not recorded.
 """
 
 from __future__ import annotations
