@@ -26,6 +26,7 @@ BENCHMARKS = {
     "perf_explicit": "benchmarks.perf_explicit",
     "perf_fem": "benchmarks.perf_fem",
     "perf_mpm": "benchmarks.perf_mpm",
+    "perf_3d": "benchmarks.perf_3d",
     "rings": "benchmarks.rings",
     "sine_boundary": "benchmarks.sine_boundary",
     "slope": "benchmarks.slope",

@@ -11,6 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
+from solvers.blas import linear_algebra
+
 
 def git_commit() -> str:
     """The current git commit, or "unknown" outside a checkout."""
@@ -47,6 +49,9 @@ def environment() -> dict:
         "cpus": os.cpu_count(),
         "machine": platform.machine(),
         "commit": git_commit(),
+        # the BLAS under CHOLMOD and the linear solvers installed (issue 13)
+        "linear_algebra": linear_algebra(),
+        "load_average_1min": os.getloadavg()[0],
     }
 
 

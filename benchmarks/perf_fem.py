@@ -18,6 +18,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import bfemp
+from benchmarks._blas_switch import factorisation_by_blas
 from benchmarks._phases import newton_phases
 from benchmarks.common import environment, peak_memory_mb, write_json
 from bfemp.integrators import BACKWARD_EULER
@@ -51,7 +52,7 @@ def _scene(dim: int, n: tuple[int, ...]) -> bfemp.Scene:
     return scene
 
 
-def _measure(dim: int, n: tuple[int, ...]) -> dict:
+def _measure(name: str, matrices: dict, dim: int, n: tuple[int, ...]) -> dict:
     model = _scene(dim, n).build()
     stepper = BarrierStepper(
         model,
@@ -62,19 +63,24 @@ def _measure(dim: int, n: tuple[int, ...]) -> dict:
     state = stepper.initialize(model.initial_state())
     state, _ = stepper.step(state)  # warm-up: compiles the numba kernels
     out = {"dim": dim, "cells": int(model.fem_cells.shape[0]), "nodes": int(model.n_fem_nodes)}
-    out.update(newton_phases(stepper, state))
+    out.update(newton_phases(stepper, state, matrices=matrices, name=name))
     return out
 
 
 def run(mode: str = "full", out: str | Path = "results") -> dict:
     """Measure both cases and write ``perf_fem.json`` and ``perf_fem.png`` to ``out``."""
+    matrices: dict = {}
     cases = {
-        name: _measure(2 if name == "2d" else 3, cfg["n"]) for name, cfg in CASES[mode].items()
+        name: _measure(name, matrices, 2 if name == "2d" else 3, cfg["n"])
+        for name, cfg in CASES[mode].items()
     }
     payload = {
         "benchmark": "perf_fem",
         "mode": mode,
         "cases": cases,
+        # CHOLMOD factorisation of each case's Hessian, reference vs default BLAS (per process)
+        "blas_side_by_side": factorisation_by_blas(matrices),
+        "machine_note": "2 shared cores, loaded by other work: compare ratios within this run",
         "peak_memory_mb": peak_memory_mb(),
         "environment": environment(),
     }

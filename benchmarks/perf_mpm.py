@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 import bfemp
+from benchmarks._blas_switch import factorisation_by_blas
 from benchmarks._phases import median_time, newton_phases
 from benchmarks.common import environment, peak_memory_mb, write_json
 from bfemp.integrators import BACKWARD_EULER
@@ -43,7 +44,7 @@ def _scene(dim: int, cells: tuple[int, ...], ppc: int) -> bfemp.Scene:
     return scene
 
 
-def _measure(dim: int, cells: tuple[int, ...], ppc: int) -> dict:
+def _measure(name: str, matrices: dict, dim: int, cells: tuple[int, ...], ppc: int) -> dict:
     model = _scene(dim, cells, ppc).build()
     stepper = BarrierStepper(
         model,
@@ -75,7 +76,7 @@ def _measure(dim: int, cells: tuple[int, ...], ppc: int) -> dict:
             state.mpm_F,
         )
     )
-    out.update(newton_phases(stepper, state))
+    out.update(newton_phases(stepper, state, matrices=matrices, name=name))
     out["transfer_fraction_of_iteration"] = (out["p2g_s"] + out["g2p_s"]) / out[
         "time_per_newton_iteration_s"
     ]
@@ -84,14 +85,18 @@ def _measure(dim: int, cells: tuple[int, ...], ppc: int) -> dict:
 
 def run(mode: str = "full", out: str | Path = "results") -> dict:
     """Measure both cases and write ``perf_mpm.json`` and ``perf_mpm.png`` to ``out``."""
+    matrices: dict = {}
     cases = {
-        name: _measure(2 if name == "2d" else 3, cfg["cells"], cfg["ppc"])
+        name: _measure(name, matrices, 2 if name == "2d" else 3, cfg["cells"], cfg["ppc"])
         for name, cfg in CASES[mode].items()
     }
     payload = {
         "benchmark": "perf_mpm",
         "mode": mode,
         "cases": cases,
+        # CHOLMOD factorisation of each case's Hessian, reference vs default BLAS (per process)
+        "blas_side_by_side": factorisation_by_blas(matrices),
+        "machine_note": "2 shared cores, loaded by other work: compare ratios within this run",
         "peak_memory_mb": peak_memory_mb(),
         "environment": environment(),
     }

@@ -11,6 +11,7 @@
                 [--scheduler tcp://HOST:PORT] [--threads-per-point N] [--point-timeout S]
     bfemp sweep --replay TRADEOFF.json --id ID | --point JSON
     bfemp info RESULT_DIR [--json]
+    bfemp --version      (also the BLAS CHOLMOD runs on and the linear solvers installed)
 
 ``bench`` and ``sweep`` come from the ``benchmarks`` package of a source checkout, which registers
 them under the ``bfemp.commands`` entry points (the library never imports it).
@@ -42,9 +43,28 @@ log = logging.getLogger(__name__)
 EXIT_INPUT, EXIT_RUN, EXIT_INTERRUPTED = 2, 1, 130
 
 
+class _VersionAction(argparse.Action):
+    """``bfemp --version``: the version and the linear-algebra stack, then exit."""
+
+    def __init__(self, option_strings, dest, **kwargs) -> None:  # noqa: ANN001
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kwargs)
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:  # noqa: ANN001
+        import bfemp
+        from solvers.blas import format_linear_algebra, linear_algebra
+
+        print(f"bfemp {bfemp.__version__}\n{format_linear_algebra(linear_algebra())}")
+        parser.exit()
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="bfemp", description="Coupled MPM-FEM simulation")
     parser.add_argument("--debug", action="store_true", help="show tracebacks of errors")
+    parser.add_argument(
+        "--version",
+        action=_VersionAction,
+        help="print the version, the BLAS CHOLMOD runs on and the linear solvers installed",
+    )
     sub = parser.add_subparsers(dest="command", required=True)
 
     demo = sub.add_parser(

@@ -32,6 +32,8 @@ class NodeFrames:
         self.frames = np.asarray(frames, dtype=np.float64)
         self._slot = np.full(n_dof // dim, -1, dtype=np.int64)
         self._slot[self.nodes] = np.arange(self.nodes.size)
+        # rotate()'s pattern work for the index arrays it saw last (same objects: reused)
+        self._pattern: tuple | None = None
 
     def to_local(self, x: np.ndarray) -> np.ndarray:
         """y ``(n_dof,)`` with y_i = Q_i^T x_i on rotated nodes (also maps gradients)."""
@@ -50,14 +52,30 @@ class NodeFrames:
         return self.nodes * self.dim
 
     def rotate(self, t: Triplets) -> Triplets:
-        """Triplets of Q^T H Q from those of H (entries touching rotated nodes expanded)."""
+        """Triplets of Q^T H Q from those of H (entries touching rotated nodes expanded).
+
+        The index work depends only on ``t.rows``/``t.cols``; it is kept while the next call
+        brings the very same array objects (a pattern fixed for the step), and then only the
+        values are recomputed and the returned index arrays are the same objects again.
+        """
+        cached = self._pattern
+        if cached is None or cached[0] is not t.rows or cached[1] is not t.cols:
+            cached = self._pattern = (t.rows, t.cols, *self._rotated_pattern(t.rows, t.cols))
+        touched, coef, rows, cols = cached[2:]
+        if touched is None:
+            return t
+        vals = t.vals[touched][:, None, None] * coef
+        return Triplets(rows, cols, np.concatenate([t.vals[~touched], vals.reshape(-1)]))
+
+    def _rotated_pattern(self, r_all: np.ndarray, c_all: np.ndarray) -> tuple:
+        """(touched mask, coefficients (m, d, d), rows, cols) of the rotation of a pattern."""
         d = self.dim
-        row_slot = self._slot[t.rows // d]
-        col_slot = self._slot[t.cols // d]
+        row_slot = self._slot[r_all // d]
+        col_slot = self._slot[c_all // d]
         touched = (row_slot >= 0) | (col_slot >= 0)
         if not touched.any():
-            return t
-        r, c, v = t.rows[touched], t.cols[touched], t.vals[touched]
+            return None, None, r_all, c_all
+        r, c = r_all[touched], c_all[touched]
         rs, cs = row_slot[touched], col_slot[touched]
         # coefficient of local axis a for the row: Q_i[rho, a] if rotated, else delta(rho, a)
         row_coef = np.where(
@@ -69,9 +87,10 @@ class NodeFrames:
         comp = np.arange(d)
         rows = ((r // d) * d)[:, None, None] + comp[None, :, None] + 0 * comp[None, None, :]
         cols = ((c // d) * d)[:, None, None] + comp[None, None, :] + 0 * comp[None, :, None]
-        vals = v[:, None, None] * row_coef[:, :, None] * col_coef[:, None, :]
-        return Triplets(
-            np.concatenate([t.rows[~touched], rows.reshape(-1)]),
-            np.concatenate([t.cols[~touched], cols.reshape(-1)]),
-            np.concatenate([t.vals[~touched], vals.reshape(-1)]),
+        coef = row_coef[:, :, None] * col_coef[:, None, :]
+        return (
+            touched,
+            coef,
+            np.concatenate([r_all[~touched], rows.reshape(-1)]),
+            np.concatenate([c_all[~touched], cols.reshape(-1)]),
         )

@@ -17,7 +17,7 @@ import numpy as np
 
 from bfemp.frames import NodeFrames
 from bfemp.terms.base import StepContext, Term
-from solvers.assembly import Triplets
+from solvers.assembly import Triplets, TripletStacker
 
 __all__ = ["IncrementalPotential", "is_contact"]
 
@@ -44,6 +44,8 @@ class IncrementalPotential:
         self.fixed_dofs: np.ndarray | None = None
         self.frames: NodeFrames | None = None
         self._particles: tuple | None = None  # (nodes, weights, grads, node offset, dx)
+        # stacks the terms' triplets, reusing the stacked index arrays of a fixed pattern
+        self._stacker = TripletStacker()
 
     @property
     def terms(self) -> list[Term]:
@@ -127,7 +129,7 @@ class IncrementalPotential:
         for weight, term in zip(self._weights, self.potentials, strict=True):
             t = term.hessian(x, psd)
             parts.append(Triplets(t.rows, t.cols, weight * t.vals))
-        total = Triplets.concatenate(parts)
+        total = self._stacker.stack(parts)
         return total if self.frames is None else self.frames.rotate(total)
 
     def increment_norm(self, p: np.ndarray) -> float:

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["TripletAssembler", "Triplets"]
+__all__ = ["TripletAssembler", "TripletStacker", "Triplets"]
 
 logger = logging.getLogger(__name__)
 
@@ -117,6 +117,38 @@ class Triplets:
         return Triplets(self.rows, self.cols, self.vals * float(factor))
 
 
+class TripletStacker:
+    """Stacks triplet sets like :meth:`Triplets.concatenate`, reusing the stacked index arrays.
+
+    While every part brings the very same ``rows``/``cols`` array objects as at the last call
+    (terms whose pattern is fixed for a step return their cached index arrays), the stacked
+    index arrays of the last call are returned again and only the values are concatenated (and
+    ``NodeFrames.rotate`` keeps its pattern work). Index arrays handed in must not be modified
+    in place (the terms' cached patterns never are).
+    """
+
+    def __init__(self) -> None:
+        self._parts: list[tuple[np.ndarray, np.ndarray]] = []
+        self._rows: np.ndarray | None = None
+        self._cols: np.ndarray | None = None
+
+    def stack(self, parts: list[Triplets]) -> Triplets:
+        """The sum of ``parts`` as one triplet set (entries in the order of the parts)."""
+        parts = [t for t in parts if t.nnz]  # empty parts bring fresh arrays and no entries
+        if len(parts) <= 1:
+            return Triplets.concatenate(parts)
+        same = len(parts) == len(self._parts) and all(
+            t.rows is r and t.cols is c for t, (r, c) in zip(parts, self._parts, strict=True)
+        )
+        if not same:
+            stacked = Triplets.concatenate(parts)
+            # references keep the arrays alive, so their identity cannot be reused
+            self._parts = [(t.rows, t.cols) for t in parts]
+            self._rows, self._cols = stacked.rows, stacked.cols
+            return stacked
+        return Triplets(self._rows, self._cols, np.concatenate([t.vals for t in parts]))
+
+
 class TripletAssembler:
     """Assembles :class:`Triplets` into an ``n x n`` (or reduced) CSC matrix, reusing patterns.
 
@@ -158,6 +190,15 @@ class TripletAssembler:
         self._slots: np.ndarray | None = None
         self._indices: np.ndarray | None = None
         self._indptr: np.ndarray | None = None
+
+    def fits(self, n: int, free: np.ndarray | None) -> bool:
+        """Whether this assembler assembles ``n x n`` systems reduced to the same ``free`` mask
+        (so a caller may keep it, and its pattern, across solves)."""
+        if n != self.n:
+            return False
+        if free is None or self._full_to_reduced is None:
+            return free is None and self._full_to_reduced is None
+        return bool(np.array_equal(free, self._full_to_reduced >= 0))
 
     def _same_pattern(self, rows: np.ndarray, cols: np.ndarray) -> bool:
         if self._rows is None or self._rows.size != rows.size:

@@ -133,6 +133,9 @@ class CholmodSolver:
             raise ValueError(
                 f"CholmodSolver mode must be 'auto', 'simplicial' or 'supernodal', got {mode!r}"
             )
+        from solvers.blas import report_cholmod_blas_once
+
+        report_cholmod_blas_once()  # says once per process which BLAS CHOLMOD runs on
         self._cholmod = cholmod
         self.mode = mode
         self.ordering_method = ordering_method

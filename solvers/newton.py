@@ -225,6 +225,7 @@ def minimize(
     options: NewtonOptions | None = None,
     linear_solver: LinearSolver | None = None,
     callback: Callable[[NewtonIteration], bool | None] | None = None,
+    assembler: TripletAssembler | None = None,
 ) -> NewtonResult:
     """Minimise ``objective`` from ``x0`` with projected Newton and a feasible line search.
 
@@ -237,6 +238,10 @@ def minimize(
             the same instance across calls to keep its symbolic factorisation.
         callback: called after each accepted iterate with a :class:`NewtonIteration`;
             returning True or raising StopIteration stops with ``CALLBACK_STOP``.
+        assembler: a :class:`TripletAssembler` kept by the caller across calls (time steps),
+            used when it fits (``assembler.fits(n, free)``): its pattern is then not rebuilt
+            while the Hessian's pattern is unchanged (an ``np.unique`` over all triplets,
+            measured: 0.04-0.2 s per step on the perf_fem meshes, about one factorisation).
 
     Returns:
         :class:`NewtonResult`; ``success`` is False, with ``status`` and ``message`` saying
@@ -251,7 +256,8 @@ def minimize(
     n = x.size
     free = _free_mask(objective, n)
     solver = default_linear_solver() if linear_solver is None else linear_solver
-    assembler = TripletAssembler(n, free=free)
+    if assembler is None or not assembler.fits(n, free):
+        assembler = TripletAssembler(n, free=free)
     res = NewtonResult(x=x, success=False, status=NewtonStatus.MAX_ITERATIONS, message="")
     timings = res.timings
 

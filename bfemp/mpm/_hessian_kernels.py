@@ -41,15 +41,29 @@ def _is_void(weights, grads, p, a, d):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True, parallel=True)
-def _accumulate_blocks(nodes, weights, grads, dpdf, volume, pair_code, n_nodes, n_codes, n_chunks):  # noqa: ANN001, ANN202, E501
+def _accumulate_blocks(  # noqa: ANN202
+    nodes,  # noqa: ANN001
+    weights,  # noqa: ANN001
+    grads,  # noqa: ANN001
+    dpdf,  # noqa: ANN001
+    volume,  # noqa: ANN001
+    pair_code,  # noqa: ANN001
+    nbr,  # noqa: ANN001
+    n_nodes,  # noqa: ANN001
+    n_codes,  # noqa: ANN001
+    n_chunks,  # noqa: ANN001
+):
     """blocks (G, 5^d, d, d): sum_p V_p g_a^T dP g_b (d x d per node pair; F-level PSD input).
 
     ``dpdf`` is (S, d*d, d*d) with dP_im/dF_jl at [i*d + m, j*d + l]; ``grads`` are the effective
-    gradients g (P, K, d) with F = sum_a y_a g_a^T. Particles are split into ``n_chunks`` ranges
+    gradients g (P, K, d) with F = sum_a y_a g_a^T; ``dpdf`` must be symmetric (a Hessian in F,
+    projected or not): half the node pairs are accumulated, the other half mirrored through the
+    neighbour table ``nbr`` (G, 5^d). Particles are split into ``n_chunks`` ranges
     accumulated in parallel into private copies (race-free), then summed.
     """
     n_p, k = nodes.shape
     d = grads.shape[2]
+    centre = (n_codes - 1) // 2  # the code of offset 0; code(-o) = n_codes - 1 - code(o)
     partial = np.zeros((n_chunks, n_nodes, n_codes, d, d))
     for c in prange(n_chunks):
         blocks = partial[c]
@@ -68,9 +82,11 @@ def _accumulate_blocks(nodes, weights, grads, dpdf, volume, pair_code, n_nodes, 
                     continue
                 node_a = nodes[p, a]
                 for b in range(k):
-                    if _is_void(weights, grads, p, b, d):
-                        continue
                     code = pair_code[a, b]
+                    # dP is symmetric, so block (b, a) = block (a, b)^T: only offsets with
+                    # code >= centre are accumulated here, the others by _mirror_blocks
+                    if code < centre or _is_void(weights, grads, p, b, d):
+                        continue
                     for i in range(d):
                         for j in range(d):
                             acc = 0.0
@@ -80,4 +96,21 @@ def _accumulate_blocks(nodes, weights, grads, dpdf, volume, pair_code, n_nodes, 
     out = partial[0].copy()
     for c in range(1, n_chunks):
         out += partial[c]
+    _mirror_blocks(out, nbr)
     return out
+
+
+@njit(cache=True)
+def _mirror_blocks(blocks, nbr):  # noqa: ANN001, ANN202
+    """blocks[j, code(-o)] = blocks[i, code(o)]^T for j = nbr[i, code(o)], code(o) > centre."""
+    n_nodes, n_codes, d, _ = blocks.shape
+    centre = (n_codes - 1) // 2
+    for i in range(n_nodes):
+        for code in range(centre + 1, n_codes):
+            j = nbr[i, code]
+            if j < 0:
+                continue
+            back = n_codes - 1 - code
+            for r in range(d):
+                for s in range(d):
+                    blocks[j, back, r, s] = blocks[i, code, s, r]

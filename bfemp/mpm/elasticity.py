@@ -89,6 +89,7 @@ class MpmElasticityTerm(ElasticityTerm):
             self._n_grid,
             self._n_codes,
         )
+        self._nbr = nbr
         # rows/cols of every (node, offset) d x d block; prescribed (sticky) DOFs dropped
         offset = ctx.mpm.node_offset
         row_node = np.repeat(np.arange(self._n_grid), self._n_codes)
@@ -119,6 +120,7 @@ class MpmElasticityTerm(ElasticityTerm):
             dpdf,
             st.volume,
             self._codes,
+            self._nbr,
             self._n_grid,
             self._n_codes,
             max(1, min(numba.get_num_threads(), st.nodes.shape[0] // 256)),

@@ -26,7 +26,7 @@ Format (``#`` comments; numbers in SI units, scalars may also be strings with a 
 
     [simulation.options]          # bfemp.BarrierOptions(...) for "barrier", ...
     tol = "0.001 mm/s"            # numbers may carry the field's unit
-    linear_solver = "default"     # or "cholmod", "scipy"
+    linear_solver = "default"     # or "cholmod", "scipy", "pardiso", "cg_amg", "auto"
 
     [run]                         # Simulation.run(...) settings; the command line may override
     t_end = 2.0                   # s

@@ -8,12 +8,13 @@ from typing import ClassVar
 import numpy as np
 
 from bfemp.steppers.base import StepperOptions
-from solvers.linear import LinearSolver, ScipySolver, default_linear_solver
+from solvers.choice import LINEAR_SOLVER_NAMES, make_linear_solver
+from solvers.linear import LinearSolver
 
 __all__ = ["LINEAR_SOLVERS", "VELOCITY_UPDATES", "BarrierOptions"]
 
 #: the names ``BarrierOptions.linear_solver`` accepts
-LINEAR_SOLVERS = ("default", "cholmod", "scipy")
+LINEAR_SOLVERS = LINEAR_SOLVER_NAMES
 
 #: the names ``BarrierOptions.velocity_update`` accepts
 VELOCITY_UPDATES = ("positions", "forces")
@@ -31,7 +32,10 @@ class BarrierOptions(StepperOptions):
         warm_start: start Newton from the predicted x^{n+1} where no contact is active instead
             of from x^n (measured: no gain on the rings and cantilever demos, hence off).
         linear_solver: ``"default"`` (CHOLMOD, scipy's SuperLU when scikit-sparse is missing),
-            ``"cholmod"``, ``"scipy"``, or a ``solvers.linear.LinearSolver`` object.
+            ``"cholmod"``, ``"scipy"``, ``"pardiso"`` (MKL PARDISO, needs the ``pardiso``
+            extra), ``"cg_amg"`` (CG + AMG, pyamg), ``"auto"`` (the fastest of these measured
+            for the matrix: ``solvers.choice.AutoSolver``), or a ``solvers.linear.LinearSolver``
+            object.
         velocity_update: where a^{n+1} (and so v^{n+1}, eq. 21) comes from. ``"positions"``
             (default): from the solved x^{n+1}, so that x^{n+1} - x^n = dt v^{n+1} holds
             exactly under backward Euler (``Integrator.acceleration``); ``"forces"``: the
@@ -77,14 +81,12 @@ class BarrierOptions(StepperOptions):
                 f"linear_solver must be a name {LINEAR_SOLVERS} or a LinearSolver, got {solver!r}"
             )
 
-    def make_linear_solver(self) -> LinearSolver:
-        """The linear solver these options name."""
+    def make_linear_solver(self, dim: int = 1) -> LinearSolver:
+        """The linear solver these options name; ``dim``: unknowns per node (for ``cg_amg``).
+
+        Raises:
+            RuntimeError: the named solver's package is not installed (says how to install).
+        """
         if not isinstance(self.linear_solver, str):
             return self.linear_solver
-        if self.linear_solver == "scipy":
-            return ScipySolver()
-        if self.linear_solver == "cholmod":
-            from solvers.linear import CholmodSolver
-
-            return CholmodSolver()
-        return default_linear_solver()
+        return make_linear_solver(self.linear_solver, block_size=dim)

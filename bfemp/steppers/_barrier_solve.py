@@ -24,6 +24,7 @@ from bfemp.potential import IncrementalPotential
 from bfemp.state import State
 from bfemp.steppers._scaffold import StepNodes
 from bfemp.steppers.base import StepError, StepReport
+from solvers.assembly import TripletAssembler
 from solvers.linear import LinearSolver
 from solvers.newton import minimize
 from solvers.options import NewtonOptions
@@ -35,7 +36,8 @@ log = logging.getLogger(__name__)
 
 
 class ScriptedSolve:
-    """The minimisation of a ``barrier`` step (see the module docstring); keeps no state.
+    """The minimisation of a ``barrier`` step (see the module docstring); keeps only the
+    triplet assembler (the Hessian's sparsity pattern) from step to step.
 
     Args:
         model: the static model.
@@ -70,6 +72,8 @@ class ScriptedSolve:
         # the phases every step reports (0 when a step has none: the same metrics columns)
         self.phases = TIMING_KEYS + ("friction",) * (friction is not None)
         self.phases += ("scripted_ccd",) * (barrier is not None)
+        # kept across steps so an unchanged Hessian pattern is not rebuilt every step
+        self._assembler: TripletAssembler | None = None
 
     def solve(
         self,
@@ -269,7 +273,17 @@ class ScriptedSolve:
 
     def _minimize(self, y: np.ndarray, timings: dict[str, float]) -> NewtonResult:
         """One projected Newton solve from ``y``; its phase seconds add to ``timings``."""
-        result = minimize(self.potential, y, options=self.newton, linear_solver=self.linear_solver)
+        fixed = self.potential.fixed_dofs
+        free = None if fixed is None or not fixed.any() else ~fixed
+        if self._assembler is None or not self._assembler.fits(y.size, free):
+            self._assembler = TripletAssembler(y.size, free=free)
+        result = minimize(
+            self.potential,
+            y,
+            options=self.newton,
+            linear_solver=self.linear_solver,
+            assembler=self._assembler,
+        )
         add_timings(timings, result.timings)
         return result
 

@@ -96,7 +96,7 @@ class BarrierStepper:
         self.newton = NewtonOptions(
             tol=options.tol, max_iter=options.max_newton_iterations, step_scale=self.dt
         )
-        self.linear_solver = options.make_linear_solver()
+        self.linear_solver = options.make_linear_solver(model.dim)
         self.transfer = transfer
         self.potential = build_potential(model)
         self.barrier = next(

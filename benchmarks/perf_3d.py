@@ -1,0 +1,159 @@
+"""3D at scale (issue 13): an MPM block on a FEM plate, with contact and friction, per solver.
+
+Scene: a Neo-Hookean MPM block (8 particles per cell) resting on a steel-like FEM plate whose
+bottom face is clamped; the block's lowest particles start inside the barrier's activation
+distance, so contact and lagged friction (mu = 0.3) are active from the first step; gravity,
+backward Euler, dt = 4 ms. Full mode: ~100k particles (25 x 25 x 20 cells); quick mode: 1,152.
+
+For each linear solver installed (``cholmod``, ``pardiso``, ``cg_amg``) one warm-up step
+(numba compilation, symbolic analysis) and one timed step; recorded per solver: step wall time,
+Newton iterations, linear solves, the step's phase split, time per Newton iteration, the floor
+(numeric factorisation, or the CG solve, of the Hessian at the start of the step) and the ratio
+of the two, peak memory. Full mode runs each solver in its own process (its own peak memory);
+quick mode runs them in this process (``peak_memory_mb`` is then the process's). Besides:
+CHOLMOD's factorisation of the same Hessian on the reference BLAS and on the default one, each in
+its own process (``blas_side_by_side``). Target (issue 13): one step in under a minute on 2
+cores; Newton iteration <= 1.5 x the factorisation.
+
+Recorded (``benchmarks/records/perf_3d_full.json``, 2 shared cores, load average ~5): 100,000
+particles, 51,624 unknowns, 16.4M nonzeros; one step (1 Newton iteration, 2 linear solves: the
+iteration and the convergence test) 25.2 s with CHOLMOD (factorisation floor 8.0 s, 11.6 s per
+linear solve, peak 4.5 GB) and 40.6 s with CG + AMG (peak 3.3 GB). PARDISO was not recorded.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import bfemp
+from benchmarks._blas_switch import factorisation_by_blas
+from benchmarks._phases import newton_phases
+from benchmarks.common import environment, peak_memory_mb, write_json
+from bfemp.integrators import BACKWARD_EULER
+from bfemp.steppers.barrier import BarrierOptions, BarrierStepper
+from solvers.choice import make_linear_solver
+
+CASES = {
+    "full": dict(cells=(25, 25, 20), dx=0.02),
+    "quick": dict(cells=(6, 6, 4), dx=0.05),
+}
+SOLVERS = ("cholmod", "pardiso", "cg_amg")
+DHAT, KAPPA, MU, DT, TOL = 1e-3, 1e5, 0.3, 4e-3, 1e-4
+
+
+def _scene(cells: tuple[int, int, int], dx: float) -> bfemp.Scene:
+    size = [c * dx for c in cells]
+    lower = (-0.5 * size[0], -0.5 * size[1], 0.6 * DHAT - 0.25 * dx)  # first layer at 0.6 dhat
+    upper = (0.5 * size[0], 0.5 * size[1], lower[2] + size[2])
+    x, vol = bfemp.sample.box(lower, upper, dx=dx, ppc=8)
+    scene = bfemp.Scene(dim=3, gravity=(0.0, 0.0, -9.81))
+    jelly = bfemp.NeoHookean(E=2e5, nu=0.3, density=1000.0)
+    scene.add_mpm(x, vol, material=jelly, velocity=(0.0, 0.0, -0.2), name="block")
+    half, thick = 0.8 * size[0], 2.0 * dx
+    plate = bfemp.shapes.box((-half, -half, -thick), (half, half, 0.0), h=2.0 * dx)
+    scene.add_fem(
+        plate,
+        material=bfemp.NeoHookean(E=2e8, nu=0.3, density=8000.0),
+        prescribed=bfemp.motion.Fixed(),
+        prescribed_nodes=plate.points[:, 2] < -thick + 1e-9,
+        name="plate",
+    )
+    scene.set_grid(dx=dx)
+    scene.set_contact(dhat=DHAT, kappa=KAPPA, mu=MU)
+    return scene
+
+
+def _measure(mode: str, solver: str, matrices: dict | None = None) -> dict:
+    """One warm-up and one timed step of ``mode``'s scene with ``solver``."""
+    cfg = CASES[mode]
+    model = _scene(cfg["cells"], cfg["dx"]).build()
+    stepper = BarrierStepper(
+        model,
+        integrator=BACKWARD_EULER,
+        dt=DT,
+        options=BarrierOptions(tol=TOL, linear_solver=make_linear_solver(solver, block_size=3)),
+    )
+    start = time.perf_counter()
+    state, _ = stepper.step(stepper.initialize(model.initial_state()))  # warm-up
+    out = {
+        "solver": solver,
+        "particles": int(model.n_particles),
+        "fem_nodes": int(model.n_fem_nodes),
+        "warmup_step_s": time.perf_counter() - start,
+    }
+    out.update(newton_phases(stepper, state, solver, matrices, name=mode))
+    out["peak_memory_mb"] = peak_memory_mb()
+    return out
+
+
+def _measure_in_child(mode: str, solver: str) -> dict:
+    root = Path(__file__).resolve().parents[1]
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(root), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
+    code = (
+        "import json; from benchmarks.perf_3d import _measure; "
+        f"print(json.dumps(_measure({mode!r}, {solver!r}), default=float))"
+    )
+    try:
+        done = subprocess.run(
+            [sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=1800
+        )
+    except subprocess.TimeoutExpired:
+        return {"solver": solver, "error": "timed out after 1800 s"}
+    if done.returncode != 0:
+        return {"solver": solver, "error": done.stderr.strip().splitlines()[-1:]}
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def run(mode: str = "full", out: str | Path = "results") -> dict:
+    """Measure every installed solver and write ``perf_3d.json`` to ``out``."""
+    if mode not in CASES:
+        raise ValueError(f"mode must be one of {sorted(CASES)}, got {mode!r}")
+    matrices: dict = {}
+    installed = []
+    for name in SOLVERS:
+        try:
+            make_linear_solver(name)
+            installed.append(name)
+        except RuntimeError:
+            pass
+    results = {}
+    for name in installed:
+        if mode == "quick":
+            results[name] = _measure(mode, name, matrices if name == "cholmod" else None)
+        else:
+            results[name] = _measure_in_child(mode, name)
+    if not matrices:  # full mode: the Hessian for the BLAS comparison, from a fresh model
+        cfg = CASES[mode]
+        model = _scene(cfg["cells"], cfg["dx"]).build()
+        stepper = BarrierStepper(model, integrator=BACKWARD_EULER, dt=DT, options=BarrierOptions())
+        newton_phases(stepper, stepper.initialize(model.initial_state()), "cholmod", matrices, mode)
+    if mode != "quick":  # the solvers' hour of work is on disk before the BLAS comparison
+        write_json(out, "perf_3d_solvers", {"mode": mode, "solvers": results})
+    ok = {k: v for k, v in results.items() if "error" not in v}
+    payload = {
+        "benchmark": "perf_3d",
+        "mode": mode,
+        "parameters": {
+            "cells": CASES[mode]["cells"],
+            "dx": CASES[mode]["dx"],
+            "dhat": DHAT,
+            "kappa": KAPPA,
+            "mu": MU,
+            "dt": DT,
+            "tol": TOL,
+        },
+        "solvers": results,
+        "fastest_step": min(ok, key=lambda k: ok[k]["step_wall_s"]) if ok else None,
+        "blas_side_by_side": factorisation_by_blas(matrices),
+        "machine_note": "2 shared cores, loaded by other work: compare ratios within this run",
+        "peak_memory_mb": peak_memory_mb(),
+        "environment": environment(),
+    }
+    path = write_json(out, "perf_3d", payload)
+    return {"json": str(path), **payload}

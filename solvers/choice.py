@@ -1,0 +1,133 @@
+"""Linear solvers by name, and the ``"auto"`` choice between them.
+
+Names: ``"default"`` (CHOLMOD, the design's solver; scipy's SuperLU without scikit-sparse),
+``"cholmod"``, ``"scipy"``, ``"pardiso"`` (MKL PARDISO, optional ``pypardiso``), ``"cg_amg"``
+(CG + smoothed-aggregation AMG, ``pyamg``) and ``"auto"`` (:class:`AutoSolver`).
+
+:class:`AutoSolver` picks on the first matrix it sees, by what was measured on the project's
+own Hessians (OpenBLAS under CHOLMOD, 2 shared and loaded cores, best of 3 numeric
+factorisations with the analysis reused; perf_fem/perf_mpm quick matrices):
+
+=====================  ======  ==========  =======  ==============================
+matrix                 DOFs    CHOLMOD     PARDISO  CG + AMG (hierarchy kept)
+=====================  ======  ==========  =======  ==============================
+3D FEM box             3,888   0.033 s     0.015 s  0.046 s
+2D FEM rectangle       13,120  0.022 s     0.012 s  0.381 s
+2D MPM block           5,618   0.042 s     0.026 s  0.088 s
+3D MPM block           8,670   0.326 s     0.695 s  0.321 s
+3D MPM block (100k p)  55,539  11.4 s      12.3 s   13.5 s (first solve 46 s)
+=====================  ======  ==========  =======  ==============================
+
+- FEM meshes and 2D MPM grids (up to ~60 nonzeros per row): PARDISO where ``pypardiso`` is
+  installed, else CHOLMOD;
+- 3D MPM grids (a node couples with 125 nodes: ~300 nonzeros per row): CHOLMOD; CG + AMG only
+  above ``cg_min_dofs`` (default 200,000, beyond what was measured: at 55,539 DOFs CHOLMOD still
+  wins), where the direct factor's fill grows faster than the matrix.
+
+CHOLMOD's ordering on these matrices (default = AMD, METIS tried when AMD's fill is large):
+METIS 0.031 / 0.026 / 0.365 / 0.051 s and AMD 0.033 / 0.018 / 0.486 / 0.054 s on the first four
+rows, i.e. no ordering wins everywhere, so CHOLMOD's own default choice is kept.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import scipy.sparse as sp
+
+from solvers.linear import CholmodSolver, LinearSolver, ScipySolver, default_linear_solver
+
+__all__ = ["LINEAR_SOLVER_NAMES", "AutoSolver", "make_linear_solver"]
+
+logger = logging.getLogger(__name__)
+
+#: the names :func:`make_linear_solver` accepts
+LINEAR_SOLVER_NAMES = ("default", "auto", "cholmod", "scipy", "pardiso", "cg_amg")
+
+#: nonzeros per row above which a matrix counts as a dense-coupling (3D MPM grid) matrix
+DENSE_ROW_NNZ = 150
+
+
+def make_linear_solver(name: str, *, block_size: int = 1) -> LinearSolver:
+    """A new linear solver of the given name.
+
+    Args:
+        name: one of :data:`LINEAR_SOLVER_NAMES`.
+        block_size: unknowns per node (the space dimension for positions), for ``"cg_amg"``.
+
+    Raises:
+        ValueError: an unknown name.
+        RuntimeError: the package the named solver needs is not installed (the message says
+            how to install it).
+    """
+    if name == "default":
+        return default_linear_solver()
+    if name == "cholmod":
+        return CholmodSolver()
+    if name == "scipy":
+        return ScipySolver()
+    if name == "pardiso":
+        from solvers.pardiso import PardisoSolver
+
+        return PardisoSolver()
+    if name == "cg_amg":
+        from solvers.iterative import CgAmgSolver
+
+        return CgAmgSolver(block_size=block_size)
+    if name == "auto":
+        return AutoSolver(block_size=block_size)
+    raise ValueError(f"linear solver must be one of {LINEAR_SOLVER_NAMES}, got {name!r}")
+
+
+class AutoSolver:
+    """Delegates to the solver that measured fastest for the first matrix's kind and size.
+
+    Args:
+        block_size: unknowns per node, handed to ``CgAmgSolver``.
+        cg_min_dofs: dense-coupling matrices with at least this many unknowns go to CG + AMG.
+
+    Attributes:
+        chosen: the name of the solver in use (None before the first solve).
+    """
+
+    def __init__(self, *, block_size: int = 1, cg_min_dofs: int = 200_000) -> None:
+        self.block_size = block_size
+        self.cg_min_dofs = cg_min_dofs
+        self.chosen: str | None = None
+        self._inner: LinearSolver | None = None
+
+    def choose(self, A: sp.spmatrix) -> str:
+        """The solver name for a matrix like A (n, n)."""
+        from solvers.iterative import amg_available
+        from solvers.linear import cholmod_available
+        from solvers.pardiso import pardiso_available
+
+        n = A.shape[0]
+        dense = A.nnz > DENSE_ROW_NNZ * max(n, 1)
+        if dense and n >= self.cg_min_dofs and amg_available():
+            return "cg_amg"
+        if not dense and pardiso_available():
+            return "pardiso"
+        return "cholmod" if cholmod_available() else "default"
+
+    @property
+    def last_timings(self) -> dict[str, float]:
+        """The phase seconds of the last solve of the chosen solver."""
+        inner = getattr(self._inner, "last_timings", None)
+        return inner if isinstance(inner, dict) else {}
+
+    def solve(
+        self, A: sp.csc_matrix, b: np.ndarray, *, pattern_version: int | None = None
+    ) -> np.ndarray:
+        """Solve ``A x = b`` with the chosen solver (chosen on the first call)."""
+        if self._inner is None:
+            self.chosen = self.choose(A)
+            self._inner = make_linear_solver(self.chosen, block_size=self.block_size)
+            logger.info("linear solver 'auto' chose %r for a %d x %d matrix", self.chosen, *A.shape)
+        return self._inner.solve(A, b, pattern_version=pattern_version)
+
+    def solve_again(self, b: np.ndarray) -> np.ndarray | None:
+        """Back-solve with the chosen solver's last factorisation, or None."""
+        again = getattr(self._inner, "solve_again", None)
+        return None if again is None else again(b)

@@ -1,0 +1,167 @@
+"""MKL PARDISO (through the optional ``pypardiso`` package) behind the ``LinearSolver`` interface.
+
+PARDISO is called in its three phases, as CHOLMOD is: the analysis (phase 11: METIS ordering and
+symbolic factorisation) is kept while the sparsity pattern is unchanged, the numeric Cholesky
+factorisation (phase 22) runs every call, then the solve (phase 33).  The matrix type is real
+symmetric positive definite (``mtype = 2``), so PARDISO reads the upper triangle (CSR) and
+reports a non-positive pivot as error -4, raised as :class:`LinearSolveError`.
+
+``pypardiso`` pulls MKL from PyPI (several hundred MB), so it is an optional extra
+(``pip install 'bfemp[pardiso]'``), never a requirement; :func:`pardiso_available` says whether
+it is installed and :class:`PardisoSolver` raises :data:`PARDISO_INSTALL_HINT` without it.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from types import ModuleType
+
+import numpy as np
+import scipy.sparse as sp
+
+from solvers.linear import LinearSolveError, _check_system
+
+__all__ = ["PARDISO_INSTALL_HINT", "PardisoSolver", "pardiso_available"]
+
+logger = logging.getLogger(__name__)
+
+PARDISO_INSTALL_HINT = (
+    "the 'pardiso' linear solver needs pypardiso (MKL PARDISO), which is not installed; "
+    "install it with `pip install 'bfemp[pardiso]'` or choose linear_solver='cholmod'"
+)
+
+# PARDISO phases (MKL reference): analysis, numeric factorisation, solve, release memory.
+_ANALYSIS, _NUMERIC, _SOLVE, _RELEASE = 11, 22, 33, -1
+#: real symmetric positive definite
+_MTYPE_SPD = 2
+#: PARDISO error code of a zero or negative pivot
+_NOT_POSITIVE_DEFINITE = -4
+
+
+def _import_pypardiso() -> ModuleType | None:
+    """Import hook for ``pypardiso`` (tests monkeypatch it); None if unavailable."""
+    try:
+        import pypardiso
+    except ImportError:
+        return None
+    return pypardiso
+
+
+def pardiso_available() -> bool:
+    """Whether ``pypardiso`` (and the MKL it loads) can be imported."""
+    return _import_pypardiso() is not None
+
+
+class PardisoSolver:
+    """Sparse Cholesky with MKL PARDISO, reusing the analysis across equal patterns.
+
+    Attributes:
+        n_symbolic: number of analyses (phase 11) performed.
+        n_numeric: number of numeric factorisations (phase 22) performed.
+        last_timings: seconds of the last call, keys ``analyze``, ``factorize``, ``solve``.
+    """
+
+    def __init__(self) -> None:
+        pypardiso = _import_pypardiso()
+        if pypardiso is None:
+            raise RuntimeError(PARDISO_INSTALL_HINT)
+        self._solver = pypardiso.PyPardisoSolver(mtype=_MTYPE_SPD)
+        self._error = pypardiso.pardiso_wrapper.PyPardisoError
+        self._solver.set_iparm(12, 0)  # CSR input, not transposed
+        self.n_symbolic = 0
+        self.n_numeric = 0
+        self.last_timings = {"analyze": 0.0, "factorize": 0.0, "solve": 0.0}
+        self._upper: sp.csr_matrix | None = None
+        self._version: int | None = None
+        self._shape: tuple[int, int] | None = None
+        self._indptr: np.ndarray | None = None
+        self._indices: np.ndarray | None = None
+        self._factorised = False
+
+    def _call(self, phase: int, b: np.ndarray) -> np.ndarray:
+        self._solver.set_phase(phase)
+        try:
+            return self._solver._call_pardiso(self._upper, b)
+        except self._error as err:
+            self._factorised = False
+            code = int(err.args[0]) if err.args else 0
+            if code == _NOT_POSITIVE_DEFINITE:
+                raise LinearSolveError(
+                    "matrix is not positive definite (PARDISO: zero or negative pivot)"
+                ) from err
+            raise LinearSolveError(f"PARDISO phase {phase} failed: {err}") from err
+
+    def _same_pattern(self, A: sp.csc_matrix, pattern_version: int | None) -> bool:
+        if self._indptr is None or A.shape != self._shape:
+            return False
+        if pattern_version is not None and pattern_version == self._version:
+            return True
+        return bool(
+            np.array_equal(A.indptr, self._indptr) and np.array_equal(A.indices, self._indices)
+        )
+
+    def solve(
+        self, A: sp.csc_matrix, b: np.ndarray, *, pattern_version: int | None = None
+    ) -> np.ndarray:
+        """Solve ``A x = b`` for a symmetric positive definite A (n, n) given in full (both
+        triangles), b (n,); see :meth:`solvers.linear.CholmodSolver.solve`."""
+        A, b = _check_system(A, b)
+        if A.shape[0] == 0:
+            return np.zeros(0)
+        timings = {"analyze": 0.0, "factorize": 0.0, "solve": 0.0}
+        self.last_timings = timings
+        t0 = time.perf_counter()
+        # A is symmetric, so the CSR arrays of its upper triangle are those of the CSC lower
+        # triangle read transposed.
+        lower = sp.tril(A, format="csc")
+        lower.sort_indices()
+        self._upper = sp.csr_matrix((lower.data, lower.indices, lower.indptr), shape=A.shape)
+        if np.any(np.diff(lower.indptr) == 0):
+            raise LinearSolveError("matrix is singular: a row has no diagonal or upper entries")
+        zero = np.zeros(A.shape[0])
+        if not self._same_pattern(A, pattern_version):
+            self._call(_ANALYSIS, zero)
+            self._shape = A.shape
+            self._indptr = A.indptr.copy()
+            self._indices = A.indices.copy()
+            self.n_symbolic += 1
+            logger.debug("PARDISO analysis of a %d x %d matrix", *A.shape)
+        self._version = pattern_version
+        t1 = time.perf_counter()
+        timings["analyze"] = t1 - t0
+        try:
+            self._call(_NUMERIC, zero)
+        except LinearSolveError:
+            self._indptr = None  # analyse afresh after a failed factorisation
+            timings["factorize"] = time.perf_counter() - t1
+            raise
+        self.n_numeric += 1
+        self._factorised = True
+        t2 = time.perf_counter()
+        timings["factorize"] = t2 - t1
+        x = np.asarray(self._call(_SOLVE, b), dtype=np.float64).reshape(-1)
+        timings["solve"] = time.perf_counter() - t2
+        if not np.all(np.isfinite(x)):
+            raise LinearSolveError("PARDISO solution has non-finite entries")
+        return x
+
+    def solve_again(self, b: np.ndarray) -> np.ndarray | None:
+        """Solve with the last numeric factorisation; see
+        :meth:`solvers.linear.CholmodSolver.solve_again`."""
+        if not self._factorised or self._shape is None or b.shape != (self._shape[0],):
+            return None
+        try:
+            x = self._call(_SOLVE, np.asarray(b, dtype=np.float64)).reshape(-1)
+        except LinearSolveError:
+            return None
+        return x if np.all(np.isfinite(x)) else None
+
+    def __del__(self) -> None:
+        solver = getattr(self, "_solver", None)
+        if solver is not None and getattr(self, "_upper", None) is not None:
+            try:
+                solver.set_phase(_RELEASE)
+                solver._call_pardiso(self._upper, np.zeros(self._upper.shape[0]))
+            except Exception:  # noqa: BLE001 - best effort at interpreter shutdown
+                pass
