@@ -50,9 +50,6 @@ __all__ = ["Simulation"]
 
 log = logging.getLogger(__name__)
 
-#: the flat keywords of ``Simulation`` that are ``BarrierOptions`` fields (kept for "barrier")
-_BARRIER_KEYWORDS = ("tol", "max_newton_iterations", "linear_solver", "warm_start")
-
 
 class Simulation:
     """A scene advanced in time by one coupling strategy.
