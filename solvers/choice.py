@@ -117,14 +117,29 @@ class AutoSolver:
         inner = getattr(self._inner, "last_timings", None)
         return inner if isinstance(inner, dict) else {}
 
+    #: a per-solve ``rtol`` is handed on when the chosen solver takes one (else dropped)
+    accepts_rtol = True
+
+    @property
+    def last_iterations(self) -> int:
+        """Iterations of the chosen solver's last solve (0 for a direct one)."""
+        return int(getattr(self._inner, "last_iterations", 0) or 0)
+
     def solve(
-        self, A: sp.csc_matrix, b: np.ndarray, *, pattern_version: int | None = None
+        self,
+        A: sp.csc_matrix,
+        b: np.ndarray,
+        *,
+        pattern_version: int | None = None,
+        rtol: float | None = None,
     ) -> np.ndarray:
         """Solve ``A x = b`` with the chosen solver (chosen on the first call)."""
         if self._inner is None:
             self.chosen = self.choose(A)
             self._inner = make_linear_solver(self.chosen, block_size=self.block_size)
             logger.info("linear solver 'auto' chose %r for a %d x %d matrix", self.chosen, *A.shape)
+        if rtol is not None and getattr(self._inner, "accepts_rtol", False):
+            return self._inner.solve(A, b, pattern_version=pattern_version, rtol=rtol)
         return self._inner.solve(A, b, pattern_version=pattern_version)
 
     def solve_again(self, b: np.ndarray) -> np.ndarray | None:

@@ -60,6 +60,9 @@ class LinearSolver(Protocol):
 
     Implementations may keep state between calls (symbolic factorisations) and expose
     ``last_timings: dict[str, float]`` with keys ``analyze``, ``factorize``, ``solve`` (s).
+    An iterative solver declares ``accepts_rtol = True`` when ``solve`` also takes a keyword
+    ``rtol`` (the relative residual this solve may stop at; Newton hands it the forcing term)
+    and exposes ``last_iterations``.
     """
 
     def solve(

@@ -116,15 +116,18 @@ def _solve(
     triplets: Triplets,
     rhs: np.ndarray,
     timings: dict[str, float],
+    rtol: float | None = None,
 ) -> np.ndarray:
     with _timed(timings, "assemble"):
         matrix = assembler.assemble(triplets)
     if rhs.size == 0:
         return np.zeros(0)
     start = time.perf_counter()
+    kwargs = {"rtol": rtol} if rtol is not None else {}
     try:
         return np.asarray(
-            solver.solve(matrix, rhs, pattern_version=assembler.pattern_version), dtype=np.float64
+            solver.solve(matrix, rhs, pattern_version=assembler.pattern_version, **kwargs),
+            dtype=np.float64,
         )
     finally:
         phases = getattr(solver, "last_timings", None)
@@ -137,6 +140,31 @@ def _solve(
 
 class _NonFiniteHessian(Exception):
     pass
+
+
+#: Eisenstat-Walker "choice 2" constants (gamma, alpha), SIAM J. Sci. Comput. 17 (1996) 16-32.
+_EW_GAMMA = 0.9
+_EW_ALPHA = 2.0
+
+
+def forcing_term(
+    g_norm: float, g_norm_prev: float | None, eta_prev: float | None, eta_max: float
+) -> float:
+    """The relative residual an inexact linear solve of Newton iteration k may stop at.
+
+    Eisenstat-Walker choice 2: ``eta_k = gamma (||g_k|| / ||g_{k-1}||)^alpha``, with the
+    safeguard ``eta_k >= gamma eta_{k-1}^alpha`` when that is above 0.1 (it keeps eta from
+    dropping while the gradient stalls), capped at ``eta_max``; the first iteration gets
+    ``eta_max``. Loose solves far from the solution, tight ones as the gradient falls: the
+    linear tolerance follows Newton's progress instead of being fixed. Dimensionless.
+    """
+    if g_norm_prev is None or eta_prev is None or not g_norm_prev > 0.0:
+        return eta_max
+    eta = _EW_GAMMA * (g_norm / g_norm_prev) ** _EW_ALPHA
+    safeguard = _EW_GAMMA * eta_prev**_EW_ALPHA
+    if safeguard > 0.1:
+        eta = max(eta, safeguard)
+    return min(eta, eta_max)
 
 
 #: Energy changes below this many machine epsilons of |E| are round-off (terms cancel).
@@ -206,8 +234,10 @@ def _newton_direction(
     g_free: np.ndarray,
     timings: dict[str, float],
     res: NewtonResult,
+    rtol: float | None = None,
 ) -> np.ndarray:
-    """Solve ``H p = -g`` on the free DOFs with the exact (or per-stencil projected) Hessian."""
+    """Solve ``H p = -g`` on the free DOFs with the exact (or per-stencil projected) Hessian;
+    ``rtol``: the relative residual an inexact solver may stop at (None: its own)."""
     with _timed(timings, "hessian"):
         triplets = objective.hessian(x, psd=not exact)
     res.nhev += 1
@@ -215,7 +245,10 @@ def _newton_direction(
         raise ValueError(f"objective.hessian must return Triplets, got {type(triplets)}")
     if not np.all(np.isfinite(triplets.vals)):
         raise _NonFiniteHessian
-    return _solve(solver, assembler, triplets, -g_free, timings)
+    try:
+        return _solve(solver, assembler, triplets, -g_free, timings, rtol)
+    finally:
+        res.linear_iterations += int(getattr(solver, "last_iterations", 0) or 0)
 
 
 def minimize(
@@ -279,6 +312,9 @@ def minimize(
         return finish(NewtonStatus.NON_FINITE, f"energy at x0 is {energy}")
 
     try_exact = exact_failed = False
+    # An inexact solver (CG) stops at the forcing term eta_k, tied to Newton's progress.
+    inexact = bool(getattr(solver, "accepts_rtol", False))
+    g_norm_prev = eta = None
     while True:
         with _timed(timings, "gradient"):
             grad = np.asarray(objective.gradient(x), dtype=np.float64)
@@ -289,6 +325,11 @@ def minimize(
         g_free = grad if free is None else grad[free]
         if not np.all(np.isfinite(g_free)):
             return finish(NewtonStatus.NON_FINITE, f"non-finite gradient at iteration {res.nit}")
+        rtol = None
+        if inexact:
+            g_norm = float(np.linalg.norm(g_free))
+            eta = forcing_term(g_norm, g_norm_prev, eta, options.linear_rtol_max)
+            g_norm_prev, rtol = g_norm, eta
         exact = try_exact and not exact_failed
         try:
             p_free = _newton_direction(
@@ -300,6 +341,7 @@ def minimize(
                 g_free,
                 timings,
                 res,
+                rtol,
             )
             if exact and not float(g_free @ p_free) < 0.0:
                 raise LinearSolveError("exact Hessian gives no descent direction")
@@ -311,7 +353,7 @@ def minimize(
             exact_failed = True
             try:
                 p_free = _newton_direction(
-                    objective, x, False, solver, assembler, g_free, timings, res
+                    objective, x, False, solver, assembler, g_free, timings, res, rtol
                 )
             except LinearSolveError as err2:
                 return finish(NewtonStatus.LINEAR_SOLVE_FAILED, f"{err2} (iteration {res.nit})")
@@ -322,6 +364,23 @@ def minimize(
                 NewtonStatus.LINEAR_SOLVE_FAILED, f"non-finite Newton step at iteration {res.nit}"
             )
         p_inf = _increment_norm(objective, p_free, free, n)
+        if rtol is not None and p_inf / options.step_scale < options.tol:
+            # The increment that decides convergence is solved to the solver's own tolerance,
+            # so that an inexact solve never stops Newton early.
+            try:
+                p_free = _newton_direction(
+                    objective,
+                    x,
+                    (exact and not exact_failed) or not options.project_psd,
+                    solver,
+                    assembler,
+                    g_free,
+                    timings,
+                    res,
+                )
+            except LinearSolveError as err:
+                return finish(NewtonStatus.LINEAR_SOLVE_FAILED, f"{err} (iteration {res.nit})")
+            p_inf = _increment_norm(objective, p_free, free, n)
         res.step_inf_norm = p_inf
         if p_inf / options.step_scale < options.tol:
             return finish(

@@ -44,6 +44,11 @@ class NewtonOptions:
             is positive definite and turns Newton's quadratic convergence into a linear one.
             If the exact Hessian is not positive definite (or gives no descent) the projected
             one is used for the rest of the solve.
+        linear_rtol_max: the loosest relative residual an inexact linear solver (one with
+            ``accepts_rtol``, such as CG + AMG) may stop at, in (0, 1). Its tolerance per
+            iteration is the Eisenstat-Walker forcing term (:func:`solvers.newton.forcing_term`)
+            capped here and floored at the solver's own ``rtol``; the increment that passes the
+            stopping test is re-solved at that floor. Direct solvers ignore it.
     """
 
     tol: float = 1e-6
@@ -54,6 +59,7 @@ class NewtonOptions:
     min_step: float = 1e-12
     project_psd: bool = True
     exact_near_solution: bool = True
+    linear_rtol_max: float = 1e-2
 
     def __post_init__(self) -> None:
         _check_positive_finite("tol", self.tol)
@@ -70,6 +76,11 @@ class NewtonOptions:
         if self.backtrack_factor >= 1.0:
             raise ValueError(
                 f"NewtonOptions.backtrack_factor must be in (0, 1), got {self.backtrack_factor!r}"
+            )
+        _check_positive_finite("linear_rtol_max", self.linear_rtol_max)
+        if self.linear_rtol_max >= 1.0:
+            raise ValueError(
+                f"NewtonOptions.linear_rtol_max must be in (0, 1), got {self.linear_rtol_max!r}"
             )
         _check_positive_finite("min_step", self.min_step)
         if self.min_step > 1.0:

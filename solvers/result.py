@@ -85,6 +85,8 @@ class NewtonResult:
         step_inf_norm: ``||p||_inf`` of the last computed Newton increment (units of ``x``;
             the objective's ``increment_norm`` where it has one), nan if none was computed.
         alphas: accepted line-search step sizes, one per iteration.
+        linear_iterations: iterations of an iterative linear solver, summed over the solves
+            (0 for direct solvers).
         timings: wall-clock seconds per phase, keys :data:`TIMING_KEYS`.
     """
 
@@ -100,6 +102,7 @@ class NewtonResult:
     nhev: int = 0
     step_inf_norm: float = float("nan")
     alphas: list[float] = field(default_factory=list)
+    linear_iterations: int = 0
     timings: dict[str, float] = field(default_factory=lambda: dict.fromkeys(TIMING_KEYS, 0.0))
 
 

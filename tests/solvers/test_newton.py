@@ -460,3 +460,69 @@ def test_bad_input_raises_value_error():
         minimize(obj, np.zeros(3))
     with pytest.raises(ValueError, match="options"):
         minimize(Quadratic(sp.eye(3), np.ones(3)), np.zeros(3), options={"tol": 1.0})
+
+
+class _InexactSpy:
+    """A CG solver stand-in that records the relative residual Newton hands each solve and
+    stops there: it returns x with ``A x = b - r``, ``||r|| = rtol ||b||``."""
+
+    accepts_rtol = True
+    rtol = 1e-12  # the floor
+
+    def __init__(self, seed=0):
+        self.rtols = []
+        self.last_iterations = 0
+        self.rng = np.random.default_rng(seed)
+
+    def solve(self, A, b, *, pattern_version=None, rtol=None):
+        tol = self.rtol if rtol is None else max(rtol, self.rtol)
+        self.rtols.append(rtol)
+        self.last_iterations = 1
+        r = self.rng.standard_normal(b.size)
+        r *= tol * np.linalg.norm(b) / np.linalg.norm(r)
+        return sp.linalg.spsolve(sp.csc_matrix(A), b - r)
+
+
+def test_forcing_term_follows_the_gradient_and_is_capped():
+    from solvers.newton import forcing_term
+
+    assert forcing_term(1.0, None, None, 1e-2) == 1e-2  # first iteration: the cap
+    # quadratic in the gradient ratio (Eisenstat-Walker choice 2, gamma 0.9)
+    assert forcing_term(1e-3, 1.0, 1e-2, 1e-2) == pytest.approx(0.9e-6)
+    assert forcing_term(0.5, 1.0, 1e-2, 1e-2) == 1e-2  # capped
+    # safeguard: a large previous eta keeps the next one from collapsing
+    assert forcing_term(1e-3, 1.0, 0.5, 0.9) == pytest.approx(0.9 * 0.25)
+
+
+def test_inexact_solves_follow_newton_and_the_deciding_increment_is_exact():
+    rng = np.random.default_rng(2)
+    n = 50
+    x0 = 4.0 * rng.standard_normal(n)
+    c = rng.standard_normal(n)
+    spy = _InexactSpy()
+    res = minimize(LogCoshChain(c), x0, options=NewtonOptions(tol=1e-11), linear_solver=spy)
+    assert res.success, res.message
+    np.testing.assert_allclose(res.jac, 0.0, atol=1e-10)
+    handed = [r for r in spy.rtols if r is not None]
+    assert handed[0] == NewtonOptions().linear_rtol_max
+    assert min(handed) < 1e-4 * handed[0]  # tightened as the gradient fell
+    assert spy.rtols[-1] is None  # the increment that stopped Newton: the solver's floor
+    assert res.linear_iterations == len(spy.rtols)
+    # the same minimiser as exact solves
+    exact = minimize(
+        LogCoshChain(c), x0, options=NewtonOptions(tol=1e-11), linear_solver=ScipySolver()
+    )
+    np.testing.assert_allclose(res.x, exact.x, atol=1e-9)
+
+
+def test_a_direct_solver_gets_no_rtol():
+    rng = np.random.default_rng(3)
+    calls = []
+
+    class Direct(ScipySolver):
+        def solve(self, A, b, *, pattern_version=None, **kwargs):
+            calls.append(kwargs)
+            return super().solve(A, b, pattern_version=pattern_version)
+
+    res = minimize(LogCoshChain(rng.standard_normal(20)), np.zeros(20), linear_solver=Direct())
+    assert res.success and calls and all(k == {} for k in calls)
