@@ -27,6 +27,7 @@ BENCHMARKS = {
     "perf_fem": "benchmarks.perf_fem",
     "perf_mpm": "benchmarks.perf_mpm",
     "perf_3d": "benchmarks.perf_3d",
+    "perf_threads": "benchmarks.perf_threads",
     "rings": "benchmarks.rings",
     "sine_boundary": "benchmarks.sine_boundary",
     "slope": "benchmarks.slope",

@@ -211,6 +211,24 @@ def _accept_near_solution(
     return LineSearchResult(success=True, alpha=alpha0, x=trial, fun=fun, nfev=1, n_nonfinite=0)
 
 
+def _chord_increment(
+    solver: LinearSolver, g_free: np.ndarray, timings: dict[str, float]
+) -> np.ndarray | None:
+    """The increment ``-H_old^{-1} g`` (free DOFs) with the last factorisation, or None.
+
+    After a full Newton step the Hessian has changed by O(||p||); the back-solve costs a
+    fraction of a factorisation and decides most convergence tests (a step that ends in one
+    iteration otherwise pays two factorisations, measured on perf_3d: 2.9x the factorisation
+    per Newton iteration).
+    """
+    again = getattr(solver, "solve_again", None)
+    if again is None or g_free.size == 0:
+        return None
+    with _timed(timings, "solve"):
+        p = again(-g_free)
+    return None if p is None or not np.all(np.isfinite(p)) else np.asarray(p, dtype=np.float64)
+
+
 def _increment_norm(
     objective: Objective, p_free: np.ndarray, free: np.ndarray | None, n: int
 ) -> float:
@@ -315,6 +333,7 @@ def minimize(
     # An inexact solver (CG) stops at the forcing term eta_k, tied to Newton's progress.
     inexact = bool(getattr(solver, "accepts_rtol", False))
     g_norm_prev = eta = None
+    chord_ready = False  # the last factorisation is this solve's, and its step was full
     while True:
         with _timed(timings, "gradient"):
             grad = np.asarray(objective.gradient(x), dtype=np.float64)
@@ -325,6 +344,18 @@ def minimize(
         g_free = grad if free is None else grad[free]
         if not np.all(np.isfinite(g_free)):
             return finish(NewtonStatus.NON_FINITE, f"non-finite gradient at iteration {res.nit}")
+        if chord_ready and options.chord_stop_factor > 0.0:
+            p_chord = _chord_increment(solver, g_free, timings)
+            if p_chord is not None:
+                p_inf = _increment_norm(objective, p_chord, free, n)
+                if p_inf / options.step_scale < options.chord_stop_factor * options.tol:
+                    res.step_inf_norm = p_inf
+                    return finish(
+                        NewtonStatus.CONVERGED,
+                        f"chord test: ||p||_inf / step_scale = {p_inf / options.step_scale:.3e}"
+                        f" < {options.chord_stop_factor:g} tol = {options.tol:.3e} with the last"
+                        f" factorisation, E = {energy:.10e}",
+                    )
         rtol = None
         if inexact:
             g_norm = float(np.linalg.norm(g_free))
@@ -457,6 +488,7 @@ def minimize(
         energy = search.fun
         res.nit += 1
         try_exact = options.project_psd and options.exact_near_solution and search.alpha == 1.0
+        chord_ready = search.alpha == 1.0
         res.alphas.append(search.alpha)
         res.x = x
         res.fun = energy

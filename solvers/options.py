@@ -49,6 +49,12 @@ class NewtonOptions:
             iteration is the Eisenstat-Walker forcing term (:func:`solvers.newton.forcing_term`)
             capped here and floored at the solver's own ``rtol``; the increment that passes the
             stopping test is re-solved at that floor. Direct solvers ignore it.
+        chord_stop_factor: after a full step (alpha = 1), first test convergence with the last
+            factorisation (a back-solve ``p = -H_old^{-1} g``, no new factorisation, with solvers
+            that have ``solve_again``): stop when ``||p||_inf / step_scale < chord_stop_factor *
+            tol``, in [0, 1]; 0 turns the test off. The stale Hessian misjudges p by a relative
+            O(||H_new - H_old|| ||H^{-1}||); the factor below 1 leaves room for it, and where the
+            chord says no, the exact test runs as before.
     """
 
     tol: float = 1e-6
@@ -60,6 +66,7 @@ class NewtonOptions:
     project_psd: bool = True
     exact_near_solution: bool = True
     linear_rtol_max: float = 1e-2
+    chord_stop_factor: float = 0.5
 
     def __post_init__(self) -> None:
         _check_positive_finite("tol", self.tol)
@@ -82,6 +89,9 @@ class NewtonOptions:
             raise ValueError(
                 f"NewtonOptions.linear_rtol_max must be in (0, 1), got {self.linear_rtol_max!r}"
             )
+        c = self.chord_stop_factor
+        if isinstance(c, bool) or not isinstance(c, (int, float)) or not 0.0 <= c <= 1.0:
+            raise ValueError(f"NewtonOptions.chord_stop_factor must be in [0, 1], got {c!r}")
         _check_positive_finite("min_step", self.min_step)
         if self.min_step > 1.0:
             raise ValueError(f"NewtonOptions.min_step must be in (0, 1], got {self.min_step!r}")

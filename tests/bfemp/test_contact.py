@@ -455,7 +455,8 @@ def test_friction_loop_stops_by_back_solve_with_the_same_result(monkeypatch):
         sim = bfemp.Simulation(block_on_floor(0.5), dt=5e-3, tol=1e-6)
         sim.run(0.1, progress=False)
         sims[cheap] = sim
-    assert np.abs(sims[True].state.mpm_x - sims[False].state.mpm_x).max() < 1e-9
+    # both are Newton solutions to tol * dt = 5e-9 m per step (measured: 1.6e-9 m after 20)
+    assert np.abs(sims[True].state.mpm_x - sims[False].state.mpm_x).max() < 1e-6 * 5e-3
     start = sims[True].model.initial_state().mpm_x
     drift = sims[True].state.mpm_x[:, 0].mean() - start[:, 0].mean()
     # tan(slope) = 2 / 9.81 < mu: it sticks (frictionless it would slide 1e-2 m; the soft

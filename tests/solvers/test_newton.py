@@ -152,7 +152,11 @@ def test_quadratic_converges_in_one_iteration():
     np.testing.assert_allclose(res.x, np.linalg.solve(A.toarray(), b), rtol=1e-10, atol=1e-12)
     np.testing.assert_allclose(res.jac, 0.0, atol=1e-9)
     assert res.fun == pytest.approx(obj.value(res.x))
-    assert res.nfev == 2 and res.njev == 2 and res.nhev == 2
+    # one Hessian: the convergence test after the full step is the chord back-solve
+    assert res.nfev == 2 and res.njev == 2 and res.nhev == 1
+    assert "chord test" in res.message
+    off = minimize(obj, np.zeros(n), options=NewtonOptions(tol=1e-9, chord_stop_factor=0.0))
+    assert off.success and off.nhev == 2  # without it: a second Hessian for the test
     assert set(res.timings) == set(TIMING_KEYS)
     assert all(v >= 0.0 for v in res.timings.values())
     parts = sum(v for k, v in res.timings.items() if k != "total")
@@ -526,3 +530,31 @@ def test_a_direct_solver_gets_no_rtol():
 
     res = minimize(LogCoshChain(rng.standard_normal(20)), np.zeros(20), linear_solver=Direct())
     assert res.success and calls and all(k == {} for k in calls)
+
+
+def test_chord_test_stops_only_below_the_tolerance_and_agrees_with_the_exact_one():
+    rng = np.random.default_rng(2)
+    n = 50
+    c, x0 = rng.standard_normal(n), 4.0 * rng.standard_normal(n)
+    for tol in (1e-6, 1e-9, 1e-11):
+        on = minimize(
+            LogCoshChain(c), x0, options=NewtonOptions(tol=tol), linear_solver=CholmodSolver()
+        )
+        off = minimize(
+            LogCoshChain(c),
+            x0,
+            options=NewtonOptions(tol=tol, chord_stop_factor=0.0),
+            linear_solver=CholmodSolver(),
+        )
+        assert on.success and off.success
+        assert on.nhev < off.nhev  # a factorisation saved
+        # the exact increment at the returned point is below the tolerance too
+        obj = LogCoshChain(c)
+        obj.solution_changed(on.x)
+        H = obj.hessian(on.x, psd=False)
+        Hm = sp.csc_matrix((H.vals, (H.rows, H.cols)), shape=(n, n))
+        p = sp.linalg.spsolve(Hm, -obj.gradient(on.x))
+        assert np.abs(p).max() < tol
+        np.testing.assert_allclose(on.x, off.x, atol=10 * tol)
+    with pytest.raises(ValueError, match="chord_stop_factor"):
+        NewtonOptions(chord_stop_factor=1.5)

@@ -1,0 +1,122 @@
+"""Thread counts of BLAS (under CHOLMOD) and numba (assembly), measured both ways (issue 13).
+
+A barrier step runs its numba kernels (local Hessians, assembly, CCD) and CHOLMOD's BLAS one
+after the other, never at once, so both pools may use every core without oversubscribing them
+in principle; OpenBLAS's worker threads spin for a while after each call, though, and may slow
+the numba kernels that follow. Each combination of ``OPENBLAS_NUM_THREADS``/``MKL_NUM_THREADS``
+and ``NUMBA_NUM_THREADS`` in {1, cores} runs in its own child process (pool sizes are fixed at
+start-up), on the same scenes: a 3D MPM block on a slip floor and a 3D FEM block
+(``perf_mpm``/``perf_fem`` scenes), one warm-up step and then the best of ``repeats`` timed
+steps. The record names the fastest combination per scene and compares it with the library's
+default (no variable set: both pools at the core count).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+from benchmarks.common import environment, write_json
+
+log = logging.getLogger(__name__)
+
+NAME = "perf_threads"
+
+MODES = {
+    "quick": {"mpm3d": ((8, 8, 4), 8), "fem3d": (6, 4, 4), "repeats": 2},
+    "full": {"mpm3d": ((14, 14, 7), 8), "fem3d": (16, 8, 8), "repeats": 3},
+    # what tests/benchmarks/test_perf_threads.py runs
+    "smoke": {"mpm3d": ((4, 4, 2), 8), "fem3d": (3, 2, 2), "repeats": 1},
+}
+
+_CHILD = """
+import json, sys, time
+import numba
+from benchmarks import perf_fem, perf_mpm
+from bfemp.integrators import BACKWARD_EULER
+from bfemp.steppers.barrier import BarrierOptions, BarrierStepper
+from solvers.blas import cholmod_blas
+cfg = json.loads(sys.argv[1])
+scenes = {
+    "mpm3d": (perf_mpm._scene(3, tuple(cfg["mpm3d"][0]), cfg["mpm3d"][1]), 0.01),
+    "fem3d": (perf_fem._scene(3, tuple(cfg["fem3d"])), 0.05),
+}
+blas = cholmod_blas()
+out = {"blas": blas.name, "blas_threads": blas.threads, "numba_threads": numba.get_num_threads(),
+       "step_s": {}}
+for name, (scene, dt) in scenes.items():
+    model = scene.build()
+    stepper = BarrierStepper(model, integrator=BACKWARD_EULER, dt=dt,
+                             options=BarrierOptions(tol=1e-4))
+    state0 = stepper.initialize(model.initial_state())
+    stepper.step(state0)  # warm-up: numba compilation (cached) and the symbolic analysis
+    best = float("inf")
+    for _ in range(cfg["repeats"]):
+        t = time.perf_counter()
+        stepper.step(state0)
+        best = min(best, time.perf_counter() - t)
+    out["step_s"][name] = best
+print(json.dumps(out))
+"""
+
+_POOL_VARS = ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "OMP_NUM_THREADS", "NUMBA_NUM_THREADS")
+
+
+def _child(cfg: dict, blas_threads: int | None, numba_threads: int | None) -> dict:
+    root = Path(__file__).resolve().parents[1]
+    env = {k: v for k, v in os.environ.items() if k not in _POOL_VARS}
+    env["PYTHONPATH"] = os.pathsep.join([str(root), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
+    if blas_threads is not None:
+        env["OPENBLAS_NUM_THREADS"] = env["MKL_NUM_THREADS"] = str(blas_threads)
+    if numba_threads is not None:
+        env["NUMBA_NUM_THREADS"] = str(numba_threads)
+    done = subprocess.run(
+        [sys.executable, "-c", _CHILD, json.dumps(cfg)],
+        capture_output=True,
+        text=True,
+        env=env,
+        check=True,
+        timeout=3600,
+    )
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def run(mode: str = "full", out: str | Path = "results") -> dict:
+    """Time the scenes under each thread combination; write ``perf_threads[_MODE].json``."""
+    if mode not in MODES:
+        raise ValueError(f"perf_threads mode must be one of {sorted(MODES)}, got {mode!r}")
+    cfg = MODES[mode]
+    cores = os.cpu_count() or 1
+    combos = {"default": (None, None)}
+    for b in sorted({1, cores}):
+        for nb in sorted({1, cores}):
+            combos[f"blas{b}_numba{nb}"] = (b, nb)
+    rows = {name: _child(cfg, *threads) for name, threads in combos.items()}
+    scenes = list(rows["default"]["step_s"])
+    fastest = {s: min(rows, key=lambda r: rows[r]["step_s"][s]) for s in scenes}
+    record = {
+        "benchmark": NAME,
+        "mode": mode,
+        "cores": cores,
+        "parameters": dict(cfg),
+        "rows": rows,
+        "fastest": fastest,
+        "default_over_fastest": {
+            s: rows["default"]["step_s"][s] / rows[fastest[s]]["step_s"][s] for s in scenes
+        },
+        "environment": environment(),
+    }
+    path = write_json(out, NAME if mode == "full" else f"{NAME}_{mode}", record)
+    for s in scenes:
+        log.info(
+            "%s: fastest %s (%.3f s per step), default %.3f s",
+            s,
+            fastest[s],
+            rows[fastest[s]]["step_s"][s],
+            rows["default"]["step_s"][s],
+        )
+    return {**record, "json": str(path)}
