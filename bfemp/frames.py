@@ -35,6 +35,15 @@ class NodeFrames:
         # rotate()'s pattern work for the index arrays it saw last (same objects: reused)
         self._pattern: tuple | None = None
 
+    def same_as(self, other: NodeFrames) -> bool:
+        """Whether ``other`` rotates the same nodes into the same frames (bit-for-bit)."""
+        return (
+            self.dim == other.dim
+            and self.n_dof == other.n_dof
+            and np.array_equal(self.nodes, other.nodes)
+            and np.array_equal(self.frames, other.frames)
+        )
+
     def to_local(self, x: np.ndarray) -> np.ndarray:
         """y ``(n_dof,)`` with y_i = Q_i^T x_i on rotated nodes (also maps gradients)."""
         y = x.copy().reshape(-1, self.dim)

@@ -73,7 +73,10 @@ class IncrementalPotential:
             st = ctx.mpm.stencils
             spacing = ctx.model.grid.dx
             self._particles = (st.nodes, st.weights, st.grads, ctx.mpm.node_offset, spacing)
-        self.frames = frames if frames is not None and frames.nodes.size else None
+        frames = frames if frames is not None and frames.nodes.size else None
+        if frames is not None and self.frames is not None and frames.same_as(self.frames):
+            frames = self.frames  # the last step's frames, with their rotated pattern kept
+        self.frames = frames
         self.fixed_dofs = None
         if self.frames is not None:
             self.fixed_dofs = np.zeros(self.n_dof, dtype=bool)

@@ -102,8 +102,16 @@ class MpmElasticityTerm(ElasticityTerm):
         cols = (dof_col[:, None, None] * d + comp[None, None, :]) * np.ones((d, 1), dtype=np.int64)
         keep = ((dof_row >= 0) & (dof_col >= 0))[:, None, None] & np.ones((d, d), dtype=bool)
         self._keep = keep.reshape(-1)
-        self._rows = np.ascontiguousarray(rows.reshape(-1)[self._keep])
-        self._cols = np.ascontiguousarray(cols.reshape(-1)[self._keep])
+        rows = np.ascontiguousarray(rows.reshape(-1)[self._keep])
+        cols = np.ascontiguousarray(cols.reshape(-1)[self._keep])
+        # Where the active grid and its node pairs are those of the last step (a body at rest
+        # or moving within its cells), the last arrays are kept: the stacked, rotated and
+        # assembled patterns downstream key on these very objects and are reused.
+        last = getattr(self, "_rows", None)
+        if not (
+            last is not None and np.array_equal(rows, last) and np.array_equal(cols, self._cols)
+        ):
+            self._rows, self._cols = rows, cols
 
     def hessian(self, x: np.ndarray, psd: bool) -> Triplets:
         """Node-pair blocks accumulated over particles, dP/dF projected to PSD when ``psd``."""

@@ -123,6 +123,7 @@ class ElasticityTerm:
         self.name = name
         self._source = stencils
         self._pattern_key: tuple[int, int] | None = None
+        self._dofs: np.ndarray | None = None
         if isinstance(stencils, ElasticStencils):
             self.stencils = stencils
 
@@ -135,7 +136,12 @@ class ElasticityTerm:
         if key != self._pattern_key:
             self.stencils = fresh
             dofs = layout.stencil_dofs(fresh.nodes)
-            self._rows, self._cols, self._keep = block_pattern(dofs)
+            # A new layout each step usually numbers the DOFs as the last one did: then the
+            # pattern arrays are kept, and with them the stacked and assembled patterns
+            # downstream (TripletStacker, TripletAssembler), which key on these very arrays.
+            if self._dofs is None or not np.array_equal(dofs, self._dofs):
+                self._rows, self._cols, self._keep = block_pattern(dofs)
+                self._dofs = dofs
             self._pattern_key = key
         self._layout = layout
         self._fixed = ctx.fixed_positions

@@ -19,8 +19,10 @@ class InertiaTerm:
         """Take x_hat ``(n_dof,)`` m and the lumped DOF masses ``(n_dof,)`` kg of this step."""
         self._x_hat = ctx.x_hat
         self._mass = ctx.dof_mass
-        diag = np.arange(ctx.layout.n_dof, dtype=np.int64)
-        self._diag = diag
+        n = ctx.layout.n_dof
+        # the same index array while the size holds: the stacked pattern downstream is kept
+        if getattr(self, "_diag", None) is None or self._diag.size != n:
+            self._diag = np.arange(n, dtype=np.int64)
 
     def solution_changed(self, x: np.ndarray) -> None:
         """Nothing to cache."""
