@@ -1,6 +1,7 @@
 """Index arrays of a fixed pattern reused by identity: stacking, frame rotation, assembly."""
 
 import numpy as np
+import pytest
 
 from bfemp.frames import NodeFrames
 from solvers.assembly import TripletAssembler, Triplets, TripletStacker
@@ -90,3 +91,31 @@ def test_barrier_stepper_keeps_the_hessian_pattern_across_steps():
     # FEM only: the Hessian's pattern never changes, so it was built once for all steps
     assert stepper._solver._assembler.n_rebuilds == 1
     assert getattr(stepper.linear_solver, "n_symbolic", 1) == 1
+
+
+@pytest.mark.parametrize("kind", ["fem", "mpm_on_slip_floor"])
+def test_triplet_index_arrays_are_the_same_objects_from_step_to_step(kind):
+    """Where the DOF numbering holds, the terms hand the same index arrays each step, so the
+    stacked (and, with slip frames, rotated) pattern is not rebuilt (it cost 0.33 + 0.26 s a
+    step on the 3D perf_fem mesh and 0.19 s on the 3D perf_mpm block, measured)."""
+    from benchmarks import perf_fem, perf_mpm
+    from bfemp.integrators import BACKWARD_EULER
+    from bfemp.steppers.barrier import BarrierOptions, BarrierStepper
+
+    if kind == "fem":
+        model, dt = perf_fem._scene(2, (12, 3)).build(), 0.05
+    else:
+        model, dt = perf_mpm._scene(2, (8, 8), 4).build(), 0.01
+    stepper = BarrierStepper(
+        model, integrator=BACKWARD_EULER, dt=dt, options=BarrierOptions(tol=1e-6)
+    )
+    state = stepper.initialize(model.initial_state())
+    seen = []
+    for _ in range(3):
+        state, _ = stepper.step(state)
+        pot = stepper._solver.potential
+        seen.append((pot.frames, pot._stacker._rows))
+    assert seen[1][1] is not None and seen[1][1] is seen[2][1]  # the stacked rows: kept
+    if kind != "fem":
+        assert seen[1][0] is not None  # the slip floor rotates the bottom nodes
+        assert seen[1][0] is seen[2][0]  # frames kept, with their rotated pattern
