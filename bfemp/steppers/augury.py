@@ -104,6 +104,10 @@ class AuguryOptions(ExplicitOptions):
             at corners and edges the averaged normal is tilted, so that the normal part of a
             sliding drag is kept as a push: measured, a block on a 30 degree ramp at mu = 0
             then barely slides).
+        energy_guard: stop the augury iterations before an iterate with more generalised
+            kinetic energy than the prediction V-bar (bfemp's; ``bfemp.contact.augury``: with
+            friction and N > 1 the iterations were measured to inject energy, a block at
+            mu = 0.7 then left a 30 degree incline; N = 1 was measured never to gain).
         cfl_safety_fem: safety factor on the FEM bound h_min / c_p, in (0, 1].
         cfl_safety_mpm: safety factor on the MPM bound dx / (c_p + |v_p|), in (0, 1].
     """
@@ -123,6 +127,7 @@ class AuguryOptions(ExplicitOptions):
     region: str = "all"
     penetration_check_every: int = 1
     normals: str = "own"
+    energy_guard: bool = True
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -153,7 +158,7 @@ class AuguryOptions(ExplicitOptions):
             value = getattr(self, field_name)
             if value not in allowed:
                 raise ValueError(f"{name}.{field_name} must be one of {allowed}, got {value!r}")
-        for field_name in ("kinematic_foreground", "mpm_foreground"):
+        for field_name in ("kinematic_foreground", "mpm_foreground", "energy_guard"):
             if not isinstance(getattr(self, field_name), bool):
                 raise ValueError(f"{name}.{field_name} must be True or False")
 
@@ -401,6 +406,7 @@ class AuguryStepper(ExplicitStepper):
         a_hat = np.zeros((n_all, d))
         shared_count = 0
         h_applications = 0
+        stats = {"iterations": 0}
         if n_all:
             x = np.concatenate(parts_x)
             m = np.concatenate(parts_m)
@@ -448,6 +454,8 @@ class AuguryStepper(ExplicitStepper):
                     self.options.mode,
                     self.mu,
                     movable[sel],
+                    energy_guard=self.options.energy_guard,
+                    stats=stats,
                 )
                 v_hat[sel], B_hat[sel] = v_s, B_s
                 h_applications = op.applications
@@ -489,7 +497,11 @@ class AuguryStepper(ExplicitStepper):
         report = replace(
             report,
             message="explicit step with augury contact",
-            iterations={"augury": self.options.iterations, "h_applications": h_applications},
+            iterations={
+                "augury": self.options.iterations,
+                "augury_taken": stats["iterations"],
+                "h_applications": h_applications,
+            },
             timings=timings,
             contact_pairs=shared_count,
             notes=tuple(notes),
