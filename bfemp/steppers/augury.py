@@ -198,6 +198,9 @@ class AuguryStepper(ExplicitStepper):
         self._steps = 0
         #: steps whose foreground shared a contact node between bodies
         self.steps_with_contact = 0
+        #: largest INTERPENETRATION depth seen so far, in m (distance of a point inside a cell
+        #: of another body to that cell's nearest face; 0 while none was found)
+        self.max_penetration_depth = 0.0
 
     # ------------------------------------------------------------------ construction
     def _setup_foreground(self) -> None:
@@ -554,9 +557,12 @@ class AuguryStepper(ExplicitStepper):
         inside = found >= 0
         if not inside.any():
             return []
+        depth_m = float(_depth_in_cell(np.concatenate(pts)[inside], cells[found[inside]]).max())
+        self.max_penetration_depth = max(self.max_penetration_depth, depth_m)
         return [
             f"INTERPENETRATION: {int(inside.sum())} foreground points strictly inside a cell of "
-            f"another body (deepest barycentric depth {float(depth.max()):.3g})"
+            f"another body (deepest barycentric depth {float(depth.max()):.3g}, "
+            f"{depth_m:.3g} m from that cell's nearest face)"
         ]
 
     def _store_contact(self, a_hat: np.ndarray, shared_count: int, n_fem: int) -> None:
@@ -591,6 +597,16 @@ def _normalize(v: np.ndarray) -> np.ndarray:
     out = np.zeros_like(v)
     np.divide(v, norm[:, None], out=out, where=norm[:, None] > 0.0)
     return out
+
+
+def _depth_in_cell(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """Distance in m of each point ``(Q, d)`` inside its simplex ``(Q, d + 1, d)`` to the
+    simplex's nearest face: min_j lambda_j / |grad lambda_j| (barycentric lambda)."""
+    inv = np.linalg.inv(np.swapaxes(cells[:, 1:] - cells[:, :1], 1, 2))  # rows: grad lambda_1..d
+    lam = np.einsum("qab,qb->qa", inv, points - cells[:, 0])
+    grads = np.concatenate([-inv.sum(axis=1, keepdims=True), inv], axis=1)  # (Q, d + 1, d)
+    lam = np.concatenate([1.0 - lam.sum(axis=1, keepdims=True), lam], axis=1)
+    return (lam / np.linalg.norm(grads, axis=2)).min(axis=1)
 
 
 def _face_key(faces_sorted: np.ndarray, n: int) -> np.ndarray:

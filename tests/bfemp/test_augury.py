@@ -227,6 +227,19 @@ def test_interpenetration_is_reported_by_name():
         _, report = stepper.step(stepper.initialize(model.initial_state()))
         names = [n.split(":")[0] for n in report.notes]
         assert ("INTERPENETRATION" in names) == expected
+        # the depth in metres: within the 0.03 m overlap (nearest face of the containing cell)
+        assert (0.0 < stepper.max_penetration_depth <= 0.03 + 1e-9) == expected
+
+
+def test_penetration_depth_is_the_distance_to_the_cells_nearest_face():
+    from bfemp.steppers.augury import _depth_in_cell
+
+    tri = np.array([[[0.0, 0.0], [2.0, 0.0], [0.0, 2.0]]])
+    # centroid: 2/3 from both legs, (2 - 4/3) / sqrt 2 from the hypotenuse
+    got = _depth_in_cell(np.array([[2.0 / 3.0, 2.0 / 3.0]]), tri)
+    assert got[0] == pytest.approx((2.0 - 4.0 / 3.0) / np.sqrt(2.0), rel=1e-12)
+    tet = np.array([[[0.0, 0, 0], [1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0]]])
+    assert _depth_in_cell(np.array([[0.1, 0.2, 0.3]]), tet)[0] == pytest.approx(0.1, rel=1e-12)
 
 
 def test_registered_and_bad_options_refused_by_name():
