@@ -28,8 +28,10 @@ at fixed N, dt proportional to h and a surface mass fraction proportional to h, 
 unit time does not fall with h. A block sliding frictionlessly at 1 m/s over a slab (grid_dx
 0.05 m, 200 steps of 1e-4 s) kept 0.839 / 0.876 / 0.938 / 0.980 / 0.999 m/s with N = 1 / 3 /
 10 / 30 / 100 and averaged normals, 0.932 / 0.945 / 0.980 / 0.997 / 0.9994 m/s with
-``normals="facing"``; with averaged normals it also rose at 0.10 m/s (the bottom corners' 45
-degree normals turn the drag into a push; facing: 0.014 m/s). Static friction goes the other
+``normals="facing"`` (without the energy guard; with it averaged N = 30 keeps 0.974, the rest
+of N = 1 / 10 / 30 as before; ``benchmarks/augury_probes.py`` reproduces these, the settled
+N = 1 / 30 and the energy-guard numbers below); with averaged normals it also rose at 0.10 m/s
+(the bottom corners' 45 degree normals turn the drag into a push; facing: 0.014 m/s). Static friction goes the other
 way: a settled block on a plate under gravity tilted 30 degrees (h = 0.5 m, mu = 0.7) crept
 2.6e-3 m in 0.05 s with N = 1 (accelerating; the carried B grew from 1e-3 to 0.047 m^2/s under
 the sustained load, i.e. C = B D^-1 of about 3 1/s; with B zeroed after every step the slip was
