@@ -17,6 +17,7 @@ import sys
 BENCHMARKS = {
     "augury_blocks": "benchmarks.augury_blocks",
     "augury_gap": "benchmarks.augury_gap",
+    "augury_probes": "benchmarks.augury_probes",
     "augury_ramp": "benchmarks.augury_ramp",
     "augury_speed": "benchmarks.augury_speed",
     "extremes": "benchmarks.extremes",

@@ -16,9 +16,41 @@ dv . n > 0 (a tensile correction, pulling the particle toward the other body), e
 dv^t = (I - n n^T) dv, s = min(|dv^t|, -mu dv.n), dv^u = dv^t - s dv^t/|dv^t| where
 dv . n <= 0, dv^u = dv otherwise; dB^u = dB always.
 
-Measured limit of one iteration: W is removed only in part where contact nodes are touched by
-one body alone (they carry its W back through H W). A block sliding frictionlessly at 1 m/s over
-a slab (2D, grid_dx 0.05 m, APIC) kept 0.84 / 0.88 / 0.94 m/s after 0.02 s with N = 1 / 3 / 10.
+Measured limits (issue 14; 2D probes, APIC, the 3D ramp behaves alike). With mu = 0 and a fixed
+set of tensile particles the undesirable part is P e (P: the per-particle tangential projection)
+and P e_{m+1} = P H P e_m. H is self-adjoint in the (generalised) mass inner product (checked
+numerically to 4e-13; not idempotent) with 0 <= H <= I (non-expansive), so this converges to 0
+(an eigenvector of P H P with eigenvalue 1 is fixed by H, and P e_0 = P (H - I) V-bar is
+orthogonal to every such field), but slowly where P H P has eigenvalues near 1. H acts on the
+whole V-bar, not on its increment, so every step re-mixes the full sliding velocity of the two
+bodies at their shared nodes and N iterations leave a fixed fraction of it: at fixed N, dt
+proportional to h and a surface mass fraction proportional to h, the loss per unit time does not
+fall with h. A block sliding frictionlessly at 1 m/s over a slab (grid_dx 0.05 m, 200 steps of
+1e-4 s) kept 0.839 / 0.876 / 0.938 / 0.980 / 0.999 m/s with N = 1 / 3 / 10 / 30 / 100 and
+averaged normals, 0.932 / 0.945 / 0.980 / 0.997 / 0.9994 m/s with ``normals="facing"`` (without
+the energy guard; with it averaged N = 30 keeps 0.974, the rest of N = 1 / 10 / 30 as before;
+``benchmarks/augury_probes.py`` reproduces these, the settled N = 1 / 30 and the energy-guard
+numbers below); with averaged normals it also rose at 0.10 m/s (the bottom corners' 45 degree
+normals turn the drag into a push; facing: 0.014 m/s). Static friction goes the other way: a
+settled block on a plate under gravity tilted 30 degrees (h = 0.5 m, mu = 0.7) crept 2.6e-3 m in
+0.05 s with N = 1 (accelerating; the carried B grew from 1e-3 to 0.047 m^2/s under the sustained
+load, i.e. C = B D^-1 of about 3 1/s; with B zeroed after every step the slip was 2.7e-4 m and
+stopped growing, at h = 0.25 m though 4.0e-3 m) and 1.4e-2 to 2.2e-2 m with N = 5 to 30 (B
+zeroed or not; PIC with N = 30: 1.3e-2 m): the iterations that free the sliding also free the
+sticking. Even mu = 3 with N = 30 (B zeroed) let the block's bottom move 1.8e-3 to 4.0e-3 m back
+and forth against the plate, against 8e-5 m with N = 1. A thick (equal-mass) plate, grid_dx from
+0.25 h to 2 h and the thin ramp's light nodes do not change the picture.
+
+Energy guard (bfemp's, ``energy_guard=True``): an iterate V^_{m+1} whose generalised kinetic
+energy 1/2 sum m (|v|^2 + B D^-1 : B) exceeds that of V-bar is not taken, the iterations stop at
+V^_m. Measured (2D block on a plate under gravity tilted 30 degrees, h = 0.5 m, mu = 0.7, N =
+10, "facing" normals): without it the correction added 6.9e6 J of kinetic energy over 4,000
+steps (1,255 steps gaining, up to 0.9 % of the predicted energy in one step) and the block left
+the plate (its centre rose 0.24 m in 0.1 s; N = 30: 0.35 m). Not explained; eq. 44 keeps the
+normal part of a change outside the cone, so H W can add normal pushes that widen the cone (the
+orthogonal projection onto the cone instead gained more: 2.1e7 J). mu = 0 with N = 10 gained
+16 J (round-off level) and N = 1 never gained. Every partial sum V^_m conserves momentum,
+so the guard keeps the conservation.
 
 Every G = H - I term carries no net linear momentum (both transfers) and, with APIC and the B
 term, no net angular momentum (eq. 36), so A^ carries none whatever N and the mode.
@@ -197,6 +229,14 @@ class ContactOperator:
             self.D_inv = np.zeros((self.x.shape[0], d, d))
         self._zero_C = np.zeros((self.x.shape[0], d, d))
 
+    def kinetic_energy(self, v: np.ndarray, B: np.ndarray) -> float:
+        """Generalised kinetic energy 1/2 sum_p m_p (|v_p|^2 + B_p D_p^-1 : B_p) in J of
+        ``v (P, d)`` and ``B (P, d, d)`` (PIC: the velocity term only)."""
+        e = np.einsum("p,pd,pd->", self.mass, v, v)
+        if self.apic:
+            e += np.einsum("p,pab,pbc,pac->", self.mass, B, self.D_inv, B)
+        return 0.5 * float(e)
+
     def apply(self, v: np.ndarray, B: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """H {v, B}: ``(v~ (P, d), B~ (P, d, d))``; B~ is zero for PIC."""
         st = self.stencils
@@ -278,15 +318,21 @@ def augury_correction(
     mode: str,
     mu: float,
     movable: np.ndarray | None = None,
+    energy_guard: bool = False,
+    stats: dict | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """V^_N from the prediction V-bar (eqs. 29, 36-46): ``(v^ (P, d), B^ (P, d, d))``.
 
     ``movable (P,)`` bool: particles that take a correction (kinematic foreground has False:
-    its undesirable part is zero, its V^ is discarded by the caller).
+    its undesirable part is zero, its V^ is discarded by the caller). ``energy_guard``: stop
+    before an iterate with more generalised kinetic energy than V-bar (module docstring).
+    ``stats``: when given, receives ``"iterations"`` (the iterations taken).
     """
     v_hat, B_hat = op.apply(v_bar, B_bar)
     if not op.apic:
         B_bar = np.zeros_like(B_hat)
+    e_bar = op.kinetic_energy(v_bar, B_bar) if energy_guard else 0.0
+    taken = 0
     for _ in range(iterations):
         w_v, w_B = undesirable(v_hat - v_bar, B_hat - B_bar, normals, mode, mu)
         if not op.apic:
@@ -295,6 +341,12 @@ def augury_correction(
             w_v[~movable] = 0.0
             w_B[~movable] = 0.0
         hw_v, hw_B = op.apply(w_v, w_B)
-        v_hat = v_hat + hw_v - w_v
-        B_hat = B_hat + hw_B - w_B
+        v_next = v_hat + hw_v - w_v
+        B_next = B_hat + hw_B - w_B
+        if energy_guard and op.kinetic_energy(v_next, B_next) > e_bar:
+            break
+        v_hat, B_hat = v_next, B_next
+        taken += 1
+    if stats is not None:
+        stats["iterations"] = taken
     return v_hat, B_hat

@@ -82,7 +82,12 @@ class AuguryOptions(ExplicitOptions):
     Attributes:
         tau: augury time scale tau in s; None: tau = dt (AUG's choice). tau < dt / 2 is refused
             (the correction v-bar + (dt/tau) G v-bar is unstable beyond).
-        iterations: augury iterations N >= 0 (AUG: 1; N = 0 sticks).
+        iterations: augury iterations N >= 0 (AUG: 1; N = 0 sticks). Measured (issue 14,
+            ``bfemp.contact.augury``): N = 1 leaves a fixed fraction of the tangential drag
+            every step, so a frictionless slide is held back whatever h; sliding needs
+            ``normals="facing"`` and N of about 30 (2D ramp at t = 0.05 s, error 5.1 / 4.8 /
+            3.8 % at h = 1 / 0.5 / 0.25 m; 3D ramp at 0.1 s: 9 / 15.5 % at h = 1 / 0.5),
+            which then lets a block at mu = 0.7 creep (no setting tried does both).
         mode: ``"friction"`` (eqs. 40-46, Coulomb with ``mu``; mu = 0 is frictionless) or
             ``"separate"`` (eq. 38: only tensile corrections removed).
         mu: Coulomb coefficient; None takes ``scene.set_contact(mu=...)`` (0 without contact).
@@ -104,6 +109,10 @@ class AuguryOptions(ExplicitOptions):
             at corners and edges the averaged normal is tilted, so that the normal part of a
             sliding drag is kept as a push: measured, a block on a 30 degree ramp at mu = 0
             then barely slides).
+        energy_guard: stop the augury iterations before an iterate with more generalised
+            kinetic energy than the prediction V-bar (bfemp's; ``bfemp.contact.augury``: with
+            friction and N > 1 the iterations were measured to inject energy, a block at
+            mu = 0.7 then left a 30 degree incline; N = 1 was measured never to gain).
         cfl_safety_fem: safety factor on the FEM bound h_min / c_p, in (0, 1].
         cfl_safety_mpm: safety factor on the MPM bound dx / (c_p + |v_p|), in (0, 1].
     """
@@ -123,6 +132,7 @@ class AuguryOptions(ExplicitOptions):
     region: str = "all"
     penetration_check_every: int = 1
     normals: str = "own"
+    energy_guard: bool = True
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -153,7 +163,7 @@ class AuguryOptions(ExplicitOptions):
             value = getattr(self, field_name)
             if value not in allowed:
                 raise ValueError(f"{name}.{field_name} must be one of {allowed}, got {value!r}")
-        for field_name in ("kinematic_foreground", "mpm_foreground"):
+        for field_name in ("kinematic_foreground", "mpm_foreground", "energy_guard"):
             if not isinstance(getattr(self, field_name), bool):
                 raise ValueError(f"{name}.{field_name} must be True or False")
 
@@ -193,6 +203,9 @@ class AuguryStepper(ExplicitStepper):
         self._steps = 0
         #: steps whose foreground shared a contact node between bodies
         self.steps_with_contact = 0
+        #: largest INTERPENETRATION depth seen so far, in m (distance of a point inside a cell
+        #: of another body to that cell's nearest face; 0 while none was found)
+        self.max_penetration_depth = 0.0
 
     # ------------------------------------------------------------------ construction
     def _setup_foreground(self) -> None:
@@ -401,6 +414,7 @@ class AuguryStepper(ExplicitStepper):
         a_hat = np.zeros((n_all, d))
         shared_count = 0
         h_applications = 0
+        stats = {"iterations": 0}
         if n_all:
             x = np.concatenate(parts_x)
             m = np.concatenate(parts_m)
@@ -448,6 +462,8 @@ class AuguryStepper(ExplicitStepper):
                     self.options.mode,
                     self.mu,
                     movable[sel],
+                    energy_guard=self.options.energy_guard,
+                    stats=stats,
                 )
                 v_hat[sel], B_hat[sel] = v_s, B_s
                 h_applications = op.applications
@@ -489,7 +505,11 @@ class AuguryStepper(ExplicitStepper):
         report = replace(
             report,
             message="explicit step with augury contact",
-            iterations={"augury": self.options.iterations, "h_applications": h_applications},
+            iterations={
+                "augury": self.options.iterations,
+                "augury_taken": stats["iterations"],
+                "h_applications": h_applications,
+            },
             timings=timings,
             contact_pairs=shared_count,
             notes=tuple(notes),
@@ -542,9 +562,12 @@ class AuguryStepper(ExplicitStepper):
         inside = found >= 0
         if not inside.any():
             return []
+        depth_m = float(_depth_in_cell(np.concatenate(pts)[inside], cells[found[inside]]).max())
+        self.max_penetration_depth = max(self.max_penetration_depth, depth_m)
         return [
             f"INTERPENETRATION: {int(inside.sum())} foreground points strictly inside a cell of "
-            f"another body (deepest barycentric depth {float(depth.max()):.3g})"
+            f"another body (deepest barycentric depth {float(depth.max()):.3g}, "
+            f"{depth_m:.3g} m from that cell's nearest face)"
         ]
 
     def _store_contact(self, a_hat: np.ndarray, shared_count: int, n_fem: int) -> None:
@@ -579,6 +602,16 @@ def _normalize(v: np.ndarray) -> np.ndarray:
     out = np.zeros_like(v)
     np.divide(v, norm[:, None], out=out, where=norm[:, None] > 0.0)
     return out
+
+
+def _depth_in_cell(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """Distance in m of each point ``(Q, d)`` inside its simplex ``(Q, d + 1, d)`` to the
+    simplex's nearest face: min_j lambda_j / |grad lambda_j| (barycentric lambda)."""
+    inv = np.linalg.inv(np.swapaxes(cells[:, 1:] - cells[:, :1], 1, 2))  # rows: grad lambda_1..d
+    lam = np.einsum("qab,qb->qa", inv, points - cells[:, 0])
+    grads = np.concatenate([-inv.sum(axis=1, keepdims=True), inv], axis=1)  # (Q, d + 1, d)
+    lam = np.concatenate([1.0 - lam.sum(axis=1, keepdims=True), lam], axis=1)
+    return (lam / np.linalg.norm(grads, axis=2)).min(axis=1)
 
 
 def _face_key(faces_sorted: np.ndarray, n: int) -> np.ndarray:
