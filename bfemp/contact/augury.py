@@ -63,11 +63,20 @@ over copies shifted by +-dx/2, 4 nodes, D = dx^2/2 I; eq. 62's /8 is a misprint 
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
 
-from bfemp.contact._augury_kernels import g2p, p2g
+from bfemp.contact._augury_kernels import (
+    KERNEL_IDS,
+    apic_inertia,
+    compact_dense,
+    g2p,
+    index_bounds,
+    p2g,
+    stencil_weights,
+)
 
 __all__ = [
     "KERNELS",
@@ -84,34 +93,6 @@ __all__ = [
 KERNELS = {"quadratic": 3, "aug_b2avg": 4, "linear": 2}
 #: augury modes (eq. 38 and eqs. 42-46)
 MODES = ("friction", "separate")
-
-
-def _b2(r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Quadratic B-spline and its derivative at distances ``r`` (in cells)."""
-    a = np.abs(r)
-    w = np.where(a < 0.5, 0.75 - a * a, np.where(a < 1.5, 0.5 * (1.5 - a) ** 2, 0.0))
-    dw = np.where(a < 0.5, -2.0 * r, np.where(a < 1.5, -(1.5 - a) * np.sign(r), 0.0))
-    return w, dw
-
-
-def _kernel_1d(kernel: str, xi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per-axis stencils at ``xi = x / dx (P,)``: ``base (P,)``, ``w (P, K)``, ``dw/dxi (P, K)``."""
-    k = KERNELS[kernel]
-    if kernel == "quadratic":
-        base = np.floor(xi - 0.5).astype(np.int64)
-    else:
-        base = np.floor(xi).astype(np.int64) - (k // 2 - 1)
-    r = xi[:, None] - (base[:, None] + np.arange(k)[None, :])
-    if kernel == "linear":
-        w = np.clip(1.0 - np.abs(r), 0.0, None)
-        dw = np.where(np.abs(r) < 1.0, -np.sign(r), 0.0)
-    elif kernel == "quadratic":
-        w, dw = _b2(r)
-    else:
-        wa, da = _b2(r - 0.5)
-        wb, db = _b2(r + 0.5)
-        w, dw = 0.5 * (wa + wb), 0.5 * (da + db)
-    return base, w, dw
 
 
 @dataclass(frozen=True)
@@ -141,10 +122,34 @@ class ContactStencils:
         return self.node_x.shape[0]
 
 
+@functools.cache
+def _stencil_offsets(d: int, k: int) -> np.ndarray:
+    """Node offsets ``(k^d, d)`` of a tensor-product stencil, row-major."""
+    grid = np.meshgrid(*[np.arange(k)] * d, indexing="ij")
+    return np.ascontiguousarray(np.stack(grid, axis=-1).reshape(-1, d), dtype=np.int64)
+
+
+def _compact_sorted(
+    ijk: np.ndarray, lo: np.ndarray, span: np.ndarray, dx: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`compact_dense`'s result by a sort, for boxes too large for a dense map."""
+    d = ijk.shape[2]
+    strides = np.cumprod(np.concatenate([[1], span[:0:-1]]))[::-1]
+    lin = ((ijk - lo) * strides).sum(axis=-1)
+    uniq, inverse = np.unique(lin.reshape(-1), return_inverse=True)
+    node_ijk = np.empty((uniq.size, d), dtype=np.int64)
+    rest = uniq.copy()
+    for a in range(d):
+        node_ijk[:, a] = rest // strides[a]
+        rest = rest % strides[a]
+    return inverse.reshape(lin.shape).astype(np.int64), (node_ijk + lo) * dx
+
+
 def contact_stencils(x: np.ndarray, dx: float, kernel: str = "quadratic") -> ContactStencils:
     """Tensor-product stencils of the points ``x (P, d)`` on the grid of spacing ``dx`` (origin 0).
 
-    Any d >= 1 and any kernel of ``KERNELS``; vectorised (no Python loop over particles).
+    Any d >= 1 and any kernel of ``KERNELS``; numba kernels for the weights, the compact node
+    numbering (a dense map over the bounding box, a sort for far-apart points) and D_p.
     """
     x = np.ascontiguousarray(x, dtype=np.float64)
     if x.ndim != 2 or x.shape[1] < 1:
@@ -155,22 +160,8 @@ def contact_stencils(x: np.ndarray, dx: float, kernel: str = "quadratic") -> Con
         )
     n_p, d = x.shape
     k = KERNELS[kernel]
-    bases, ws, dws = [], [], []
-    for a in range(d):
-        base, w, dw = _kernel_1d(kernel, x[:, a] / dx)
-        bases.append(base)
-        ws.append(w)
-        dws.append(dw / dx)
-    # tensor product over the axes: offsets (K^d, d)
-    offsets = np.stack(np.meshgrid(*[np.arange(k)] * d, indexing="ij"), axis=-1).reshape(-1, d)
-    ijk = np.stack([bases[a][:, None] + offsets[None, :, a] for a in range(d)], axis=-1)
-    weights = np.ones((n_p, offsets.shape[0]))
-    grads = np.ones((n_p, offsets.shape[0], d))
-    for a in range(d):
-        wa = ws[a][:, offsets[:, a]]
-        weights *= wa
-        for b in range(d):
-            grads[:, :, b] *= dws[a][:, offsets[:, a]] if a == b else wa
+    offsets = _stencil_offsets(d, k)
+    ijk, weights, grads = stencil_weights(x, float(dx), KERNEL_IDS[kernel], k, offsets)
     if n_p == 0:
         return ContactStencils(
             np.zeros((0, offsets.shape[0]), np.int64),
@@ -180,20 +171,12 @@ def contact_stencils(x: np.ndarray, dx: float, kernel: str = "quadratic") -> Con
             np.zeros((0, d, d)),
             float(dx),
         )
-    lo = ijk.reshape(-1, d).min(axis=0)
-    span = ijk.reshape(-1, d).max(axis=0) - lo + 1
-    strides = np.cumprod(np.concatenate([[1], span[:0:-1]]))[::-1]
-    lin = ((ijk - lo) * strides).sum(axis=-1)
-    uniq, inverse = np.unique(lin.reshape(-1), return_inverse=True)
-    nodes = inverse.reshape(n_p, -1).astype(np.int64)
-    node_ijk = np.empty((uniq.size, d), dtype=np.int64)
-    rest = uniq.copy()
-    for a in range(d):
-        node_ijk[:, a] = rest // strides[a]
-        rest = rest % strides[a]
-    node_x = (node_ijk + lo) * float(dx)
-    rel = node_x[nodes] - x[:, None, :]  # (P, K^d, d)
-    D = np.einsum("pk,pka,pkb->pab", weights, rel, rel)
+    lo, span = index_bounds(ijk)
+    if float(np.prod(span.astype(np.float64))) <= max(1 << 20, 8 * ijk.shape[0] * ijk.shape[1]):
+        nodes, node_x = compact_dense(ijk, lo, span, float(dx))  # a dense map over the box
+    else:  # far-apart points: a sort of the linear indices
+        nodes, node_x = _compact_sorted(ijk, lo, span, float(dx))
+    D = apic_inertia(nodes, weights, node_x, x)
     return ContactStencils(nodes, weights, grads, node_x, D, float(dx))
 
 
