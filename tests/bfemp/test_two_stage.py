@@ -1,0 +1,115 @@
+"""The ``two_stage`` strategy: explicit free motion, then the contact minimisation (TS)."""
+
+import math
+
+import numpy as np
+import pytest
+
+import bfemp
+from bfemp.contact.intersection import step_intersection
+from bfemp.diagnostics import linear_momentum
+from bfemp.errors import SceneError
+from bfemp.scenefile import loads
+from bfemp.steppers import options_from_mapping
+from bfemp.steppers.two_stage import TwoStageOptions, TwoStageStepper
+
+SOFT = dict(E=1e5, nu=0.2, density=100.0)  # Pa, -, kg/m^2: c_p ~ 33 m/s
+
+
+def _block(x0, x1, y0, y1, spacing):
+    """A particle lattice ``(P, 2)`` over [x0, x1] x [y0, y1] and its volumes ``(P,)``."""
+    nx, ny = round((x1 - x0) / spacing) + 1, round((y1 - y0) / spacing) + 1
+    xs, ys = np.meshgrid(np.linspace(x0, x1, nx), np.linspace(y0, y1, ny))
+    pts = np.stack([xs.ravel(), ys.ravel()], axis=1)
+    return pts, np.full(len(pts), (x1 - x0) * (y1 - y0) / len(pts))
+
+
+def _drop_scene(speed=1.0, mu=0.0, gravity=(0.0, -9.81), plate_h=0.05, thickness=0.05, dx=0.01):
+    """An MPM block falling at ``speed`` onto a fixed FEM plate whose top is y = 0."""
+    scene = bfemp.Scene(dim=2, gravity=gravity)
+    mat = bfemp.NeoHookean(**SOFT)
+    plate = bfemp.shapes.rectangle((-0.2, -thickness), (0.2, 0.0), h=plate_h)
+    scene.add_fem(
+        plate.points, plate.cells, material=mat, prescribed=bfemp.motion.Fixed(), name="plate"
+    )
+    pts, vol = _block(-0.05, 0.05, 0.004, 0.044, dx / 2)
+    scene.add_mpm(pts, vol, material=mat, velocity=(0.0, -speed), name="block")
+    scene.set_grid(dx=dx, origin=(dx / 8, dx / 8))
+    scene.set_contact(dhat=1e-3, kappa=1e4, mu=mu, eps_v=1e-5)
+    return scene
+
+
+def test_stationarity_holds_and_fails_without_the_contact_forces():
+    sim = bfemp.Simulation(_drop_scene(), strategy="two_stage", dt="auto")
+    stepper = sim.stepper
+    checked, worst_control = 0, 0.0
+    for _ in range(80):
+        report = sim.step()
+        if report.contact_pairs == 0:
+            continue
+        r, scale = stepper.stationarity()
+        r0, _ = stepper.stationarity(contact=False)
+        assert r / scale < 1e-4, (report.step, r / scale)  # Newton stops at 1e-6 m/s
+        assert report.residual == pytest.approx(r / scale)
+        assert r0 > 1e3 * r  # gamma := 0: M (v - v*) alone is far from zero
+        worst_control = max(worst_control, r0 / scale)
+        checked += 1
+    assert checked >= 5
+    assert worst_control > 0.5
+
+
+def test_fast_block_does_not_cross_a_thin_plate():
+    """300 m/s against a 5 mm plate: each step moves the block 4x the plate's thickness."""
+    dx = 0.05
+    scene = _drop_scene(speed=300.0, gravity=(0.0, 0.0), plate_h=0.005, thickness=0.005, dx=dx)
+    sim = bfemp.Simulation(scene, strategy="two_stage", dt="auto")
+    assert 300.0 * sim.dt > 3.0 * 0.005
+    touched = 0
+    for _ in range(40):
+        before = sim.state.copy()
+        report = sim.step()
+        assert step_intersection(sim.model, before, sim.state) is None
+        assert sim.state.mpm_x[:, 1].min() > 0.0  # above the plate's top face
+        touched += report.contact_pairs > 0
+    assert touched > 0
+    # control: the same motion without contact goes through the plate
+    free = before.mpm_x[:, 1].min() - 300.0 * 40 * sim.dt
+    assert free < -0.005
+
+
+def _free_bodies_scene(radius=0.05):
+    """An MPM block flying at a free FEM block, no gravity, no boundaries."""
+    scene = bfemp.Scene(dim=2)
+    mat = bfemp.NeoHookean(**SOFT)
+    fem = bfemp.shapes.rectangle((0.0, -0.05), (0.1, 0.05), h=0.025)
+    scene.add_fem(fem.points, fem.cells, material=mat, velocity=(-2.0, 0.3), name="fem")
+    pts, vol = _block(-0.104, -0.004, -0.03, 0.05, 0.005)
+    scene.add_mpm(pts, vol, material=mat, velocity=(3.0, 0.0), name="mpm")
+    scene.set_grid(dx=0.01, origin=(0.00125, 0.00125))
+    scene.set_contact(dhat=1e-3, kappa=1e4, mu=0.2, eps_v=1e-3)
+    return scene
+
+
+@pytest.mark.parametrize("sticky", [False, True])
+def test_linear_momentum_is_exact_from_the_free_motion(sticky):
+    scene = _free_bodies_scene()
+    if sticky:  # negative control: a sticky level set under the MPM block takes momentum
+        wall = bfemp.levelset.HalfPlane(point=(0.0, -0.025), normal=(0.0, 1.0))
+        scene.add_boundary(wall, kind="sticky")
+    sim = bfemp.Simulation(scene, strategy="two_stage", dt="auto")
+    p0 = linear_momentum(sim.model, sim.state)
+    scale = (
+        np.abs(sim.model.fem_mass @ sim.model.fem_v0).sum()
+        + np.abs(sim.model.mpm_mass @ sim.model.mpm_v0).sum()
+    )
+    drift, contact, free_starts = 0.0, 0, 0
+    for _ in range(60):
+        report = sim.step()
+        contact += report.contact_pairs > 0
+        free_starts += "from x*" in report.message
+        drift = max(drift, np.abs(linear_momentum(sim.model, sim.state) - p0).max() / scale)
+    assert contact > 5 and free_starts > 5
+    if sticky:
+        assert drift > 1e-3
+    else:
+        assert drift < 1e-12
