@@ -8,8 +8,6 @@ import pytest
 import bfemp
 from bfemp.contact.intersection import step_intersection
 from bfemp.diagnostics import linear_momentum
-from bfemp.errors import SceneError
-from bfemp.scenefile import loads
 from bfemp.steppers import options_from_mapping
 from bfemp.steppers.two_stage import TwoStageOptions, TwoStageStepper
 
@@ -113,3 +111,73 @@ def test_linear_momentum_is_exact_from_the_free_motion(sticky):
         assert drift > 1e-3
     else:
         assert drift < 1e-12
+
+
+def test_bad_options_are_refused_by_name():
+    for kwargs, field in (
+        ({"friction": "twice"}, "friction"),
+        ({"start": "middle"}, "start"),
+        ({"tol": -1.0}, "tol"),
+        ({"tol": float("nan")}, "tol"),
+        ({"max_newton_iterations": 0}, "max_newton_iterations"),
+        ({"linear_solver": "magic"}, "linear_solver"),
+        ({"cfl_safety_mpm": 1.5}, "cfl_safety_mpm"),
+    ):
+        with pytest.raises(ValueError, match=rf"TwoStageOptions\.{field}"):
+            TwoStageOptions(**kwargs)
+    with pytest.raises(ValueError, match=r"unknown option 'iterations' for strategy 'two_stage'"):
+        options_from_mapping(TwoStageOptions, {"iterations": 2})
+    opts = options_from_mapping(TwoStageOptions, {"friction": "loop", "start": "start"})
+    sim = bfemp.Simulation(_drop_scene(), strategy="two_stage", dt="auto", options=opts)
+    assert isinstance(sim.stepper, TwoStageStepper)
+    assert sim.settings["friction"] == "loop" and sim.settings["start"] == "start"
+    with pytest.raises(ValueError, match=r"exceeds the explicit stable step"):
+        bfemp.Simulation(_drop_scene(), strategy="two_stage", dt=1e-2)
+    with pytest.raises(ValueError, match=r"tol belong to strategy 'barrier'"):
+        bfemp.Simulation(_drop_scene(), strategy="two_stage", dt="auto", tol=1e-6)
+
+
+def test_frictionless_slope_accelerates_at_g_sin_theta():
+    """Tilted gravity along a flat FEM slope (y = 0), mu = 0: the box slides at g sin(theta)."""
+    theta, g = math.atan(0.2), 5.10
+    scene = _drop_scene(speed=0.0, gravity=(-g * math.sin(theta), -g * math.cos(theta)))
+    sim = bfemp.Simulation(scene, strategy="two_stage", dt="auto")
+    m = sim.model.mpm_mass
+    t, vx = [], []
+    for _ in range(300):
+        report = sim.step()
+        t.append(sim.state.t)
+        vx.append(float(m @ sim.state.mpm_v[:, 0] / m.sum()))
+        assert sim.state.mpm_x[:, 1].min() > 0.0
+    assert report.contact_pairs > 0
+    accel = np.polyfit(t[100:], vx[100:], 1)[0]
+    assert accel == pytest.approx(-g * math.sin(theta), rel=1e-3)
+
+
+def test_no_penetration_at_every_step_of_coarse_rings():
+    """The rings benchmark's scene, coarse (MPM ring left, FEM ring right, 40 m/s each)."""
+    scene = bfemp.Scene(dim=2)
+    mat = bfemp.NeoHookean(E=1e8, nu=0.2, density=1000.0)
+    dx = 1.0 / 3.0
+    shape = bfemp.shapes.ring((-5.0, 0.0), 3.0, 4.0, h=0.25 * dx)
+    pts, vol = bfemp.sample.mesh(shape, dx=dx, ppc=4)
+    scene.add_mpm(pts, vol, material=mat, velocity=(40.0, 0.0))
+    ring = bfemp.shapes.ring((5.0, 0.0), 3.0, 4.0, h=0.5)
+    scene.add_fem(ring, material=mat, velocity=(-40.0, 0.0))
+    scene.set_grid(dx=dx, origin=(dx / 8, dx / 8))
+    scene.set_contact(dhat=1e-2, kappa=1e7)
+    sim = bfemp.Simulation(scene, strategy="two_stage", dt="auto")
+    p0 = linear_momentum(sim.model, sim.state)
+    touching = 0
+    while sim.state.t < 0.06:
+        before = sim.state.copy()
+        report = sim.step()
+        if report.contact_pairs:
+            touching += 1
+            assert report.min_distance > 0.0
+        assert step_intersection(sim.model, before, sim.state) is None
+    assert touching > 10
+    p = linear_momentum(sim.model, sim.state)
+    assert np.abs(p - p0).max() < 1e-9 * 40.0 * (
+        sim.model.mpm_mass.sum() + sim.model.fem_mass.sum()
+    )
