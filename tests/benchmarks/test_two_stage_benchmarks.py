@@ -2,7 +2,6 @@
 
 import json
 
-
 from benchmarks import two_stage_gap, two_stage_rings, two_stage_slope
 
 
