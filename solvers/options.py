@@ -44,6 +44,13 @@ class NewtonOptions:
             is positive definite and turns Newton's quadratic convergence into a linear one.
             If the exact Hessian is not positive definite (or gives no descent) the projected
             one is used for the rest of the solve.
+        near_solution_factor: within this factor of the tolerance (``||p||_inf <= factor tol
+            step_scale``) a step the energy cannot judge is taken when the gradient norm falls
+            (``newton._accept_near_solution``), >= 0; 0 leaves only the round-off test. Where
+            the energy is not smooth at that scale this can cycle: the ``two_stage`` slope at
+            static friction (sliding eps_v dt = 5e-10 m, increments of 4.5e-9 m) alternated
+            between a step accepted on the gradient norm (the energy rising by 3.7e-22 J/m)
+            and an Armijo step back, until MAX_ITERATIONS.
     """
 
     tol: float = 1e-6
@@ -54,6 +61,7 @@ class NewtonOptions:
     min_step: float = 1e-12
     project_psd: bool = True
     exact_near_solution: bool = True
+    near_solution_factor: float = 1e3
 
     def __post_init__(self) -> None:
         _check_positive_finite("tol", self.tol)
@@ -74,6 +82,15 @@ class NewtonOptions:
         _check_positive_finite("min_step", self.min_step)
         if self.min_step > 1.0:
             raise ValueError(f"NewtonOptions.min_step must be in (0, 1], got {self.min_step!r}")
+        f = self.near_solution_factor
+        if (
+            isinstance(f, bool)
+            or not isinstance(f, (int, float))
+            or not (math.isfinite(f) and f >= 0)
+        ):
+            raise ValueError(
+                f"NewtonOptions.near_solution_factor must be finite and >= 0, got {f!r}"
+            )
         for name in ("project_psd", "exact_near_solution"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(

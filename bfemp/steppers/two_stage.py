@@ -196,7 +196,13 @@ class TwoStageStepper(ExplicitStepper):
             terms.append(self.friction)
         self.potential = IncrementalPotential(InertiaTerm(), terms)
         self.newton = NewtonOptions(
-            tol=opts.tol, max_iter=opts.max_newton_iterations, step_scale=self.dt
+            tol=opts.tol,
+            max_iter=opts.max_newton_iterations,
+            step_scale=self.dt,
+            # no step taken on a falling gradient norm alone (NewtonOptions.near_solution_factor:
+            # at static friction it cycled); the stage-2 energy has no stiff elastic term whose
+            # round-off would need it
+            near_solution_factor=0.0,
         )
         self._solver = ScriptedSolve(
             model,

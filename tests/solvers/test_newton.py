@@ -460,3 +460,11 @@ def test_bad_input_raises_value_error():
         minimize(obj, np.zeros(3))
     with pytest.raises(ValueError, match="options"):
         minimize(Quadratic(sp.eye(3), np.ones(3)), np.zeros(3), options={"tol": 1.0})
+
+
+def test_near_solution_factor_is_validated_by_name():
+    assert NewtonOptions().near_solution_factor == 1e3
+    assert NewtonOptions(near_solution_factor=0.0).near_solution_factor == 0.0
+    for bad in (-1.0, float("inf"), True, "1"):
+        with pytest.raises(ValueError, match="near_solution_factor"):
+            NewtonOptions(near_solution_factor=bad)
