@@ -207,3 +207,30 @@ def test_friction_above_tan_theta_holds_the_block_and_newton_converges():
     # 0.075 and 0.04); mu = 0 slides at g sin(theta) (test_frictionless_slope_...)
     assert 0.0 <= slide < 0.3 * frictionless
     assert abs(vx) < 0.2 * g * math.sin(theta) * sim.state.t
+
+
+def test_stage_two_potential_gradient_matches_its_energy():
+    """Central differences of the stage-2 energy against its gradient at a contact solution
+    (barrier and lagged friction active), along random directions."""
+    theta, g = math.atan(0.2), 9.81
+    gravity = (-g * math.sin(theta), -g * math.cos(theta))
+    scene = _drop_scene(speed=0.5, mu=0.3, gravity=gravity, gap=1.5e-3)
+    sim = bfemp.Simulation(scene, strategy="two_stage", dt="auto")
+    stepper = sim.stepper
+    while True:
+        report = sim.step()
+        if report.contact_pairs and stepper.friction.n_contacts:
+            break
+    pot, y_sol = stepper.potential, stepper._solved.y.copy()
+    rng = np.random.default_rng(3)
+    y = y_sol + 1e-8 * rng.standard_normal(y_sol.size)  # off the stationary point
+    for _ in range(3):
+        d = 1e-11 * rng.standard_normal(y.size)  # m: well inside eps_v dt = 1.2e-9 m
+        pot.solution_changed(y)
+        slope = float(pot.gradient(y) @ d)
+        energies = []
+        for s in (1.0, -1.0):
+            pot.solution_changed(y + s * d)
+            energies.append(pot.value(y + s * d))
+        fd = 0.5 * (energies[0] - energies[1])
+        assert fd == pytest.approx(slope, rel=1e-4)
