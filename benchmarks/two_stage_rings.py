@@ -9,7 +9,14 @@ paper's window (0.025 s to 0.293 s) is recorded beside BFEMP's 8.57 % (APIC) / 9
 Quick: the rings' quick discretisation (dx = 1/3 m, ppc 4, FEM h = 1/3 m), t_end = 0.3 s, APIC
 only (its energy loss is that of a 3-cell-thick ring, not comparable with the paper's). Full:
 dx = 0.1 m, ppc 9, FEM h = 0.13 m, 0.3 s, APIC and FLIP (not run on the 2-core machine: about
-6,000 steps of 19,796 particles per transfer).
+6,000 steps of 19,796 particles per transfer). Partial: rings' partial discretisation (MPM
+dx = 0.2 m, ppc 4, the paper's FEM mesh), 0.3 s, both transfers.
+
+Measured (``benchmarks/records/two_stage_rings*.json``): quick, drift 2.3e-14, closest 8.8e-3
+m, energy loss 22.1 % (APIC; 3-cell-thick ring); partial (dt = 1.26e-4 s, 2386 steps, 80 s /
+168 s), drift 6.0e-14, closest 8.79e-3 m, no penetration, energy loss 17.1 % (APIC) and 15.9 %
+(FLIP), against ``barrier``'s 15.3 / 13.0 % at the same discretisation and the paper's
+8.57 / 9.67 % at full resolution; 6.1 / 6.5 Newton iterations per contact step.
 """
 
 from __future__ import annotations
