@@ -260,3 +260,28 @@ def test_two_fem_bodies_meet_through_their_boundary_pairs():
     assert np.abs(linear_momentum(sim.model, sim.state) - p0).max() < 1e-12 * 2.0 * mass
     # the blocks bounced: the left one moves back
     assert sim.state.fem_v[: left.points.shape[0], 0].mean() < 0.0
+
+
+def test_scene_file_options_of_two_stage_are_read_and_checked():
+    from bfemp import scenefile
+    from bfemp.errors import SceneError
+    from tests.bfemp.test_steppers import _two_blocks_text
+
+    text = _two_blocks_text(
+        'strategy = "two_stage"\ndt = "auto"\n[simulation.options]\n'
+        'friction = "loop"\nstart = "start"\ntol = 1e-5'
+    )
+    sim = bfemp.Simulation.from_file(scenefile.loads(text))
+    assert isinstance(sim.stepper, TwoStageStepper)
+    assert sim.options == TwoStageOptions(friction="loop", start="start", tol=1e-5)
+    sim.step()
+    with pytest.raises(SceneError, match=r"friction"):
+        scenefile.loads(
+            _two_blocks_text(
+                'strategy = "two_stage"\ndt = "auto"\n[simulation.options]\nfriction = "twice"'
+            )
+        )
+    with pytest.raises(SceneError, match=r"unknown option 'mode' for strategy 'two_stage'"):
+        scenefile.loads(
+            _two_blocks_text('strategy = "two_stage"\ndt = "auto"\n[simulation.options]\nmode = 1')
+        )
