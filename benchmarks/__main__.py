@@ -34,6 +34,9 @@ BENCHMARKS = {
     "slope": "benchmarks.slope",
     "speed_knobs": "benchmarks.speed_knobs",
     "tradeoff": "benchmarks.tradeoff",
+    "two_stage_gap": "benchmarks.two_stage_gap",
+    "two_stage_rings": "benchmarks.two_stage_rings",
+    "two_stage_slope": "benchmarks.two_stage_slope",
 }
 
 

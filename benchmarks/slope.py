@@ -163,15 +163,19 @@ def _scene(variant: str, mu: float, with_stop: bool, p: dict = PHYSICS) -> bfemp
 
 
 def _simulation(scene: bfemp.Scene, p: dict = PHYSICS) -> bfemp.Simulation:
+    strategy = p.get("strategy", "barrier")
+    options = p.get("options")  # another strategy's options (``two_stage_slope``)
+    if strategy == "barrier":
+        options = bfemp.BarrierOptions(
+            tol=p["tol_m_s"], velocity_update=p.get("velocity_update", "positions")
+        )
     return bfemp.Simulation(
         scene,
-        strategy=p.get("strategy", "barrier"),
+        strategy=strategy,
         integrator=p["integrator"],
         transfer=p["transfer"],
         dt=p["dt_s"],
-        options=bfemp.BarrierOptions(
-            tol=p["tol_m_s"], velocity_update=p.get("velocity_update", "positions")
-        ),
+        options=options,
     )
 
 

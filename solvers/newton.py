@@ -169,7 +169,8 @@ def forcing_term(
 
 #: Energy changes below this many machine epsilons of |E| are round-off (terms cancel).
 _ROUND_OFF_ULPS = 1e4
-#: Within this factor of the tolerance a Newton step is judged by the gradient, not the energy.
+#: Within this factor of the tolerance a Newton step is judged by the gradient, not the energy
+#: (the default of ``NewtonOptions.near_solution_factor``).
 _NEAR_SOLUTION_FACTOR = 1e3
 
 
@@ -191,8 +192,9 @@ def _accept_near_solution(
     than the round-off of E (the terms of E are evaluated with errors ~ eps times their own
     scale, e.g. eps mu V for elasticity, much larger than eps |E|). Armijo then rejects good steps
     or accepts tiny noisy ones and the iteration stalls. In that regime - the increment within
-    ``_NEAR_SOLUTION_FACTOR`` of the tolerance (``near``), or |g.p| below ``_ROUND_OFF_ULPS`` eps
-    |E| - the full step is taken when the gradient norm falls; otherwise None (use Armijo).
+    ``NewtonOptions.near_solution_factor`` of the tolerance (``near``), or |g.p| below
+    ``_ROUND_OFF_ULPS`` eps |E| - the full step is taken when the gradient norm falls;
+    otherwise None (use Armijo).
     """
     round_off = abs(slope) * alpha0 <= _ROUND_OFF_ULPS * np.finfo(float).eps * abs(energy)
     if not (near or round_off):
@@ -451,7 +453,7 @@ def minimize(
             )
         alpha0 = min(1.0, bound)
         with _timed(timings, "line_search"):
-            near = p_inf <= _NEAR_SOLUTION_FACTOR * options.tol * options.step_scale
+            near = p_inf <= options.near_solution_factor * options.tol * options.step_scale
             search = _accept_near_solution(
                 objective, x, p, alpha0, energy, slope, near, g_free, free, res
             )

@@ -55,6 +55,13 @@ class NewtonOptions:
             tol``, in [0, 1]; 0 turns the test off. The stale Hessian misjudges p by a relative
             O(||H_new - H_old|| ||H^{-1}||); the factor below 1 leaves room for it, and where the
             chord says no, the exact test runs as before.
+        near_solution_factor: within this factor of the tolerance (``||p||_inf <= factor tol
+            step_scale``) a step the energy cannot judge is taken when the gradient norm falls
+            (``newton._accept_near_solution``), >= 0; 0 leaves only the round-off test. Where
+            the energy is not smooth at that scale this can cycle: the ``two_stage`` slope at
+            static friction (sliding eps_v dt = 5e-10 m, increments of 4.5e-9 m) alternated
+            between a step accepted on the gradient norm (the energy rising by 3.7e-22 J/m)
+            and an Armijo step back, until MAX_ITERATIONS.
     """
 
     tol: float = 1e-6
@@ -67,6 +74,7 @@ class NewtonOptions:
     exact_near_solution: bool = True
     linear_rtol_max: float = 1e-2
     chord_stop_factor: float = 0.5
+    near_solution_factor: float = 1e3
 
     def __post_init__(self) -> None:
         _check_positive_finite("tol", self.tol)
@@ -95,6 +103,15 @@ class NewtonOptions:
         _check_positive_finite("min_step", self.min_step)
         if self.min_step > 1.0:
             raise ValueError(f"NewtonOptions.min_step must be in (0, 1], got {self.min_step!r}")
+        f = self.near_solution_factor
+        if (
+            isinstance(f, bool)
+            or not isinstance(f, (int, float))
+            or not (math.isfinite(f) and f >= 0)
+        ):
+            raise ValueError(
+                f"NewtonOptions.near_solution_factor must be finite and >= 0, got {f!r}"
+            )
         for name in ("project_psd", "exact_near_solution"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(

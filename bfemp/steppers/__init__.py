@@ -26,6 +26,7 @@ from bfemp.steppers.base import (
     options_to_dict,
 )
 from bfemp.steppers.single_field import SingleFieldOptions, SingleFieldStepper
+from bfemp.steppers.two_stage import TwoStageOptions, TwoStageStepper
 
 __all__ = [
     "STRATEGIES",
@@ -45,6 +46,8 @@ __all__ = [
     "options_from_mapping",
     "options_to_dict",
     "stepper_class",
+    "TwoStageOptions",
+    "TwoStageStepper",
 ]
 
 #: the old name of the barrier stepper
@@ -54,6 +57,7 @@ ImplicitStepper = BarrierStepper
 #: "single_field" the explicit MPM baseline without a contact algorithm.
 STRATEGIES: dict[str, type] = {"barrier": BarrierStepper, "single_field": SingleFieldStepper}
 STRATEGIES["augury"] = AuguryStepper  # APIC augury contact (AUG), explicit
+STRATEGIES["two_stage"] = TwoStageStepper  # explicit free motion, implicit contact (TS)
 
 
 def stepper_class(strategy: str) -> type:

@@ -49,6 +49,9 @@ class ScriptedSolve:
         dt: the time step in s.
         take_last_increment: end a converged friction loop at the solution of the friction data
             it stopped on (``_take``); for velocities from positions.
+        friction_loop: run the outer friction loop on the step's last solve (Algorithm 1);
+            False: friction lagged once, one minimisation (``two_stage``'s semi-implicit
+            friction).
     """
 
     #: cap of the part-way moves of scripted nodes within one step
@@ -64,11 +67,13 @@ class ScriptedSolve:
         linear_solver: LinearSolver,
         dt: float,
         take_last_increment: bool = True,
+        friction_loop: bool = True,
     ) -> None:
         self.model, self.potential = model, potential
         self.barrier, self.friction = barrier, friction
         self.newton, self.linear_solver, self.dt = newton, linear_solver, dt
         self.take_last_increment = take_last_increment
+        self.friction_loop = friction_loop
         # the phases every step reports (0 when a step has none: the same metrics columns)
         self.phases = TIMING_KEYS + ("friction",) * (friction is not None)
         self.phases += ("scripted_ccd",) * (barrier is not None)
@@ -82,6 +87,7 @@ class ScriptedSolve:
         x_start: np.ndarray,
         x_hat: np.ndarray,
         predicted: np.ndarray | None,
+        lag_at: np.ndarray | None = None,
     ) -> tuple[NewtonResult, int, bool]:
         """Solve with scripted nodes brought to their end-of-step positions without crossing.
 
@@ -104,6 +110,8 @@ class ScriptedSolve:
             x_start: Newton's start ``(n_dof,)`` in m.
             x_hat: the inertial prediction ``(n_dof,)`` in m (eq. 22).
             predicted: the predicted x^{n+1} ``(n_dof,)`` for a warm start, or None.
+            lag_at: positions ``(n_dof,)`` in m where the last solve lags friction first (its
+                start when None); ``two_stage`` lags at x^n.
         """
         model, pot, barrier = self.model, self.potential, self.barrier
         target = nodes.fixed.copy()
@@ -115,7 +123,10 @@ class ScriptedSolve:
         timings = dict.fromkeys(self.phases, 0.0)
         if barrier is None or np.array_equal(start, target):
             result, f_its, f_ok = self._friction_loop(
-                self._warm_started(x_start, predicted), timings
+                self._warm_started(x_start, predicted),
+                timings,
+                loop=self.friction_loop,
+                lag_at=lag_at,
             )
             result.timings = timings
             return result, f_its, f_ok
@@ -164,7 +175,9 @@ class ScriptedSolve:
                 )
             )
         fixed[:] = target
-        result, f_its, f_ok = self._friction_loop(x, timings)
+        result, f_its, f_ok = self._friction_loop(
+            x, timings, loop=self.friction_loop, lag_at=lag_at
+        )
         result.nit += its
         result.timings = timings
         return result, max(friction_its, f_its), friction_ok and f_ok
@@ -229,14 +242,21 @@ class ScriptedSolve:
         return pot.to_positions(y)
 
     def _friction_loop(
-        self, x_n: np.ndarray, timings: dict[str, float], *, loop: bool = True
+        self,
+        x_n: np.ndarray,
+        timings: dict[str, float],
+        *,
+        loop: bool = True,
+        lag_at: np.ndarray | None = None,
     ) -> tuple[NewtonResult, int, bool]:
         """Minimise; with friction, the outer lagged-friction loop of Algorithm 1.
 
         The loop ends when a minimisation under freshly lagged friction data needs no Newton
         step (its first increment is already below the tolerance), or at the cap, which is
         reported (``friction_converged = False``), not silent. ``loop=False``: friction lagged
-        once at ``x_n``, one minimisation (a scripted sub-step before the last). The result
+        once at ``x_n`` (or ``lag_at``), one minimisation (a scripted sub-step before the last,
+        or ``two_stage``'s semi-implicit friction). The first lag is at ``lag_at`` (positions
+        ``(n_dof,)`` in m) when given, else at ``x_n``. The result
         carries the Newton iterations of all the loop's minimisations; their phase seconds are
         added to ``timings``.
         """
@@ -248,7 +268,7 @@ class ScriptedSolve:
         total_it, result = 0, None  # result: set by the first minimisation (j = 0)
         for j in range(cap):
             t0 = time.perf_counter()
-            friction.lag(pot.to_positions(y))
+            friction.lag(lag_at if j == 0 and lag_at is not None else pot.to_positions(y))
             p = self._increment_below_tol(y, result) if j > 0 else None
             add_timings(timings, {"friction": time.perf_counter() - t0})
             if p is not None:

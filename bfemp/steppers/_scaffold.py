@@ -23,7 +23,7 @@ from bfemp.mpm.step import MpmStep, prepare_mpm_step
 from bfemp.mpm.transfer import grid_to_particles
 from bfemp.state import State
 
-__all__ = ["StepNodes", "gather_nodes", "write_state"]
+__all__ = ["StepNodes", "gather_nodes", "nodes_of_step", "write_state"]
 
 
 @dataclass(frozen=True)
@@ -89,6 +89,17 @@ def gather_nodes(
     mpm = prepare_mpm_step(
         model, state, transfer, with_acceleration=with_acceleration, dt=t_next - state.t
     )
+    return nodes_of_step(model, state, mpm, dt=dt, t_next=t_next)
+
+
+def nodes_of_step(
+    model: Model, state: State, mpm: MpmStep, *, dt: float, t_next: float
+) -> StepNodes:
+    """All-node fields of a step whose grid part (stencils, P2G, constraints) is ``mpm``: the
+    FEM nodes of ``state`` then the grid nodes (``gather_nodes`` after its P2G; ``two_stage``
+    with the explicit engine's P2G)."""
+    d, n_fem = model.dim, model.n_fem_nodes
+    fem_fixed = model.prescribed_positions(t_next)
     grid_x = mpm.stencils.active_x
     grid_a = mpm.acceleration if mpm.acceleration is not None else 0.0 * grid_x
     free = np.concatenate([~model.fem_prescribed, ~mpm.constraints.sticky])

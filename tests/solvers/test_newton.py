@@ -558,3 +558,11 @@ def test_chord_test_stops_only_below_the_tolerance_and_agrees_with_the_exact_one
         np.testing.assert_allclose(on.x, off.x, atol=10 * tol)
     with pytest.raises(ValueError, match="chord_stop_factor"):
         NewtonOptions(chord_stop_factor=1.5)
+
+
+def test_near_solution_factor_is_validated_by_name():
+    assert NewtonOptions().near_solution_factor == 1e3
+    assert NewtonOptions(near_solution_factor=0.0).near_solution_factor == 0.0
+    for bad in (-1.0, float("inf"), True, "1"):
+        with pytest.raises(ValueError, match="near_solution_factor"):
+            NewtonOptions(near_solution_factor=bad)

@@ -1,0 +1,454 @@
+"""``"two_stage"``: explicit free motion, then frictional contact as a minimisation (TS notes;
+EXPLICIT_STRATEGIES.md section 3).
+
+One step (h = dt):
+
+1. **Stage 1, free motion** (the explicit engine, ``ExplicitStepper``): P2G at x_p^n, grid
+   v*_i = v_i^n + h (f_i^int(F^n) + m_i g) / m_i, FEM v*_n = v_n^n + h (f_ext - f_int(x^n))_n /
+   m_n; scripted FEM nodes take their scripted velocity. No contact.
+2. **Stage 2, contact** (``resolve``, before G2P): over the free FEM nodes and the active grid
+   nodes that are not sticky, x = x^n + h v, minimise
+
+       E(x) = 1/2 ||x - x*||_M^2 + h^2 (B(x) + D(x)),     x* = x^n + h v*,
+
+   that is TS's 1/2 ||v - v*||_M^2 + l_c(J v) times h^2: BFEMP's incremental potential
+   (``IncrementalPotential(InertiaTerm(), [BarrierTerm, FrictionTerm])``) with the inertial
+   prediction replaced by the free motion and without elasticity or gravity (they are in x*).
+   Its stationarity M (v - v*) = h J^T gamma (gamma = -grad(B + D), the barrier and lagged
+   friction forces at the particles; J the B-spline G2P weights) is TS's linearised momentum
+   balance. Collision points and pairs are the barrier's (``bfemp.contact.collision``: particles
+   against FEM boundary facets, FEM-FEM boundary pairs), and the solve is the barrier's
+   (``bfemp.steppers._barrier_solve.ScriptedSolve``: projected Newton of ``solvers.minimize``,
+   CCD-filtered line search, scripted nodes brought to their targets without crossing).
+   Level-set constraints are those the engine applies next (decided on v*): sticky nodes are not
+   unknowns, slip nodes keep their normal coordinate (rotated frames), as in ``barrier``.
+3. v = (x - x^n) / h on every node; G2P (the engine's) from the solved grid velocities, so
+   x_p^{n+1} = sum_i w_ip x_i is exactly the barrier's collision point: no particle crosses a
+   FEM boundary, whatever the velocity. The time step is bounded by the explicit elasticity
+   only (``stable_dt``, the engine's).
+
+Choices (not in the notes):
+
+- Friction is semi-implicit by default (``friction="once"``): lagged once per step at x^n
+  (normal forces and tangent bases of the contacts active at x^n), one minimisation; ``"loop"``
+  runs the BFEMP friction loop (re-lag at the solution until a minimisation needs no Newton
+  step, capped by ``scene.set_contact(friction_iterations=...)``).
+- Newton starts at x* (``start="free"``) when the straight move x^n -> x* passes CCD and no
+  scripted node moves in the step, else at x^n. From x* the inertia gradient sums to zero and
+  every barrier and friction block has translations in its kernel (also after PSD projection),
+  so each Newton iterate keeps sum M (x - x*) = 0: linear momentum of free bodies is exact
+  (EXPLICIT_STRATEGIES.md S3). From x^n it is so only to the Newton tolerance.
+- ``StepReport.residual`` is the relative stationarity residual
+  ||M (v - v*) - h J^T gamma||_inf / max(||M v*||_inf, ||h J^T gamma||_inf) at the returned
+  step (dimensionless here; over the unknowns, slip-normal coordinates excluded).
+- ``kappa = "auto"`` is refused (its gradient balance needs the elastic gradient the stage-2
+  potential does not hold).
+- Under friction the sliding of a node over the step is x - x^n (backward Euler on contact).
+- Level-set reactions (``StepReport.boundary_forces``) are those of the engine's pass after the
+  contact solve, which finds the constraints already met: they are zero (not reported).
+- Newton runs without ``NewtonOptions``' near-solution acceptance (``near_solution_factor =
+  0``): at static friction it took steps on a falling gradient norm that raised the energy, and
+  Armijo stepped back, a 2-cycle until MAX_ITERATIONS (the slope at mu = 0.2; a block at
+  mu = 0.21 failed at step 28).
+- An independent check after the step (``bfemp.contact.intersection.step_intersection``) fails
+  the step as ``INTERSECTION`` or ``TUNNELED`` if anything ended inside or went through a FEM
+  body, as in ``barrier``.
+
+Measured (``benchmarks/records/two_stage_*.json``; 2 shared cores): Newton takes 4-6 iterations
+per contact step on a block landing on a plate, 8.1 on the coarse rings and 5-17 at static
+friction (EXPLICIT_STRATEGIES.md expected 1-3: the contact blocks are stiff against the
+mass-only rest of the Hessian); rings quick: momentum drift 2.3e-14, closest distance 8.8e-3 m;
+a block at rest on a plate sits 0.999e-3 m above it (dhat = 1e-3 m). The stationarity residual
+is below 3e-6 (relative) at the Newton tolerance 1e-6 m/s. Near mu = tan(theta) the soft box of
+``two_stage_slope`` creeps at 2-4 % of g sin(theta): its undamped elastic vibration modulates
+the normal force and friction never exceeds mu times it.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass, field, replace
+from typing import ClassVar
+
+import numpy as np
+
+from bfemp.contact.friction import FrictionTerm
+from bfemp.contact.intersection import step_intersection
+from bfemp.contact.term import BarrierTerm
+from bfemp.integrators import ExplicitIntegrator
+from bfemp.model import Model
+from bfemp.mpm.boundaries import grid_constraints
+from bfemp.mpm.step import LIGHT_NODE_REL, MpmStep
+from bfemp.mpm.transfer import GridFields
+from bfemp.potential import IncrementalPotential
+from bfemp.state import State
+from bfemp.steppers._barrier_potential import contact_view, has_contact
+from bfemp.steppers._barrier_solve import ScriptedSolve
+from bfemp.steppers._scaffold import StepNodes, gather_nodes, nodes_of_step
+from bfemp.steppers.base import ContactView, StepError, StepperOptions, StepReport, finite_or_nan
+from bfemp.steppers.explicit import ExplicitOptions, ExplicitStep, ExplicitStepper
+from bfemp.terms import InertiaTerm, StepContext
+from solvers.choice import LINEAR_SOLVER_NAMES, make_linear_solver
+from solvers.options import NewtonOptions
+
+__all__ = ["FRICTION_LAGGING", "STARTS", "TwoStageOptions", "TwoStageStepper"]
+
+log = logging.getLogger(__name__)
+
+#: the names ``TwoStageOptions.friction`` accepts
+FRICTION_LAGGING = ("once", "loop")
+#: the names ``TwoStageOptions.start`` accepts
+STARTS = ("free", "start")
+
+
+@dataclass(frozen=True, kw_only=True)
+class TwoStageOptions(ExplicitOptions):
+    """Options of ``"two_stage"``.
+
+    Attributes:
+        friction: friction lagging, ``"once"`` (lagged at x^n, one minimisation per step: TS's
+            semi-implicit friction) or ``"loop"`` (BFEMP's friction loop, capped by the
+            scene's ``friction_iterations``).
+        tol: Newton tolerance in m/s: the contact solve has converged when its increment moves
+            no FEM node, particle position or (times dx) particle deformation gradient by more
+            than ``tol * dt`` (as ``BarrierOptions.tol``).
+        max_newton_iterations: Newton iteration cap per minimisation.
+        start: Newton's start, ``"free"`` (the free motion x*, when the move there passes CCD
+            and no scripted node moves; else x^n) or ``"start"`` (always x^n).
+        linear_solver: the linear solver of the contact solve (names of
+            ``BarrierOptions.linear_solver``).
+        cfl_safety_fem: safety factor on the FEM bound h_min / c_p, in (0, 1] (default 0.5).
+        cfl_safety_mpm: safety factor on the MPM bound dx / (c_p + |v_p|), in (0, 1]
+            (default 0.4).
+    """
+
+    strategy: ClassVar[str] = "two_stage"
+
+    friction: str = "once"
+    tol: float = field(default=1e-6, metadata={"unit": "velocity"})
+    max_newton_iterations: int = 100
+    start: str = "free"
+    linear_solver: str = "default"
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        name = type(self).__name__
+        tol = self.tol
+        if isinstance(tol, bool) or not isinstance(tol, int | float) or not math.isfinite(tol):
+            raise ValueError(f"{name}.tol must be a finite number of m/s, got {tol!r}")
+        if not tol > 0.0:
+            raise ValueError(f"{name}.tol must be > 0 (a Newton tolerance in m/s), got {tol!r}")
+        object.__setattr__(self, "tol", float(tol))
+        n = self.max_newton_iterations
+        if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
+            raise ValueError(f"{name}.max_newton_iterations must be an integer >= 1, got {n!r}")
+        for field_name, allowed in (
+            ("friction", FRICTION_LAGGING),
+            ("start", STARTS),
+            ("linear_solver", LINEAR_SOLVER_NAMES),
+        ):
+            value = getattr(self, field_name)
+            if value not in allowed:
+                raise ValueError(f"{name}.{field_name} must be one of {allowed}, got {value!r}")
+
+
+@dataclass
+class _Solved:
+    """What the contact solve of the last step left (for the report and the residual check)."""
+
+    nit: int
+    friction_its: int
+    friction_ok: bool
+    status: str
+    started_free: bool
+    y: np.ndarray  # the solver's unknowns at the solution
+    v_star: np.ndarray  # (n_dof,) free-motion velocities of the unknowns, m/s
+    mass: np.ndarray  # (n_dof,) lumped masses of the unknowns, kg (kg/m in 2D)
+    timings: dict[str, float]
+
+
+class TwoStageStepper(ExplicitStepper):
+    """The ``"two_stage"`` strategy (module docstring)."""
+
+    name: ClassVar[str] = "two_stage"
+    Options: ClassVar[type[TwoStageOptions]] = TwoStageOptions
+    explicit: ClassVar[bool] = True
+
+    def __init__(
+        self,
+        model: Model,
+        *,
+        integrator: str | ExplicitIntegrator = "symplectic_euler",
+        dt: float | str,
+        transfer: str = "apic",
+        options: StepperOptions | None = None,
+    ) -> None:
+        super().__init__(model, integrator=integrator, dt=dt, transfer=transfer, options=options)
+        opts = self.options
+        self.barrier: BarrierTerm | None = None
+        self.friction: FrictionTerm | None = None
+        self.potential: IncrementalPotential | None = None
+        self._solved: _Solved | None = None
+        self._state: State | None = None
+        self._contact: ContactView | None = None
+        if not has_contact(model):
+            return
+        c = model.contact
+        if c.adaptive_kappa:
+            raise ValueError(
+                "two_stage: contact kappa = 'auto' is not supported (its gradient balance needs "
+                "the elastic forces, which stage 2 does not hold); give "
+                "scene.set_contact(kappa=...)"
+            )
+        self.barrier = BarrierTerm(c.dhat, c.kappa)
+        terms: list = [self.barrier]
+        if c.has_friction:
+            self.friction = FrictionTerm(c.mu, c.eps_v, self.barrier)
+            terms.append(self.friction)
+        self.potential = IncrementalPotential(InertiaTerm(), terms)
+        self.newton = NewtonOptions(
+            tol=opts.tol,
+            max_iter=opts.max_newton_iterations,
+            step_scale=self.dt,
+            # no step taken on a falling gradient norm alone (NewtonOptions.near_solution_factor:
+            # at static friction it cycled); the stage-2 energy has no stiff elastic term whose
+            # round-off would need it
+            near_solution_factor=0.0,
+        )
+        self._solver = ScriptedSolve(
+            model,
+            self.potential,
+            self.barrier,
+            self.friction,
+            self.newton,
+            make_linear_solver(opts.linear_solver, block_size=model.dim),
+            self.dt,
+            take_last_increment=True,
+            friction_loop=opts.friction == "loop",
+        )
+
+    @property
+    def terms(self) -> list[str]:
+        """Stage 1's force terms, then stage 2's (inertia about x*, barrier, friction)."""
+        stage2 = [] if self.potential is None else [t.name for t in self.potential.terms]
+        return [*super().terms, *stage2]
+
+    # ------------------------------------------------------------------ the step
+    def step(self, state: State) -> tuple[State, StepReport]:
+        """Free motion, contact solve, G2P (module docstring); ``StepError`` when the contact
+        solve fails or the independent crossing check finds a crossing."""
+        self._state, self._solved, self._contact = state, None, None
+        new, report = super().step(state)
+        self._state = None
+        solved = self._solved
+        if solved is None:  # no contact term in this scene
+            return new, replace(report, iterations={"newton": 0, "friction": 0})
+        timings = {**report.timings, **solved.timings}
+        t0 = time.perf_counter()
+        crossing = step_intersection(self.model, state, new)
+        timings["intersection"] = time.perf_counter() - t0
+        iterations = {"newton": solved.nit, "friction": solved.friction_its}
+        if crossing is not None:
+            raise StepError(
+                replace(
+                    report,
+                    success=False,
+                    status=crossing.status,
+                    message=crossing.message,
+                    iterations=iterations,
+                    timings=timings,
+                )
+            )
+        abs_r, scale = self.stationarity()
+        notes = list(report.notes)
+        if not solved.friction_ok:
+            notes.append("FRICTION_LOOP: the friction loop did not converge within its cap")
+        report = replace(
+            report,
+            status=solved.status,
+            message="explicit free motion, implicit contact solve"
+            + (" (Newton from x*)" if solved.started_free else " (Newton from x^n)"),
+            iterations=iterations,
+            residual=abs_r / scale if scale > 0.0 else 0.0,
+            timings=timings,
+            min_distance=finite_or_nan(self.barrier.min_distance()),
+            contact_pairs=int(self.barrier.pairs.n_pairs),
+            friction_converged=solved.friction_ok,
+            notes=tuple(notes),
+        )
+        return new, report
+
+    def resolve(
+        self, step: ExplicitStep, grid_v: np.ndarray, fem_v: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Stage 2: the contact minimisation about the free motion v* (module docstring).
+
+        Args:
+            step: the engine's step (P2G fields at x^n).
+            grid_v: free-motion grid velocities v* ``(G, d)`` in m/s.
+            fem_v: free-motion FEM node velocities v* ``(N, d)`` in m/s (scripted: scripted).
+
+        Returns:
+            The end-of-step velocities ``(G, d)`` and ``(N, d)`` in m/s.
+        """
+        if self.potential is None:
+            return grid_v, fem_v
+        started = time.perf_counter()
+        model, h, d, state = self.model, self.dt, self.model.dim, self._state
+        n_fem = model.n_fem_nodes
+        nodes = self._nodes(step, state, grid_v)
+        layout, pot = nodes.layout, self.potential
+        v_star_all = np.concatenate([fem_v, grid_v]) if nodes.mpm is not None else fem_v
+        x_hat_all = nodes.x + h * v_star_all
+        ctx = StepContext(
+            model=model,
+            state=state,
+            dt=h,
+            layout=layout,
+            fixed_positions=nodes.fixed,
+            x_hat=layout.restrict(x_hat_all),
+            dof_mass=np.repeat(nodes.mass[layout.free_nodes], d),
+            mpm=nodes.mpm,
+        )
+        if self.friction is not None:  # sliding over the step: x - x^n on every node
+            ctx.sliding = (1.0, -nodes.x)
+        pot.begin_step(ctx, h * h, nodes.frames)
+        x_start = nodes.start()
+        setup = time.perf_counter() - started
+        if layout.n_dof == 0:
+            y, nit, f_its, f_ok, status, free = (
+                pot.to_unknowns(x_start),
+                0,
+                0,
+                True,
+                "EXPLICIT",
+                False,
+            )
+            pot.solution_changed(y)
+            timings: dict[str, float] = {}
+        else:
+            x0, free = self._newton_start(nodes, x_start, ctx.x_hat, state)
+            result, f_its, f_ok = self._solver.solve(state, nodes, x0, ctx.x_hat, None, x_start)
+            if not result.success:
+                raise StepError(
+                    StepReport(
+                        step=state.step + 1,
+                        t=step.t_next,
+                        success=False,
+                        status=result.status.name,
+                        message=f"two_stage contact solve: {result.message}",
+                        iterations={"newton": int(result.nit), "friction": f_its},
+                        timings=dict(result.timings),
+                    )
+                )
+            y, nit, status = result.x, int(result.nit), result.status.name
+            pot.solution_changed(y)  # the barrier at the solution (distances, contact())
+            timings = dict(result.timings)
+        x_all = layout.positions(pot.to_positions(y), nodes.fixed)
+        v_all = (x_all - nodes.x) / h
+        self._solved = _Solved(
+            nit, f_its, f_ok, status, free, y, layout.restrict(v_star_all), ctx.dof_mass, timings
+        )
+        timings["contact_setup"] = setup
+        timings["contact"] = time.perf_counter() - started
+        fem_out = v_all[:n_fem].copy()
+        grid_out = v_all[n_fem:].copy() if nodes.mpm is not None else grid_v
+        return grid_out, fem_out
+
+    def _nodes(self, step: ExplicitStep, state: State, grid_v: np.ndarray) -> StepNodes:
+        """All-node fields of the step from the engine's P2G (``nodes_of_step``); level-set
+        constraints decided on v* as the engine does next; round-off-light nodes pinned as in
+        ``prepare_mpm_step``."""
+        model = self.model
+        if model.n_particles == 0:
+            return gather_nodes(
+                model, state, transfer=self.transfer, with_acceleration=False, dt=self.dt,
+                t_next=step.t_next,
+            )  # fmt: skip
+        stencils = step.stencils()
+        if stencils.n_nodes != step.grid_x.shape[0] or not np.array_equal(
+            stencils.active_x, step.grid_x
+        ):
+            raise RuntimeError("two_stage: the engine's grid nodes differ from the stencils'")
+        cons = grid_constraints(model.boundaries, step.grid_x, grid_v, step.t_next, self.dt)
+        light = step.grid_mass < LIGHT_NODE_REL * step.grid_mass.max()
+        if light.any():
+            cons = replace(cons, sticky=cons.sticky | light)
+        mpm = MpmStep(
+            stencils,
+            GridFields(mass=step.grid_mass, velocity=step.grid_v),
+            cons,
+            model.n_fem_nodes,
+            None,
+        )
+        return nodes_of_step(model, state, mpm, dt=self.dt, t_next=step.t_next)
+
+    def _newton_start(
+        self, nodes: StepNodes, x_start: np.ndarray, x_hat: np.ndarray, state: State
+    ) -> tuple[np.ndarray, bool]:
+        """x* (slip-normal coordinates kept) when ``start="free"``, no scripted node moves and
+        the straight move x^n -> x* passes CCD with a finite energy; else x^n."""
+        pot = self.potential
+        if self.options.start != "free":
+            return x_start, False
+        model = self.model
+        moving = not np.array_equal(
+            nodes.fixed[: model.n_fem_nodes][model.fem_prescribed],
+            state.fem_x[model.fem_prescribed],
+        )
+        if moving or (nodes.mpm is not None and nodes.mpm.constraints.shift.any()):
+            return x_start, False
+        y0 = pot.to_unknowns(x_start)
+        p = pot.to_unknowns(x_hat - x_start)
+        if pot.fixed_dofs is not None:
+            p[pot.fixed_dofs] = 0.0
+        pot.solution_changed(y0)
+        if pot.max_step_size(y0, p) < 1.0:
+            return x_start, False
+        pot.solution_changed(y0 + p)
+        if not np.isfinite(pot.value(y0 + p)):
+            return x_start, False
+        return pot.to_positions(y0 + p), True
+
+    # ------------------------------------------------------------------ checks and reporting
+    def stationarity(self, contact: bool = True) -> tuple[float, float]:
+        """Stationarity residual of the last step's contact solve.
+
+        r = M (v - v*) - h J^T gamma over the unknowns (slip-normal coordinates excluded), with
+        gamma the barrier and lagged friction forces at the solution; ``contact=False`` drops
+        the gamma term (the negative control: r = M (v - v*)).
+
+        Returns:
+            ``(||r||_inf, scale)`` in N s (N s/m in 2D), scale = max(||M v*||_inf,
+            ||h J^T gamma||_inf); ``(0, 0)`` before a contact solve.
+        """
+        solved, pot = self._solved, self.potential
+        if solved is None or pot is None or solved.y.size == 0:
+            return 0.0, 0.0
+        h = self.dt
+        pot.solution_changed(solved.y)
+        x = pot.to_positions(solved.y)
+        inertia = pot.inertia.gradient(x) / h  # M (v - v*)
+        contact_force = -h * pot.potential_gradient(x)  # h J^T gamma
+        r = inertia - contact_force if contact else inertia
+        mass = solved.mass
+        free = None if pot.fixed_dofs is None else ~pot.fixed_dofs
+        r_local = pot.to_unknowns(r)
+        if free is not None:
+            r_local = r_local[free]
+        scale = max(
+            float(np.abs(mass * solved.v_star).max(initial=0.0)),
+            float(np.abs(contact_force).max(initial=0.0)),
+        )
+        return float(np.abs(r_local).max(initial=0.0)), scale
+
+    def contact(self) -> ContactView:
+        """Barrier forces, closest distance, active pairs and energy at the end of the last step
+        (``barrier``'s ``contact_view``); the engine's empty view without a contact term."""
+        if self.barrier is None:
+            return super().contact()
+        if self._contact is None:
+            self._contact = contact_view(self.model, self.barrier)
+        return self._contact
