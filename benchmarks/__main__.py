@@ -19,6 +19,7 @@ BENCHMARKS = {
     "augury_gap": "benchmarks.augury_gap",
     "augury_probes": "benchmarks.augury_probes",
     "augury_ramp": "benchmarks.augury_ramp",
+    "augury_scenes": "benchmarks.augury_scenes",
     "explicit_speed": "benchmarks.explicit_speed",
     "extremes": "benchmarks.extremes",
     "hertz": "benchmarks.hertz",

@@ -46,9 +46,10 @@ MODES = {
 DRIFT_TARGET = 1e-9
 
 
-def _run_one(cfg: dict, transfer: str) -> dict:
+def _run_one(cfg: dict, transfer: str, strategy: str = "two_stage", options: object = None) -> dict:
+    """One run of an explicit strategy (``augury_scenes`` runs augury through it)."""
     scene = rings._scene(cfg)
-    sim = bfemp.Simulation(scene, strategy="two_stage", transfer=transfer, dt="auto")
+    sim = bfemp.Simulation(scene, strategy=strategy, transfer=transfer, dt="auto", options=options)
     model = sim.model
     check = rings._PenetrationCheck(sim)
     started, error = time.perf_counter(), None
@@ -56,7 +57,7 @@ def _run_one(cfg: dict, transfer: str) -> dict:
         sim.run(t_end=cfg["t_end"], progress=False, callback=check)
     except bfemp.StepError as err:
         error = str(err)
-        log.error("two_stage_rings/%s: %s", transfer, err)
+        log.error("%s rings/%s: %s", strategy, transfer, err)
     wall = time.perf_counter() - started
     m = sim.metrics
     t = m.column("t")
@@ -69,7 +70,11 @@ def _run_one(cfg: dict, transfer: str) -> dict:
     drift = np.linalg.norm(momentum - momentum[0], axis=1) / scale
     dist = m.column("min_distance")[1:]
     pairs = m.column("contact_pairs")[1:]
-    iters = m.column("iterations_newton")[1:]
+    iters = (
+        m.column("iterations_newton")[1:]
+        if "iterations_newton" in m.columns
+        else np.zeros(len(t) - 1)  # a strategy without Newton (augury)
+    )
     e0, e1 = rings._window_energies(t, energy)
     reached = t[-1] >= rings.WINDOW[1] - 1e-9
     return {

@@ -97,10 +97,11 @@ def stable_dt() -> float:
     return TwoStageStepper.auto_dt(model)
 
 
-def run_cases(mode: str, kappa: str) -> dict:
-    """Settle once, release at each mu of ``mode`` with barrier stiffness ``KAPPAS[kappa]``."""
+def run_cases(mode: str, kappa: str, physics: dict | None = None) -> dict:
+    """Settle once, release at each mu of ``mode`` with barrier stiffness ``KAPPAS[kappa]``;
+    ``physics`` overrides entries of ``PHYSICS`` (``augury_scenes``: another strategy)."""
     cfg = MODES[mode]
-    p = {**PHYSICS, "kappa_Pa": KAPPAS[kappa]}
+    p = {**PHYSICS, "kappa_Pa": KAPPAS[kappa], **(physics or {})}
     settled, settle = slope._settle("tilted_gravity", round(cfg["settle_s"] / DT), p)
     cases = []
     for mu in cfg["mus"]:
