@@ -28,6 +28,7 @@ BENCHMARKS = {
     "perf_mpm": "benchmarks.perf_mpm",
     "perf_3d": "benchmarks.perf_3d",
     "perf_threads": "benchmarks.perf_threads",
+    "refinement": "benchmarks.refinement",
     "rings": "benchmarks.rings",
     "sine_boundary": "benchmarks.sine_boundary",
     "slope": "benchmarks.slope",
