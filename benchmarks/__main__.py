@@ -19,6 +19,7 @@ BENCHMARKS = {
     "augury_gap": "benchmarks.augury_gap",
     "augury_ramp": "benchmarks.augury_ramp",
     "augury_speed": "benchmarks.augury_speed",
+    "buckling": "benchmarks.buckling",
     "extremes": "benchmarks.extremes",
     "hertz": "benchmarks.hertz",
     "perf_broadphase": "benchmarks.perf_broadphase",
