@@ -35,8 +35,8 @@ Choices where the paper is silent or the library forces a change (recorded in th
   slip box ``|x| <= 9, -2 <= y <= 0`` lies under the middle. One scripted motion serves the cap
   and the fixed feet (``_CapAndFeet``).
 - Particles: ``bfemp.sample.mesh`` of a fine inner-ring mesh at the grid's sub-cell centres,
-  PPC 9 in full mode (the paper's 10261 particles at dx = 0.25 m is 9.3 per cell); the MPM grid
-  origin shifted by a quarter of the particle spacing (see ``benchmarks.rings``).
+  PPC 9 in full mode (9898 particles; the paper's 10261 at dx = 0.25 m is 9.3 per cell); the
+  MPM grid origin shifted by a quarter of the particle spacing (see ``benchmarks.rings``).
 - Full mode: dx = 0.25 m, PPC 9, FEM mesh size ``FULL_FEM_H`` (close to the paper's 2714
   vertices), the paper's dt, run to u = 8 m. Not run on the 2-core machine (estimate in the
   README of the records: see ``run``'s log).
@@ -79,7 +79,7 @@ PAPER = {
     "inner_particles": 10261,
     "result": "mu 0 buckles first, 0.2 later, 0.5 not at all",
 }
-FULL_FEM_H = 0.22  # m
+FULL_FEM_H = 0.2  # m: 2772 vertices, 5093 triangles (paper 2714 / 5067)
 
 MODES = {
     "full": dict(dx=0.25, ppc=9, fem_h=FULL_FEM_H, dt=1e-2, u_end=8.0, max_newton=500),
