@@ -38,8 +38,9 @@ Choices where the paper is silent or the library forces a change (recorded in th
   PPC 9 in full mode (9898 particles; the paper's 10261 at dx = 0.25 m is 9.3 per cell); the
   MPM grid origin shifted by a quarter of the particle spacing (see ``benchmarks.rings``).
 - Full mode: dx = 0.25 m, PPC 9, FEM mesh size ``FULL_FEM_H`` (close to the paper's 2714
-  vertices), the paper's dt, run to u = 8 m. Not run on the 2-core machine (estimate in the
-  README of the records: see ``run``'s log).
+  vertices), the paper's dt, run to u = 8 m (800 steps per mu). Not run: its first 10 steps
+  took 1.25 s per step at mu = 0 and 3.2 s per step at mu = 0.2 (2 cores under a load of ~7,
+  at cc5084f), so the three cases need at least 17 + 43 + 43 min, more as the contact grows.
 - Quick mode: dx = 0.5 m, PPC 4 (1104 particles), FEM h = 0.5 m (537 vertices), dt = 5e-2 s
   (5 cm of push per step; the loading is quasi-static: waves cross the ring in 0.1 s), to
   u = 3 m. At dt = 5e-2 s the mu = 0.5 run stops with MAX_ITERATIONS at u = 3.9 m (measured),

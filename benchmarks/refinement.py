@@ -13,6 +13,15 @@ error of a resolution N is ``|y(N) - y(N_ref)|`` at the same PPC (``errors`` and
 ``errors_mpm``). The convergence order is the slope of the least-squares line through
 ``(log dx, log error)`` over every N of the series (``order``, ``order_mpm``).
 
+Recorded (``benchmarks/records/refinement_ppc16.json``, ``--mode ppc16`` at 2f917dc, 610 s on 2
+cores under a load of ~6): errors 3.7e-2 ... 2.6e-4 m over N = 4 ... 20, decreasing at every
+step, fitted order 3.02 (3.06 for the MPM box alone; paper 2.75, target >= 2). N = 2 (dx = 0.5 m,
+dhat = 0.25 m) ends with a TUNNELED step error at step 9 (particles whose straight path crosses
+the FEM box although the end state is clear) and is left out of the fit. Quick mode
+(``refinement_quick.json``): 3.6e-2, 5.3e-3, 7.9e-4 m at N = 4, 8, 12 against N = 16, order
+3.41. Full mode (PPC 4 and 9 as well) was not run: PPC 16 alone took 10 min, so the three series
+need about 20 min on this machine.
+
 Choices where the paper is silent (all recorded in the JSON ``parameters``):
 
 - Geometry: FEM box ``[-2, 2] x [0, 1]`` (``bfemp.shapes.rectangle`` with h = dx, alternating
