@@ -1,0 +1,335 @@
+"""Buckling under friction (BFEMP paper, section 6.6, figure 15): a semicircular MPM ring inside a
+semicircular FEM ring, the outer ring pressed down at its crown; friction between the rings
+delays the inner ring's buckling.
+
+Setup (paper): outer semicircular FEM ring, radii 12 m to 14 m; inner semicircular MPM ring,
+radii 10 m to 11.99 m, grid dx = 0.25 m; both Neo-Hookean, E = 1e6 Pa, nu = 0.3,
+rho = 100 kg/m^2; no gravity. The outer ring is pressed down at 1 m/s at its crown; the feet of
+both rings are held (no-slip); a slip boundary lies under the middle. Barrier dhat = 1e-3 m,
+kappa = 1e5 Pa, eps_v = 1e-5 m/s; backward Euler, dt = 1e-2 s, Newton tolerance 1e-4 m/s;
+mu between the rings 0, 0.2 and 0.5. APIC transfer.
+
+Buckling measure. The inner ring buckles by snapping through inwards: its crown runs ahead of
+the outer ring and separates from it (measured: with mu = 0 the separation grows slowly to
+u = 4 m, then fast). ``detachment(u)`` is, at plate displacement u (m), the largest increase
+over the inner ring's outer-rim particles (those within 0.3 dx of the largest initial radius)
+of the distance from the particle to the outer ring's deformed inner boundary (the polyline
+through its inner-surface nodes), relative to the same distance at t = 0. The buckling
+displacement ``u_buckle`` is the first u at which the detachment exceeds ``BUCKLE_FRACTION`` =
+0.25 of the inner ring's thickness (1.99 m), None when it does not within the run.
+
+Targets: full mode, u_buckle(0) < u_buckle(0.2) and mu = 0.5 not buckled (None) or later still;
+quick mode, the ordering of the measure at a fixed displacement: detachment(mu = 0) >
+detachment(0.2) > detachment(0.5) at the end of the run (u = 3 m).
+
+Choices where the paper is silent or the library forces a change (recorded in the JSON):
+
+- The plate. The paper presses a FEM plate with mu = 10 to the outer ring, "a BFEMP based
+  no-slip boundary condition". The library has one friction coefficient for every contact pair
+  (``Scene.set_contact``), so a plate would share the rings' mu (frictionless in the mu = 0
+  case). Instead the no-slip push is applied directly: the outer ring's outer-surface nodes with
+  ``|x| <= CAP_HALF_WIDTH`` = 4 m (the plate's contact half-width sqrt(2 R u) at u = 0.6 m) are
+  scripted down at 1 m/s (the "cap"). Beyond u = 0.6 m a flat plate would flatten a wider crown.
+- Feet: the outer ring's nodes on y = 0 are fixed (level sets act on MPM grid nodes only); the
+  inner ring's feet are held by two sticky level-set boxes ``9 <= |x| <= 13, -2 <= y <= 0``; a
+  slip box ``|x| <= 9, -2 <= y <= 0`` lies under the middle. One scripted motion serves the cap
+  and the fixed feet (``_CapAndFeet``).
+- Particles: ``bfemp.sample.mesh`` of a fine inner-ring mesh at the grid's sub-cell centres,
+  PPC 9 in full mode (9898 particles; the paper's 10261 at dx = 0.25 m is 9.3 per cell); the
+  MPM grid origin shifted by a quarter of the particle spacing (see ``benchmarks.rings``).
+- Full mode: dx = 0.25 m, PPC 9, FEM mesh size ``FULL_FEM_H`` (close to the paper's 2714
+  vertices), the paper's dt, run to u = 8 m (800 steps per mu). Not run: its first 10 steps
+  took 1.25 s per step at mu = 0 and 3.2 s per step at mu = 0.2 (2 cores under a load of ~7,
+  at cc5084f), so the three cases need at least 17 + 43 + 43 min, more as the contact grows.
+- Quick mode: dx = 0.5 m, PPC 4 (1104 particles), FEM h = 0.5 m (537 vertices), dt = 5e-2 s
+  (5 cm of push per step; the loading is quasi-static: waves cross the ring in 0.1 s), to
+  u = 3 m. At dt = 5e-2 s the mu = 0.5 run stops with MAX_ITERATIONS at u = 3.9 m (measured),
+  so quick mode ends at u = 3 m.
+- Partial mode (``--mode partial``): the quick discretisation and dt pressed to u = 7 m, with a
+  Newton cap of 2000, for u_buckle at a coarse resolution. At dt = 2e-2 s instead, mu = 0
+  buckles at u = 3.92 m but both friction cases stop with MAX_ITERATIONS (cap 500,
+  ||p|| / dt = 2.5e-2 and 3.1e-2 m/s) at u = 0.34 m and 0.36 m (measured at cc5084f).
+  Recorded (``benchmarks/records/buckling_partial.json``, 141 s): u_buckle = 3.95 m (mu = 0)
+  and 4.05 m (mu = 0.2); beyond it the detachment grows faster without friction (1.42 against
+  1.04 m at u = 6 m); mu = 0.2 stops with MAX_ITERATIONS (cap 2000) at u = 6.65 m and mu = 0.5
+  at u = 3.85 m, before the threshold (0.435 m there, against 0.483 / 0.470 m for mu = 0 / 0.2), so
+  whether mu = 0.5 buckles is not decided at this resolution.
+- Newton iteration cap 500 (partial mode 2000); lagged-friction loop capped at 20 iterations
+  (the default; quick mode logs "friction loop did not converge" in about 10 of the 120 friction
+  steps and goes on, as the library does).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+import bfemp
+from benchmarks.common import environment, peak_memory_mb, write_json
+
+log = logging.getLogger(__name__)
+
+NAME = "buckling"
+OUTER_RADII = (12.0, 14.0)  # m
+INNER_RADII = (10.0, 11.99)  # m
+MATERIAL = dict(E=1e6, nu=0.3, density=100.0)  # Pa, -, kg/m^2
+SPEED = 1.0  # m/s, the plate
+DHAT, KAPPA, EPS_V = 1e-3, 1e5, 1e-5  # m, Pa, m/s
+TOL = 1e-4  # m/s
+CAP_HALF_WIDTH = 4.0  # m
+BUCKLE_FRACTION = 0.25  # of the inner ring's thickness
+MUS = (0.0, 0.2, 0.5)
+PAPER = {
+    "outer_vertices": 2714,
+    "outer_triangles": 5067,
+    "inner_particles": 10261,
+    "result": "mu 0 buckles first, 0.2 later, 0.5 not at all",
+}
+FULL_FEM_H = 0.2  # m: 2772 vertices, 5093 triangles (paper 2714 / 5067)
+
+MODES = {
+    "full": dict(dx=0.25, ppc=9, fem_h=FULL_FEM_H, dt=1e-2, u_end=8.0, max_newton=500),
+    # the quick discretisation at a smaller dt, pressed far enough for u_buckle
+    "partial": dict(dx=0.5, ppc=4, fem_h=0.5, dt=5e-2, u_end=7.0, max_newton=2000),
+    "quick": dict(dx=0.5, ppc=4, fem_h=0.5, dt=5e-2, u_end=3.0, max_newton=500),
+}
+
+
+class _CapAndFeet(bfemp.motion.Motion):
+    """Scripted nodes of the outer ring: those above ``y_split`` (the cap) move down at ``speed``
+    (m/s), the others (the feet) stay fixed. Positions and velocities ``(n, d)``."""
+
+    def __init__(self, speed: float, y_split: float) -> None:
+        self.speed, self.y_split = float(speed), float(y_split)
+
+    def positions(self, x0: np.ndarray, tau: float) -> np.ndarray:
+        x = np.array(x0, dtype=np.float64, copy=True)
+        x[x[:, 1] > self.y_split, 1] -= self.speed * tau
+        return x
+
+    def velocities(self, x0: np.ndarray, tau: float) -> np.ndarray:
+        x0 = np.asarray(x0, dtype=np.float64)
+        v = np.zeros_like(x0)
+        v[x0[:, 1] > self.y_split, 1] = -self.speed
+        return v
+
+
+def _scene(cfg: dict, mu: float) -> bfemp.Scene:
+    """Both rings about the origin, feet on y = 0, the cap of the outer ring scripted."""
+    material = bfemp.NeoHookean(**MATERIAL)
+    scene = bfemp.Scene(dim=2)
+    outer = bfemp.shapes.semicircular_ring((0.0, 0.0), *OUTER_RADII, h=cfg["fem_h"])
+    p = outer.points
+    feet = p[:, 1] < 1e-9
+    cap = (np.linalg.norm(p, axis=1) > OUTER_RADII[1] - 1e-6) & (np.abs(p[:, 0]) <= CAP_HALF_WIDTH)
+    # the cap's lowest node is far above the feet: split the two at half the inner radius
+    scene.add_fem(
+        outer,
+        material=material,
+        prescribed=_CapAndFeet(SPEED, 0.5 * OUTER_RADII[0]),
+        prescribed_nodes=feet | cap,
+        name="outer_ring",
+    )
+    dx, ppc = cfg["dx"], cfg["ppc"]
+    shape = bfemp.shapes.semicircular_ring((0.0, 0.0), *INNER_RADII, h=0.25 * dx)
+    particles, volumes = bfemp.sample.mesh(shape, dx=dx, ppc=ppc)
+    scene.add_mpm(particles, volumes, material=material, name="inner_ring")
+    shift = dx / (4.0 * round(math.sqrt(ppc)))
+    scene.set_grid(dx=dx, origin=(shift, shift))
+    box = bfemp.levelset.Box
+    scene.add_boundary(box(lower=(9.0, -2.0), upper=(13.0, 0.0)), kind="sticky")
+    scene.add_boundary(box(lower=(-13.0, -2.0), upper=(-9.0, 0.0)), kind="sticky")
+    scene.add_boundary(box(lower=(-9.0, -2.0), upper=(9.0, 0.0)), kind="slip")
+    scene.set_contact(dhat=DHAT, kappa=KAPPA, mu=mu, eps_v=EPS_V)
+    return scene
+
+
+class Detachment:
+    """The buckling measure: largest increase of the rim-to-outer-ring distance (m).
+
+    Args:
+        mpm_x0: initial particle positions ``(p, 2)`` in m.
+        fem_x0: initial FEM node positions ``(n, 2)`` in m.
+        dx: MPM grid spacing in m (the rim is the particles within 0.3 dx of the largest radius).
+    """
+
+    def __init__(self, mpm_x0: np.ndarray, fem_x0: np.ndarray, dx: float) -> None:
+        r = np.linalg.norm(mpm_x0, axis=1)
+        self.rim = np.flatnonzero(r > r.max() - 0.3 * dx)
+        inner = np.flatnonzero(np.linalg.norm(fem_x0, axis=1) < OUTER_RADII[0] + 1e-6)
+        self.inner = inner[np.argsort(np.arctan2(fem_x0[inner, 1], fem_x0[inner, 0]))]
+        self.d0 = self.distances(mpm_x0, fem_x0)
+
+    def distances(self, mpm_x: np.ndarray, fem_x: np.ndarray) -> np.ndarray:
+        """Distance ``(k,)`` in m of each rim particle to the outer ring's inner polyline."""
+        q = mpm_x[self.rim][:, None, :]
+        a, b = fem_x[self.inner[:-1]][None], fem_x[self.inner[1:]][None]
+        ab = b - a
+        t = np.clip(((q - a) * ab).sum(-1) / (ab * ab).sum(-1), 0.0, 1.0)
+        return np.linalg.norm(q - (a + t[..., None] * ab), axis=-1).min(axis=1)
+
+    def __call__(self, mpm_x: np.ndarray, fem_x: np.ndarray) -> tuple[float, float]:
+        """The detachment (m) and the polar angle (degrees) of the rim particle where it is."""
+        growth = self.distances(mpm_x, fem_x) - self.d0
+        k = int(np.argmax(growth))
+        x, y = mpm_x[self.rim[k]]
+        return float(growth[k]), math.degrees(math.atan2(y, x))
+
+
+def _run_one(cfg: dict, mu: float) -> dict:
+    """Press the rings to ``u_end`` at friction ``mu``; the detachment after every step."""
+    sim = bfemp.Simulation(
+        _scene(cfg, mu),
+        integrator="backward_euler",
+        transfer="apic",
+        dt=cfg["dt"],
+        tol=TOL,
+        max_newton_iterations=cfg["max_newton"],
+    )
+    measure = Detachment(sim.state.mpm_x, sim.state.fem_x, cfg["dx"])
+    steps = round(cfg["u_end"] / (SPEED * cfg["dt"]))
+    u, detach, angle = [0.0], [0.0], [90.0]
+    newton, friction_max, min_d, error = 0, 0, math.inf, None
+    started = time.perf_counter()
+    for _ in range(steps):
+        try:
+            report = sim.step()
+        except bfemp.StepError as err:
+            error = str(err)
+            log.warning("buckling mu=%g: %s", mu, err)
+            break
+        newton += report.newton_iterations
+        friction_max = max(friction_max, report.friction_iterations)
+        if np.isfinite(report.min_distance):
+            min_d = min(min_d, report.min_distance)
+        d, a = measure(sim.state.mpm_x, sim.state.fem_x)
+        u.append(SPEED * sim.state.t)
+        detach.append(d)
+        angle.append(a)
+    wall = time.perf_counter() - started
+    threshold = BUCKLE_FRACTION * (INNER_RADII[1] - INNER_RADII[0])
+    over = np.flatnonzero(np.array(detach) > threshold)
+    log.info(
+        "buckling mu=%g: detachment %.4f m at u = %.2f m, %d steps, %.1f s",
+        mu,
+        detach[-1],
+        u[-1],
+        len(u) - 1,
+        wall,
+    )
+    return {
+        "mu": mu,
+        "error": error,
+        "steps": len(u) - 1,
+        "u_end_m": u[-1],
+        "detachment_end_m": detach[-1],
+        "u_buckle_m": float(u[over[0]]) if over.size else None,
+        "newton_iterations": newton,
+        "friction_iterations_max": friction_max,
+        "min_distance_m": min_d if math.isfinite(min_d) else None,
+        "wall_s": wall,
+        "particles": int(sim.model.n_particles),
+        "fem_vertices": int(sim.model.n_fem_nodes),
+        "fem_triangles": int(sim.model.fem_cells.shape[0]),
+        "final_mpm_x": sim.state.mpm_x.tolist(),
+        "final_fem_x": sim.state.fem_x.tolist(),
+        "series": {"u_m": u, "detachment_m": detach, "angle_deg": angle},
+    }
+
+
+def _plot(runs: list[dict], cfg: dict, path: Path, title: str) -> None:
+    """Detachment against plate displacement per mu, and each run's final shape."""
+    fig = Figure(figsize=(12.0, 8.0), layout="constrained")
+    FigureCanvasAgg(fig)
+    grid = fig.add_gridspec(2, len(runs))
+    ax = fig.add_subplot(grid[0, :])
+    threshold = BUCKLE_FRACTION * (INNER_RADII[1] - INNER_RADII[0])
+    for k, run in enumerate(runs):
+        s = run["series"]
+        label = f"mu = {run['mu']:g}"
+        if run["u_buckle_m"] is not None:
+            label += f" (buckles at u = {run['u_buckle_m']:.2f} m)"
+        ax.plot(s["u_m"], s["detachment_m"], color=f"C{k}", label=label)
+    ax.axhline(threshold, color="k", ls=":", lw=0.8, label="buckling threshold")
+    ax.set_xlabel("plate displacement u [m]")
+    ax.set_ylabel("detachment of the inner ring [m]")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize="small")
+    for k, run in enumerate(runs):
+        sub = fig.add_subplot(grid[1, k])
+        fem, mpm = np.array(run["final_fem_x"]), np.array(run["final_mpm_x"])
+        sub.plot(fem[:, 0], fem[:, 1], ".", ms=1.0, color="C0")
+        sub.plot(mpm[:, 0], mpm[:, 1], ".", ms=1.0, color="C1")
+        sub.set_aspect("equal")
+        sub.set_title(f"mu = {run['mu']:g}, u = {run['u_end_m']:.2f} m", fontsize="medium")
+    fig.suptitle(title)
+    fig.savefig(path, dpi=110)
+
+
+def run(mode: str = "full", out: str | Path = "results") -> dict:
+    """Press the rings at each mu; write ``buckling.json`` and ``buckling.png`` to ``out``.
+
+    Args:
+        mode: ``"full"`` (the paper's resolution and dt, to u = 8 m), ``"partial"`` (coarse,
+            to u = 7 m) or ``"quick"`` (coarse, to u = 3 m).
+        out: output folder.
+
+    Returns:
+        ``{"json": path, "png": path, **payload}``; ``payload["cases"]`` per mu.
+    """
+    if mode not in MODES:
+        raise ValueError(f"mode must be one of {sorted(MODES)}, got {mode!r}")
+    cfg = MODES[mode]
+    env = environment()
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    started = time.perf_counter()
+    runs = [_run_one(cfg, mu) for mu in MUS]
+    end = [r["detachment_end_m"] for r in runs]
+    complete = all(r["error"] is None for r in runs)
+    payload = {
+        "benchmark": NAME,
+        "mode": mode,
+        "detachment_end_m": {str(r["mu"]): r["detachment_end_m"] for r in runs},
+        "u_buckle_m": {str(r["mu"]): r["u_buckle_m"] for r in runs},
+        "ordered_at_end": bool(complete and end[0] > end[1] > end[2]),
+        "failed_cases": [r["mu"] for r in runs if r["error"] is not None],
+        "cases": [{k: v for k, v in r.items() if not k.startswith("final_")} for r in runs],
+        "wall_s": time.perf_counter() - started,
+        "peak_memory_mb": peak_memory_mb(),
+        "paper": PAPER,
+        "targets": {
+            "full": "u_buckle(0) < u_buckle(0.2); mu = 0.5 later still or not at all",
+            "quick": "detachment at u_end: mu 0 > mu 0.2 > mu 0.5",
+        },
+        "parameters": {
+            **cfg,
+            "mus": MUS,
+            "outer_radii_m": OUTER_RADII,
+            "inner_radii_m": INNER_RADII,
+            "material": {"model": "NeoHookean", **MATERIAL},
+            "speed_m_s": SPEED,
+            "dhat_m": DHAT,
+            "kappa_Pa": KAPPA,
+            "eps_v_m_s": EPS_V,
+            "tol_m_s": TOL,
+            "integrator": "backward_euler",
+            "transfer": "apic",
+            "cap_half_width_m": CAP_HALF_WIDTH,
+            "buckle_fraction": BUCKLE_FRACTION,
+            "particles": runs[0]["particles"],
+            "fem_vertices": runs[0]["fem_vertices"],
+            "fem_triangles": runs[0]["fem_triangles"],
+        },
+        "environment": env,
+    }
+    path = write_json(out, NAME, payload)
+    png = out / f"{NAME}.png"
+    _plot(runs, cfg, png, f"Semicircular rings pressed at the crown ({mode} mode)")
+    return {"json": str(path), "png": str(png), **payload}
