@@ -16,6 +16,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from bfemp.frames import NodeFrames
+from bfemp.mpm._transfer_kernels import _largest_particle_increment
 from bfemp.terms.base import StepContext, Term
 from solvers.assembly import Triplets, TripletStacker
 
@@ -154,16 +155,9 @@ class IncrementalPotential:
             return float(np.abs(dx).max(initial=0.0))
         nodes, weights, grads, offset, spacing = self._particles
         moved = self._layout.expand(dx)
-        node_moves = moved[offset:][nodes]  # (P, K, d)
-        particle_moves = np.einsum("pk,pkd->pd", weights, node_moves)
-        strain = spacing * np.einsum("pkd,pke->pde", node_moves, grads)
-        return float(
-            max(
-                np.abs(moved[:offset]).max(initial=0.0),
-                np.abs(particle_moves).max(initial=0.0),
-                np.abs(strain).max(initial=0.0),
-            )
-        )
+        grid = np.ascontiguousarray(moved[offset:])
+        particles = _largest_particle_increment(grid, nodes, weights, grads, float(spacing))
+        return float(max(np.abs(moved[:offset]).max(initial=0.0), particles))
 
     def max_step_size(self, y: np.ndarray, p: np.ndarray) -> float:
         """The smallest feasibility bound over the terms (paths are linear in x as in y)."""

@@ -223,3 +223,44 @@ def _apic_inertia(
                 for c in range(d):
                     out[p, r, c] += w * ar * (grid_x[i, c] - mpm_x[p, c])
     return out
+
+
+@njit(cache=True, parallel=True)
+def _largest_particle_increment(
+    node_moves: np.ndarray,
+    nodes: np.ndarray,
+    weights: np.ndarray,
+    grads: np.ndarray,
+    spacing: float,
+) -> float:
+    """max over particles p of |sum_i w_ip u_i|_inf and spacing |sum_i u_i grad w_ip^T|_inf for
+    grid-node increments ``node_moves (G, d)`` in m (``bfemp.potential.increment_norm``)."""
+    n_p, n_k = nodes.shape
+    d = node_moves.shape[1]
+    n_chunks = max(1, min(n_p // 2048, 64))
+    best = np.zeros(n_chunks)
+    for c in prange(n_chunks):
+        lo = c * n_p // n_chunks
+        hi = (c + 1) * n_p // n_chunks
+        u = np.empty(d)
+        strain = np.empty((d, d))
+        m = 0.0
+        for p in range(lo, hi):
+            for a in range(d):
+                u[a] = 0.0
+                for b in range(d):
+                    strain[a, b] = 0.0
+            for k in range(n_k):
+                i = nodes[p, k]
+                w = weights[p, k]
+                for a in range(d):
+                    ua = node_moves[i, a]
+                    u[a] += w * ua
+                    for b in range(d):
+                        strain[a, b] += ua * grads[p, k, b]
+            for a in range(d):
+                m = max(m, abs(u[a]))
+                for b in range(d):
+                    m = max(m, spacing * abs(strain[a, b]))
+        best[c] = m
+    return best.max()
