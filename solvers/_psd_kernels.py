@@ -10,9 +10,7 @@ contact terms project each pair's Hessian where they compute it).
 The projection clamps the eigenvalues from below, ``P = V diag(max(w, eps)) V^T``, rebuilt from
 the clamped spectrum (not as ``H`` minus its negative part, which would leave round-off of the
 size of the largest negative eigenvalue in the cleared directions) and written symmetric (upper
-triangle mirrored); a block whose eigenvalues are all ``>= eps`` is left untouched. A Cholesky
-test comes first: a block it shows positive definite beyond ``eps`` is left untouched without
-the eigen-decomposition.
+triangle mirrored); a block whose eigenvalues are all ``>= eps`` is left untouched.
 """
 
 from __future__ import annotations
@@ -191,33 +189,6 @@ def _symmetric_eigen(A: np.ndarray, n: int, V: np.ndarray, w: np.ndarray, e: np.
 
 
 @njit(cache=True)
-def _positive_definite_beyond(A: np.ndarray, n: int, eps: float, L: np.ndarray) -> bool:
-    """Whether the symmetric part of A[:n, :n] minus ``eps I`` is positive definite: a Cholesky
-    factorisation into the workspace L (>= n, >= n) succeeds with finite, positive pivots.
-
-    About n^3 / 6 flops against the ~9 n^3 of the eigen-decomposition: most blocks of a
-    projected Newton solve (elements near rest, pairs inside the convex part of the barrier)
-    are positive definite and need no more than this test.
-    """
-    for j in range(n):
-        acc = A[j, j] - eps
-        for k in range(j):
-            acc -= L[j, k] * L[j, k]
-        if not (math.isfinite(acc) and acc > 0.0):
-            return False
-        ljj = math.sqrt(acc)
-        L[j, j] = ljj
-        for i in range(j + 1, n):
-            acc = 0.5 * (A[i, j] + A[j, i])
-            for k in range(j):
-                acc -= L[i, k] * L[j, k]
-            if not math.isfinite(acc):
-                return False
-            L[i, j] = acc / ljj
-    return True
-
-
-@njit(cache=True)
 def _project_block(
     A: np.ndarray, n: int, eps: float, V: np.ndarray, w: np.ndarray, e: np.ndarray
 ) -> bool:
@@ -228,8 +199,6 @@ def _project_block(
     symmetric). A non-finite or non-converged block is filled with NaN.
     V (>= n, >= n), w and e (>= n) are workspace.
     """
-    if _positive_definite_beyond(A, n, eps, V):
-        return False  # every eigenvalue > eps: unchanged, without the eigen-decomposition
     if not _symmetric_eigen(A, n, V, w, e):
         for i in range(n):
             for j in range(n):
