@@ -63,7 +63,8 @@ class Simulation:
             no energy gain at stiff impacts; see :mod:`bfemp.integrators`), or an
             ``Integrator``; explicit strategies take ``"symplectic_euler"``. None: the
             strategy's default (``backward_euler`` for ``barrier``).
-        transfer: particle-grid transfer for MPM bodies (``"apic"``, ``"pic"``, ``"flip"``).
+        transfer: particle-grid transfer for MPM bodies (``"apic"``, ``"pic"``, ``"flip"``); None:
+            the strategy's default (``"apic"``; ``"flip"`` for ``lr``, which refuses APIC).
         dt: time step in s, or ``"auto"`` for an explicit strategy's stable step.
         options: the strategy's options (``bfemp.BarrierOptions`` for ``barrier``, ...); None
             for its defaults.
@@ -77,7 +78,7 @@ class Simulation:
         *,
         strategy: str = "barrier",
         integrator: str | Integrator | None = None,
-        transfer: str = "apic",
+        transfer: str | None = None,
         dt: float | str,
         options: StepperOptions | None = None,
         tol: float | None = None,
@@ -85,9 +86,15 @@ class Simulation:
         linear_solver: LinearSolver | None = None,
         warm_start: bool | None = None,
     ) -> None:
-        if transfer not in SCHEMES:
-            raise ValueError(f"Simulation.transfer must be one of {SCHEMES}, got {transfer!r}")
         stepper_cls = stepper_class(strategy)
+        if transfer is None:
+            transfer = getattr(stepper_cls, "default_transfer", "apic")
+        allowed = getattr(stepper_cls, "transfers", SCHEMES)
+        if transfer not in allowed:
+            raise ValueError(
+                f"Simulation.transfer must be one of {allowed} for strategy {strategy!r}, "
+                f"got {transfer!r}"
+            )
         flat = {
             "tol": tol,
             "max_newton_iterations": max_newton_iterations,

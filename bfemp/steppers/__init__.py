@@ -25,6 +25,7 @@ from bfemp.steppers.base import (
     options_from_mapping,
     options_to_dict,
 )
+from bfemp.steppers.lr import LROptions, LRStepper
 from bfemp.steppers.single_field import SingleFieldOptions, SingleFieldStepper
 from bfemp.steppers.two_stage import TwoStageOptions, TwoStageStepper
 
@@ -38,6 +39,8 @@ __all__ = [
     "BarrierStepper",
     "ContactView",
     "ImplicitStepper",
+    "LROptions",
+    "LRStepper",
     "StepError",
     "StepReport",
     "Stepper",
@@ -58,6 +61,7 @@ ImplicitStepper = BarrierStepper
 STRATEGIES: dict[str, type] = {"barrier": BarrierStepper, "single_field": SingleFieldStepper}
 STRATEGIES["augury"] = AuguryStepper  # APIC augury contact (AUG), explicit
 STRATEGIES["two_stage"] = TwoStageStepper  # explicit free motion, implicit contact (TS)
+STRATEGIES["lr"] = LRStepper  # multimaterial MPM, logistic-regression contact (LR), explicit
 
 
 def stepper_class(strategy: str) -> type:

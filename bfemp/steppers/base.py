@@ -151,6 +151,8 @@ class StepReport:
         boundary_forces: per level-set boundary, the reaction force (d,) in N its slip nodes
             exert on the body (empty without slip constraints).
         notes: named observations of the step (``"SCRIPTED_FOREGROUND: ..."``), never silent.
+        extra: strategy-specific scalars of the step (lr: ``"lr_unconverged"``,
+            ``"lump_momentum_drift"`` in kg m/s, ...).
     """
 
     step: int
@@ -166,6 +168,7 @@ class StepReport:
     friction_converged: bool = True
     boundary_forces: tuple = ()
     notes: tuple[str, ...] = ()
+    extra: Mapping[str, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "iterations", MappingProxyType(dict(self.iterations)))

@@ -1,0 +1,576 @@
+"""``"lr"``: multimaterial MPM with logistic-regression contact and multimaterial XPIC(m).
+
+Paper: Nairn et al., logistic-regression multimaterial MPM contact ("LR"); the step read
+from it: EXPLICIT_STRATEGIES.md section 2. Every MPM body is one material with its own
+velocity field on the shared grid (``_multimaterial_kernels``). One USL step:
+
+1. Stencils at X_p^n; P2G per material (eq. 5): m^a, p^a0, f^a0 (eq. 29, gravity included).
+   Level-set boundaries act on every field (``bfemp.mpm.boundaries``).
+2. Contact nodes: nodes where two or more materials have mass above ``mass_fraction`` of the
+   node's total (Uintah's 1e-8). At a node with two materials one pair (a, b), a the lower
+   index; at a node with three or more, one pair per material a against the lumped others
+   (eq. 50). Each pair's point cloud is every particle whose stencil weight at the node is
+   positive; one logistic-regression fit per pair and step gives the normal n (from a to b)
+   and the separation d_LR with the deformed particle radius (eqs. 19-25,
+   ``bfemp.contact.lr.lr_planes``).
+3. First correction (eqs. 7-10), skipped with ``corrections=1`` ("LR once"): the contact law
+   (``bfemp.contact.lr.contact_momentum``: contact iff approaching and touching) on p^a0
+   gives dp^a; v^a = (p^a0 + dp^a) / m^a; dv^a = dp^a / m^a is kept for XPIC.
+4. Provisional momenta p^a0+ = p^a + f^a0 dt (eq. 30); second correction with the same planes
+   (eq. 31) gives p^a+, v^a+ = p^a+ / m^a, then the boundaries.
+5. a^a = (v^a+ - v^a) / dt: the force f^{C,1} of eq. 34 (Uintah's form, boundaries included).
+6. Particles: FLIP (eq. 32) V^{n+1} = V^n + dt S a, X^{n+1} = X^n + dt S (v + dt a / 2);
+   XPIC(m) (eqs. 35, 37; ``bfemp.mpm.xpic``) V^{n+1} = S v* + dt S a,
+   X^{n+1} = X^n + dt (S v + (V^{n+1} - V^n) / 2); USL F^{n+1} = (I + dt S grad v+) F^n.
+
+Two-material corrections conserve momentum (a gets dp, b gets -dp). Lumping at nodes with three
+or more materials does not (the paper says so): its momentum change per step is reported in
+``StepReport.extra["lump_momentum_drift"]`` (kg m/s); ``lump="conservative"`` (bfemp's) gives
+-dp to the others in proportion to their masses. ``interface="perfect"`` takes dp = dp(0) at every
+contact node: the multimaterial step then equals the single-material one (eq. 34, L1).
+
+Transfers: ``"flip"`` (the default) and ``"pic"`` (= XPIC(1)); ``xpic_order`` m >= 1 selects
+XPIC(m). APIC is refused: LR's corrections and XPIC are written for FLIP-type updates.
+FEM bodies are refused with a named error (the FEM-as-material coupling of spec section 2.6 is
+not built yet).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass, replace
+from typing import ClassVar
+
+import numpy as np
+
+from bfemp.integrators import ExplicitIntegrator
+from bfemp.model import Model
+from bfemp.mpm.boundaries import GridConstraints, grid_constraints
+from bfemp.mpm.xpic import XPIC_VARIANTS, xpic_grid_velocity
+from bfemp.state import State
+from bfemp.steppers._multimaterial_kernels import (
+    g2p_field,
+    g2p_update,
+    p2g_field,
+    p2g_materials,
+)
+from bfemp.steppers.base import ContactView, StepperOptions, StepReport
+from bfemp.steppers.explicit import ExplicitOptions, ExplicitStepper
+from geometry.grid import ParticleStencils, particle_stencils
+
+__all__ = ["LROptions", "LRStepper"]
+
+log = logging.getLogger(__name__)
+
+#: per material, the level-set constraints of its field (None: no boundaries)
+_Constraints = list[GridConstraints] | None
+
+LAWS = ("coulomb", "frictionless")
+INTERFACES = ("contact", "perfect")
+DETECTORS = ("lr", "velocity", "cp")
+LUMPS = ("lumped", "conservative")
+TRANSFERS = ("flip", "pic")
+
+
+@dataclass(frozen=True, kw_only=True)
+class LROptions(ExplicitOptions):
+    """Options of ``"lr"`` (EXPLICIT_STRATEGIES.md section 2.7).
+
+    Attributes:
+        mu: Coulomb coefficient; None takes ``scene.set_contact(mu=...)`` (0 without contact).
+        law: ``"coulomb"`` (stick or slip at mu; mu = 0 is frictionless) or ``"frictionless"``.
+        interface: ``"contact"`` (the contact law) or ``"perfect"`` (dp = dp(0) at every
+            contact node: the bodies stick as one, the single-material limit of eq. 34).
+        detector: ``"lr"`` (LR normal and separation, eqs. 19-25), ``"velocity"`` (mass-gradient
+            normals, contact when approaching alone) or ``"cp"`` (mass-gradient normals and the
+            constant-offset separation of eq. 16, ``cp_offset`` cells), the paper's comparison.
+        cp_offset: the constant offset of the ``"cp"`` detector in cells (LR: 0.8, calibrated
+            for GIMP, pitfall L-P3).
+        corrections: 2 (the paper: after P2G and after the momentum update) or 1 ("LR once").
+        lump: ``"lumped"`` (eq. 50: each material against the lumped others, dp to it alone;
+            not momentum-conserving) or ``"conservative"`` (bfemp's: -dp spread over the
+            others by mass) at nodes with three or more materials.
+        xpic_order: None (the transfer alone) or the XPIC order m >= 1 (m = 1 is PIC).
+        xpic_variant: ``"paper"`` (eq. 37), ``"uncorrected"`` or ``"corrected_velocity"``.
+        mass_fraction: a material takes part at a node when its mass there exceeds this
+            fraction of the node's total mass (Uintah: 1e-8).
+        penalty: LR penalty on the normal components, times dx^2 (LR: 1e-7).
+        lr_tol: LR stop criterion 1 - n_new . n_old (LR: 1e-5).
+        lr_max_iterations: cap of the Gauss-Newton iterations (LR: 15).
+        cfl_safety_fem, cfl_safety_mpm: as in ``ExplicitOptions``.
+    """
+
+    strategy: ClassVar[str] = "lr"
+
+    mu: float | None = None
+    law: str = "coulomb"
+    interface: str = "contact"
+    detector: str = "lr"
+    cp_offset: float = 0.8
+    corrections: int = 2
+    lump: str = "lumped"
+    xpic_order: int | None = None
+    xpic_variant: str = "paper"
+    mass_fraction: float = 1e-8
+    penalty: float = 1e-7
+    lr_tol: float = 1e-5
+    lr_max_iterations: int = 15
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        name = type(self).__name__
+        for field_name, allowed in (
+            ("law", LAWS),
+            ("interface", INTERFACES),
+            ("detector", DETECTORS),
+            ("lump", LUMPS),
+            ("xpic_variant", XPIC_VARIANTS),
+        ):
+            value = getattr(self, field_name)
+            if value not in allowed:
+                raise ValueError(f"{name}.{field_name} must be one of {allowed}, got {value!r}")
+        if self.corrections not in (1, 2) or isinstance(self.corrections, bool):
+            raise ValueError(f"{name}.corrections must be 1 or 2, got {self.corrections!r}")
+        order = self.xpic_order
+        if order is not None and (isinstance(order, bool) or not isinstance(order, int)):
+            raise ValueError(f"{name}.xpic_order must be None or an integer >= 1, got {order!r}")
+        if order is not None and order < 1:
+            raise ValueError(f"{name}.xpic_order must be None or an integer >= 1, got {order!r}")
+        it = self.lr_max_iterations
+        if isinstance(it, bool) or not isinstance(it, int) or it < 1:
+            raise ValueError(f"{name}.lr_max_iterations must be an integer >= 1, got {it!r}")
+        for field_name, allow_none, low_open in (
+            ("mu", True, False),
+            ("cp_offset", False, False),
+            ("mass_fraction", False, True),
+            ("penalty", False, False),
+            ("lr_tol", False, True),
+        ):
+            value = getattr(self, field_name)
+            if value is None and allow_none:
+                continue
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                raise ValueError(f"{name}.{field_name} must be a number, got {value!r}")
+            ok = value > 0.0 if low_open else value >= 0.0
+            if not (math.isfinite(value) and ok):
+                kind = "> 0" if low_open else ">= 0"
+                raise ValueError(f"{name}.{field_name} must be finite and {kind}, got {value!r}")
+            object.__setattr__(self, field_name, float(value))
+        if self.mass_fraction >= 0.5:
+            raise ValueError(f"{name}.mass_fraction must be below 0.5, got {self.mass_fraction}")
+
+
+@dataclass
+class _Pairs:
+    """Contact pairs of one step: ``node (K,)`` grid node, ``a (K,)`` material, ``b (K,)`` the
+    partner material or -1 (the lumped others), ``ptr (K + 1,)``/``idx``/``side`` the CSR point
+    clouds (particle indices; side -1 for a, +1 for the others), ``normal (K, d)`` from a to b,
+    ``separation (K,)`` in m (NaN when the detector measures none)."""
+
+    node: np.ndarray
+    a: np.ndarray
+    b: np.ndarray
+    normal: np.ndarray
+    separation: np.ndarray
+    iterations: np.ndarray
+    converged: np.ndarray
+    fallback: np.ndarray
+
+
+class LRStepper(ExplicitStepper):
+    """The ``"lr"`` strategy (module docstring)."""
+
+    name: ClassVar[str] = "lr"
+    Options: ClassVar[type[LROptions]] = LROptions
+    explicit: ClassVar[bool] = True
+    #: the transfer ``Simulation`` takes when none is given
+    default_transfer: ClassVar[str] = "flip"
+    transfers: ClassVar[tuple[str, ...]] = TRANSFERS
+
+    def __init__(
+        self,
+        model: Model,
+        *,
+        integrator: str | ExplicitIntegrator = "symplectic_euler",
+        dt: float | str,
+        transfer: str = "flip",
+        options: StepperOptions | None = None,
+    ) -> None:
+        if transfer not in TRANSFERS:
+            raise ValueError(
+                f"lr: transfer must be one of {TRANSFERS} (XPIC(m) by LROptions.xpic_order), "
+                f"got {transfer!r}; APIC is not part of LR's multimaterial method"
+            )
+        if model.n_fem_nodes:
+            raise ValueError(
+                "lr: FEM bodies are not supported yet (the FEM-as-material coupling of "
+                "EXPLICIT_STRATEGIES.md section 2.6 is not built); use MPM bodies only"
+            )
+        if model.n_particles == 0:
+            raise ValueError("lr: the scene has no MPM body")
+        super().__init__(model, integrator=integrator, dt=dt, transfer=transfer, options=options)
+        opts = self.options
+        if opts.mu is not None:
+            self.mu = opts.mu
+        else:
+            self.mu = float(getattr(model.contact, "mu", 0.0) or 0.0)
+        self.material = np.ascontiguousarray(model.mpm_particle_body, dtype=np.int64)
+        self.n_materials = len(model.mpm_bodies)
+        d = model.dim
+        # undeformed particle semi-axes R0 (P, d): half the side of the particle's cube
+        self.radius0 = np.repeat((0.5 * model.mpm_volume ** (1.0 / d))[:, None], d, axis=1)
+        self.xpic_order = (
+            opts.xpic_order if opts.xpic_order is not None else (1 if transfer == "pic" else None)
+        )
+        if self.mu > 0.0 and opts.law == "frictionless":
+            log.info("lr: law='frictionless' ignores mu = %g", self.mu)
+        #: steps with at least one node in contact, and the LR fits that hit the cap
+        self.steps_with_contact = 0
+        self.unconverged_fits = 0
+
+    # ------------------------------------------------------------------ contact detection
+    def _pairs(
+        self,
+        st: ParticleStencils,
+        grid_x: np.ndarray,
+        mass: np.ndarray,
+        F: np.ndarray,
+        x: np.ndarray,
+    ) -> _Pairs:
+        """The contact pairs of this step with their planes (steps 2 of the docstring)."""
+        opts, d = self.options, self.model.dim
+        total = mass.sum(axis=0)
+        present = (mass > opts.mass_fraction * total[None, :]) & (mass > 0.0)
+        count = present.sum(axis=0)
+        two = np.flatnonzero(count == 2)
+        many = np.flatnonzero(count >= 3)
+        M = self.n_materials
+        first = np.argmax(present[:, two], axis=0)
+        last = M - 1 - np.argmax(present[::-1, two], axis=0)
+        many_a, many_node = np.nonzero(present[:, many])
+        node = np.concatenate([two, many[many_node]]).astype(np.int64)
+        a = np.concatenate([first, many_a]).astype(np.int64)
+        b = np.concatenate([last, np.full(many_a.size, -1)]).astype(np.int64)
+        k = node.size
+        planes = _Pairs(
+            node=node,
+            a=a,
+            b=b,
+            normal=np.zeros((k, d)),
+            separation=np.full(k, np.nan),
+            iterations=np.zeros(k, dtype=np.int64),
+            converged=np.ones(k, dtype=bool),
+            fallback=np.zeros(k, dtype=bool),
+        )
+        if k == 0 or opts.interface == "perfect":
+            return planes
+        from bfemp.contact import lr as lr_contact  # the LR kernels (numba)
+
+        if opts.detector == "lr":
+            ptr, idx, side = _point_clouds(st.nodes, st.weights, self.material, node, a, count)
+            fit = lr_contact.lr_planes(
+                grid_x[node],
+                ptr,
+                idx,
+                side,
+                x,
+                F,
+                self.radius0,
+                self.model.grid.dx,
+                penalty=opts.penalty,
+                tol=opts.lr_tol,
+                max_iterations=opts.lr_max_iterations,
+            )
+            planes.normal = fit.normal
+            planes.separation = fit.separation
+            planes.iterations = fit.iterations
+            planes.converged = fit.converged
+            planes.fallback = fit.fallback
+            return planes
+        grads = lr_contact.mass_gradient_normals(
+            st.nodes, st.grads, self.model.mpm_mass, self.material, grid_x.shape[0], M
+        )
+        planes.normal = lr_contact.ag_normals(grads, node, a, b)
+        if opts.detector == "cp":
+            planes.separation = self._cp_separation(st, grid_x, mass, x, node, a, b)
+        return planes
+
+    def _cp_separation(
+        self,
+        st: ParticleStencils,
+        grid_x: np.ndarray,
+        mass: np.ndarray,
+        x: np.ndarray,
+        node: np.ndarray,
+        a: np.ndarray,
+        b: np.ndarray,
+    ) -> np.ndarray:
+        from bfemp.contact import lr as lr_contact
+
+        return lr_contact.cp_separation(
+            st, grid_x, mass, x, self.material, node, a, b, self.options.cp_offset,
+            self.model.grid.dx,
+        )  # fmt: skip
+
+    # ------------------------------------------------------------------ the contact law
+    def _correct(
+        self, planes: _Pairs, mass: np.ndarray, mom: np.ndarray
+    ) -> tuple[np.ndarray, int, np.ndarray]:
+        """Momentum changes ``(M, G, d)`` of the contact law on momenta ``mom (M, G, d)``, the
+        number of pairs in contact and the net momentum change (lumping's drift) ``(d,)``."""
+        opts = self.options
+        delta = np.zeros_like(mom)
+        node, a, b = planes.node, planes.a, planes.b
+        if node.size == 0:
+            return delta, 0, np.zeros(mom.shape[2])
+        m_a, p_a = mass[a, node], mom[a, node]
+        lumped = b < 0
+        m_b = np.where(lumped, mass[:, node].sum(axis=0) - m_a, mass[np.maximum(b, 0), node])
+        p_b = np.where(lumped[:, None], mom[:, node].sum(axis=0) - p_a, mom[np.maximum(b, 0), node])
+        if opts.interface == "perfect":
+            dp = (m_a[:, None] * p_b - m_b[:, None] * p_a) / (m_a + m_b)[:, None]
+            touching = np.ones(node.size, dtype=bool)
+        else:
+            from bfemp.contact import lr as lr_contact
+
+            law = "frictionless" if opts.law == "frictionless" or self.mu == 0.0 else "coulomb"
+            dp, touching = lr_contact.contact_momentum(
+                m_a, m_b, p_a, p_b, planes.normal, planes.separation,
+                mu=self.mu, law=law, detector=opts.detector,
+            )  # fmt: skip
+        np.add.at(delta, (a, node), dp)
+        pair = ~lumped
+        np.add.at(delta, (b[pair], node[pair]), -dp[pair])
+        if opts.lump == "conservative" and lumped.any():
+            ln, la, ldp = node[lumped], a[lumped], dp[lumped]
+            share = mass[:, ln] / m_b[lumped][None, :]  # (M, L)
+            share[la, np.arange(ln.size)] = 0.0
+            mats = np.repeat(np.arange(self.n_materials), ln.size)
+            nodes_rep = np.tile(ln, self.n_materials)
+            spread = (share[..., None] * ldp[None]).reshape(-1, ldp.shape[1])
+            np.add.at(delta, (mats, nodes_rep), -spread)
+        drift = delta.sum(axis=(0, 1))
+        return delta, int(touching.sum()), drift
+
+    # ------------------------------------------------------------------ boundaries
+    def _constraints(self, grid_x: np.ndarray, v: np.ndarray, t_next: float) -> _Constraints:
+        """Level-set constraints of every material's field (``None`` without boundaries)."""
+        if not self.model.boundaries:
+            return None
+        return [grid_constraints(self.model.boundaries, grid_x, v[m], t_next, self.dt)
+                for m in range(self.n_materials)]  # fmt: skip
+
+    def _apply_constraints(self, cons: _Constraints, v: np.ndarray) -> np.ndarray:
+        """v ``(M, G, d)`` with each material's sticky and slip nodes constrained."""
+        if cons is None:
+            return v
+        v = v.copy()
+        for m, c in enumerate(cons):
+            if not c.any:
+                continue
+            v_b = c.shift / self.dt
+            v[m, c.sticky] = v_b[c.sticky]
+            n = c.normals[c.slip]
+            rel = np.einsum("ij,ij->i", v[m, c.slip] - v_b[c.slip], n)
+            v[m, c.slip] -= rel[:, None] * n
+        return v
+
+    def _project_increment(self, cons: _Constraints, u: np.ndarray) -> np.ndarray:
+        """An XPIC increment ``(M, G, d)`` with the prescribed components removed."""
+        if cons is None:
+            return u
+        for m, c in enumerate(cons):
+            if not c.any:
+                continue
+            u[m, c.sticky] = 0.0
+            n = c.normals[c.slip]
+            u[m, c.slip] -= np.einsum("ij,ij->i", u[m, c.slip], n)[:, None] * n
+        return u
+
+    @staticmethod
+    def _reactions(
+        cons: _Constraints,
+        mass: np.ndarray,
+        v_before: np.ndarray,
+        v_after: np.ndarray,
+        dt: float,
+        n_boundaries: int,
+        d: int,
+    ) -> tuple:
+        """Per boundary, the reaction (d,) in N of its nodes over every material."""
+        if cons is None:
+            return ()
+        reaction = np.zeros((n_boundaries, d))
+        for m, c in enumerate(cons):
+            touched = c.owner >= 0
+            impulse = mass[m, touched, None] * (v_after[m, touched] - v_before[m, touched]) / dt
+            np.add.at(reaction, c.owner[touched], impulse)
+        return tuple(tuple(float(x) for x in row) for row in reaction)
+
+    # ------------------------------------------------------------------ the step
+    def step(self, state: State) -> tuple[State, StepReport]:
+        """Advance ``state`` by dt (module docstring); ``StepError`` on a CFL violation."""
+        started = time.perf_counter()
+        model, dt, opts = self.model, self.dt, self.options
+        notes = list(self._check_cfl(state))
+        timings: dict[str, float] = {"cfl": time.perf_counter() - started}
+        t_next = state.t + dt
+        t0 = time.perf_counter()
+        piola = self._mpm_piola(state)
+        st = particle_stencils(model.grid, state.mpm_x)
+        grid_x = st.active_x
+        M, G = self.n_materials, grid_x.shape[0]
+        mass, mom0, force = p2g_materials(
+            st.nodes, st.weights, st.grads, self.material, model.mpm_mass, state.mpm_v,
+            piola, state.mpm_F, model.mpm_volume, M, G,
+        )  # fmt: skip
+        force += mass[..., None] * model.gravity
+        inv_mass = np.zeros_like(mass)
+        np.divide(1.0, mass, out=inv_mass, where=mass > 0.0)
+        v0 = mom0 * inv_mass[..., None]
+        cons = self._constraints(grid_x, v0, t_next)
+        v0 = self._apply_constraints(cons, v0)
+        mom0 = v0 * mass[..., None]
+        timings["p2g"] = time.perf_counter() - t0
+
+        t0 = time.perf_counter()
+        planes = self._pairs(st, grid_x, mass, state.mpm_F, state.mpm_x)
+        timings["lr_fits"] = time.perf_counter() - t0
+
+        t0 = time.perf_counter()
+        if opts.corrections == 2:
+            dp1 = self._correct(planes, mass, mom0)[0]
+        else:
+            dp1 = np.zeros_like(mom0)
+        mom = mom0 + dp1
+        v = mom * inv_mass[..., None]
+        dv = dp1 * inv_mass[..., None]
+        mom_plus0 = mom + dt * force
+        # only the second correction reaches the particles' momentum (f^{C,1}, eq. 34)
+        dp2, touching, drift = self._correct(planes, mass, mom_plus0)
+        v_plus_free = (mom_plus0 + dp2) * inv_mass[..., None]
+        v_plus = self._apply_constraints(cons, v_plus_free)
+        accel = (v_plus - v) / dt
+        timings["corrections"] = time.perf_counter() - t0
+
+        t0 = time.perf_counter()
+        sv, sv_plus, new_F = g2p_update(
+            st.nodes, st.weights, st.grads, self.material, v, v_plus, dt, state.mpm_F
+        )
+        if self.xpic_order is None:  # FLIP (eq. 32)
+            new_v = state.mpm_v + (sv_plus - sv)
+            new_x = state.mpm_x + dt * 0.5 * (sv + sv_plus)
+        else:  # XPIC(m) (eqs. 35, 37)
+
+            def apply_A(u: np.ndarray) -> np.ndarray:
+                values = g2p_field(st.nodes, st.weights, self.material, u)
+                return p2g_field(
+                    st.nodes, st.weights, self.material, model.mpm_mass, values, inv_mass
+                )
+
+            v_star = xpic_grid_velocity(
+                self.xpic_order, opts.xpic_variant, v, v0, dv, apply_A,
+                lambda u: self._project_increment(cons, u),
+            )  # fmt: skip
+            new_v = g2p_field(st.nodes, st.weights, self.material, v_star + dt * accel)
+            new_x = state.mpm_x + dt * (sv + 0.5 * (new_v - state.mpm_v))
+        timings["g2p"] = time.perf_counter() - t0
+
+        if touching:
+            self.steps_with_contact += 1
+        unconverged = int((~planes.converged).sum())
+        self.unconverged_fits += unconverged
+        if unconverged:
+            notes.append(f"LR_UNCONVERGED: {unconverged} LR fits hit the iteration cap")
+        new = replace(state, t=t_next, step=state.step + 1)
+        new.mpm_x, new.mpm_v, new.mpm_F = new_x, new_v, new_F
+        new.mpm_C = np.zeros_like(state.mpm_C)
+        reactions = self._reactions(
+            cons, mass, v_plus_free, v_plus, dt, len(model.boundaries), model.dim
+        )
+        self._store_contact(planes, dp2, st, dt)
+        timings["step"] = time.perf_counter() - started
+        extra = {
+            "contact_nodes": float(np.unique(planes.node).size),
+            "pairs_in_contact": float(touching),
+            "lr_iterations_max": float(planes.iterations.max()) if planes.node.size else 0.0,
+            "lr_unconverged": float(unconverged),
+            "lr_fallbacks": float(planes.fallback.sum()),
+            "lump_momentum_drift": float(np.linalg.norm(drift)),
+        }
+        report = StepReport(
+            step=new.step,
+            t=new.t,
+            success=True,
+            status="EXPLICIT",
+            message="explicit step (lr)",
+            iterations={"lr": int(planes.iterations.max()) if planes.node.size else 0},
+            timings=timings,
+            contact_pairs=int(touching),
+            boundary_forces=reactions,
+            notes=tuple(notes),
+            extra=extra,
+        )
+        return new, report
+
+    def _store_contact(
+        self, planes: _Pairs, dp2: np.ndarray, st: ParticleStencils, dt: float
+    ) -> None:
+        """The contact view: per-particle contact forces (G2P of the f^{C,1} grid forces)."""
+        model = self.model
+        grid_force = dp2 / dt  # (M, G, d)
+        mass = model.mpm_mass
+        # each particle's share of its material's node force, by its mass weight at the node
+        m_nodes = np.zeros((self.n_materials, st.active_x.shape[0]))
+        np.add.at(m_nodes, (self.material[:, None], st.nodes), st.weights * mass[:, None])
+        inv = np.zeros_like(m_nodes)
+        np.divide(1.0, m_nodes, out=inv, where=m_nodes > 0.0)
+        acc = g2p_field(st.nodes, st.weights, self.material, grid_force * inv[..., None])
+        sep = planes.separation[np.isfinite(planes.separation)]
+        self._last_contact = ContactView(
+            fem_forces=np.zeros((0, model.dim)),
+            particle_forces=acc * mass[:, None],
+            min_distance=float(sep.min()) if sep.size else float("nan"),
+            pairs=int(np.unique(planes.node).size),
+        )
+
+    def contact(self) -> ContactView:
+        """The contact forces of the last step (zero before the first)."""
+        if self._last_contact is None:
+            return super().contact()
+        return self._last_contact
+
+
+def _point_clouds(
+    nodes: np.ndarray,
+    weights: np.ndarray,
+    material: np.ndarray,
+    pair_node: np.ndarray,
+    pair_a: np.ndarray,
+    count: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """CSR point clouds of the pairs: every particle with a positive weight at the pair's node.
+
+    Returns ``ptr (K + 1,)``, ``idx`` particle indices and ``side`` (-1: material a of the pair,
+    +1: the others), int8.
+    """
+    n_g = count.shape[0]
+    is_contact = np.zeros(n_g, dtype=bool)
+    is_contact[pair_node] = True
+    p_idx, e_idx = np.nonzero((weights > 0.0) & is_contact[nodes])
+    node_of = nodes[p_idx, e_idx]
+    order = np.argsort(node_of, kind="stable")
+    node_sorted, part_sorted = node_of[order], p_idx[order]
+    node_ptr = np.zeros(n_g + 1, dtype=np.int64)
+    np.cumsum(np.bincount(node_sorted, minlength=n_g), out=node_ptr[1:])
+    start, stop = node_ptr[pair_node], node_ptr[pair_node + 1]
+    sizes = stop - start
+    ptr = np.zeros(pair_node.size + 1, dtype=np.int64)
+    np.cumsum(sizes, out=ptr[1:])
+    rep = np.repeat(np.arange(pair_node.size), sizes)
+    within = np.arange(ptr[-1]) - ptr[rep]
+    idx = part_sorted[start[rep] + within].astype(np.int64)
+    side = np.where(material[idx] == pair_a[rep], -1, 1).astype(np.int8)
+    return ptr, idx, side

@@ -1,0 +1,184 @@
+"""The ``"lr"`` strategy: multimaterial MPM with logistic-regression contact and XPIC(m).
+
+Invariants of EXPLICIT_STRATEGIES.md section 2.8 at the stepper level (the LR fit, the
+deformed radius and the contact law alone are tested in ``test_lr_kernels.py``).
+"""
+
+import numpy as np
+import pytest
+
+import bfemp
+from bfemp.steppers import STRATEGIES
+from bfemp.steppers._multimaterial_kernels import g2p_field, p2g_field, p2g_materials
+from bfemp.steppers.lr import LROptions, LRStepper
+from geometry.grid import particle_stencils
+
+SOFT = bfemp.NeoHookean(E=1e4, nu=0.3, density=1000.0)
+DX = 0.05
+
+
+def _split_block(n_materials, *, seed=0, gravity=(0.0, -9.81), noise=0.1, spin=0.0):
+    """A 0.4 m square block (4 PPC) with a random velocity field (plus a rigid motion at 1 m/s
+    and ``spin`` rad/s when ``spin`` is not 0), cut into 1, 2 or 3 bodies.
+
+    Returns the scene and the permutation from the bodies' particle order to the original one.
+    """
+    scene = bfemp.Scene(dim=2, gravity=gravity)
+    x, vol = bfemp.sample.box((0.0, 0.0), (0.4, 0.4), dx=DX, ppc=4)
+    v = np.random.default_rng(seed).normal(size=x.shape) * noise
+    if spin:
+        v += np.array([1.0, 0.5]) + spin * np.stack([-(x[:, 1] - 0.2), x[:, 0] - 0.2], axis=1)
+    low, left = x[:, 1] < 0.2, x[:, 0] < 0.2
+    parts = {
+        1: [np.ones(len(x), dtype=bool)],
+        2: [low, ~low],
+        3: [low, ~low & left, ~low & ~left],
+    }[n_materials]
+    for k, part in enumerate(parts):
+        scene.add_mpm(x[part], vol[part], material=SOFT, velocity=v[part], name=f"part{k}")
+    scene.set_grid(dx=DX)
+    order = np.concatenate([np.flatnonzero(p) for p in parts])
+    back = np.empty_like(order)
+    back[order] = np.arange(order.size)
+    return scene, back
+
+
+def _run(n_materials, steps, transfer="flip", **options):
+    scene, back = _split_block(n_materials)
+    model = scene.build()
+    stepper = LRStepper(model, dt=1e-3, transfer=transfer, options=LROptions(**options))
+    state = stepper.initialize(model.initial_state())
+    for _ in range(steps):
+        state, report = stepper.step(state)
+    return state.mpm_x[back], state.mpm_v[back], state.mpm_F[back], report
+
+
+def _largest_difference(a, b):
+    return max(float(np.abs(p - q).max()) for p, q in zip(a[:3], b[:3], strict=True))
+
+
+# ---------------------------------------------------------------- L1, L2: perfect interfaces
+@pytest.mark.parametrize("n_materials", [2, 3])
+def test_perfect_interface_multimaterial_flip_equals_single_material(n_materials):
+    """L1: two corrections and f^{C,1} make the split block move as one to round-off; one
+    correction ("LR once") does not (the negative control)."""
+    single = _run(1, 50)
+    split = _run(n_materials, 50, interface="perfect")
+    assert split[3].extra["contact_nodes"] > 10  # the interfaces are really crossed
+    assert _largest_difference(single, split) < 1e-12
+    once = _run(n_materials, 50, interface="perfect", corrections=1)
+    assert _largest_difference(single, once) > 1e-8
+
+
+@pytest.mark.parametrize("n_materials", [2, 3])
+def test_perfect_interface_xpic1_equals_single_material_and_pic(n_materials):
+    """L2: multimaterial XPIC(1) is PIC and reverts to the single-material run."""
+    single = _run(1, 30, xpic_order=1)
+    split = _run(n_materials, 30, interface="perfect", xpic_order=1)
+    assert _largest_difference(single, split) < 1e-12
+    pic = _run(n_materials, 30, transfer="pic", interface="perfect")
+    assert _largest_difference(split, pic) == 0.0
+    flip = _run(1, 30)
+    assert _largest_difference(single, flip) > 1e-8  # PIC is not FLIP
+
+
+def _transfer_operators(model, x):
+    """S, S+ (single material) and S+^a (per material) as functions on fields."""
+    st = particle_stencils(model.grid, x)
+    mat = model.mpm_particle_body.astype(np.int64)
+    one = np.zeros_like(mat)
+    m = model.mpm_mass
+    G = st.active_x.shape[0]
+    zeros = np.zeros((x.shape[0], 2, 2))
+    mass_mm = p2g_materials(st.nodes, st.weights, st.grads, mat, m, np.zeros_like(x), zeros,
+                            zeros, model.mpm_volume, len(model.mpm_bodies), G)[0]  # fmt: skip
+    inv_mm = np.where(mass_mm > 0, 1.0 / np.where(mass_mm > 0, mass_mm, 1.0), 0.0)
+    inv_sm = 1.0 / mass_mm.sum(axis=0, keepdims=True)
+
+    def S(u, materials):
+        return g2p_field(st.nodes, st.weights, materials, u)
+
+    def S_plus(values):
+        return p2g_field(st.nodes, st.weights, one, m, values, inv_sm)
+
+    def S_plus_a(values):
+        return p2g_field(st.nodes, st.weights, mat, m, values, inv_mm)
+
+    return S, S_plus, S_plus_a, mat, one
+
+
+@pytest.mark.parametrize(("variant", "equation"), [("paper", 47), ("corrected_velocity", 48)])
+def test_perfect_interface_xpic2_differs_from_single_material_by_eq_47_or_48(variant, equation):
+    """L3: one XPIC(2) step from a noisy V: V_SMM - V_MM is eq. 47 (paper) or eq. 48 (Uintah's
+    corrected-velocity form) to round-off; on a smooth motion with small noise (V close to S v)
+    eq. 47 is the smaller, as the paper argues."""
+    results = {}
+    for n in (1, 2):
+        scene, back = _split_block(n, gravity=(0.0, 0.0), noise=0.02, spin=2.0)
+        model = scene.build()
+        opts = LROptions(interface="perfect", xpic_order=2, xpic_variant=variant)
+        stepper = LRStepper(model, dt=1e-4, transfer="flip", options=opts)
+        state = stepper.initialize(model.initial_state())
+        new, _ = stepper.step(state)
+        results[n] = (model, state, new.mpm_v[back], back)
+    model, state, v_mm, back = results[2]
+    S, S_plus, S_plus_a, mat, one = _transfer_operators(model, state.mpm_x)
+    V = state.mpm_v
+    sv = S(S_plus(V), one)  # S v, v the (common) corrected grid velocity
+    # the stepper's velocity update adds dt S a to both, the same field on both sides
+    eq47 = S(S_plus(V - sv), one) - S(S_plus_a(V - sv), mat)
+    eq48 = -(S(S_plus(sv), one) - S(S_plus_a(sv), mat))
+    expected = eq47 if equation == 47 else eq48
+    diff = results[1][2] - v_mm
+    assert np.abs(diff - expected[back]).max() < 1e-12 * max(1.0, np.abs(V).max())
+    assert np.abs(diff).max() > 1e-6  # the difference is real
+    assert np.linalg.norm(eq47) < np.linalg.norm(eq48)
+
+
+def test_xpic_loop_equals_the_matrix_power_sums():
+    """The loop of bfemp.mpm.xpic against eq. 37's sums with explicit matrix powers (m = 4)."""
+    from bfemp.mpm.xpic import xpic_grid_velocity
+
+    rng = np.random.default_rng(3)
+    A = rng.normal(size=(6, 6)) * 0.3
+    v, v0, dv = rng.normal(size=(3, 1, 6, 1))
+    apply_A = lambda u: (A @ u[0])[None]  # noqa: E731
+    got = xpic_grid_velocity(4, "paper", v, v0, dv, apply_A)
+    B = np.eye(6) - A
+    want = sum(np.linalg.matrix_power(B, k) @ v[0] for k in range(4))
+    want = want - sum(np.linalg.matrix_power(B, k) @ dv[0] for k in range(3))
+    assert np.abs(got[0] - want).max() < 1e-12
+    unc = xpic_grid_velocity(4, "uncorrected", v, v0, dv, apply_A)
+    want_unc = sum(np.linalg.matrix_power(B, k) @ v0[0] for k in range(4))
+    assert np.abs(unc[0] - want_unc).max() < 1e-12
+
+
+# ---------------------------------------------------------------- options and refusals
+def test_lr_is_registered_and_refuses_apic_fem_and_bad_options():
+    assert STRATEGIES["lr"] is LRStepper
+    scene, _ = _split_block(2)
+    with pytest.raises(ValueError, match="APIC"):
+        LRStepper(scene.build(), dt=1e-3, transfer="apic")
+    with pytest.raises(ValueError, match="transfer"):
+        bfemp.Simulation(scene, strategy="lr", transfer="apic", dt=1e-3)
+    sim = bfemp.Simulation(scene, strategy="lr", dt="auto")
+    assert sim.transfer == "flip"
+    fem_scene, _ = _split_block(1)
+    mesh = bfemp.shapes.rectangle((0.0, -0.5), (0.4, -0.3), h=0.1)
+    fem_scene.add_fem(mesh, material=SOFT, name="slab")
+    with pytest.raises(ValueError, match="FEM bodies"):
+        LRStepper(fem_scene.build(), dt=1e-3)
+    for bad in (
+        {"law": "sticky"},
+        {"detector": "magic"},
+        {"corrections": 3},
+        {"xpic_order": 0},
+        {"xpic_variant": "uintah"},
+        {"lump": "none"},
+        {"mass_fraction": 0.7},
+        {"mu": -0.1},
+        {"lr_max_iterations": 0},
+    ):
+        field = next(iter(bad))
+        with pytest.raises(ValueError, match=field):
+            LROptions(**bad)
