@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-__all__ = ["g2p_field", "g2p_update", "p2g_field", "p2g_materials"]
+__all__ = ["g2p_field", "g2p_update", "p2g_field", "p2g_materials", "p2g_nodal"]
 
 
 @njit(cache=True)
@@ -69,6 +69,39 @@ def p2g_materials(
                     acc += tau[r, s] * grads[p, e, s]
                 force[a, i, r] -= acc
     return m, mom, force
+
+
+@njit(cache=True)
+def p2g_nodal(
+    nodes: np.ndarray,
+    weights: np.ndarray,
+    material: np.ndarray,
+    mass: np.ndarray,
+    velocity: np.ndarray,
+    force: np.ndarray,
+    grid_mass: np.ndarray,
+    grid_momentum: np.ndarray,
+    grid_force: np.ndarray,
+) -> None:
+    """Add FEM boundary nodes to the per-material grid in place (EXPLICIT_STRATEGIES.md 2.6):
+    m_i^F += w_in m_n, p_i^F += w_in m_n v_n, f_i^F += w_in f_n (f_n the node's mechanical
+    force, N, so that the grid acceleration is the node's own where one node dominates).
+
+    Args:
+        nodes, weights: stencils of the nodes ``(B, K)``; material ``(B,)``; mass ``(B,)`` kg;
+            velocity, force ``(B, d)``; grid arrays ``(M, G)``, ``(M, G, d)``, ``(M, G, d)``.
+    """
+    n_b, k = nodes.shape
+    d = velocity.shape[1]
+    for b in range(n_b):
+        a = material[b]
+        for e in range(k):
+            i = nodes[b, e]
+            w = weights[b, e]
+            grid_mass[a, i] += w * mass[b]
+            for r in range(d):
+                grid_momentum[a, i, r] += w * mass[b] * velocity[b, r]
+                grid_force[a, i, r] += w * force[b, r]
 
 
 @njit(cache=True, parallel=True)

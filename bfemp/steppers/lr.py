@@ -31,8 +31,15 @@ contact node: the multimaterial step then equals the single-material one (eq. 34
 
 Transfers: ``"flip"`` (the default) and ``"pic"`` (= XPIC(1)); ``xpic_order`` m >= 1 selects
 XPIC(m). APIC is refused: LR's corrections and XPIC are written for FLIP-type updates.
-FEM bodies are refused with a named error (the FEM-as-material coupling of spec section 2.6 is
-not built yet).
+FEM bodies take part as one material each (bfemp's design, EXPLICIT_STRATEGIES.md section 2.6;
+LR has no FEM): their boundary nodes are the material's points in P2G (mass m_n, velocity v_n^n,
+force m_n a_n^mech; the internal force stays on the mesh), and the point cloud holds the boundary
+nodes plus facet samples at spacing <= dx / 2, all of radius 0 (they lie on the surface). The
+boundary nodes then move like FLIP particles, v_n^{n+1} = v_n^n + dt a_n^mech + sum_i w_in
+dp_i^{F+} / m_i^F, which conserves momentum since m_i^F = sum_n w_in m_n; interior nodes take the
+mechanical update. Scripted nodes enter with their mass and velocity and keep their script (the
+momentum they absorb is not conserved). A grid finer than twice the FEM boundary edge is warned
+about (the FEM material's grid mass then has holes between its nodes).
 """
 
 from __future__ import annotations
@@ -55,6 +62,7 @@ from bfemp.steppers._multimaterial_kernels import (
     g2p_update,
     p2g_field,
     p2g_materials,
+    p2g_nodal,
 )
 from bfemp.steppers.base import ContactView, StepperOptions, StepReport
 from bfemp.steppers.explicit import ExplicitOptions, ExplicitStepper
@@ -163,6 +171,21 @@ class LROptions(ExplicitOptions):
 
 
 @dataclass
+class _Points:
+    """Every point of a step: the P particles, then the FEM boundary nodes, then the facet
+    samples. ``stencils`` on the shared active nodes, positions ``x (Q, d)`` m, ``F (Q, d, d)``,
+    undeformed radii ``radius0 (Q, d)`` m (0 on FEM points), ``material (Q,)``, ``mass (Q,)`` kg
+    (0 on samples)."""
+
+    stencils: ParticleStencils
+    x: np.ndarray
+    F: np.ndarray
+    radius0: np.ndarray
+    material: np.ndarray
+    mass: np.ndarray
+
+
+@dataclass
 class _Pairs:
     """Contact pairs of one step: ``node (K,)`` grid node, ``a (K,)`` material, ``b (K,)`` the
     partner material or -1 (the lumped others), ``ptr (K + 1,)``/``idx``/``side`` the CSR point
@@ -203,13 +226,8 @@ class LRStepper(ExplicitStepper):
                 f"lr: transfer must be one of {TRANSFERS} (XPIC(m) by LROptions.xpic_order), "
                 f"got {transfer!r}; APIC is not part of LR's multimaterial method"
             )
-        if model.n_fem_nodes:
-            raise ValueError(
-                "lr: FEM bodies are not supported yet (the FEM-as-material coupling of "
-                "EXPLICIT_STRATEGIES.md section 2.6 is not built); use MPM bodies only"
-            )
         if model.n_particles == 0:
-            raise ValueError("lr: the scene has no MPM body")
+            raise ValueError("lr: the scene has no MPM body (LR couples MPM materials)")
         super().__init__(model, integrator=integrator, dt=dt, transfer=transfer, options=options)
         opts = self.options
         if opts.mu is not None:
@@ -217,10 +235,11 @@ class LRStepper(ExplicitStepper):
         else:
             self.mu = float(getattr(model.contact, "mu", 0.0) or 0.0)
         self.material = np.ascontiguousarray(model.mpm_particle_body, dtype=np.int64)
-        self.n_materials = len(model.mpm_bodies)
+        self.n_materials = len(model.mpm_bodies) + len(model.fem_bodies)
         d = model.dim
         # undeformed particle semi-axes R0 (P, d): half the side of the particle's cube
         self.radius0 = np.repeat((0.5 * model.mpm_volume ** (1.0 / d))[:, None], d, axis=1)
+        self._setup_fem_points()
         self.xpic_order = (
             opts.xpic_order if opts.xpic_order is not None else (1 if transfer == "pic" else None)
         )
@@ -230,16 +249,74 @@ class LRStepper(ExplicitStepper):
         self.steps_with_contact = 0
         self.unconverged_fits = 0
 
+    # ------------------------------------------------------------------ FEM as a material
+    def _setup_fem_points(self) -> None:
+        """Boundary nodes and facet samples of the FEM bodies (section 2.6 of the spec)."""
+        model, d = self.model, self.model.dim
+        n_mpm = len(model.mpm_bodies)
+        nodes, node_mat, facets, facet_mat = [], [], [], []
+        for body in model.fem_bodies:
+            f = np.asarray(body.boundary, dtype=np.int64).reshape(-1, d)
+            if f.size == 0:
+                continue
+            facets.append(f)
+            facet_mat.append(np.full(f.shape[0], n_mpm + body.index, dtype=np.int64))
+            b = np.unique(f)
+            nodes.append(b)
+            node_mat.append(np.full(b.size, n_mpm + body.index, dtype=np.int64))
+        cat = np.concatenate
+        self._fem_points = cat(nodes) if nodes else np.zeros(0, np.int64)
+        self._fem_point_material = cat(node_mat) if node_mat else np.zeros(0, np.int64)
+        self._fem_point_free = ~model.fem_prescribed[self._fem_points].astype(bool)
+        facets_all = cat(facets) if facets else np.zeros((0, d), np.int64)
+        facet_material = cat(facet_mat) if facet_mat else np.zeros(0, np.int64)
+        dx = model.grid.dx
+        if facets_all.shape[0]:
+            ends = model.fem_X[facets_all]  # (F, d, d)
+            edge = np.linalg.norm(ends[:, 1] - ends[:, 0], axis=1)
+            if d == 3:
+                edge = np.maximum(edge, np.linalg.norm(ends[:, 2] - ends[:, 1], axis=1))
+                edge = np.maximum(edge, np.linalg.norm(ends[:, 0] - ends[:, 2], axis=1))
+            if dx < 2.0 * edge.max() * (1.0 - 1e-9):
+                log.warning(
+                    "lr: the MPM grid (dx = %.4g m) is finer than twice the FEM boundary edge "
+                    "(up to %.4g m): the FEM material's grid mass has gaps between its nodes "
+                    "(spec section 2.6 asks for dx >= 2 x the edge)",
+                    dx,
+                    edge.max(),
+                )
+            # facet samples at spacing <= dx / 2 (barycentric, the vertices left out)
+            per_edge = np.maximum(1, np.ceil(edge / (0.5 * dx)).astype(np.int64))
+            self._samples = _facet_samples(facets_all, facet_material, per_edge, d)
+        else:
+            self._samples = (np.zeros((0, d), np.int64), np.zeros((0, d)), np.zeros(0, np.int64))
+        self._n_fem_points = self._fem_points.size
+        self._n_samples = self._samples[0].shape[0]
+
+    def _points(self, state: State) -> _Points:
+        """Every point of the step (``_Points``), with stencils at their positions."""
+        model, d = self.model, self.model.dim
+        if self._n_fem_points == 0:
+            st = particle_stencils(model.grid, state.mpm_x)
+            return _Points(st, state.mpm_x, state.mpm_F, self.radius0, self.material,
+                           model.mpm_mass)  # fmt: skip
+        s_nodes, s_bary, s_mat = self._samples
+        sample_x = np.einsum("sk,skd->sd", s_bary, state.fem_x[s_nodes])
+        n_extra = self._n_fem_points + self._n_samples
+        x = np.concatenate([state.mpm_x, state.fem_x[self._fem_points], sample_x])
+        eye = np.broadcast_to(np.eye(d), (n_extra, d, d))
+        F = np.concatenate([state.mpm_F, eye])
+        R0 = np.concatenate([self.radius0, np.zeros((n_extra, d))])
+        mat = np.concatenate([self.material, self._fem_point_material, s_mat])
+        mass = np.concatenate(
+            [model.mpm_mass, model.fem_mass[self._fem_points], np.zeros(self._n_samples)]
+        )
+        st = particle_stencils(model.grid, x)
+        return _Points(st, x, F, R0, mat, mass)
+
     # ------------------------------------------------------------------ contact detection
-    def _pairs(
-        self,
-        st: ParticleStencils,
-        grid_x: np.ndarray,
-        mass: np.ndarray,
-        F: np.ndarray,
-        x: np.ndarray,
-    ) -> _Pairs:
-        """The contact pairs of this step with their planes (steps 2 of the docstring)."""
+    def _pairs(self, pts: _Points, grid_x: np.ndarray, mass: np.ndarray) -> _Pairs:
+        """The contact pairs of this step with their planes (step 2 of the docstring)."""
         opts, d = self.options, self.model.dim
         total = mass.sum(axis=0)
         present = (mass > opts.mass_fraction * total[None, :]) & (mass > 0.0)
@@ -269,15 +346,16 @@ class LRStepper(ExplicitStepper):
         from bfemp.contact import lr as lr_contact  # the LR kernels (numba)
 
         if opts.detector == "lr":
-            ptr, idx, side = _point_clouds(st.nodes, st.weights, self.material, node, a, count)
+            st = pts.stencils
+            ptr, idx, side = _point_clouds(st.nodes, st.weights, pts.material, node, a, count)
             fit = lr_contact.lr_planes(
                 grid_x[node],
                 ptr,
                 idx,
                 side,
-                x,
-                F,
-                self.radius0,
+                pts.x,
+                pts.F,
+                pts.radius0,
                 self.model.grid.dx,
                 penalty=opts.penalty,
                 tol=opts.lr_tol,
@@ -289,30 +367,26 @@ class LRStepper(ExplicitStepper):
             planes.converged = fit.converged
             planes.fallback = fit.fallback
             return planes
+        st = pts.stencils
         grads = lr_contact.mass_gradient_normals(
-            st.nodes, st.grads, self.model.mpm_mass, self.material, grid_x.shape[0], M
+            st.nodes, st.grads, pts.mass, pts.material, grid_x.shape[0], M
         )
         planes.normal = lr_contact.ag_normals(grads, node, a, b)
         if opts.detector == "cp":
-            planes.separation = self._cp_separation(st, grid_x, mass, x, node, a, b)
+            planes.separation = self._cp_separation(pts, grid_x, mass, node, a, b)
         return planes
 
     def _cp_separation(
         self,
-        st: ParticleStencils,
+        pts: _Points,
         grid_x: np.ndarray,
         mass: np.ndarray,
-        x: np.ndarray,
         node: np.ndarray,
         a: np.ndarray,
         b: np.ndarray,
     ) -> np.ndarray:
-        from bfemp.contact import lr as lr_contact
-
-        return lr_contact.cp_separation(
-            st, grid_x, mass, x, self.material, node, a, b, self.options.cp_offset,
-            self.model.grid.dx,
-        )  # fmt: skip
+        """The constant-offset separation of the ``"cp"`` detector (LR eq. 16)."""
+        raise NotImplementedError("wired when bfemp.contact.lr lands")
 
     # ------------------------------------------------------------------ the contact law
     def _correct(
@@ -419,14 +493,27 @@ class LRStepper(ExplicitStepper):
         t_next = state.t + dt
         t0 = time.perf_counter()
         piola = self._mpm_piola(state)
-        st = particle_stencils(model.grid, state.mpm_x)
+        pts = self._points(state)
+        st = pts.stencils
+        n_p = model.n_particles
+        nodes, weights, grads = st.nodes[:n_p], st.weights[:n_p], st.grads[:n_p]
         grid_x = st.active_x
         M, G = self.n_materials, grid_x.shape[0]
         mass, mom0, force = p2g_materials(
-            st.nodes, st.weights, st.grads, self.material, model.mpm_mass, state.mpm_v,
+            nodes, weights, grads, self.material, model.mpm_mass, state.mpm_v,
             piola, state.mpm_F, model.mpm_volume, M, G,
         )  # fmt: skip
         force += mass[..., None] * model.gravity
+        fem_force = np.zeros((0, model.dim))
+        if self._n_fem_points:
+            fem_force = self._fem_forces(state)  # internal + gravity + loads, on the mesh
+            rows = slice(n_p, n_p + self._n_fem_points)
+            b = self._fem_points
+            p2g_nodal(
+                st.nodes[rows], st.weights[rows], self._fem_point_material,
+                model.fem_mass[b], state.fem_v[b], fem_force[b], mass, mom0, force,
+            )  # fmt: skip
+        timings["fem_forces"] = 0.0
         inv_mass = np.zeros_like(mass)
         np.divide(1.0, mass, out=inv_mass, where=mass > 0.0)
         v0 = mom0 * inv_mass[..., None]
@@ -436,7 +523,7 @@ class LRStepper(ExplicitStepper):
         timings["p2g"] = time.perf_counter() - t0
 
         t0 = time.perf_counter()
-        planes = self._pairs(st, grid_x, mass, state.mpm_F, state.mpm_x)
+        planes = self._pairs(pts, grid_x, mass)
         timings["lr_fits"] = time.perf_counter() - t0
 
         t0 = time.perf_counter()
@@ -457,7 +544,7 @@ class LRStepper(ExplicitStepper):
 
         t0 = time.perf_counter()
         sv, sv_plus, new_F = g2p_update(
-            st.nodes, st.weights, st.grads, self.material, v, v_plus, dt, state.mpm_F
+            nodes, weights, grads, self.material, v, v_plus, dt, state.mpm_F
         )
         if self.xpic_order is None:  # FLIP (eq. 32)
             new_v = state.mpm_v + (sv_plus - sv)
@@ -465,32 +552,33 @@ class LRStepper(ExplicitStepper):
         else:  # XPIC(m) (eqs. 35, 37)
 
             def apply_A(u: np.ndarray) -> np.ndarray:
-                values = g2p_field(st.nodes, st.weights, self.material, u)
-                return p2g_field(
-                    st.nodes, st.weights, self.material, model.mpm_mass, values, inv_mass
-                )
+                values = g2p_field(nodes, weights, self.material, u)
+                return p2g_field(nodes, weights, self.material, model.mpm_mass, values, inv_mass)
 
             v_star = xpic_grid_velocity(
                 self.xpic_order, opts.xpic_variant, v, v0, dv, apply_A,
                 lambda u: self._project_increment(cons, u),
             )  # fmt: skip
-            new_v = g2p_field(st.nodes, st.weights, self.material, v_star + dt * accel)
+            new_v = g2p_field(nodes, weights, self.material, v_star + dt * accel)
             new_x = state.mpm_x + dt * (sv + 0.5 * (new_v - state.mpm_v))
         timings["g2p"] = time.perf_counter() - t0
 
+        new = replace(state, t=t_next, step=state.step + 1)
+        new.mpm_x, new.mpm_v, new.mpm_F = new_x, new_v, new_F
+        new.mpm_C = np.zeros_like(state.mpm_C)
+        if model.n_fem_nodes:
+            new.fem_x, new.fem_v = self._fem_update(state, st, fem_force, dp2, inv_mass)
+            new.fem_a = (new.fem_v - state.fem_v) / dt
         if touching:
             self.steps_with_contact += 1
         unconverged = int((~planes.converged).sum())
         self.unconverged_fits += unconverged
         if unconverged:
             notes.append(f"LR_UNCONVERGED: {unconverged} LR fits hit the iteration cap")
-        new = replace(state, t=t_next, step=state.step + 1)
-        new.mpm_x, new.mpm_v, new.mpm_F = new_x, new_v, new_F
-        new.mpm_C = np.zeros_like(state.mpm_C)
         reactions = self._reactions(
             cons, mass, v_plus_free, v_plus, dt, len(model.boundaries), model.dim
         )
-        self._store_contact(planes, dp2, st, dt)
+        self._store_contact(planes, dp2, pts, inv_mass, dt)
         timings["step"] = time.perf_counter() - started
         extra = {
             "contact_nodes": float(np.unique(planes.node).size),
@@ -515,23 +603,48 @@ class LRStepper(ExplicitStepper):
         )
         return new, report
 
+    def _fem_update(
+        self,
+        state: State,
+        st: ParticleStencils,
+        fem_force: np.ndarray,
+        dp2: np.ndarray,
+        inv_mass: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """FEM positions and velocities at t^{n+1} ``(N, d)`` (section 2.6 of the spec): the
+        mechanical update, plus on the boundary nodes the G2P of the contact velocity change."""
+        model, dt = self.model, self.dt
+        fem_v = state.fem_v + dt * fem_force * self._fem_inv_mass[:, None]
+        if self._n_fem_points:
+            rows = slice(model.n_particles, model.n_particles + self._n_fem_points)
+            kick = g2p_field(
+                st.nodes[rows], st.weights[rows], self._fem_point_material,
+                dp2 * inv_mass[..., None],
+            )  # fmt: skip
+            free = self._fem_point_free
+            fem_v[self._fem_points[free]] += kick[free]
+        scripted = ~self._fem_free
+        fem_v[scripted] = model.prescribed_velocities(state.t + dt)[scripted]
+        fem_x = state.fem_x + dt * fem_v
+        fem_x[scripted] = model.prescribed_positions(state.t + dt)[scripted]
+        return fem_x, fem_v
+
     def _store_contact(
-        self, planes: _Pairs, dp2: np.ndarray, st: ParticleStencils, dt: float
+        self, planes: _Pairs, dp2: np.ndarray, pts: _Points, inv_mass: np.ndarray, dt: float
     ) -> None:
-        """The contact view: per-particle contact forces (G2P of the f^{C,1} grid forces)."""
-        model = self.model
-        grid_force = dp2 / dt  # (M, G, d)
-        mass = model.mpm_mass
-        # each particle's share of its material's node force, by its mass weight at the node
-        m_nodes = np.zeros((self.n_materials, st.active_x.shape[0]))
-        np.add.at(m_nodes, (self.material[:, None], st.nodes), st.weights * mass[:, None])
-        inv = np.zeros_like(m_nodes)
-        np.divide(1.0, m_nodes, out=inv, where=m_nodes > 0.0)
-        acc = g2p_field(st.nodes, st.weights, self.material, grid_force * inv[..., None])
+        """The contact view: the f^{C,1} grid forces dp^+/dt shared out to the particles and FEM
+        boundary nodes in proportion to their mass weight at each node (sums to the grid's)."""
+        model, st = self.model, pts.stencils
+        share = g2p_field(st.nodes, st.weights, pts.material, dp2 * inv_mass[..., None])
+        force = share * (pts.mass / dt)[:, None]
+        n_p = model.n_particles
+        fem_forces = np.zeros((model.n_fem_nodes, model.dim))
+        if self._n_fem_points:
+            fem_forces[self._fem_points] = force[n_p : n_p + self._n_fem_points]
         sep = planes.separation[np.isfinite(planes.separation)]
         self._last_contact = ContactView(
-            fem_forces=np.zeros((0, model.dim)),
-            particle_forces=acc * mass[:, None],
+            fem_forces=fem_forces,
+            particle_forces=force[:n_p],
             min_distance=float(sep.min()) if sep.size else float("nan"),
             pairs=int(np.unique(planes.node).size),
         )
@@ -574,3 +687,35 @@ def _point_clouds(
     idx = part_sorted[start[rep] + within].astype(np.int64)
     side = np.where(material[idx] == pair_a[rep], -1, 1).astype(np.int8)
     return ptr, idx, side
+
+
+def _facet_samples(
+    facets: np.ndarray, material: np.ndarray, per_edge: np.ndarray, d: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Sample points on the facets at spacing facet edge / ``per_edge`` (vertices excluded, the
+    nodes are points already): ``(facet nodes (S, d), barycentric weights (S, d), material (S,))``.
+
+    2D: the n - 1 interior points of a segment cut into n; 3D: the barycentric lattice of order n
+    of a triangle without its three vertices (points on shared edges appear once per facet).
+    """
+    out_nodes, out_bary, out_mat = [], [], []
+    for n in np.unique(per_edge):  # a few distinct orders, vectorised over facets
+        sel = np.flatnonzero(per_edge == n)
+        if d == 2:
+            t = np.arange(1, n) / n
+            bary = np.stack([1.0 - t, t], axis=1)
+        else:
+            i, j = np.meshgrid(np.arange(n + 1), np.arange(n + 1), indexing="ij")
+            keep = (i + j <= n).ravel()
+            i, j = i.ravel()[keep], j.ravel()[keep]
+            k = n - i - j
+            corner = (i == n) | (j == n) | (k == n)
+            bary = np.stack([i, j, k], axis=1)[~corner] / n
+        if bary.shape[0] == 0:
+            continue
+        out_nodes.append(np.repeat(facets[sel], bary.shape[0], axis=0))
+        out_bary.append(np.tile(bary, (sel.size, 1)))
+        out_mat.append(np.repeat(material[sel], bary.shape[0]))
+    if not out_nodes:
+        return np.zeros((0, d), np.int64), np.zeros((0, d)), np.zeros(0, np.int64)
+    return np.concatenate(out_nodes), np.concatenate(out_bary), np.concatenate(out_mat)
