@@ -2,6 +2,7 @@
 (Nairn et al., "LR"; EXPLICIT_STRATEGIES.md section 2), physics only: the ``"lr"`` stepper
 builds the per-material grid and the point clouds and calls these.
 
+- ``contact_point_clouds``: the CSR point clouds that ``lr_planes`` takes, from the stencils.
 - ``lr_planes``: at each contact node, the most probable plane between the point cloud's two
   classes by logistic regression (eqs. 19-21, App. eqs. 53-57), its unit normal from alpha to
   beta, and the separation d_LR (eqs. 22-24) with the deformed particle radius (eq. 25).
@@ -29,6 +30,7 @@ from bfemp.contact._lr_kernels import (
     lr_planes_kernel,
     mass_gradients,
     mass_moments,
+    point_clouds,
 )
 
 __all__ = [
@@ -38,6 +40,7 @@ __all__ = [
     "LRPlanes",
     "ag_normals",
     "contact_momentum",
+    "contact_point_clouds",
     "cp_separation",
     "deformed_radius",
     "lr_planes",
@@ -288,6 +291,56 @@ def _grid_args(
             f"[{material.min()}, {material.max()}]"
         )
     return nodes, material
+
+
+def contact_point_clouds(
+    nodes: np.ndarray,
+    weights: np.ndarray,
+    material: np.ndarray,
+    node: np.ndarray,
+    alpha: np.ndarray,
+    beta: np.ndarray,
+    n_nodes: int,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The point clouds of C contact rows in ``lr_planes``' CSR form (spec 2.1: every point whose
+    stencil weight at the node is > 0; NairnMPM ``GetMaterialContactData``).
+
+    Row r (grid node ``node[r]``) holds the points of material ``alpha[r]`` as side -1 and of
+    ``beta[r]`` as side +1; ``beta[r] = -1`` takes every material other than alpha as +1 (the
+    lumped partner of eq. 50, NairnMPM's b < 0). Points of other materials are left out. Within a
+    cloud the points are in index order. FEM surface samples take part as points with their own
+    stencils (spec 2.6).
+
+    Args:
+        nodes: stencil node indices ``(P, S)`` int (-1 = none).
+        weights: w_ip ``(P, S)``.
+        material: ``(P,)`` int >= 0.
+        node: grid node of each contact row ``(C,)`` int in [0, n_nodes).
+        alpha: ``(C,)`` int >= 0. beta: ``(C,)`` int, >= 0 and != alpha, or -1 (lumped).
+        n_nodes: number of grid nodes.
+
+    Returns:
+        ``(cloud_ptr (C + 1,) int64, cloud_idx (K,) int64, cloud_side (K,) int8)``.
+    """
+    material = _int_array("material", material, 1)
+    n_p = material.shape[0]
+    nodes, material = _grid_args(
+        nodes, n_nodes, material, max(1, int(material.max(initial=0)) + 1), n_p
+    )
+    weights = _float_array("weights", weights, nodes.shape)
+    node = _int_array("node", node, 1)
+    alpha = _int_array("alpha", alpha, 1)
+    beta = _int_array("beta", beta, 1)
+    if alpha.shape != node.shape or beta.shape != node.shape:
+        raise ValueError(
+            f"contact_point_clouds: node, alpha and beta must have one shape, got "
+            f"{node.shape}, {alpha.shape}, {beta.shape}"
+        )
+    if node.size and (node.min() < 0 or node.max() >= n_nodes):
+        raise ValueError(f"contact_point_clouds: node must be in [0, {n_nodes})")
+    if np.any(alpha < 0) or np.any(beta < -1) or np.any(alpha == beta):
+        raise ValueError("contact_point_clouds: alpha must be >= 0, beta >= 0 (or -1) and != alpha")
+    return point_clouds(nodes, weights, material, node, alpha, beta, int(n_nodes))
 
 
 def mass_gradient_normals(

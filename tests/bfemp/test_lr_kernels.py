@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from scipy.optimize import brentq, minimize_scalar
+from scipy.optimize import brentq, least_squares, minimize_scalar
 from scipy.spatial.transform import Rotation
 
 from bfemp.contact import lr
@@ -192,6 +192,42 @@ def test_first_iterate_is_scaled_linear_regression():
     assert one.iterations[0] == 1 and np.linalg.norm(one.phi[0] - 2.0 * lin) > 1.0
 
 
+def omega_gradient(phi, xt, c, lam):
+    """Gradient of eq. 20's Omega (w_p = 1) with respect to phi, by the chain rule."""
+    s = xt @ phi
+    f = np.tanh(0.5 * s)
+    psi = 0.5 * (1.0 - f * f)  # eq. 53
+    return 2.0 * ((f - c) * psi) @ xt + 2.0 * lam * phi
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_gauss_newton_reaches_the_minimum_of_eq20(d):
+    # a noisy (not separable) cloud: Omega has a finite, well-defined minimum
+    rng = np.random.default_rng(20 + d)
+    node = rng.uniform(-1, 1, d) * DX
+    x = node + rng.uniform(-1.5, 1.5, (60, d)) * DX
+    rel = (x - node) / DX
+    c = np.where(rel @ rng.normal(size=d) + 0.2 + 0.6 * rng.normal(size=60) > 0, 1, -1)
+    side = c.astype(np.int8)
+    ptr, idx = np.array([0, 60]), np.arange(60)
+    xt = np.c_[x - node, np.ones(60)]
+    lam = np.r_[np.full(d, 1e-7 * DX**2), 0.0]
+    start = solve(node, x, side, ptr, idx, max_iterations=0)
+    res = solve(node, x, side, ptr, idx, tol=0.0, max_iterations=60)
+    g0 = np.abs(omega_gradient(start.phi[0], xt, c, lam) * np.r_[np.full(d, DX), 1.0]).max()
+    g1 = np.abs(omega_gradient(res.phi[0], xt, c, lam) * np.r_[np.full(d, DX), 1.0]).max()
+    assert g1 < 1e-6 * g0
+    sol = least_squares(
+        lambda p: np.r_[np.tanh(0.5 * xt @ p) - c, np.sqrt(lam[:d]) * p[:d]],
+        start.phi[0],
+        xtol=1e-15,
+        ftol=1e-15,
+        gtol=1e-15,
+    )
+    n = sol.x[:d] / np.linalg.norm(sol.x[:d])
+    assert np.arccos(min(1.0, n @ res.normal[0])) < 1e-4
+
+
 def rotated_half_stencils(rot, d, node, dx=DX):
     """Clean cloud: the node's stencil box (3 x 3 cells) split into two 2 x 2 PPC halves along
     the interface, the whole cloud rotated by ``rot`` about the node; true normal rot e_d."""
@@ -345,6 +381,27 @@ def test_grid_moments_and_cp_separation_against_numpy():
     xa_i = ref_m[0, both] / ref_mass[0, both, None]
     xb_i = ref_m[1, both] / ref_mass[1, both, None]
     np.testing.assert_allclose(sep, np.einsum("cd,cd->c", xb_i - xa_i, n) - 0.8 * DX, atol=1e-15)
+
+
+def test_point_clouds_from_stencils_against_a_direct_construction():
+    rng = np.random.default_rng(8)
+    x = rng.uniform(0.0, 4 * DX, (60, 2))
+    mat = rng.integers(0, 3, 60)
+    st_ = contact_stencils(x, DX)
+    rows_node = np.array([5, 5, 9, 12, 5])
+    alpha = np.array([0, 1, 2, 0, 2])
+    beta = np.array([1, -1, 0, 2, -1])
+    ptr, idx, side = lr.contact_point_clouds(
+        st_.nodes, st_.weights, mat, rows_node, alpha, beta, st_.n_nodes
+    )
+    assert ptr[0] == 0 and ptr[-1] == idx.size == side.size and side.dtype == np.int8
+    for r in range(len(rows_node)):
+        near = np.flatnonzero(((st_.nodes == rows_node[r]) & (st_.weights > 0)).any(axis=1))
+        a = near[mat[near] == alpha[r]]
+        b = near[mat[near] != alpha[r]] if beta[r] < 0 else near[mat[near] == beta[r]]
+        want = np.sort(np.r_[a, b])
+        np.testing.assert_array_equal(idx[ptr[r] : ptr[r + 1]], want)
+        np.testing.assert_array_equal(side[ptr[r] : ptr[r + 1]], np.where(np.isin(want, a), -1, 1))
 
 
 # ---- the contact law (LR eqs. 7-10, 14-15; L8) ------------------------------------------------
