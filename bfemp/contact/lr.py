@@ -19,6 +19,7 @@ Units: SI throughout (m, kg, kg m/s).
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 
 import numpy as np
@@ -47,6 +48,8 @@ __all__ = [
     "mass_gradient_normals",
     "material_mass_moments",
 ]
+
+log = logging.getLogger(__name__)
 
 LAWS = ("frictionless", "coulomb", "perfect")
 DETECTORS = ("lr", "cp", "velocity")
@@ -268,6 +271,14 @@ def lr_planes(
         raise ValueError(
             f"lr_planes: the point cloud of contact node {int(bad[0])} (nodes "
             f"{bad[:10].tolist()}) is degenerate: the linear regression has no normal"
+        )
+    capped = ~conv & ~fb & (sep < 0.0)
+    if max_iterations > 0 and np.any(capped):  # NairnMPM warns on these; the stepper counts them
+        log.debug(
+            "lr_planes: %d of %d touching contact nodes hit the cap of %d iterations",
+            int(capped.sum()),
+            n_c,
+            max_iterations,
         )
     return LRPlanes(normal, sep, iters, conv, fb, phi)
 
