@@ -323,25 +323,27 @@ def test_fallback_to_the_linear_normal_on_a_singular_step():
 # ---- separation (eqs. 22-25) -------------------------------------------------------------------
 
 
+@pytest.mark.parametrize("d", [2, 3])
 @pytest.mark.parametrize("gap_cells", [0.0, 0.37, -0.2])
-def test_flat_blocks_separation_and_a_compressed_particle(gap_cells):
+def test_flat_blocks_separation_and_a_compressed_particle(gap_cells, d):
     g = gap_cells * DX
-    node = np.array([0.0, 0.0])
-    x_alpha = lattice((-1.5 * DX, -1.5 * DX), (1.5 * DX, 0.0))
-    x_beta = lattice((-1.5 * DX, g), (1.5 * DX, 1.5 * DX + g))
+    node = np.zeros(d)
+    e = 1.5 * DX
+    x_alpha = lattice([-e] * d, [e] * (d - 1) + [0.0])
+    x_beta = lattice([-e] * (d - 1) + [g], [e] * (d - 1) + [e + g])
     x, side, ptr, idx = one_cloud(x_alpha, x_beta)
     res = solve(node, x, side, ptr, idx)
-    np.testing.assert_allclose(res.normal[0], [0.0, 1.0], atol=1e-14)
+    np.testing.assert_allclose(res.normal[0], np.eye(d)[-1], atol=1e-14)
     assert abs(res.separation[0] - g) < 1e-12
-    # beta's bottom row compressed to half its height: its radius along n halves (eq. 25)
-    F = np.tile(np.eye(2), (len(x), 1, 1))
-    bottom = (side > 0) & (x[:, 1] < g + 0.3 * DX)
-    F[bottom] = np.diag([1.0, 0.5])
+    # beta's bottom layer compressed to half its height: its radius along n halves (eq. 25)
+    F = np.tile(np.eye(d), (len(x), 1, 1))
+    bottom = (side > 0) & (x[:, -1] < g + 0.3 * DX)
+    F[bottom] = np.diag([1.0] * (d - 1) + [0.5])
     squeezed = solve(node, x, side, ptr, idx, F=F)
     assert abs(squeezed.separation[0] - (g + DX / 8)) < 1e-12
-    # surface samples (R0 = 0) on alpha's top row: no radius
-    R0 = np.full((len(x), 2), DX / 4)
-    top = (side < 0) & (x[:, 1] > -0.3 * DX)
+    # surface samples (R0 = 0) on alpha's top layer: no radius
+    R0 = np.full((len(x), d), DX / 4)
+    top = (side < 0) & (x[:, -1] > -0.3 * DX)
     R0[top] = 0.0
     surf = solve(node, x, side, ptr, idx, R0=R0)
     assert abs(surf.separation[0] - (g + DX / 4)) < 1e-12
