@@ -226,3 +226,113 @@ def test_fine_grid_against_the_fem_edge_is_warned(caplog):
     with caplog.at_level("WARNING", logger="bfemp.steppers.lr"):
         LRStepper(model, dt=1e-4)
     assert "finer than twice" not in caplog.text
+
+
+# ---------------------------------------------------------------- L4: momentum; L8: detection
+def _colliding_blocks(third=False):
+    """Two soft blocks meeting at 1 m/s each, offset vertically; optionally a third falling
+    into the joint (so that nodes see three materials)."""
+    scene = bfemp.Scene(dim=2)
+    for name, lo, hi, v in (
+        ("left", (0.0, 0.0), (0.3, 0.3), (1.0, 0.0)),
+        ("right", (0.4, 0.1), (0.7, 0.4), (-1.0, 0.0)),
+        *([("top", (0.3, 0.35), (0.4, 0.5), (0.0, -0.5))] if third else []),
+    ):
+        x, vol = bfemp.sample.box(lo, hi, dx=DX, ppc=4)
+        scene.add_mpm(x, vol, material=SOFT, velocity=v, name=name)
+    scene.set_grid(dx=DX)
+    return scene
+
+
+def _momentum_run(scene, steps=150, **options):
+    model = scene.build()
+    stepper = LRStepper(model, dt="auto", options=LROptions(**options))
+    state = stepper.initialize(model.initial_state())
+    p0 = model.mpm_mass @ state.mpm_v
+    scale = float(np.abs(model.mpm_mass[:, None] * state.mpm_v).sum())
+    drift, lumped_steps, drift_when_lumped = [], 0, []
+    for _ in range(steps):
+        state, report = stepper.step(state)
+        drift.append(float(np.abs(model.mpm_mass @ state.mpm_v - p0).max()) / scale)
+        if report.extra["nodes_3plus"] == 0:
+            assert report.extra["lump_momentum_drift"] < 1e-12 * scale
+        else:
+            lumped_steps += 1
+            drift_when_lumped.append(report.extra["lump_momentum_drift"])
+    return stepper, drift, lumped_steps, drift_when_lumped
+
+
+@pytest.mark.parametrize("options", [{}, {"mu": 0.3}, {"xpic_order": 5}, {"detector": "cp"}])
+def test_two_material_contact_conserves_momentum(options):
+    """L4: the blocks collide (contact is found and corrected) with Sigma m V kept to 1e-12."""
+    stepper, drift, lumped, _ = _momentum_run(_colliding_blocks(), **options)
+    assert stepper.steps_with_contact > 10
+    assert lumped == 0
+    assert max(drift) < 1e-12
+
+
+def test_lumping_at_three_material_nodes_drifts_and_the_conservative_variant_does_not():
+    """L4's control: with a third body in the joint, eq. 50's lumping changes the momentum
+    (only on steps with 3+ nodes, as reported); lump="conservative" keeps it."""
+    _, drift, lumped, when = _momentum_run(_colliding_blocks(third=True))
+    assert lumped > 5
+    assert max(drift) > 1e-6 and max(when) > 0.0
+    _, drift_c, lumped_c, _ = _momentum_run(_colliding_blocks(third=True), lump="conservative")
+    assert lumped_c > 5
+    assert max(drift_c) < 1e-12
+
+
+def _approach(detector, gap_cells=1.5, steps=None):
+    """A block moving at 1 m/s toward a resting one, gap_cells cells apart; the time of the
+    first corrected step and the exact contact time."""
+    scene = bfemp.Scene(dim=2)
+    lower = bfemp.sample.box((0.0, 0.0), (0.4, 0.2), dx=DX, ppc=4)
+    gap = gap_cells * DX
+    upper = bfemp.sample.box((0.0, 0.2 + gap), (0.4, 0.4 + gap), dx=DX, ppc=4)
+    scene.add_mpm(*lower, material=SOFT, name="lower")
+    scene.add_mpm(*upper, material=SOFT, velocity=(0.0, -1.0), name="upper")
+    scene.set_grid(dx=DX)
+    model = scene.build()
+    stepper = LRStepper(model, dt=1e-3, options=LROptions(detector=detector))
+    state = stepper.initialize(model.initial_state())
+    t_c = gap / 1.0
+    for _ in range(int(1.5 * t_c / stepper.dt)):
+        state, report = stepper.step(state)
+        if report.contact_pairs:
+            return state.t, t_c
+    return None, t_c
+
+
+def test_contact_needs_touching_and_approaching():
+    """L8 in a step: LR finds the contact within a step or two of the exact time (the blocks
+    are 1.5 cells apart, so the stencils overlap long before); the velocity-only detector,
+    which ignores the separation, corrects at once (its contact at a distance)."""
+    t_lr, t_c = _approach("lr")
+    assert t_lr is not None and abs(t_lr - t_c) <= 2.5e-3
+    t_v, _ = _approach("velocity")
+    assert t_v is not None and t_v < t_c - 0.5 * DX
+
+
+def test_coulomb_friction_slows_the_slide_and_frictionless_keeps_it():
+    """A block sliding at 0.5 m/s on a resting one, pressed down by gravity: with mu = 0 the
+    relative tangential speed is kept (to the elastic noise), with mu = 0.5 it falls."""
+    speeds = {}
+    for mu in (0.0, 0.5):
+        scene = bfemp.Scene(dim=2, gravity=(0.0, -9.81))
+        lower = bfemp.sample.box((0.0, 0.0), (0.8, 0.1), dx=DX, ppc=4)
+        upper = bfemp.sample.box((0.2, 0.1), (0.4, 0.2), dx=DX, ppc=4)
+        scene.add_mpm(*lower, material=SOFT, name="lower")
+        scene.add_mpm(*upper, material=SOFT, velocity=(0.5, 0.0), name="upper")
+        scene.add_boundary(bfemp.levelset.HalfPlane(point=(0.0, 0.0), normal=(0.0, 1.0)),
+                           kind="sticky")  # fmt: skip
+        scene.set_grid(dx=DX)
+        model = scene.build()
+        stepper = LRStepper(model, dt=1e-3, options=LROptions(mu=mu))
+        state = stepper.initialize(model.initial_state())
+        for _ in range(150):
+            state, _ = stepper.step(state)
+        up = model.mpm_particle_body == 1
+        m = model.mpm_mass
+        speeds[mu] = float(m[up] @ state.mpm_v[up, 0] / m[up].sum())
+    assert speeds[0.0] > 0.4
+    assert speeds[0.5] < speeds[0.0] - 0.1
