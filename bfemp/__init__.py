@@ -23,7 +23,7 @@ import logging
 from bfemp import levelset, motion, sample, scenefile, shapes
 from bfemp.errors import SceneError
 from bfemp.integrators import BACKWARD_EULER, NEWMARK, Integrator
-from bfemp.materials import LinearElastic, NeoHookean
+from bfemp.materials import BulkShearHyperelastic, LinearElastic, NeoHookean
 from bfemp.model import FemBody, Model, MpmBody
 from bfemp.runs import load_run
 from bfemp.scene import Scene
@@ -47,6 +47,7 @@ __all__ = [
     "NEWMARK",
     "STRATEGIES",
     "BarrierOptions",
+    "BulkShearHyperelastic",
     "ContactView",
     "FemBody",
     "Integrator",

@@ -313,6 +313,21 @@ class MaterialLaw:
         self._derivative_kernel(F, mu, lam, out)
         return out
 
+    def cauchy_stress(
+        self, F: np.ndarray, mu: np.ndarray | float, lam: np.ndarray | float
+    ) -> np.ndarray:
+        """Cauchy stress sigma = P F^T / J (S, d, d) in Pa for F (S, d, d); NaN where J <= 0.
+
+        In 2D (plane strain) this is the in-plane block of the 3D tensor. Laws with a closed
+        form override it.
+        """
+        F, mu, lam = _prepare(F, mu, lam)
+        J = np.linalg.det(F)
+        with np.errstate(all="ignore"):
+            sigma = self.first_piola(F, mu, lam) @ np.swapaxes(F, 1, 2) / J[:, None, None]
+        sigma[~(J > 0.0)] = np.nan
+        return sigma
+
     def __repr__(self) -> str:
         return f"<material law {self.name!r}>"
 

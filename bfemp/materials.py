@@ -8,6 +8,10 @@ A material is a frozen keyword-only dataclass holding physical parameters in SI 
 
 2D is plane strain per unit thickness, so the same formulas hold in 2D and 3D.
 
+``BulkShearHyperelastic(K=..., G=..., density=...)`` (LR eq. 18) is given by its bulk and shear
+moduli instead; it exposes the same ``mu``, ``lam``, ``E``, ``nu``, ``p_wave_speed``, derived
+from K and G (mu = G, lam = K - 2 G / 3).
+
 Example::
 
     steel = NeoHookean(E=1e8, nu=0.2, density=1000.0)
@@ -20,9 +24,19 @@ import math
 import numbers
 from dataclasses import dataclass
 
+import numpy as np
+
+from bfemp._bulk_shear_kernels import BULK_SHEAR
 from bfemp._material_kernels import LINEAR_ELASTIC, NEO_HOOKEAN, MaterialLaw
 
-__all__ = ["LinearElastic", "Material", "NeoHookean"]
+__all__ = ["BulkShearHyperelastic", "LinearElastic", "Material", "NeoHookean"]
+
+
+def _real_field(cls: str, field: str, value: object) -> float:
+    """``value`` as a float; ``ValueError`` naming ``cls.field`` if it is not a real number."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ValueError(f"{cls}.{field} must be a real number, got {value!r}")
+    return float(value)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -42,11 +56,8 @@ class _IsotropicElastic:
     def __post_init__(self) -> None:
         cls = type(self).__name__
         for field in ("E", "nu", "density"):
-            value = getattr(self, field)
-            if isinstance(value, bool) or not isinstance(value, numbers.Real):
-                raise ValueError(f"{cls}.{field} must be a real number, got {value!r}")
             # Store plain floats (numpy scalars in, Python floats out).
-            object.__setattr__(self, field, float(value))
+            object.__setattr__(self, field, _real_field(cls, field, getattr(self, field)))
         if not (math.isfinite(self.E) and self.E > 0.0):
             raise ValueError(f"{cls}.E must be finite and > 0 (Pa), got {self.E}")
         if not (-1.0 < self.nu < 0.5):
@@ -68,6 +79,10 @@ class _IsotropicElastic:
     def p_wave_speed(self) -> float:
         """Dilatational wave speed sqrt((lam + 2 mu) / density) in m/s (for CFL estimates)."""
         return math.sqrt((self.lam + 2.0 * self.mu) / self.density)
+
+    def cauchy_stress(self, F: np.ndarray) -> np.ndarray:
+        """Cauchy stress (S, d, d) in Pa of deformation gradients F (S, d, d) (2D: in-plane)."""
+        return self.law.cauchy_stress(F, self.mu, self.lam)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -109,5 +124,80 @@ class LinearElastic(_IsotropicElastic):
         return LINEAR_ELASTIC
 
 
-Material = NeoHookean | LinearElastic
+@dataclass(frozen=True, kw_only=True)
+class BulkShearHyperelastic:
+    """The hyperelastic law of LR eq. (18), given by its bulk and shear moduli.
+
+    W(F) = G/2 (I1 J^{-2/3} - 3) + K/2 (1/2 (J^2 - 1) - ln J) in J/m^3, I1 = tr(F^T F), J = det F;
+    Cauchy stress G J^{-5/3} dev(F F^T) + K/2 (J - 1/J) I. 2D is plane strain with the 3D
+    invariants of diag(F, 1). At small strain it is linear elasticity with these K and G.
+
+    Fields:
+        K: bulk modulus in Pa, finite and > 0.
+        G: shear modulus in Pa, finite and > 0.
+        density: mass density in kg/m^3 (in 2D: per unit thickness), finite and > 0.
+
+    The derived ``mu``, ``lam``, ``E``, ``nu`` are the 3D (and plane-strain) isotropic constants
+    with the same small-strain response, so this material fits wherever the others do.
+    """
+
+    K: float
+    G: float
+    density: float
+
+    def __post_init__(self) -> None:
+        cls = type(self).__name__
+        units = {"K": "Pa", "G": "Pa", "density": "kg/m^3"}
+        for field, unit in units.items():
+            value = _real_field(cls, field, getattr(self, field))
+            if not (math.isfinite(value) and value > 0.0):
+                raise ValueError(f"{cls}.{field} must be finite and > 0 ({unit}), got {value}")
+            object.__setattr__(self, field, value)
+
+    @property
+    def name(self) -> str:
+        """Registry name of the law: "bulk_shear"."""
+        return "bulk_shear"
+
+    @property
+    def law(self) -> MaterialLaw:
+        """The pointwise law object (energy density, first Piola stress and its derivative)."""
+        return BULK_SHEAR
+
+    @property
+    def mu(self) -> float:
+        """Shear modulus mu = G in Pa."""
+        return self.G
+
+    @property
+    def lam(self) -> float:
+        """First Lame parameter lam = K - 2 G / 3 in Pa (negative when nu < 0)."""
+        return self.K - 2.0 * self.G / 3.0
+
+    @property
+    def E(self) -> float:
+        """Young's modulus E = 9 K G / (3 K + G) in Pa."""
+        return 9.0 * self.K * self.G / (3.0 * self.K + self.G)
+
+    @property
+    def nu(self) -> float:
+        """Poisson ratio nu = (3 K - 2 G) / (2 (3 K + G)), in (-1, 0.5)."""
+        return (3.0 * self.K - 2.0 * self.G) / (2.0 * (3.0 * self.K + self.G))
+
+    @property
+    def p_wave_speed(self) -> float:
+        """Dilatational wave speed sqrt((K + 4 G / 3) / density) in m/s (for CFL estimates)."""
+        return math.sqrt((self.K + 4.0 * self.G / 3.0) / self.density)
+
+    @property
+    def bulk_wave_speed(self) -> float:
+        """Bulk sound speed sqrt(K / density) in m/s (LR's "wave speed", spec L-P2)."""
+        return math.sqrt(self.K / self.density)
+
+    def cauchy_stress(self, F: np.ndarray) -> np.ndarray:
+        """Cauchy stress (S, d, d) in Pa of deformation gradients F (S, d, d) (2D: in-plane)."""
+        return self.law.cauchy_stress(F, self.mu, self.lam)
+
+
+Material = NeoHookean | LinearElastic | BulkShearHyperelastic
 """Any material accepted by the model builder."""

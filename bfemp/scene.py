@@ -14,15 +14,13 @@ import meshio
 import numpy as np
 
 from bfemp.contact.parameters import ContactParameters
-from bfemp.materials import LinearElastic, NeoHookean
+from bfemp.materials import Material
 from bfemp.model import BOUNDARY_KINDS, Boundary, FemBody, Model, MpmBody, simplex_shape_gradients
 from bfemp.motion import Motion
 from geometry.grid import Grid, particles_per_cell
 from geometry.mesh import SourceNumbering, TetMesh, TriMesh, from_meshio, mesh_from_arrays
 
 __all__ = ["Scene", "check_fem_mesh"]
-
-Material = NeoHookean | LinearElastic
 
 
 log = logging.getLogger(__name__)
@@ -46,6 +44,15 @@ class _FemSpec:
     motion: Motion | None
     prescribed: np.ndarray  # (n,) bool
     numbering: SourceNumbering | None  # the mesh file's numbering (node indices of the user)
+
+
+def _check_material(material: object, where: str) -> None:
+    """``ValueError`` naming ``where`` unless ``material`` is one of bfemp's materials."""
+    if not isinstance(material, Material):
+        raise ValueError(
+            f"{where}: material must be bfemp.NeoHookean, bfemp.LinearElastic or "
+            f"bfemp.BulkShearHyperelastic, got {type(material).__name__}"
+        )
 
 
 def check_fem_mesh(mesh: TriMesh | TetMesh, where: str, *, rigid: bool) -> TriMesh | TetMesh:
@@ -129,7 +136,7 @@ class Scene:
                 A mesh whose cells are all clockwise (2D) / left-handed (3D) is flipped; see
                 :func:`check_fem_mesh` for what is refused.
             cells: vertex indices ``(m, d + 1)`` when ``points`` is an array.
-            material: ``NeoHookean`` or ``LinearElastic``.
+            material: ``NeoHookean``, ``LinearElastic`` or ``BulkShearHyperelastic``.
             velocity: initial velocity ``(d,)`` or ``(n, d)`` in m/s; default zero.
             prescribed: a ``bfemp.motion`` Motion scripting some or all nodes.
             prescribed_nodes: bool mask ``(n,)`` or index array of the scripted nodes (at least
@@ -156,11 +163,7 @@ class Scene:
         n = mesh.points.shape[0]
         prescribed_mask = self._prescribed_mask(prescribed, prescribed_nodes, n, where, numbering)
         mesh = check_fem_mesh(mesh, where, rigid=bool(prescribed_mask.all()))
-        if not isinstance(material, NeoHookean | LinearElastic):
-            raise ValueError(
-                f"{where}: material must be bfemp.NeoHookean or bfemp.LinearElastic, "
-                f"got {type(material).__name__}"
-            )
+        _check_material(material, where)
         vel = self._velocity(velocity, n, where, numbering)
         spec = _FemSpec(name, mesh, material, vel, prescribed, prescribed_mask, numbering)
         self._fem.append(spec)
@@ -192,7 +195,7 @@ class Scene:
         Args:
             particles: positions ``(p, d)`` in m (e.g. from ``bfemp.sample``).
             volumes: particle volumes ``(p,)`` in m^d (per unit thickness in 2D).
-            material: ``NeoHookean`` or ``LinearElastic``.
+            material: ``NeoHookean``, ``LinearElastic`` or ``BulkShearHyperelastic``.
             velocity: initial velocity ``(d,)`` or ``(p, d)`` in m/s; default zero.
             name: body name used in messages and output files; default ``mpm{index}``.
         """
@@ -218,11 +221,7 @@ class Scene:
             raise ValueError(
                 f"{where}: volumes must be positive and finite; bad at rows {bad[:10].tolist()}"
             )
-        if not isinstance(material, NeoHookean | LinearElastic):
-            raise ValueError(
-                f"{where}: material must be bfemp.NeoHookean or bfemp.LinearElastic, "
-                f"got {type(material).__name__}"
-            )
+        _check_material(material, where)
         vel = self._velocity(velocity, x.shape[0], where)
         self._mpm.append(_MpmSpec(name, np.ascontiguousarray(x), vol.copy(), material, vel))
         start = sum(spec.x.shape[0] for spec in self._mpm[:-1])

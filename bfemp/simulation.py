@@ -522,11 +522,7 @@ def _von_mises(material: object, F: np.ndarray) -> np.ndarray:
 
     In 2D (plane strain) the in-plane sqrt(sxx^2 - sxx syy + syy^2 + 3 sxy^2) is reported.
     """
-    n = F.shape[0]
-    J = np.linalg.det(F)
-    with np.errstate(all="ignore"):
-        P = material.law.first_piola(F, np.full(n, material.mu), np.full(n, material.lam))
-        sigma = P @ np.swapaxes(F, 1, 2) / J[:, None, None]
+    sigma = material.law.cauchy_stress(F, material.mu, material.lam)
     if F.shape[1] == 2:
         sxx, syy, sxy = sigma[:, 0, 0], sigma[:, 1, 1], sigma[:, 0, 1]
         return np.sqrt(np.maximum(sxx**2 - sxx * syy + syy**2 + 3 * sxy**2, 0.0))

@@ -42,6 +42,7 @@ Format (``#`` comments; numbers in SI units, scalars may also be strings with a 
     E = 5e7                       # Pa
     nu = 0.3                      # in (-1, 0.5)
     density = 1000.0              # kg/m^3
+    # type = "bulk_shear" (LR eq. 18) takes K, G (Pa) and density instead of E and nu
 
     [grid]                        # scene.set_grid(dx, origin): the MPM background grid
     dx = 0.1

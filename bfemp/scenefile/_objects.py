@@ -13,7 +13,7 @@ from bfemp import levelset as ls
 from bfemp import motion as mo
 from bfemp import sample, shapes
 from bfemp.errors import SceneError
-from bfemp.materials import LinearElastic, NeoHookean
+from bfemp.materials import BulkShearHyperelastic, LinearElastic, Material, NeoHookean
 from bfemp.scenefile._fields import Table
 from geometry.mesh import SourceNumbering, TetMesh, TriMesh, mesh_from_arrays, read_mesh
 
@@ -29,7 +29,11 @@ __all__ = [
 ]
 
 #: material ``type`` -> class ("linear" is accepted as an alias of "linear_elastic").
-MATERIAL_TYPES = {"neo_hookean": NeoHookean, "linear_elastic": LinearElastic}
+MATERIAL_TYPES = {
+    "neo_hookean": NeoHookean,
+    "linear_elastic": LinearElastic,
+    "bulk_shear": BulkShearHyperelastic,
+}
 _MATERIAL_ALIASES = {"linear": "linear_elastic"}
 
 #: mesh ``shape`` -> generator of ``bfemp.shapes``.
@@ -48,10 +52,13 @@ _NU_HINT = (
 )
 
 
-def read_material(t: Table) -> NeoHookean | LinearElastic:
-    """``{type, E, nu, density}`` -> a material (E in Pa, density in kg/m^3)."""
-    t.check_keys({"type", "E", "nu", "density"}, required={"E", "nu", "density"})
+def read_material(t: Table) -> Material:
+    """``{type, E, nu, density}`` -> a material (E in Pa, density in kg/m^3);
+    ``{type = "bulk_shear", K, G, density}`` -> ``BulkShearHyperelastic`` (K, G in Pa)."""
     kind = t.string("type", default="neo_hookean", choices=[*MATERIAL_TYPES, *_MATERIAL_ALIASES])
+    if kind == "bulk_shear":
+        return _read_bulk_shear(t)
+    t.check_keys({"type", "E", "nu", "density"}, required={"E", "nu", "density"})
     E = t.number(
         "E", "pressure", positive=True, hint="E is Young's modulus in Pa, e.g. 5e7 or '50 MPa'"
     )
@@ -65,6 +72,21 @@ def read_material(t: Table) -> NeoHookean | LinearElastic:
     )
     cls = MATERIAL_TYPES[_MATERIAL_ALIASES.get(kind, kind)]
     return cls(E=E, nu=nu, density=density)
+
+
+def _read_bulk_shear(t: Table) -> BulkShearHyperelastic:
+    """``{type = "bulk_shear", K, G, density}`` -> the LR eq. (18) material."""
+    t.check_keys({"type", "K", "G", "density"}, required={"K", "G", "density"})
+    K = t.number(
+        "K", "pressure", positive=True, hint="K is the bulk modulus in Pa, e.g. '2450 MPa'"
+    )
+    G = t.number(
+        "G", "pressure", positive=True, hint="G is the shear modulus in Pa, e.g. '940 MPa'"
+    )
+    density = t.number(
+        "density", "density", positive=True, hint="density is the mass density in kg/m^3"
+    )
+    return BulkShearHyperelastic(K=K, G=G, density=density)
 
 
 def read_mesh_table(t: Table, dim: int, base_dir: Path | None) -> tuple[TriMesh | TetMesh, dict]:

@@ -13,7 +13,7 @@ import numpy as np
 from bfemp import levelset as ls
 from bfemp import motion as mo
 from bfemp.errors import SceneError
-from bfemp.materials import LinearElastic, NeoHookean
+from bfemp.materials import BulkShearHyperelastic, LinearElastic, NeoHookean
 from bfemp.steppers.base import options_to_dict
 
 __all__ = ["levelset_dict", "motion_dict", "scene_dict"]
@@ -28,7 +28,9 @@ def _uniform_or_rows(a: np.ndarray) -> list:
 
 
 def material_dict(material: object) -> dict:
-    """``{type, E, nu, density}`` of a material."""
+    """``{type, E, nu, density}`` of a material (``{type, K, G, density}`` for bulk_shear)."""
+    if isinstance(material, BulkShearHyperelastic):
+        return {"type": "bulk_shear", "K": material.K, "G": material.G, "density": material.density}
     kind = {NeoHookean: "neo_hookean", LinearElastic: "linear_elastic"}.get(type(material))
     if kind is None:
         raise SceneError(f"material of type {type(material).__name__} cannot be written to TOML")
