@@ -4,11 +4,16 @@
   lattice (``ppc = k^2`` per cell, spacing ``dx / k``, volume ``(dx / k)^2`` each, as
   :mod:`geometry.sampling`) strictly inside it; ellipses do not overlap, so no point is shared.
 - :func:`colour_ellipses`: material classes by greedy colouring (DSatur: next the uncoloured
-  ellipse with the most distinct colours among its neighbours, ties by degree, then index; it
-  takes the smallest colour none of its neighbours has) of the contact graph, two ellipses being
-  adjacent when they are not certified ``distance`` apart (:func:`geometry.ellipses.close_pairs`:
-  every pair closer than ``distance`` is an edge, a slightly farther one may be). LR shaded its
-  20 materials so that "all contact would be between different material classes".
+  ellipse with the most distinct colours among its neighbours, ties by degree, then index) of
+  the contact graph, two ellipses being adjacent when they are not certified ``distance`` apart
+  (:func:`geometry.ellipses.close_pairs`: every pair closer than ``distance`` is an edge, a
+  slightly farther one may be). LR shaded its 20 materials so that "all contact would be between
+  different material classes". Among the colours none of its neighbours has, an ellipse takes
+  (``spread=True``, the default) the one whose closest member is farthest from it (bounding
+  circles' gap; an unused colour first), so that all classes are used and ellipses of one class
+  lie as far apart as the greedy order allows: compression brings ellipses that start more than
+  ``distance`` apart into contact, and one class has no contact with itself. With
+  ``spread=False`` it takes the smallest such colour (fewest classes).
 - :func:`class_particles`: one particle set per class, the union of its ellipses' particles.
 - :func:`interpenetrating`: the particles that have a particle of another class within
   ``r_p = 0.5 * spacing * sqrt(J_p)`` of their centre (``spacing`` = dx / 2 at 2 x 2 PPC: half
@@ -84,13 +89,17 @@ def sample_ellipses(
     )
 
 
-def colour_ellipses(packing: EllipsePacking, distance: float, max_classes: int) -> np.ndarray:
+def colour_ellipses(
+    packing: EllipsePacking, distance: float, max_classes: int, *, spread: bool = True
+) -> np.ndarray:
     """(E,) classes in ``0 .. max_classes - 1``, no two ellipses closer than ``distance`` alike.
 
     Args:
         packing: the ellipses.
         distance: gap in m under which two ellipses are adjacent (LR benchmark: 2 cells).
         max_classes: number of classes available (20 full, 6 quick).
+        spread: among the allowed classes take the one whose closest member is farthest
+            (True, all classes used), or the smallest (False, fewest classes).
 
     Raises:
         ValueError: ``distance`` or ``max_classes`` invalid, or ``max_classes`` classes are not
@@ -108,6 +117,10 @@ def colour_ellipses(packing: EllipsePacking, distance: float, max_classes: int) 
     adjacent[pairs[:, 0], pairs[:, 1]] = True
     adjacent[pairs[:, 1], pairs[:, 0]] = True
     degree = adjacent.sum(axis=1)
+    # gap of the bounding circles (radius a), a lower bound of the true gap
+    a = packing.semi_axes[:, 0]
+    centre_gap = np.linalg.norm(packing.centers[:, None] - packing.centers[None], axis=2)
+    circle_gap = centre_gap - a[:, None] - a[None]
     colour = np.full(n, -1, dtype=np.int64)
     # seen[e, c]: a neighbour of e has colour c (one column more than allowed, to detect need)
     seen = np.zeros((n, max_classes + 1), dtype=bool)
@@ -121,7 +134,16 @@ def colour_ellipses(packing: EllipsePacking, distance: float, max_classes: int) 
                 f"colour_ellipses: {max_classes} classes are not enough: ellipse {e} "
                 f"(degree {degree[e]}) has neighbours of every class at distance < {distance} m"
             )
-        colour[e] = int(free[0])
+        if spread:
+            # the closest member of each free colour (inf for an unused one)
+            closest = np.full(free.size, np.inf)
+            for m, c in enumerate(free):  # colours (<= max_classes)
+                members = colour == c
+                if members.any():
+                    closest[m] = circle_gap[e, members].min()
+            colour[e] = int(free[np.argmax(closest)])
+        else:
+            colour[e] = int(free[0])
         seen[adjacent[e], colour[e]] = True
     return colour
 

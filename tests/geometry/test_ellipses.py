@@ -187,6 +187,22 @@ def test_colouring_separates_every_close_pair(config, k):
     assert (classes[i] != classes[j]).all()
 
 
+def test_spread_colouring_uses_every_class_and_keeps_classes_apart():
+    p = pack_ellipses(**FULL, rng=1)
+    dx = MM / 70
+    spread = colour_ellipses(p, 2 * dx, 20)
+    fewest = colour_ellipses(p, 2 * dx, 20, spread=False)
+    assert np.unique(spread).size == min(20, p.n_ellipses)
+    assert np.unique(fewest).size < 6  # a planar-like contact graph needs few colours
+    gaps = _sampled_gaps(p, reach=np.inf)
+
+    def same_class_gap(classes):
+        same = (classes[:, None] == classes[None]) & ~np.eye(p.n_ellipses, dtype=bool)
+        return gaps[same].min()
+
+    assert same_class_gap(fewest) >= 2 * dx and same_class_gap(spread) > 2 * same_class_gap(fewest)
+
+
 def test_too_few_classes_is_a_clear_error():
     # three touching unit circles: a triangle in the contact graph
     c = np.array([[0.0, 0.0], [2.01, 0.0], [1.005, 1.75]])
