@@ -349,3 +349,12 @@ def test_von_mises_output_uses_the_law_cauchy_stress():
     dev = sigma - np.trace(sigma, axis1=1, axis2=2)[:, None, None] * np.eye(3) / 3
     expected = np.sqrt(1.5 * np.einsum("sij,sij->s", dev, dev))
     np.testing.assert_allclose(_von_mises(LR_BLOCKS, F), expected, rtol=1e-12)
+
+
+def test_the_run_manifest_records_k_and_g():
+    from bfemp.manifest import model_summary
+
+    summary = model_summary(_sagging_block(LR_BLOCKS).build())
+    recorded = summary["mpm_bodies"][0]["material"]
+    assert recorded["type"] == "bulk_shear" and recorded["K"] == 2450e6 and recorded["G"] == 940e6
+    assert recorded["E"] == LR_BLOCKS.E and recorded["nu"] == LR_BLOCKS.nu
