@@ -276,9 +276,10 @@ def test_barrier_newton_runs_it_and_the_small_strain_response_is_neo_hookeans():
 
 
 def test_single_field_compression_stress_follows_the_law():
-    """An MPM block squeezed by an initial velocity field v_y = -a y: the mean sigma_yy after a
-    few explicit steps is negative and, at small strain, that of Neo-Hookean with the same E, nu;
-    the lateral stress sigma_xx / sigma_yy is nu / (1 - nu) (uniaxial strain)."""
+    """An MPM block squeezed by an initial velocity field v_y = -a y: the mean Cauchy stresses
+    after a few explicit steps are compressive and, at small strain, those of Neo-Hookean with
+    the same E, nu (measured at the auto dt 1.7e-4 s: within 2.2e-5; a K 5 % larger moves
+    sigma_xx by 6 % and sigma_yy by 0.7 %)."""
     stresses = {}
     for material in (SOFT_KG, SOFT_NH):
         scene = bfemp.Scene(dim=2)
@@ -298,7 +299,7 @@ def test_single_field_compression_stress_follows_the_law():
     sxx, syy = stresses["bulk_shear"]
     sxx_nh, syy_nh = stresses["neo_hookean"]
     assert syy < 0.0 and sxx < 0.0
-    assert syy == pytest.approx(syy_nh, rel=0.02) and sxx == pytest.approx(sxx_nh, rel=0.05)
+    assert syy == pytest.approx(syy_nh, rel=1e-3) and sxx == pytest.approx(sxx_nh, rel=1e-3)
 
 
 def test_scene_file_round_trip(tmp_path):
