@@ -34,6 +34,7 @@ from bfemp.checkpoint import SIDECAR_FILE, model_fingerprint
 from bfemp.errors import SceneError
 from bfemp.io.metrics import MetricsLog
 from bfemp.io.vtk import atomic_path, read_pvd
+from bfemp.materials import BulkShearHyperelastic
 
 __all__ = ["MANIFEST_FILE", "RunManifest", "format_info", "git_info", "run_info", "versions"]
 
@@ -91,12 +92,15 @@ def git_info() -> dict[str, object]:
 
 
 def _material(material: object) -> dict:
-    return {
+    out = {
         "type": getattr(material, "name", type(material).__name__),
         "E": material.E,
         "nu": material.nu,
         "density": material.density,
     }
+    if isinstance(material, BulkShearHyperelastic):  # given by K and G; E, nu derived
+        out.update(K=material.K, G=material.G)
+    return out
 
 
 def model_summary(model: object) -> dict:

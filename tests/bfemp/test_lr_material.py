@@ -276,9 +276,10 @@ def test_barrier_newton_runs_it_and_the_small_strain_response_is_neo_hookeans():
 
 
 def test_single_field_compression_stress_follows_the_law():
-    """An MPM block squeezed by an initial velocity field v_y = -a y: the mean sigma_yy after a
-    few explicit steps is negative and, at small strain, that of Neo-Hookean with the same E, nu;
-    the lateral stress sigma_xx / sigma_yy is nu / (1 - nu) (uniaxial strain)."""
+    """An MPM block squeezed by an initial velocity field v_y = -a y: the mean Cauchy stresses
+    after a few explicit steps are compressive and, at small strain, those of Neo-Hookean with
+    the same E, nu (measured at the auto dt 1.7e-4 s: within 2.2e-5; a K 5 % larger moves
+    sigma_xx by 6 % and sigma_yy by 0.7 %)."""
     stresses = {}
     for material in (SOFT_KG, SOFT_NH):
         scene = bfemp.Scene(dim=2)
@@ -298,7 +299,7 @@ def test_single_field_compression_stress_follows_the_law():
     sxx, syy = stresses["bulk_shear"]
     sxx_nh, syy_nh = stresses["neo_hookean"]
     assert syy < 0.0 and sxx < 0.0
-    assert syy == pytest.approx(syy_nh, rel=0.02) and sxx == pytest.approx(sxx_nh, rel=0.05)
+    assert syy == pytest.approx(syy_nh, rel=1e-3) and sxx == pytest.approx(sxx_nh, rel=1e-3)
 
 
 def test_scene_file_round_trip(tmp_path):
@@ -349,3 +350,30 @@ def test_von_mises_output_uses_the_law_cauchy_stress():
     dev = sigma - np.trace(sigma, axis1=1, axis2=2)[:, None, None] * np.eye(3) / 3
     expected = np.sqrt(1.5 * np.einsum("sij,sij->s", dev, dev))
     np.testing.assert_allclose(_von_mises(LR_BLOCKS, F), expected, rtol=1e-12)
+
+
+def test_the_run_manifest_records_k_and_g():
+    from bfemp.manifest import model_summary
+
+    summary = model_summary(_sagging_block(LR_BLOCKS).build())
+    recorded = summary["mpm_bodies"][0]["material"]
+    assert recorded["type"] == "bulk_shear" and recorded["K"] == 2450e6 and recorded["G"] == 940e6
+    assert recorded["E"] == LR_BLOCKS.E and recorded["nu"] == LR_BLOCKS.nu
+
+
+def test_barrier_3d_block_sags_like_neo_hookean():
+    sags = {}
+    for material in (SOFT_KG, SOFT_NH):
+        scene = bfemp.Scene(dim=3, gravity=(0.0, 0.0, -9.81))
+        mesh = bfemp.shapes.box((0.0, 0.0, 0.0), (2.0, 1.0, 1.0), h=0.5)
+        bottom = mesh.points[:, 2] < 1e-9
+        scene.add_fem(
+            mesh, material=material, prescribed=bfemp.motion.Fixed(), prescribed_nodes=bottom
+        )
+        sim = bfemp.Simulation(scene, dt=0.02, tol=1e-6)
+        for _ in range(3):
+            assert sim.step().newton_iterations <= 4
+        sags[material.name] = sim.state.fem_x - sim.model.fem_X
+    ref = np.abs(sags["neo_hookean"]).max()
+    assert ref > 1e-4
+    assert np.abs(sags["bulk_shear"] - sags["neo_hookean"]).max() < 2e-3 * ref
