@@ -168,6 +168,7 @@ def lr_planes(
     max_iterations: int = 15,
     linear_scale: float = 2.0,
     normal_start: np.ndarray | None = None,
+    thin: float = 0.0,
 ) -> LRPlanes:
     """The LR plane, normal and separation at C contact nodes (LR section 3.1 and Appendix).
 
@@ -204,6 +205,10 @@ def lr_planes(
         normal_start: optional warm start ``(C, d)`` (e.g. last step's normals); rows of zeros
             use the linear start. The start phi has that direction, the linear fit's magnitude
             and the least-squares offset of the scaled linear model.
+        thin: in cells; > 0 removes from the normal its components along principal directions
+            in which the whole cloud's standard deviation is below ``thin`` dx (a cloud of one
+            particle column holds no information across it; bfemp's, see
+            ``_lr_kernels._drop_thin_directions``), before the separation is measured. 0: off.
 
     Raises:
         ValueError: bad shapes or values (naming the argument), a cloud with one class only or
@@ -245,6 +250,8 @@ def lr_planes(
             raise ValueError(f"{name} must be finite and >= 0, got {val}")
     if linear_scale == 0.0:
         raise ValueError("linear_scale must be > 0")
+    if not (np.isfinite(thin) and thin >= 0.0):
+        raise ValueError(f"thin must be finite and >= 0 (cells), got {thin}")
     if int(max_iterations) != max_iterations or max_iterations < 0:
         raise ValueError(f"max_iterations must be an integer >= 0, got {max_iterations}")
     if normal_start is None:
@@ -257,7 +264,7 @@ def lr_planes(
     normal, phi, sep, iters, conv, fb, code = lr_planes_kernel(
         node_x, cloud_ptr, cloud_idx, cloud_side, points_x, points_F, points_R0,
         float(penalty) * float(dx) ** 2, float(tol), int(max_iterations), float(linear_scale),
-        start, has_start,
+        (float(thin) * float(dx)) ** 2, start, has_start,
     )  # fmt: skip
     if np.any(code == ONE_CLASS):
         bad = np.flatnonzero(code == ONE_CLASS)

@@ -536,3 +536,31 @@ def test_bad_input_names_the_argument_or_node():
     with pytest.raises(ValueError, match="separation"):
         lr.contact_momentum(one, one, np.zeros((1, 2)), np.zeros((1, 2)), np.eye(2)[:1], None,
                             mu=0.2, law="coulomb", detector="lr")  # fmt: skip
+
+
+def test_thin_cloud_normal_keeps_only_directions_the_cloud_spans():
+    """A node beside a body's side sees one particle column per material, the upper column
+    bulged 0.09 mm further out (as in ``lr_compression`` at 10 % strain): the classes are
+    separated sideways too, and the plain fit takes that sideways normal; with ``thin`` the
+    normal keeps only the direction the cloud spans (vertical), and d_LR is measured along it."""
+    dx = 5e-3
+    ys = np.array([43.75, 46.25, 48.75, 51.25, 53.75, 56.25]) * 1e-3
+    xs = np.where(ys < 0.05, 1.25e-3, 1.16e-3)
+    x = np.stack([xs, ys], axis=1)
+    side = np.array([-1, -1, -1, 1, 1, 1], dtype=np.int8)
+    F = np.broadcast_to(np.eye(2), (6, 2, 2)).copy()
+    R0 = np.full((6, 2), 1.25e-3)
+    args = (np.array([[-5e-3, 0.05]]), np.array([0, 6]), np.arange(6), side, x, F, R0, dx)
+    plain = lr.lr_planes(*args)
+    assert abs(plain.normal[0, 0]) > 0.9  # the sideways plane
+    thin = lr.lr_planes(*args, thin=0.05)
+    # within 1 degree of vertical (the thin axis of the cloud is itself tilted by the offset)
+    assert thin.normal[0, 1] > np.cos(np.radians(1.0))
+    assert abs(thin.separation[0]) < 0.01 * dx  # the rows touch along y (2.5 mm apart)
+    # a cloud spanning both directions is left alone
+    grid = np.array([[ix, iy] for ix in (-1.25e-3, 1.25e-3) for iy in ys])
+    side2 = np.where(grid[:, 1] < 0.05, -1, 1).astype(np.int8)
+    F2 = np.broadcast_to(np.eye(2), (12, 2, 2)).copy()
+    args2 = (np.array([[0.0, 0.05]]), np.array([0, 12]), np.arange(12), side2, grid, F2,
+             np.full((12, 2), 1.25e-3), dx)  # fmt: skip
+    assert np.allclose(lr.lr_planes(*args2).normal, lr.lr_planes(*args2, thin=0.05).normal, atol=0)
