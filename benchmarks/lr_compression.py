@@ -1,15 +1,15 @@
-"""``lr_compression``: two blocks compressed to 20 % strain, LR paper section 4.1-4.2 (Figs. 2A, 5).
+"""``lr_compression``: two blocks compressed by 10-15 % strain, LR paper sections 4.1-4.2 (Fig. 5).
 
 Setup (EXPLICIT_STRATEGIES.md section 2.9): 2D plane strain, a 40 x 100 mm column cut into two
 40 x 50 mm blocks (the interface on a grid line, y = 50 mm, or mid-cell, y = 52.5 mm: the lower
 block then is 52.5 mm high), the paper's hyperelastic law (eq. 18: K = 2450 MPa, G = 940 MPa;
 rho = 1200 kg/m^3, pitfall L-P1), 5 mm cells, 2 x 2 particles per cell (bfemp's quadratic
 B-splines; LR used GIMP), Coulomb mu = 0.2 between the blocks. The bottom grid nodes are fixed
-(a sticky half-plane y <= 0); the top nodes move down at v0 and are held sideways (a sticky
-half-plane moving at -v0; with v_x free the column buckles, see ``TOP_KIND``). v0 is a
-fraction of the bulk wave speed c_K = sqrt(K / rho) (pitfall L-P2):
-0.05 % (0.714 m/s, full) or 0.5 % (quick). The column is compressed to 20 % (full) or 10 %
-(quick) nominal strain u / 100 mm; dt = 0.4 dx / (c_p + |v|) (``dt="auto"``).
+(a sticky half-plane y <= 0); the top nodes move down at v0 with v_x free (a slip half-plane
+moving at -v0; see ``TOP_KIND`` for why the full run stops at 15 %). v0 is a fraction of the
+bulk wave speed c_K = sqrt(K / rho) (pitfall L-P2):
+0.05 % (0.714 m/s, full) or 0.5 % (quick). The column is compressed to 15 % (full; the paper
+20 %) or 10 % (quick) nominal strain u / 100 mm; dt = 0.4 dx / (c_p + |v|) (``dt="auto"``).
 
 Metric: sigma = the volume-weighted mean particle Cauchy stress sigma_yy (current volumes
 J V_p^0), error = (sigma_MM - sigma_SMM) / sigma_SMM in % against the strain; SMM is the same
@@ -58,14 +58,17 @@ K_BULK, G_SHEAR, RHO = 2450e6, 940e6, 1200.0
 MU = 0.2
 C_K = math.sqrt(K_BULK / RHO)
 #: mode -> (v0 / c_K, final strain)
-MODES = {"quick": (0.005, 0.10), "full": (0.0005, 0.20)}
+MODES = {"quick": (0.005, 0.10), "full": (0.0005, 0.15)}
 TOL_LR, TOL_XPIC = 1.0, 0.5  # % (T)
 MIN_STRAIN = 0.01
-#: the top nodes move down at v0 and are held sideways (sticky). With v_x free (slip, the
-#: spec's first reading) the column is fixed-free, whose Euler stress pi^2 E w^2 / (48 L^2) =
-#: 82 MPa is reached at 3 % strain: measured, the single-material column buckled at 18 % (mean
-#: stress 521 -> 51 MPa) in the full run. Held on both ends its Euler strain is about 50 %.
-TOP_KIND = "sticky"
+#: the top nodes move down at v0 with v_x free (slip, the spec's reading): the interface then
+#: carries no shear, and a frictional interface can match the bonded single material. Measured
+#: alternative: held sideways (sticky), the column barrels, the mu = 0.2 interface slips where the
+#: bonded column cannot, and LR-FLIP differs by 2.6 % at 20 % (full), a difference of physics.
+#: With v_x free the column is fixed-free (Euler stress pi^2 E w^2 / (48 L^2) = 82 MPa, reached
+#: at 3 % strain): the single-material column buckled at 18 % in the full run (mean stress
+#: 521 -> 51 MPa), so the full run stops at 15 %.
+TOP_KIND = "slip"
 
 
 def material() -> object:
@@ -259,6 +262,6 @@ def run(mode: str, out: Path) -> dict:
     record["peak_memory_mb"] = peak_memory_mb()
     record["environment"] = environment()
     name = NAME if mode == "full" else f"{NAME}_{mode}"
-    write_json(out, name, record)
+    path = write_json(out, name, record)
     plot(record, Path(out) / f"{name}.png")
-    return record
+    return {"json": str(path), **record}

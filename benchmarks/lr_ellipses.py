@@ -194,6 +194,6 @@ def run(mode: str, out: Path) -> dict:
     record["peak_memory_mb"] = peak_memory_mb()
     record["environment"] = environment()
     name = NAME if mode == "full" else f"{NAME}_{mode}"
-    write_json(out, name, record)
+    path = write_json(out, name, record)
     plot(record, Path(out) / f"{name}.png")
-    return record
+    return {"json": str(path), **record}

@@ -98,6 +98,9 @@ VARIANTS = {
     "tilted_gravity": ("tilted_gravity", 1.0),
     "rotated_slope": ("rotated_slope", 1.0),
     "fine_slope": ("tilted_gravity", 0.1),
+    # for strategies that see the FEM slope through its boundary nodes (lr): an edge of half a
+    # grid cell; run with a thin slope (``lr_scenes`` sets slope_lower_upper_m)
+    "dense_slope": ("tilted_gravity", 0.0025),
 }
 
 MODES = {

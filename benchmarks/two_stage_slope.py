@@ -97,16 +97,19 @@ def stable_dt() -> float:
     return TwoStageStepper.auto_dt(model)
 
 
-def run_cases(mode: str, kappa: str, physics: dict | None = None) -> dict:
+def run_cases(
+    mode: str, kappa: str, physics: dict | None = None, variant: str = "tilted_gravity"
+) -> dict:
     """Settle once, release at each mu of ``mode`` with barrier stiffness ``KAPPAS[kappa]``;
-    ``physics`` overrides entries of ``PHYSICS`` (``augury_scenes``: another strategy)."""
+    ``physics`` overrides entries of ``PHYSICS`` (``augury_scenes``: another strategy),
+    ``variant`` is the ``slope.VARIANTS`` entry (``lr_scenes``: ``"dense_slope"``)."""
     cfg = MODES[mode]
     p = {**PHYSICS, "kappa_Pa": KAPPAS[kappa], **(physics or {})}
-    settled, settle = slope._settle("tilted_gravity", round(cfg["settle_s"] / DT), p)
+    settled, settle = slope._settle(variant, round(cfg["settle_s"] / DT), p)
     cases = []
     for mu in cfg["mus"]:
         case = slope._release(
-            "tilted_gravity", mu, settled, round(cfg["release_s"] / DT), cfg["fit_start_s"], p
+            variant, mu, settled, round(cfg["release_s"] / DT), cfg["fit_start_s"], p
         )
         tau = np.array(case["series"]["tau_s"])
         v = np.abs(np.array(case["series"]["speed_along_m_s"]))
