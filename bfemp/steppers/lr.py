@@ -258,6 +258,7 @@ class LRStepper(ExplicitStepper):
         #: steps with at least one node in contact, and the LR fits that hit the cap
         self.steps_with_contact = 0
         self.unconverged_fits = 0
+        self._warned_unconverged = False
 
     # ------------------------------------------------------------------ FEM as a material
     def _setup_fem_points(self) -> None:
@@ -594,6 +595,13 @@ class LRStepper(ExplicitStepper):
         self.unconverged_fits += unconverged
         if unconverged:
             notes.append(f"LR_UNCONVERGED: {unconverged} LR fits hit the iteration cap")
+            if not self._warned_unconverged:  # once per run (spec L7); counted in every report
+                self._warned_unconverged = True
+                log.warning(
+                    "lr: %d LR fits hit the cap of %d iterations at step %d (the last iterate "
+                    "is used; counted in StepReport.extra['lr_unconverged'] from now on)",
+                    unconverged, opts.lr_max_iterations, new.step,
+                )  # fmt: skip
         reactions = self._reactions(
             cons, mass, v_plus_free, v_plus, dt, len(model.boundaries), model.dim
         )

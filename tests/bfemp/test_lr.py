@@ -336,3 +336,17 @@ def test_coulomb_friction_slows_the_slide_and_frictionless_keeps_it():
         speeds[mu] = float(m[up] @ state.mpm_v[up, 0] / m[up].sum())
     assert speeds[0.0] > 0.4
     assert speeds[0.5] < speeds[0.0] - 0.1
+
+
+def test_capped_lr_fits_are_counted_every_step_and_warned_once(caplog):
+    model = _colliding_blocks().build()
+    opts = LROptions(lr_max_iterations=1, lr_tol=1e-14)
+    stepper = LRStepper(model, dt="auto", options=opts)
+    state = stepper.initialize(model.initial_state())
+    counted = 0
+    with caplog.at_level("WARNING", logger="bfemp.steppers.lr"):
+        for _ in range(120):
+            state, report = stepper.step(state)
+            counted += report.extra["lr_unconverged"] > 0
+    assert counted > 5 and stepper.unconverged_fits > 5
+    assert sum("hit the cap" in r.message for r in caplog.records) == 1
