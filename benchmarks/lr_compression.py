@@ -23,7 +23,12 @@ approaching) and "cp" (constant offset 0.8 cells, GIMP-calibrated, pitfall L-P3)
 SMM-FLIP.
 
 Targets (T): max |error| of LR-FLIP < 1 %, of LR-XPIC(5) < 0.5 % (paper: 1 % and 0.24 %); LR
-once above LR. The record also carries the time per step split into P2G, LR fits, corrections
+once above LR. Measured (records): LR-FLIP 0.13 % (quick) and 1.00 % (full, to 15 %), LR once
+0.37 / 1.63 %; LR-XPIC(5) 0.78 / 3.18 %, above its target, while XPIC(5) with one correction
+("lr_once_xpic5") measured 0.15 % (quick): with B-spline stencils the first correction and the
+multimaterial projection of eq. 37 do not combine as in the paper's GIMP runs (not resolved;
+re-imposing the contact law on the projected field, NairnMPM's later form approximated, made it
+worse: 1.9 %). The record also carries the time per step split into P2G, LR fits, corrections
 and G2P (XPIC inside G2P), the share of contact nodes and the LR / velocity-detector time ratio
 (the paper reports LR about 55 % slower).
 
@@ -184,6 +189,7 @@ def compression(mode: str) -> dict:
         "lr_flip": ({}, "flip", {}),
         "lr_xpic5": ({}, "flip", {"xpic_order": 5}),
         "lr_once": ({}, "flip", {"corrections": 1}),
+        "lr_once_xpic5": ({}, "flip", {"corrections": 1, "xpic_order": 5}),
         "velocity": ({}, "flip", {"detector": "velocity"}),
         "cp_0.8": ({}, "flip", {"detector": "cp", "cp_offset": 0.8}),
     }
@@ -194,7 +200,8 @@ def compression(mode: str) -> dict:
         results[name] = run_case(scene, strain=strain, v0=v0, transfer=transfer, **opts)
     errors = {}
     for name, ref in (("lr_flip", "smm_flip"), ("lr_once", "smm_flip"), ("velocity", "smm_flip"),
-                      ("cp_0.8", "smm_flip"), ("lr_xpic5", "smm_xpic5")):  # fmt: skip
+                      ("cp_0.8", "smm_flip"), ("lr_xpic5", "smm_xpic5"),
+                      ("lr_once_xpic5", "smm_xpic5")):  # fmt: skip
         series, worst = stress_error(results[name], results[ref])
         results[name]["error_percent"] = series
         errors[name] = worst

@@ -451,6 +451,10 @@ class LRStepper(ExplicitStepper):
         """Level-set constraints of every material's field (``None`` without boundaries)."""
         if not self.model.boundaries:
             return None
+        if all(b.kind != "separate" for b in self.model.boundaries):
+            # sticky and slip nodes do not depend on the velocity: one set serves every field
+            shared = grid_constraints(self.model.boundaries, grid_x, v[0], t_next, self.dt)
+            return [shared] * self.n_materials
         return [grid_constraints(self.model.boundaries, grid_x, v[m], t_next, self.dt)
                 for m in range(self.n_materials)]  # fmt: skip
 
@@ -459,6 +463,15 @@ class LRStepper(ExplicitStepper):
         if cons is None:
             return v
         v = v.copy()
+        if all(c is cons[0] for c in cons):  # one set for every material: vectorised
+            c = cons[0]
+            if c.any:
+                v_b = c.shift / self.dt
+                v[:, c.sticky] = v_b[c.sticky]
+                n = c.normals[c.slip]
+                rel = np.einsum("mij,ij->mi", v[:, c.slip] - v_b[c.slip], n)
+                v[:, c.slip] -= rel[..., None] * n
+            return v
         for m, c in enumerate(cons):
             if not c.any:
                 continue
@@ -472,6 +485,13 @@ class LRStepper(ExplicitStepper):
     def _project_increment(self, cons: _Constraints, u: np.ndarray) -> np.ndarray:
         """An XPIC increment ``(M, G, d)`` with the prescribed components removed."""
         if cons is None:
+            return u
+        if all(c is cons[0] for c in cons):
+            c = cons[0]
+            if c.any:
+                u[:, c.sticky] = 0.0
+                n = c.normals[c.slip]
+                u[:, c.slip] -= np.einsum("mij,ij->mi", u[:, c.slip], n)[..., None] * n
             return u
         for m, c in enumerate(cons):
             if not c.any:
