@@ -291,7 +291,7 @@ def _regress(args: argparse.Namespace) -> int:
             what = ", ".join(
                 f"{k} {v:.3e}" if isinstance(v, float) else f"{k} {v}" for k, v in changes.items()
             )
-            print(f"{ref.name}: written ({what or 'no change'})")
+            print(f"{ref.name}: " + (f"written ({what})" if what else "unchanged, not rewritten"))
             continue
         report = regress.check(ref)
         print(report.table(all_quantities=args.all))

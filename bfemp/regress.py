@@ -238,7 +238,11 @@ def find_references(
         raise SceneError(f"reference folder not found: {directory}", hint="give --dir DIR")
     found = {}
     for path in sorted(directory.glob("*.toml")):
-        if "[regress]" in path.read_text(encoding="utf-8"):
+        try:
+            data = tomllib.loads(path.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as err:
+            raise SceneError(f"cannot read: {err}", file=str(path)) from None
+        if "regress" in data:  # other scene files in the folder are not references
             found[path.stem] = path
     if not names:
         return [load_reference(p) for p in found.values()]
@@ -279,6 +283,8 @@ def _sample(sim: object, quantities: tuple[str, ...]) -> dict[str, np.ndarray]:
 
 
 def _quantities(ref: Reference, sim: object) -> tuple[str, ...]:
+    """The quantities to store; state arrays the scene lacks are refused here, metrics columns
+    after the run (some appear only with the first step's report)."""
     model = sim.model
     has = {
         "fem_x": model.n_fem_nodes > 0,
@@ -287,23 +293,29 @@ def _quantities(ref: Reference, sim: object) -> tuple[str, ...]:
         "mpm_v": model.n_particles > 0,
         "mpm_F": model.n_particles > 0,
     }
-    metric_names = set(sim.metrics.columns) | {"contact_pairs", "min_distance"}
     if ref.quantities is None:
         contact = model.contact is not None
         return tuple(
             q
             for q in DEFAULT_QUANTITIES
-            if has.get(q, q in sim.metrics.columns or (contact and q in metric_names))
+            if has.get(q, contact or q not in ("contact_pairs", "min_distance"))
         )
     for q in ref.quantities:
-        if not has.get(q, q in metric_names):
-            known = sorted(k for k, v in has.items() if v) + sorted(sim.metrics.columns)
-            raise SceneError(
-                f"unknown quantity {q!r} for this scene; known: {', '.join(known)}",
-                file=str(ref.scene_file),
-                field="regress.quantities",
-            )
+        if q in has and not has[q]:
+            _unknown_quantity(ref, sim, q)
     return ref.quantities
+
+
+def _unknown_quantity(ref: Reference, sim: object, q: str) -> None:
+    model = sim.model
+    state = [
+        n for n in STATE_QUANTITIES if (model.n_fem_nodes if n[0] == "f" else model.n_particles)
+    ]
+    raise SceneError(
+        f"unknown quantity {q!r} for this scene; known: {', '.join(state + sim.metrics.columns)}",
+        file=str(ref.scene_file),
+        field="regress.quantities",
+    )
 
 
 def run_reference(ref: Reference) -> Trajectory:
@@ -319,6 +331,9 @@ def run_reference(ref: Reference) -> Trajectory:
         sim.step()
         if step in wanted:
             samples.append(_sample(sim, quantities))
+    for q in quantities:
+        if q not in STATE_QUANTITIES and q not in sim.metrics.columns:
+            _unknown_quantity(ref, sim, q)
     data = {k: np.stack([s[k] for s in samples]) for k in samples[0]}
     return Trajectory(steps=ref.stored_steps(), data=data, settings=_jsonable(sim.settings))
 
@@ -492,7 +507,7 @@ def check(ref: Reference) -> Report:
             note = f"{ref.scene_file.name} changed since the reference was written"
             report = replace(report, notes=(*report.notes, note))
     for d in report.drifted:
-        log.warning(
+        log.info(
             "reference %s: %s drifted by %.3e (tolerance %.3e), first at step %s",
             ref.name,
             d.quantity,
@@ -523,7 +538,8 @@ def update(ref: Reference, trajectory: Trajectory | None = None) -> dict[str, fl
 
     Returns what changed against the old stored trajectory: quantity -> max absolute change
     (``"new"`` without an old one, ``"added"`` / ``"removed"`` / ``"shape ..."`` where the
-    quantity set changed); unchanged quantities are left out.
+    quantity set changed); unchanged quantities are left out. When nothing changed (trajectory,
+    scene file, settings, tolerances) the files are left untouched.
     """
     import hashlib
 
@@ -551,9 +567,6 @@ def update(ref: Reference, trajectory: Trajectory | None = None) -> dict[str, fl
     else:
         changes = {"trajectory": "new"}
     strategy = str(trajectory.settings.get("strategy", "barrier"))
-    with atomic_path(ref.npz_path) as tmp:
-        with open(tmp, "wb") as fh:
-            np.savez_compressed(fh, step=trajectory.steps, **trajectory.data)
     meta = {
         "name": ref.name,
         "scene_file": ref.scene_file.name,
@@ -574,6 +587,19 @@ def update(ref: Reference, trajectory: Trajectory | None = None) -> dict[str, fl
         "written": datetime.now(timezone.utc).isoformat(timespec="seconds"),
         "changes": changes,
     }
+    volatile = ("written", "commit", "changes")
+    old_meta = {}
+    if ref.meta_path.is_file():
+        old_meta = json.loads(ref.meta_path.read_text(encoding="utf-8"))
+    same = {k: v for k, v in meta.items() if k not in volatile} == {
+        k: v for k, v in old_meta.items() if k not in volatile
+    }
+    if not changes and same:  # nothing to record: keep the files (and their history) as they are
+        log.info("reference %s unchanged", ref.name)
+        return changes
+    with atomic_path(ref.npz_path) as tmp:
+        with open(tmp, "wb") as fh:
+            np.savez_compressed(fh, step=trajectory.steps, **trajectory.data)
     with atomic_path(ref.meta_path) as tmp:
         tmp.write_text(json.dumps(meta, indent=2) + "\n", encoding="utf-8")
     log.info("reference %s written: %s", ref.name, changes or "no change")

@@ -102,6 +102,11 @@ def test_update_rewrites_and_says_what_changed(tmp_path, capsys):
     assert meta["bfemp_version"] and meta["settings"]["strategy"] == "single_field"
     assert meta["quantities"]["mpm_x"]["rtol"] == regress.DEFAULT_TOLERANCES["explicit"].rtol
     assert main(["regress", FAST, "--dir", str(tmp_path)]) == 0
+    before = ref.meta_path.read_text()
+    capsys.readouterr()
+    assert main(["regress", FAST, "--dir", str(tmp_path), "--update"]) == 0
+    assert "unchanged, not rewritten" in capsys.readouterr().out
+    assert ref.meta_path.read_text() == before  # a no-op update leaves the files alone
     # the restored trajectory equals the shipped one exactly
     with np.load(ref.npz_path) as a, np.load(REFERENCES / f"{FAST}.npz") as b:
         assert all(np.array_equal(a[k], b[k], equal_nan=True) for k in b.files)
@@ -126,6 +131,9 @@ def test_regress_table_errors_name_the_field(tmp_path):
     path.write_text(text.replace("every = 6", 'every = 6\nquantities = ["mpm_speed"]'))
     with pytest.raises(ValueError, match=r"unknown quantity 'mpm_speed'.*mpm_x"):
         regress.run_reference(regress.load_reference(path))
+    path.write_text(text.replace("every = 6", 'every = 6\nquantities = ["mpm_x", "momentum_y"]'))
+    traj = regress.run_reference(regress.load_reference(path))
+    assert set(traj.data) == {"t", "mpm_x", "momentum_y"} and traj.data["mpm_x"].shape[0] == 11
 
 
 def test_compare_nan_and_shape_rules():
