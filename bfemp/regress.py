@@ -538,8 +538,9 @@ def update(ref: Reference, trajectory: Trajectory | None = None) -> dict[str, fl
 
     Returns what changed against the old stored trajectory: quantity -> max absolute change
     (``"new"`` without an old one, ``"added"`` / ``"removed"`` / ``"shape ..."`` where the
-    quantity set changed); unchanged quantities are left out. When nothing changed (trajectory,
-    scene file, settings, tolerances) the files are left untouched.
+    quantity set changed), and ``"scene file"`` / ``"settings"`` / ``"tolerances"`` ->
+    ``"changed"``; unchanged ones are left out. When nothing changed the files are left
+    untouched, and an unchanged trajectory keeps its ``.npz``.
     """
     import hashlib
 
@@ -587,19 +588,27 @@ def update(ref: Reference, trajectory: Trajectory | None = None) -> dict[str, fl
         "written": datetime.now(timezone.utc).isoformat(timespec="seconds"),
         "changes": changes,
     }
-    volatile = ("written", "commit", "changes")
     old_meta = {}
     if ref.meta_path.is_file():
         old_meta = json.loads(ref.meta_path.read_text(encoding="utf-8"))
-    same = {k: v for k, v in meta.items() if k not in volatile} == {
-        k: v for k, v in old_meta.items() if k not in volatile
-    }
-    if not changes and same:  # nothing to record: keep the files (and their history) as they are
-        log.info("reference %s unchanged", ref.name)
+    trajectory_changed = bool(changes)
+    for key, what in (("scene_sha256", "scene file"), ("settings", "settings")):
+        if old_meta and old_meta.get(key) != meta[key]:
+            changes[what] = "changed"
+    old_q, new_q = old_meta.get("quantities", {}), meta["quantities"]
+    if old_meta and any(
+        (old_q.get(q, {}).get("atol"), old_q.get(q, {}).get("rtol")) != (v["atol"], v["rtol"])
+        for q, v in new_q.items()
+    ):
+        changes["tolerances"] = "changed"
+    if not changes and old_meta.get("steps") == ref.steps and old_meta.get("every") == ref.every:
+        log.info("reference %s unchanged", ref.name)  # keep the files and their history
         return changes
-    with atomic_path(ref.npz_path) as tmp:
-        with open(tmp, "wb") as fh:
-            np.savez_compressed(fh, step=trajectory.steps, **trajectory.data)
+    meta["changes"] = changes
+    if trajectory_changed:  # an unchanged trajectory keeps its file (zip entries carry a time)
+        with atomic_path(ref.npz_path) as tmp:
+            with open(tmp, "wb") as fh:
+                np.savez_compressed(fh, step=trajectory.steps, **trajectory.data)
     with atomic_path(ref.meta_path) as tmp:
         tmp.write_text(json.dumps(meta, indent=2) + "\n", encoding="utf-8")
     log.info("reference %s written: %s", ref.name, changes or "no change")

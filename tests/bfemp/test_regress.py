@@ -107,6 +107,16 @@ def test_update_rewrites_and_says_what_changed(tmp_path, capsys):
     assert main(["regress", FAST, "--dir", str(tmp_path), "--update"]) == 0
     assert "unchanged, not rewritten" in capsys.readouterr().out
     assert ref.meta_path.read_text() == before  # a no-op update leaves the files alone
+    # a changed tolerance is a change of the reference, not of its trajectory
+    text = ref.scene_file.read_text()
+    assert text.rstrip().endswith("every = 6")  # the last line of [regress]
+    ref.scene_file.write_text(text + "tolerances = { mpm_x = { atol = 1e-6, rtol = 0.0 } }\n")
+    npz = ref.npz_path.read_bytes()
+    assert main(["regress", FAST, "--dir", str(tmp_path), "--update"]) == 0
+    out = capsys.readouterr().out
+    assert "scene file changed" in out and "tolerances changed" in out and "mpm" not in out
+    assert ref.npz_path.read_bytes() == npz  # the trajectory file is kept
+    assert json.loads(ref.meta_path.read_text())["quantities"]["mpm_x"]["atol"] == 1e-6
     # the restored trajectory equals the shipped one exactly
     with np.load(ref.npz_path) as a, np.load(REFERENCES / f"{FAST}.npz") as b:
         assert all(np.array_equal(a[k], b[k], equal_nan=True) for k in b.files)
@@ -128,10 +138,12 @@ def test_regress_table_errors_name_the_field(tmp_path):
     path.write_text(text.replace("steps = 60", "steps = 0"))
     with pytest.raises(ValueError, match=r"regress\.steps"):
         regress.load_reference(path)
-    path.write_text(text.replace("every = 6", 'every = 6\nquantities = ["mpm_speed"]'))
+    path.write_text(text.replace("[regress]\n", '[regress]\nquantities = ["mpm_speed"]\n'))
     with pytest.raises(ValueError, match=r"unknown quantity 'mpm_speed'.*mpm_x"):
         regress.run_reference(regress.load_reference(path))
-    path.write_text(text.replace("every = 6", 'every = 6\nquantities = ["mpm_x", "momentum_y"]'))
+    path.write_text(
+        text.replace("[regress]\n", '[regress]\nquantities = ["mpm_x", "momentum_y"]\n')
+    )
     traj = regress.run_reference(regress.load_reference(path))
     assert set(traj.data) == {"t", "mpm_x", "momentum_y"} and traj.data["mpm_x"].shape[0] == 11
 
