@@ -519,10 +519,12 @@ def check(ref: Reference) -> Report:
 
 
 def _commit() -> str | None:
+    """The git commit of this bfemp source checkout (None for an installed copy)."""
+    package = Path(__file__).resolve().parent
     try:
         out = subprocess.run(
-            ["git", "rev-parse", "HEAD"],
-            cwd=Path(__file__).resolve().parent,
+            ["git", "rev-parse", "--show-toplevel", "HEAD"],
+            cwd=package,
             capture_output=True,
             text=True,
             timeout=10,
@@ -530,7 +532,11 @@ def _commit() -> str | None:
         )
     except (OSError, subprocess.SubprocessError):
         return None
-    return out.stdout.strip() or None
+    lines = out.stdout.split()
+    # a site-packages copy inside some other repository is not that repository's commit
+    if len(lines) != 2 or Path(lines[0]).resolve() / "bfemp" != package:
+        return None
+    return lines[1]
 
 
 def update(ref: Reference, trajectory: Trajectory | None = None) -> dict[str, float | str]:
