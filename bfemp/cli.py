@@ -11,6 +11,7 @@
                 [--scheduler tcp://HOST:PORT] [--threads-per-point N] [--point-timeout S]
     bfemp sweep --replay TRADEOFF.json --id ID | --point JSON
     bfemp info RESULT_DIR [--json]
+    bfemp regress [NAMES...] [--update] [--dir DIR] [--all] [--quiet]
     bfemp --version      (also the BLAS CHOLMOD runs on and the linear solvers installed)
 
 ``bench`` and ``sweep`` come from the ``benchmarks`` package of a source checkout, which registers
@@ -19,7 +20,7 @@ them under the ``bfemp.commands`` entry points (the library never imports it).
 Mistakes in a scene file or argument are printed as ``bfemp: error: <message>`` without a
 traceback and exit with status 2 (``--debug`` shows the traceback); a failed run (a time step
 that does not converge) exits with 1, a failed ``--check`` with 1, Ctrl-C with 130 after writing
-a checkpoint that ``--resume`` continues.
+a checkpoint that ``--resume`` continues. ``regress`` exits with 1 when a reference drifted.
 """
 
 from __future__ import annotations
@@ -105,6 +106,20 @@ def _parser() -> argparse.ArgumentParser:
     info = sub.add_parser("info", help="summarise a result folder")
     info.add_argument("result_dir", help="the output folder of a run")
     info.add_argument("--json", action="store_true", help="print the summary as JSON")
+
+    regress = sub.add_parser(
+        "regress", help="rerun regression references and report drifted quantities"
+    )
+    regress.add_argument("names", nargs="*", help="reference names (default: all in DIR)")
+    regress.add_argument(
+        "--dir", default="references", help="folder of the references (default references)"
+    )
+    regress.add_argument(
+        "--update", action="store_true", help="rewrite the stored trajectories and say what changed"
+    )
+    regress.add_argument("--all", action="store_true", help="list every quantity, not only drifts")
+    regress.add_argument("--quiet", action="store_true", help="warnings only")
+    regress.add_argument("--verbose", action="store_true", help="log progress messages")
     return parser
 
 
@@ -263,6 +278,31 @@ def _info(args: argparse.Namespace) -> int:
     return 0
 
 
+def _regress(args: argparse.Namespace) -> int:
+    from bfemp import regress
+
+    refs = regress.find_references(args.dir, args.names)
+    if not refs:
+        raise SceneError(f"no reference (a scene file with [regress]) in {args.dir}")
+    failed = []
+    for ref in refs:
+        if args.update:
+            changes = regress.update(ref)
+            what = ", ".join(
+                f"{k} {v:.3e}" if isinstance(v, float) else f"{k} {v}" for k, v in changes.items()
+            )
+            print(f"{ref.name}: " + (f"written ({what})" if what else "unchanged, not rewritten"))
+            continue
+        report = regress.check(ref)
+        print(report.table(all_quantities=args.all))
+        if not report.ok:
+            failed.append(ref.name)
+    if failed:
+        print(f"bfemp: error: drift in {', '.join(failed)}", file=sys.stderr)
+        return EXIT_RUN
+    return 0
+
+
 def _log_warning(message, category, filename, lineno, file=None, line=None) -> None:  # noqa: ANN001
     """Library warnings (the SuperLU fall-back) as one log line each: ``--quiet`` silences them."""
     log.warning("%s: %s", category.__name__, message)
@@ -282,6 +322,7 @@ def main(argv: list[str] | None = None) -> int:
         "demo": _demo,
         "run": lambda a: _run(a, argv),
         "info": _info,
+        "regress": _regress,
         **plugins,
     }
     try:

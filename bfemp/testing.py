@@ -10,16 +10,19 @@ Use it for your own terms too::
 
     report = check_term(term, x, eps=1e-6)
     assert report.ok, report
+
+and :func:`assert_reference` reruns a regression reference (:mod:`bfemp.regress`) in a test.
 """
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["FDReport", "check_term", "dense_hessian"]
+__all__ = ["FDReport", "assert_reference", "check_term", "dense_hessian"]
 
 
 def dense_hessian(term: object, x: np.ndarray, psd: bool) -> np.ndarray:
@@ -105,3 +108,24 @@ def check_term(
         min_psd_eigenvalue=min_eig,
         tol=tol,
     )
+
+
+def assert_reference(path: str | os.PathLike, *, update: bool = False) -> object:
+    """Rerun the regression reference ``path`` (a scene file with ``[regress]``, see
+    :mod:`bfemp.regress`) and raise ``AssertionError`` with the drift table when a quantity
+    drifted; with ``update=True`` rewrite its stored trajectory instead.
+
+    Returns the :class:`bfemp.regress.Report` (or, with ``update``, the changes written).
+    """
+    from bfemp import regress
+
+    ref = regress.load_reference(path)
+    if update:
+        return regress.update(ref)
+    report = regress.check(ref)
+    if not report.ok:
+        raise AssertionError(
+            f"regression reference drifted:\n{report.table()}\n(rewrite it on purpose with: "
+            f"bfemp regress {ref.name} --update --dir {ref.scene_file.parent})"
+        )
+    return report

@@ -90,6 +90,9 @@ Format (``#`` comments; numbers in SI units, scalars may also be strings with a 
     [check]                       # assertions on the run (bfemp.scenefile.checks)
     finite = true
     energy_drift_max = 0.01
+
+    [regress]                     # a regression reference (bfemp.regress); ignored by runs
+    steps = 40
 """
 
 from __future__ import annotations

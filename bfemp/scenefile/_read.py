@@ -41,6 +41,7 @@ TOP_LEVEL = (
     "run",
     "quick",
     "check",
+    "regress",  # a regression reference's settings, read by bfemp.regress
 )
 INTEGRATORS = INTEGRATOR_NAMES
 TRANSFERS = ("apic", "pic", "flip")

@@ -1,0 +1,621 @@
+"""Regression references: stored trajectories of small scenes that a rerun must reproduce.
+
+A reference is a scene file (:mod:`bfemp.scenefile`, runnable with ``bfemp run`` too) whose
+``[regress]`` table says how to rerun and compare it::
+
+    [regress]
+    steps = 30                    # time steps to run (dt from [simulation])
+    every = 3                     # store every 3rd step (step 0 and the last one always)
+    quantities = ["mpm_x", "energy_total"]   # optional; default: DEFAULT_QUANTITIES present
+    [regress.tolerances]          # optional overrides of the strategy's defaults
+    mpm_x = { atol = 1e-9, rtol = 1e-6 }
+
+Beside ``NAME.toml`` live ``NAME.npz`` (the stored trajectory, float64, one array per quantity of
+shape ``(n_stored, ...)`` plus ``step``) and ``NAME.json`` (settings, tolerances, bfemp version and
+commit, and what the last update changed). :func:`check` reruns a reference and compares;
+:func:`update` rewrites the stored files on purpose and returns what changed.
+
+Quantities: state arrays ``fem_x``, ``fem_v`` (m, m/s; ``(N, d)``), ``mpm_x``, ``mpm_v``
+(``(P, d)``), ``mpm_F`` (``(P, d, d)``), and any column of ``Simulation.metrics`` (energies in J,
+``contact_pairs``, ``min_distance`` in m, ...); ``t`` (s) is always stored, so a changed dt shows.
+
+Tolerance of a quantity: it drifted at a stored step when ``max |run - stored| > atol + rtol *
+scale``, with ``scale = max |stored|`` over the whole stored trajectory of that quantity (a
+per-quantity scale: positions near zero or velocities at rest are not judged on round-off
+alone). NaN matches NaN only (``min_distance`` is NaN without contact pairs).
+
+The defaults (:data:`DEFAULT_TOLERANCES`, rtol 1e-9 for the explicit strategies, 1e-6 for
+``barrier`` and ``two_stage``) come from measurements on the shipped references
+(``tools/regress_drift.py``): rerun with 1 and with 2 threads (numba, OpenMP, OpenBLAS), the
+explicit strategies and the 2D barrier scenes were bit-identical, the 3D barrier scene differed by
+1.3e-14 relative (energy_elastic); a 1 % change of E, of kappa or of mu moved the most sensitive
+quantity of every reference by 2e-5 to 1.5e-1 relative (kappa of barrier_3d: min_distance 2.1e-5,
+of barrier_friction_2d: 2.2e-5), and with these defaults every 0.1 % change of E, kappa or mu
+tried on every reference is reported (the closest: kappa of barrier_3d, min_distance 2.1e-6
+relative against rtol 1e-6). The implicit tolerance leaves room for a Newton path that ends
+one iteration apart (a difference up to the Newton tolerance, 1e-7 m/s, on velocities of ~1 m/s).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import os
+import subprocess
+import sys
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+
+import numpy as np
+
+from bfemp.errors import SceneError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+__all__ = [
+    "DEFAULT_QUANTITIES",
+    "DEFAULT_TOLERANCES",
+    "Drift",
+    "Reference",
+    "Report",
+    "Tolerance",
+    "Trajectory",
+    "check",
+    "compare",
+    "find_references",
+    "load_reference",
+    "read_trajectory",
+    "run_reference",
+    "update",
+]
+
+log = logging.getLogger(__name__)
+
+STATE_QUANTITIES = ("fem_x", "fem_v", "mpm_x", "mpm_v", "mpm_F")
+#: what a reference stores when its [regress] table names no quantities (those the scene has)
+DEFAULT_QUANTITIES = (
+    "fem_x",
+    "fem_v",
+    "mpm_x",
+    "mpm_v",
+    "energy_kinetic",
+    "energy_elastic",
+    "energy_total",
+    "contact_pairs",
+    "min_distance",
+)
+
+
+@dataclass(frozen=True)
+class Tolerance:
+    """Allowed deviation ``atol + rtol * scale`` (units of the quantity; rtol dimensionless)."""
+
+    atol: float = 0.0
+    rtol: float = 1e-8
+
+    def allowed(self, scale: float) -> float:
+        """The allowed max deviation for a quantity whose stored max magnitude is ``scale``."""
+        return self.atol + self.rtol * scale
+
+
+#: defaults per strategy (measured cross-thread drift <= 1.3e-14 relative, a 1 % change of a
+#: stiffness or contact parameter >= 2e-5 relative: module docstring)
+DEFAULT_TOLERANCES = {
+    "explicit": Tolerance(atol=1e-12, rtol=1e-9),
+    "barrier": Tolerance(atol=1e-12, rtol=1e-6),
+    "two_stage": Tolerance(atol=1e-12, rtol=1e-6),
+    # integer counts: a pair entering d-hat one step earlier is a change
+    "contact_pairs": Tolerance(atol=0.5, rtol=0.0),
+}
+_EXPLICIT = ("single_field", "augury", "lr")
+
+
+def _default_tolerance(strategy: str, quantity: str) -> Tolerance:
+    if quantity == "contact_pairs":
+        return DEFAULT_TOLERANCES["contact_pairs"]
+    key = "explicit" if strategy in _EXPLICIT else strategy
+    return DEFAULT_TOLERANCES.get(key, DEFAULT_TOLERANCES["barrier"])
+
+
+@dataclass(frozen=True)
+class Reference:
+    """A regression reference: a scene file with a ``[regress]`` table.
+
+    Attributes:
+        name: the file's stem.
+        scene_file: the scene file (``NAME.toml``).
+        steps: number of time steps run.
+        every: store every ``every``-th step (step 0 and the last one always).
+        quantities: names stored, or None for :data:`DEFAULT_QUANTITIES` the scene has.
+        tolerances: per-quantity overrides of the strategy's defaults.
+    """
+
+    name: str
+    scene_file: Path
+    steps: int
+    every: int
+    quantities: tuple[str, ...] | None = None
+    tolerances: dict[str, Tolerance] = field(default_factory=dict)
+
+    @property
+    def npz_path(self) -> Path:
+        """The stored trajectory ``NAME.npz``."""
+        return self.scene_file.with_suffix(".npz")
+
+    @property
+    def meta_path(self) -> Path:
+        """The sidecar ``NAME.json``."""
+        return self.scene_file.with_suffix(".json")
+
+    def stored_steps(self) -> np.ndarray:
+        """The step numbers stored, ``(n_stored,)`` int."""
+        return np.unique(np.r_[np.arange(0, self.steps + 1, self.every), self.steps])
+
+
+def _positive_int(t: dict, key: str, file: str, default: int | None = None) -> int:
+    value = t.get(key, default)
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise SceneError(
+            f"must be a positive integer, got {value!r}", file=file, field=f"regress.{key}"
+        )
+    return value
+
+
+def load_reference(path: str | os.PathLike) -> Reference:
+    """Read the ``[regress]`` table of the scene file ``path`` (the scene is read by the run)."""
+    path = Path(path)
+    file = str(path)
+    if not path.is_file():
+        raise SceneError(f"reference scene file not found: {path}")
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as err:
+        raise SceneError(f"cannot read the reference: {err}", file=file) from None
+    t = data.get("regress")
+    if not isinstance(t, dict):
+        raise SceneError(
+            "missing table [regress]", file=file, hint="add [regress] with steps (and every)"
+        )
+    unknown = set(t) - {"steps", "every", "quantities", "tolerances"}
+    if unknown:
+        raise SceneError(
+            f"unknown key(s) {sorted(unknown)}; known: steps, every, quantities, tolerances",
+            file=file,
+            field="regress",
+        )
+    steps = _positive_int(t, "steps", file)
+    every = _positive_int(t, "every", file, default=1)
+    quantities = t.get("quantities")
+    if quantities is not None:
+        if not (
+            isinstance(quantities, list)
+            and quantities
+            and all(isinstance(q, str) for q in quantities)
+        ):
+            raise SceneError(
+                f"must be a non-empty list of names, got {quantities!r}",
+                file=file,
+                field="regress.quantities",
+            )
+        quantities = tuple(quantities)
+    tolerances = {}
+    for name, tol in t.get("tolerances", {}).items():
+        where = f"regress.tolerances.{name}"
+        if not isinstance(tol, dict) or set(tol) - {"atol", "rtol"}:
+            raise SceneError(f"must be a table {{atol, rtol}}, got {tol!r}", file=file, field=where)
+        values = {}
+        for key, value in tol.items():
+            if isinstance(value, bool) or not isinstance(value, int | float) or not value >= 0:
+                raise SceneError(
+                    f"must be a number >= 0, got {value!r}", file=file, field=f"{where}.{key}"
+                )
+            values[key] = float(value)
+        tolerances[name] = Tolerance(**{"atol": 0.0, "rtol": 0.0, **values})
+    return Reference(
+        name=path.stem,
+        scene_file=path,
+        steps=steps,
+        every=every,
+        quantities=quantities,
+        tolerances=tolerances,
+    )
+
+
+def find_references(
+    directory: str | os.PathLike, names: list[str] | None = None
+) -> list[Reference]:
+    """The references in ``directory`` (scene files with a ``[regress]`` table), by name.
+
+    Raises ``ValueError`` naming the available references when a name is unknown.
+    """
+    directory = Path(directory)
+    if not directory.is_dir():
+        raise SceneError(f"reference folder not found: {directory}", hint="give --dir DIR")
+    found = {}
+    for path in sorted(directory.glob("*.toml")):
+        try:
+            data = tomllib.loads(path.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as err:
+            raise SceneError(f"cannot read: {err}", file=str(path)) from None
+        if "regress" in data:  # other scene files in the folder are not references
+            found[path.stem] = path
+    if not names:
+        return [load_reference(p) for p in found.values()]
+    unknown = [n for n in names if n not in found]
+    if unknown:
+        raise SceneError(
+            f"unknown reference(s) {', '.join(unknown)} in {directory}; available: "
+            f"{', '.join(found) or '(none)'}"
+        )
+    return [load_reference(found[n]) for n in names]
+
+
+# ---------------------------------------------------------------------------------- running
+@dataclass(frozen=True)
+class Trajectory:
+    """Stored quantities of a run.
+
+    Attributes:
+        steps: ``(n_stored,)`` the step numbers.
+        data: name -> ``(n_stored, ...)`` float64 array.
+        settings: the simulation's settings (strategy, dt, options, ...).
+    """
+
+    steps: np.ndarray
+    data: dict[str, np.ndarray]
+    settings: dict = field(default_factory=dict)
+
+
+def _sample(sim: object, quantities: tuple[str, ...]) -> dict[str, np.ndarray]:
+    out = {"t": np.array(float(sim.state.t))}
+    row = {c: sim.metrics.column(c)[-1] for c in sim.metrics.columns}
+    for q in quantities:
+        if q in STATE_QUANTITIES:
+            out[q] = np.array(getattr(sim.state, q), dtype=np.float64)
+        else:
+            out[q] = np.array(row.get(q, math.nan), dtype=np.float64)
+    return out
+
+
+def _quantities(ref: Reference, sim: object) -> tuple[str, ...]:
+    """The quantities to store; state arrays the scene lacks are refused here, metrics columns
+    after the run (some appear only with the first step's report)."""
+    model = sim.model
+    has = {
+        "fem_x": model.n_fem_nodes > 0,
+        "fem_v": model.n_fem_nodes > 0,
+        "mpm_x": model.n_particles > 0,
+        "mpm_v": model.n_particles > 0,
+        "mpm_F": model.n_particles > 0,
+    }
+    if ref.quantities is None:
+        contact = model.contact is not None
+        return tuple(
+            q
+            for q in DEFAULT_QUANTITIES
+            if has.get(q, contact or q not in ("contact_pairs", "min_distance"))
+        )
+    for q in ref.quantities:
+        if q in has and not has[q]:
+            _unknown_quantity(ref, sim, q)
+    return ref.quantities
+
+
+def _unknown_quantity(ref: Reference, sim: object, q: str) -> None:
+    model = sim.model
+    state = [
+        n for n in STATE_QUANTITIES if (model.n_fem_nodes if n[0] == "f" else model.n_particles)
+    ]
+    raise SceneError(
+        f"unknown quantity {q!r} for this scene; known: {', '.join(state + sim.metrics.columns)}",
+        file=str(ref.scene_file),
+        field="regress.quantities",
+    )
+
+
+def run_reference(ref: Reference) -> Trajectory:
+    """Run the reference's scene for ``ref.steps`` steps and sample its quantities."""
+    from bfemp.simulation import Simulation
+
+    sim = Simulation.from_file(ref.scene_file)
+    quantities = _quantities(ref, sim)
+    wanted = set(ref.stored_steps().tolist())
+    samples = [_sample(sim, quantities)]
+    log.info("reference %s: %s, %d steps of %g s", ref.name, sim.strategy, ref.steps, sim.dt)
+    for step in range(1, ref.steps + 1):
+        sim.step()
+        if step in wanted:
+            samples.append(_sample(sim, quantities))
+    for q in quantities:
+        if q not in STATE_QUANTITIES and q not in sim.metrics.columns:
+            _unknown_quantity(ref, sim, q)
+    data = {k: np.stack([s[k] for s in samples]) for k in samples[0]}
+    return Trajectory(steps=ref.stored_steps(), data=data, settings=_jsonable(sim.settings))
+
+
+def _jsonable(settings: dict) -> dict:
+    return {
+        k: v if isinstance(v, int | float | str | bool) or v is None else str(v)
+        for k, v in settings.items()
+    }
+
+
+# ------------------------------------------------------------------------------- comparing
+@dataclass(frozen=True)
+class Drift:
+    """The comparison of one quantity.
+
+    Attributes:
+        quantity: its name.
+        max_deviation: ``max |run - stored|`` over all stored steps (inf: shapes differ, NaN
+            where the other is a number, or missing).
+        tolerance: the allowed deviation ``atol + rtol * scale``.
+        first_step: the first step at which the deviation exceeded the tolerance (None: never).
+        worst_step: the step of the largest deviation.
+        note: why the comparison could not be made entry by entry, if so.
+    """
+
+    quantity: str
+    max_deviation: float
+    tolerance: float
+    first_step: int | None
+    worst_step: int | None = None
+    note: str = ""
+
+    @property
+    def ok(self) -> bool:
+        """Within tolerance at every stored step."""
+        return self.first_step is None and not self.note
+
+
+@dataclass(frozen=True)
+class Report:
+    """The comparison of a rerun with a stored reference (``ok`` when nothing drifted)."""
+
+    name: str
+    drifts: tuple[Drift, ...]
+    notes: tuple[str, ...] = ()
+
+    @property
+    def ok(self) -> bool:
+        """No quantity drifted."""
+        return all(d.ok for d in self.drifts)
+
+    @property
+    def drifted(self) -> list[Drift]:
+        """The quantities that drifted."""
+        return [d for d in self.drifts if not d.ok]
+
+    def table(self, *, all_quantities: bool = False) -> str:
+        """A readable table: quantity, max deviation, tolerance, first step beyond it."""
+        rows = self.drifts if all_quantities else self.drifted
+        head = f"{self.name}: {'ok' if self.ok else 'DRIFT'}"
+        lines = [head, *(f"  note: {n}" for n in self.notes)]
+        if rows:
+            lines.append(f"  {'quantity':<22} {'max deviation':>14} {'tolerance':>11} first step")
+            for d in rows:
+                first = "-" if d.first_step is None else str(d.first_step)
+                line = f"  {d.quantity:<22} {d.max_deviation:>14.3e} {d.tolerance:>11.3e} {first}"
+                lines.append(line + (f"  ({d.note})" if d.note else ""))
+        return "\n".join(lines)
+
+    def __str__(self) -> str:
+        return self.table()
+
+
+def _compare_one(
+    name: str, run: np.ndarray, stored: np.ndarray, steps: np.ndarray, tol: Tolerance
+) -> Drift:
+    if run.shape != stored.shape:
+        return Drift(
+            name, math.inf, math.nan, None, note=f"shape {run.shape} vs stored {stored.shape}"
+        )
+    finite = np.isfinite(stored)
+    scale = float(np.max(np.abs(stored[finite]), initial=0.0))
+    allowed = tol.allowed(scale)
+    n = run.shape[0]
+    diff = np.abs(run - stored).reshape(n, -1)
+    both_nan = (np.isnan(run) & np.isnan(stored)).reshape(n, -1)
+    diff = np.where(both_nan, 0.0, diff)
+    diff = np.where(np.isnan(diff), math.inf, diff)  # NaN against a number
+    per_step = diff.max(axis=1, initial=0.0)
+    beyond = np.flatnonzero(per_step > allowed)
+    worst = int(np.argmax(per_step)) if n else 0
+    return Drift(
+        quantity=name,
+        max_deviation=float(per_step.max(initial=0.0)),
+        tolerance=allowed,
+        first_step=int(steps[beyond[0]]) if beyond.size else None,
+        worst_step=int(steps[worst]) if n else None,
+    )
+
+
+def tolerance_of(ref: Reference, strategy: str, quantity: str) -> Tolerance:
+    """The tolerance of ``quantity``: the reference's override, else the strategy's default."""
+    return ref.tolerances.get(quantity, _default_tolerance(strategy, quantity))
+
+
+def compare(trajectory: Trajectory, stored: Trajectory, ref: Reference) -> Report:
+    """Compare a rerun with the stored trajectory, quantity by quantity."""
+    strategy = str(stored.settings.get("strategy", trajectory.settings.get("strategy", "barrier")))
+    notes = []
+    if not np.array_equal(trajectory.steps, stored.steps):
+        notes.append(
+            f"stored steps {stored.steps.tolist()} differ from the run's "
+            f"{trajectory.steps.tolist()}: update the reference ([regress] changed)"
+        )
+        return Report(
+            ref.name, (Drift("step", math.inf, 0.0, None, note="steps differ"),), tuple(notes)
+        )
+    changed = {
+        k: (stored.settings.get(k), v)
+        for k, v in trajectory.settings.items()
+        if stored.settings.get(k) != v
+    }
+    if changed:
+        notes.append(
+            "settings differ from the stored ones: "
+            + ", ".join(f"{k} {a!r} -> {b!r}" for k, (a, b) in changed.items())
+        )
+    drifts = []
+    for name in sorted(set(trajectory.data) | set(stored.data)):
+        if name not in stored.data or name not in trajectory.data:
+            where = "stored" if name not in stored.data else "rerun"
+            drifts.append(
+                Drift(name, math.inf, math.nan, None, note=f"not in the {where} trajectory")
+            )
+            continue
+        tol = tolerance_of(ref, strategy, name)
+        drifts.append(
+            _compare_one(name, trajectory.data[name], stored.data[name], stored.steps, tol)
+        )
+    return Report(ref.name, tuple(drifts), tuple(notes))
+
+
+# ------------------------------------------------------------------------------- storing
+def read_trajectory(ref: Reference) -> Trajectory:
+    """The stored trajectory of ``ref`` (``NAME.npz`` and the settings of ``NAME.json``)."""
+    if not ref.npz_path.is_file():
+        raise SceneError(
+            f"no stored trajectory {ref.npz_path}",
+            hint=f"write it with: bfemp regress {ref.name} --update --dir {ref.scene_file.parent}",
+        )
+    with np.load(ref.npz_path, allow_pickle=False) as z:
+        data = {k: np.array(z[k]) for k in z.files}
+    steps = data.pop("step").astype(np.int64)
+    settings = {}
+    if ref.meta_path.is_file():
+        settings = json.loads(ref.meta_path.read_text(encoding="utf-8")).get("settings", {})
+    return Trajectory(steps=steps, data=data, settings=settings)
+
+
+def check(ref: Reference) -> Report:
+    """Rerun ``ref`` and compare it with its stored trajectory."""
+    import hashlib
+    from dataclasses import replace
+
+    stored = read_trajectory(ref)
+    report = compare(run_reference(ref), stored, ref)
+    if ref.meta_path.is_file():
+        written = json.loads(ref.meta_path.read_text(encoding="utf-8")).get("scene_sha256")
+        if written and written != hashlib.sha256(ref.scene_file.read_bytes()).hexdigest():
+            note = f"{ref.scene_file.name} changed since the reference was written"
+            report = replace(report, notes=(*report.notes, note))
+    for d in report.drifted:
+        log.info(
+            "reference %s: %s drifted by %.3e (tolerance %.3e), first at step %s",
+            ref.name,
+            d.quantity,
+            d.max_deviation,
+            d.tolerance,
+            d.first_step,
+        )
+    return report
+
+
+def _commit() -> str | None:
+    """The git commit of this bfemp source checkout (None for an installed copy)."""
+    package = Path(__file__).resolve().parent
+    try:
+        out = subprocess.run(
+            ["git", "rev-parse", "--show-toplevel", "HEAD"],
+            cwd=package,
+            capture_output=True,
+            text=True,
+            timeout=10,
+            check=True,
+        )
+    except (OSError, subprocess.SubprocessError):
+        return None
+    lines = out.stdout.split()
+    # a site-packages copy inside some other repository is not that repository's commit
+    if len(lines) != 2 or Path(lines[0]).resolve() / "bfemp" != package:
+        return None
+    return lines[1]
+
+
+def update(ref: Reference, trajectory: Trajectory | None = None) -> dict[str, float | str]:
+    """Rerun ``ref`` (unless ``trajectory`` is given) and rewrite ``NAME.npz`` and ``NAME.json``.
+
+    Returns what changed against the old stored trajectory: quantity -> max absolute change
+    (``"new"`` without an old one, ``"added"`` / ``"removed"`` / ``"shape ..."`` where the
+    quantity set changed), and ``"scene file"`` / ``"settings"`` / ``"tolerances"`` ->
+    ``"changed"``; unchanged ones are left out. When nothing changed the files are left
+    untouched, and an unchanged trajectory keeps its ``.npz``.
+    """
+    import hashlib
+
+    import bfemp
+    from bfemp.io.vtk import atomic_path
+
+    trajectory = run_reference(ref) if trajectory is None else trajectory
+    changes: dict[str, float | str] = {}
+    if ref.npz_path.is_file():
+        old = read_trajectory(ref)
+        same_steps = np.array_equal(old.steps, trajectory.steps)
+        for name in sorted(set(old.data) | set(trajectory.data)):
+            if name not in old.data:
+                changes[name] = "added"
+            elif name not in trajectory.data:
+                changes[name] = "removed"
+            elif not same_steps or old.data[name].shape != trajectory.data[name].shape:
+                changes[name] = f"shape {old.data[name].shape} -> {trajectory.data[name].shape}"
+            else:
+                drift = _compare_one(
+                    name, trajectory.data[name], old.data[name], old.steps, Tolerance(0.0, 0.0)
+                )
+                if drift.max_deviation > 0.0:
+                    changes[name] = drift.max_deviation
+    else:
+        changes = {"trajectory": "new"}
+    strategy = str(trajectory.settings.get("strategy", "barrier"))
+    meta = {
+        "name": ref.name,
+        "scene_file": ref.scene_file.name,
+        "scene_sha256": hashlib.sha256(ref.scene_file.read_bytes()).hexdigest(),
+        "steps": ref.steps,
+        "every": ref.every,
+        "settings": trajectory.settings,
+        "quantities": {
+            name: {
+                "shape": list(a.shape),
+                "scale": float(np.max(np.abs(a[np.isfinite(a)]), initial=0.0)),
+                **vars(tolerance_of(ref, strategy, name)),
+            }
+            for name, a in trajectory.data.items()
+        },
+        "bfemp_version": bfemp.__version__,
+        "commit": _commit(),
+        "written": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        "changes": changes,
+    }
+    old_meta = {}
+    if ref.meta_path.is_file():
+        old_meta = json.loads(ref.meta_path.read_text(encoding="utf-8"))
+    trajectory_changed = bool(changes)
+    for key, what in (("scene_sha256", "scene file"), ("settings", "settings")):
+        if old_meta and old_meta.get(key) != meta[key]:
+            changes[what] = "changed"
+    old_q, new_q = old_meta.get("quantities", {}), meta["quantities"]
+    if old_meta and any(
+        (old_q.get(q, {}).get("atol"), old_q.get(q, {}).get("rtol")) != (v["atol"], v["rtol"])
+        for q, v in new_q.items()
+    ):
+        changes["tolerances"] = "changed"
+    if not changes and old_meta.get("steps") == ref.steps and old_meta.get("every") == ref.every:
+        log.info("reference %s unchanged", ref.name)  # keep the files and their history
+        return changes
+    meta["changes"] = changes
+    if trajectory_changed:  # an unchanged trajectory keeps its file (zip entries carry a time)
+        with atomic_path(ref.npz_path) as tmp:
+            with open(tmp, "wb") as fh:
+                np.savez_compressed(fh, step=trajectory.steps, **trajectory.data)
+    with atomic_path(ref.meta_path) as tmp:
+        tmp.write_text(json.dumps(meta, indent=2) + "\n", encoding="utf-8")
+    log.info("reference %s written: %s", ref.name, changes or "no change")
+    return changes
