@@ -225,13 +225,21 @@ def quick_cases() -> tuple[Case, ...]:
     return tuple(c for c in CASES if c.quick)
 
 
-def n_steps(config: CaseConfig, mode: str) -> int:
-    """Steps of a case in a mode: the duration over dt, at least the mode's ``min_steps``."""
+def n_steps(
+    config: CaseConfig, mode: str, *, dt: float | None = None, duration: float | None = None
+) -> int:
+    """Steps of a case in a mode: the duration over dt, at least the mode's ``min_steps``.
+
+    ``dt`` (s) replaces the case's (an explicit strategy's stable step), ``duration`` (s) the
+    mode's duration of the case.
+    """
     m = MODES[mode]
-    duration = config.duration * m["duration_factor"]
-    if mode == "full" and config.duration_full is not None:
-        duration = config.duration_full
-    return max(m["min_steps"], math.ceil(duration / config.dt - 1e-9))
+    if duration is None:
+        duration = config.duration * m["duration_factor"]
+        if mode == "full" and config.duration_full is not None:
+            duration = config.duration_full
+    dt = config.dt if dt is None else dt
+    return max(m["min_steps"], math.ceil(duration / dt - 1e-9))
 
 
 def _rotate(points: np.ndarray, center: np.ndarray, angle: float) -> np.ndarray:
