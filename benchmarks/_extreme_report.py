@@ -30,7 +30,9 @@ def short_outcome(row: dict) -> str:
     """The status of a row, with the bound of a dt refusal and the auto run's status."""
     text = row["status"]
     if row["status"] == "REFUSED" and "auto" in row:
-        text += f" (dt {row['config']['dt']:g} s); auto dt {row['auto']['dt']:.2g} s: "
+        auto_dt = row["auto"]["dt"]
+        auto_dt = f"{auto_dt:.2g} s" if isinstance(auto_dt, float) else str(auto_dt)
+        text += f" (dt {row['config']['dt']:g} s); auto dt {auto_dt}: "
         text += row["auto"]["status"]
     return text
 

@@ -67,10 +67,12 @@ EXPECTED = {
         "dhat_1e-6": "REFUSED/pass",
         "mass_1e4": "REFUSED/pass",
         "vertex": "REFUSED/pass",
-        # kappa = 1 Pa: as for barrier, the barrier cannot stop the block: Newton's cap
+        # kappa = 1 Pa: as for barrier (step 4), stopping the block needs d / dhat below what
+        # Newton resolves: the contact solve hits its cap of 200 (step 12, d = 4e-8 m)
         "kappa_1e0": "REFUSED/MAX_ITERATIONS",
-        # kappa = 1e16 Pa: the contact-only Newton (inertia + barrier, no elasticity to
-        # regularise it) hits its cap of 200 on the first contact step (barrier needs 193)
+        # kappa = 1e16 Pa: the contact solve (inertia + barrier, the elasticity is in x*) hits
+        # its cap of 200 at the first contact step (step 3); barrier's, with the elasticity in
+        # the same solve, takes at most 87 per step on this case
         "kappa_1e16": "REFUSED/MAX_ITERATIONS",
         # symplectic Euler keeps the landing's energy: the block bounces on the barrier
         "resting": "REFUSED/DRIFT",
