@@ -262,6 +262,24 @@ def test_too_many_steps_is_decided_before_running():
     assert f"{auto['steps_planned']} steps" in auto["outcome"]
 
 
+def test_an_auto_run_refused_for_another_reason_is_named():
+    """two_stage refuses kappa = "auto" as well as the dt: the auto run is refused by name
+    (it raised out of ``run_case`` before)."""
+    case = next(c for c in CASES if c.name == "kappa_auto")
+    row = extremes.run_case(case, "quick", "two_stage")
+    assert row["status"] == "REFUSED" and "exceeds the explicit stable step" in row["outcome"]
+    assert row["auto"]["status"] == "REFUSED"
+    assert "kappa = 'auto' is not supported" in row["auto"]["outcome"]
+
+
+@pytest.mark.parametrize("strategy", sorted(EXPLICIT))
+def test_barrier_only_integrators_are_not_applicable_to_explicit_strategies(strategy):
+    case = next(c for c in CASES if c.name == "newmark")
+    row = extremes.run_case(case, "quick", strategy)
+    assert row["status"] == "NOT_APPLICABLE" and "symplectic Euler" in row["outcome"]
+    assert row["steps"] == 0
+
+
 def test_strategy_option_of_the_command_line(tmp_path):
     assert extremes.resolve_strategies(None) == STRATEGY_NAMES
     assert extremes.resolve_strategies(["all"]) == STRATEGY_NAMES
