@@ -376,11 +376,21 @@ def _run(
             # the simulation itself named the energy gain (Newmark with stiff contact)
             status = "ENERGY_GROWTH"
             outcome = f"{named[0]} (step {k})"
+            if strategy in EXPLICIT:  # the library's advice is for Newmark: say what was seen
+                outcome += (
+                    f"; {strategy} with symplectic Euler: growth {checks.energy_growth:.3g} of "
+                    f"E_ref > its allowance {ENERGY_TOL[sim.integrator.name]}"
+                )
             break
         if problems and strategy in EXPLICIT and all(p.startswith("inverted") for p in problems):
             # explicit elasticity has no det F > 0 filter (the barrier's line search has)
             status = "INVERTED"
             outcome = f"INVERTED: {'; '.join(problems)} at step {k} ({INVERSION_REASON})"
+            if checks.max_penetrations:
+                outcome += (
+                    f"; before it, up to {checks.max_penetrations} particles inside the FEM "
+                    f"body (first at step {checks.first_penetration})"
+                )
             break
         if problems:
             status = "UNEXPLAINED"
