@@ -7,7 +7,8 @@ particles exactly over mesh vertices, particles on grid-cell centres, kappa far 
 and far too large (1e16 Pa) and "auto", a block resting on a fixed slab under gravity for many
 steps (drift), Newmark (at the mode's and at the coarse resolution), and grazing with friction.
 Quick mode runs the subset marked ``quick`` (the tests assert its expected outcomes); full mode
-runs every case on the finer discretisation for longer.
+runs every case on the finer discretisation for longer; ``--mode coarse`` runs every case at the
+quick discretisation and duration (the whole table under every strategy in minutes).
 
 Every step of every case is checked independently of the solver:
 
@@ -29,9 +30,31 @@ message, or ``FRICTION_NOT_CONVERGED`` when a step's report says the friction lo
 or ``"UNEXPLAINED: ..."`` when a check fails without a reason from the solver (or the library
 raised something other than ``StepError``): those are bugs. Each case records its min distance
 (the reports' ``min_distance``, and an independent particle-to-boundary distance), min J, max
-energy growth, Newton iterations (sum, max), steps, wall time and outcome; the table goes to
-``extremes.json`` (top level: ``cases`` plus counts) and ``extremes.md``; ``extremes.png`` plots
-the per-case values.
+energy growth, Newton iterations (sum, max), steps, wall time and outcome.
+
+Every strategy (``--strategy NAME``, repeatable, or ``all``, the default) runs the same cases;
+``benchmarks/_extreme_strategies.py`` says how each case maps to each strategy and what each
+promises. Outcomes beside those above: ``"NOT_APPLICABLE: <why>"`` (a barrier knob under a
+strategy without a barrier, Newmark under an explicit one); ``"REFUSED: dt = ... exceeds the
+explicit stable step ..."`` (the construction refusal of an explicit strategy, with an extra
+run at ``dt = "auto"`` beside it in ``row["auto"]``); ``"TOO_MANY_STEPS: ..."`` (the stable step
+would need more than ``MAX_STEPS`` steps: not run); ``"PENETRATION: ..."`` for a strategy that
+does not promise to keep particles out of FEM bodies (augury, lr, single_field; for barrier and
+two_stage a particle inside is UNEXPLAINED). Such a strategy runs to the end after a
+penetration (the other checks go on); the count is the most particles inside at once.
+
+Energy allowance per integrator (``ENERGY_TOL``): backward Euler 1e-2 (it only dissipates; the
+allowance is round-off and Newton tolerance), Newmark 2e-2, symplectic Euler 5e-2: its
+velocities are half-step ones, so the kinetic energy it reports is off by O(dt omega) from the
+full-step one, and the energy of symplectic Euler oscillates (bounded) at that order about the
+conserved modified energy; at the CFL numbers of ``dt = "auto"`` (0.4-0.5) that is a few
+per cent of the elastic energy of a vibrating body.
+
+The table goes to ``extremes.json`` (``extremes_quick.json`` in quick mode; top level: counts,
+``table`` (case -> strategy -> status), ``by_strategy`` counts and ``cases``, one row per case
+and strategy) and ``extremes.md`` (one column per strategy: outcome, min distance,
+penetrations, min J, energy growth; then one detailed table per strategy); ``extremes.png``
+shows the outcome grid and per-case values of every strategy.
 """
 
 from __future__ import annotations
@@ -50,9 +73,23 @@ from benchmarks._extreme_cases import (
     MODES,
     SCENE_SIZE,
     Case,
+    CaseConfig,
     build_scene,
     n_steps,
     quick_cases,
+)
+from benchmarks._extreme_report import markdown_table, plot_cases
+from benchmarks._extreme_strategies import (
+    EXPLICIT,
+    EXPLICIT_DURATION,
+    MAX_STEPS,
+    NO_CROSSING,
+    STRATEGY_NAMES,
+    crossing_reason,
+    drift_reason,
+    duration,
+    not_applicable,
+    strategy_options,
 )
 from benchmarks.common import environment, peak_memory_mb, write_json
 from geometry.mesh import TriMesh
@@ -62,7 +99,17 @@ log = logging.getLogger(__name__)
 
 NAME = "extremes"
 #: allowed relative energy gain per integrator
-ENERGY_TOL = {"backward_euler": 1e-2, "newmark": 2e-2, "newmark_implicit_contact": 1e-2}
+ENERGY_TOL = {
+    "backward_euler": 1e-2,
+    "newmark": 2e-2,
+    "newmark_implicit_contact": 1e-2,
+    "symplectic_euler": 5e-2,
+}
+#: why an explicit strategy may invert a cell or particle (named outcome ``INVERTED``)
+INVERSION_REASON = (
+    "explicit elasticity has no det F > 0 guard; its stable step is set by the wave speed at "
+    "rest, and a cell or particle crushed towards J = 0 stiffens past it"
+)
 #: allowed drift of the resting block's mean height over the second half of the run, in dhat
 DRIFT_TOL = 0.1
 
@@ -81,8 +128,21 @@ def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
 class _Checks:
     """Independent per-step checks of a running simulation."""
 
-    def __init__(self, sim: bfemp.Simulation, energy_ref: float, energy_tol: float) -> None:
+    def __init__(
+        self,
+        sim: bfemp.Simulation,
+        energy_ref: float,
+        energy_tol: float,
+        *,
+        crossing_allowed: bool = False,
+    ) -> None:
+        """``crossing_allowed``: particles inside a FEM mesh are counted (``penetrations``,
+        ``first_penetration``) but not reported as a problem (a strategy that does not promise
+        to keep them out)."""
         self.sim = sim
+        self.crossing_allowed = crossing_allowed
+        self.first_penetration: int | None = None
+        self.n_checks = 0
         self.model = sim.model
         self.energy0 = float(sim.metrics.column("energy_total")[0])
         self.energy_ref = energy_ref
@@ -97,6 +157,7 @@ class _Checks:
         """Check the current state; returns the problems found (empty: all good)."""
         model, state = self.model, self.sim.state
         problems = []
+        self.n_checks += 1
         arrays = {
             "fem_x": state.fem_x,
             "fem_v": state.fem_v,
@@ -105,9 +166,6 @@ class _Checks:
             "mpm_F": state.mpm_F,
         }
         bad = [name for name, a in arrays.items() if not np.all(np.isfinite(a))]
-        energy = float(self.sim.metrics.column("energy_total")[-1])
-        if not math.isfinite(energy):
-            bad.append("energy_total")
         if bad:
             return [f"non-finite {', '.join(bad)} after a converged step"]
         F = np.einsum("mai,maj->mij", state.fem_x[model.fem_cells], model.fem_cell_grad)
@@ -119,6 +177,11 @@ class _Checks:
             problems.append(f"inverted FEM cell (J = {j_fem:.3g})")
         if j_mpm <= 0.0:
             problems.append(f"inverted particle (J = {j_mpm:.3g})")
+        energy = float(self.sim.metrics.column("energy_total")[-1])
+        if not math.isfinite(energy):
+            # an inverted cell or particle has an infinite Neo-Hookean energy (log J): the
+            # inversion above is then the reason, else the non-finite energy is the problem
+            return problems or ["non-finite energy_total after a converged step"]
         inside = 0
         for body in model.fem_bodies:
             cells = model.fem_cells[body.cells] - body.nodes.start
@@ -128,7 +191,9 @@ class _Checks:
             d = _segment_distance(state.mpm_x, state.fem_x[edges[:, 0]], state.fem_x[edges[:, 1]])
             self.min_geometric = min(self.min_geometric, d)
         self.max_penetrations = max(self.max_penetrations, inside)
-        if inside:
+        if inside and self.first_penetration is None:
+            self.first_penetration = self.n_checks
+        if inside and not self.crossing_allowed:
             problems.append(f"{inside} particles inside the FEM mesh")
         growth = (energy - self.energy0) / self.energy_ref
         self.energy_growth = max(self.energy_growth, growth)
@@ -154,41 +219,135 @@ def _finite(value: float) -> float | None:
     return float(value) if value is not None and math.isfinite(value) else None
 
 
-def run_case(case: Case, mode: str) -> dict:
-    """Run one case; returns its table row (see the module docstring)."""
+class _WarningLog(logging.Handler):
+    """Collects the library's warnings (``bfemp`` loggers) while installed."""
+
+    def __init__(self) -> None:
+        super().__init__(level=logging.WARNING)
+        self.messages: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.messages.append(record.getMessage())
+
+    def __enter__(self) -> _WarningLog:
+        logging.getLogger("bfemp").addHandler(self)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        logging.getLogger("bfemp").removeHandler(self)
+
+
+def _simulation(scene: bfemp.Scene, cfg: CaseConfig, strategy: str, dt: float | str):
+    """The case's simulation under ``strategy`` (``ValueError`` when the library refuses)."""
+    if strategy == "barrier":
+        return bfemp.Simulation(
+            scene,
+            integrator=cfg.integrator,
+            transfer="apic",
+            dt=dt,
+            tol=cfg.tol,
+            max_newton_iterations=cfg.max_newton_iterations,
+        )
+    # explicit strategies: their default integrator (symplectic Euler) and transfer
+    return bfemp.Simulation(
+        scene, strategy=strategy, dt=dt, options=strategy_options(cfg, strategy)
+    )
+
+
+def _is_stable_step_refusal(err: ValueError) -> bool:
+    return "exceeds the explicit stable step" in str(err)
+
+
+def run_case(case: Case, mode: str, strategy: str = "barrier") -> dict:
+    """Run one case under one strategy; returns its table row (see the module docstring)."""
     cfg = case.config
     row: dict = {
         "name": case.name,
+        "strategy": strategy,
         "group": case.group,
         "knob": case.knob,
         "config": cfg.as_dict(),
         "dhat_m": cfg.dhat,
-        "steps_planned": n_steps(cfg, mode),
+        "steps_planned": n_steps(cfg, mode, duration=duration(case, mode, strategy)),
         "expect_quick": case.expect,
     }
-    started, cpu_started = time.perf_counter(), time.process_time()
-    try:
-        scene, info = build_scene(cfg, mode)
-        row.update(info)
-        sim = bfemp.Simulation(
-            scene,
-            integrator=cfg.integrator,
-            transfer="apic",
-            dt=cfg.dt,
-            tol=cfg.tol,
-            max_newton_iterations=cfg.max_newton_iterations,
+    reason = not_applicable(case, strategy)
+    if reason is not None:
+        row.update(
+            outcome=f"NOT_APPLICABLE: {reason}", status="NOT_APPLICABLE", steps=0, wall_s=0.0
         )
+        return row
+    scene, info = build_scene(cfg, mode)
+    row.update(info)
+    try:
+        with _WarningLog() as warned:
+            sim = _simulation(scene, cfg, strategy, cfg.dt)
     except ValueError as err:  # the library refused the input and said why
         row.update(outcome=f"REFUSED: {err}", status="REFUSED", steps=0, wall_s=0.0)
+        if strategy in EXPLICIT and _is_stable_step_refusal(err) and case.group != "dt":
+            # the extra run at the stable step (the dt cases would repeat the base case's)
+            try:
+                with _WarningLog() as warned:
+                    sim = _simulation(build_scene(cfg, mode)[0], cfg, strategy, "auto")
+            except ValueError as auto_err:  # refused for another reason (two_stage: kappa auto)
+                row["auto"] = {
+                    "outcome": f"REFUSED: {auto_err}",
+                    "status": "REFUSED",
+                    "dt": "auto",
+                    "steps": 0,
+                    "steps_planned": row["steps_planned"],
+                    "wall_s": 0.0,
+                }
+                return row
+            row["auto"] = _run(sim, case, mode, strategy, info, warned.messages)
         return row
+    row.update(_run(sim, case, mode, strategy, info, warned.messages))
+    return row
+
+
+def _run(
+    sim: bfemp.Simulation,
+    case: Case,
+    mode: str,
+    strategy: str,
+    info: dict,
+    warnings: list[str],
+) -> dict:
+    """Step ``sim`` through the case with the checks; returns the row's measured values."""
+    cfg = case.config
+    planned = n_steps(cfg, mode, dt=sim.dt, duration=duration(case, mode, strategy))
+    row: dict = {
+        "dt": sim.dt,
+        "integrator": sim.integrator.name,
+        "transfer": sim.transfer,
+        "steps_planned": planned,
+        "warnings": list(warnings),
+    }
+    if planned > MAX_STEPS[mode]:
+        span = planned * sim.dt
+        row.update(
+            outcome=(
+                f"TOO_MANY_STEPS: the stable dt {sim.dt:.3g} s needs {planned} steps for "
+                f"{span:.3g} s (cap {MAX_STEPS[mode]} in {mode} mode): not run"
+            ),
+            status="TOO_MANY_STEPS",
+            steps=0,
+            wall_s=0.0,
+        )
+        return row
+    started, cpu_started = time.perf_counter(), time.process_time()
     energy0 = float(sim.metrics.column("energy_total")[0])
     energy_ref = info["energy_ref_J"] if info["energy_ref_J"] else abs(energy0)
-    checks = _Checks(sim, energy_ref, ENERGY_TOL[cfg.integrator])
+    reason = crossing_reason(strategy)
+    checks = _Checks(
+        sim, energy_ref, ENERGY_TOL[sim.integrator.name], crossing_allowed=reason is not None
+    )
     iters, distances, heights = [], [], []
+    notes: dict[str, int] = {}
     outcome = status = None
     friction_bad = 0
     block = sim.model.mpm_bodies[0].particles
-    for k in range(1, row["steps_planned"] + 1):
+    for k in range(1, planned + 1):
         try:
             report = sim.step()
         except bfemp.StepError as err:
@@ -205,6 +364,9 @@ def run_case(case: Case, mode: str) -> dict:
         iters.append(report.newton_iterations)
         distances.append(report.min_distance)
         heights.append(float(sim.state.mpm_x[block, 1].mean()))
+        for note in report.notes:
+            key = note.split(":", 1)[0]
+            notes[key] = notes.get(key, 0) + 1
         if not report.friction_converged:
             friction_bad += 1
             last_friction = (k, report.friction_iterations)
@@ -214,6 +376,21 @@ def run_case(case: Case, mode: str) -> dict:
             # the simulation itself named the energy gain (Newmark with stiff contact)
             status = "ENERGY_GROWTH"
             outcome = f"{named[0]} (step {k})"
+            if strategy in EXPLICIT:  # the library's advice is for Newmark: say what was seen
+                outcome += (
+                    f"; {strategy} with symplectic Euler: growth {checks.energy_growth:.3g} of "
+                    f"E_ref > its allowance {ENERGY_TOL[sim.integrator.name]}"
+                )
+            break
+        if problems and strategy in EXPLICIT and all(p.startswith("inverted") for p in problems):
+            # explicit elasticity has no det F > 0 filter (the barrier's line search has)
+            status = "INVERTED"
+            outcome = f"INVERTED: {'; '.join(problems)} at step {k} ({INVERSION_REASON})"
+            if checks.max_penetrations:
+                outcome += (
+                    f"; before it, up to {checks.max_penetrations} particles inside the FEM "
+                    f"body (first at step {checks.first_penetration})"
+                )
             break
         if problems:
             status = "UNEXPLAINED"
@@ -221,10 +398,28 @@ def run_case(case: Case, mode: str) -> dict:
             break
     row["wall_s"] = time.perf_counter() - started
     row["cpu_s"] = time.process_time() - cpu_started
+    if outcome is None and checks.max_penetrations:
+        # (only where crossing is allowed: else the check above ended the run)
+        status = "PENETRATION"
+        outcome = (
+            f"PENETRATION: up to {checks.max_penetrations} particles inside the FEM body at "
+            f"once (first at step {checks.first_penetration}; {reason})"
+        )
+        if warnings:
+            outcome += f"; the library warned: {warnings[0]}"
     drift = None
     if cfg.geometry == "resting" and len(heights) >= 4:
         half = heights[len(heights) // 2 - 1 :]
         drift = float(max(half) - min(half))
+        why = drift_reason(strategy)
+        if outcome is None and drift > DRIFT_TOL * cfg.dhat and why is not None:
+            speed = float(sim.state.mpm_v[block, 1].mean())
+            status = "DRIFT"
+            outcome = (
+                f"DRIFT: the resting block's mean height varied by {drift:.3g} m over the "
+                f"second half (> {DRIFT_TOL} dhat; mean vertical velocity {speed:.3g} m/s at the "
+                f"end): {why}"
+            )
         if outcome is None and drift > DRIFT_TOL * cfg.dhat:
             status = "UNEXPLAINED"
             outcome = f"UNEXPLAINED: the resting block drifted {drift:.3g} m (> {DRIFT_TOL} dhat)"
@@ -251,6 +446,7 @@ def run_case(case: Case, mode: str) -> dict:
         min_distance_geometric=_finite(checks.min_geometric),
         contact_steps=int(np.count_nonzero(np.isfinite(dist))),
         penetrations=checks.max_penetrations,
+        first_penetration_step=checks.first_penetration,
         min_J_fem=_finite(checks.min_J_fem),
         min_J_mpm=_finite(checks.min_J_mpm),
         min_J=_finite(min(checks.min_J_fem, checks.min_J_mpm)),
@@ -262,148 +458,149 @@ def run_case(case: Case, mode: str) -> dict:
         friction_unconverged_steps=friction_bad,
         drift_m=drift,
         final_speed=_finite(float(np.abs(sim.state.mpm_v[block]).max())),
+        notes=notes,
     )
     log.info(
-        "%-16s %-6s steps %4d  %.1f s  %s", case.name, mode, row["steps"], row["wall_s"], outcome
+        "%-16s %-12s %-6s steps %5d  %.1f s  %s",
+        case.name,
+        strategy,
+        mode,
+        row["steps"],
+        row["wall_s"],
+        outcome,
     )
     return row
 
 
-def run(mode: str = "full", out: str | Path = "results") -> dict:
-    """Run every case of ``mode`` and write ``extremes.json``, ``extremes.md``, ``extremes.png``."""
+def _runs(row: dict) -> list[dict]:
+    """The row and its extra ``dt = "auto"`` run, if any."""
+    return [row] + ([row["auto"]] if "auto" in row else [])
+
+
+def _counts(rows: list[dict]) -> dict:
+    """Outcome counts of rows (the extra auto runs counted apart)."""
+    statuses = [r["status"] for r in rows]
+    autos = [r["auto"]["status"] for r in rows if "auto" in r]
+    every = [run for r in rows for run in _runs(r)]
+    return {
+        "n_cases": len(rows),
+        "n_pass": statuses.count("pass"),
+        "n_named_failures": sum(
+            s not in ("pass", "UNEXPLAINED", "NOT_APPLICABLE") for s in statuses
+        ),
+        "n_not_applicable": statuses.count("NOT_APPLICABLE"),
+        "n_auto_runs": len(autos),
+        "n_auto_pass": autos.count("pass"),
+        "n_unexplained": sum(run["status"] == "UNEXPLAINED" for run in every),
+        "wall_s": float(sum(run.get("wall_s", 0.0) for run in every)),
+        "steps": int(sum(run.get("steps", 0) for run in every)),
+    }
+
+
+def resolve_strategies(names: list[str] | tuple[str, ...] | None) -> tuple[str, ...]:
+    """The strategies to run, in table order: ``None`` or ``"all"`` for every one."""
+    if not names or "all" in names:
+        return STRATEGY_NAMES
+    unknown = [n for n in names if n not in STRATEGY_NAMES]
+    if unknown:
+        raise ValueError(f"--strategy must be 'all' or one of {STRATEGY_NAMES}, got {unknown}")
+    return tuple(s for s in STRATEGY_NAMES if s in names)
+
+
+def output_name(mode: str) -> str:
+    """File stem of the records of ``mode``: ``extremes`` (full), ``extremes_quick``, ..."""
+    return NAME if mode == "full" else f"{NAME}_{mode}"
+
+
+def run(
+    mode: str = "full", out: str | Path = "results", strategies: tuple[str, ...] | None = None
+) -> dict:
+    """Run every case of ``mode`` under each strategy (None: all) and write the table
+    (``extremes.json``, ``.md``, ``.png``; ``extremes_quick.*`` in quick mode)."""
     if mode not in MODES:
         raise ValueError(f"mode must be one of {sorted(MODES)}, got {mode!r}")
+    strategies = resolve_strategies(strategies)
     out = Path(out)
     cases = quick_cases() if mode == "quick" else CASES
     started = time.perf_counter()
-    rows = [run_case(case, mode) for case in cases]
+    rows = [run_case(case, mode, s) for s in strategies for case in cases]
     wall = time.perf_counter() - started
-    statuses = [r["status"] for r in rows]
+    every = [run for r in rows for run in _runs(r)]
+    by_strategy = {s: _counts([r for r in rows if r["strategy"] == s]) for s in strategies}
+    counts = _counts(rows)
     payload = {
         "benchmark": NAME,
         "mode": mode,
-        "n_cases": len(rows),
-        "n_pass": statuses.count("pass"),
-        "n_named_failures": sum(s not in ("pass", "UNEXPLAINED") for s in statuses),
-        "n_unexplained": statuses.count("UNEXPLAINED"),
-        "unexplained": [r["name"] for r in rows if r["status"] == "UNEXPLAINED"],
-        "no_nan": not any("non-finite" in r["outcome"] for r in rows),
-        "no_inversion": all(r.get("min_J") is None or r["min_J"] > 0.0 for r in rows),
-        "no_penetration": all(r.get("penetrations", 0) == 0 for r in rows),
-        "min_J": min((r["min_J"] for r in rows if r.get("min_J") is not None), default=None),
+        "strategies": list(strategies),
+        **counts,
+        "n_cases": len(cases),
+        "n_rows": len(rows),
+        "unexplained": [
+            f"{r['name']} ({r['strategy']})"
+            for r in rows
+            if any(run["status"] == "UNEXPLAINED" for run in _runs(r))
+        ],
+        "no_nan": not any("non-finite" in run["outcome"] for run in every),
+        "no_inversion": all(run.get("min_J") is None or run["min_J"] > 0.0 for run in every),
+        "no_penetration": {
+            s: all(
+                run.get("penetrations", 0) == 0
+                for r in rows
+                if r["strategy"] == s
+                for run in _runs(r)
+            )
+            for s in strategies
+        },
+        "min_J": min((run["min_J"] for run in every if run.get("min_J") is not None), default=None),
         "wall_s": wall,
-        "steps": int(sum(r.get("steps", 0) for r in rows)),
-        "newton_iterations": int(sum(r.get("newton_iterations", 0) for r in rows)),
+        "newton_iterations": int(sum(run.get("newton_iterations", 0) for run in every)),
         "peak_memory_mb": peak_memory_mb(),
+        "table": {
+            case.name: {
+                r["strategy"]: r["status"]
+                + (f" / auto: {r['auto']['status']}" if "auto" in r else "")
+                for r in rows
+                if r["name"] == case.name
+            }
+            for case in cases
+        },
+        "by_strategy": by_strategy,
         "parameters": {
             "mode": MODES[mode],
             "scene_size_m": SCENE_SIZE,
             "energy_tol": ENERGY_TOL,
             "drift_tol_dhat": DRIFT_TOL,
-            "transfer": "apic",
+            "max_steps": MAX_STEPS[mode],
+            "explicit_duration_s": {k: v[mode] for k, v in EXPLICIT_DURATION.items()},
+            "no_crossing_promise": sorted(NO_CROSSING),
+            "transfer": {"barrier": "apic", "others": "the strategy's default"},
             "base": "see benchmarks/_extreme_cases.py: free FEM slab, MPM block at 40 m/s",
         },
         "cases": rows,
         "environment": environment(),
     }
     payload = _clean(payload)
-    path = write_json(out, NAME, payload)
-    md = out / f"{NAME}.md"
+    name = output_name(mode)
+    path = write_json(out, name, payload)
+    md = out / f"{name}.md"
     md.write_text(markdown_table(payload))
-    plot_cases(rows, out / f"{NAME}.png", title=f"extremes ({mode})")
-    return {"json": str(path), "markdown": str(md), "png": str(out / f"{NAME}.png"), **payload}
+    png = out / f"{name}.png"
+    plot_cases(payload, png, title=f"extremes ({mode})")
+    return {"json": str(path), "markdown": str(md), "png": str(png), **payload}
 
 
-# ---------------------------------------------------------------------------------- report
-def _fmt(value: object, spec: str = ".3g") -> str:
-    if value is None:
-        return "-"
-    if isinstance(value, float):
-        return format(value, spec)
-    return str(value)
-
-
-def markdown_table(payload: dict) -> str:
-    """The case table as markdown: one row per case with every recorded value."""
-    lines = [
-        f"# extremes ({payload['mode']} mode)",
-        "",
-        f"{payload['n_cases']} cases: {payload['n_pass']} pass, {payload['n_named_failures']} "
-        f"named failures, {payload['n_unexplained']} unexplained. Wall time "
-        f"{payload['wall_s']:.1f} s, commit `{payload['environment']['commit'][:10]}`.",
-        "",
-        "min d: smallest active contact distance of the step reports (NaN rows, no pair within "
-        "dhat, skipped); geometric: independent particle-to-boundary distance; growth: "
-        "max_t (E(t) - E(0)) / E_ref; Newton: sum / max per step.",
-        "",
-        "| case | knob | steps | min d [m] | min d / dhat | geometric d [m] | penetrations "
-        "| min J (FEM) | min J (MPM) | max energy growth | Newton sum / max | wall [s] | cpu [s] "
-        "| outcome |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
-    ]
-    for r in payload["cases"]:
-        steps = f"{r.get('steps', 0)} / {r['steps_planned']}"
-        newton = f"{r.get('newton_iterations', 0)} / {r.get('newton_iterations_max', 0)}"
-        outcome = str(r["outcome"]).replace("|", "\\|")
-        if r.get("drift_m") is not None:
-            outcome += f" (drift {r['drift_m']:.2e} m)"
-        cells = [
-            r["name"],
-            r["knob"],
-            steps,
-            _fmt(r.get("min_distance")),
-            _fmt(r.get("min_distance_over_dhat")),
-            _fmt(r.get("min_distance_geometric")),
-            _fmt(r.get("penetrations")),
-            _fmt(r.get("min_J_fem"), ".4g"),
-            _fmt(r.get("min_J_mpm"), ".4g"),
-            _fmt(r.get("energy_growth_max"), ".2e"),
-            newton,
-            _fmt(r.get("wall_s"), ".2f"),
-            _fmt(r.get("cpu_s"), ".2f"),
-            outcome,
-        ]
-        lines.append("| " + " | ".join(cells) + " |")
-    return "\n".join(lines) + "\n"
-
-
-def plot_cases(rows: list[dict], path: Path, title: str) -> None:
-    """Per case: min distance / dhat, min J, max energy growth and max Newton iterations, bars
-    coloured by outcome (green pass, orange named failure, red unexplained)."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    names = [r["name"] for r in rows]
-    colours = [
-        "tab:green"
-        if r["status"] == "pass"
-        else "tab:red"
-        if r["status"] == "UNEXPLAINED"
-        else "tab:orange"
-        for r in rows
-    ]
-    panels = (
-        ("min_distance_over_dhat", "min distance / dhat", "log"),
-        ("min_J", "min J", "log"),
-        ("energy_growth_max", "max (E - E0) / E_ref", "symlog"),
-        ("newton_iterations_max", "max Newton its / step", "log"),
+# ---------------------------------------------------------------------------------- CLI
+def add_arguments(parser) -> None:
+    """``--strategy NAME`` (repeatable; ``all``, the default, runs every strategy)."""
+    parser.add_argument(
+        "--strategy",
+        action="append",
+        choices=("all",) + STRATEGY_NAMES,
+        help="coupling strategy to run the cases under (repeatable; default all)",
     )
-    fig = Figure(figsize=(14.0, 0.28 * len(rows) + 2.0), layout="constrained")
-    FigureCanvasAgg(fig)
-    axes = fig.subplots(1, len(panels), sharey=True)
-    y = np.arange(len(rows))
-    for ax, (key, label, scale) in zip(axes, panels, strict=True):
-        vals = np.array([np.nan if r.get(key) is None else r[key] for r in rows], dtype=float)
-        ax.barh(y, np.nan_to_num(vals, nan=0.0), color=colours)
-        ax.set_xscale(scale, **({"linthresh": 1e-4} if scale == "symlog" else {}))
-        if scale == "symlog":
-            ax.axvline(ENERGY_TOL["backward_euler"], color="k", ls="--", lw=0.8)
-            ax.set_xlim(-1.0, max(1.0, float(np.nanmax(vals, initial=0.0))) * 1.2)
-            ax.set_xticks([-1.0, -1e-2, -1e-4, 0.0, 1e-4, 1e-2, 1.0])
-            ax.tick_params(axis="x", labelsize="small")
-        ax.set_xlabel(label)
-        ax.grid(True, axis="x", alpha=0.3)
-    axes[0].set_yticks(y, names, fontsize="small")
-    axes[0].invert_yaxis()
-    fig.suptitle(title + ": green pass, orange named failure, red unexplained")
-    fig.savefig(path, dpi=110)
+
+
+def main_from_args(args) -> int:
+    summary = run(args.mode or "full", args.out, resolve_strategies(args.strategy))
+    print(f"extremes: wrote {summary['json']}")
+    return 0

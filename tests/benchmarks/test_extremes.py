@@ -1,5 +1,6 @@
-"""Extremes, quick subset: every case passes (no penetration, J > 0, no NaN, bounded energy) or
-stops with the named failure it is expected to; the independent checks catch what they claim."""
+"""Extremes, quick subset, under every strategy: every case passes (no penetration, J > 0, no
+NaN, bounded energy) or ends with the named outcome it is expected to; nothing is UNEXPLAINED;
+the independent checks catch what they claim."""
 
 import json
 import math
@@ -10,68 +11,209 @@ import pytest
 import bfemp
 from benchmarks import extremes
 from benchmarks._extreme_cases import CASES, build_scene, quick_cases
+from benchmarks._extreme_strategies import EXPLICIT, MAX_STEPS, NO_CROSSING, STRATEGY_NAMES
+
+#: the dt of every case but E_1e3 (1e-4 s and more) exceeds the explicit stable step at dx = 0.05
+#: m (4.8e-5 s at E = 1e8 Pa): "REFUSED" there, and "REFUSED/X" means X for the extra run at
+#: dt = "auto". E_1e3: c_p = 3.7 m/s, stable step 4.6e-4 s, so its dt = 1e-4 s runs as given.
+REF = "REFUSED"
+#: per explicit strategy and quick case, the expected outcome, each with its reason
+EXPECTED = {
+    "single_field": {
+        # FEM bodies meet nothing but level sets: the block passes through the slab
+        "base": "REFUSED/PENETRATION",
+        "E_1e3": "PENETRATION",
+        # E = 1e12 Pa: stable step 4.8e-7 s, 4151 steps for 2 ms > MAX_STEPS
+        "E_1e12": "REFUSED/TOO_MANY_STEPS",
+        "nu_0.499": "REFUSED/PENETRATION",
+        # dt = 0.1 s: refused; no auto run (it would repeat base's)
+        "dt_1e-1": REF,
+        # no barrier: d-hat and kappa are not knobs of it
+        "dhat_1e-6": "NOT_APPLICABLE",
+        "mass_1e4": "REFUSED/PENETRATION",
+        "vertex": "REFUSED/PENETRATION",
+        "kappa_1e0": "NOT_APPLICABLE",
+        "kappa_1e16": "NOT_APPLICABLE",
+        # the block falls through the fixed slab
+        "resting": "REFUSED/PENETRATION",
+    },
+    "augury": {
+        # AUG admits interpenetration (pitfall A9): a particle row ends inside the slab
+        "base": "REFUSED/PENETRATION",
+        # E = 1e3 Pa: the block crushes the soft slab's top cells through the contact grid;
+        # explicit elasticity steps one of them through J = 0 (no det F guard)
+        "E_1e3": "INVERTED",
+        "E_1e12": "REFUSED/TOO_MANY_STEPS",
+        "nu_0.499": "REFUSED/PENETRATION",
+        "dt_1e-1": REF,
+        "dhat_1e-6": "NOT_APPLICABLE",
+        # the heavy block on the light slab: the contact holds (no particle inside)
+        "mass_1e4": "REFUSED/pass",
+        "vertex": "REFUSED/PENETRATION",
+        "kappa_1e0": "NOT_APPLICABLE",
+        "kappa_1e16": "NOT_APPLICABLE",
+        # resting on the fixed slab (kinematic foreground): the block creeps down at 0.02 m/s
+        "resting": "REFUSED/DRIFT",
+    },
+    "two_stage": {
+        # the barrier's contact solve on explicit free motion: no crossing at the stable step
+        "base": "REFUSED/pass",
+        # as augury: the soft slab's top cells are crushed and one inverts (explicit elasticity)
+        "E_1e3": "INVERTED",
+        "E_1e12": "REFUSED/TOO_MANY_STEPS",
+        "nu_0.499": "REFUSED/pass",
+        "dt_1e-1": REF,
+        # d-hat and kappa reach two_stage through scene.set_contact: they are run
+        "dhat_1e-6": "REFUSED/pass",
+        "mass_1e4": "REFUSED/pass",
+        "vertex": "REFUSED/pass",
+        # kappa = 1 Pa: as for barrier (step 4), stopping the block needs d / dhat below what
+        # Newton resolves: the contact solve hits its cap of 200 (step 12, d = 4e-8 m)
+        "kappa_1e0": "REFUSED/MAX_ITERATIONS",
+        # kappa = 1e16 Pa: the contact solve (inertia + barrier, the elasticity is in x*) hits
+        # its cap of 200 at the first contact step (step 3); barrier's, with the elasticity in
+        # the same solve, takes at most 87 per step on this case
+        "kappa_1e16": "REFUSED/MAX_ITERATIONS",
+        # symplectic Euler keeps the landing's energy: the block bounces on the barrier
+        "resting": "REFUSED/DRIFT",
+    },
+    "lr": {
+        # LR detects contact on the grid; with the grid as fine as the FEM edge (warned) the
+        # block's lowest particle rows end inside the slab
+        "base": "REFUSED/PENETRATION",
+        "E_1e3": "PENETRATION",
+        "E_1e12": "REFUSED/TOO_MANY_STEPS",
+        "nu_0.499": "REFUSED/PENETRATION",
+        "dt_1e-1": REF,
+        "dhat_1e-6": "NOT_APPLICABLE",
+        "mass_1e4": "REFUSED/PENETRATION",
+        "vertex": "REFUSED/PENETRATION",
+        "kappa_1e0": "NOT_APPLICABLE",
+        "kappa_1e16": "NOT_APPLICABLE",
+        # the block sinks into the fixed slab
+        "resting": "REFUSED/PENETRATION",
+    },
+}
+# barrier: the outcomes the cases declare (unchanged by the strategy column)
+EXPECTED["barrier"] = {c.name: c.expect for c in quick_cases()}
 
 
 @pytest.fixture(scope="module")
 def result(tmp_path_factory):
     out = tmp_path_factory.mktemp("extremes")
     summary = extremes.run("quick", out)
-    data = json.loads((out / "extremes.json").read_text())
+    data = json.loads((out / "extremes_quick.json").read_text())
     return summary, data, out
 
 
 @pytest.fixture(scope="module")
 def rows(result):
-    return {row["name"]: row for row in result[1]["cases"]}
+    return {(row["strategy"], row["name"]): row for row in result[1]["cases"]}
+
+
+def test_expected_table_covers_every_strategy_and_quick_case():
+    assert set(EXPECTED) == set(STRATEGY_NAMES)
+    for strategy, table in EXPECTED.items():
+        assert set(table) == {c.name for c in quick_cases()}, strategy
 
 
 def test_writes_the_table(result):
     summary, data, out = result
-    assert summary["json"] == str(out / "extremes.json")
-    for key in ("cases", "n_pass", "n_unexplained", "wall_s", "steps", "newton_iterations"):
+    assert summary["json"] == str(out / "extremes_quick.json")
+    for key in ("cases", "n_pass", "n_unexplained", "wall_s", "steps", "table", "by_strategy"):
         assert key in data, key
-    assert data["n_cases"] == len(quick_cases()) == len(data["cases"])
-    table = (out / "extremes.md").read_text().splitlines()
-    assert sum(line.startswith("| ") for line in table) == 1 + len(data["cases"])
-    assert (out / "extremes.png").stat().st_size > 10_000
+    assert data["strategies"] == list(STRATEGY_NAMES)
+    assert data["n_cases"] == len(quick_cases())
+    assert data["n_rows"] == len(data["cases"]) == len(quick_cases()) * len(STRATEGY_NAMES)
+    lines = (out / "extremes_quick.md").read_text().splitlines()
+    header = lines.index("| case | knob | " + " | ".join(STRATEGY_NAMES) + " |")
+    body = lines[header + 2 : header + 2 + len(quick_cases())]
+    assert all(line.startswith("| ") and line.count("<br>") >= 1 for line in body[:1])
+    assert len(body) == len(quick_cases()) and lines[header + 2 + len(quick_cases())] == ""
+    assert (out / "extremes_quick.png").stat().st_size > 10_000
 
 
-@pytest.mark.parametrize("case", [c.name for c in quick_cases()])
-def test_case_has_its_expected_outcome(rows, case):
-    row = rows[case]
-    expect = next(c.expect for c in CASES if c.name == case)
+CASE_IDS = [(s, c.name) for s in STRATEGY_NAMES for c in quick_cases()]
+
+
+@pytest.mark.parametrize(("strategy", "case"), CASE_IDS, ids=[f"{s}-{c}" for s, c in CASE_IDS])
+def test_case_has_its_expected_outcome(rows, strategy, case):
+    row = rows[(strategy, case)]
+    expect, _, expect_auto = EXPECTED[strategy][case].partition("/")
     assert row["status"] == expect, row["outcome"]
-    assert row["steps"] >= 1
-    # whatever the outcome, nothing went wrong before it: the checks ran on every completed step
-    assert row["penetrations"] == 0
-    assert row["min_J"] > 0.0
-    assert row["min_distance_geometric"] > 0.0
-    if expect == "pass":
-        assert row["steps"] == row["steps_planned"]
-        assert row["energy_growth_max"] < extremes.ENERGY_TOL[row["config"]["integrator"]]
+    assert row["outcome"].startswith(expect)
+    if expect != "pass":
+        assert len(row["outcome"]) > len(expect) + 20  # the reason is named
+    if expect == "REFUSED" and strategy in EXPLICIT and case != "E_1e3":
+        # the refusal names the bound, which is the step the auto run took
+        assert "exceeds the explicit stable step" in row["outcome"]
+        if expect_auto:
+            assert f"{row['auto']['dt']:.6g} s" in row["outcome"]
+    assert ("auto" in row) == bool(expect_auto)
+    run = row["auto"] if expect_auto else row
+    if expect_auto:
+        assert run["status"] == expect_auto, run["outcome"]
+    status = run["status"]
+    if status in ("NOT_APPLICABLE", "REFUSED", "TOO_MANY_STEPS"):
+        assert run["steps"] == 0  # decided before a single step
+        if status == "TOO_MANY_STEPS":
+            assert run["steps_planned"] > MAX_STEPS["quick"]
+        return
+    assert run["steps"] >= 1
+    # whatever the outcome, the checks ran on every completed step and found what they promise
+    if strategy in NO_CROSSING:
+        assert run["penetrations"] == 0
+        assert run["min_distance_geometric"] > 0.0
+    if strategy == "barrier" or status != "INVERTED":
+        assert run["min_J"] > 0.0
+    if status == "pass":
+        assert run["steps"] == run["steps_planned"]
+        assert run["penetrations"] == 0
+        assert run["energy_growth_max"] < extremes.ENERGY_TOL[run["integrator"]]
+    if status == "PENETRATION":
+        assert run["penetrations"] > 0 and strategy not in NO_CROSSING
+        assert run["steps"] == run["steps_planned"]  # the run went on to the end
+    if status == "INVERTED":
+        assert run["min_J"] <= 0.0 and strategy in EXPLICIT
+    if status == "DRIFT":
+        assert run["drift_m"] > extremes.DRIFT_TOL * row["dhat_m"] and strategy in EXPLICIT
+    if status == "pass" and strategy in NO_CROSSING:
         # contact really happened, inside d-hat and at a positive distance, and the step
         # reports agree with the independent particle-to-boundary distance
-        assert row["contact_steps"] >= 1
-        assert 0.0 < row["min_distance"] < row["dhat_m"]
-        assert row["min_distance_geometric"] == pytest.approx(row["min_distance"], rel=1e-9)
-    else:
-        assert row["outcome"].startswith(expect) and len(row["outcome"]) > len(expect) + 10
+        assert run["contact_steps"] >= 1
+        assert 0.0 < run["min_distance"] < row["dhat_m"]
+        assert run["min_distance_geometric"] == pytest.approx(run["min_distance"], rel=1e-9)
 
 
 def test_no_unexplained_failures_in_the_quick_subset(result):
     data = result[1]
     assert data["n_unexplained"] == 0, data["unexplained"]
-    assert data["no_nan"] and data["no_inversion"] and data["no_penetration"]
+    assert data["no_nan"]
+    assert data["no_penetration"]["barrier"] and data["no_penetration"]["two_stage"]
+    assert not data["no_penetration"]["single_field"]
+
+
+def test_barrier_column_has_the_barrier_only_outcomes(result):
+    """The barrier rows are those of ``extremes`` before the strategy columns (the cases'
+    declared outcomes), and the per-strategy table agrees with the rows."""
+    data = result[1]
+    for case in quick_cases():
+        assert data["table"][case.name]["barrier"] == case.expect
+        for strategy in STRATEGY_NAMES:
+            assert (
+                data["table"][case.name][strategy].replace(" / auto: ", "/")
+                == (EXPECTED[strategy][case.name])
+            )
 
 
 def test_a_very_soft_body_is_squashed_but_never_inverted(rows):
     """E = 1e3 Pa: the wave speed (1 m/s) is 40 times below the impact speed."""
-    row = rows["E_1e3"]
+    row = rows[("barrier", "E_1e3")]
     assert 0.0 < row["min_J"] < 0.05
 
 
 def test_resting_block_stays_put(rows):
-    row = rows["resting"]
+    row = rows[("barrier", "resting")]
     assert row["drift_m"] < extremes.DRIFT_TOL * row["dhat_m"]
     assert row["final_speed"] < 1e-3
     assert row["energy_growth_max"] <= 1e-9  # backward Euler: the landing only dissipates
@@ -96,6 +238,59 @@ def test_checks_catch_a_particle_inside_and_an_inverted_cell():
     assert any("inverted FEM cell" in p for p in checks())
     sim.state.mpm_v[3, 1] = math.nan
     assert checks()[0].startswith("non-finite mpm_v")
+
+
+def test_checks_count_but_allow_crossing_where_the_strategy_makes_no_promise():
+    case = next(c for c in CASES if c.name == "base")
+    scene, _ = build_scene(case.config, "quick")
+    sim = bfemp.Simulation(scene, strategy="single_field", dt="auto")
+    checks = extremes._Checks(sim, energy_ref=1.0, energy_tol=1e-2, crossing_allowed=True)
+    assert checks() == [] and checks.first_penetration is None
+    sim.state.mpm_x[:2] = ((0.1, -0.05), (0.2, -0.05))  # inside the slab
+    assert checks() == []
+    assert checks.max_penetrations == 2 and checks.first_penetration == 2
+
+
+def test_too_many_steps_is_decided_before_running():
+    """E = 1e12 Pa under an explicit strategy: the stable step is ~5e-7 s."""
+    case = next(c for c in CASES if c.name == "E_1e12")
+    row = extremes.run_case(case, "quick", "single_field")
+    assert row["status"] == "REFUSED"
+    auto = row["auto"]
+    assert auto["status"] == "TOO_MANY_STEPS" and auto["steps"] == 0 and auto["wall_s"] == 0.0
+    assert auto["steps_planned"] == math.ceil(case.config.duration / auto["dt"] - 1e-9)
+    assert f"{auto['steps_planned']} steps" in auto["outcome"]
+
+
+def test_an_auto_run_refused_for_another_reason_is_named():
+    """two_stage refuses kappa = "auto" as well as the dt: the auto run is refused by name
+    (it raised out of ``run_case`` before)."""
+    case = next(c for c in CASES if c.name == "kappa_auto")
+    row = extremes.run_case(case, "quick", "two_stage")
+    assert row["status"] == "REFUSED" and "exceeds the explicit stable step" in row["outcome"]
+    assert row["auto"]["status"] == "REFUSED"
+    assert "kappa = 'auto' is not supported" in row["auto"]["outcome"]
+
+
+@pytest.mark.parametrize("strategy", sorted(EXPLICIT))
+def test_barrier_only_integrators_are_not_applicable_to_explicit_strategies(strategy):
+    case = next(c for c in CASES if c.name == "newmark")
+    row = extremes.run_case(case, "quick", strategy)
+    assert row["status"] == "NOT_APPLICABLE" and "symplectic Euler" in row["outcome"]
+    assert row["steps"] == 0
+
+
+def test_strategy_option_of_the_command_line(tmp_path):
+    assert extremes.resolve_strategies(None) == STRATEGY_NAMES
+    assert extremes.resolve_strategies(["all"]) == STRATEGY_NAMES
+    assert extremes.resolve_strategies(["lr", "barrier"]) == ("barrier", "lr")
+    with pytest.raises(ValueError, match="nope"):
+        extremes.resolve_strategies(["nope"])
+    from benchmarks.__main__ import main
+
+    # the CLI refuses an unknown strategy before running anything
+    with pytest.raises(SystemExit):
+        main(["extremes", "--quick", "--strategy", "nope", "--out", str(tmp_path)])
 
 
 def test_vertex_case_puts_particles_exactly_over_vertices():
