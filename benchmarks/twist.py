@@ -245,6 +245,7 @@ def _run_one(cfg: dict, mu: float, budget_s: float = math.inf) -> dict:
     newton, friction_max, friction_unconverged, min_d, error = 0, 0, 0, math.inf, None
     slip_t = slip_angle = None
     step_wall, step_newton, step_pairs = [], [], []
+    phases: dict[str, float] = {}
     started = time.perf_counter()
     for _ in range(steps):
         tick = time.perf_counter()
@@ -257,6 +258,8 @@ def _run_one(cfg: dict, mu: float, budget_s: float = math.inf) -> dict:
         step_wall.append(time.perf_counter() - tick)
         step_newton.append(report.newton_iterations)
         step_pairs.append(report.contact_pairs)
+        for name, seconds in report.timings.items():
+            phases[name] = phases.get(name, 0.0) + seconds
         newton += report.newton_iterations
         friction_max = max(friction_max, report.friction_iterations)
         friction_unconverged += int(not report.friction_converged)
@@ -300,6 +303,7 @@ def _run_one(cfg: dict, mu: float, budget_s: float = math.inf) -> dict:
         "friction_unconverged_steps": friction_unconverged,
         "min_distance_m": min_d if math.isfinite(min_d) else None,
         "wall_s": wall,
+        "phase_s": phases,
         "step_wall_s": {
             "mean": float(np.mean(step_wall)) if step_wall else None,
             "max": float(np.max(step_wall)) if step_wall else None,
@@ -392,6 +396,7 @@ def probe(mode: str, out: str | Path = "results", mu: float = 0.5) -> dict:
         "shell_vertices": case["shell_vertices"],
         "shell_tetrahedra": case["shell_tetrahedra"],
         "first_step_s": float(wall[0]) if wall.size else None,
+        "phase_s": case["phase_s"],
         "mean_step_s_in_contact": rate,
         "mean_newton_per_step_in_contact": mean(newton, contact),
         "twist_steps_done": int(np.count_nonzero(twisting)),
