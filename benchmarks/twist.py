@@ -53,16 +53,49 @@ Choices where the paper is silent or contradicts itself (recorded in the JSON):
 - Full mode: dx = 0.0625 m, 27 particles per cell (110,592 particles; the paper's 90,929 is 22.2
   per cell), shell h = 0.08 m (1204 vertices, 3600 tetrahedra; the paper's 1364 / 3920), the
   paper's dt and motion, the four mu. Not run here (see ``FULL_ESTIMATE``).
-- Partial mode: dx = 0.125 m, 8 particles per cell (4,096 particles), shell h = 0.1 m, dt =
-  2e-2 s, the paper's motion, mu = 0, 0.5, 1.0.
+- Partial mode: dx = 0.125 m, 8 particles per cell (4,096 particles), shell h = 0.1 m (772
+  vertices, 2304 tetrahedra), dt = 2e-2 s (2x), the paper's motion, mu = 0, 0.5, 1.0. Not run
+  to the end here (its timing probe: below).
 - Quick mode: dx = 0.25 m, 8 per cell (512 particles), shell h = 0.15 m (436 vertices, 1296
   tetrahedra), dt = 5e-2 s (5x), the paper's press; the twist at 2 pi/5 rad/s (2x) for 2.25 s
-  (the same 0.9 pi); mu = 0, 0.5, 1.0 (0.2 left out for time); each run stops
+  (the same 0.9 pi); the four mu (the test, ``tests/benchmarks/test_twist.py``, runs 0, 0.2
+  and 0.5: mu = 1 does not slip and is the longest case). Each run stops
   ``STOP_AFTER_SLIP_S`` = 0.15 s after its slip starts (the slipping steps take many Newton
-  iterations: measured, mu = 0.5 to the end of the twist took 247 s, 80% of it after the slip).
+  iterations: measured, the quick mu = 0.5 case run to the end of the twist took 247 s, 80% of
+  it after the slip; its cube angle stayed between 0.29 and 0.33 pi after the slip).
+- Timing probes (``--mode partial_probe`` / ``full_probe``: the mu = 0.5 case cut after
+  ``PROBE_BUDGET_S`` of wall time; ``--mode partial_solvers``: the first
+  ``SOLVER_PROBE_STEPS`` partial steps per linear solver) record per-step wall time, Newton
+  iterations, contact pairs, phases and peak memory: they are measurements of cost, not results.
 - Newton iteration cap 1000 per minimisation; lagged-friction loop capped at 20 updates (the
   default; a step that hits it logs "friction loop did not converge" and goes on, as the
   library does).
+
+Measured (2 shared cores, load 4 to 7, CHOLMOD on OpenBLAS; ``benchmarks/records/twist_*``):
+
+- Quick (at 79a2b1b): slip angle 0.000 pi (mu = 0), 0.117 pi (0.2), 0.297 pi (0.5), no slip at
+  mu = 1 (the cube's top at 0.86 pi when the shell stops, 0.04 pi behind it); ordered as the
+  paper's, at about 0.4 x its angles for mu = 0.2 and 0.5 (and without its 0.1 pi at mu = 0).
+  196 s for the four cases (mu = 1: 111 s), 351 MB peak.
+- Partial probe: 72 steps (to t = 1.44 s, 22 of them twisting) in 519 s; 8.6 s and 14.6
+  Newton iterations per twisting step, 603 MB peak; the three cases (825 steps) take 1.7 h at
+  the probe's mean step in contact (7.3 s), 2.0 h at its twisting rate, more where the
+  slipping steps need more Newton iterations (5-20x in quick mode): 2-4 h is our guess, not
+  measured. The phases: element Hessians (with their PSD projection)
+  41%, numeric factorisation 34%, assembly 12%.
+- Solver probe (the speed issue's linear solvers on the first 25 partial steps, mu = 0.5,
+  same process, load ~4.4): CHOLMOD 78.7 s (factorisation 28.5 s), PARDISO 55.9 s
+  (factorisation 21.1 s), the same 169 Newton iterations and positions equal to 5e-15 m; but
+  the solver-independent Hessian phase also differed (27.8 against 16.6 s), so most of that gap
+  is the shared machine's load: over the first 12 steps 21.7 against 24.0 s. CG + AMG reached
+  12 steps in its 150 s (172.7 s; 127 s in its solves, and more Newton iterations: 90 against
+  57). The default (CHOLMOD) stays; PARDISO may gain up to a quarter of the factorisation.
+- Full probe: the first 8 steps (press, up to 80 contact pairs) in 334 s: 47 s and 7 Newton
+  iterations per step in contact, 1.9 GB peak. 2200 steps at that rate are 29 h; the partial
+  probe's steps grew 7x from first contact to the twist, so the full mode is of order 200 h on
+  these 2 cores (an extrapolation): run it on a larger machine (``python -m benchmarks twist
+  --full``; the numba kernels and the BLAS under CHOLMOD take more cores when there are; memory
+  about 2 GB at first contact, growing with the contact set). See ``FULL_ESTIMATE``.
 """
 
 from __future__ import annotations
@@ -79,6 +112,7 @@ from matplotlib.figure import Figure
 import bfemp
 from benchmarks.common import environment, peak_memory_mb, write_json
 from geometry.mesh import TetMesh
+from solvers.choice import make_linear_solver
 
 log = logging.getLogger(__name__)
 
@@ -94,7 +128,10 @@ REGION_RADIUS = 0.2  # m
 SLIP_WINDOW_S, SLIP_RATE = 0.05, 0.5
 STOP_AFTER_SLIP_S = 0.15  # s
 MAX_NEWTON = 1000
-PROBE_BUDGET_S = 480.0  # s of wall time per timing probe
+#: s of wall time per timing probe (the full mode's steps take minutes: the whole probe, last step
+#: included, stays within a 10-minute slot)
+PROBE_BUDGET_S = {"partial": 480.0, "full": 300.0}
+SOLVER_PROBE_STEPS, SOLVER_PROBE_BUDGET_S = 25, 150.0  # per linear solver in the solver probe
 PAPER = {
     "particles": 90929,
     "shell_vertices": 1364,
@@ -136,7 +173,11 @@ MODES = {
     ),
 }
 #: wall-time estimate of the full mode (see the partial-mode timing probe in the records)
-FULL_ESTIMATE = "not measured yet"
+FULL_ESTIMATE = (
+    "of order 200 h on 2 shared cores: 47 s per press step in early contact (full probe, 8 steps)"
+    " x 2200 steps = 29 h, times the 7x growth of the step cost from first contact to the twist"
+    " seen in the partial probe; about 2 GB of memory at first contact"
+)
 
 
 def shell_mesh(h: float) -> tuple[TetMesh, np.ndarray]:
@@ -225,10 +266,17 @@ def slip_onset(t: np.ndarray, cube: np.ndarray, omega: float, t_press: float, dt
     return None, None
 
 
-def _run_one(cfg: dict, mu: float, budget_s: float = math.inf) -> dict:
+def _run_one(
+    cfg: dict,
+    mu: float,
+    budget_s: float = math.inf,
+    max_steps: int | None = None,
+    solver: str = "default",
+) -> dict:
     """Press and twist at friction ``mu``; the cube's twist angle after every step.
 
-    ``budget_s``: stop after the step that ends past this wall time in s (timing probes).
+    ``budget_s``: stop after the step that ends past this wall time in s, ``max_steps``: after
+    that many steps (timing probes); ``solver``: a ``solvers.choice`` linear-solver name.
     """
     sim = bfemp.Simulation(
         _scene(cfg, mu),
@@ -237,10 +285,13 @@ def _run_one(cfg: dict, mu: float, budget_s: float = math.inf) -> dict:
         dt=cfg["dt"],
         tol=TOL,
         max_newton_iterations=MAX_NEWTON,
+        linear_solver=make_linear_solver(solver, block_size=3),
     )
     spacing = cfg["dx"] / round(cfg["ppc"] ** (1.0 / 3.0))
     measure = TopTwist(sim.state.mpm_x, spacing)
     steps = round((PRESS_TIME + cfg["twist_time"]) / cfg["dt"])
+    if max_steps is not None:
+        steps = min(steps, max_steps)
     t, cube = [0.0], [0.0]
     newton, friction_max, friction_unconverged, min_d, error = 0, 0, 0, math.inf, None
     slip_t = slip_angle = None
@@ -312,6 +363,7 @@ def _run_one(cfg: dict, mu: float, budget_s: float = math.inf) -> dict:
         "region_particles": int(measure.region.size),
         "shell_vertices": int(sim.model.n_fem_nodes),
         "shell_tetrahedra": int(sim.model.fem_cells.shape[0]),
+        "final_mpm_x": sim.state.mpm_x,
         "series": {
             "t_s": t,
             "cube_angle_rad": cube,
@@ -362,12 +414,13 @@ def _plot(runs: list[dict], path: Path, title: str) -> None:
 
 
 def probe(mode: str, out: str | Path = "results", mu: float = 0.5) -> dict:
-    """Timing probe (not a result): the first ``PROBE_BUDGET_S`` of wall time of ``mode``'s
+    """Timing probe (not a result): the first ``PROBE_BUDGET_S[mode]`` s of wall time of ``mode``'s
     ``mu`` case; writes ``twist_<mode>_probe.json`` with the per-step wall time, Newton
     iterations, contact pairs and the peak memory, and a naive estimate of the whole mode."""
     cfg = MODES[mode]
     started = time.perf_counter()
-    case = _run_one(cfg, mu, budget_s=PROBE_BUDGET_S)
+    budget = PROBE_BUDGET_S[mode]
+    case = _run_one(cfg, mu, budget_s=budget)
     s = case["series"]
     wall, newton, pairs = (
         np.array(s[k]) for k in ("step_wall_s", "step_newton_iterations", "step_contact_pairs")
@@ -387,7 +440,7 @@ def probe(mode: str, out: str | Path = "results", mu: float = 0.5) -> dict:
         "mode": f"{mode}_probe",
         "kind": "TIMING PROBE, not a result: the first steps of one case, cut at the wall budget",
         "probe_mu": mu,
-        "budget_s": PROBE_BUDGET_S,
+        "budget_s": budget,
         "steps_done": case["steps"],
         "t_reached_s": case["t_end_s"],
         "steps_per_case": steps_per_case,
@@ -424,6 +477,64 @@ def probe(mode: str, out: str | Path = "results", mu: float = 0.5) -> dict:
     return {"json": str(path), **payload}
 
 
+def solver_probe(out: str | Path = "results", mu: float = 0.5) -> dict:
+    """Timing probe (not a result) of the linear solvers of the speed issue (``perf_3d``): the
+    first ``SOLVER_PROBE_STEPS`` steps of the partial mode's ``mu`` case with each installed
+    solver, each cut after ``SOLVER_PROBE_BUDGET_S`` of wall time; writes
+    ``twist_partial_solvers.json`` (after every solver) with the wall time of the steps that
+    every solver reached, Newton iterations, phases, and the largest particle-position difference
+    from CHOLMOD's run where both reached the same step."""
+    cfg = MODES["partial"]
+    started = time.perf_counter()
+    results, reference, payload = {}, None, {}
+    for name in ("cholmod", "pardiso", "cg_amg"):
+        try:
+            make_linear_solver(name, block_size=3)
+        except RuntimeError as err:  # not installed
+            results[name] = {"error": str(err)}
+            continue
+        case = _run_one(
+            cfg, mu, budget_s=SOLVER_PROBE_BUDGET_S, max_steps=SOLVER_PROBE_STEPS, solver=name
+        )
+        x = case["final_mpm_x"]
+        if reference is None:
+            reference = (case["steps"], x)
+        same = reference[0] == case["steps"]
+        results[name] = {
+            "steps": case["steps"],
+            "wall_s": case["wall_s"],
+            "step_wall_s": case["series"]["step_wall_s"],
+            "step_newton_iterations": case["series"]["step_newton_iterations"],
+            "newton_iterations": case["newton_iterations"],
+            "phase_s": case["phase_s"],
+            "contact_pairs_end": case["series"]["step_contact_pairs"][-1],
+            "max_position_difference_from_cholmod_m": (
+                float(np.abs(x - reference[1]).max()) if same else None
+            ),
+        }
+        common = min(r["steps"] for r in results.values() if "steps" in r)
+        payload = {
+            "benchmark": NAME,
+            "mode": "partial_solvers",
+            "kind": "TIMING PROBE, not a result: the first steps of the partial mode per solver",
+            "probe_mu": mu,
+            "max_steps": SOLVER_PROBE_STEPS,
+            "budget_s": SOLVER_PROBE_BUDGET_S,
+            "order": "one process, solvers in the order listed (the first pays any warm-up)",
+            "common_steps": common,
+            "wall_s_common_steps": {
+                k: float(sum(r["step_wall_s"][:common])) for k, r in results.items() if "steps" in r
+            },
+            "solvers": results,
+            "wall_s": time.perf_counter() - started,
+            "peak_memory_mb": peak_memory_mb(),
+            "parameters": dict(cfg),
+            "environment": environment(),
+        }
+        path = write_json(out, f"{NAME}_partial_solvers", payload)
+    return {"json": str(path), **payload}
+
+
 def run(
     mode: str = "full", out: str | Path = "results", mus: tuple[float, ...] | None = None
 ) -> dict:
@@ -438,10 +549,12 @@ def run(
     Returns:
         ``{"json": path, "png": path, **payload}``; ``payload["cases"]`` per mu.
     """
+    if mode == "partial_solvers":
+        return solver_probe(out)
     if mode.endswith("_probe") and mode[: -len("_probe")] in MODES:
         return probe(mode[: -len("_probe")], out)
     if mode not in MODES:
-        modes = sorted(MODES) + [f"{m}_probe" for m in ("full", "partial")]
+        modes = sorted(MODES) + ["full_probe", "partial_probe", "partial_solvers"]
         raise ValueError(f"mode must be one of {modes}, got {mode!r}")
     cfg = dict(MODES[mode])
     if mus is not None:
@@ -459,7 +572,7 @@ def run(
         "slip_angle_pi": {str(r["mu"]): r["slip_angle_pi"] for r in runs},
         "slip_increases_with_mu": bool(complete and slip_ordered(angles)),
         "failed_cases": [r["mu"] for r in runs if r["error"] is not None],
-        "cases": runs,
+        "cases": [{k: v for k, v in r.items() if k != "final_mpm_x"} for r in runs],
         "wall_s": time.perf_counter() - started,
         "peak_memory_mb": peak_memory_mb(),
         "paper": PAPER,
