@@ -73,10 +73,12 @@ Choices where the paper is silent or contradicts itself (recorded in the JSON):
 
 Measured (2 shared cores, load 4 to 7, CHOLMOD on OpenBLAS; ``benchmarks/records/twist_*``):
 
-- Quick (at 79a2b1b): slip angle 0.000 pi (mu = 0), 0.117 pi (0.2), 0.297 pi (0.5), no slip at
-  mu = 1 (the cube's top at 0.86 pi when the shell stops, 0.04 pi behind it); ordered as the
-  paper's, at about 0.4 x its angles for mu = 0.2 and 0.5 (and without its 0.1 pi at mu = 0).
-  196 s for the four cases (mu = 1: 111 s), 351 MB peak.
+- Quick (record at a15ddde; bit-identical angles and Newton counts at 79a2b1b): slip angle
+  0.000 pi (mu = 0), 0.117 pi (0.2), 0.297 pi (0.5), no slip at mu = 1 (the cube's top at
+  0.86 pi when the shell stops, 0.04 pi behind it); ordered as the paper's, at about 0.4 x its
+  angles for mu = 0.2 and 0.5 (and without its 0.1 pi at mu = 0).
+  196 s for the four cases at load ~4 (mu = 1: 111 s), 334 s at load ~8 (the record), 351 MB
+  peak. The test's three cases (0, 0.2, 0.5): 71 s to 180 s with the load.
 - Partial probe: 72 steps (to t = 1.44 s, 22 of them twisting) in 519 s; 8.6 s and 14.6
   Newton iterations per twisting step, 603 MB peak; the three cases (825 steps) take 1.7 h at
   the probe's mean step in contact (7.3 s), 2.0 h at its twisting rate, more where the
