@@ -41,6 +41,7 @@ BENCHMARKS = {
     "slope": "benchmarks.slope",
     "speed_knobs": "benchmarks.speed_knobs",
     "tradeoff": "benchmarks.tradeoff",
+    "twist": "benchmarks.twist",
     "two_stage_gap": "benchmarks.two_stage_gap",
     "two_stage_rings": "benchmarks.two_stage_rings",
     "two_stage_slope": "benchmarks.two_stage_slope",
@@ -54,7 +55,10 @@ def _parser() -> argparse.ArgumentParser:
     mode.add_argument("--quick", action="store_const", const="quick", dest="mode")
     mode.add_argument("--full", action="store_const", const="full", dest="mode")
     mode.add_argument(
-        "--mode", dest="mode", help="another mode of the benchmark (rings: partial; hertz: refined)"
+        "--mode",
+        dest="mode",
+        help="another mode of the benchmark (rings: partial; hertz: refined; "
+        "twist: partial, partial_probe, full_probe)",
     )
     parser.add_argument("--out", default="results", help="output folder (default results/)")
     return parser

@@ -1,0 +1,620 @@
+"""3D twist with friction (BFEMP paper, section 6.7, figures 16-17): a FEM spherical shell pressed
+into the top of an MPM cube and twisted about z; friction makes the cube's top follow the shell
+until it slips, later the larger mu.
+
+Setup (paper): MPM cube of edge 1 m, grid dx = 0.0625 m, 90,929 particles, Neo-Hookean E = 1e8
+Pa, nu = 0.4, rho = 100 kg/m^3; FEM spherical shell, radii 0.45 m to 0.5 m (1364 vertices, 3920
+tetrahedra), E = 1e10 Pa, nu = 0.4, rho = 1e4 kg/m^3, placed d-hat above the cube. The top part
+of the shell follows a rigid motion: down at 0.5 m/s for 1 s, then rotation about z at pi/5 rad/s
+for 4.5 s. Barrier dhat = 1e-2 m, kappa = 1e7 Pa, eps_v = 1e-3 m/s; backward Euler, dt = 1e-2 s,
+Newton tolerance 1e-3 m/s; mu = 0, 0.2, 0.5, 1.0. APIC transfer. Paper's result: slip at a
+cube twist of about 0.1 pi (mu = 0, from the roughness of the particle-triangle interface),
+0.3 pi (0.2), 0.7 pi (0.5), none at mu = 1.
+
+Measures (the paper defines neither; ours):
+
+- Twist angle of the cube's top centre, ``theta_cube(t)`` (rad): the angle of the least-squares
+  rotation about the z axis (through the cube's centre) that takes the initial horizontal
+  positions of the *top-centre region* to their current ones,
+  ``atan2(sum (x0 x x)_z, sum x0 . x)`` over the region, unwrapped in time. The region: the
+  particles of the topmost particle layer (initial z within half a particle spacing of the
+  highest) whose initial distance to the z axis is below ``REGION_RADIUS`` = 0.2 m (12 particles
+  in quick mode).
+- The shell's angle ``theta_shell(t) = omega max(0, t - t_press)`` (the prescribed motion).
+- Slip starts at the first time ``t_s`` in the twist from which the cube's top gains less than
+  ``SLIP_RATE`` = 0.5 of the shell's rotation over the next ``SLIP_WINDOW_S`` = 0.05 s (the
+  cube stalls; one quick-mode step, five full-mode steps); the *slip angle* is the cube's angle
+  then, ``theta_cube(t_s)``: the twist the cube took while following the shell (partial slip,
+  spreading in from the rim of the contact patch, lets it lag a little before). ``None`` when
+  the cube follows the shell to the end of the run (no slip; larger than any angle for the
+  ordering). Without friction the cube does not follow the shell at all, so its slip angle is
+  its angle at the start of the twist (0 here: our interface is smooth enough that the cube's
+  top does not turn with a frictionless shell; the paper's turned to 0.1 pi).
+
+Targets: full mode, slip angles within 0.1 pi of the paper's for each mu (mu = 1: no slip);
+quick mode, the slip angle increases with mu (``None`` counted as the largest).
+
+Choices where the paper is silent or contradicts itself (recorded in the JSON):
+
+- Timeline: the text's (press 1 s at 0.5 m/s, i.e. 0.5 m as figure 16 (b) says, then twist
+  4.5 s: 0.9 pi in all), not figure 17's caption (twist between 0.5 s and 5 s).
+- The prescribed top part of the shell: its nodes at or above the centre's height (the upper
+  hemisphere, equator included); the lower hemisphere is free (elastic, it carries the contact).
+- The cube stands on a sticky level-set box (``z <= 0``, all MPM grid nodes on and below the
+  cube's bottom face are held): its bottom cannot turn with the shell.
+- Gravity -9.81 m/s^2 along z (negligible beside the press: the shell's 1.4 t against contact
+  forces of order E times the contact area).
+- Geometry: cube ``[-0.5, 0.5]^2 x [0, 1]`` on the grid (faces on grid planes), particles at
+  sub-cell centres (``bfemp.sample.box``); shell centred on the z axis, its lowest node d-hat
+  above the cube's top face (its centre at ``1 + dhat + 0.5`` m when the south pole is a node,
+  as in every mode here; the top particle layer is half a particle spacing lower still), meshed
+  by ``bfemp.shapes.spherical_shell`` (cubed sphere, one radial layer of hexahedra split into
+  tetrahedra).
+- Full mode: dx = 0.0625 m, 27 particles per cell (110,592 particles; the paper's 90,929 is 22.2
+  per cell), shell h = 0.08 m (1204 vertices, 3600 tetrahedra; the paper's 1364 / 3920), the
+  paper's dt and motion, the four mu. Not run here (see ``FULL_ESTIMATE``).
+- Partial mode: dx = 0.125 m, 8 particles per cell (4,096 particles), shell h = 0.1 m (772
+  vertices, 2304 tetrahedra), dt = 2e-2 s (2x), the paper's motion, mu = 0, 0.5, 1.0. Not run
+  to the end here (its timing probe: below).
+- Quick mode: dx = 0.25 m, 8 per cell (512 particles), shell h = 0.15 m (436 vertices, 1296
+  tetrahedra), dt = 5e-2 s (5x), the paper's press; the twist at 2 pi/5 rad/s (2x) for 2.25 s
+  (the same 0.9 pi); the four mu (the test, ``tests/benchmarks/test_twist.py``, runs 0, 0.2
+  and 0.5: mu = 1 does not slip and is the longest case). Each run stops
+  ``STOP_AFTER_SLIP_S`` = 0.15 s after its slip starts (the slipping steps take many Newton
+  iterations: measured, the quick mu = 0.5 case run to the end of the twist took 247 s, 80% of
+  it after the slip; its cube angle stayed between 0.29 and 0.33 pi after the slip).
+- Timing probes (``--mode partial_probe`` / ``full_probe``: the mu = 0.5 case cut after
+  ``PROBE_BUDGET_S`` of wall time; ``--mode partial_solvers``: the first
+  ``SOLVER_PROBE_STEPS`` partial steps per linear solver) record per-step wall time, Newton
+  iterations, contact pairs, phases and peak memory: they are measurements of cost, not results.
+- Newton iteration cap 1000 per minimisation; lagged-friction loop capped at 20 updates (the
+  default; a step that hits it logs "friction loop did not converge" and goes on, as the
+  library does).
+
+Measured (2 shared cores, load 4 to 7, CHOLMOD on OpenBLAS; ``benchmarks/records/twist_*``):
+
+- Quick (record at a15ddde; bit-identical angles and Newton counts at 79a2b1b): slip angle
+  0.000 pi (mu = 0), 0.117 pi (0.2), 0.297 pi (0.5), no slip at mu = 1 (the cube's top at
+  0.86 pi when the shell stops, 0.04 pi behind it); ordered as the paper's, at about 0.4 x its
+  angles for mu = 0.2 and 0.5 (and without its 0.1 pi at mu = 0).
+  196 s for the four cases at load ~4 (mu = 1: 111 s), 334 s at load ~8 (the record), 351 MB
+  peak. The test's three cases (0, 0.2, 0.5): 71 s to 180 s with the load.
+- Partial probe: 72 steps (to t = 1.44 s, 22 of them twisting) in 519 s; 8.6 s and 14.6
+  Newton iterations per twisting step, 603 MB peak; the three cases (825 steps) take 1.7 h at
+  the probe's mean step in contact (7.3 s), 2.0 h at its twisting rate, more where the
+  slipping steps need more Newton iterations (5-20x in quick mode): 2-4 h is our guess, not
+  measured. The phases: element Hessians (with their PSD projection)
+  41%, numeric factorisation 34%, assembly 12%.
+- Solver probe (the speed issue's linear solvers on the first 25 partial steps, mu = 0.5,
+  same process, load ~4.4): CHOLMOD 78.7 s (factorisation 28.5 s), PARDISO 55.9 s
+  (factorisation 21.1 s), the same 169 Newton iterations and positions equal to 5e-15 m; but
+  the solver-independent Hessian phase also differed (27.8 against 16.6 s), so most of that gap
+  is the shared machine's load: over the first 12 steps 21.7 against 24.0 s. CG + AMG reached
+  12 steps in its 150 s (172.7 s; 127 s in its solves, and more Newton iterations: 90 against
+  57). The default (CHOLMOD) stays; PARDISO may gain up to a quarter of the factorisation.
+- Full probe: the first 8 steps (press, up to 80 contact pairs) in 334 s: 47 s and 7 Newton
+  iterations per step in contact, 1.9 GB peak. 2200 steps at that rate are 29 h; the partial
+  probe's steps grew 7x from first contact to the twist, so the full mode is of order 200 h on
+  these 2 cores (an extrapolation): run it on a larger machine (``python -m benchmarks twist
+  --full``; the numba kernels and the BLAS under CHOLMOD take more cores when there are; memory
+  about 2 GB at first contact, growing with the contact set). See ``FULL_ESTIMATE``.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+import bfemp
+from benchmarks.common import environment, peak_memory_mb, write_json
+from geometry.mesh import TetMesh
+from solvers.choice import make_linear_solver
+
+log = logging.getLogger(__name__)
+
+NAME = "twist"
+CUBE_EDGE = 1.0  # m
+CUBE = dict(E=1e8, nu=0.4, density=100.0)  # Pa, -, kg/m^3
+SHELL_RADII = (0.45, 0.5)  # m
+SHELL = dict(E=1e10, nu=0.4, density=1e4)  # Pa, -, kg/m^3
+DHAT, KAPPA, EPS_V, TOL = 1e-2, 1e7, 1e-3, 1e-3  # m, Pa, m/s, m/s
+PRESS_SPEED, PRESS_TIME = 0.5, 1.0  # m/s, s
+GRAVITY = -9.81  # m/s^2 along z
+REGION_RADIUS = 0.2  # m
+SLIP_WINDOW_S, SLIP_RATE = 0.05, 0.5
+STOP_AFTER_SLIP_S = 0.15  # s
+MAX_NEWTON = 1000
+#: s of wall time per timing probe (the full mode's steps take minutes: the whole probe, last step
+#: included, stays within a 10-minute slot)
+PROBE_BUDGET_S = {"partial": 480.0, "full": 300.0}
+SOLVER_PROBE_STEPS, SOLVER_PROBE_BUDGET_S = 25, 150.0  # per linear solver in the solver probe
+PAPER = {
+    "particles": 90929,
+    "shell_vertices": 1364,
+    "shell_tetrahedra": 3920,
+    "slip_angle_pi": {"0.0": 0.1, "0.2": 0.3, "0.5": 0.7, "1.0": None},
+}
+PAPER_OMEGA, PAPER_TWIST_TIME = math.pi / 5.0, 4.5  # rad/s, s
+
+MODES = {
+    "full": dict(
+        dx=0.0625,
+        ppc=27,
+        shell_h=0.08,
+        dt=1e-2,
+        omega=PAPER_OMEGA,
+        twist_time=PAPER_TWIST_TIME,
+        mus=(0.0, 0.2, 0.5, 1.0),
+        stop_after_slip=False,
+    ),
+    "partial": dict(
+        dx=0.125,
+        ppc=8,
+        shell_h=0.1,
+        dt=2e-2,
+        omega=PAPER_OMEGA,
+        twist_time=PAPER_TWIST_TIME,
+        mus=(0.0, 0.5, 1.0),
+        stop_after_slip=False,
+    ),
+    "quick": dict(
+        dx=0.25,
+        ppc=8,
+        shell_h=0.15,
+        dt=5e-2,
+        omega=2.0 * PAPER_OMEGA,
+        twist_time=0.5 * PAPER_TWIST_TIME,
+        mus=(0.0, 0.2, 0.5, 1.0),
+        stop_after_slip=True,
+    ),
+}
+#: wall-time estimate of the full mode (see the partial-mode timing probe in the records)
+FULL_ESTIMATE = (
+    "of order 200 h on 2 shared cores: 47 s per press step in early contact (full probe, 8 steps)"
+    " x 2200 steps = 29 h, times the 7x growth of the step cost from first contact to the twist"
+    " seen in the partial probe; about 2 GB of memory at first contact"
+)
+
+
+def shell_mesh(h: float) -> tuple[TetMesh, np.ndarray]:
+    """The shell's tetrahedral mesh (target edge ``h`` in m) on the z axis, its lowest node
+    ``DHAT`` above the cube's top face, and its centre ``(3,)`` in m."""
+    center = np.array([0.0, 0.0, CUBE_EDGE + DHAT + SHELL_RADII[1]])
+    mesh = bfemp.shapes.spherical_shell(tuple(center), *SHELL_RADII, h=h)
+    # with an odd number of cubed-sphere cells per edge the south pole is not a node and the
+    # lowest nodes sit higher: lower the mesh until they are d-hat above the cube
+    drop = mesh.points[:, 2].min() - (CUBE_EDGE + DHAT)
+    shift = np.array([0.0, 0.0, -drop])
+    return TetMesh(mesh.points + shift, mesh.cells), center + shift
+
+
+def shell_motion(omega: float) -> bfemp.motion.Motion:
+    """The shell top's rigid motion: down at ``PRESS_SPEED`` for ``PRESS_TIME``, then rotation
+    about the z axis at ``omega`` rad/s (counter-clockwise seen from above)."""
+    return bfemp.motion.Sequence(
+        segments=(
+            (PRESS_TIME, bfemp.motion.Linear(velocity=(0.0, 0.0, -PRESS_SPEED))),
+            (math.inf, bfemp.motion.Rotation(center=(0.0, 0.0, 0.0), angular_velocity=omega)),
+        )
+    )
+
+
+def _scene(cfg: dict, mu: float) -> bfemp.Scene:
+    """Cube on a sticky floor, the shell d-hat above it with its upper hemisphere scripted."""
+    scene = bfemp.Scene(dim=3, gravity=(0.0, 0.0, GRAVITY))
+    half = 0.5 * CUBE_EDGE
+    x, vol = bfemp.sample.box(
+        (-half, -half, 0.0), (half, half, CUBE_EDGE), dx=cfg["dx"], ppc=cfg["ppc"]
+    )
+    scene.add_mpm(x, vol, material=bfemp.NeoHookean(**CUBE), name="cube")
+    shell, center = shell_mesh(cfg["shell_h"])
+    scene.add_fem(
+        shell,
+        material=bfemp.NeoHookean(**SHELL),
+        prescribed=shell_motion(cfg["omega"]),
+        prescribed_nodes=shell.points[:, 2] >= center[2] - 1e-9,
+        name="shell",
+    )
+    scene.set_grid(dx=cfg["dx"])
+    floor = bfemp.levelset.Box(lower=(-2.0, -2.0, -1.0), upper=(2.0, 2.0, 0.0))
+    scene.add_boundary(floor, kind="sticky")
+    scene.set_contact(dhat=DHAT, kappa=KAPPA, mu=mu, eps_v=EPS_V)
+    return scene
+
+
+class TopTwist:
+    """Twist angle (rad) of the cube's top-centre region about the z axis.
+
+    Args:
+        mpm_x0: initial particle positions ``(p, 3)`` in m.
+        spacing: particle spacing in m (the top layer is within half of it of the highest).
+    """
+
+    def __init__(self, mpm_x0: np.ndarray, spacing: float) -> None:
+        z, r = mpm_x0[:, 2], np.hypot(mpm_x0[:, 0], mpm_x0[:, 1])
+        self.region = np.flatnonzero((z > z.max() - 0.5 * spacing) & (r < REGION_RADIUS))
+        if self.region.size == 0:
+            raise ValueError("TopTwist: no particle in the top-centre region")
+        self.xy0 = mpm_x0[self.region, :2].copy()
+
+    def __call__(self, mpm_x: np.ndarray) -> float:
+        """Least-squares rotation angle in rad, in (-pi, pi] (unwrap a time series)."""
+        a, b = self.xy0, mpm_x[self.region, :2]
+        cross = np.sum(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
+        return math.atan2(cross, np.sum(a * b))
+
+
+def slip_onset(t: np.ndarray, cube: np.ndarray, omega: float, t_press: float, dt: float):
+    """Slip start (s) and slip angle (rad) of a twist series, ``(None, None)`` without slip.
+
+    Args:
+        t: times ``(n,)`` in s, every ``dt`` from 0.
+        cube: the cube's unwrapped twist angle ``(n,)`` in rad.
+        omega: the shell's angular velocity in rad/s; ``t_press``: when the twist starts (s).
+    """
+    lag = max(round(SLIP_WINDOW_S / dt), 1)
+    window = lag * dt
+    for k in range(lag, len(t)):
+        if t[k - lag] < t_press - 1e-9:
+            continue
+        if cube[k] - cube[k - lag] < SLIP_RATE * omega * window:
+            return float(t[k - lag]), float(cube[k - lag])
+    return None, None
+
+
+def _run_one(
+    cfg: dict,
+    mu: float,
+    budget_s: float = math.inf,
+    max_steps: int | None = None,
+    solver: str = "default",
+) -> dict:
+    """Press and twist at friction ``mu``; the cube's twist angle after every step.
+
+    ``budget_s``: stop after the step that ends past this wall time in s, ``max_steps``: after
+    that many steps (timing probes); ``solver``: a ``solvers.choice`` linear-solver name.
+    """
+    sim = bfemp.Simulation(
+        _scene(cfg, mu),
+        integrator="backward_euler",
+        transfer="apic",
+        dt=cfg["dt"],
+        tol=TOL,
+        max_newton_iterations=MAX_NEWTON,
+        linear_solver=make_linear_solver(solver, block_size=3),
+    )
+    spacing = cfg["dx"] / round(cfg["ppc"] ** (1.0 / 3.0))
+    measure = TopTwist(sim.state.mpm_x, spacing)
+    steps = round((PRESS_TIME + cfg["twist_time"]) / cfg["dt"])
+    if max_steps is not None:
+        steps = min(steps, max_steps)
+    t, cube = [0.0], [0.0]
+    newton, friction_max, friction_unconverged, min_d, error = 0, 0, 0, math.inf, None
+    slip_t = slip_angle = None
+    step_wall, step_newton, step_pairs = [], [], []
+    phases: dict[str, float] = {}
+    started = time.perf_counter()
+    for _ in range(steps):
+        tick = time.perf_counter()
+        try:
+            report = sim.step()
+        except bfemp.StepError as err:
+            error = str(err)
+            log.warning("twist mu=%g: %s", mu, err)
+            break
+        step_wall.append(time.perf_counter() - tick)
+        step_newton.append(report.newton_iterations)
+        step_pairs.append(report.contact_pairs)
+        for name, seconds in report.timings.items():
+            phases[name] = phases.get(name, 0.0) + seconds
+        newton += report.newton_iterations
+        friction_max = max(friction_max, report.friction_iterations)
+        friction_unconverged += int(not report.friction_converged)
+        if np.isfinite(report.min_distance):
+            min_d = min(min_d, report.min_distance)
+        t.append(sim.state.t)
+        cube.append(cube[-1] + _wrap(measure(sim.state.mpm_x) - cube[-1]))
+        if slip_t is None:
+            slip_t, slip_angle = slip_onset(
+                np.array(t), np.array(cube), cfg["omega"], PRESS_TIME, cfg["dt"]
+            )
+        elif cfg["stop_after_slip"] and sim.state.t >= slip_t + STOP_AFTER_SLIP_S - 1e-9:
+            break
+        if time.perf_counter() - started > budget_s:
+            break
+    wall = time.perf_counter() - started
+    log.info(
+        "twist mu=%g: slip angle %s, cube %.3f pi at t = %.2f s, %d steps, %.1f s",
+        mu,
+        "none" if slip_angle is None else f"{slip_angle / math.pi:.3f} pi",
+        cube[-1] / math.pi,
+        t[-1],
+        len(t) - 1,
+        wall,
+    )
+    shell = [cfg["omega"] * max(0.0, s - PRESS_TIME) for s in t]
+    return {
+        "mu": mu,
+        "error": error,
+        "steps": len(t) - 1,
+        "t_end_s": t[-1],
+        "slip_time_s": slip_t,
+        "slip_angle_rad": slip_angle,
+        "slip_angle_pi": None if slip_angle is None else slip_angle / math.pi,
+        "shell_angle_at_slip_pi": (
+            None if slip_t is None else cfg["omega"] * (slip_t - PRESS_TIME) / math.pi
+        ),
+        "max_cube_angle_pi": max(cube) / math.pi,
+        "newton_iterations": newton,
+        "friction_iterations_max": friction_max,
+        "friction_unconverged_steps": friction_unconverged,
+        "min_distance_m": min_d if math.isfinite(min_d) else None,
+        "wall_s": wall,
+        "phase_s": phases,
+        "step_wall_s": {
+            "mean": float(np.mean(step_wall)) if step_wall else None,
+            "max": float(np.max(step_wall)) if step_wall else None,
+        },
+        "particles": int(sim.model.n_particles),
+        "region_particles": int(measure.region.size),
+        "shell_vertices": int(sim.model.n_fem_nodes),
+        "shell_tetrahedra": int(sim.model.fem_cells.shape[0]),
+        "final_mpm_x": sim.state.mpm_x,
+        "series": {
+            "t_s": t,
+            "cube_angle_rad": cube,
+            "shell_angle_rad": shell,
+            "step_wall_s": step_wall,
+            "step_newton_iterations": step_newton,
+            "step_contact_pairs": step_pairs,
+        },
+    }
+
+
+def _wrap(a: float) -> float:
+    """``a`` wrapped into (-pi, pi]."""
+    return a - 2.0 * math.pi * math.floor((a + math.pi) / (2.0 * math.pi))
+
+
+def slip_ordered(angles: list[float | None]) -> bool:
+    """Whether slip angles increase strictly along ``angles`` (``None``: no slip, the largest;
+    two ``None`` in a row are not ordered)."""
+    key = [math.inf if a is None else a for a in angles]
+    return all(a < b for a, b in zip(key[:-1], key[1:], strict=True))
+
+
+def _plot(runs: list[dict], path: Path, title: str) -> None:
+    """Figure 17: the cube top's twist angle against time per mu, the shell's dashed."""
+    fig = Figure(figsize=(8.0, 5.0), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    longest = max(runs, key=lambda r: r["t_end_s"])["series"]
+    ax.plot(longest["t_s"], longest["shell_angle_rad"], "k--", lw=1.0, label="shell")
+    for k, run in enumerate(runs):
+        s = run["series"]
+        label = f"mu = {run['mu']:g}"
+        label += (
+            " (no slip)"
+            if run["slip_angle_pi"] is None
+            else f" (slips at {run['slip_angle_pi']:.2f} pi)"
+        )
+        ax.plot(s["t_s"], s["cube_angle_rad"], color=f"C{k}", label=label)
+        if run["slip_time_s"] is not None:
+            ax.plot(run["slip_time_s"], run["slip_angle_rad"], "o", color=f"C{k}", ms=5)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("twist angle of the cube's top centre [rad]")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize="small", loc="upper left")
+    ax.set_title(title)
+    fig.savefig(path, dpi=110)
+
+
+def probe(mode: str, out: str | Path = "results", mu: float = 0.5) -> dict:
+    """Timing probe (not a result): the first ``PROBE_BUDGET_S[mode]`` s of wall time of ``mode``'s
+    ``mu`` case; writes ``twist_<mode>_probe.json`` with the per-step wall time, Newton
+    iterations, contact pairs and the peak memory, and a naive estimate of the whole mode."""
+    cfg = MODES[mode]
+    started = time.perf_counter()
+    budget = PROBE_BUDGET_S[mode]
+    case = _run_one(cfg, mu, budget_s=budget)
+    s = case["series"]
+    wall, newton, pairs = (
+        np.array(s[k]) for k in ("step_wall_s", "step_newton_iterations", "step_contact_pairs")
+    )
+    steps_per_case = round((PRESS_TIME + cfg["twist_time"]) / cfg["dt"])
+    t_end = np.array(s["t_s"][1:])
+    # the first step pays the numba compilation: it is left out of the rates
+    later = np.arange(wall.size) > 0
+    contact, twisting = later & (pairs > 0), later & (t_end > PRESS_TIME + 1e-9)
+
+    def mean(values: np.ndarray, mask: np.ndarray) -> float | None:
+        return float(np.mean(values[mask])) if np.any(mask) else None
+
+    rate = mean(wall, contact)
+    payload = {
+        "benchmark": NAME,
+        "mode": f"{mode}_probe",
+        "kind": "TIMING PROBE, not a result: the first steps of one case, cut at the wall budget",
+        "probe_mu": mu,
+        "budget_s": budget,
+        "steps_done": case["steps"],
+        "t_reached_s": case["t_end_s"],
+        "steps_per_case": steps_per_case,
+        "cases": len(cfg["mus"]),
+        "particles": case["particles"],
+        "shell_vertices": case["shell_vertices"],
+        "shell_tetrahedra": case["shell_tetrahedra"],
+        "first_step_s": float(wall[0]) if wall.size else None,
+        "phase_s": case["phase_s"],
+        "mean_step_s_in_contact": rate,
+        "mean_newton_per_step_in_contact": mean(newton, contact),
+        "twist_steps_done": int(np.count_nonzero(twisting)),
+        "mean_step_s_twisting": mean(wall, twisting),
+        "mean_newton_per_step_twisting": mean(newton, twisting),
+        "per_step": {
+            "wall_s": wall.tolist(),
+            "newton_iterations": newton.tolist(),
+            "contact_pairs": pairs.tolist(),
+        },
+        "naive_estimate_h": (
+            None if rate is None else rate * steps_per_case * len(cfg["mus"]) / 3600.0
+        ),
+        "estimate_note": (
+            "mean step in contact (press phase only, unless the probe reached the twist) x "
+            "steps per case x cases; a lower bound: slipping steps took 5-20x more Newton "
+            "iterations than sticking ones in quick mode"
+        ),
+        "wall_s": time.perf_counter() - started,
+        "peak_memory_mb": peak_memory_mb(),
+        "parameters": dict(cfg),
+        "environment": environment(),
+    }
+    path = write_json(out, f"{NAME}_{mode}_probe", payload)
+    return {"json": str(path), **payload}
+
+
+def solver_probe(out: str | Path = "results", mu: float = 0.5) -> dict:
+    """Timing probe (not a result) of the linear solvers of the speed issue (``perf_3d``): the
+    first ``SOLVER_PROBE_STEPS`` steps of the partial mode's ``mu`` case with each installed
+    solver, each cut after ``SOLVER_PROBE_BUDGET_S`` of wall time; writes
+    ``twist_partial_solvers.json`` (after every solver) with the wall time of the steps that
+    every solver reached, Newton iterations, phases, and the largest particle-position difference
+    from CHOLMOD's run where both reached the same step."""
+    cfg = MODES["partial"]
+    started = time.perf_counter()
+    results, reference, payload = {}, None, {}
+    for name in ("cholmod", "pardiso", "cg_amg"):
+        try:
+            make_linear_solver(name, block_size=3)
+        except RuntimeError as err:  # not installed
+            results[name] = {"error": str(err)}
+            continue
+        case = _run_one(
+            cfg, mu, budget_s=SOLVER_PROBE_BUDGET_S, max_steps=SOLVER_PROBE_STEPS, solver=name
+        )
+        x = case["final_mpm_x"]
+        if reference is None:
+            reference = (case["steps"], x)
+        same = reference[0] == case["steps"]
+        results[name] = {
+            "steps": case["steps"],
+            "wall_s": case["wall_s"],
+            "step_wall_s": case["series"]["step_wall_s"],
+            "step_newton_iterations": case["series"]["step_newton_iterations"],
+            "newton_iterations": case["newton_iterations"],
+            "phase_s": case["phase_s"],
+            "contact_pairs_end": case["series"]["step_contact_pairs"][-1],
+            "max_position_difference_from_cholmod_m": (
+                float(np.abs(x - reference[1]).max()) if same else None
+            ),
+        }
+        common = min(r["steps"] for r in results.values() if "steps" in r)
+        payload = {
+            "benchmark": NAME,
+            "mode": "partial_solvers",
+            "kind": "TIMING PROBE, not a result: the first steps of the partial mode per solver",
+            "probe_mu": mu,
+            "max_steps": SOLVER_PROBE_STEPS,
+            "budget_s": SOLVER_PROBE_BUDGET_S,
+            "order": "one process, solvers in the order listed (the first pays any warm-up)",
+            "common_steps": common,
+            "wall_s_common_steps": {
+                k: float(sum(r["step_wall_s"][:common])) for k, r in results.items() if "steps" in r
+            },
+            "solvers": results,
+            "wall_s": time.perf_counter() - started,
+            "peak_memory_mb": peak_memory_mb(),
+            "parameters": dict(cfg),
+            "environment": environment(),
+        }
+        path = write_json(out, f"{NAME}_partial_solvers", payload)
+    return {"json": str(path), **payload}
+
+
+def run(
+    mode: str = "full", out: str | Path = "results", mus: tuple[float, ...] | None = None
+) -> dict:
+    """Press and twist at each mu; write ``twist.json`` and ``twist.png`` to ``out``.
+
+    Args:
+        mode: ``"full"`` (the paper's resolution), ``"partial"`` or ``"quick"``; or a timing
+            probe of one of them, ``"full_probe"`` / ``"partial_probe"`` (see ``probe``).
+        out: output folder.
+        mus: friction coefficients to run instead of the mode's (the quick-mode test runs three).
+
+    Returns:
+        ``{"json": path, "png": path, **payload}``; ``payload["cases"]`` per mu.
+    """
+    if mode == "partial_solvers":
+        return solver_probe(out)
+    if mode.endswith("_probe") and mode[: -len("_probe")] in MODES:
+        return probe(mode[: -len("_probe")], out)
+    if mode not in MODES:
+        modes = sorted(MODES) + ["full_probe", "partial_probe", "partial_solvers"]
+        raise ValueError(f"mode must be one of {modes}, got {mode!r}")
+    cfg = dict(MODES[mode])
+    if mus is not None:
+        cfg["mus"] = tuple(float(m) for m in mus)
+    env = environment()
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    started = time.perf_counter()
+    runs = [_run_one(cfg, mu) for mu in cfg["mus"]]
+    angles = [r["slip_angle_rad"] for r in runs]
+    complete = all(r["error"] is None for r in runs)
+    payload = {
+        "benchmark": NAME,
+        "mode": mode,
+        "slip_angle_pi": {str(r["mu"]): r["slip_angle_pi"] for r in runs},
+        "slip_increases_with_mu": bool(complete and slip_ordered(angles)),
+        "failed_cases": [r["mu"] for r in runs if r["error"] is not None],
+        "cases": [{k: v for k, v in r.items() if k != "final_mpm_x"} for r in runs],
+        "wall_s": time.perf_counter() - started,
+        "peak_memory_mb": peak_memory_mb(),
+        "paper": PAPER,
+        "targets": {
+            "full": "slip angle within 0.1 pi of the paper's per mu; no slip at mu = 1",
+            "quick": "slip angle increases with mu (no slip counts as the largest)",
+        },
+        "full_mode_estimate": FULL_ESTIMATE,
+        "parameters": {
+            **cfg,
+            "cube_edge_m": CUBE_EDGE,
+            "cube_material": {"model": "NeoHookean", **CUBE},
+            "shell_radii_m": SHELL_RADII,
+            "shell_material": {"model": "NeoHookean", **SHELL},
+            "shell_center_m": shell_mesh(cfg["shell_h"])[1].tolist(),
+            "shell_prescribed": "nodes with z >= the centre's (upper hemisphere)",
+            "press_speed_m_s": PRESS_SPEED,
+            "press_time_s": PRESS_TIME,
+            "floor": "sticky level-set box z <= 0 under the cube",
+            "gravity_m_s2": GRAVITY,
+            "dhat_m": DHAT,
+            "kappa_Pa": KAPPA,
+            "eps_v_m_s": EPS_V,
+            "tol_m_s": TOL,
+            "max_newton_iterations": MAX_NEWTON,
+            "friction_iterations": 20,
+            "integrator": "backward_euler",
+            "transfer": "apic",
+            "region_radius_m": REGION_RADIUS,
+            "region": "top particle layer, initial distance to the z axis < region_radius_m",
+            "slip_window_s": SLIP_WINDOW_S,
+            "slip_rate": SLIP_RATE,
+            "stop_after_slip_s": STOP_AFTER_SLIP_S if cfg["stop_after_slip"] else None,
+            "particles": runs[0]["particles"],
+            "shell_vertices": runs[0]["shell_vertices"],
+            "shell_tetrahedra": runs[0]["shell_tetrahedra"],
+        },
+        "environment": env,
+    }
+    path = write_json(out, NAME, payload)
+    png = out / f"{NAME}.png"
+    _plot(runs, png, f"Shell pressed and twisted on an MPM cube ({mode} mode)")
+    return {"json": str(path), "png": str(png), **payload}
