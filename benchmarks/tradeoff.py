@@ -74,6 +74,13 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks._tradeoff_knobs import (
+    finer_key,
+    ladder,
+    option_defaults,
+    option_knobs,
+    strategy_knobs,
+)
 from benchmarks._tradeoff_point import (
     check_scheduler,
     execute_dask,
@@ -83,12 +90,14 @@ from benchmarks._tradeoff_point import (
 from benchmarks._tradeoff_report import (
     COSTS,
     best_knob,
+    crossovers,
     knob_effect,
     markdown,
     pareto_front,
     plot_scene,
+    winners,
 )
-from benchmarks._tradeoff_scenes import FINER, KNOBS, SCENES, STRATEGIES
+from benchmarks._tradeoff_scenes import SCENE_FINER, SCENES
 from benchmarks.common import environment, git_commit, write_json
 
 log = logging.getLogger(__name__)
@@ -100,7 +109,9 @@ CONNECT_TIMEOUT_S = 10.0  # s, to reach a Dask scheduler
 
 # ----------------------------------------------------------------------------- planning
 def _short(value: object) -> str:
-    """A compact label of a knob value: 2e-3, 0.5, 0.333, 4, bfemp."""
+    """A compact label of a knob value: 2e-3, 0.5, 0.333, 4, auto, none."""
+    if value is None:
+        return "none"
     if isinstance(value, str) or isinstance(value, int) and not isinstance(value, bool):
         return str(value)
     value = float(value)
@@ -126,43 +137,111 @@ def _names(value: str | list[str] | tuple[str, ...] | None, what: str, allowed: 
     return list(dict.fromkeys(names))
 
 
-def _strategies() -> tuple[str, ...]:
-    """Strategy names a point accepts: the trade study's and the library's registered ones."""
-    registry = getattr(importlib.import_module("bfemp.steppers"), "STRATEGIES", {})
-    return tuple(dict.fromkeys([*STRATEGIES, *registry]))
+def _registry() -> tuple[str, ...]:
+    """The library's strategy names (``bfemp.steppers.STRATEGIES``)."""
+    return tuple(importlib.import_module("bfemp.steppers").STRATEGIES)
 
 
-def _check_value(scene: str, knob: str, value: object) -> None:
-    if knob == "strategy":
-        if value not in _strategies():
-            raise ValueError(
-                f"{scene}: unknown strategy {value!r}; available: {', '.join(_strategies())}"
-            )
-        return
+def all_knobs() -> tuple[str, ...]:
+    """Every knob name: dt, the scenes' knobs and every strategy's declared option knobs."""
+    names = ["dt", *SCENE_FINER]
+    for strategy in _registry():
+        names += list(option_knobs(strategy))
+    return tuple(dict.fromkeys(names))
+
+
+def _check_value(where: str, knob: str, value: object, spec: dict | None) -> None:
+    if value is None and spec is not None and "first" in spec:
+        return  # "off": a knob swept from None (xpic_order)
     ok = isinstance(value, int | float) and not isinstance(value, bool)
-    if not ok or not math.isfinite(value) or value <= 0:
-        raise ValueError(f"{scene}: knob {knob} must be a positive number, got {value!r}")
+    if not ok or not math.isfinite(value) or value < 0 or (value == 0 and knob != "iterations"):
+        raise ValueError(f"{where}: knob {knob} must be a positive number, got {value!r}")
 
 
-def scene_knobs(scene: str, mode: str, knobs: list[str], sweeps: dict | None) -> dict:
-    """The sweeps of ``scene``: knob -> values, for the chosen knobs the scene has."""
-    spec = SCENES[scene]
-    values = dict(spec["modes"][mode]["sweeps"])
-    for knob, override in (sweeps or {}).get(scene, {}).items():
-        if knob not in spec["knobs"]:
-            raise ValueError(
-                f"sweeps[{scene!r}]: {scene} has no knob {knob!r}; its knobs: "
-                f"{', '.join(spec['knobs'])}"
-            )
-        override = tuple(override) if isinstance(override, list | tuple) else (override,)
-        if not override:
+def strategy_base(scene: str, strategy: str, mode: str) -> dict:
+    """The settings of one strategy's base point on ``scene`` (what ``run_point`` takes, but
+    ``scene``): the scene's base, ``strategy``, ``dt``, ``options`` and ``transfer`` if any."""
+    spec = SCENES[scene]["strategies"][strategy]
+    base = {"strategy": strategy, "dt": spec["dt"][mode], "options": dict(spec["options"])}
+    if "transfer" in spec:
+        base["transfer"] = spec["transfer"]
+    return {**base, **SCENES[scene]["modes"][mode]["base"]}
+
+
+def _knob_base(settings: dict, knob: str, strategy: str) -> object:
+    if knob == "dt" or knob in SCENE_FINER:
+        return settings[knob]
+    return settings["options"].get(knob, option_defaults(strategy).get(knob))
+
+
+def _with(settings: dict, knob: str, value: object) -> dict:
+    """``settings`` with one knob changed (a scene knob, dt, or an option; an option at its
+    current value, its default included, leaves ``settings`` as they are)."""
+    if _knob_base(settings, knob, settings["strategy"]) == value:
+        return settings
+    if knob == "dt" or knob in SCENE_FINER:
+        return {**settings, knob: value}
+    return {**settings, "options": {**settings["options"], knob: value}}
+
+
+def knob_table(scene: str, strategy: str, mode: str, sweeps: dict | None = None) -> dict:
+    """Knob -> ``{"finer": +-1, "values": (...)}`` of one strategy on one scene.
+
+    The scene's knobs (less the strategy's ``no_knobs``) take the mode's values; dt (at a fixed
+    dt) or the CFL fractions (at ``dt="auto"``) and the strategy's option knobs take
+    ``ladder`` values around the base. ``sweeps`` (``{knob: values}`` for every strategy of the
+    scene, ``{strategy: {knob: values}}`` for one) replaces values; a knob swept from None
+    starts at its declared ``first``.
+    """
+    decl = SCENES[scene]
+    sdecl = decl["strategies"][strategy]
+    base = strategy_base(scene, strategy, mode)
+    table: dict[str, dict] = {}
+    skip = sdecl.get("no_knobs", {})
+    for knob in decl["scene_knobs"]:
+        if knob not in skip:
+            values = decl["modes"][mode]["sweeps"].get(knob, (base[knob],))
+            table[knob] = {"finer": SCENE_FINER[knob], "values": tuple(values), "spec": None}
+    for knob, spec in strategy_knobs(strategy, base["dt"]).items():
+        if knob in skip:
+            continue
+        spec = {**spec, **sdecl.get("spec", {}).get(knob, {})}
+        values = ladder(spec, _knob_base(base, knob, strategy), mode)
+        if values:
+            table[knob] = {"finer": spec["finer"], "values": values, "spec": spec}
+    overrides = dict((sweeps or {}).get(scene, {}))
+    mine = overrides.pop(strategy, {}) if isinstance(overrides.get(strategy), dict) else {}
+    for name in _registry():
+        overrides.pop(name, None)
+    for knob, values in {**overrides, **mine}.items():
+        if knob not in table:
+            continue  # a scene-wide override of a knob this strategy does not have
+        values = tuple(values) if isinstance(values, list | tuple) else (values,)
+        if not values:
             raise ValueError(f"sweeps[{scene!r}][{knob!r}] is empty")
-        values[knob] = override
-    chosen = {k: tuple(values[k]) for k in knobs if k in spec["knobs"]}
-    for knob, vals in chosen.items():
-        for value in vals:
-            _check_value(scene, knob, value)
-    return chosen
+        table[knob] = {**table[knob], "values": values}
+    for knob, entry in table.items():
+        for value in entry["values"]:
+            _check_value(f"{scene}/{strategy}", knob, value, entry["spec"])
+    return table
+
+
+def _check_sweeps(sweeps: dict | None) -> None:
+    for scene, by_knob in (sweeps or {}).items():
+        if scene not in SCENES:
+            raise ValueError(f"sweeps: unknown scene {scene!r}; available: {sorted(SCENES)}")
+        known = all_knobs()
+        for key, value in by_knob.items():
+            if key in _registry():
+                if key not in SCENES[scene]["strategies"]:
+                    raise ValueError(f"sweeps[{scene!r}]: strategy {key!r} does not run {scene}")
+                unknown = [k for k in value if k not in known]
+            else:
+                unknown = [key] if key not in known else []
+            if unknown:
+                raise ValueError(
+                    f"sweeps[{scene!r}]: unknown knob {unknown[0]!r}; knobs: {', '.join(known)}"
+                )
 
 
 def plan(
@@ -170,6 +249,7 @@ def plan(
     scenes: str | list[str] | None = None,
     knobs: str | list[str] | None = None,
     *,
+    strategies: str | list[str] | None = None,
     sweeps: dict | None = None,
     threads: int = 1,
 ) -> list[dict]:
@@ -178,65 +258,79 @@ def plan(
     Args:
         mode: ``"quick"`` or ``"full"``.
         scenes: names or a comma-separated string (None: every scene).
-        knobs: names or a comma-separated string (None: every knob of each scene). A scene that
-            has none of the chosen knobs is skipped (logged); no scene left is an error.
-        sweeps: ``{scene: {knob: values}}`` replacing the mode's values of those knobs.
+        knobs: names or a comma-separated string (None: every knob of each strategy); the base
+            point of each strategy always runs.
+        strategies: registry names or a comma-separated string (None: every one); a strategy
+            that does not apply to a scene is skipped there (logged with the reason); nothing
+            left is an error.
+        sweeps: value overrides, see :func:`knob_table`.
         threads: numba/BLAS threads of each point's process.
 
     Returns:
-        one dict per distinct point: ``id`` (``scene/label``), ``scene``, ``label``, ``role``
-        (``"base"``, ``"sweep"`` or ``"reference"``), ``knob`` and ``value`` (None for base and
-        reference), ``sweeps`` (the knobs whose sweep holds the point), ``is_reference``,
-        ``settings``, ``strategy``, ``mode``, ``threads``.
+        one dict per distinct point: ``id`` (``scene/strategy/label``), ``scene``,
+        ``strategy``, ``label``, ``role`` (``"base"``, ``"sweep"`` or ``"reference"``),
+        ``knob`` and ``value`` (None for base and reference), ``sweeps`` (the knobs whose sweep
+        holds the point), ``finer`` (knob -> direction, the strategy's knobs on the scene),
+        ``is_reference``, ``settings``, ``mode``, ``threads``.
     """
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
     if not (isinstance(threads, int) and threads >= 1):
         raise ValueError(f"--threads-per-point must be an integer >= 1, got {threads!r}")
     scenes = _names(scenes, "scene", tuple(sorted(SCENES)))
-    knobs = _names(knobs, "knob", KNOBS)
-    for scene in sweeps or {}:
-        if scene not in SCENES:
-            raise ValueError(f"sweeps: unknown scene {scene!r}; available: {sorted(SCENES)}")
+    chosen_knobs = _names(knobs, "knob", all_knobs())
+    chosen = _names(strategies, "strategy", _registry())
+    _check_sweeps(sweeps)
     points = []
     for scene in scenes:
-        chosen = scene_knobs(scene, mode, knobs, sweeps)
-        if not chosen:
-            log.warning(
-                "%s has none of the knobs %s (its knobs: %s): skipped",
-                scene,
-                ", ".join(knobs),
-                ", ".join(SCENES[scene]["knobs"]),
-            )
-            continue
-        points += _scene_points(scene, mode, chosen, threads)
+        runs = [s for s in chosen if s in SCENES[scene]["strategies"]]
+        for s in chosen:
+            if s not in runs:
+                why = SCENES[scene]["not_applicable"].get(s, "not declared for this scene")
+                log.info("%s: %s does not run here: %s", scene, s, why)
+        ref = SCENES[scene].get("reference_strategy")
+        for strategy in runs:
+            table = knob_table(scene, strategy, mode, sweeps)
+            table = {k: v for k, v in table.items() if k in chosen_knobs}
+            points += _strategy_points(scene, strategy, mode, table, threads, strategy == ref)
+        if runs and ref and ref not in runs:  # the others' errors need the reference run
+            table = knob_table(scene, ref, mode, sweeps)
+            table = {k: v for k, v in table.items() if k in chosen_knobs}
+            points += [
+                p
+                for p in _strategy_points(scene, ref, mode, table, threads, True)
+                if p["is_reference"]
+            ]
     if not points:
         raise ValueError(
-            f"no scene among {', '.join(scenes)} has any of the knobs {', '.join(knobs)}; "
-            + "; ".join(f"{s}: {', '.join(SCENES[s]['knobs'])}" for s in scenes)
+            f"no scene among {', '.join(scenes)} runs any of the strategies {', '.join(chosen)}; "
+            + "; ".join(f"{s}: {', '.join(SCENES[s]['strategies'])}" for s in scenes)
         )
     return points
 
 
-def _scene_points(scene: str, mode: str, chosen: dict, threads: int) -> list[dict]:
-    spec = SCENES[scene]
-    base = dict(spec["modes"][mode]["base"])
+def _strategy_points(
+    scene: str, strategy: str, mode: str, table: dict, threads: int, reference: bool
+) -> list[dict]:
+    base = strategy_base(scene, strategy, mode)
     by_settings: dict[str, dict] = {}
+    finer = {k: v["finer"] for k, v in table.items()}
 
     def add(settings: dict, role: str, knob: str | None, label: str) -> dict:
         key = json.dumps(settings, sort_keys=True)
         if key not in by_settings:
             by_settings[key] = {
-                "id": f"{scene}/{label}",
+                "id": f"{scene}/{strategy}/{label}",
                 "scene": scene,
+                "strategy": strategy,
                 "label": label,
                 "role": role,
                 "knob": knob,
-                "value": settings[knob] if knob else None,
+                "value": _knob_base(settings, knob, strategy) if knob else None,
                 "sweeps": [],
+                "finer": finer,
                 "is_reference": False,
                 "settings": settings,
-                "strategy": settings["strategy"],
                 "mode": mode,
                 "threads": threads,
             }
@@ -246,27 +340,27 @@ def _scene_points(scene: str, mode: str, chosen: dict, threads: int) -> list[dic
         return record
 
     add(base, "base", None, "base")
-    for knob, values in chosen.items():
-        for value in values:
-            add({**base, knob: value}, "sweep", knob, f"{knob}={_short(value)}")
-    if "reference_keys" in spec:
-        finest = {
-            knob: max(values, key=lambda v, s=FINER[knob]: s * v)
-            for knob, values in chosen.items()
-            if knob in FINER
-        }
-        add({**base, **finest}, "reference", None, "reference")["is_reference"] = True
+    for knob, entry in table.items():
+        for value in entry["values"]:
+            add(_with(base, knob, value), "sweep", knob, f"{knob}={_short(value)}")
+    if reference and "reference_keys" in SCENES[scene]:
+        finest = dict(base)
+        for knob, entry in table.items():
+            value = max(entry["values"], key=lambda v, e=entry: finer_key(e, v))
+            finest = _with(finest, knob, value)
+        add(finest, "reference", None, "reference")["is_reference"] = True
     return list(by_settings.values())
 
 
 # ----------------------------------------------------------------------------- running
+RUNS_MODULE = "benchmarks._tradeoff_runs"
+
+
 def _job(record: dict, timeout_s: float | None) -> dict:
-    """What ``execute_point`` runs for a record: the library's strategy name in the settings."""
-    settings = dict(record["settings"])
-    settings["strategy"] = STRATEGIES.get(settings["strategy"], settings["strategy"])
+    """What ``execute_point`` runs for a record."""
     return {
-        "module": SCENES[record["scene"]]["module"],
-        "settings": settings,
+        "module": RUNS_MODULE,
+        "settings": {"scene": record["scene"], **record["settings"]},
         "threads": int(record.get("threads", 1)),
         "timeout_s": timeout_s,
     }
@@ -300,17 +394,22 @@ def point_error(scene: str, measurement: dict, reference: dict | None) -> tuple:
 
 
 def _finish(record: dict, measurement: dict, reference: dict | None) -> dict:
-    """A record with its measurement and error."""
+    """A record with its measurement and error. A point whose metrics carry ``point_wall_s``
+    and ``point_cpu_s`` (a run that also runs its own reference, lr_compression) costs those."""
     error, parts = point_error(record["scene"], measurement, reference)
     metrics = measurement.get("metrics")
+    wall, cpu = measurement.get("wall_s"), measurement.get("cpu_s")
+    if metrics and metrics.get("point_wall_s") is not None:
+        wall, cpu = metrics["point_wall_s"], metrics.get("point_cpu_s")
     return {
         **record,
         "error": error,
         "error_parts": parts,
-        "wall_s": measurement.get("wall_s"),
-        "cpu_s": measurement.get("cpu_s"),
+        "wall_s": wall,
+        "cpu_s": cpu,
+        "run_point_wall_s": measurement.get("wall_s"),
         "process_wall_s": measurement.get("process_wall_s"),
-        "newton_iterations": (metrics or {}).get("newton_iterations"),
+        "iterations": (metrics or {}).get("iterations"),
         "peak_memory_mb": measurement.get("peak_memory_mb"),
         "failure": measurement.get("failure"),
         "metrics": metrics,
@@ -318,10 +417,11 @@ def _finish(record: dict, measurement: dict, reference: dict | None) -> dict:
     }
 
 
-def _warmup_job(scene: str, threads: int) -> dict:
-    """A few steps of the scene's quick base (``SCENES[scene]["warmup"]``): fills numba's cache
-    before the timed points (a cold cache would put compilation into the first points' times)."""
-    settings = {**SCENES[scene]["modes"]["quick"]["base"], **SCENES[scene]["warmup"]}
+def _warmup_job(scene: str, strategy: str, threads: int) -> dict:
+    """A few steps of the strategy's quick base on the scene (``SCENES[scene]["warmup"]``):
+    fills numba's cache before the timed points (a cold cache would put compilation into the
+    first points' times)."""
+    settings = {**strategy_base(scene, strategy, "quick"), **SCENES[scene]["warmup"]}
     return _job({"scene": scene, "settings": settings, "threads": threads}, None)
 
 
@@ -342,33 +442,57 @@ def _reference(records: list[dict], results: list[dict]) -> dict[str, dict]:
 
 
 # ----------------------------------------------------------------------------- analysis
-def analyse(records: list[dict], scenes: list[str], cost: str = "wall_s") -> tuple[dict, dict]:
-    """Mark the Pareto points (``record["pareto"]``); per scene, the knob effects and best knob.
+def _front(recs: list[dict], cost: str) -> set[int]:
+    seconds = np.array([r[cost] if r[cost] else np.nan for r in recs], dtype=float)
+    err = np.array([np.nan if r["error"] is None else r["error"] for r in recs], dtype=float)
+    return set(pareto_front(seconds, err).tolist())
 
-    ``cost`` is the record key of the cost axis: ``"wall_s"`` or ``"cpu_s"``.
+
+def analyse(records: list[dict], scenes: list[str], cost: str = "wall_s") -> dict:
+    """Mark the Pareto points; per scene the winners; per scene and strategy the knob effects.
+
+    ``record["pareto"]``: on the scene's front over every strategy; ``record["strategy_pareto"]``:
+    on its strategy's own front. ``cost`` is the record key of the cost axis (``"wall_s"`` or
+    ``"cpu_s"``).
+
+    Returns:
+        ``{"knob_effects": {scene: {strategy: {knob: effect}}}, "best_knob": {scene: {strategy:
+        knob}}, "winners": {scene: ranges}, "crossovers": {scene: [...]}}``.
     """
-    effects, best = {}, {}
+    out: dict = {"knob_effects": {}, "best_knob": {}, "winners": {}, "crossovers": {}}
     for scene in scenes:
         recs = [r for r in records if r["scene"] == scene]
-        seconds = np.array([r[cost] if r[cost] else np.nan for r in recs], dtype=float)
-        err = np.array([np.nan if r["error"] is None else r["error"] for r in recs], dtype=float)
-        front = set(pareto_front(seconds, err).tolist())
+        front = _front(recs, cost)
         for k, r in enumerate(recs):
             r["pareto"] = k in front
-        knobs = [k for k in KNOBS if any(k in r["sweeps"] for r in recs)]
-        effects[scene] = {}
-        for knob in knobs:
-            sweep = [r for r in recs if knob in r["sweeps"]]
-            if knob not in FINER:  # categorical: the points are compared on the plot
-                effects[scene][knob] = {**knob_effect([], 1), "points": len(sweep)}
-                continue
-            rows = [
-                {"value": r["settings"][knob], "error": r["error"], "time_s": r[cost]}
-                for r in sweep
-            ]
-            effects[scene][knob] = knob_effect(rows, FINER[knob])
-        best[scene] = best_knob(effects[scene])
-    return effects, best
+        out["knob_effects"][scene], out["best_knob"][scene] = {}, {}
+        for strategy in dict.fromkeys(r["strategy"] for r in recs):
+            mine = [r for r in recs if r["strategy"] == strategy]
+            own = _front(mine, cost)
+            for k, r in enumerate(mine):
+                r["strategy_pareto"] = k in own
+            effects = {}
+            knobs = list(dict.fromkeys(k for r in mine for k in r["sweeps"]))
+            for knob in knobs:
+                sweep = [r for r in mine if knob in r["sweeps"]]
+                rows = [
+                    {
+                        "value": r["value"]
+                        if r["knob"] == knob
+                        else _knob_base(r["settings"], knob, strategy),
+                        "error": r["error"],
+                        "time_s": r[cost],
+                    }
+                    for r in sweep
+                ]
+                rows = [row for row in rows if row["value"] is not None]  # "off" is no number
+                effects[knob] = knob_effect(rows, sweep[0]["finer"][knob])
+            out["knob_effects"][scene][strategy] = effects
+            out["best_knob"][scene][strategy] = best_knob(effects)
+        ranges = winners(recs, cost)
+        out["winners"][scene] = ranges
+        out["crossovers"][scene] = crossovers(ranges)
+    return out
 
 
 # ----------------------------------------------------------------------------- entry points
@@ -378,6 +502,7 @@ def sweep(
     *,
     scenes: str | list[str] | None = None,
     knobs: str | list[str] | None = None,
+    strategies: str | list[str] | None = None,
     workers: int | None = None,
     scheduler: str | None = None,
     threads: int = 1,
@@ -389,7 +514,7 @@ def sweep(
     """Run the trade study and write ``tradeoff.json``, ``tradeoff.md``, ``tradeoff_<scene>.png``.
 
     Args:
-        mode, scenes, knobs, sweeps, threads: see :func:`plan`.
+        mode, scenes, knobs, strategies, sweeps, threads: see :func:`plan`.
         out: output folder.
         workers: local point processes at once (default: the number of cores); ignored with
             ``scheduler``.
@@ -410,8 +535,9 @@ def sweep(
     workers = (os.cpu_count() or 1) if workers is None else workers
     if not (isinstance(workers, int) and workers >= 1):
         raise ValueError(f"--workers must be an integer >= 1, got {workers!r}")
-    records = plan(mode, scenes, knobs, sweeps=sweeps, threads=threads)
+    records = plan(mode, scenes, knobs, strategies=strategies, sweeps=sweeps, threads=threads)
     scene_names = list(dict.fromkeys(r["scene"] for r in records))
+    pairs = list(dict.fromkeys((r["scene"], r["strategy"]) for r in records))
     env = environment()
     out = Path(out)
     json_path = out / f"{NAME}.json"
@@ -424,9 +550,10 @@ def sweep(
         return execute_local(ids, batch, workers)
 
     started = time.perf_counter()
+    warm = pairs if warmup else []
     warmed = execute(
-        [f"{scene}/warmup" for scene in (scene_names if warmup else [])],
-        [_warmup_job(scene, threads) for scene in (scene_names if warmup else [])],
+        [f"{scene}/{strategy}/warmup" for scene, strategy in warm],
+        [_warmup_job(scene, strategy, threads) for scene, strategy in warm],
     )
     warmup_s = time.perf_counter() - started
     started = time.perf_counter()
@@ -442,13 +569,40 @@ def sweep(
             f"--id {shlex.quote(record['id'])}"
         )
         finished.append(done)
-    effects, best = analyse(finished, scene_names, cost_key)
+    analysis = analyse(finished, scene_names, cost_key)
+    chosen = _names(strategies, "strategy", _registry())
     payload = {
         "benchmark": NAME,
         "mode": mode,
         "scenes": scene_names,
+        "strategies": {
+            s: list(dict.fromkeys(st for sc, st in pairs if sc == s)) for s in scene_names
+        },
+        "strategy_notes": {
+            s: {st: SCENES[s]["strategies"][st].get("note") for sc, st in pairs if sc == s}
+            for s in scene_names
+        },
+        "not_run": {
+            s: {
+                st: SCENES[s]["not_applicable"].get(st, "not declared for this scene")
+                for st in chosen
+                if (s, st) not in pairs
+            }
+            for s in scene_names
+        },
         "knobs": {
-            s: sorted({k for r in finished if r["scene"] == s for k in r["sweeps"]})
+            s: {
+                st: sorted(
+                    {
+                        k
+                        for r in finished
+                        if (r["scene"], r["strategy"]) == (s, st)
+                        for k in r["sweeps"]
+                    }
+                )
+                for sc, st in pairs
+                if sc == s
+            }
             for s in scene_names
         },
         "errors": {s: SCENES[s]["error"] for s in scene_names},
@@ -468,8 +622,7 @@ def sweep(
         "pareto": {
             s: [r["id"] for r in finished if r["scene"] == s and r["pareto"]] for s in scene_names
         },
-        "knob_effects": effects,
-        "best_knob": best,
+        **analysis,
         "references": references,
         "points": finished,
         "environment": env,
@@ -480,16 +633,23 @@ def sweep(
     pngs = {}
     for scene in scene_names:
         recs = [r for r in finished if r["scene"] == scene]
-        title = f"{scene}: error against {COSTS[cost_key]} ({mode} mode, best knob: {best[scene]})"
-        label = "reference error" if "reference_keys" in SCENES[scene] else "error vs analytic"
+        title = f"{scene}: error against {COSTS[cost_key]} ({mode} mode)"
+        label = (
+            "error vs reference run" if "reference_keys" in SCENES[scene] else "error vs analytic"
+        )
         pngs[scene] = str(plot_scene(recs, out / f"{NAME}_{scene}.png", title, label, cost_key))
     for scene in scene_names:
-        log.info("%s: best knob %s, Pareto front %s", scene, best[scene], payload["pareto"][scene])
+        log.info(
+            "%s: winners %s",
+            scene,
+            [(w["error_from"], w["winner"]) for w in payload["winners"][scene]],
+        )
     return {"json": str(path), "markdown": str(md), "png": pngs, **payload}
 
 
 def run(mode: str = "full", out: str | Path = "results") -> dict:
-    """The registry's entry point (``python -m benchmarks tradeoff``): every scene and knob."""
+    """The registry's entry point (``python -m benchmarks tradeoff``): every scene, strategy and
+    knob."""
     return sweep(mode, out)
 
 
@@ -530,16 +690,20 @@ def load_record(
 
 
 def _check_settings(record: dict) -> None:
-    """The record's settings are those its scene's ``run_point`` takes, with valid knobs."""
-    scene = record["scene"]
-    keys = importlib.import_module(SCENES[scene]["module"]).POINT_KEYS
-    settings = record["settings"]
-    missing = [k for k in keys if k not in settings]
-    unknown = [k for k in settings if k not in keys]
-    if missing or unknown:
-        raise ValueError(f"{scene} settings: missing {missing}, unknown {unknown}")
-    for knob in SCENES[scene]["knobs"]:
-        _check_value(scene, knob, settings[knob])
+    """The record's strategy runs its scene and its knob values are valid."""
+    scene, settings = record["scene"], record["settings"]
+    strategy = settings.get("strategy")
+    if strategy not in SCENES[scene]["strategies"]:
+        raise ValueError(
+            f"{scene}: strategy {strategy!r} does not run here; its strategies: "
+            f"{', '.join(SCENES[scene]['strategies'])}"
+        )
+    if not isinstance(settings.get("options"), dict):
+        raise ValueError(f"{scene} settings: 'options' must be a dict of the strategy's options")
+    for knob, entry in knob_table(scene, strategy, record.get("mode", "quick")).items():
+        _check_value(
+            f"{scene}/{strategy}", knob, _knob_base(settings, knob, strategy), entry["spec"]
+        )
 
 
 def replay(record: dict, timeout_s: float | None = None) -> dict:
@@ -551,7 +715,7 @@ def replay(record: dict, timeout_s: float | None = None) -> dict:
     """
     _check_settings(record)
     point = {
-        "id": record.get("id", f"{record['scene']}/point"),
+        "id": record.get("id", f"{record['scene']}/{record['settings']['strategy']}/point"),
         "scene": record["scene"],
         "label": record.get("label", "point"),
         "settings": record["settings"],
@@ -583,7 +747,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument(
         "--scenes", help=f"comma-separated scenes (default: all: {', '.join(sorted(SCENES))})"
     )
-    group.add_argument("--knobs", help=f"comma-separated knobs (default: all: {', '.join(KNOBS)})")
+    group.add_argument(
+        "--knobs", help="comma-separated knobs (default: every knob of each strategy)"
+    )
+    group.add_argument(
+        "--strategies",
+        help="comma-separated strategies (default: every one that applies to each scene)",
+    )
     group.add_argument("--workers", type=int, help="local point processes at once (default: cores)")
     group.add_argument("--scheduler", help="run the points on a Dask scheduler (tcp://host:port)")
     group.add_argument(
@@ -613,8 +783,8 @@ def main_from_args(args: argparse.Namespace) -> int:
         status = "reproduced" if result["reproduced"] else "NOT reproduced"
         print(
             f"{result['id']}: error {result['error']} (recorded {result['recorded_error']}): "
-            f"{status}; wall {result['wall_s']} s, {result['newton_iterations']} Newton "
-            f"iterations, peak {result['peak_memory_mb']} MiB"
+            f"{status}; wall {result['wall_s']} s, {result['iterations']} iterations, "
+            f"peak {result['peak_memory_mb']} MiB"
             + (f"; failure: {result['failure']}" if result["failure"] else "")
         )
         return 0 if result["reproduced"] else 1
@@ -625,6 +795,7 @@ def main_from_args(args: argparse.Namespace) -> int:
         args.out,
         scenes=args.scenes,
         knobs=args.knobs,
+        strategies=args.strategies,
         workers=args.workers,
         scheduler=args.scheduler,
         threads=args.threads_per_point,
@@ -633,5 +804,8 @@ def main_from_args(args: argparse.Namespace) -> int:
     )
     print(f"tradeoff: wrote {summary['json']}, {summary['markdown']}")
     for scene in summary["scenes"]:
-        print(f"  {scene}: best knob {summary['best_knob'][scene]}; plot {summary['png'][scene]}")
+        won = ", ".join(
+            f"{w['winner']} from {w['error_from']:.3g}" for w in summary["winners"][scene]
+        )
+        print(f"  {scene}: winners {won or '-'}; plot {summary['png'][scene]}")
     return 0
