@@ -8,8 +8,9 @@ The common knob ``dt`` (s) follows the same rule with ``DT_SWEEP``; an explicit 
 fixed dt sweeps dt and not the fractions (they then change nothing).
 
 ``ladder(spec, base, mode)`` turns a knob's declaration and its base value into the values swept:
-quick mode the base and one step finer (coarser where finer is out of range), full mode one step coarser, the base and one step finer,
-clipped to ``min`` / ``max``. A knob whose base is None ("off", e.g. LR's ``xpic_order``) goes
+quick mode the base and one step finer (coarser where finer is out of range), full mode one step
+coarser, the base and one step finer, clipped to ``min`` / ``max``. A knob whose base is None
+("off", e.g. LR's ``xpic_order``) goes
 from None to ``first`` (quick) and one step beyond (full); one without ``first`` is not swept
 from None (augury's ``tau = None``, which is dt: the scene sets a number to sweep it).
 """

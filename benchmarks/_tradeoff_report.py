@@ -134,8 +134,11 @@ def winner_sentences(scene: str, ranges: list[dict], cost_words: str = "wall tim
             f"Crossover at error {c['error']:.3g}: below it {c['below']} is faster than "
             f"{c['above']} on {scene} (at or above it, {c['above']} wins)."
         )
-    lowest = ranges[-1]["error_from"]
-    lines.append(f"No strategy reached an error below {lowest:.3g} on {scene}.")
+    lowest = ranges[-1]
+    if lowest["error_from"] > 0:
+        lines.append(f"No strategy reached an error below {lowest['error_from']:.3g} on {scene}.")
+    else:
+        lines.append(f"Error 0 is the reference run itself ({lowest['winner']}).")
     return lines
 
 

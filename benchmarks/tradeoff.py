@@ -260,9 +260,10 @@ def plan(
         scenes: names or a comma-separated string (None: every scene).
         knobs: names or a comma-separated string (None: every knob of each strategy); the base
             point of each strategy always runs.
-        strategies: registry names or a comma-separated string (None: every one); a strategy
-            that does not apply to a scene is skipped there (logged with the reason); nothing
-            left is an error.
+        strategies: registry names or a comma-separated string (None: every one), or
+            ``{scene: names}`` (a scene not named there: every one); a strategy that does not
+            apply to a scene is skipped there (logged with the reason); nothing left is an
+            error.
         sweeps: value overrides, see :func:`knob_table`.
         threads: numba/BLAS threads of each point's process.
 
@@ -279,10 +280,17 @@ def plan(
         raise ValueError(f"--threads-per-point must be an integer >= 1, got {threads!r}")
     scenes = _names(scenes, "scene", tuple(sorted(SCENES)))
     chosen_knobs = _names(knobs, "knob", all_knobs())
-    chosen = _names(strategies, "strategy", _registry())
+    per_scene = strategies if isinstance(strategies, dict) else {}
+    for scene in per_scene:
+        if scene not in SCENES:
+            raise ValueError(f"strategies: unknown scene {scene!r}; available: {sorted(SCENES)}")
+    everywhere = _names(None if per_scene else strategies, "strategy", _registry())
     _check_sweeps(sweeps)
     points = []
     for scene in scenes:
+        chosen = (
+            _names(per_scene[scene], "strategy", _registry()) if scene in per_scene else everywhere
+        )
         runs = [s for s in chosen if s in SCENES[scene]["strategies"]]
         for s in chosen:
             if s not in runs:
@@ -303,7 +311,8 @@ def plan(
             ]
     if not points:
         raise ValueError(
-            f"no scene among {', '.join(scenes)} runs any of the strategies {', '.join(chosen)}; "
+            f"no scene among {', '.join(scenes)} runs any of the strategies "
+            f"{', '.join(everywhere) if not per_scene else per_scene}; "
             + "; ".join(f"{s}: {', '.join(SCENES[s]['strategies'])}" for s in scenes)
         )
     return points
@@ -570,7 +579,12 @@ def sweep(
         )
         finished.append(done)
     analysis = analyse(finished, scene_names, cost_key)
-    chosen = _names(strategies, "strategy", _registry())
+
+    def chosen_in(scene: str) -> list[str]:
+        if isinstance(strategies, dict):
+            return _names(strategies.get(scene), "strategy", _registry())
+        return _names(strategies, "strategy", _registry())
+
     payload = {
         "benchmark": NAME,
         "mode": mode,
@@ -585,7 +599,7 @@ def sweep(
         "not_run": {
             s: {
                 st: SCENES[s]["not_applicable"].get(st, "not declared for this scene")
-                for st in chosen
+                for st in chosen_in(s)
                 if (s, st) not in pairs
             }
             for s in scene_names
