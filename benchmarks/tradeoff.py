@@ -1,63 +1,67 @@
-"""Trade study (issue 6): accuracy against cost of the discretisation knobs of three benchmarks.
+"""Trade study across strategies (issues 6, 17): accuracy against cost of each coupling strategy
+and of its knobs, on the BFEMP scenes and one scene of each explicit paper.
 
-``python -m benchmarks tradeoff [--quick | --full] [--scenes rings,slope] [--knobs dt,dx]
-[--workers N | --scheduler tcp://host:port] [--cost wall|cpu] [--out DIR]``, also
-``bfemp sweep`` with the same options. Replay one point:
-``python -m benchmarks tradeoff --replay tradeoff.json --id ID`` or
-``--point '<record as JSON>'``.
+``python -m benchmarks tradeoff [--quick | --full] [--scenes rings,slope] [--strategies
+barrier,two_stage] [--knobs dt,tol] [--workers N | --scheduler tcp://host:port] [--cost
+wall|cpu] [--out DIR]``, also ``bfemp sweep`` with the same options. Replay one point:
+``python -m benchmarks tradeoff --replay tradeoff.json --id ID`` or ``--point '<record as
+JSON>'``.
 
-Scenes and errors (one scalar per point, dimensionless):
+Strategies go by the registry's names (``bfemp.steppers.STRATEGIES``: ``barrier``,
+``two_stage``, ``augury``, ``lr``, ``single_field``). Which of them run a scene is declared per
+scene (``_tradeoff_scenes.SCENES[scene]["strategies"]``, with how each runs it), and so is why
+the others do not (``not_applicable``: lr refuses MPM-only FEM contact it cannot see, explicit
+strategies at the paper's stiffness need steps the scene cannot afford, the softened slope of
+``two_stage_slope`` stands in where the repo has one). Scenes and what the error is against:
 
-- ``slope`` (``benchmarks.slope.run_point``): the MPM box settles and slides down the FEM slope
-  at mu = 0.1; error = ``|a_fit - a_analytic| / a_analytic`` (eq. 40).
-- ``hertz`` (``benchmarks.hertz.run_point``): the linear-elastic disk between the plates;
-  error = ``|C_fit / C_hertz - 1|`` (eq. 39).
-- ``rings`` (``benchmarks.rings.run_point``, APIC, ``rings.INTEGRATOR``): no analytic value;
-  error = the larger of the relative differences of the energy loss over the collision window
-  and of the contact duration from a reference run made with the finest value of every swept
-  knob at once (one-at-a-time points never reach it, except the point that is the reference,
-  whose error is 0). The rings are frictionless: ``eps_v`` is no knob of theirs.
+- ``rings``: barrier, two_stage, augury, lr; against the reference run (barrier at the finest
+  value of each of its swept knobs): the energy loss over the collision window and the contact
+  duration.
+- ``slope``: barrier (E = 4e12 Pa), two_stage, augury, lr (the softened box, E = 1e5 Pa, at
+  the explicit step); against the analytic acceleration (eq. 40).
+- ``hertz``: barrier; against Hertz's C (eq. 39).
+- ``sine_boundary``: barrier; against the reference run's largest compressive force.
+- ``augury_blocks`` (AUG Figs. 8-9, 3D): augury; against the reference run's energy loss.
+- ``lr_compression`` (LR Fig. 5): lr; against the single-material run (the cost is that of the
+  two-block run alone).
 
-Knobs (``KNOBS``): ``strategy`` (coupling strategy, categorical; ``"bfemp"`` is the library's
-``"barrier"`` stepper, the only one so far; other names registered in ``bfemp.steppers`` are
-accepted as they are), ``dt`` (s), ``dx`` (MPM grid, m; the rings' FEM mesh size ``fem_h`` stays
-fixed, the slope's particle lattice follows the grid at fixed ppc, the disk's particles stay),
-``ppc`` (particles per cell, a square; rings and slope), ``spacing`` (the disk's particle
-spacing in m; hertz), ``dhat`` (m), ``eps_v`` (m/s) and ``tol`` (Newton, m/s). The sweeps are
-one at a time around a base setting (``SCENES[scene]["modes"][mode]``): every point differs from
-the base in one knob. Points with equal settings run once (the base belongs to every sweep).
+Knobs. The scene's discretisation knobs (``dx``, ``ppc``, ``spacing``, ``dhat``, ``eps_v``, less
+those a strategy does not have) take the mode's values; each strategy's own knobs are the fields
+of its options dataclass that declare ``sweep`` metadata (``benchmarks._tradeoff_knobs``: e.g.
+``tol`` of barrier and two_stage, ``iterations`` and ``tau`` of augury, ``corrections`` and
+``xpic_order`` of lr, the CFL fractions of every explicit strategy), swept on a ladder around
+the base value: quick mode one step finer, full mode one coarser and one finer. dt is a knob at
+a fixed step; at ``dt="auto"`` the CFL fractions are. The sweeps are one at a time around each
+strategy's base (every point differs from it in one knob); points with equal settings run once.
 
-Modes: ``quick`` is a tiny sweep of coarse settings (seconds per point; 29 points, 3.5 min on
-2 busy cores); its errors are those of coarse discretisations (the rings' energy loss is far
-from converged) and only show the harness at work. ``full`` sweeps around the paper's settings
-(35 points). Expected full-mode costs on the 2-core development machine, extrapolated from the
-recorded single runs (``benchmarks/records``): slope ~3-15 min per point (3000 steps at
-~0.07 s), 13 points; hertz ~10-40 min per point (60 steps of 45k particles), 11 points; rings
-1-5 h per point (1500-3000 steps of 20k-35k particles; the partial record ran 1500 steps of 2.2k
-particles in 9 min), 11 points with the reference (dt = 1e-4 s, ppc = 16, dhat = 5e-3 m) the
-costliest: about a day of CPU for all three, meant for a Dask cluster (``--scheduler``).
+Every point runs in a fresh Python process (``benchmarks._tradeoff_point`` running
+``benchmarks._tradeoff_runs.run_point``) with ``threads`` numba/BLAS threads
+(``--threads-per-point``, default 1): its wall time (scene build and time loop), CPU time,
+peak memory and iterations (Newton, summed over the run; 0 for the purely explicit
+strategies) are its own. The cost axis is the wall time (``--cost cpu``: the CPU time, which a
+busy machine inflates less). Local runs use ``--workers`` processes at once (default: the
+number of cores); with ``--scheduler`` the same pure function ``execute_point`` is submitted to
+a Dask cluster (``distributed.Client``). Before the timed points a few steps of each scene and
+strategy (``warmup``) fill numba's on-disk cache.
 
-Every point runs in a fresh Python process (``benchmarks._tradeoff_point``) with ``threads``
-numba/BLAS threads (``--threads-per-point``, default 1): its wall time (``run_point``: scene
-build and time loop), CPU time and peak memory are its own. The cost axis of the fronts is the
-wall time (``--cost cpu``: the CPU time, which a busy machine, where points wait for cores,
-inflates less). Local runs use ``--workers`` processes at once (default: the number of cores);
-with ``--scheduler`` the same pure function ``execute_point`` is submitted to a Dask cluster
-(``distributed.Client``). Before the timed points a few steps of each scene (``warmup``) fill
-numba's on-disk cache, so that no point's time holds compilation (on a Dask cluster of several
-machines only the machines those runs land on are warmed).
+Outputs in ``--out`` (default ``results/``): ``tradeoff.json`` (every point's record, the
+fronts, the winners per error range and the crossovers, the knob effects),
+``tradeoff_<scene>.png`` (error against cost, log-log, one colour per strategy, the scene's
+non-dominated front) and ``tradeoff.md`` (per scene: what the error is against, the strategies
+run and why the others are not, the winner in each error range and the crossovers, computed by
+``_tradeoff_report.winners`` from the points, what each knob of each strategy buys per second,
+a table of the points).
 
-Outputs in ``--out`` (default ``results/``): ``tradeoff.json`` (every point's record, the Pareto
-fronts, the knob effects), ``tradeoff_<scene>.png`` (error against cost, log-log, the
-Pareto front and every point labelled by its settings) and ``tradeoff.md`` (per scene: what
-each knob buys per second, the best knob, the front, a table of the points).
+Modes: ``quick`` (coarse settings, seconds to a minute per point) only shows the harness and
+the coarse end of each trade-off; ``full`` sweeps around the papers' settings (hours of CPU per
+point for the rings and hertz: meant for a Dask cluster).
 
-A point's record holds everything to run it again: ``scene``, ``settings`` (every input of
-``run_point``, the knobs included), ``strategy``, ``mode``, ``threads`` and, for rings, the
-``reference`` (its settings and the metrics the error is taken against), and the ``commit``
-that ran it. Replaying a record re-runs the point and recomputes the error; the runs are
-deterministic (one process per point, fixed thread counts), so at the same commit the error is
-reproduced exactly (the wall time is not).
+A point's record holds everything to run it again: ``scene``, ``settings`` (``strategy``,
+``dt``, ``options``, the scene's settings), ``mode``, ``threads``, for scenes with a reference
+run the ``reference`` (its settings and the metrics the error is taken against), and the
+``commit`` that ran it. Replaying a record re-runs the point and recomputes the error; the runs
+are deterministic (one process per point, fixed thread counts), so at the same commit the
+error is reproduced exactly (the wall time is not).
 """
 
 from __future__ import annotations
