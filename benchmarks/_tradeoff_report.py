@@ -120,14 +120,15 @@ def winner_sentences(scene: str, ranges: list[dict], cost_words: str = "wall tim
             if math.isinf(r["error_to"])
             else f"error targets in [{r['error_from']:.3g}, {r['error_to']:.3g})"
         )
+        at = f"{r['error_from']:.3g}"
         other = (
-            f"; next: {r['runner_up']} at {r['runner_up_cost_s']:.3g} s"
+            f"; next at {at}: {r['runner_up']}, {r['runner_up_cost_s']:.3g} s"
             if r["runner_up"]
-            else "; no other strategy reaches them"
+            else f"; no other strategy reaches {at}"
         )
         lines.append(
             f"For {span}, **{r['winner']}** is the cheapest ({r['cost_s']:.3g} s of "
-            f"{cost_words}{other})."
+            f"{cost_words} at {at}{other})."
         )
     for c in crossovers(ranges):
         lines.append(

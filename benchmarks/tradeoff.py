@@ -455,6 +455,20 @@ def _reference(records: list[dict], results: list[dict]) -> dict[str, dict]:
 
 
 # ----------------------------------------------------------------------------- analysis
+def swept_knobs(records: list[dict], scene: str) -> dict[str, list[str]]:
+    """strategy -> the knobs that took at least two values on ``scene`` (sorted)."""
+    out: dict[str, list[str]] = {}
+    for r in records:
+        if r["scene"] == scene:
+            out.setdefault(r["strategy"], [])
+    for strategy, knobs in out.items():
+        mine = [r for r in records if (r["scene"], r["strategy"]) == (scene, strategy)]
+        for knob in sorted({k for r in mine for k in r["sweeps"]}):
+            if sum(knob in r["sweeps"] for r in mine) >= 2:
+                knobs.append(knob)
+    return out
+
+
 def _front(recs: list[dict], cost: str) -> set[int]:
     seconds = np.array([r[cost] if r[cost] else np.nan for r in recs], dtype=float)
     err = np.array([np.nan if r["error"] is None else r["error"] for r in recs], dtype=float)
@@ -608,21 +622,7 @@ def sweep(
             }
             for s in scene_names
         },
-        "knobs": {
-            s: {
-                st: sorted(
-                    {
-                        k
-                        for r in finished
-                        if (r["scene"], r["strategy"]) == (s, st)
-                        for k in r["sweeps"]
-                    }
-                )
-                for sc, st in pairs
-                if sc == s
-            }
-            for s in scene_names
-        },
+        "knobs": {s: swept_knobs(finished, s) for s in scene_names},
         "errors": {s: SCENES[s]["error"] for s in scene_names},
         "executor": {
             "kind": "dask" if scheduler else "local",
@@ -663,6 +663,30 @@ def sweep(
             [(w["error_from"], w["winner"]) for w in payload["winners"][scene]],
         )
     return {"json": str(path), "markdown": str(md), "png": pngs, **payload}
+
+
+def rerender(path: str | Path) -> dict:
+    """Write ``tradeoff.md`` and the plots again from a ``tradeoff.json`` (its points as
+    recorded: the fronts, winners and knob effects are recomputed from them)."""
+    path = Path(path)
+    payload = json.loads(path.read_text())
+    points, scenes = payload["points"], payload["scenes"]
+    payload.update(analyse(points, scenes, payload["cost"]))
+    payload["knobs"] = {s: swept_knobs(points, s) for s in scenes}
+    payload["pareto"] = {
+        s: [r["id"] for r in points if r["scene"] == s and r["pareto"]] for s in scenes
+    }
+    path.write_text(json.dumps(payload, indent=2, default=float))
+    md = path.with_suffix(".md")
+    md.write_text(markdown(payload))
+    for scene in scenes:
+        recs = [r for r in points if r["scene"] == scene]
+        title = f"{scene}: error against {COSTS[payload['cost']]} ({payload['mode']} mode)"
+        label = (
+            "error vs reference run" if "reference_keys" in SCENES[scene] else "error vs analytic"
+        )
+        plot_scene(recs, path.parent / f"{NAME}_{scene}.png", title, label, payload["cost"])
+    return payload
 
 
 def run(mode: str = "full", out: str | Path = "results") -> dict:
