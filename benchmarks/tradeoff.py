@@ -632,6 +632,9 @@ def sweep(
             "timeout_s": timeout_s,
         },
         "cost": cost_key,
+        "sweeps_override": sweeps,  # what replaced the mode's values (None: none)
+        "strategies_chosen": strategies,
+        "knobs_chosen": knobs,
         "warmup_s": warmup_s,
         "warmup_failures": [w["failure"] for w in warmed if w.get("failure")],
         "wall_s": elapsed,

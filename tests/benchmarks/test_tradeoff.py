@@ -397,6 +397,10 @@ def test_dask_cluster_gives_the_results_of_local_processes(minimal, tmp_path):
 
 def test_replaying_a_record_reproduces_its_error(minimal, capsys):
     _, data, out = minimal
+    # the report is rebuilt from the recorded points alone: the same winners and fronts
+    again = tradeoff.rerender(out / "tradeoff.json")
+    assert again["winners"] == data["winners"] and again["pareto"] == data["pareto"]
+    assert "### Winner per error range" in (out / "tradeoff.md").read_text()
     # rings: the error is recomputed against the reference metrics stored in the record
     args = ["tradeoff", "--replay", str(out / "tradeoff.json"), "--id", "rings/augury/base"]
     assert bench_main.main(args) == 0
