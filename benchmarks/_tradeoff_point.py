@@ -86,10 +86,10 @@ def execute_point(point: dict) -> dict:
 def _log_done(point_id: str, measurement: dict) -> None:
     metrics = measurement.get("metrics") or {}
     log.info(
-        "%s: %.1f s, %s Newton iterations%s",
+        "%s: %.1f s, %s iterations%s",
         point_id,
         measurement.get("wall_s") or float("nan"),
-        metrics.get("newton_iterations"),
+        metrics.get("iterations"),
         f", FAILED: {measurement['failure']}" if measurement.get("failure") else "",
     )
 

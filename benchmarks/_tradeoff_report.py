@@ -45,6 +45,104 @@ def pareto_front(cost: np.ndarray, error: np.ndarray) -> np.ndarray:
     return order[sorted_error < best_before]
 
 
+def winners(points: list[dict], cost: str = "wall_s") -> list[dict]:
+    """Which strategy reaches each error target at the least cost.
+
+    For an error target E, a strategy's cost is that of its cheapest point with error <= E; the
+    winner is the strategy with the least such cost (ties: the first name in sorted order). The
+    winner changes only at the errors of the points, so the targets split into ranges.
+
+    Args:
+        points: dicts with ``strategy``, ``error`` (dimensionless; None for a failed point, which
+            takes no part) and the cost (``cost``, s).
+        cost: the key of the cost.
+
+    Returns:
+        the ranges, from large errors to small: ``error_from`` <= E < ``error_to`` (inf for the
+        loosest range), ``winner``, ``cost_s`` (its cost there), ``runner_up`` and
+        ``runner_up_cost_s`` (the next cheapest strategy reaching E, or None), adjacent ranges
+        with one winner merged (the runner-up and costs are those at the range's tightest
+        target). No range below the smallest error any point reached.
+    """
+    done = [
+        p
+        for p in points
+        if p.get("error") is not None
+        and math.isfinite(p["error"])
+        and p.get(cost) is not None
+        and math.isfinite(p[cost])
+    ]
+    levels = sorted({p["error"] for p in done})
+    ranges: list[dict] = []
+    for k, level in enumerate(levels):
+        best: dict[str, float] = {}
+        for p in done:
+            if p["error"] <= level:
+                best[p["strategy"]] = min(best.get(p["strategy"], math.inf), p[cost])
+        order = sorted(best, key=lambda s: (best[s], s))
+        upper = levels[k + 1] if k + 1 < len(levels) else math.inf
+        ranges.append(
+            {
+                "error_from": level,
+                "error_to": upper,
+                "winner": order[0],
+                "cost_s": best[order[0]],
+                "runner_up": order[1] if len(order) > 1 else None,
+                "runner_up_cost_s": best[order[1]] if len(order) > 1 else None,
+            }
+        )
+    merged: list[dict] = []
+    for r in ranges:  # tight to loose; merge upward, keeping the tightest target's numbers
+        if merged and merged[-1]["winner"] == r["winner"]:
+            merged[-1]["error_to"] = r["error_to"]
+        else:
+            merged.append(dict(r))
+    return merged[::-1]
+
+
+def crossovers(ranges: list[dict]) -> list[dict]:
+    """The errors where the winner changes: ``error`` (the boundary), ``above`` (the winner
+    for targets at or above it) and ``below`` (the winner for tighter targets)."""
+    return [
+        {"error": loose["error_from"], "above": loose["winner"], "below": tight["winner"]}
+        for loose, tight in zip(ranges, ranges[1:], strict=False)
+    ]
+
+
+def winner_sentences(scene: str, ranges: list[dict], cost_words: str = "wall time") -> list[str]:
+    """The ranges and crossovers in words (one sentence each)."""
+    if not ranges:
+        return [f"{scene}: no point has an error, no winner."]
+    lines = []
+    for r in ranges:
+        span = (
+            f"error targets at or above {r['error_from']:.3g}"
+            if math.isinf(r["error_to"])
+            else f"error targets in [{r['error_from']:.3g}, {r['error_to']:.3g})"
+        )
+        at = f"{r['error_from']:.3g}"
+        other = (
+            f"; next at {at}: {r['runner_up']}, {r['runner_up_cost_s']:.3g} s"
+            if r["runner_up"]
+            else f"; no other strategy reaches {at}"
+        )
+        lines.append(
+            f"For {span}, **{r['winner']}** is the cheapest ({r['cost_s']:.3g} s of "
+            f"{cost_words} at {at}{other})."
+        )
+    for c in crossovers(ranges):
+        lines.append(
+            f"Crossover at error {c['error']:.3g}: below it {c['below']} is faster than "
+            f"{c['above']} on {scene} (at or above it, {c['above']} wins)."
+        )
+    lowest = ranges[-1]
+    if lowest["error_from"] > 0:
+        lines.append(f"No strategy reached an error below {lowest['error_from']:.3g} on {scene}.")
+    else:
+        lines.append(f"Error 0 is the reference run itself ({lowest['winner']}).")
+    return lines
+
+
 def knob_effect(points: list[dict], direction: int) -> dict:
     """What refining one knob buys along its one-at-a-time sweep.
 
@@ -118,21 +216,33 @@ def best_knob(effects: dict[str, dict]) -> str | None:
     return min(buying, key=slope) if buying else None
 
 
+#: one colour per strategy (the registry's names), fixed so that every plot agrees
+STRATEGY_COLORS = {
+    "barrier": "C0",
+    "two_stage": "C1",
+    "augury": "C2",
+    "lr": "C3",
+    "single_field": "C4",
+}
+
+
 def plot_scene(
     records: list[dict], path: Path, title: str, error_label: str, cost: str = "wall_s"
 ) -> Path:
-    """Error against cost (log-log): every point labelled by its settings, the
-    one-at-a-time sweeps as thin lines, the Pareto front as a dashed staircase.
+    """Error against cost (log-log), one colour per strategy: every point labelled by its knob,
+    each strategy's one-at-a-time sweeps as thin lines, the scene's non-dominated front (over
+    every strategy) as a dashed black staircase.
 
     Args:
-        records: the scene's point records (``label``, ``role``, ``knob``, ``sweeps``, ``value``,
-            ``error``, ``pareto`` and the cost); failed points are left out. An error of exactly 0
-            (the point is the reference run) is drawn at a tenth of the smallest positive error.
+        records: the scene's point records (``strategy``, ``label``, ``role``, ``knob``,
+            ``sweeps``, ``settings``, ``error``, ``pareto`` and the cost); failed points are left
+            out. An error of exactly 0 (the point is the reference run) is drawn at a tenth of
+            the smallest positive error.
         path: the PNG file.
         title, error_label: the title and the error axis label.
         cost: the record key of the cost in s (``COSTS``).
     """
-    fig = Figure(figsize=(8.0, 6.0), layout="constrained")
+    fig = Figure(figsize=(8.5, 6.0), layout="constrained")
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
     done = [r for r in records if r["error"] is not None and r[cost]]
@@ -142,35 +252,32 @@ def plot_scene(
     def shown(r: dict) -> float:
         return r["error"] if r["error"] > 0 else floor
 
-    # knobs with at least two finished points (a one-value sweep, e.g. one strategy, is the base)
-    knobs = sorted({k for r in done for k in r["sweeps"] if r["role"] == "sweep"})
-    colors = {knob: f"C{i}" for i, knob in enumerate(knobs)}
-    for knob in knobs:
-        # along the knob's values: the path that refining it takes
-        sweep = sorted((r for r in done if knob in r["sweeps"]), key=lambda r: r["settings"][knob])
-        if len(sweep) > 1:
-            t, e = [r[cost] for r in sweep], [shown(r) for r in sweep]
-            ax.plot(t, e, "-", color=colors[knob], lw=0.8, alpha=0.6)
-    for r in done:
-        if r["role"] == "base":
-            style = {"marker": "s", "color": "k"}
-        elif r["role"] == "reference":
-            style = {"marker": "*", "color": "k", "markersize": 11}
-        else:
-            style = {"marker": "o", "color": colors[r["knob"]]}
-        ax.plot(r[cost], shown(r), linestyle="none", **style)
-        text = r["label"] + (" (error 0)" if r["error"] == 0 else "")
-        ax.annotate(
-            text, (r[cost], shown(r)), xytext=(4, 3), textcoords="offset points", fontsize=7
-        )
+    strategies = list(dict.fromkeys(r["strategy"] for r in records))
+    extra = iter(f"C{i}" for i in range(5, 10))
+    colors = {s: STRATEGY_COLORS.get(s) or next(extra) for s in strategies}
+    for s in strategies:
+        mine = [r for r in done if r["strategy"] == s]
+        for knob in sorted({k for r in mine for k in r["sweeps"]}):
+            sweep = [r for r in mine if knob in r["sweeps"]]
+            if len(sweep) > 1:
+                sweep.sort(key=lambda r: r[cost])
+                ax.plot([r[cost] for r in sweep], [shown(r) for r in sweep], "-",
+                        color=colors[s], lw=0.7, alpha=0.5)  # fmt: skip
+        for r in mine:
+            marker = {"base": "s", "reference": "*"}.get(r["role"], "o")
+            size = 11 if r["role"] == "reference" else 6
+            ax.plot(r[cost], shown(r), linestyle="none", marker=marker, color=colors[s],
+                    markersize=size)  # fmt: skip
+            text = r["label"] + (" (error 0)" if r["error"] == 0 else "")
+            ax.annotate(text, (r[cost], shown(r)), xytext=(4, 3), textcoords="offset points",
+                        fontsize=6, color=colors[s])  # fmt: skip
+        ax.plot([], [], "o", color=colors[s], label=s if mine else f"{s} (no finished point)")
     front = sorted((r for r in done if r["pareto"]), key=lambda r: r[cost])
     if front:
         t = [r[cost] for r in front]
         e = [shown(r) for r in front]
-        ax.step(t, e, where="post", color="0.3", ls="--", lw=1.2, label="Pareto front")
-    for knob in knobs:
-        ax.plot([], [], "o-", color=colors[knob], label=f"sweep of {knob}")
-    ax.plot([], [], "ks", label="base")
+        ax.step(t, e, where="post", color="k", ls="--", lw=1.2, label="non-dominated front")
+    ax.plot([], [], "ks", mfc="none", label="base (square), sweep (circle)")
     if any(r["role"] == "reference" for r in done):
         ax.plot([], [], "k*", markersize=11, label="reference run")
     ax.set(xscale="log", yscale="log", xlabel=f"{COSTS[cost]} of the point [s]", ylabel=error_label)
@@ -185,14 +292,19 @@ def _num(value: float | None, fmt: str = ".3g") -> str:
     return "-" if value is None else format(value, fmt)
 
 
+def _val(value: object) -> str:
+    return "none" if value is None else format(value, "g")
+
+
 def markdown(payload: dict) -> str:
-    """The trade study's summary: per scene, what each knob buys per second, the best knob,
-    the Pareto front, and every point."""
+    """The trade study's report: per scene, what the error is against, the strategies run and
+    those that do not apply (why), the winner per error range and the crossovers (computed from
+    the points by ``winners``), per strategy what each knob buys per second, and every point."""
     ex = payload["executor"]
     cost, words = payload["cost"], COSTS[payload["cost"]]
     where = f"Dask scheduler {ex['scheduler']}" if ex["kind"] == "dask" else f"{ex['workers']}"
     lines = [
-        f"# Trade study ({payload['mode']} mode)",
+        f"# Trade study across strategies ({payload['mode']} mode)",
         "",
         f"{len(payload['points'])} points on {where} "
         f"{'' if ex['kind'] == 'dask' else 'local worker processes '}"
@@ -200,66 +312,66 @@ def markdown(payload: dict) -> str:
         f"sum of point wall times {payload['point_wall_s_total']:.1f} s, "
         f"commit `{payload['environment']['commit'][:10]}`.",
         "",
-        "Wall and CPU time: the point's `run_point` call (scene build and time loop) in its own "
-        f"process; memory: that process's peak resident set. Cost axis: {words}. Replay any "
-        "point with "
-        "`python -m benchmarks tradeoff --replay tradeoff.json --id ID`.",
+        "Wall and CPU time: the point's run (scene build and time loop) in its own process; "
+        f"memory: that process's peak resident set; iterations: Newton iterations summed over "
+        f"the run (0 for the purely explicit strategies). Cost axis: {words}. Replay any point "
+        "with `python -m benchmarks tradeoff --replay tradeoff.json --id ID`.",
     ]
     for scene in payload["scenes"]:
         records = [r for r in payload["points"] if r["scene"] == scene]
-        effects = payload["knob_effects"][scene]
-        best = payload["best_knob"][scene]
-        lines += ["", f"## {scene}", "", f"Error: {payload['errors'][scene]}", ""]
-        base = next(r for r in records if r["role"] == "base")
-        settings = ", ".join(f"{k}={v}" for k, v in base["settings"].items())
-        lines += [f"Base: {settings}.", ""]
-        lines += [
-            f"| knob | coarse -> fine | error | {words} [s] | d log(error) / d log(time) "
-            "| error drop per extra s | verdict |",
-            "|---|---|---|---|---|---|---|",
-        ]
-        for knob, e in effects.items():
-            if e["coarse"] is None:
-                lines.append(f"| {knob} | - | - | - | - | - | {e['verdict']} |")
-                continue
-            c, f = e["coarse"], e["fine"]
-            lines.append(
-                f"| {knob} | {c['value']:g} -> {f['value']:g} | {c['error']:.3g} -> "
-                f"{f['error']:.3g} | {c['time_s']:.2f} -> {f['time_s']:.2f} | "
-                f"{'-inf (error 0)' if e['reaches_zero'] else _num(e['loglog_slope'], '.2f')} | "
-                f"{_num(e['error_drop_per_s'])} | "
-                f"{e['verdict']} |"
-            )
-        if best is None:
-            lines += ["", "No knob lowered the error along its sweep."]
-        else:
-            e = effects[best]
-            if e["verdict"] == "free":
-                why = "refining it lowered the error without costing time"
-            elif e["reaches_zero"]:
-                why = "its finest value is the reference run"
-            else:
-                why = f"d log(error) / d log(time) = {e['loglog_slope']:.2f}"
-            lines += ["", f"**Most accuracy per second: {best}** ({why})."]
-        front = [r for r in records if r["pareto"]]
-        front.sort(key=lambda r: r[cost])
+        lines += ["", f"## {scene}", "", f"Error: {payload['errors'][scene]}.", ""]
+        for s, note in payload["strategy_notes"][scene].items():
+            knobs = ", ".join(payload["knobs"][scene][s]) or "none"
+            lines.append(f"- **{s}** ({note}); knobs swept: {knobs}.")
+        for s, why in payload["not_run"][scene].items():
+            lines.append(f"- {s}: not run: {why}.")
+        lines += ["", "### Winner per error range", ""]
+        lines += [f"- {line}" for line in winner_sentences(scene, payload["winners"][scene], words)]
+        front = sorted((r for r in records if r["pareto"]), key=lambda r: r[cost])
         lines += [
             "",
-            f"Pareto front (error against {words}): "
-            + ", ".join(f"{r['label']} ({r['error']:.3g}, {r[cost]:.2f} s)" for r in front)
+            f"Non-dominated front (error against {words}): "
+            + ", ".join(
+                f"{r['strategy']}/{r['label']} ({r['error']:.3g}, {r[cost]:.2f} s)" for r in front
+            )  # fmt: skip
             + ".",
+        ]
+        for s, effects in payload["knob_effects"][scene].items():
+            lines += [
+                "",
+                f"### {s}: what each knob buys",
+                "",
+                f"| knob | coarse -> fine | error | {words} [s] | d log(error) / d log(time) "
+                "| error drop per extra s | verdict |",
+                "|---|---|---|---|---|---|---|",
+            ]
+            for knob, e in effects.items():
+                if e["coarse"] is None:
+                    lines.append(f"| {knob} | - | - | - | - | - | {e['verdict']} |")
+                    continue
+                c, f = e["coarse"], e["fine"]
+                slope = "-inf (error 0)" if e["reaches_zero"] else _num(e["loglog_slope"], ".2f")
+                lines.append(
+                    f"| {knob} | {_val(c['value'])} -> {_val(f['value'])} | {c['error']:.3g} -> "
+                    f"{f['error']:.3g} | {c['time_s']:.2f} -> {f['time_s']:.2f} | {slope} | "
+                    f"{_num(e['error_drop_per_s'])} | {e['verdict']} |"
+                )
+            best = payload["best_knob"][scene][s]
+            lines += ["", f"Most accuracy per second ({s}): {best or 'no knob lowered the error'}."]
+        lines += [
             "",
-            "| point | error | wall [s] | CPU [s] | Newton iterations | peak memory [MiB] | "
+            "### Points",
+            "",
+            "| strategy | point | error | wall [s] | CPU [s] | iterations | peak memory [MiB] | "
             "failure |",
-            "|---|---|---|---|---|---|---|",
+            "|---|---|---|---|---|---|---|---|",
         ]
         for r in records:
             failure = (r["failure"] or "").replace("|", "\\|")[:120]
             mark = " (front)" if r["pareto"] else ""
             lines.append(
-                f"| {r['label']}{mark} | {_num(r['error'])} | {_num(r['wall_s'], '.2f')} | "
-                f"{_num(r['cpu_s'], '.2f')} | "
-                f"{_num(r['newton_iterations'], 'd')} | {_num(r['peak_memory_mb'], '.0f')} | "
-                f"{failure} |"
+                f"| {r['strategy']} | {r['label']}{mark} | {_num(r['error'])} | "
+                f"{_num(r['wall_s'], '.2f')} | {_num(r['cpu_s'], '.2f')} | "
+                f"{_num(r['iterations'], 'd')} | {_num(r['peak_memory_mb'], '.0f')} | {failure} |"
             )
     return "\n".join(lines) + "\n"

@@ -283,8 +283,8 @@ def _run_one(cfg: dict, treatment: str) -> dict:
         strategy="barrier",
         integrator="backward_euler",
         dt=cfg["dt"],
-        tol=TOL,
-        max_newton_iterations=MAX_NEWTON,
+        tol=cfg.get("tol", TOL),
+        max_newton_iterations=cfg.get("max_newton_iterations", MAX_NEWTON),
     )
     n_particles = sim.model.n_particles
     strip = sim.model.fem_bodies[0].nodes if lower is not None else None
@@ -295,7 +295,9 @@ def _run_one(cfg: dict, treatment: str) -> dict:
     error = None
     start = time.perf_counter()
     next_snapshot = geo.t_up
-    while sim.state.t < geo.t_up + MAX_UP * geo.scale - 0.5 * sim.dt:
+    # ``t_stop`` (s, optional): stop there (the trade study's warm-up)
+    t_stop = min(cfg.get("t_stop") or math.inf, geo.t_up + MAX_UP * geo.scale)
+    while sim.state.t < t_stop - 0.5 * sim.dt:
         try:
             report = sim.step()
         except bfemp.StepError as err:  # recorded; the series so far are still reduced

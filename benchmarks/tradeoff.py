@@ -1,63 +1,67 @@
-"""Trade study (issue 6): accuracy against cost of the discretisation knobs of three benchmarks.
+"""Trade study across strategies (issues 6, 17): accuracy against cost of each coupling strategy
+and of its knobs, on the BFEMP scenes and one scene of each explicit paper.
 
-``python -m benchmarks tradeoff [--quick | --full] [--scenes rings,slope] [--knobs dt,dx]
-[--workers N | --scheduler tcp://host:port] [--cost wall|cpu] [--out DIR]``, also
-``bfemp sweep`` with the same options. Replay one point:
-``python -m benchmarks tradeoff --replay tradeoff.json --id ID`` or
-``--point '<record as JSON>'``.
+``python -m benchmarks tradeoff [--quick | --full] [--scenes rings,slope] [--strategies
+barrier,two_stage] [--knobs dt,tol] [--workers N | --scheduler tcp://host:port] [--cost
+wall|cpu] [--out DIR]``, also ``bfemp sweep`` with the same options. Replay one point:
+``python -m benchmarks tradeoff --replay tradeoff.json --id ID`` or ``--point '<record as
+JSON>'``.
 
-Scenes and errors (one scalar per point, dimensionless):
+Strategies go by the registry's names (``bfemp.steppers.STRATEGIES``: ``barrier``,
+``two_stage``, ``augury``, ``lr``, ``single_field``). Which of them run a scene is declared per
+scene (``_tradeoff_scenes.SCENES[scene]["strategies"]``, with how each runs it), and so is why
+the others do not (``not_applicable``: lr refuses MPM-only FEM contact it cannot see, explicit
+strategies at the paper's stiffness need steps the scene cannot afford, the softened slope of
+``two_stage_slope`` stands in where the repo has one). Scenes and what the error is against:
 
-- ``slope`` (``benchmarks.slope.run_point``): the MPM box settles and slides down the FEM slope
-  at mu = 0.1; error = ``|a_fit - a_analytic| / a_analytic`` (eq. 40).
-- ``hertz`` (``benchmarks.hertz.run_point``): the linear-elastic disk between the plates;
-  error = ``|C_fit / C_hertz - 1|`` (eq. 39).
-- ``rings`` (``benchmarks.rings.run_point``, APIC, ``rings.INTEGRATOR``): no analytic value;
-  error = the larger of the relative differences of the energy loss over the collision window
-  and of the contact duration from a reference run made with the finest value of every swept
-  knob at once (one-at-a-time points never reach it, except the point that is the reference,
-  whose error is 0). The rings are frictionless: ``eps_v`` is no knob of theirs.
+- ``rings``: barrier, two_stage, augury, lr; against the reference run (barrier at the finest
+  value of each of its swept knobs): the energy loss over the collision window and the contact
+  duration.
+- ``slope``: barrier (E = 4e12 Pa), two_stage, augury, lr (the softened box, E = 1e5 Pa, at
+  the explicit step); against the analytic acceleration (eq. 40).
+- ``hertz``: barrier; against Hertz's C (eq. 39).
+- ``sine_boundary``: barrier; against the reference run's largest compressive force.
+- ``augury_blocks`` (AUG Figs. 8-9, 3D): augury; against the reference run's energy loss.
+- ``lr_compression`` (LR Fig. 5): lr; against the single-material run (the cost is that of the
+  two-block run alone).
 
-Knobs (``KNOBS``): ``strategy`` (coupling strategy, categorical; ``"bfemp"`` is the library's
-``"barrier"`` stepper, the only one so far; other names registered in ``bfemp.steppers`` are
-accepted as they are), ``dt`` (s), ``dx`` (MPM grid, m; the rings' FEM mesh size ``fem_h`` stays
-fixed, the slope's particle lattice follows the grid at fixed ppc, the disk's particles stay),
-``ppc`` (particles per cell, a square; rings and slope), ``spacing`` (the disk's particle
-spacing in m; hertz), ``dhat`` (m), ``eps_v`` (m/s) and ``tol`` (Newton, m/s). The sweeps are
-one at a time around a base setting (``SCENES[scene]["modes"][mode]``): every point differs from
-the base in one knob. Points with equal settings run once (the base belongs to every sweep).
+Knobs. The scene's discretisation knobs (``dx``, ``ppc``, ``spacing``, ``dhat``, ``eps_v``, less
+those a strategy does not have) take the mode's values; each strategy's own knobs are the fields
+of its options dataclass that declare ``sweep`` metadata (``benchmarks._tradeoff_knobs``: e.g.
+``tol`` of barrier and two_stage, ``iterations`` and ``tau`` of augury, ``corrections`` and
+``xpic_order`` of lr, the CFL fractions of every explicit strategy), swept on a ladder around
+the base value: quick mode one step finer, full mode one coarser and one finer. dt is a knob at
+a fixed step; at ``dt="auto"`` the CFL fractions are. The sweeps are one at a time around each
+strategy's base (every point differs from it in one knob); points with equal settings run once.
 
-Modes: ``quick`` is a tiny sweep of coarse settings (seconds per point; 29 points, 3.5 min on
-2 busy cores); its errors are those of coarse discretisations (the rings' energy loss is far
-from converged) and only show the harness at work. ``full`` sweeps around the paper's settings
-(35 points). Expected full-mode costs on the 2-core development machine, extrapolated from the
-recorded single runs (``benchmarks/records``): slope ~3-15 min per point (3000 steps at
-~0.07 s), 13 points; hertz ~10-40 min per point (60 steps of 45k particles), 11 points; rings
-1-5 h per point (1500-3000 steps of 20k-35k particles; the partial record ran 1500 steps of 2.2k
-particles in 9 min), 11 points with the reference (dt = 1e-4 s, ppc = 16, dhat = 5e-3 m) the
-costliest: about a day of CPU for all three, meant for a Dask cluster (``--scheduler``).
+Every point runs in a fresh Python process (``benchmarks._tradeoff_point`` running
+``benchmarks._tradeoff_runs.run_point``) with ``threads`` numba/BLAS threads
+(``--threads-per-point``, default 1): its wall time (scene build and time loop), CPU time,
+peak memory and iterations (Newton, summed over the run; 0 for the purely explicit
+strategies) are its own. The cost axis is the wall time (``--cost cpu``: the CPU time, which a
+busy machine inflates less). Local runs use ``--workers`` processes at once (default: the
+number of cores); with ``--scheduler`` the same pure function ``execute_point`` is submitted to
+a Dask cluster (``distributed.Client``). Before the timed points a few steps of each scene and
+strategy (``warmup``) fill numba's on-disk cache.
 
-Every point runs in a fresh Python process (``benchmarks._tradeoff_point``) with ``threads``
-numba/BLAS threads (``--threads-per-point``, default 1): its wall time (``run_point``: scene
-build and time loop), CPU time and peak memory are its own. The cost axis of the fronts is the
-wall time (``--cost cpu``: the CPU time, which a busy machine, where points wait for cores,
-inflates less). Local runs use ``--workers`` processes at once (default: the number of cores);
-with ``--scheduler`` the same pure function ``execute_point`` is submitted to a Dask cluster
-(``distributed.Client``). Before the timed points a few steps of each scene (``warmup``) fill
-numba's on-disk cache, so that no point's time holds compilation (on a Dask cluster of several
-machines only the machines those runs land on are warmed).
+Outputs in ``--out`` (default ``results/``): ``tradeoff.json`` (every point's record, the
+fronts, the winners per error range and the crossovers, the knob effects),
+``tradeoff_<scene>.png`` (error against cost, log-log, one colour per strategy, the scene's
+non-dominated front) and ``tradeoff.md`` (per scene: what the error is against, the strategies
+run and why the others are not, the winner in each error range and the crossovers, computed by
+``_tradeoff_report.winners`` from the points, what each knob of each strategy buys per second,
+a table of the points).
 
-Outputs in ``--out`` (default ``results/``): ``tradeoff.json`` (every point's record, the Pareto
-fronts, the knob effects), ``tradeoff_<scene>.png`` (error against cost, log-log, the
-Pareto front and every point labelled by its settings) and ``tradeoff.md`` (per scene: what
-each knob buys per second, the best knob, the front, a table of the points).
+Modes: ``quick`` (coarse settings, seconds to a minute per point) only shows the harness and
+the coarse end of each trade-off; ``full`` sweeps around the papers' settings (hours of CPU per
+point for the rings and hertz: meant for a Dask cluster).
 
-A point's record holds everything to run it again: ``scene``, ``settings`` (every input of
-``run_point``, the knobs included), ``strategy``, ``mode``, ``threads`` and, for rings, the
-``reference`` (its settings and the metrics the error is taken against), and the ``commit``
-that ran it. Replaying a record re-runs the point and recomputes the error; the runs are
-deterministic (one process per point, fixed thread counts), so at the same commit the error is
-reproduced exactly (the wall time is not).
+A point's record holds everything to run it again: ``scene``, ``settings`` (``strategy``,
+``dt``, ``options``, the scene's settings), ``mode``, ``threads``, for scenes with a reference
+run the ``reference`` (its settings and the metrics the error is taken against), and the
+``commit`` that ran it. Replaying a record re-runs the point and recomputes the error; the runs
+are deterministic (one process per point, fixed thread counts), so at the same commit the
+error is reproduced exactly (the wall time is not).
 """
 
 from __future__ import annotations
@@ -74,6 +78,13 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks._tradeoff_knobs import (
+    finer_key,
+    ladder,
+    option_defaults,
+    option_knobs,
+    strategy_knobs,
+)
 from benchmarks._tradeoff_point import (
     check_scheduler,
     execute_dask,
@@ -83,12 +94,14 @@ from benchmarks._tradeoff_point import (
 from benchmarks._tradeoff_report import (
     COSTS,
     best_knob,
+    crossovers,
     knob_effect,
     markdown,
     pareto_front,
     plot_scene,
+    winners,
 )
-from benchmarks._tradeoff_scenes import FINER, KNOBS, SCENES, STRATEGIES
+from benchmarks._tradeoff_scenes import SCENE_FINER, SCENES
 from benchmarks.common import environment, git_commit, write_json
 
 log = logging.getLogger(__name__)
@@ -100,7 +113,9 @@ CONNECT_TIMEOUT_S = 10.0  # s, to reach a Dask scheduler
 
 # ----------------------------------------------------------------------------- planning
 def _short(value: object) -> str:
-    """A compact label of a knob value: 2e-3, 0.5, 0.333, 4, bfemp."""
+    """A compact label of a knob value: 2e-3, 0.5, 0.333, 4, auto, none."""
+    if value is None:
+        return "none"
     if isinstance(value, str) or isinstance(value, int) and not isinstance(value, bool):
         return str(value)
     value = float(value)
@@ -126,43 +141,111 @@ def _names(value: str | list[str] | tuple[str, ...] | None, what: str, allowed: 
     return list(dict.fromkeys(names))
 
 
-def _strategies() -> tuple[str, ...]:
-    """Strategy names a point accepts: the trade study's and the library's registered ones."""
-    registry = getattr(importlib.import_module("bfemp.steppers"), "STRATEGIES", {})
-    return tuple(dict.fromkeys([*STRATEGIES, *registry]))
+def _registry() -> tuple[str, ...]:
+    """The library's strategy names (``bfemp.steppers.STRATEGIES``)."""
+    return tuple(importlib.import_module("bfemp.steppers").STRATEGIES)
 
 
-def _check_value(scene: str, knob: str, value: object) -> None:
-    if knob == "strategy":
-        if value not in _strategies():
-            raise ValueError(
-                f"{scene}: unknown strategy {value!r}; available: {', '.join(_strategies())}"
-            )
-        return
+def all_knobs() -> tuple[str, ...]:
+    """Every knob name: dt, the scenes' knobs and every strategy's declared option knobs."""
+    names = ["dt", *SCENE_FINER]
+    for strategy in _registry():
+        names += list(option_knobs(strategy))
+    return tuple(dict.fromkeys(names))
+
+
+def _check_value(where: str, knob: str, value: object, spec: dict | None) -> None:
+    if value is None and spec is not None and "first" in spec:
+        return  # "off": a knob swept from None (xpic_order)
     ok = isinstance(value, int | float) and not isinstance(value, bool)
-    if not ok or not math.isfinite(value) or value <= 0:
-        raise ValueError(f"{scene}: knob {knob} must be a positive number, got {value!r}")
+    if not ok or not math.isfinite(value) or value < 0 or (value == 0 and knob != "iterations"):
+        raise ValueError(f"{where}: knob {knob} must be a positive number, got {value!r}")
 
 
-def scene_knobs(scene: str, mode: str, knobs: list[str], sweeps: dict | None) -> dict:
-    """The sweeps of ``scene``: knob -> values, for the chosen knobs the scene has."""
-    spec = SCENES[scene]
-    values = dict(spec["modes"][mode]["sweeps"])
-    for knob, override in (sweeps or {}).get(scene, {}).items():
-        if knob not in spec["knobs"]:
-            raise ValueError(
-                f"sweeps[{scene!r}]: {scene} has no knob {knob!r}; its knobs: "
-                f"{', '.join(spec['knobs'])}"
-            )
-        override = tuple(override) if isinstance(override, list | tuple) else (override,)
-        if not override:
+def strategy_base(scene: str, strategy: str, mode: str) -> dict:
+    """The settings of one strategy's base point on ``scene`` (what ``run_point`` takes, but
+    ``scene``): the scene's base, ``strategy``, ``dt``, ``options`` and ``transfer`` if any."""
+    spec = SCENES[scene]["strategies"][strategy]
+    base = {"strategy": strategy, "dt": spec["dt"][mode], "options": dict(spec["options"])}
+    if "transfer" in spec:
+        base["transfer"] = spec["transfer"]
+    return {**base, **SCENES[scene]["modes"][mode]["base"]}
+
+
+def _knob_base(settings: dict, knob: str, strategy: str) -> object:
+    if knob == "dt" or knob in SCENE_FINER:
+        return settings[knob]
+    return settings["options"].get(knob, option_defaults(strategy).get(knob))
+
+
+def _with(settings: dict, knob: str, value: object) -> dict:
+    """``settings`` with one knob changed (a scene knob, dt, or an option; an option at its
+    current value, its default included, leaves ``settings`` as they are)."""
+    if _knob_base(settings, knob, settings["strategy"]) == value:
+        return settings
+    if knob == "dt" or knob in SCENE_FINER:
+        return {**settings, knob: value}
+    return {**settings, "options": {**settings["options"], knob: value}}
+
+
+def knob_table(scene: str, strategy: str, mode: str, sweeps: dict | None = None) -> dict:
+    """Knob -> ``{"finer": +-1, "values": (...)}`` of one strategy on one scene.
+
+    The scene's knobs (less the strategy's ``no_knobs``) take the mode's values; dt (at a fixed
+    dt) or the CFL fractions (at ``dt="auto"``) and the strategy's option knobs take
+    ``ladder`` values around the base. ``sweeps`` (``{knob: values}`` for every strategy of the
+    scene, ``{strategy: {knob: values}}`` for one) replaces values; a knob swept from None
+    starts at its declared ``first``.
+    """
+    decl = SCENES[scene]
+    sdecl = decl["strategies"][strategy]
+    base = strategy_base(scene, strategy, mode)
+    table: dict[str, dict] = {}
+    skip = sdecl.get("no_knobs", {})
+    for knob in decl["scene_knobs"]:
+        if knob not in skip:
+            values = decl["modes"][mode]["sweeps"].get(knob, (base[knob],))
+            table[knob] = {"finer": SCENE_FINER[knob], "values": tuple(values), "spec": None}
+    for knob, spec in strategy_knobs(strategy, base["dt"]).items():
+        if knob in skip:
+            continue
+        spec = {**spec, **sdecl.get("spec", {}).get(knob, {})}
+        values = ladder(spec, _knob_base(base, knob, strategy), mode)
+        if values:
+            table[knob] = {"finer": spec["finer"], "values": values, "spec": spec}
+    overrides = dict((sweeps or {}).get(scene, {}))
+    mine = overrides.pop(strategy, {}) if isinstance(overrides.get(strategy), dict) else {}
+    for name in _registry():
+        overrides.pop(name, None)
+    for knob, values in {**overrides, **mine}.items():
+        if knob not in table:
+            continue  # a scene-wide override of a knob this strategy does not have
+        values = tuple(values) if isinstance(values, list | tuple) else (values,)
+        if not values:
             raise ValueError(f"sweeps[{scene!r}][{knob!r}] is empty")
-        values[knob] = override
-    chosen = {k: tuple(values[k]) for k in knobs if k in spec["knobs"]}
-    for knob, vals in chosen.items():
-        for value in vals:
-            _check_value(scene, knob, value)
-    return chosen
+        table[knob] = {**table[knob], "values": values}
+    for knob, entry in table.items():
+        for value in entry["values"]:
+            _check_value(f"{scene}/{strategy}", knob, value, entry["spec"])
+    return table
+
+
+def _check_sweeps(sweeps: dict | None) -> None:
+    for scene, by_knob in (sweeps or {}).items():
+        if scene not in SCENES:
+            raise ValueError(f"sweeps: unknown scene {scene!r}; available: {sorted(SCENES)}")
+        known = all_knobs()
+        for key, value in by_knob.items():
+            if key in _registry():
+                if key not in SCENES[scene]["strategies"]:
+                    raise ValueError(f"sweeps[{scene!r}]: strategy {key!r} does not run {scene}")
+                unknown = [k for k in value if k not in known]
+            else:
+                unknown = [key] if key not in known else []
+            if unknown:
+                raise ValueError(
+                    f"sweeps[{scene!r}]: unknown knob {unknown[0]!r}; knobs: {', '.join(known)}"
+                )
 
 
 def plan(
@@ -170,6 +253,7 @@ def plan(
     scenes: str | list[str] | None = None,
     knobs: str | list[str] | None = None,
     *,
+    strategies: str | list[str] | None = None,
     sweeps: dict | None = None,
     threads: int = 1,
 ) -> list[dict]:
@@ -178,65 +262,88 @@ def plan(
     Args:
         mode: ``"quick"`` or ``"full"``.
         scenes: names or a comma-separated string (None: every scene).
-        knobs: names or a comma-separated string (None: every knob of each scene). A scene that
-            has none of the chosen knobs is skipped (logged); no scene left is an error.
-        sweeps: ``{scene: {knob: values}}`` replacing the mode's values of those knobs.
+        knobs: names or a comma-separated string (None: every knob of each strategy); the base
+            point of each strategy always runs.
+        strategies: registry names or a comma-separated string (None: every one), or
+            ``{scene: names}`` (a scene not named there: every one); a strategy that does not
+            apply to a scene is skipped there (logged with the reason); nothing left is an
+            error.
+        sweeps: value overrides, see :func:`knob_table`.
         threads: numba/BLAS threads of each point's process.
 
     Returns:
-        one dict per distinct point: ``id`` (``scene/label``), ``scene``, ``label``, ``role``
-        (``"base"``, ``"sweep"`` or ``"reference"``), ``knob`` and ``value`` (None for base and
-        reference), ``sweeps`` (the knobs whose sweep holds the point), ``is_reference``,
-        ``settings``, ``strategy``, ``mode``, ``threads``.
+        one dict per distinct point: ``id`` (``scene/strategy/label``), ``scene``,
+        ``strategy``, ``label``, ``role`` (``"base"``, ``"sweep"`` or ``"reference"``),
+        ``knob`` and ``value`` (None for base and reference), ``sweeps`` (the knobs whose sweep
+        holds the point), ``finer`` (knob -> direction, the strategy's knobs on the scene),
+        ``is_reference``, ``settings``, ``mode``, ``threads``.
     """
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
     if not (isinstance(threads, int) and threads >= 1):
         raise ValueError(f"--threads-per-point must be an integer >= 1, got {threads!r}")
     scenes = _names(scenes, "scene", tuple(sorted(SCENES)))
-    knobs = _names(knobs, "knob", KNOBS)
-    for scene in sweeps or {}:
+    chosen_knobs = _names(knobs, "knob", all_knobs())
+    per_scene = strategies if isinstance(strategies, dict) else {}
+    for scene in per_scene:
         if scene not in SCENES:
-            raise ValueError(f"sweeps: unknown scene {scene!r}; available: {sorted(SCENES)}")
+            raise ValueError(f"strategies: unknown scene {scene!r}; available: {sorted(SCENES)}")
+    everywhere = _names(None if per_scene else strategies, "strategy", _registry())
+    _check_sweeps(sweeps)
     points = []
     for scene in scenes:
-        chosen = scene_knobs(scene, mode, knobs, sweeps)
-        if not chosen:
-            log.warning(
-                "%s has none of the knobs %s (its knobs: %s): skipped",
-                scene,
-                ", ".join(knobs),
-                ", ".join(SCENES[scene]["knobs"]),
-            )
-            continue
-        points += _scene_points(scene, mode, chosen, threads)
+        chosen = (
+            _names(per_scene[scene], "strategy", _registry()) if scene in per_scene else everywhere
+        )
+        runs = [s for s in chosen if s in SCENES[scene]["strategies"]]
+        for s in chosen:
+            if s not in runs:
+                why = SCENES[scene]["not_applicable"].get(s, "not declared for this scene")
+                log.info("%s: %s does not run here: %s", scene, s, why)
+        ref = SCENES[scene].get("reference_strategy")
+        for strategy in runs:
+            table = knob_table(scene, strategy, mode, sweeps)
+            table = {k: v for k, v in table.items() if k in chosen_knobs}
+            points += _strategy_points(scene, strategy, mode, table, threads, strategy == ref)
+        if runs and ref and ref not in runs:  # the others' errors need the reference run
+            table = knob_table(scene, ref, mode, sweeps)
+            table = {k: v for k, v in table.items() if k in chosen_knobs}
+            points += [
+                p
+                for p in _strategy_points(scene, ref, mode, table, threads, True)
+                if p["is_reference"]
+            ]
     if not points:
         raise ValueError(
-            f"no scene among {', '.join(scenes)} has any of the knobs {', '.join(knobs)}; "
-            + "; ".join(f"{s}: {', '.join(SCENES[s]['knobs'])}" for s in scenes)
+            f"no scene among {', '.join(scenes)} runs any of the strategies "
+            f"{', '.join(everywhere) if not per_scene else per_scene}; "
+            + "; ".join(f"{s}: {', '.join(SCENES[s]['strategies'])}" for s in scenes)
         )
     return points
 
 
-def _scene_points(scene: str, mode: str, chosen: dict, threads: int) -> list[dict]:
-    spec = SCENES[scene]
-    base = dict(spec["modes"][mode]["base"])
+def _strategy_points(
+    scene: str, strategy: str, mode: str, table: dict, threads: int, reference: bool
+) -> list[dict]:
+    base = strategy_base(scene, strategy, mode)
     by_settings: dict[str, dict] = {}
+    finer = {k: v["finer"] for k, v in table.items()}
 
     def add(settings: dict, role: str, knob: str | None, label: str) -> dict:
         key = json.dumps(settings, sort_keys=True)
         if key not in by_settings:
             by_settings[key] = {
-                "id": f"{scene}/{label}",
+                "id": f"{scene}/{strategy}/{label}",
                 "scene": scene,
+                "strategy": strategy,
                 "label": label,
                 "role": role,
                 "knob": knob,
-                "value": settings[knob] if knob else None,
+                "value": _knob_base(settings, knob, strategy) if knob else None,
                 "sweeps": [],
+                "finer": finer,
                 "is_reference": False,
                 "settings": settings,
-                "strategy": settings["strategy"],
                 "mode": mode,
                 "threads": threads,
             }
@@ -246,27 +353,27 @@ def _scene_points(scene: str, mode: str, chosen: dict, threads: int) -> list[dic
         return record
 
     add(base, "base", None, "base")
-    for knob, values in chosen.items():
-        for value in values:
-            add({**base, knob: value}, "sweep", knob, f"{knob}={_short(value)}")
-    if "reference_keys" in spec:
-        finest = {
-            knob: max(values, key=lambda v, s=FINER[knob]: s * v)
-            for knob, values in chosen.items()
-            if knob in FINER
-        }
-        add({**base, **finest}, "reference", None, "reference")["is_reference"] = True
+    for knob, entry in table.items():
+        for value in entry["values"]:
+            add(_with(base, knob, value), "sweep", knob, f"{knob}={_short(value)}")
+    if reference and "reference_keys" in SCENES[scene]:
+        finest = dict(base)
+        for knob, entry in table.items():
+            value = max(entry["values"], key=lambda v, e=entry: finer_key(e, v))
+            finest = _with(finest, knob, value)
+        add(finest, "reference", None, "reference")["is_reference"] = True
     return list(by_settings.values())
 
 
 # ----------------------------------------------------------------------------- running
+RUNS_MODULE = "benchmarks._tradeoff_runs"
+
+
 def _job(record: dict, timeout_s: float | None) -> dict:
-    """What ``execute_point`` runs for a record: the library's strategy name in the settings."""
-    settings = dict(record["settings"])
-    settings["strategy"] = STRATEGIES.get(settings["strategy"], settings["strategy"])
+    """What ``execute_point`` runs for a record."""
     return {
-        "module": SCENES[record["scene"]]["module"],
-        "settings": settings,
+        "module": RUNS_MODULE,
+        "settings": {"scene": record["scene"], **record["settings"]},
         "threads": int(record.get("threads", 1)),
         "timeout_s": timeout_s,
     }
@@ -300,17 +407,22 @@ def point_error(scene: str, measurement: dict, reference: dict | None) -> tuple:
 
 
 def _finish(record: dict, measurement: dict, reference: dict | None) -> dict:
-    """A record with its measurement and error."""
+    """A record with its measurement and error. A point whose metrics carry ``point_wall_s``
+    and ``point_cpu_s`` (a run that also runs its own reference, lr_compression) costs those."""
     error, parts = point_error(record["scene"], measurement, reference)
     metrics = measurement.get("metrics")
+    wall, cpu = measurement.get("wall_s"), measurement.get("cpu_s")
+    if metrics and metrics.get("point_wall_s") is not None:
+        wall, cpu = metrics["point_wall_s"], metrics.get("point_cpu_s")
     return {
         **record,
         "error": error,
         "error_parts": parts,
-        "wall_s": measurement.get("wall_s"),
-        "cpu_s": measurement.get("cpu_s"),
+        "wall_s": wall,
+        "cpu_s": cpu,
+        "run_point_wall_s": measurement.get("wall_s"),
         "process_wall_s": measurement.get("process_wall_s"),
-        "newton_iterations": (metrics or {}).get("newton_iterations"),
+        "iterations": (metrics or {}).get("iterations"),
         "peak_memory_mb": measurement.get("peak_memory_mb"),
         "failure": measurement.get("failure"),
         "metrics": metrics,
@@ -318,10 +430,11 @@ def _finish(record: dict, measurement: dict, reference: dict | None) -> dict:
     }
 
 
-def _warmup_job(scene: str, threads: int) -> dict:
-    """A few steps of the scene's quick base (``SCENES[scene]["warmup"]``): fills numba's cache
-    before the timed points (a cold cache would put compilation into the first points' times)."""
-    settings = {**SCENES[scene]["modes"]["quick"]["base"], **SCENES[scene]["warmup"]}
+def _warmup_job(scene: str, strategy: str, threads: int) -> dict:
+    """A few steps of the strategy's quick base on the scene (``SCENES[scene]["warmup"]``):
+    fills numba's cache before the timed points (a cold cache would put compilation into the
+    first points' times)."""
+    settings = {**strategy_base(scene, strategy, "quick"), **SCENES[scene]["warmup"]}
     return _job({"scene": scene, "settings": settings, "threads": threads}, None)
 
 
@@ -342,33 +455,71 @@ def _reference(records: list[dict], results: list[dict]) -> dict[str, dict]:
 
 
 # ----------------------------------------------------------------------------- analysis
-def analyse(records: list[dict], scenes: list[str], cost: str = "wall_s") -> tuple[dict, dict]:
-    """Mark the Pareto points (``record["pareto"]``); per scene, the knob effects and best knob.
+def swept_knobs(records: list[dict], scene: str) -> dict[str, list[str]]:
+    """strategy -> the knobs that took at least two values on ``scene`` (sorted)."""
+    out: dict[str, list[str]] = {}
+    for r in records:
+        if r["scene"] == scene:
+            out.setdefault(r["strategy"], [])
+    for strategy, knobs in out.items():
+        mine = [r for r in records if (r["scene"], r["strategy"]) == (scene, strategy)]
+        for knob in sorted({k for r in mine for k in r["sweeps"]}):
+            if sum(knob in r["sweeps"] for r in mine) >= 2:
+                knobs.append(knob)
+    return out
 
-    ``cost`` is the record key of the cost axis: ``"wall_s"`` or ``"cpu_s"``.
+
+def _front(recs: list[dict], cost: str) -> set[int]:
+    seconds = np.array([r[cost] if r[cost] else np.nan for r in recs], dtype=float)
+    err = np.array([np.nan if r["error"] is None else r["error"] for r in recs], dtype=float)
+    return set(pareto_front(seconds, err).tolist())
+
+
+def analyse(records: list[dict], scenes: list[str], cost: str = "wall_s") -> dict:
+    """Mark the Pareto points; per scene the winners; per scene and strategy the knob effects.
+
+    ``record["pareto"]``: on the scene's front over every strategy; ``record["strategy_pareto"]``:
+    on its strategy's own front. ``cost`` is the record key of the cost axis (``"wall_s"`` or
+    ``"cpu_s"``).
+
+    Returns:
+        ``{"knob_effects": {scene: {strategy: {knob: effect}}}, "best_knob": {scene: {strategy:
+        knob}}, "winners": {scene: ranges}, "crossovers": {scene: [...]}}``.
     """
-    effects, best = {}, {}
+    out: dict = {"knob_effects": {}, "best_knob": {}, "winners": {}, "crossovers": {}}
     for scene in scenes:
         recs = [r for r in records if r["scene"] == scene]
-        seconds = np.array([r[cost] if r[cost] else np.nan for r in recs], dtype=float)
-        err = np.array([np.nan if r["error"] is None else r["error"] for r in recs], dtype=float)
-        front = set(pareto_front(seconds, err).tolist())
+        front = _front(recs, cost)
         for k, r in enumerate(recs):
             r["pareto"] = k in front
-        knobs = [k for k in KNOBS if any(k in r["sweeps"] for r in recs)]
-        effects[scene] = {}
-        for knob in knobs:
-            sweep = [r for r in recs if knob in r["sweeps"]]
-            if knob not in FINER:  # categorical: the points are compared on the plot
-                effects[scene][knob] = {**knob_effect([], 1), "points": len(sweep)}
-                continue
-            rows = [
-                {"value": r["settings"][knob], "error": r["error"], "time_s": r[cost]}
-                for r in sweep
-            ]
-            effects[scene][knob] = knob_effect(rows, FINER[knob])
-        best[scene] = best_knob(effects[scene])
-    return effects, best
+        out["knob_effects"][scene], out["best_knob"][scene] = {}, {}
+        for strategy in dict.fromkeys(r["strategy"] for r in recs):
+            mine = [r for r in recs if r["strategy"] == strategy]
+            own = _front(mine, cost)
+            for k, r in enumerate(mine):
+                r["strategy_pareto"] = k in own
+            effects = {}
+            knobs = list(dict.fromkeys(k for r in mine for k in r["sweeps"]))
+            for knob in knobs:
+                sweep = [r for r in mine if knob in r["sweeps"]]
+                rows = [
+                    {
+                        "value": r["value"]
+                        if r["knob"] == knob
+                        else _knob_base(r["settings"], knob, strategy),
+                        "error": r["error"],
+                        "time_s": r[cost],
+                    }
+                    for r in sweep
+                ]
+                rows = [row for row in rows if row["value"] is not None]  # "off" is no number
+                effects[knob] = knob_effect(rows, sweep[0]["finer"][knob])
+            out["knob_effects"][scene][strategy] = effects
+            out["best_knob"][scene][strategy] = best_knob(effects)
+        ranges = winners(recs, cost)
+        out["winners"][scene] = ranges
+        out["crossovers"][scene] = crossovers(ranges)
+    return out
 
 
 # ----------------------------------------------------------------------------- entry points
@@ -378,6 +529,7 @@ def sweep(
     *,
     scenes: str | list[str] | None = None,
     knobs: str | list[str] | None = None,
+    strategies: str | list[str] | None = None,
     workers: int | None = None,
     scheduler: str | None = None,
     threads: int = 1,
@@ -389,7 +541,7 @@ def sweep(
     """Run the trade study and write ``tradeoff.json``, ``tradeoff.md``, ``tradeoff_<scene>.png``.
 
     Args:
-        mode, scenes, knobs, sweeps, threads: see :func:`plan`.
+        mode, scenes, knobs, strategies, sweeps, threads: see :func:`plan`.
         out: output folder.
         workers: local point processes at once (default: the number of cores); ignored with
             ``scheduler``.
@@ -410,8 +562,9 @@ def sweep(
     workers = (os.cpu_count() or 1) if workers is None else workers
     if not (isinstance(workers, int) and workers >= 1):
         raise ValueError(f"--workers must be an integer >= 1, got {workers!r}")
-    records = plan(mode, scenes, knobs, sweeps=sweeps, threads=threads)
+    records = plan(mode, scenes, knobs, strategies=strategies, sweeps=sweeps, threads=threads)
     scene_names = list(dict.fromkeys(r["scene"] for r in records))
+    pairs = list(dict.fromkeys((r["scene"], r["strategy"]) for r in records))
     env = environment()
     out = Path(out)
     json_path = out / f"{NAME}.json"
@@ -424,9 +577,10 @@ def sweep(
         return execute_local(ids, batch, workers)
 
     started = time.perf_counter()
+    warm = pairs if warmup else []
     warmed = execute(
-        [f"{scene}/warmup" for scene in (scene_names if warmup else [])],
-        [_warmup_job(scene, threads) for scene in (scene_names if warmup else [])],
+        [f"{scene}/{strategy}/warmup" for scene, strategy in warm],
+        [_warmup_job(scene, strategy, threads) for scene, strategy in warm],
     )
     warmup_s = time.perf_counter() - started
     started = time.perf_counter()
@@ -442,15 +596,33 @@ def sweep(
             f"--id {shlex.quote(record['id'])}"
         )
         finished.append(done)
-    effects, best = analyse(finished, scene_names, cost_key)
+    analysis = analyse(finished, scene_names, cost_key)
+
+    def chosen_in(scene: str) -> list[str]:
+        if isinstance(strategies, dict):
+            return _names(strategies.get(scene), "strategy", _registry())
+        return _names(strategies, "strategy", _registry())
+
     payload = {
         "benchmark": NAME,
         "mode": mode,
         "scenes": scene_names,
-        "knobs": {
-            s: sorted({k for r in finished if r["scene"] == s for k in r["sweeps"]})
+        "strategies": {
+            s: list(dict.fromkeys(st for sc, st in pairs if sc == s)) for s in scene_names
+        },
+        "strategy_notes": {
+            s: {st: SCENES[s]["strategies"][st].get("note") for sc, st in pairs if sc == s}
             for s in scene_names
         },
+        "not_run": {
+            s: {
+                st: SCENES[s]["not_applicable"].get(st, "not declared for this scene")
+                for st in chosen_in(s)
+                if (s, st) not in pairs
+            }
+            for s in scene_names
+        },
+        "knobs": {s: swept_knobs(finished, s) for s in scene_names},
         "errors": {s: SCENES[s]["error"] for s in scene_names},
         "executor": {
             "kind": "dask" if scheduler else "local",
@@ -460,6 +632,9 @@ def sweep(
             "timeout_s": timeout_s,
         },
         "cost": cost_key,
+        "sweeps_override": sweeps,  # what replaced the mode's values (None: none)
+        "strategies_chosen": strategies,
+        "knobs_chosen": knobs,
         "warmup_s": warmup_s,
         "warmup_failures": [w["failure"] for w in warmed if w.get("failure")],
         "wall_s": elapsed,
@@ -468,8 +643,7 @@ def sweep(
         "pareto": {
             s: [r["id"] for r in finished if r["scene"] == s and r["pareto"]] for s in scene_names
         },
-        "knob_effects": effects,
-        "best_knob": best,
+        **analysis,
         "references": references,
         "points": finished,
         "environment": env,
@@ -480,16 +654,47 @@ def sweep(
     pngs = {}
     for scene in scene_names:
         recs = [r for r in finished if r["scene"] == scene]
-        title = f"{scene}: error against {COSTS[cost_key]} ({mode} mode, best knob: {best[scene]})"
-        label = "reference error" if "reference_keys" in SCENES[scene] else "error vs analytic"
+        title = f"{scene}: error against {COSTS[cost_key]} ({mode} mode)"
+        label = (
+            "error vs reference run" if "reference_keys" in SCENES[scene] else "error vs analytic"
+        )
         pngs[scene] = str(plot_scene(recs, out / f"{NAME}_{scene}.png", title, label, cost_key))
     for scene in scene_names:
-        log.info("%s: best knob %s, Pareto front %s", scene, best[scene], payload["pareto"][scene])
+        log.info(
+            "%s: winners %s",
+            scene,
+            [(w["error_from"], w["winner"]) for w in payload["winners"][scene]],
+        )
     return {"json": str(path), "markdown": str(md), "png": pngs, **payload}
 
 
+def rerender(path: str | Path) -> dict:
+    """Write ``tradeoff.md`` and the plots again from a ``tradeoff.json`` (its points as
+    recorded: the fronts, winners and knob effects are recomputed from them)."""
+    path = Path(path)
+    payload = json.loads(path.read_text())
+    points, scenes = payload["points"], payload["scenes"]
+    payload.update(analyse(points, scenes, payload["cost"]))
+    payload["knobs"] = {s: swept_knobs(points, s) for s in scenes}
+    payload["pareto"] = {
+        s: [r["id"] for r in points if r["scene"] == s and r["pareto"]] for s in scenes
+    }
+    path.write_text(json.dumps(payload, indent=2, default=float))
+    md = path.with_suffix(".md")
+    md.write_text(markdown(payload))
+    for scene in scenes:
+        recs = [r for r in points if r["scene"] == scene]
+        title = f"{scene}: error against {COSTS[payload['cost']]} ({payload['mode']} mode)"
+        label = (
+            "error vs reference run" if "reference_keys" in SCENES[scene] else "error vs analytic"
+        )
+        plot_scene(recs, path.parent / f"{NAME}_{scene}.png", title, label, payload["cost"])
+    return payload
+
+
 def run(mode: str = "full", out: str | Path = "results") -> dict:
-    """The registry's entry point (``python -m benchmarks tradeoff``): every scene and knob."""
+    """The registry's entry point (``python -m benchmarks tradeoff``): every scene, strategy and
+    knob."""
     return sweep(mode, out)
 
 
@@ -530,16 +735,20 @@ def load_record(
 
 
 def _check_settings(record: dict) -> None:
-    """The record's settings are those its scene's ``run_point`` takes, with valid knobs."""
-    scene = record["scene"]
-    keys = importlib.import_module(SCENES[scene]["module"]).POINT_KEYS
-    settings = record["settings"]
-    missing = [k for k in keys if k not in settings]
-    unknown = [k for k in settings if k not in keys]
-    if missing or unknown:
-        raise ValueError(f"{scene} settings: missing {missing}, unknown {unknown}")
-    for knob in SCENES[scene]["knobs"]:
-        _check_value(scene, knob, settings[knob])
+    """The record's strategy runs its scene and its knob values are valid."""
+    scene, settings = record["scene"], record["settings"]
+    strategy = settings.get("strategy")
+    if strategy not in SCENES[scene]["strategies"]:
+        raise ValueError(
+            f"{scene}: strategy {strategy!r} does not run here; its strategies: "
+            f"{', '.join(SCENES[scene]['strategies'])}"
+        )
+    if not isinstance(settings.get("options"), dict):
+        raise ValueError(f"{scene} settings: 'options' must be a dict of the strategy's options")
+    for knob, entry in knob_table(scene, strategy, record.get("mode", "quick")).items():
+        _check_value(
+            f"{scene}/{strategy}", knob, _knob_base(settings, knob, strategy), entry["spec"]
+        )
 
 
 def replay(record: dict, timeout_s: float | None = None) -> dict:
@@ -551,7 +760,7 @@ def replay(record: dict, timeout_s: float | None = None) -> dict:
     """
     _check_settings(record)
     point = {
-        "id": record.get("id", f"{record['scene']}/point"),
+        "id": record.get("id", f"{record['scene']}/{record['settings']['strategy']}/point"),
         "scene": record["scene"],
         "label": record.get("label", "point"),
         "settings": record["settings"],
@@ -583,7 +792,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument(
         "--scenes", help=f"comma-separated scenes (default: all: {', '.join(sorted(SCENES))})"
     )
-    group.add_argument("--knobs", help=f"comma-separated knobs (default: all: {', '.join(KNOBS)})")
+    group.add_argument(
+        "--knobs", help="comma-separated knobs (default: every knob of each strategy)"
+    )
+    group.add_argument(
+        "--strategies",
+        help="comma-separated strategies (default: every one that applies to each scene)",
+    )
     group.add_argument("--workers", type=int, help="local point processes at once (default: cores)")
     group.add_argument("--scheduler", help="run the points on a Dask scheduler (tcp://host:port)")
     group.add_argument(
@@ -613,8 +828,8 @@ def main_from_args(args: argparse.Namespace) -> int:
         status = "reproduced" if result["reproduced"] else "NOT reproduced"
         print(
             f"{result['id']}: error {result['error']} (recorded {result['recorded_error']}): "
-            f"{status}; wall {result['wall_s']} s, {result['newton_iterations']} Newton "
-            f"iterations, peak {result['peak_memory_mb']} MiB"
+            f"{status}; wall {result['wall_s']} s, {result['iterations']} iterations, "
+            f"peak {result['peak_memory_mb']} MiB"
             + (f"; failure: {result['failure']}" if result["failure"] else "")
         )
         return 0 if result["reproduced"] else 1
@@ -625,6 +840,7 @@ def main_from_args(args: argparse.Namespace) -> int:
         args.out,
         scenes=args.scenes,
         knobs=args.knobs,
+        strategies=args.strategies,
         workers=args.workers,
         scheduler=args.scheduler,
         threads=args.threads_per_point,
@@ -633,5 +849,8 @@ def main_from_args(args: argparse.Namespace) -> int:
     )
     print(f"tradeoff: wrote {summary['json']}, {summary['markdown']}")
     for scene in summary["scenes"]:
-        print(f"  {scene}: best knob {summary['best_knob'][scene]}; plot {summary['png'][scene]}")
+        won = ", ".join(
+            f"{w['winner']} from {w['error_from']:.3g}" for w in summary["winners"][scene]
+        )
+        print(f"  {scene}: winners {won or '-'}; plot {summary['png'][scene]}")
     return 0

@@ -52,7 +52,9 @@ class BarrierOptions(StepperOptions):
 
     strategy: ClassVar[str] = "barrier"
 
-    tol: float = field(default=1e-6, metadata={"unit": "velocity"})
+    tol: float = field(
+        default=1e-6, metadata={"unit": "velocity", "sweep": {"finer": -1, "factor": 10.0}}
+    )
     max_newton_iterations: int = 200
     warm_start: bool = False
     linear_solver: str | LinearSolver = "default"

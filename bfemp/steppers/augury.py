@@ -44,7 +44,7 @@ from __future__ import annotations
 import logging
 import math
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import ClassVar
 
 import numpy as np
@@ -119,8 +119,8 @@ class AuguryOptions(ExplicitOptions):
 
     strategy: ClassVar[str] = "augury"
 
-    tau: float | None = None
-    iterations: int = 1
+    tau: float | None = field(default=None, metadata={"sweep": {"finer": -1, "factor": 2.0}})
+    iterations: int = field(default=1, metadata={"sweep": {"finer": 1, "step": 1, "min": 0}})
     mode: str = "friction"
     mu: float | None = None
     grid_dx: float | None = None

@@ -47,6 +47,12 @@ class StepperOptions:
 
     Subclasses declare one field per setting with a docstring line (``Attributes:``) giving its
     meaning and unit, and validate in ``__post_init__`` with messages that name the field.
+
+    A field that trades accuracy against cost declares it in its metadata, ``sweep``: ``finer``
+    (+1 when a larger value is more accurate and costlier, -1 when a smaller one is) and either
+    ``factor`` (values a factor apart) or ``step`` (integers a step apart), optionally ``min``,
+    ``max`` and ``first`` (the first value when the default is None, "off"). The trade study
+    (``benchmarks.tradeoff``) sweeps exactly these fields of each strategy.
     """
 
     #: the strategy these options belong to (set by each subclass)

@@ -58,7 +58,7 @@ from __future__ import annotations
 import logging
 import math
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import ClassVar
 
 import numpy as np
@@ -87,6 +87,11 @@ P2G_CHUNK = 2048
 P2G_MAX_CHUNKS = 32
 
 
+#: the CFL fractions are trade-study knobs (``StepperOptions``' ``sweep`` metadata): finer when
+#: smaller, a factor 2 apart, at most 1
+_CFL_SWEEP = {"finer": -1, "factor": 2.0, "max": 1.0}
+
+
 @dataclass(frozen=True, kw_only=True)
 class ExplicitOptions(StepperOptions):
     """Options every explicit strategy has.
@@ -98,8 +103,8 @@ class ExplicitOptions(StepperOptions):
 
     strategy: ClassVar[str] = "explicit"
 
-    cfl_safety_fem: float = 0.5
-    cfl_safety_mpm: float = 0.4
+    cfl_safety_fem: float = field(default=0.5, metadata={"sweep": _CFL_SWEEP})
+    cfl_safety_mpm: float = field(default=0.4, metadata={"sweep": _CFL_SWEEP})
 
     def __post_init__(self) -> None:
         for name in ("cfl_safety_fem", "cfl_safety_mpm"):

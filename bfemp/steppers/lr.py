@@ -47,7 +47,7 @@ from __future__ import annotations
 import logging
 import math
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import ClassVar
 
 import numpy as np
@@ -125,9 +125,13 @@ class LROptions(ExplicitOptions):
     interface: str = "contact"
     detector: str = "lr"
     cp_offset: float = 0.8
-    corrections: int = 2
+    corrections: int = field(
+        default=2, metadata={"sweep": {"finer": 1, "step": 1, "min": 1, "max": 2}}
+    )
     lump: str = "lumped"
-    xpic_order: int | None = None
+    xpic_order: int | None = field(
+        default=None, metadata={"sweep": {"finer": 1, "step": 4, "min": 1, "first": 1}}
+    )
     xpic_variant: str = "paper"
     mass_fraction: float = 1e-8
     penalty: float = 1e-7

@@ -127,7 +127,9 @@ class TwoStageOptions(ExplicitOptions):
     strategy: ClassVar[str] = "two_stage"
 
     friction: str = "once"
-    tol: float = field(default=1e-6, metadata={"unit": "velocity"})
+    tol: float = field(
+        default=1e-6, metadata={"unit": "velocity", "sweep": {"finer": -1, "factor": 10.0}}
+    )
     max_newton_iterations: int = 100
     start: str = "free"
     linear_solver: str = "default"

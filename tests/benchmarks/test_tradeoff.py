@@ -1,6 +1,8 @@
-"""Trade study (issue 6): the Pareto front and knob analysis by hand, the plan of the sweeps, bad
-input, and a minimal quick sweep of the three scenes (two points each) run by local processes
-and, for the same slope points, by a local Dask cluster; replaying records reproduces errors."""
+"""Trade study across strategies (issues 6, 17): the Pareto front, knob analysis and winners per
+error range by hand, the plan of the sweeps (knobs from the strategies' options), bad input, and
+a minimal quick sweep (two strategies on the rings, barrier on slope) run by local
+processes and, for the two strategies on the rings, by a local Dask cluster with equal results;
+replaying records reproduces errors."""
 
 import argparse
 import json
@@ -10,17 +12,26 @@ import numpy as np
 import pytest
 
 import benchmarks.__main__ as bench_main
-from benchmarks import rings, tradeoff
-from benchmarks._tradeoff_report import best_knob, knob_effect, pareto_front
+from benchmarks import tradeoff
+from benchmarks._tradeoff_knobs import ladder, option_knobs
+from benchmarks._tradeoff_report import (
+    best_knob,
+    crossovers,
+    knob_effect,
+    pareto_front,
+    winner_sentences,
+    winners,
+)
 from bfemp import cli
 
-#: two cheap points per scene: along dt (rings, slope) or tol (hertz); the other knob of the
-#: pair is held at its base value so that it adds no point
+#: two cheap points per strategy: barrier along dt, augury along its iterations (rings), barrier
+#: along its option tol (slope); the knobs not chosen keep their base values
 MINIMAL = {
-    "rings": {"dt": (2e-2, 1e-2), "tol": (1e-6,)},
-    "slope": {"dt": (2e-3, 1e-3), "tol": (1e-8,)},
-    "hertz": {"dt": (6e-2,), "tol": (1e-3, 1e-4)},
+    "rings": {"barrier": {"dt": (2e-2, 1e-2), "tol": (1e-6,)}, "augury": {"iterations": (1, 0)}},
+    "slope": {"barrier": {"dt": (1e-3,), "tol": (1e-7, 1e-8)}},
 }
+MINIMAL_KNOBS = "dt,tol,iterations"
+MINIMAL_STRATEGIES = {"rings": "barrier,augury", "slope": "barrier"}
 
 
 # ----------------------------------------------------------------------------- analysis
@@ -94,40 +105,124 @@ def test_knob_effect_slopes_and_the_best_knob():
     assert best_knob({"ppc": ppc}) is None
 
 
+def test_winners_per_error_range_from_a_hand_made_table():
+    # A: cheap and coarse, or costly and fine; B: in between, and the finest point of all
+    table = [
+        {"strategy": "A", "error": 1e-2, "wall_s": 1.0},
+        {"strategy": "A", "error": 1e-4, "wall_s": 10.0},
+        {"strategy": "B", "error": 1e-3, "wall_s": 3.0},
+        {"strategy": "B", "error": 1e-5, "wall_s": 5.0},
+        {"strategy": "B", "error": None, "wall_s": 0.1},  # failed: takes no part
+        {"strategy": "C", "error": 2e-2, "wall_s": 2.0},  # never the cheapest
+    ]
+    ranges = winners(table)
+    # targets >= 1e-2: A (1 s) beats C (2 s) and B (3 s); below 1e-2 B's 3 s and 5 s points
+    # beat A's 10 s one, and only B reaches 1e-5
+    assert [(r["error_from"], r["error_to"], r["winner"]) for r in ranges] == [
+        (1e-2, math.inf, "A"),
+        (1e-5, 1e-2, "B"),
+    ]
+    # at its tightest target (1e-2) C (error 2e-2) does not count: B is the runner-up
+    assert ranges[0]["cost_s"] == 1.0 and ranges[0]["runner_up"] == "B"
+    assert ranges[0]["runner_up_cost_s"] == 3.0
+    # the merged range keeps the numbers of its tightest target (1e-5: B alone)
+    assert ranges[1]["cost_s"] == 5.0 and ranges[1]["runner_up"] is None
+    assert crossovers(ranges) == [{"error": 1e-2, "above": "A", "below": "B"}]
+    text = " ".join(winner_sentences("slope", ranges))
+    assert "below it B is faster than A on slope" in text
+    assert "No strategy reached an error below 1e-05" in text
+    # the CPU time as the cost can change the winner: B is cheaper in CPU at every target
+    cpu = [dict(r, cpu_s=c) for r, c in zip(table, (4.0, 9.0, 2.0, 3.0, 0.1, 5.0), strict=True)]
+    assert [r["winner"] for r in winners(cpu, "cpu_s")] == ["B"]
+    assert winners([{"strategy": "A", "error": None, "wall_s": 1.0}]) == []
+
+
 # ----------------------------------------------------------------------------- planning, input
-def test_plan_is_one_at_a_time_around_the_base_with_a_finest_reference():
-    points = tradeoff.plan("quick", "rings", "dt,ppc")
-    base = tradeoff.SCENES["rings"]["modes"]["quick"]["base"]
+def test_each_strategy_sweeps_the_knobs_its_options_declare():
+    # the declaration: options fields with "sweep" metadata
+    assert set(option_knobs("barrier")) == {"tol"}
+    assert set(option_knobs("augury")) == {"cfl_safety_fem", "cfl_safety_mpm", "tau", "iterations"}
+    assert {"xpic_order", "corrections"} <= set(option_knobs("lr"))
+    assert ladder({"finer": -1, "factor": 10.0}, 1e-6, "full") == pytest.approx((1e-5, 1e-6, 1e-7))
+    # finer is out of range: quick mode goes one step coarser instead
+    assert ladder({"finer": 1, "step": 1, "min": 1, "max": 2}, 2, "quick") == (1, 2)
+    assert ladder({"finer": 1, "step": 4, "first": 1}, None, "full") == (None, 1, 5)
+    assert ladder({"finer": -1, "factor": 2.0}, None, "quick") == ()  # tau = None is dt
+
+    def knobs(scene: str, strategy: str) -> set[str]:
+        points = tradeoff.plan("quick", scene, strategies=strategy)
+        return {k for p in points for k in p["sweeps"]}
+
+    # a fixed dt is a knob; at dt = "auto" the CFL fractions are, and dt is not
+    assert knobs("rings", "barrier") == {"dx", "ppc", "dhat", "dt", "tol"}
+    assert knobs("rings", "two_stage") == {"dx", "ppc", "dhat", "tol"} | {
+        "cfl_safety_fem",
+        "cfl_safety_mpm",
+    }
+    # augury has no barrier (no dhat); tau = None (dt) is not swept at dt = "auto", a set tau is
+    assert knobs("rings", "augury") == {
+        "dx",
+        "ppc",
+        "iterations",
+        "cfl_safety_fem",
+        "cfl_safety_mpm",
+    }
+    assert knobs("augury_blocks", "augury") == {"dx", "dt", "tau", "iterations"}
+    assert knobs("slope", "lr") == {"dx", "ppc", "dt", "corrections", "xpic_order"}
+    # the explicit slope's dt never goes above the stable step (6e-5 s)
+    slope_dt = {p["settings"]["dt"] for p in tradeoff.plan("full", "slope", strategies="two_stage")}
+    assert max(slope_dt) <= 6e-5
+
+
+def test_plan_is_one_at_a_time_around_each_strategys_base_with_one_reference():
+    points = tradeoff.plan("quick", "rings", "dt,ppc", strategies="barrier,two_stage")
     ids = [p["id"] for p in points]
-    assert ids == ["rings/base", "rings/dt=2e-2", "rings/dt=5e-3", "rings/ppc=9", "rings/reference"]
-    assert points[0]["settings"] == base and points[0]["sweeps"] == ["dt", "ppc"]
-    for p in points[1:-1]:
-        changed = {k for k in base if p["settings"][k] != base[k]}
-        assert changed == {p["knob"]}, p["id"]
-    reference = points[-1]
-    assert reference["is_reference"] and reference["sweeps"] == []
-    assert reference["settings"] == {**base, "dt": 5e-3, "ppc": 9}
+    assert ids == [
+        "rings/barrier/base",
+        "rings/barrier/ppc=9",
+        "rings/barrier/dt=5e-3",
+        "rings/barrier/reference",
+        "rings/two_stage/base",
+        "rings/two_stage/ppc=9",
+    ]
+    base = tradeoff.strategy_base("rings", "barrier", "quick")
+    assert points[0]["settings"] == base and base["options"] == {"tol": 1e-6}
     for p in points:
-        assert set(p["settings"]) == set(rings.POINT_KEYS)
-        assert p["mode"] == "quick" and p["strategy"] == "bfemp" and p["threads"] == 1
-    # a reference equal to a sweep point is that point; analytic scenes have no reference
-    only_dt = tradeoff.plan("quick", "rings", "dt")
-    assert [p["id"] for p in only_dt if p["is_reference"]] == ["rings/dt=5e-3"]
-    assert not any(p["is_reference"] for p in tradeoff.plan("quick", "slope,hertz", "dt"))
-    # a scene without any chosen knob is skipped; the full mode is defined for every scene
-    assert {p["scene"] for p in tradeoff.plan("quick", None, "eps_v")} == {"slope", "hertz"}
+        if p["role"] == "sweep":
+            ref = tradeoff.strategy_base("rings", p["strategy"], "quick")
+            changed = {k for k in ref if p["settings"][k] != ref[k]}
+            assert changed == {p["knob"]}, p["id"]
+    # one reference per scene, the barrier run at the finest value of each of its knobs
+    reference = [p for p in points if p["is_reference"]]
+    assert [p["id"] for p in reference] == ["rings/barrier/reference"]
+    assert reference[0]["settings"] == {**base, "dt": 5e-3, "ppc": 9}
+    # without barrier among the strategies, its reference run is planned all the same (here the
+    # finest barrier run is its ppc = 9 point: one knob swept)
+    alone = tradeoff.plan("quick", "rings", "ppc", strategies="lr")
+    assert [p["id"] for p in alone if p["is_reference"]] == ["rings/barrier/ppc=9"]
+    assert {p["strategy"] for p in alone if not p["is_reference"]} == {"lr"}
+    # a strategy that does not apply is skipped; lr_compression and augury_blocks have theirs
+    assert {p["strategy"] for p in tradeoff.plan("quick", "hertz")} == {"barrier"}
+    assert {p["strategy"] for p in tradeoff.plan("quick", "lr_compression")} == {"lr"}
     assert {p["scene"] for p in tradeoff.plan("full")} == set(tradeoff.SCENES)
+    # every scene that a strategy does not run says why
+    for scene, spec in tradeoff.SCENES.items():
+        declared = set(spec["strategies"]) | set(spec["not_applicable"])
+        assert declared == set(tradeoff._registry()), scene
 
 
 def test_bad_input_names_what_is_wrong(capsys, monkeypatch, tmp_path):
-    with pytest.raises(ValueError, match="unknown knob 'dtt'; available: strategy, dt"):
+    with pytest.raises(ValueError, match="unknown knob 'dtt'; available: dt, dx"):
         tradeoff.plan("quick", None, "dt,dtt")
-    with pytest.raises(ValueError, match="unknown scene 'ring'; available: hertz, rings, slope"):
+    with pytest.raises(ValueError, match="unknown scene 'ring'; available: augury_blocks"):
         tradeoff.plan("quick", "ring")
-    with pytest.raises(ValueError, match="no scene among rings has any of the knobs eps_v"):
-        tradeoff.plan("quick", "rings", "eps_v")
-    with pytest.raises(ValueError, match="rings: unknown strategy 'ipc'"):
-        tradeoff.plan("quick", "rings", "strategy", sweeps={"rings": {"strategy": ("ipc",)}})
+    # the old alias is gone: strategies go by the registry's names
+    with pytest.raises(ValueError, match="unknown strategy 'bfemp'; available: barrier"):
+        tradeoff.plan("quick", "rings", strategies="bfemp")
+    with pytest.raises(ValueError, match="no scene among hertz runs any of the strategies lr"):
+        tradeoff.plan("quick", "hertz", strategies="lr")
+    with pytest.raises(ValueError, match="strategy 'lr' does not run hertz"):
+        tradeoff.plan("quick", "hertz", sweeps={"hertz": {"lr": {"dt": (1e-3,)}}})
     with pytest.raises(ValueError, match="knob dt must be a positive number"):
         tradeoff.plan("quick", "slope", "dt", sweeps={"slope": {"dt": (-1.0,)}})
     with pytest.raises(ValueError, match="--cost must be 'wall' or 'cpu'"):
@@ -138,7 +233,12 @@ def test_bad_input_names_what_is_wrong(capsys, monkeypatch, tmp_path):
     monkeypatch.setattr(tradeoff, "CONNECT_TIMEOUT_S", 1.0)
     with pytest.raises(ValueError, match="cannot reach the Dask scheduler at tcp://127.0.0.1:9"):
         tradeoff.sweep(
-            "quick", tmp_path, scenes="slope", knobs="strategy", scheduler="tcp://127.0.0.1:9"
+            "quick",
+            tmp_path,
+            scenes="slope",
+            strategies="barrier",
+            knobs="tol",
+            scheduler="tcp://127.0.0.1:9",
         )
     # both command lines: a usage error naming the mistake, exit status 2
     with pytest.raises(SystemExit) as exit_info:
@@ -149,6 +249,9 @@ def test_bad_input_names_what_is_wrong(capsys, monkeypatch, tmp_path):
     assert "bfemp: error: unknown scene 'nowhere'" in capsys.readouterr().err
     assert cli.main(["sweep", "--point", "{not json"]) == 2
     assert "--point is not valid JSON" in capsys.readouterr().err
+    record = {"scene": "hertz", "settings": {"strategy": "lr", "options": {}}}
+    assert cli.main(["sweep", "--point", json.dumps(record)]) == 2
+    assert "hertz: strategy 'lr' does not run here" in capsys.readouterr().err
 
 
 def _options(parser: argparse.ArgumentParser) -> set[str]:
@@ -161,13 +264,22 @@ def test_bfemp_sweep_has_the_options_of_the_benchmark():
     parser, _ = cli._parser_and_plugins()
     sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
     assert _options(sub.choices["sweep"]) - {"--verbose"} == _options(bench)
+    assert "--strategies" in _options(bench)
 
 
 # ----------------------------------------------------------------------------- a minimal sweep
 @pytest.fixture(scope="module")
 def minimal(tmp_path_factory):
     out = tmp_path_factory.mktemp("tradeoff")
-    summary = tradeoff.sweep("quick", out, knobs="dt,tol", workers=2, sweeps=MINIMAL)
+    summary = tradeoff.sweep(
+        "quick",
+        out,
+        scenes="rings,slope",
+        strategies=MINIMAL_STRATEGIES,
+        knobs=MINIMAL_KNOBS,
+        workers=2,
+        sweeps=MINIMAL,
+    )
     return summary, json.loads((out / "tradeoff.json").read_text()), out
 
 
@@ -175,67 +287,82 @@ def _by_id(data: dict) -> dict:
     return {p["id"]: p for p in data["points"]}
 
 
-def test_minimal_sweep_writes_records_plots_and_summary(minimal):
+def test_minimal_sweep_writes_records_plots_and_report(minimal):
     summary, data, out = minimal
     assert summary["json"] == str(out / "tradeoff.json")
-    # the parallel sweep of 6 points (a few seconds each) stays well inside a couple of minutes
     assert data["wall_s"] < 180.0
-    assert data["scenes"] == ["hertz", "rings", "slope"]
+    assert data["scenes"] == ["rings", "slope"]
+    assert data["strategies"] == {"rings": ["barrier", "augury"], "slope": ["barrier"]}
+    # only the chosen strategies are listed as not run, each with why
+    assert data["not_run"]["rings"] == {} and data["not_run"]["slope"] == {}
     assert data["warmup_s"] > 0.0 and data["warmup_failures"] == []
     points = _by_id(data)
     assert sorted(points) == [
-        "hertz/base",
-        "hertz/tol=1e-3",
-        "rings/base",
-        "rings/dt=2e-2",
-        "slope/base",
-        "slope/dt=2e-3",
+        "rings/augury/base",
+        "rings/augury/iterations=0",
+        "rings/barrier/base",
+        "rings/barrier/dt=2e-2",
+        "slope/barrier/base",
+        "slope/barrier/tol=1e-7",
     ]
     for p in points.values():
-        for key in ("scene", "settings", "strategy", "mode", "threads", "error", "wall_s"):
+        for key in ("scene", "strategy", "settings", "mode", "threads", "error", "wall_s"):
             assert key in p, (p["id"], key)
         assert p["failure"] is None, (p["id"], p["failure"])
         assert p["error"] is not None and p["error"] >= 0.0
         assert p["wall_s"] > 0.0 and p["process_wall_s"] > p["wall_s"]
         # one thread per point: the process's CPU time cannot exceed its wall time by much
         assert 0.0 < p["cpu_s"] < 1.1 * p["wall_s"] + 0.5
-        assert p["newton_iterations"] > 0 and p["peak_memory_mb"] > 50.0
-        assert p["mode"] == "quick" and p["strategy"] == "bfemp"
+        assert p["peak_memory_mb"] > 50.0 and p["mode"] == "quick"
+        assert p["iterations"] > 0 if p["strategy"] == "barrier" else p["iterations"] == 0
+        assert p["settings"]["strategy"] == p["strategy"]
         assert f"--id {p['id']}" in p["replay"]
     # the analytic errors are those the scenes' own metrics give
-    slope = points["slope/dt=2e-3"]
+    slope = points["slope/barrier/tol=1e-7"]
     assert slope["error"] == slope["metrics"]["accel_rel_error"]
-    assert slope["settings"]["dt"] == 2e-3 and slope["metrics"]["steps"] == 40
-    hertz = points["hertz/tol=1e-3"]
-    assert hertz["error"] == pytest.approx(abs(hertz["metrics"]["C_fit_over_C_hertz"] - 1.0))
+    assert slope["settings"]["options"] == {"tol": 1e-7} and slope["metrics"]["steps"] == 50
+    # the Newton tolerance is the scene's at the base: 1e-8 m/s
+    assert points["slope/barrier/base"]["settings"]["options"] == {"tol": 1e-8}
     for scene in data["scenes"]:
         front = data["pareto"][scene]
         assert front and all(points[i]["pareto"] for i in front)
         assert (out / f"tradeoff_{scene}.png").stat().st_size > 10_000
+        # the winners are computed from the points: the cheapest strategy at each target
+        for r in data["winners"][scene]:
+            reach = [
+                p for p in points.values() if p["scene"] == scene and p["error"] <= r["error_from"]
+            ]
+            assert r["cost_s"] == min(p["wall_s"] for p in reach)
     md = (out / "tradeoff.md").read_text()
     for scene in data["scenes"]:
         assert f"## {scene}" in md
-    assert "Most accuracy per second: dt" in md and "Pareto front (error against wall time)" in md
+    assert "### Winner per error range" in md and "Non-dominated front" in md
+    assert "Crossover" in md or len(data["winners"]["rings"]) == 1
 
 
-def test_rings_error_is_taken_against_the_finest_run(minimal):
+def test_rings_errors_of_both_strategies_are_taken_against_the_barrier_reference(minimal):
     _, data, _ = minimal
     points = _by_id(data)
-    base, coarse = points["rings/base"], points["rings/dt=2e-2"]
-    # only dt is swept (tol has its base value): the finest run is the base itself
-    assert base["is_reference"] and data["references"]["rings"]["id"] == "rings/base"
+    base = points["rings/barrier/base"]
+    # only dt is swept for barrier (tol has its base value): its finest run is the base itself
+    assert base["is_reference"] and data["references"]["rings"]["id"] == "rings/barrier/base"
     assert base["error"] == 0.0
-    ref = coarse["reference"]["metrics"]
-    assert ref["energy_loss_pct"] == base["metrics"]["energy_loss_pct"]
-    loss = abs(coarse["metrics"]["energy_loss_pct"] / ref["energy_loss_pct"] - 1.0)
-    duration = abs(coarse["metrics"]["contact_duration_s"] / ref["contact_duration_s"] - 1.0)
-    assert coarse["error_parts"]["energy_loss_pct"] == pytest.approx(loss, rel=1e-12)
-    assert coarse["error_parts"]["contact_duration_s"] == pytest.approx(duration, rel=1e-12)
-    assert coarse["error"] == max(coarse["error_parts"].values()) > 0.0
-    assert data["best_knob"]["rings"] == "dt"
+    for pid in ("rings/barrier/dt=2e-2", "rings/augury/base", "rings/augury/iterations=0"):
+        p = points[pid]
+        ref = p["reference"]["metrics"]
+        assert ref["energy_loss_pct"] == base["metrics"]["energy_loss_pct"]
+        loss = abs(p["metrics"]["energy_loss_pct"] / ref["energy_loss_pct"] - 1.0)
+        duration = abs(p["metrics"]["contact_duration_s"] / ref["contact_duration_s"] - 1.0)
+        assert p["error_parts"]["energy_loss_pct"] == pytest.approx(loss, rel=1e-12)
+        assert p["error_parts"]["contact_duration_s"] == pytest.approx(duration, rel=1e-12)
+        assert p["error"] == max(p["error_parts"].values()) > 0.0
+    assert points["rings/augury/iterations=0"]["settings"]["options"]["iterations"] == 0
+    # the reference's error is 0: barrier is the winner of the tightest range
+    assert data["winners"]["rings"][-1]["winner"] == "barrier"
+    assert data["best_knob"]["rings"]["barrier"] == "dt"
 
 
-def test_dask_cluster_gives_the_errors_of_local_processes(minimal, tmp_path):
+def test_dask_cluster_gives_the_results_of_local_processes(minimal, tmp_path):
     distributed = pytest.importorskip("distributed")
     _, data, _ = minimal
     with distributed.LocalCluster(
@@ -244,33 +371,47 @@ def test_dask_cluster_gives_the_errors_of_local_processes(minimal, tmp_path):
         summary = tradeoff.sweep(
             "quick",
             tmp_path,
-            scenes="slope",
-            knobs="dt,tol",
+            scenes="rings",
+            strategies="barrier,augury",
+            knobs=MINIMAL_KNOBS,
             scheduler=cluster.scheduler_address,
             sweeps=MINIMAL,
             warmup=False,  # the local sweep has filled numba's cache
         )
     assert summary["executor"]["kind"] == "dask"
     local = _by_id(data)
+    assert {p["strategy"] for p in summary["points"]} == {"barrier", "augury"}
     for point in summary["points"]:
         assert point["failure"] is None
-        assert point["error"] == local[point["id"]]["error"], point["id"]
-        assert point["newton_iterations"] == local[point["id"]]["newton_iterations"]
+        mine = local[point["id"]]
+        assert point["error"] == mine["error"], point["id"]
+        assert point["iterations"] == mine["iterations"]
+        assert point["metrics"]["steps"] == mine["metrics"]["steps"]
+    # the winners differ only where the timings do: the same error levels
+    levels = [r["error_from"] for r in data["winners"]["rings"]]
+    assert {r["error_from"] for r in summary["winners"]["rings"]} <= set(
+        p["error"] for p in summary["points"]
+    )
+    assert levels[-1] == 0.0
 
 
 def test_replaying_a_record_reproduces_its_error(minimal, capsys):
     _, data, out = minimal
+    # the report is rebuilt from the recorded points alone: the same winners and fronts
+    again = tradeoff.rerender(out / "tradeoff.json")
+    assert again["winners"] == data["winners"] and again["pareto"] == data["pareto"]
+    assert "### Winner per error range" in (out / "tradeoff.md").read_text()
     # rings: the error is recomputed against the reference metrics stored in the record
-    args = ["tradeoff", "--replay", str(out / "tradeoff.json"), "--id", "rings/dt=2e-2"]
+    args = ["tradeoff", "--replay", str(out / "tradeoff.json"), "--id", "rings/augury/base"]
     assert bench_main.main(args) == 0
     printed = capsys.readouterr().out
-    assert "rings/dt=2e-2: error" in printed and ": reproduced;" in printed
+    assert "rings/augury/base: error" in printed and ": reproduced;" in printed
     # a record whose error does not match what the point gives is reported (exit 1)
-    record = dict(_by_id(data)["slope/dt=2e-3"])
+    record = dict(_by_id(data)["slope/barrier/tol=1e-7"])
     record["error"] = 2.0 * record["error"]
     assert cli.main(["sweep", "--point", json.dumps(record)]) == 1
     printed = capsys.readouterr().out
     assert "NOT reproduced" in printed
-    recorded = _by_id(data)["slope/dt=2e-3"]["error"]
+    recorded = _by_id(data)["slope/barrier/tol=1e-7"]["error"]
     assert f"error {recorded} (recorded {record['error']})" in printed
     assert math.isfinite(recorded)

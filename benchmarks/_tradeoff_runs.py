@@ -1,0 +1,261 @@
+"""One point of the trade study across strategies: ``run_point(settings)`` (``tradeoff``).
+
+``settings``: ``scene`` (a key of ``_tradeoff_scenes.SCENES``), ``strategy`` (a registry name),
+``dt`` (s, or ``"auto"``), ``options`` (the strategy's options as a dict: ``Options(**options)``),
+``transfer`` where the scene declares one, and the scene's own settings (its ``base``). Each scene
+runs through the benchmark module that defines it (``rings``, ``slope``, ``hertz``,
+``sine_boundary``, ``augury_blocks``, ``lr_compression``) with the variant each strategy needs
+(``_tradeoff_scenes`` states which). Returns JSON-ready scalars; ``iterations`` is the sum over
+the run of the strategy's iteration counts (Newton for barrier and two_stage; 0 for the purely
+explicit ones), ``failure`` the ``StepError`` message (None when every step ran).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+
+import numpy as np
+
+import bfemp
+from bfemp.steppers import stepper_class
+
+log = logging.getLogger(__name__)
+
+EXPLICIT_INTEGRATOR = "symplectic_euler"
+
+
+def _options(strategy: str, options: dict) -> object:
+    return stepper_class(strategy).Options(**options)
+
+
+def _check(settings: dict, keys: tuple[str, ...], scene: str) -> None:
+    missing = [k for k in keys if k not in settings]
+    unknown = sorted(set(settings) - set(keys))
+    if missing or unknown:
+        raise ValueError(f"{scene} point: missing settings {missing}, unknown {unknown}")
+
+
+# ----------------------------------------------------------------------------- rings
+RINGS_KEYS = ("strategy", "dt", "options", "transfer", "dx", "ppc", "dhat", "fem_h", "t_end")
+
+
+def _rings(s: dict) -> dict:
+    from benchmarks import rings
+
+    _check(s, RINGS_KEYS, "rings")
+    strategy = s["strategy"]
+    cfg = dict(s)
+    if strategy == "lr":  # lr sees the FEM ring through its boundary nodes: h = dx / 2
+        cfg["fem_h"] = 0.5 * s["dx"]
+    implicit = strategy == "barrier"
+    sim = bfemp.Simulation(
+        rings._scene(cfg),
+        strategy=strategy,
+        integrator=rings.INTEGRATOR if implicit else EXPLICIT_INTEGRATOR,
+        transfer=s["transfer"],
+        dt=s["dt"],
+        options=_options(strategy, s["options"]),
+    )
+    check = rings._PenetrationCheck(sim)
+    failure = None
+    try:
+        sim.run(t_end=s["t_end"], progress=False, callback=check)
+    except bfemp.StepError as err:  # recorded; the metrics so far are still reduced
+        failure = str(err)
+    m = sim.metrics
+    t = m.column("t")
+    energy = m.column("energy_kinetic") + m.column("energy_elastic")
+    e0, e1 = rings._window_energies(t, energy)
+    pairs = m.column("contact_pairs")[1:]
+    touching = t[1:][pairs > 0]
+    iters = m.column("iterations_newton")[1:] if "iterations_newton" in m.columns else [0]
+    return {
+        "energy_loss_pct": 100.0 * (e0 - e1) / e0 if t[-1] >= rings.WINDOW[1] - 1e-9 else None,
+        "contact_duration_s": float(touching[-1] - touching[0]) if touching.size else None,
+        "dt_s": float(sim.dt),
+        "steps": int(len(t) - 1),
+        "iterations": int(np.nansum(iters)),
+        "penetrations": int(check.worst),
+        "particles": int(sim.model.n_particles),
+        "fem_vertices": int(sim.model.n_fem_nodes),
+        "failure": failure,
+    }
+
+
+# ----------------------------------------------------------------------------- slope
+SLOPE_KEYS = ("strategy", "dt", "options", "dx", "ppc", "dhat", "eps_v", "mu")
+SLOPE_KEYS += ("settle_s", "release_s", "fit_start_s")
+
+
+def _slope(s: dict) -> dict:
+    from benchmarks import lr_scenes, slope, two_stage_slope
+
+    strategy = s["strategy"]
+    keys = SLOPE_KEYS + (("transfer",) if strategy == "lr" else ())
+    _check(s, keys, "slope")
+    options = dict(s["options"])
+    point = {k: s[k] for k in ("dt", "dx", "ppc", "dhat", "eps_v")} | {"strategy": strategy}
+    point["tol"] = options.get("tol", slope.PHYSICS["tol_m_s"])
+    p = slope.point_physics(point)
+    variant = "tilted_gravity"
+    if strategy == "barrier":
+        if set(options) - {"tol"}:
+            raise ValueError(f"slope: barrier takes only the option tol, got {sorted(options)}")
+    else:  # the softened box at the explicit step (two_stage_slope), the paper's kappa
+        p.update(E_Pa=two_stage_slope.E_SOFT, integrator=EXPLICIT_INTEGRATOR)
+        p["options"] = _options(strategy, options)
+        if strategy == "lr":
+            p.update(transfer=s["transfer"], slope_lower_upper_m=lr_scenes.LR_SLOPE)
+            variant = "dense_slope"
+    dt = s["dt"]
+    try:
+        settled, settle = slope._settle(variant, round(s["settle_s"] / dt), p)
+    except bfemp.StepError as err:  # no release without a settled box
+        return {"accel_rel_error": None, "steps": None, "failure": str(err)}
+    case = slope._release(
+        variant, s["mu"], settled, round(s["release_s"] / dt), s["fit_start_s"], p
+    )
+    out = {k: v for k, v in case.items() if k not in ("series", "error")}
+    out.update(
+        steps=settle["steps"] + case["steps"],
+        iterations=settle["newton_iterations"] + case["newton_iterations"],
+        failure=case["error"],
+    )
+    return out
+
+
+# ----------------------------------------------------------------------------- hertz
+def _hertz(s: dict) -> dict:
+    from benchmarks import hertz
+
+    if s["strategy"] != "barrier":
+        raise ValueError(f"hertz: only barrier applies here, got {s['strategy']!r}")
+    options = dict(s["options"])
+    point = {k: v for k, v in s.items() if k != "options"}
+    point["tol"] = options.pop("tol")
+    point["max_newton_iterations"] = options.pop("max_newton_iterations")
+    if options:
+        raise ValueError(f"hertz: unsupported barrier options {sorted(options)}")
+    out = hertz.run_point(point)
+    out["iterations"] = out.get("newton_iterations")
+    return out
+
+
+# ----------------------------------------------------------------------------- sine_boundary
+SINE_KEYS = ("strategy", "dt", "options", "scale", "dx", "ppc", "strip_h", "t_stop")
+
+
+def _sine_boundary(s: dict) -> dict:
+    from benchmarks import sine_boundary
+
+    _check(s, SINE_KEYS, "sine_boundary")
+    if s["strategy"] != "barrier":
+        raise ValueError(f"sine_boundary: only barrier applies here, got {s['strategy']!r}")
+    cfg = {k: s[k] for k in ("scale", "dx", "ppc", "strip_h", "dt", "t_stop")} | s["options"]
+    run = sine_boundary._run_one(cfg, "bfemp")
+    keys = ("steps", "t_end", "penetrations", "max_penetration_depth", "max_tensile_force")
+    out = {k: run[k] for k in keys + ("max_compressive_force", "particles", "min_distance")}
+    out.update(iterations=run["newton_iterations"], failure=run["error"])
+    return out
+
+
+# ----------------------------------------------------------------------------- augury_blocks
+BLOCKS_KEYS = ("strategy", "dt", "options", "dx", "t_end")
+
+
+def _augury_blocks(s: dict) -> dict:
+    from benchmarks import augury_blocks
+    from bfemp import diagnostics
+    from bfemp.terms import fem_elastic_groups
+
+    _check(s, BLOCKS_KEYS, "augury_blocks")
+    if s["strategy"] != "augury":
+        raise ValueError(f"augury_blocks: only augury applies here, got {s['strategy']!r}")
+    h = s["dx"]
+    model = augury_blocks.blocks_scene(h).build()
+    options = _options("augury", {"grid_dx": 2.0 * h, **s["options"]})
+    stepper = stepper_class("augury")(model, dt=s["dt"], options=options)
+    state = stepper.initialize(model.initial_state())
+    groups = fem_elastic_groups(model)
+
+    def energy(st: bfemp.State) -> float:
+        kinetic = diagnostics.kinetic_energy(model, st)
+        return kinetic + diagnostics.fem_elastic_energy(model, st, groups)
+
+    e0 = energy(state)
+    p0 = diagnostics.linear_momentum(model, state)
+    steps = int(round(s["t_end"] / s["dt"]))
+    failure, done = None, 0
+    for _ in range(steps):
+        try:
+            state, _report = stepper.step(state)
+        except bfemp.StepError as err:
+            failure = str(err)
+            break
+        done += 1
+    drift = np.linalg.norm(diagnostics.linear_momentum(model, state) - p0) / np.linalg.norm(p0)
+    return {
+        "energy_loss": 1.0 - energy(state) / e0,
+        "momentum_drift_rel": float(drift),
+        "steps": done,
+        "iterations": 0,
+        "nodes_per_block": int(model.fem_bodies[0].n_nodes),
+        "failure": failure,
+    }
+
+
+# ----------------------------------------------------------------------------- lr_compression
+COMPRESSION_KEYS = ("strategy", "dt", "options", "transfer", "v0_over_cK", "strain")
+
+
+def _lr_compression(s: dict) -> dict:
+    from benchmarks import lr_compression as lc
+
+    _check(s, COMPRESSION_KEYS, "lr_compression")
+    if s["strategy"] != "lr" or s["dt"] != "auto":
+        raise ValueError("lr_compression: strategy 'lr' at dt = 'auto' only (lr_compression)")
+    v0 = s["v0_over_cK"] * lc.C_K
+    runs, cost = {}, {}
+    for name, single in (("column", False), ("single_material", True)):
+        wall, cpu = time.perf_counter(), time.process_time()
+        scene = lc.column_scene(v0=v0, single=single)
+        runs[name] = lc.run_case(
+            scene, strain=s["strain"], v0=v0, transfer=s["transfer"], **s["options"]
+        )
+        cost[name] = (time.perf_counter() - wall, time.process_time() - cpu)
+    _, worst = lc.stress_error(runs["column"], runs["single_material"])
+    column = runs["column"]
+    return {
+        "max_abs_error_percent": worst if math.isfinite(worst) else None,
+        "dt_s": column["dt"],
+        "steps": column["steps"],
+        "iterations": 0,
+        "mean_contact_nodes": column["mean_contact_nodes"],
+        # the cost of the point: the two-block run alone (its single-material twin is the
+        # reference, not part of what the strategy costs)
+        "point_wall_s": cost["column"][0],
+        "point_cpu_s": cost["column"][1],
+        "reference_wall_s": cost["single_material"][0],
+        "failure": None,
+    }
+
+
+RUNNERS = {
+    "rings": _rings,
+    "slope": _slope,
+    "hertz": _hertz,
+    "sine_boundary": _sine_boundary,
+    "augury_blocks": _augury_blocks,
+    "lr_compression": _lr_compression,
+}
+
+
+def run_point(settings: dict) -> dict:
+    """Run one point (module docstring); ``settings["scene"]`` picks the scene."""
+    settings = dict(settings)
+    scene = settings.pop("scene", None)
+    if scene not in RUNNERS:
+        raise ValueError(f"unknown scene {scene!r}; available: {', '.join(sorted(RUNNERS))}")
+    return RUNNERS[scene](settings)
