@@ -546,7 +546,7 @@ def run(
         mode: ``"full"`` (the paper's resolution), ``"partial"`` or ``"quick"``; or a timing
             probe of one of them, ``"full_probe"`` / ``"partial_probe"`` (see ``probe``).
         out: output folder.
-        mus: friction coefficients to run instead of the mode's (the quick-mode test runs three).
+        mus: friction coefficients to run instead of the mode's (the quick-mode test runs two).
 
     Returns:
         ``{"json": path, "png": path, **payload}``; ``payload["cases"]`` per mu.
