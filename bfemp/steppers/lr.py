@@ -364,7 +364,9 @@ class LRStepper(ExplicitStepper):
 
         if opts.detector == "lr":
             st = pts.stencils
-            ptr, idx, side = _point_clouds(st.nodes, st.weights, pts.material, node, a, count)
+            ptr, idx, side = lr_contact.contact_point_clouds(
+                st.nodes, st.weights, pts.material, node, a, b, grid_x.shape[0]
+            )
             fit = lr_contact.lr_planes(
                 grid_x[node],
                 ptr,
@@ -706,39 +708,6 @@ class LRStepper(ExplicitStepper):
         if self._last_contact is None:
             return super().contact()
         return self._last_contact
-
-
-def _point_clouds(
-    nodes: np.ndarray,
-    weights: np.ndarray,
-    material: np.ndarray,
-    pair_node: np.ndarray,
-    pair_a: np.ndarray,
-    count: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """CSR point clouds of the pairs: every particle with a positive weight at the pair's node.
-
-    Returns ``ptr (K + 1,)``, ``idx`` particle indices and ``side`` (-1: material a of the pair,
-    +1: the others), int8.
-    """
-    n_g = count.shape[0]
-    is_contact = np.zeros(n_g, dtype=bool)
-    is_contact[pair_node] = True
-    p_idx, e_idx = np.nonzero((weights > 0.0) & is_contact[nodes])
-    node_of = nodes[p_idx, e_idx]
-    order = np.argsort(node_of, kind="stable")
-    node_sorted, part_sorted = node_of[order], p_idx[order]
-    node_ptr = np.zeros(n_g + 1, dtype=np.int64)
-    np.cumsum(np.bincount(node_sorted, minlength=n_g), out=node_ptr[1:])
-    start, stop = node_ptr[pair_node], node_ptr[pair_node + 1]
-    sizes = stop - start
-    ptr = np.zeros(pair_node.size + 1, dtype=np.int64)
-    np.cumsum(sizes, out=ptr[1:])
-    rep = np.repeat(np.arange(pair_node.size), sizes)
-    within = np.arange(ptr[-1]) - ptr[rep]
-    idx = part_sorted[start[rep] + within].astype(np.int64)
-    side = np.where(material[idx] == pair_a[rep], -1, 1).astype(np.int8)
-    return ptr, idx, side
 
 
 def _facet_samples(
