@@ -37,6 +37,7 @@ from typing import Protocol
 import numpy as np
 
 from solvers.assembly import TripletAssembler, Triplets
+from solvers.blas import serial_wheel_blas
 from solvers.line_search import LineSearchResult, backtracking_line_search
 from solvers.linear import LinearSolveError, LinearSolver, default_linear_solver
 from solvers.options import NewtonOptions
@@ -299,7 +300,32 @@ def minimize(
     Returns:
         :class:`NewtonResult`; ``success`` is False, with ``status`` and ``message`` saying
         why, on every failure.
+
+    Meanwhile numpy's and scipy's own BLAS runs on one thread
+    (:func:`solvers.blas.serial_wheel_blas`): its idle threads otherwise spin beside CHOLMOD's,
+    which made the back-solve after every gradient 8x slower (issue 13).
     """
+    with serial_wheel_blas():
+        return _minimize(
+            objective,
+            x0,
+            options=options,
+            linear_solver=linear_solver,
+            callback=callback,
+            assembler=assembler,
+        )
+
+
+def _minimize(
+    objective: Objective,
+    x0: np.ndarray,
+    *,
+    options: NewtonOptions | None,
+    linear_solver: LinearSolver | None,
+    callback: Callable[[NewtonIteration], bool | None] | None,
+    assembler: TripletAssembler | None,
+) -> NewtonResult:
+    """:func:`minimize` itself (the same arguments), with the BLAS pools already set."""
     t_start = time.perf_counter()
     if options is None:
         options = NewtonOptions()

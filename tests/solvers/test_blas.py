@@ -2,6 +2,7 @@
 
 import logging
 
+import numpy as np
 import pytest
 
 from solvers import blas, linear
@@ -76,3 +77,39 @@ def test_the_libblas_soname_wins_over_an_mkl_mapped_by_pypardiso(tmp_path):
     assert blas.cholmod_blas(_maps(tmp_path, mkl, shim)).name == "openblas"
     ref = "/usr/lib/x86_64-linux-gnu/blas/libblas.so.3.11.0"
     assert blas.cholmod_blas(_maps(tmp_path, mkl, ref)).name == "reference"
+
+
+def _wheel_blas_threads():
+    threadpoolctl = pytest.importorskip("threadpoolctl")
+    counts = [
+        pool["num_threads"]
+        for pool in threadpoolctl.threadpool_info()
+        if pool["user_api"] == "blas" and any(d in pool["filepath"] for d in blas._WHEEL_DIRS)
+    ]
+    return counts
+
+
+def test_newton_runs_the_wheel_blas_on_one_thread_and_gives_the_pools_back():
+    # numpy's own OpenBLAS spun beside CHOLMOD's and made back-solves 8x slower (issue 13)
+    threadpoolctl = pytest.importorskip("threadpoolctl")
+    from solvers.newton import minimize
+    from tests.solvers.test_newton import Quadratic
+
+    if not _wheel_blas_threads():
+        pytest.skip("no BLAS bundled in the numpy/scipy wheels in this process")
+    seen = []
+
+    class Recording(Quadratic):
+        def value(self, x):
+            seen.append(_wheel_blas_threads())
+            return super().value(x)
+
+    A = np.diag([2.0, 3.0, 4.0])
+    with threadpoolctl.threadpool_limits(limits=2, user_api="blas"):
+        before = _wheel_blas_threads()
+        assert set(before) == {2}  # the control: outside Newton the pools keep their size
+        res = minimize(Recording(A, np.ones(3)), np.zeros(3))
+        after = _wheel_blas_threads()
+    assert res.success
+    assert seen and all(set(counts) == {1} for counts in seen)
+    assert after == before
