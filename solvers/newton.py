@@ -186,6 +186,7 @@ def _accept_near_solution(
     g_free: np.ndarray,
     free: np.ndarray | None,
     res: NewtonResult,
+    g_best: float = math.inf,
 ) -> LineSearchResult | None:
     """Accept ``x + alpha0 p`` on a falling gradient norm where the energy cannot judge the step.
 
@@ -194,8 +195,11 @@ def _accept_near_solution(
     scale, e.g. eps mu V for elasticity, much larger than eps |E|). Armijo then rejects good steps
     or accepts tiny noisy ones and the iteration stalls. In that regime - the increment within
     ``NewtonOptions.near_solution_factor`` of the tolerance (``near``), or |g.p| below
-    ``_ROUND_OFF_ULPS`` eps |E| - the full step is taken when the gradient norm falls;
-    otherwise None (use Armijo).
+    ``_ROUND_OFF_ULPS`` eps |E| - the full step is taken when the gradient norm falls below
+    both its value at x and ``g_best``, the least norm of the iterates so far; otherwise None
+    (use Armijo). Without ``g_best`` two iterates can take turns (measured, frictional
+    ``buckling`` at dt = 2e-2 s: A -> B on B's smaller gradient while E rose by 1.4e-6 J,
+    B -> A by Armijo, 500 times over).
     """
     round_off = abs(slope) * alpha0 <= _ROUND_OFF_ULPS * np.finfo(float).eps * abs(energy)
     if not (near or round_off):
@@ -208,7 +212,7 @@ def _accept_near_solution(
     g_trial = grad if free is None else grad[free]
     if not (math.isfinite(fun) and np.all(np.isfinite(g_trial))):
         return None
-    if np.linalg.norm(g_trial) >= np.linalg.norm(g_free):
+    if np.linalg.norm(g_trial) >= min(float(np.linalg.norm(g_free)), g_best):
         return None
     logger.debug("newton: near the solution, full step accepted on the gradient norm")
     return LineSearchResult(success=True, alpha=alpha0, x=trial, fun=fun, nfev=1, n_nonfinite=0)
@@ -361,6 +365,7 @@ def _minimize(
     # An inexact solver (CG) stops at the forcing term eta_k, tied to Newton's progress.
     inexact = bool(getattr(solver, "accepts_rtol", False))
     g_norm_prev = eta = None
+    g_best = math.inf  # the least gradient norm of the iterates so far (_accept_near_solution)
     chord_ready = False  # the last factorisation is this solve's, and its step was full
     while True:
         with _timed(timings, "gradient"):
@@ -372,6 +377,7 @@ def _minimize(
         g_free = grad if free is None else grad[free]
         if not np.all(np.isfinite(g_free)):
             return finish(NewtonStatus.NON_FINITE, f"non-finite gradient at iteration {res.nit}")
+        g_best = min(g_best, float(np.linalg.norm(g_free)))
         if chord_ready and options.chord_stop_factor > 0.0:
             p_chord = _chord_increment(solver, g_free, timings)
             if p_chord is not None:
@@ -481,7 +487,7 @@ def _minimize(
         with _timed(timings, "line_search"):
             near = p_inf <= options.near_solution_factor * options.tol * options.step_scale
             search = _accept_near_solution(
-                objective, x, p, alpha0, energy, slope, near, g_free, free, res
+                objective, x, p, alpha0, energy, slope, near, g_free, free, res, g_best
             )
             if search is None:
                 search = backtracking_line_search(

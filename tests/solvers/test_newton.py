@@ -566,3 +566,52 @@ def test_near_solution_factor_is_validated_by_name():
     for bad in (-1.0, float("inf"), True, "1"):
         with pytest.raises(ValueError, match="near_solution_factor"):
             NewtonOptions(near_solution_factor=bad)
+
+
+class TwoCycle:
+    """A convex-enough 1D quintic with Newton steps A = 0 -> B = 1 -> A: E(A) = 0 < E(B) = 0.1,
+    E'(A) = -2, E''(A) = 2 (Newton lands on B), E'(B) = 1, E''(B) = 1 (Newton lands on A),
+    and |E'(B)| < |E'(A)|: the near-solution rule takes A -> B on the gradient norm although
+    E rises, then Armijo takes B -> A."""
+
+    def __init__(self):
+        rows = []
+        for x in (0.0, 1.0):
+            rows.append([x**k for k in range(6)])
+            rows.append([k * x ** (k - 1) if k else 0.0 for k in range(6)])
+            rows.append([k * (k - 1) * x ** (k - 2) if k > 1 else 0.0 for k in range(6)])
+        self.c = np.linalg.solve(np.array(rows), np.array([0.0, -2.0, 2.0, 0.1, 1.0, 1.0]))
+
+    def _poly(self, x, order):
+        c = np.polynomial.polynomial.polyder(self.c, order) if order else self.c
+        return float(np.polynomial.polynomial.polyval(x[0], c))
+
+    def solution_changed(self, x):
+        pass
+
+    def value(self, x):
+        return self._poly(x, 0)
+
+    def gradient(self, x):
+        return np.array([self._poly(x, 1)])
+
+    def hessian(self, x, psd):
+        return Triplets(np.array([0]), np.array([0]), np.array([abs(self._poly(x, 2))]))
+
+    def max_step_size(self, x, p):
+        return 1.0
+
+
+def test_near_solution_steps_cannot_take_turns_with_armijo_steps():
+    # frictional buckling at dt = 2e-2 s cycled like this for 500 iterations (issue 18)
+    objective = TwoCycle()
+    assert objective.value(np.array([1.0])) > objective.value(np.array([0.0]))
+    res = minimize(
+        objective,
+        np.array([0.0]),
+        options=NewtonOptions(tol=1e-2, max_iter=50, exact_near_solution=False),
+        linear_solver=ScipySolver(),
+    )
+    assert res.success, res.message
+    assert res.nit < 20
+    assert 0.3 < res.x[0] < 0.5  # the minimiser, x = 0.38 (E = -0.41 < E(A))
