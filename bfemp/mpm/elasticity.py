@@ -18,7 +18,6 @@ from bfemp.terms.base import StepContext
 from bfemp.terms.elasticity import ElasticityTerm, ElasticStencils
 from geometry.grid import stencil_offsets
 from solvers.assembly import Triplets
-from solvers.psd import project_psd
 
 __all__ = ["MpmElasticityTerm", "mpm_particle_stencils", "pair_codes"]
 
@@ -120,7 +119,7 @@ class MpmElasticityTerm(ElasticityTerm):
         dpdf = self.law.first_piola_derivative(self._F, st.mu, st.lam)
         dpdf = np.ascontiguousarray(dpdf.reshape(-1, d * d, d * d))
         if psd:
-            dpdf = project_psd(dpdf)
+            dpdf = self.law.project_derivative(dpdf, self._F, st.mu, st.lam)
         blocks = _accumulate_blocks(
             self._local_nodes,
             self._weights,

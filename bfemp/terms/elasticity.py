@@ -26,7 +26,6 @@ from bfemp.terms._elasticity_kernels import (
 )
 from bfemp.terms.base import StepContext, block_pattern
 from solvers.assembly import Triplets
-from solvers.psd import project_psd
 
 __all__ = [
     "ElasticStencils",
@@ -178,7 +177,7 @@ class ElasticityTerm:
         # dP[s,i,m,j,l] = dP_im/dF_jl -> symmetric (d^2, d^2) blocks.
         dpdf = np.ascontiguousarray(dpdf.reshape(-1, d * d, d * d))
         if psd:
-            dpdf = project_psd(dpdf)
+            dpdf = self.law.project_derivative(dpdf, self._F, st.mu, st.lam)
         blocks = _local_hessians(dpdf, st.grads, st.volume)
         return Triplets(self._rows, self._cols, blocks.reshape(-1)[self._keep])
 
