@@ -43,17 +43,17 @@ Choices where the paper is silent or the library forces a change (recorded in th
   at cc5084f), so the three cases need at least 17 + 43 + 43 min, more as the contact grows.
 - Quick mode: dx = 0.5 m, PPC 4 (1104 particles), FEM h = 0.5 m (537 vertices), dt = 5e-2 s
   (5 cm of push per step; the loading is quasi-static: waves cross the ring in 0.1 s), to
-  u = 3 m. At dt = 5e-2 s the mu = 0.5 run stops with MAX_ITERATIONS at u = 3.9 m (measured),
-  so quick mode ends at u = 3 m.
+  u = 3 m. (Before eed4f00 the mu = 0.5 run stopped with MAX_ITERATIONS at u = 3.9 m, hence
+  u = 3 m; it now reaches 7 m, see partial mode.)
 - Partial mode (``--mode partial``): the quick discretisation and dt pressed to u = 7 m, with a
-  Newton cap of 2000, for u_buckle at a coarse resolution. At dt = 2e-2 s instead, mu = 0
-  buckles at u = 3.92 m but both friction cases stop with MAX_ITERATIONS (cap 500,
-  ||p|| / dt = 2.5e-2 and 3.1e-2 m/s) at u = 0.34 m and 0.36 m (measured at cc5084f).
-  Recorded (``benchmarks/records/buckling_partial.json``, 141 s): u_buckle = 3.95 m (mu = 0)
-  and 4.05 m (mu = 0.2); beyond it the detachment grows faster without friction (1.42 against
-  1.04 m at u = 6 m); mu = 0.2 stops with MAX_ITERATIONS (cap 2000) at u = 6.65 m and mu = 0.5
-  at u = 3.85 m, before the threshold (0.435 m there, against 0.483 / 0.470 m for mu = 0 / 0.2), so
-  whether mu = 0.5 buckles is not decided at this resolution.
+  Newton cap of 2000, for u_buckle at a coarse resolution. At dt = 2e-2 s, mu = 0 buckles at
+  u = 3.92 m; the friction cases stopped with MAX_ITERATIONS at u = 0.34 m and 0.36 m at
+  cc5084f (the 2-cycle below); mu = 0.2 now passes u = 1.2 m (checked, 60 steps).
+  Recorded (``benchmarks/records/buckling_partial.json``, 122 s on 2 loaded cores, at
+  10db032): every case reaches u = 7 m; u_buckle = 3.95 m (mu = 0), 4.05 m (mu = 0.2) and
+  4.35 m (mu = 0.5), and the detachment at u = 7 m is 1.97, 1.35 and 0.73 m: the full mode's
+  ordering at this coarse resolution. (Before eed4f00, a Newton 2-cycle of the near-solution
+  rule stopped mu = 0.2 at u = 6.65 m and mu = 0.5 at u = 3.85 m with MAX_ITERATIONS.)
 - Newton iteration cap 500 (partial mode 2000); lagged-friction loop capped at 20 iterations
   (the default; quick mode logs "friction loop did not converge" in about 10 of the 120 friction
   steps and goes on, as the library does).
