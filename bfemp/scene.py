@@ -6,6 +6,7 @@ Every input is validated where it enters; errors name the body and the field, fo
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 from dataclasses import dataclass
@@ -13,6 +14,7 @@ from dataclasses import dataclass
 import meshio
 import numpy as np
 
+from bfemp.contact.pair_friction import body_code
 from bfemp.contact.parameters import ContactParameters
 from bfemp.materials import Material
 from bfemp.model import BOUNDARY_KINDS, Boundary, FemBody, Model, MpmBody, simplex_shape_gradients
@@ -113,6 +115,8 @@ class Scene:
         self._grid: Grid | None = None
         self._boundaries: list[Boundary] = []
         self._contact: ContactParameters | None = None
+        # (name a, name b) -> mu of that pair of bodies (set_friction)
+        self._pair_mu: dict[tuple[str, str], float] = {}
         # (body name, field) -> how a scene file described it (mesh shape or file, node
         # selection, material name), so that bfemp.scenefile.save() writes it back the same way.
         self._sources: dict[tuple[str, str], object] = {}
@@ -256,6 +260,60 @@ class Scene:
         self._contact = ContactParameters(
             dhat=dhat, kappa=kappa, mu=mu, eps_v=eps_v, friction_iterations=friction_iterations
         )
+
+    def set_friction(self, body_a: str, body_b: str, mu: float) -> None:
+        """The friction coefficient of one pair of bodies, instead of ``set_contact``'s ``mu``.
+
+        A contact belongs to the bodies of its point (a particle or a FEM boundary node) and of
+        the FEM boundary feature it is closest to. Used by the strategies whose friction is the
+        barrier's lagged friction (``barrier``, ``two_stage``); the others refuse a scene with
+        per-pair values by name. Setting a pair again replaces its value.
+
+        Args:
+            body_a, body_b: names of two bodies already added, at least one of them FEM (the
+                barrier's pairs always have a FEM side), in either order.
+            mu: Coulomb coefficient of that pair, finite and >= 0 (0: frictionless).
+
+        Raises:
+            ValueError: an unknown name, the same body twice, two MPM bodies, or a bad mu.
+        """
+        kinds = {spec.name: "fem" for spec in self._fem} | {spec.name: "mpm" for spec in self._mpm}
+        for name in (body_a, body_b):
+            if name not in kinds:
+                known = ", ".join(repr(k) for k in kinds) or "none"
+                raise ValueError(f"set_friction: no body named {name!r} (bodies: {known})")
+        if body_a == body_b:
+            raise ValueError(f"set_friction: body {body_a!r} given twice; name two bodies")
+        if kinds[body_a] == kinds[body_b] == "mpm":
+            raise ValueError(
+                f"set_friction: {body_a!r} and {body_b!r} are both MPM bodies; barrier contact "
+                f"pairs always have a FEM side"
+            )
+        if (
+            isinstance(mu, bool)
+            or not isinstance(mu, int | float)
+            or not (math.isfinite(mu) and mu >= 0.0)
+        ):
+            raise ValueError(
+                f"set_friction: mu of ({body_a!r}, {body_b!r}) must be a finite number >= 0, "
+                f"got {mu!r}"
+            )
+        self._pair_mu.pop((body_b, body_a), None)
+        self._pair_mu[(body_a, body_b)] = float(mu)
+
+    def _contact_with_pairs(self) -> ContactParameters | None:
+        """``set_contact``'s parameters with the ``set_friction`` pairs as body codes."""
+        if not self._pair_mu:
+            return self._contact
+        if self._contact is None:
+            pairs = ", ".join(f"({a!r}, {b!r})" for a, b in self._pair_mu)
+            raise ValueError(
+                f"set_friction {pairs} without contact: call scene.set_contact(dhat=...) too"
+            )
+        code = {spec.name: body_code("fem", k) for k, spec in enumerate(self._fem)}
+        code |= {spec.name: body_code("mpm", k) for k, spec in enumerate(self._mpm)}
+        pairs = tuple((code[a], code[b], mu) for (a, b), mu in self._pair_mu.items())
+        return dataclasses.replace(self._contact, pair_mu=pairs)
 
     def add_boundary(
         self, levelset: object, kind: str = "slip", motion: Motion | None = None
@@ -492,7 +550,7 @@ class Scene:
             fem_prescribed=fem_prescribed,
             fem_bodies=tuple(bodies),
             fem_load=load,
-            contact=self._contact,
+            contact=self._contact_with_pairs(),
             **self._build_mpm(),
         )
         # Scripted nodes start with their scripted velocity.

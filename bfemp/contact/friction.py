@@ -35,6 +35,7 @@ from bfemp.contact._assembly_kernels import _chain_hessian, _scatter_gradient
 from bfemp.contact.barrier import barrier_derivative
 from bfemp.contact.collision import CollisionSet
 from bfemp.contact.friction_kernels import friction_local, friction_local_psd
+from bfemp.contact.pair_friction import PairFriction
 from bfemp.contact.pairs import ContactPairs, find_pairs
 from bfemp.contact.term import BarrierTerm
 from bfemp.terms.base import StepContext
@@ -121,7 +122,7 @@ def lag_contacts(
     pairs: ContactPairs,
     dhat: float,
     kappa: float,
-    mu: float,
+    mu: float | PairFriction,
 ) -> FrictionContacts:
     """Contacts, normal forces and tangent bases at ``positions`` (Algorithm 1, lines 5/9).
 
@@ -136,7 +137,8 @@ def lag_contacts(
         positions: collision-point positions ``(C, d)`` in m.
         pairs: the barrier's active pairs at ``positions``.
         dhat: barrier activation distance in m; ``kappa``: its stiffness in Pa.
-        mu: friction coefficient.
+        mu: friction coefficient, one for every pair or per pair of bodies (the bodies of a
+            contact's point and of its closest feature).
     """
     rows, coefs = [], []
     for kind, pts in pairs.points.items():
@@ -181,13 +183,17 @@ def _contacts(pos, cs, keys, mult, dhat, kappa, mu) -> FrictionContacts:  # noqa
             T = frames.point_triangle_tangent_basis(*args)
             d = dist.point_triangle_distance(*args)
         lam = -mult[sel] * cs.omega[points[:, 0]] * barrier_derivative(d, dhat, kappa)
-        keep = lam > 0.0
+        if isinstance(mu, PairFriction):  # the bodies of the point and of its closest feature
+            mu_lam = mu.of(cs.point_body[points[:, 0]], cs.point_body[points[:, 1]]) * lam
+        else:
+            mu_lam = mu * lam
+        keep = mu_lam > 0.0  # no normal force, or a frictionless pair
         groups.append(
             FrictionGroup(
                 np.ascontiguousarray(points[keep]),
                 np.ascontiguousarray(coef[keep]),
                 np.ascontiguousarray(T[keep]),
-                mu * lam[keep],
+                mu_lam[keep],
             )
         )
     return FrictionContacts(tuple(groups))
@@ -247,7 +253,7 @@ class FrictionTerm:
     """Lagged friction of the barrier's contacts (the energy term of the implicit strategies).
 
     Args:
-        mu: friction coefficient.
+        mu: friction coefficient, one for every pair or per pair of bodies (``PairFriction``).
         eps_v: static threshold velocity in m/s.
         barrier: the barrier term whose contacts rub (its collision set and parameters; the
             friction term never changes it).
@@ -256,8 +262,8 @@ class FrictionTerm:
     name = "friction"
     contact = True  # weighted by the integrator's contact_weight
 
-    def __init__(self, mu: float, eps_v: float, barrier: BarrierTerm) -> None:
-        self.mu = float(mu)
+    def __init__(self, mu: float | PairFriction, eps_v: float, barrier: BarrierTerm) -> None:
+        self.mu = mu if isinstance(mu, PairFriction) else float(mu)
         self.eps_v = float(eps_v)
         self.barrier = barrier
         self.contacts = FrictionContacts()

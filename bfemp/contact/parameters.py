@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from bfemp.contact.pair_friction import PairFriction
+
 __all__ = ["ContactParameters"]
 
 
@@ -29,6 +31,9 @@ class ContactParameters:
         eps_v: static/sliding velocity threshold in m/s (eq. 36).
         friction_iterations: cap of the outer lagged-friction loop (Algorithm 1); reaching it is
             reported, not silent.
+        pair_mu: friction coefficients of pairs of bodies that differ from ``mu``,
+            ``((code_a, code_b, mu), ...)`` in the collision set's body codes
+            (``bfemp.contact.pair_friction.body_code``); ``scene.set_friction`` fills it.
     """
 
     dhat: float
@@ -36,6 +41,7 @@ class ContactParameters:
     mu: float = 0.0
     eps_v: float = 1e-5
     friction_iterations: int = 20
+    pair_mu: tuple[tuple[int, int, float], ...] = ()
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "dhat", _positive("dhat", self.dhat))
@@ -70,6 +76,26 @@ class ContactParameters:
         return self.kappa == "auto"
 
     @property
+    def friction(self) -> float | PairFriction:
+        """The friction coefficient: ``mu``, or a :class:`PairFriction` with per-pair values."""
+        return PairFriction(self.mu, self.pair_mu) if self.pair_mu else self.mu
+
+    @property
     def has_friction(self) -> bool:
-        """Whether a friction term is needed."""
-        return self.mu > 0.0
+        """Whether a friction term is needed (some pair has mu > 0)."""
+        return self.mu > 0.0 or any(m > 0.0 for _, _, m in self.pair_mu)
+
+
+def refuse_pair_friction(contact: ContactParameters | None, strategy: str) -> None:
+    """Raise for a strategy with one friction coefficient when the scene sets pairs.
+
+    Raises:
+        ValueError: ``contact`` has ``scene.set_friction`` pairs, which ``strategy`` cannot
+            honour (its own option ``mu`` is one coefficient for every contact).
+    """
+    if contact is not None and contact.pair_mu:
+        raise ValueError(
+            f"{strategy}: the scene sets friction per pair of bodies (scene.set_friction), and "
+            f"{strategy} has one coefficient for every contact (its option mu); use the "
+            f"'barrier' or 'two_stage' strategy, or one scene.set_contact(mu=...)"
+        )

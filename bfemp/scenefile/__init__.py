@@ -54,6 +54,9 @@ Format (``#`` comments; numbers in SI units, scalars may also be strings with a 
     mu = 0.0
     eps_v = 1e-5
     friction_iterations = 20
+    [[contact.pairs]]             # scene.set_friction(a, b, mu): mu of one pair of bodies
+    bodies = ["plate", "beam"]
+    mu = 10.0
 
     [[fem]]                       # scene.add_fem(mesh, material=, velocity=, prescribed=, ...)
     name = "beam"

@@ -311,7 +311,7 @@ def parse_document(data: dict, *, file: str | None, base_dir: Path | None) -> di
         _add_mpm(scene, spec, k, materials, ctx)
     if root.has("contact"):
         ct = root.sub("contact")
-        ct.check_keys({"dhat", "kappa", "mu", "eps_v", "friction_iterations"}, {"dhat"})
+        ct.check_keys({"dhat", "kappa", "mu", "eps_v", "friction_iterations", "pairs"}, {"dhat"})
         kw: dict = {"dhat": ct.number("dhat", "length", positive=True)}
         if ct.has("kappa"):
             auto = ct.raw("kappa") == "auto"
@@ -329,6 +329,18 @@ def parse_document(data: dict, *, file: str | None, base_dir: Path | None) -> di
             scene.set_contact(**kw)
         except ValueError as err:
             raise _api_error(err, ct, None, None) from None
+        for k, spec in enumerate(ct.tables("pairs")):  # [[contact.pairs]]: set_friction
+            pt = Table(spec, file=file, path=f"contact.pairs[{k}]")
+            pt.check_keys({"bodies", "mu"}, required={"bodies", "mu"})
+            bodies = pt.raw("bodies")
+            if not (isinstance(bodies, list) and len(bodies) == 2):
+                raise pt.error(f"must be a list of two body names, got {bodies!r}", "bodies")
+            if not all(isinstance(b, str) for b in bodies):
+                raise pt.error(f"must be a list of two body names, got {bodies!r}", "bodies")
+            try:
+                scene.set_friction(bodies[0], bodies[1], pt.number("mu", minimum=0.0))
+            except ValueError as err:
+                raise _api_error(err, pt, "bodies", None) from None
     for k, spec in enumerate(root.tables("boundary")):
         bt = Table(spec, file=file, path=f"boundary[{k}]")
         bt.check_keys({"kind", "levelset", "motion"}, required={"levelset"})

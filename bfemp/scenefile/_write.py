@@ -180,6 +180,10 @@ def scene_dict(
             "eps_v": contact.eps_v,
             "friction_iterations": contact.friction_iterations,
         }
+        if scene._pair_mu:
+            doc["contact"]["pairs"] = [
+                {"bodies": [a, b], "mu": mu} for (a, b), mu in scene._pair_mu.items()
+            ]
     if fem:
         doc["fem"] = fem
     if mpm:

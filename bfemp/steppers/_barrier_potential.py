@@ -55,7 +55,7 @@ def build_potential(model: Model) -> IncrementalPotential:
         barrier = BarrierTerm(c.dhat, 1.0 if c.adaptive_kappa else c.kappa)
         potentials.append(barrier)
         if c.has_friction:
-            potentials.append(FrictionTerm(c.mu, c.eps_v, barrier))
+            potentials.append(FrictionTerm(c.friction, c.eps_v, barrier))
     return IncrementalPotential(InertiaTerm(), potentials)
 
 

@@ -59,6 +59,7 @@ from bfemp.contact.augury import (
     contact_stencils,
     facet_normals,
 )
+from bfemp.contact.parameters import refuse_pair_friction
 from bfemp.integrators import ExplicitIntegrator
 from bfemp.model import Model
 from bfemp.state import State
@@ -192,6 +193,7 @@ class AuguryStepper(ExplicitStepper):
                 f"augury: tau = {self.tau:.6g} s is below dt / 2 = {0.5 * self.dt:.6g} s "
                 "(the augury correction is unstable there); take tau >= dt / 2 or tau=None"
             )
+        refuse_pair_friction(model.contact, "augury")
         if opts.mu is not None:
             self.mu = opts.mu
         else:

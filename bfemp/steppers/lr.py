@@ -52,6 +52,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from bfemp.contact.parameters import refuse_pair_friction
 from bfemp.integrators import ExplicitIntegrator
 from bfemp.model import Model
 from bfemp.mpm.boundaries import GridConstraints, grid_constraints
@@ -244,6 +245,7 @@ class LRStepper(ExplicitStepper):
             raise ValueError("lr: the scene has no MPM body (LR couples MPM materials)")
         super().__init__(model, integrator=integrator, dt=dt, transfer=transfer, options=options)
         opts = self.options
+        refuse_pair_friction(model.contact, "lr")
         if opts.mu is not None:
             self.mu = opts.mu
         else:

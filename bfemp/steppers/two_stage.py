@@ -207,7 +207,7 @@ class TwoStageStepper(ExplicitStepper):
         self.barrier = BarrierTerm(c.dhat, c.kappa)
         terms: list = [self.barrier]
         if c.has_friction:
-            self.friction = FrictionTerm(c.mu, c.eps_v, self.barrier)
+            self.friction = FrictionTerm(c.friction, c.eps_v, self.barrier)
             terms.append(self.friction)
         self.potential = IncrementalPotential(InertiaTerm(), terms)
         self.newton = NewtonOptions(
