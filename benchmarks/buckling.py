@@ -25,11 +25,18 @@ detachment(0.2) > detachment(0.5) at the end of the run (u = 3 m).
 Choices where the paper is silent or the library forces a change (recorded in the JSON):
 
 - The plate. The paper presses a FEM plate with mu = 10 to the outer ring, "a BFEMP based
-  no-slip boundary condition". The library has one friction coefficient for every contact pair
-  (``Scene.set_contact``), so a plate would share the rings' mu (frictionless in the mu = 0
-  case). Instead the no-slip push is applied directly: the outer ring's outer-surface nodes with
-  ``|x| <= CAP_HALF_WIDTH`` = 4 m (the plate's contact half-width sqrt(2 R u) at u = 0.6 m) are
-  scripted down at 1 m/s (the "cap"). Beyond u = 0.6 m a flat plate would flatten a wider crown.
+  no-slip boundary condition". By default the no-slip push is applied directly instead: the
+  outer ring's outer-surface nodes with ``|x| <= CAP_HALF_WIDTH`` = 4 m (the plate's contact
+  half-width sqrt(2 R u) at u = 0.6 m) are scripted down at 1 m/s (the "cap"). Beyond u = 0.6 m
+  a flat plate would flatten a wider crown. ``--mode plate_quick`` runs the paper's plate
+  (``PLATE_HALF_WIDTH`` x ``PLATE_THICKNESS``, scripted down at 1 m/s, half d-hat above the
+  crown) with ``scene.set_friction("plate", "outer_ring", PLATE_MU)`` and the rings at mu.
+  Measured (``records/buckling_plate_quick.json``, 522 s at load ~4.7): the plate touches
+  only the top 4 crown nodes at u = 0.2 m (the 2 m thick ring does not flatten like a Hertz
+  contact) and holds them (0 m of slip, against 6 mm frictionless); the detachment at u = 3 m
+  is 0.162 m (mu = 0) and 0.142 m (0.2) against 0.330 and 0.315 m with the cap, at 11x the
+  Newton iterations (5378 and 15430 against 480 and 1444); mu = 0.5 stops with
+  MAX_ITERATIONS at u = 1.45 m (||p|| / dt = 6.0 m/s after 500 iterations). Hence the cap.
 - Feet: the outer ring's nodes on y = 0 are fixed (level sets act on MPM grid nodes only); the
   inner ring's feet are held by two sticky level-set boxes ``9 <= |x| <= 13, -2 <= y <= 0``; a
   slip box ``|x| <= 9, -2 <= y <= 0`` lies under the middle. One scripted motion serves the cap
@@ -99,6 +106,10 @@ MODES = {
     "partial": dict(dx=0.5, ppc=4, fem_h=0.5, dt=5e-2, u_end=7.0, max_newton=2000),
     "quick": dict(dx=0.5, ppc=4, fem_h=0.5, dt=5e-2, u_end=3.0, max_newton=500),
 }
+# the paper's pusher: a FEM plate at mu = PLATE_MU (scene.set_friction), quick discretisation
+MODES["plate_quick"] = dict(MODES["quick"], pusher="plate")
+PLATE_MU = 10.0  # the paper's plate-ring friction ("a BFEMP based no-slip boundary condition")
+PLATE_HALF_WIDTH, PLATE_THICKNESS = 6.0, 1.0  # m
 
 
 class _CapAndFeet(bfemp.motion.Motion):
@@ -121,21 +132,41 @@ class _CapAndFeet(bfemp.motion.Motion):
 
 
 def _scene(cfg: dict, mu: float) -> bfemp.Scene:
-    """Both rings about the origin, feet on y = 0, the cap of the outer ring scripted."""
+    """Both rings about the origin, feet on y = 0, the cap of the outer ring scripted (or, with
+    ``cfg["pusher"] == "plate"``, a scripted FEM plate at mu = ``PLATE_MU`` on the crown)."""
     material = bfemp.NeoHookean(**MATERIAL)
     scene = bfemp.Scene(dim=2)
     outer = bfemp.shapes.semicircular_ring((0.0, 0.0), *OUTER_RADII, h=cfg["fem_h"])
     p = outer.points
     feet = p[:, 1] < 1e-9
-    cap = (np.linalg.norm(p, axis=1) > OUTER_RADII[1] - 1e-6) & (np.abs(p[:, 0]) <= CAP_HALF_WIDTH)
-    # the cap's lowest node is far above the feet: split the two at half the inner radius
-    scene.add_fem(
-        outer,
-        material=material,
-        prescribed=_CapAndFeet(SPEED, 0.5 * OUTER_RADII[0]),
-        prescribed_nodes=feet | cap,
-        name="outer_ring",
-    )
+    if cfg.get("pusher", "cap") == "plate":
+        scene.add_fem(
+            outer,
+            material=material,
+            prescribed=bfemp.motion.Fixed(),
+            prescribed_nodes=feet,
+            name="outer_ring",
+        )
+        bottom = OUTER_RADII[1] + 0.5 * DHAT  # the plate starts half d-hat above the crown
+        plate = bfemp.shapes.rectangle(
+            (-PLATE_HALF_WIDTH, bottom),
+            (PLATE_HALF_WIDTH, bottom + PLATE_THICKNESS),
+            h=cfg["fem_h"],
+        )
+        down = bfemp.motion.Linear(velocity=(0.0, -SPEED))
+        scene.add_fem(plate, material=material, prescribed=down, name="plate")
+    else:
+        cap = (np.linalg.norm(p, axis=1) > OUTER_RADII[1] - 1e-6) & (
+            np.abs(p[:, 0]) <= CAP_HALF_WIDTH
+        )
+        # the cap's lowest node is far above the feet: split the two at half the inner radius
+        scene.add_fem(
+            outer,
+            material=material,
+            prescribed=_CapAndFeet(SPEED, 0.5 * OUTER_RADII[0]),
+            prescribed_nodes=feet | cap,
+            name="outer_ring",
+        )
     dx, ppc = cfg["dx"], cfg["ppc"]
     shape = bfemp.shapes.semicircular_ring((0.0, 0.0), *INNER_RADII, h=0.25 * dx)
     particles, volumes = bfemp.sample.mesh(shape, dx=dx, ppc=ppc)
@@ -147,6 +178,8 @@ def _scene(cfg: dict, mu: float) -> bfemp.Scene:
     scene.add_boundary(box(lower=(-13.0, -2.0), upper=(-9.0, 0.0)), kind="sticky")
     scene.add_boundary(box(lower=(-9.0, -2.0), upper=(9.0, 0.0)), kind="slip")
     scene.set_contact(dhat=DHAT, kappa=KAPPA, mu=mu, eps_v=EPS_V)
+    if cfg.get("pusher", "cap") == "plate":
+        scene.set_friction("plate", "outer_ring", PLATE_MU)
     return scene
 
 
@@ -277,7 +310,8 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
 
     Args:
         mode: ``"full"`` (the paper's resolution and dt, to u = 8 m), ``"partial"`` (coarse,
-            to u = 7 m) or ``"quick"`` (coarse, to u = 3 m).
+            to u = 7 m), ``"quick"`` (coarse, to u = 3 m) or ``"plate_quick"`` (quick with the
+            paper's FEM plate instead of the scripted cap).
         out: output folder.
 
     Returns:

@@ -51,3 +51,32 @@ def test_friction_delays_the_detachment(result):
     end = [data["detachment_end_m"][str(mu)] for mu in buckling.MUS]
     assert end[0] > end[1] > end[2], end
     assert data["ordered_at_end"]
+
+
+@pytest.mark.parametrize("plate_mu", [buckling.PLATE_MU, 0.0])
+def test_the_papers_plate_holds_the_crown_only_with_its_own_friction(plate_mu, monkeypatch):
+    """plate_quick presses with a FEM plate at mu = 10 (scene.set_friction) while the rings
+    rub at 0: the crown nodes the plate touches move with it (measured: 0 m sideways); at plate
+    mu = 0 (the control) they spread as the crown flattens (measured: 6 mm)."""
+    import bfemp
+
+    monkeypatch.setattr(buckling, "PLATE_MU", plate_mu)
+    cfg = buckling.MODES["plate_quick"]
+    sim = bfemp.Simulation(
+        buckling._scene(cfg, 0.0), integrator="backward_euler", dt=cfg["dt"], tol=buckling.TOL
+    )
+    ring, plate = sim.model.fem_bodies
+    x0 = sim.state.fem_x[ring.nodes].copy()
+    for _ in range(4):  # 0.2 m of plate travel
+        report = sim.step()
+    assert report.contact_pairs > 0
+    x = sim.state.fem_x[ring.nodes]
+    bottom = sim.state.fem_x[plate.nodes][:, 1].min()
+    touching = (x[:, 1] > bottom - 2.0 * buckling.DHAT) & (np.abs(x0[:, 0]) < 0.5)
+    assert touching.sum() >= 2
+    assert np.all(x0[touching, 1] - x[touching, 1] > 0.15)  # pushed down with the plate
+    spread = np.abs(x[touching, 0] - x0[touching, 0]).max()
+    if plate_mu > 0.0:
+        assert spread < 1e-4, spread
+    else:
+        assert spread > 1e-3, spread
