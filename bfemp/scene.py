@@ -264,18 +264,19 @@ class Scene:
     def set_friction(self, body_a: str, body_b: str, mu: float) -> None:
         """The friction coefficient of one pair of bodies, instead of ``set_contact``'s ``mu``.
 
-        A contact belongs to the bodies of its point (a particle or a FEM boundary node) and of
-        the FEM boundary feature it is closest to. Used by the strategies whose friction is the
-        barrier's lagged friction (``barrier``, ``two_stage``); the others refuse a scene with
-        per-pair values by name. Setting a pair again replaces its value.
+        ``barrier`` and ``two_stage`` take a contact's bodies from its point (a particle or a
+        FEM boundary node) and the FEM boundary feature it is closest to; they have no MPM-MPM
+        contact (one grid velocity), so an MPM-MPM pair only warns there. ``lr`` takes the two
+        materials of each contact node (at nodes of three or more, the mass-weighted mean of
+        the pairs). ``augury`` refuses a scene with pairs by name. Setting a pair again
+        replaces its value.
 
         Args:
-            body_a, body_b: names of two bodies already added, at least one of them FEM (the
-                barrier's pairs always have a FEM side), in either order.
+            body_a, body_b: names of two bodies already added, in either order.
             mu: Coulomb coefficient of that pair, finite and >= 0 (0: frictionless).
 
         Raises:
-            ValueError: an unknown name, the same body twice, two MPM bodies, or a bad mu.
+            ValueError: an unknown name, the same body twice, or a bad mu.
         """
         kinds = {spec.name: "fem" for spec in self._fem} | {spec.name: "mpm" for spec in self._mpm}
         for name in (body_a, body_b):
@@ -284,11 +285,6 @@ class Scene:
                 raise ValueError(f"set_friction: no body named {name!r} (bodies: {known})")
         if body_a == body_b:
             raise ValueError(f"set_friction: body {body_a!r} given twice; name two bodies")
-        if kinds[body_a] == kinds[body_b] == "mpm":
-            raise ValueError(
-                f"set_friction: {body_a!r} and {body_b!r} are both MPM bodies; barrier contact "
-                f"pairs always have a FEM side"
-            )
         if (
             isinstance(mu, bool)
             or not isinstance(mu, int | float)

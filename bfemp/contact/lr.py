@@ -527,7 +527,7 @@ def contact_momentum(
     normal: np.ndarray,
     separation: np.ndarray | None,
     *,
-    mu: float,
+    mu: float | np.ndarray,
     law: str,
     detector: str = "lr",
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -557,7 +557,8 @@ def contact_momentum(
         p_a, p_b: grid momenta ``(C, d)`` in kg m/s.
         normal: unit normals ``(C, d)`` from a to b (a zero row: no contact unless "perfect").
         separation: ``(C,)`` in m (d_LR or ``cp_separation``), or None for "velocity".
-        mu: Coulomb friction coefficient (>= 0; used by "coulomb" only).
+        mu: Coulomb friction coefficient (>= 0; used by "coulomb" only), one for every contact
+            or ``(C,)`` per contact (``scene.set_friction`` pairs).
         law: one of ``LAWS``. detector: one of ``DETECTORS``.
 
     Returns:
@@ -579,7 +580,10 @@ def contact_momentum(
     length = np.linalg.norm(normal, axis=1)
     if np.any((np.abs(length - 1.0) > 1e-8) & (length != 0.0)):
         raise ValueError("contact_momentum: normal rows must be unit vectors (or zero)")
-    if law == "coulomb" and not (np.isfinite(mu) and mu >= 0.0):
+    mu = np.asarray(mu, dtype=np.float64)
+    if mu.ndim not in (0, 1) or (mu.ndim == 1 and mu.shape != (n_c,)):
+        raise ValueError(f"contact_momentum: mu must be a number or ({n_c},), got {mu.shape}")
+    if law == "coulomb" and not np.all(np.isfinite(mu) & (mu >= 0.0)):
         raise ValueError(f"contact_momentum: mu must be finite and >= 0, got {mu}")
     if detector != "velocity" or separation is not None:
         if separation is None:

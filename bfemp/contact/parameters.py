@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass
 
 from bfemp.contact.pair_friction import PairFriction
 
-__all__ = ["ContactParameters"]
+__all__ = ["ContactParameters", "refuse_pair_friction", "warn_mpm_pairs"]
+
+log = logging.getLogger(__name__)
 
 
 def _positive(name: str, value: object) -> float:
@@ -98,4 +101,20 @@ def refuse_pair_friction(contact: ContactParameters | None, strategy: str) -> No
             f"{strategy}: the scene sets friction per pair of bodies (scene.set_friction), and "
             f"{strategy} has one coefficient for every contact (its option mu); use the "
             f"'barrier' or 'two_stage' strategy, or one scene.set_contact(mu=...)"
+        )
+
+
+def warn_mpm_pairs(contact: ContactParameters | None, strategy: str, mpm_names: list) -> None:
+    """Log a warning for ``scene.set_friction`` pairs of two MPM bodies, which ``strategy``
+    (barrier contact, one grid velocity field for all particles) never brings into contact."""
+    if contact is None:
+        return
+    unused = [(a, b) for a, b, _ in contact.pair_mu if a < 0 and b < 0]
+    for a, b in unused:
+        log.warning(
+            "%s: the friction of MPM bodies %r and %r (scene.set_friction) is not used: they "
+            "share one grid velocity field and never meet through the barrier",
+            strategy,
+            mpm_names[-1 - a],
+            mpm_names[-1 - b],
         )

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from bfemp.contact.friction import FrictionTerm
+from bfemp.contact.parameters import warn_mpm_pairs
 from bfemp.contact.term import BarrierTerm
 from bfemp.diagnostics import contact_forces_between_bodies
 from bfemp.model import Model
@@ -55,6 +56,7 @@ def build_potential(model: Model) -> IncrementalPotential:
         barrier = BarrierTerm(c.dhat, 1.0 if c.adaptive_kappa else c.kappa)
         potentials.append(barrier)
         if c.has_friction:
+            warn_mpm_pairs(c, "barrier", [b.name for b in model.mpm_bodies])
             potentials.append(FrictionTerm(c.friction, c.eps_v, barrier))
     return IncrementalPotential(InertiaTerm(), potentials)
 

@@ -52,7 +52,6 @@ from typing import ClassVar
 
 import numpy as np
 
-from bfemp.contact.parameters import refuse_pair_friction
 from bfemp.integrators import ExplicitIntegrator
 from bfemp.model import Model
 from bfemp.mpm.boundaries import GridConstraints, grid_constraints
@@ -245,13 +244,13 @@ class LRStepper(ExplicitStepper):
             raise ValueError("lr: the scene has no MPM body (LR couples MPM materials)")
         super().__init__(model, integrator=integrator, dt=dt, transfer=transfer, options=options)
         opts = self.options
-        refuse_pair_friction(model.contact, "lr")
         if opts.mu is not None:
             self.mu = opts.mu
         else:
             self.mu = float(getattr(model.contact, "mu", 0.0) or 0.0)
         self.material = np.ascontiguousarray(model.mpm_particle_body, dtype=np.int64)
         self.n_materials = len(model.mpm_bodies) + len(model.fem_bodies)
+        self.mu_table = self._friction_table(model)
         d = model.dim
         # undeformed particle semi-axes R0 (P, d): half the side of the particle's cube
         self.radius0 = np.repeat((0.5 * model.mpm_volume ** (1.0 / d))[:, None], d, axis=1)
@@ -267,6 +266,35 @@ class LRStepper(ExplicitStepper):
         self._warned_unconverged = False
 
     # ------------------------------------------------------------------ FEM as a material
+    def _friction_table(self, model: Model) -> np.ndarray | None:
+        """mu per pair of materials ``(M, M)`` from ``scene.set_friction``, or None (one mu).
+
+        Materials are the MPM bodies, then the FEM bodies (``n_mpm + index``); pairs the scene
+        does not name keep ``self.mu`` (``LROptions.mu`` or ``scene.set_contact(mu=...)``).
+        """
+        pairs = getattr(model.contact, "pair_mu", ())
+        if not pairs:
+            return None
+        n_mpm = len(model.mpm_bodies)
+        table = np.full((self.n_materials, self.n_materials), self.mu)
+        for code_a, code_b, mu in pairs:
+            a, b = (n_mpm + c if c >= 0 else -1 - c for c in (code_a, code_b))
+            table[a, b] = table[b, a] = mu
+        return table
+
+    def _pair_mu(self, a: np.ndarray, b: np.ndarray, mass: np.ndarray) -> float | np.ndarray:
+        """mu of each contact ``(C,)`` of material ``a`` against ``b`` (-1: the lumped others,
+        then the mass-weighted mean of a's coefficients with them); ``mass (M, C)`` in kg."""
+        if self.mu_table is None:
+            return self.mu
+        lumped = b < 0
+        mu = self.mu_table[a, np.maximum(b, 0)]
+        if lumped.any():
+            la, m = a[lumped], mass[:, lumped].copy()
+            m[la, np.arange(la.size)] = 0.0
+            mu[lumped] = (self.mu_table[la].T * m).sum(axis=0) / m.sum(axis=0)
+        return mu
+
     def _setup_fem_points(self) -> None:
         """Boundary nodes and facet samples of the FEM bodies (section 2.6 of the spec)."""
         model, d = self.model, self.model.dim
@@ -432,13 +460,14 @@ class LRStepper(ExplicitStepper):
         else:
             from bfemp.contact import lr as lr_contact
 
-            law = "frictionless" if opts.law == "frictionless" or self.mu == 0.0 else "coulomb"
+            most = self.mu if self.mu_table is None else float(self.mu_table.max())
+            law = "frictionless" if opts.law == "frictionless" or most == 0.0 else "coulomb"
             sep = planes.separation
             if opts.detector == "velocity":  # no separation measured; the law ignores it
                 sep = np.zeros_like(sep)
             dp, touching = lr_contact.contact_momentum(
                 m_a, m_b, p_a, p_b, planes.normal, sep,
-                mu=self.mu, law=law, detector=opts.detector,
+                mu=self._pair_mu(a, b, mass[:, node]), law=law, detector=opts.detector,
             )  # fmt: skip
         np.add.at(delta, (a, node), dp)
         pair = ~lumped

@@ -76,6 +76,7 @@ import numpy as np
 
 from bfemp.contact.friction import FrictionTerm
 from bfemp.contact.intersection import step_intersection
+from bfemp.contact.parameters import warn_mpm_pairs
 from bfemp.contact.term import BarrierTerm
 from bfemp.integrators import ExplicitIntegrator
 from bfemp.model import Model
@@ -207,6 +208,7 @@ class TwoStageStepper(ExplicitStepper):
         self.barrier = BarrierTerm(c.dhat, c.kappa)
         terms: list = [self.barrier]
         if c.has_friction:
+            warn_mpm_pairs(c, "two_stage", [b.name for b in model.mpm_bodies])
             self.friction = FrictionTerm(c.friction, c.eps_v, self.barrier)
             terms.append(self.friction)
         self.potential = IncrementalPotential(InertiaTerm(), terms)
