@@ -317,6 +317,14 @@ def markdown(payload: dict) -> str:
         f"the run (0 for the purely explicit strategies). Cost axis: {words}. Replay any point "
         "with `python -m benchmarks tradeoff --replay tradeoff.json --id ID`.",
     ]
+    for part in payload.get("merged", []):  # scenes rerun later and merged in (each point: commit)
+        lines += [
+            "",
+            f"Scenes {', '.join(part['scenes'])}: rerun at commit `{part['commit'][:10]}` "
+            f"({part['points']} points on {part['workers']} local worker process(es), elapsed "
+            f"{part['wall_s']:.1f} s) and merged into this record; the figures above are those "
+            "of the other scenes' run.",
+        ]
     for scene in payload["scenes"]:
         records = [r for r in payload["points"] if r["scene"] == scene]
         lines += ["", f"## {scene}", "", f"Error: {payload['errors'][scene]}.", ""]

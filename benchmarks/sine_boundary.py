@@ -278,14 +278,23 @@ def _run_one(cfg: dict, treatment: str) -> dict:
     """One boundary treatment along the whole path; per-step series and snapshots."""
     geo = Geometry(scale=cfg["scale"])
     scene, lower = _scene(cfg, treatment)
-    sim = bfemp.Simulation(
-        scene,
-        strategy="barrier",
-        integrator="backward_euler",
-        dt=cfg["dt"],
-        tol=cfg.get("tol", TOL),
-        max_newton_iterations=cfg.get("max_newton_iterations", MAX_NEWTON),
-    )
+    if cfg.get("options") is None:  # barrier, backward Euler (the paper's)
+        sim = bfemp.Simulation(
+            scene,
+            strategy="barrier",
+            integrator="backward_euler",
+            dt=cfg["dt"],
+            tol=cfg.get("tol", TOL),
+            max_newton_iterations=cfg.get("max_newton_iterations", MAX_NEWTON),
+        )
+    else:  # another strategy with its options object (the trade study's explicit ones)
+        sim = bfemp.Simulation(
+            scene,
+            strategy=cfg["strategy"],
+            integrator=cfg["integrator"],
+            dt=cfg["dt"],
+            options=cfg["options"],
+        )
     n_particles = sim.model.n_particles
     strip = sim.model.fem_bodies[0].nodes if lower is not None else None
     margin = 2.0 * cfg["dx"] + DHAT
@@ -350,6 +359,7 @@ def _run_one(cfg: dict, treatment: str) -> dict:
         "separation_t": float(s["t"][touching[-1]]) if touching.size else None,
         "newton_iterations": int(s["newton"].sum()),
         "newton_iterations_max": int(s["newton"].max()),
+        "dt_s": float(sim.dt),
         "series": s,
         "snapshots": snapshots,
     }
