@@ -224,7 +224,11 @@ def _scene(cfg: dict, treatment: str) -> tuple[bfemp.Scene, np.ndarray | None]:
     pts = strip.points
     lower = np.flatnonzero(np.abs(pts[:, 1] - _surface(pts[:, 0], geo.y0)[0]) < 1e-9)
     if STRIP_PRESCRIBED == "all":
-        scene.add_fem(strip, material=material, prescribed=geo.path(), name="sine")
+        # ``strip_density_factor`` (the trade study's): the scripted strip's density only
+        # weighs its nodes in augury's and lr's mass-weighted velocity mixing
+        factor = cfg.get("strip_density_factor", 1.0)
+        heavy = bfemp.NeoHookean(**{**MATERIAL, "density": MATERIAL["density"] * factor})
+        scene.add_fem(strip, material=heavy, prescribed=geo.path(), name="sine")
     else:  # the top row scripted, the wavy lower surface carried by a stiff strip
         top = np.abs(pts[:, 1] - _surface(pts[:, 0], geo.y0 + thickness)[0]) < 1e-9
         scene.add_fem(

@@ -12,7 +12,8 @@ Strategies go by the registry's names (``bfemp.steppers.STRATEGIES``: ``barrier`
 scene (``_tradeoff_scenes.SCENES[scene]["strategies"]``, with how each runs it), and so is why
 the others do not (``not_applicable``: lr refuses MPM-only FEM contact it cannot see, explicit
 strategies at the paper's stiffness need steps the scene cannot afford, the softened slope of
-``two_stage_slope`` stands in where the repo has one). Scenes and what the error is against:
+``two_stage_slope`` and the softened disk ``hertz_soft`` stand in, measured failures). Scenes
+and what the error is against:
 
 - ``rings``: barrier, two_stage, augury, lr; against the reference run (barrier at the finest
   value of each of its swept knobs): the energy loss over the collision window and the contact
@@ -20,8 +21,12 @@ strategies at the paper's stiffness need steps the scene cannot afford, the soft
 - ``slope``: barrier (E = 4e12 Pa), two_stage, augury, lr (the softened box, E = 1e5 Pa, at
   the explicit step); against the analytic acceleration (eq. 40).
 - ``hertz``: barrier; against Hertz's C (eq. 39).
-- ``sine_boundary``: barrier; against the reference run's largest compressive force.
-- ``augury_blocks`` (AUG Figs. 8-9, 3D): augury; against the reference run's energy loss.
+- ``hertz_soft``: barrier, two_stage on the softened disk (``hertz.SOFT``, E = 1e5 Pa: the
+  explicit step 5.4e-4 s); against Hertz's C of that E (augury and lr: measured why not).
+- ``sine_boundary``: barrier, two_stage, lr (the scripted strip leaves the box's E = 1e6 Pa to
+  set the explicit step, 6e-4 s); against the reference run's largest compressive force.
+- ``augury_blocks`` (AUG Figs. 8-9, 3D): augury, barrier (Newmark), two_stage; against the
+  reference run's (augury's) energy loss.
 - ``lr_compression`` (LR Fig. 5): lr; against the single-material run (the cost is that of the
   two-block run alone).
 
