@@ -303,10 +303,12 @@ def markdown(payload: dict) -> str:
     ex = payload["executor"]
     cost, words = payload["cost"], COSTS[payload["cost"]]
     where = f"Dask scheduler {ex['scheduler']}" if ex["kind"] == "dask" else f"{ex['workers']}"
+    merged = {scene for part in payload.get("merged", []) for scene in part["scenes"]}
+    first = [r for r in payload["points"] if r["scene"] not in merged]
     lines = [
         f"# Trade study across strategies ({payload['mode']} mode)",
         "",
-        f"{len(payload['points'])} points on {where} "
+        f"{len(first)} points on {where} "
         f"{'' if ex['kind'] == 'dask' else 'local worker processes '}"
         f"({ex['threads_per_point']} thread(s) per point); elapsed {payload['wall_s']:.1f} s, "
         f"sum of point wall times {payload['point_wall_s_total']:.1f} s, "

@@ -272,7 +272,9 @@ SCENES = {
                 "dt": {"quick": "auto", "full": "auto"},
                 "options": {},
                 "quick_knobs": (),
-                "note": "the scripted strip as a material (strip_h = dx / 2), the same scene",
+                "note": "the scripted strip as a material (strip_h = dx / 2), the same scene; "
+                "lr has no barrier: at the quick base 2 particles ended inside the strip, 6.9 mm "
+                "deep",
             },
         },
         "not_applicable": {
