@@ -136,20 +136,23 @@ MODES = {
 MODES["refined"] = {**MODES["full"], "dx": 0.02, "spacing": MODES["full"]["spacing"] * 0.8}
 #: The softened disk of the trade study (``benchmarks.tradeoff``, scene ``hertz_soft``: the
 #: explicit strategies beside barrier on one scene). E = 1e5 Pa instead of 1e10 (the explicit
-#: stable step at dx = 0.05 m: 5.4e-4 s instead of ~2e-6 s), kappa scaled with E (the barrier
-#: as stiff relative to the disk), C_hertz from the softened E. The top plate is as stiff as the
-#: disk (at 1000 x the step would follow the plate) and 16 x denser (its P-wave speed a quarter
-#: of the disk's: the plate's elements do not bound the step below the disk's), starts at the
-#: push velocity (no wave from a plate set moving at once) and both plates are meshed at dx / 2
-#: along x (the FEM nodes augury's and lr's contact needs in the contact patch). The fixed
-#: bottom plate is 1e4 x denser: its nodes weigh in augury's and lr's mass-weighted velocity
-#: mixing (scripted nodes enter with their mass), and at the disk's density lr let the disk
-#: through it (63.6 mm deep at t = 0.6 s, measured); barrier and two_stage do not see the mass
-#: of scripted nodes. The contact half-width is taken from the lowest particle's level
-#: (``width_from="lowest"``: the particles within d-hat of it), not the plate's: lr and augury
-#: stop particles at their own separation, not within d-hat of the plate (lr: the lowest
-#: particle 9e-5 m above it, the others beyond d-hat). Quasi-static still: a wave crosses the
-#: disk in 0.05 s, the compression lasts 0.6 s.
+#: stable step at dx = 0.05 m: 5.4e-4 s instead of ~1.7e-6 s), kappa scaled with E (the barrier
+#: as stiff relative to the disk), C_hertz from the softened E. The top plate stays elastic with
+#: its top face scripted (both plates scripted whole, barrier failed at step 1:
+#: SCRIPTED_MOTION_BLOCKED, the disk squeezed between two scripted bodies), as stiff as the disk
+#: (at 1000 x the step would follow the plate) and 16 x denser (its P-wave speed a quarter of
+#: the disk's: its elements do not bound the step below the disk's), and starts at the push
+#: velocity (no wave from a plate set moving at once). The trade study meshes both plates at
+#: dx / 2 along x (``plate_h``: the FEM nodes augury's and lr's contact needs in the contact
+#: patch). The fixed bottom plate is 1e4 x denser: its nodes weigh in augury's and lr's
+#: mass-weighted velocity mixing (scripted nodes enter with their mass; at the disk's density
+#: lr let the disk through it, 63.6 mm deep at t = 0.6 s, measured); barrier and two_stage do not
+#: see the mass of scripted nodes. The contact half-width is that of the particles the bottom
+#: plate pushes (``width_from="force"``: upward contact force above ``PUSHED_FRACTION`` of the
+#: largest), the same set as within d-hat of the plate for barrier and two_stage (a barrier
+#: force is nonzero within d-hat only) and defined for any strategy. Quasi-static still: a wave
+#: crosses the disk in 0.05 s, the compression lasts 0.6 s. Measured, quick trade-study base:
+#: the stresses carry the contact force (``stress_force``: 1635 against 1629 N/m at t = 0.6 s).
 SOFT_E = 1e5  # Pa
 SOFT = dict(
     E_Pa=SOFT_E,
@@ -231,7 +234,14 @@ def _plate(
 
 
 def _scene(cfg: dict, material: str, top_plate: str = "elastic") -> tuple[bfemp.Scene, dict]:
-    """The disk between the plates; returns the scene and geometry facts for the measurement."""
+    """The disk between the plates; returns the scene and geometry facts for the measurement.
+
+    ``cfg`` may also set (``SOFT``; absent: the paper's scene) ``E_Pa`` and ``kappa_Pa`` (the
+    disk's E and the barrier stiffness, Pa), ``plate_h`` (m, the plates' mesh along x; None:
+    2 triangles each), ``plate_stiffness_ratio`` and ``plate_density_factor`` (the top plate's E
+    and density over the disk's), ``plate_moving_start`` (the top plate starts at the push
+    velocity) and ``bottom_density_factor`` (the fixed plate's density over the disk's).
+    """
     x, volume, outer = _disk_particles(RADIUS, cfg["spacing"], cfg["boundary_refine"])
     # The disk centre sits a quarter cell right of a grid node (see the module docstring).
     x[:, 0] += cfg["grid_offset_cells"] * cfg["dx"]
@@ -338,7 +348,15 @@ def stress_force(deformation: np.ndarray, geo: dict, t: float) -> float:
 
 
 def _run_material(cfg: dict, material: str, top_plate: str = "elastic") -> dict:
-    """Compress the disk of one material; F and a after every step, and the fits."""
+    """Compress the disk of one material; F and a after every step, and the fits.
+
+    ``cfg["options"]`` (an options object; with ``strategy`` and ``integrator``) runs any
+    strategy, else barrier by backward Euler with ``tol`` and ``max_newton_iterations``;
+    ``cfg["width_from"] = "force"`` takes a from the particles the bottom plate pushes (``SOFT``).
+    Besides F (the bottom plate's contact force) the samples hold ``F_particles`` (the lower
+    half's particle contact forces), ``F_stress`` (``stress_force``) and ``lowest_gap`` (m, the
+    lowest particle above the plate; < 0: inside it).
+    """
     scene, geo = _scene(cfg, material, cfg.get("top_plate", top_plate))
     if cfg.get("options") is None:  # barrier, backward Euler (the paper's)
         sim = bfemp.Simulation(
