@@ -308,10 +308,16 @@ def markdown(payload: dict) -> str:
     lines = [
         f"# Trade study across strategies ({payload['mode']} mode)",
         "",
-        f"{len(first)} points on {where} "
+        f"{len(first)} points"
+        + (
+            f" (kept of the run's {payload['merged'][0]['first_run_points']})"
+            if payload.get("merged") and "first_run_points" in payload["merged"][0]
+            else ""
+        )
+        + f" on {where} "
         f"{'' if ex['kind'] == 'dask' else 'local worker processes '}"
         f"({ex['threads_per_point']} thread(s) per point); elapsed {payload['wall_s']:.1f} s, "
-        f"sum of point wall times {payload['point_wall_s_total']:.1f} s, "
+        f"sum of its point wall times {payload['point_wall_s_total']:.1f} s, "
         f"commit `{payload['environment']['commit'][:10]}`.",
         "",
         "Wall and CPU time: the point's run (scene build and time loop) in its own process; "
