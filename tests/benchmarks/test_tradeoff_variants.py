@@ -7,6 +7,7 @@ errors of the explicit strategies on those scenes."""
 
 import json
 import math
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -107,3 +108,28 @@ def test_the_quick_record_holds_the_explicit_strategies_with_finite_errors():
     sine = sections["sine_boundary"]
     for strategy in ("two_stage", "lr"):
         assert f"| {strategy} | base" in sine, strategy
+
+
+def test_merging_a_rerun_replaces_its_scenes_and_keeps_the_others(tmp_path):
+    record = tmp_path / "tradeoff.json"
+    shutil.copy(RECORD, record)
+    data = json.loads(RECORD.read_text())
+    # a "rerun" of sine_boundary alone: the record's own sine points, one error changed
+    rerun = dict(data, scenes=["sine_boundary"], merged=None)
+    rerun["points"] = [dict(p) for p in data["points"] if p["scene"] == "sine_boundary"]
+    lr = next(p for p in rerun["points"] if p["strategy"] == "lr")
+    lr["error"] = 0.5 * lr["error"]
+    rerun["environment"] = dict(data["environment"], commit="f" * 40)
+    (tmp_path / "rerun.json").write_text(json.dumps(rerun))
+    out = tradeoff.merge(record, tmp_path / "rerun.json")
+    assert out["scenes"] == data["scenes"] and len(out["points"]) == len(data["points"])
+    again = {p["id"]: p for p in out["points"]}
+    assert again[lr["id"]]["error"] == lr["error"]
+    assert again["rings/barrier/base"]["error"] == next(
+        p["error"] for p in data["points"] if p["id"] == "rings/barrier/base"
+    )
+    assert out["merged"][-1]["scenes"] == ["sine_boundary"]
+    assert (
+        "Scenes sine_boundary: rerun at commit `ffffffffff`"
+        in (tmp_path / "tradeoff.md").read_text()
+    )
