@@ -11,8 +11,7 @@
 - ``strategies``: the registry names that apply, each with ``dt`` (per mode: a number in s, or
   ``"auto"``: the explicit stable step, whose CFL fractions are then the knobs), ``options``
   (its options' base values: fixed choices and the base of its swept fields), ``no_knobs``
-  (scene knobs it does not have, with the reason), optionally ``quick_knobs`` (the only knobs
-  swept in quick mode, for strategies whose points cost a minute there), ``spec`` (narrowing of
+  (scene knobs it does not have, with the reason), optionally ``spec`` (narrowing of
   a knob's sweep declaration, e.g. the largest stable dt) and ``note`` (how it runs the scene);
 - ``not_applicable``: strategy -> why it does not run the scene.
 
@@ -216,7 +215,6 @@ SCENES = {
             "two_stage": {
                 "dt": {"quick": "auto", "full": "auto"},
                 "options": {"tol": 1e-4},
-                "quick_knobs": ("dx", "spacing", "cfl_safety_mpm"),
                 "note": "symplectic Euler at the explicit stable step (5.4e-4 s at dx = 0.05 m)",
             },
         },
@@ -265,13 +263,11 @@ SCENES = {
             "two_stage": {
                 "dt": {"quick": "auto", "full": "auto"},
                 "options": {"tol": 1e-4},
-                "quick_knobs": (),
                 "note": "symplectic Euler at the explicit stable step (the box's), the same scene",
             },
             "lr": {
                 "dt": {"quick": "auto", "full": "auto"},
                 "options": {},
-                "quick_knobs": (),
                 "note": "the scripted strip as a material (strip_h = dx / 2), the same scene; "
                 "lr has no barrier: at the quick base 2 particles ended inside the strip, 6.9 mm "
                 "deep",
@@ -310,14 +306,12 @@ SCENES = {
             "barrier": {
                 "dt": {"quick": 1e-3, "full": 5e-4},
                 "options": {"tol": 1e-4, "max_newton_iterations": 200},
-                "quick_knobs": ("dx", "dt"),
                 "note": "Newmark with implicit contact, frictionless barrier (dhat 1e-2 m, "
                 "kappa 1e5 Pa; _tradeoff_runs.BLOCKS_*)",
             },
             "two_stage": {
                 "dt": {"quick": "auto", "full": "auto"},
                 "options": {"tol": 1e-4},
-                "quick_knobs": ("dx",),
                 "note": "symplectic Euler at the stable step, FEM-FEM barrier pairs (as barrier)",
             },
         },

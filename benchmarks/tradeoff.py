@@ -221,8 +221,6 @@ def knob_table(scene: str, strategy: str, mode: str, sweeps: dict | None = None)
         values = ladder(spec, _knob_base(base, knob, strategy), mode)
         if values:
             table[knob] = {"finer": spec["finer"], "values": values, "spec": spec}
-    if mode == "quick" and "quick_knobs" in sdecl:  # a costly point: fewer knobs in quick mode
-        table = {k: v for k, v in table.items() if k in sdecl["quick_knobs"]}
     overrides = dict((sweeps or {}).get(scene, {}))
     mine = overrides.pop(strategy, {}) if isinstance(overrides.get(strategy), dict) else {}
     for name in _registry():

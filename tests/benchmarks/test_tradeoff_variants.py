@@ -28,12 +28,16 @@ def test_the_explicit_strategies_are_planned_beside_barrier():
     assert strategies("sine_boundary") == {"barrier", "two_stage", "lr"}
     assert strategies("augury_blocks") == {"augury", "barrier", "two_stage"}
     assert strategies("hertz") == {"barrier"}  # the paper's E: the explicit ones run hertz_soft
-    # quick_knobs: the minute-long explicit sine points run their base alone in quick mode, all
-    # their knobs in full mode
-    quick = [p for p in tradeoff.plan("quick", "sine_boundary") if p["strategy"] == "lr"]
-    full = [p for p in tradeoff.plan("full", "sine_boundary") if p["strategy"] == "lr"]
-    assert [p["label"] for p in quick] == ["base"]
-    assert {k for p in full for k in p["sweeps"]} >= {"dx", "ppc", "corrections"}
+    # the explicit strategies sweep their own knobs there, the CFL fractions at dt = "auto"
+    sine = {p["strategy"]: p for p in tradeoff.plan("quick", "sine_boundary")}
+    lr = {
+        k
+        for p in tradeoff.plan("quick", "sine_boundary")
+        if p["strategy"] == "lr"
+        for k in p["sweeps"]
+    }
+    assert {"dx", "ppc", "corrections", "cfl_safety_mpm"} <= lr and "dt" not in lr
+    assert sine["two_stage"]["settings"]["dt"] == "auto"
     # the strategies that do not run a scene say why, with the measured figures
     why = tradeoff.SCENES["hertz_soft"]["not_applicable"]
     assert "8.79 mm" in why["augury"] and "0.196 m" in why["lr"]
