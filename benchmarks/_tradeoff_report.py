@@ -303,13 +303,21 @@ def markdown(payload: dict) -> str:
     ex = payload["executor"]
     cost, words = payload["cost"], COSTS[payload["cost"]]
     where = f"Dask scheduler {ex['scheduler']}" if ex["kind"] == "dask" else f"{ex['workers']}"
+    merged = {scene for part in payload.get("merged", []) for scene in part["scenes"]}
+    first = [r for r in payload["points"] if r["scene"] not in merged]
     lines = [
         f"# Trade study across strategies ({payload['mode']} mode)",
         "",
-        f"{len(payload['points'])} points on {where} "
+        f"{len(first)} points"
+        + (
+            f" (kept of the run's {payload['merged'][0]['first_run_points']})"
+            if payload.get("merged") and "first_run_points" in payload["merged"][0]
+            else ""
+        )
+        + f" on {where} "
         f"{'' if ex['kind'] == 'dask' else 'local worker processes '}"
         f"({ex['threads_per_point']} thread(s) per point); elapsed {payload['wall_s']:.1f} s, "
-        f"sum of point wall times {payload['point_wall_s_total']:.1f} s, "
+        f"sum of its point wall times {payload['point_wall_s_total']:.1f} s, "
         f"commit `{payload['environment']['commit'][:10]}`.",
         "",
         "Wall and CPU time: the point's run (scene build and time loop) in its own process; "
@@ -317,6 +325,14 @@ def markdown(payload: dict) -> str:
         f"the run (0 for the purely explicit strategies). Cost axis: {words}. Replay any point "
         "with `python -m benchmarks tradeoff --replay tradeoff.json --id ID`.",
     ]
+    for part in payload.get("merged", []):  # scenes rerun later and merged in (each point: commit)
+        lines += [
+            "",
+            f"Scenes {', '.join(part['scenes'])}: rerun at commit `{part['commit'][:10]}` "
+            f"({part['points']} points on {part['workers']} local worker process(es), elapsed "
+            f"{part['wall_s']:.1f} s) and merged into this record; the figures above are those "
+            "of the other scenes' run.",
+        ]
     for scene in payload["scenes"]:
         records = [r for r in payload["points"] if r["scene"] == scene]
         lines += ["", f"## {scene}", "", f"Error: {payload['errors'][scene]}.", ""]

@@ -3,11 +3,12 @@
 ``settings``: ``scene`` (a key of ``_tradeoff_scenes.SCENES``), ``strategy`` (a registry name),
 ``dt`` (s, or ``"auto"``), ``options`` (the strategy's options as a dict: ``Options(**options)``),
 ``transfer`` where the scene declares one, and the scene's own settings (its ``base``). Each scene
-runs through the benchmark module that defines it (``rings``, ``slope``, ``hertz``,
-``sine_boundary``, ``augury_blocks``, ``lr_compression``) with the variant each strategy needs
-(``_tradeoff_scenes`` states which). Returns JSON-ready scalars; ``iterations`` is the sum over
-the run of the strategy's iteration counts (Newton for barrier and two_stage; 0 for the purely
-explicit ones), ``failure`` the ``StepError`` message (None when every step ran).
+runs through the benchmark module that defines it (``rings``, ``slope``, ``hertz`` and its
+softened ``hertz_soft``, ``sine_boundary``, ``augury_blocks``, ``lr_compression``) with the
+variant each strategy needs (``_tradeoff_scenes`` states which). Returns JSON-ready scalars;
+``iterations`` is the sum over the run of the strategy's iteration counts (Newton for barrier and
+two_stage; 0 for the purely explicit ones), ``failure`` the ``StepError`` message (None when
+every step ran).
 """
 
 from __future__ import annotations
@@ -143,7 +144,50 @@ def _hertz(s: dict) -> dict:
     return out
 
 
+HERTZ_SOFT_KEYS = ("strategy", "dt", "options", "dx", "spacing", "dhat", "eps_v", "material")
+HERTZ_SOFT_KEYS += ("mu", "t_end", "boundary_refine", "grid_offset_cells")
+
+
+def _hertz_soft(s: dict) -> dict:
+    """The softened disk (``hertz.SOFT``, plates meshed at dx / 2): barrier by backward Euler,
+    the explicit strategies by symplectic Euler at ``dt`` (``"auto"``: the stable step)."""
+    from benchmarks import hertz
+
+    _check(s, HERTZ_SOFT_KEYS, "hertz_soft")
+    strategy = s["strategy"]
+    cfg = {k: v for k, v in s.items() if k != "options"} | hertz.SOFT
+    cfg["plate_h"] = 0.5 * s["dx"]
+    options = dict(s["options"])
+    if strategy == "barrier":
+        cfg.update(
+            tol=options.pop("tol"), max_newton_iterations=options.pop("max_newton_iterations")
+        )
+        if options:
+            raise ValueError(f"hertz_soft: unsupported barrier options {sorted(options)}")
+    else:
+        cfg.update(integrator=EXPLICIT_INTEGRATOR, options=_options(strategy, options))
+    run = hertz._run_material(cfg, s["material"])
+    out = {k: v for k, v in run.items() if k not in ("samples", "error")}
+    samples = run["samples"]
+    out.update(
+        E_Pa=hertz.SOFT_E,
+        dt_s=run["dt_s"],
+        lowest_gap_min_m=float(np.min(samples["lowest_gap"])) if samples["t"] else None,
+        F_stress_end=samples["F_stress"][-1] if samples["t"] else None,
+        F_end=samples["F"][-1] if samples["t"] else None,
+        iterations=run["newton_iterations"],
+        failure=run["error"],
+    )
+    return out
+
+
 # ----------------------------------------------------------------------------- sine_boundary
+#: the scripted strip's density over the box's, for every strategy: it changes nothing for
+#: barrier and two_stage (scripted nodes are no unknowns; barrier's quick base: the largest
+#: compressive force moved by 1e-13, relative) and weighs the strip's nodes in lr's
+#: mass-weighted velocity mixing: at 1 x, 164 particles ended inside the strip (0.21 m deep),
+#: at 1e4 x 2 (6.9 mm deep) (measured, quick base)
+SINE_STRIP_DENSITY_FACTOR = 1e4
 SINE_KEYS = ("strategy", "dt", "options", "scale", "dx", "ppc", "strip_h", "t_stop")
 
 
@@ -151,11 +195,16 @@ def _sine_boundary(s: dict) -> dict:
     from benchmarks import sine_boundary
 
     _check(s, SINE_KEYS, "sine_boundary")
-    if s["strategy"] != "barrier":
-        raise ValueError(f"sine_boundary: only barrier applies here, got {s['strategy']!r}")
-    cfg = {k: s[k] for k in ("scale", "dx", "ppc", "strip_h", "dt", "t_stop")} | s["options"]
+    cfg = {k: s[k] for k in ("scale", "dx", "ppc", "strip_h", "dt", "t_stop")}
+    cfg["strip_density_factor"] = SINE_STRIP_DENSITY_FACTOR
+    if s["strategy"] == "barrier":
+        cfg |= s["options"]
+    else:  # the explicit strategies on the same scene (the box's E sets the stable step)
+        options = _options(s["strategy"], s["options"])
+        cfg |= {"strategy": s["strategy"], "integrator": EXPLICIT_INTEGRATOR, "options": options}
     run = sine_boundary._run_one(cfg, "bfemp")
     keys = ("steps", "t_end", "penetrations", "max_penetration_depth", "max_tensile_force")
+    keys += ("dt_s",)
     out = {k: run[k] for k in keys + ("max_compressive_force", "particles", "min_distance")}
     out.update(iterations=run["newton_iterations"], failure=run["error"])
     return out
@@ -171,8 +220,10 @@ def _augury_blocks(s: dict) -> dict:
     from bfemp.terms import fem_elastic_groups
 
     _check(s, BLOCKS_KEYS, "augury_blocks")
+    if s["strategy"] in ("barrier", "two_stage"):
+        return _blocks_barrier(s)
     if s["strategy"] != "augury":
-        raise ValueError(f"augury_blocks: only augury applies here, got {s['strategy']!r}")
+        raise ValueError(f"augury_blocks: augury, barrier or two_stage, got {s['strategy']!r}")
     h = s["dx"]
     model = augury_blocks.blocks_scene(h).build()
     options = _options("augury", {"grid_dx": 2.0 * h, **s["options"]})
@@ -202,6 +253,65 @@ def _augury_blocks(s: dict) -> dict:
         "steps": done,
         "iterations": 0,
         "nodes_per_block": int(model.fem_bodies[0].n_nodes),
+        "failure": failure,
+    }
+
+
+#: barrier contact of the blocks (m, Pa): the rotated block's nearest edge starts 0.07 m away
+BLOCKS_DHAT, BLOCKS_KAPPA = 1e-2, 1e5
+#: barrier's integrator on the blocks: Newmark with implicit contact (the rings' choice), the
+#: elastic collision without backward Euler's numerical damping
+BLOCKS_INTEGRATOR = "newmark_implicit_contact"
+
+
+def _blocks_barrier(s: dict) -> dict:
+    """The blocks by barrier (Newmark, implicit contact) or two_stage (symplectic Euler), with
+    frictionless barrier contact (``BLOCKS_DHAT``, ``BLOCKS_KAPPA``)."""
+    from benchmarks import augury_blocks
+    from bfemp import diagnostics
+    from bfemp.terms import fem_elastic_groups
+
+    strategy = s["strategy"]
+    scene = augury_blocks.blocks_scene(s["dx"])
+    scene.set_contact(dhat=BLOCKS_DHAT, kappa=BLOCKS_KAPPA, mu=0.0)
+    implicit = strategy == "barrier"
+    sim = bfemp.Simulation(
+        scene,
+        strategy=strategy,
+        integrator=BLOCKS_INTEGRATOR if implicit else EXPLICIT_INTEGRATOR,
+        dt=s["dt"],
+        options=_options(strategy, s["options"]),
+    )
+    model = sim.model
+    groups = fem_elastic_groups(model)
+
+    def energy(st: bfemp.State) -> float:
+        kinetic = diagnostics.kinetic_energy(model, st)
+        return kinetic + diagnostics.fem_elastic_energy(model, st, groups)
+
+    e0 = energy(sim.state)
+    p0 = diagnostics.linear_momentum(model, sim.state)
+    steps = int(round(s["t_end"] / sim.dt))
+    failure, done, iterations = None, 0, 0
+    for _ in range(steps):
+        try:
+            report = sim.step()
+        except bfemp.StepError as err:
+            failure = str(err)
+            break
+        done += 1
+        iterations += report.newton_iterations
+    drift = np.linalg.norm(diagnostics.linear_momentum(model, sim.state) - p0) / np.linalg.norm(p0)
+    return {
+        "energy_loss": 1.0 - energy(sim.state) / e0,
+        "momentum_drift_rel": float(drift),
+        "steps": done,
+        "dt_s": float(sim.dt),
+        "iterations": int(iterations),
+        "nodes_per_block": int(model.fem_bodies[0].n_nodes),
+        "min_distance": float(np.nanmin(sim.metrics.column("min_distance")[1:]))
+        if "min_distance" in sim.metrics.columns and done
+        else None,
         "failure": failure,
     }
 
@@ -246,6 +356,7 @@ RUNNERS = {
     "rings": _rings,
     "slope": _slope,
     "hertz": _hertz,
+    "hertz_soft": _hertz_soft,
     "sine_boundary": _sine_boundary,
     "augury_blocks": _augury_blocks,
     "lr_compression": _lr_compression,

@@ -134,6 +134,38 @@ MODES = {
 #: One grid step finer than the paper's: the full settings at dx = 0.02 m, particle spacing
 #: scaled with dx. Written to ``hertz_refined.json``; ``full`` stays the paper's grid.
 MODES["refined"] = {**MODES["full"], "dx": 0.02, "spacing": MODES["full"]["spacing"] * 0.8}
+#: The softened disk of the trade study (``benchmarks.tradeoff``, scene ``hertz_soft``: the
+#: explicit strategies beside barrier on one scene). E = 1e5 Pa instead of 1e10 (the explicit
+#: stable step at dx = 0.05 m: 5.4e-4 s instead of ~1.7e-6 s), kappa scaled with E (the barrier
+#: as stiff relative to the disk), C_hertz from the softened E. The top plate stays elastic with
+#: its top face scripted (both plates scripted whole, barrier failed at step 1:
+#: SCRIPTED_MOTION_BLOCKED, the disk squeezed between two scripted bodies), as stiff as the disk
+#: (at 1000 x the step would follow the plate) and 16 x denser (its P-wave speed a quarter of
+#: the disk's: its elements do not bound the step below the disk's), and starts at the push
+#: velocity (no wave from a plate set moving at once). The trade study meshes both plates at
+#: dx / 2 along x (``plate_h``: the FEM nodes augury's and lr's contact needs in the contact
+#: patch). The fixed bottom plate is 1e4 x denser: its nodes weigh in augury's and lr's
+#: mass-weighted velocity mixing (scripted nodes enter with their mass; at the disk's density
+#: lr let the disk through it, 63.6 mm deep at t = 0.6 s, measured); barrier and two_stage do not
+#: see the mass of scripted nodes. The contact half-width is that of the particles the bottom
+#: plate pushes (``width_from="force"``: upward contact force above ``PUSHED_FRACTION`` of the
+#: largest), the same set as within d-hat of the plate for barrier and two_stage (a barrier
+#: force is nonzero within d-hat only) and defined for any strategy. Quasi-static still: a wave
+#: crosses the disk in 0.05 s, the compression lasts 0.6 s. Measured, quick trade-study base:
+#: the stresses carry the contact force (``stress_force``: 1635 against 1629 N/m at t = 0.6 s).
+SOFT_E = 1e5  # Pa
+SOFT = dict(
+    E_Pa=SOFT_E,
+    kappa_Pa=KAPPA * SOFT_E / E,
+    plate_stiffness_ratio=1.0,
+    plate_density_factor=16.0,
+    plate_moving_start=True,
+    bottom_density_factor=1e4,
+    width_from="force",
+)
+#: ``width_from="force"``: a particle is pushed by the bottom plate when its upward contact force
+#: exceeds this fraction of the largest (the rest is round-off)
+PUSHED_FRACTION = 1e-9
 #: Grid sweep of the full mode: linear material, ``_FAST`` settings with dt = 3e-2, spacing dx/2.
 SWEEP_DX = (0.05, 0.04, 1.0 / 30.0, 0.025)
 SWEEP_DT = 3e-2
@@ -181,18 +213,40 @@ def _disk_particles(
     return np.ascontiguousarray(x), volume, outer
 
 
-def _plate(x0: float, x1: float, y0: float, y1: float) -> tuple[np.ndarray, np.ndarray]:
-    """A rectangle ``[x0, x1] x [y0, y1]`` (m) as 4 vertices ``(4, 2)`` and 2 triangles."""
-    points = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], dtype=np.float64)
-    return points, np.array([[0, 1, 2], [0, 2, 3]], dtype=np.int64)
+def _plate(
+    x0: float, x1: float, y0: float, y1: float, h: float | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """A rectangle ``[x0, x1] x [y0, y1]`` (m): 4 vertices ``(4, 2)`` and 2 triangles, or with
+    ``h`` (m) one row of ``n = ceil((x1 - x0) / h)`` columns, ``2 (n + 1)`` vertices and ``2 n``
+    triangles (nodes every ``(x1 - x0) / n`` along both long faces)."""
+    if h is None:
+        points = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], dtype=np.float64)
+        return points, np.array([[0, 1, 2], [0, 2, 3]], dtype=np.int64)
+    n = max(int(math.ceil((x1 - x0) / h - 1e-9)), 1)
+    xs = np.linspace(x0, x1, n + 1)
+    points = np.concatenate(
+        [np.column_stack([xs, np.full(n + 1, y0)]), np.column_stack([xs, np.full(n + 1, y1)])]
+    )
+    k = np.arange(n)
+    lower = np.column_stack([k, k + 1, n + 2 + k])
+    upper = np.column_stack([k, n + 2 + k, n + 1 + k])
+    return np.ascontiguousarray(points), np.concatenate([lower, upper]).astype(np.int64)
 
 
 def _scene(cfg: dict, material: str, top_plate: str = "elastic") -> tuple[bfemp.Scene, dict]:
-    """The disk between the plates; returns the scene and geometry facts for the measurement."""
+    """The disk between the plates; returns the scene and geometry facts for the measurement.
+
+    ``cfg`` may also set (``SOFT``; absent: the paper's scene) ``E_Pa`` and ``kappa_Pa`` (the
+    disk's E and the barrier stiffness, Pa), ``plate_h`` (m, the plates' mesh along x; None:
+    2 triangles each), ``plate_stiffness_ratio`` and ``plate_density_factor`` (the top plate's E
+    and density over the disk's), ``plate_moving_start`` (the top plate starts at the push
+    velocity) and ``bottom_density_factor`` (the fixed plate's density over the disk's).
+    """
     x, volume, outer = _disk_particles(RADIUS, cfg["spacing"], cfg["boundary_refine"])
     # The disk centre sits a quarter cell right of a grid node (see the module docstring).
     x[:, 0] += cfg["grid_offset_cells"] * cfg["dx"]
-    disk = MATERIALS[material](E=E, nu=NU, density=RHO)
+    young = cfg.get("E_Pa", E)  # the softened variant's (SOFT) or the paper's
+    disk = MATERIALS[material](E=young, nu=NU, density=RHO)
     scene = bfemp.Scene(dim=2)
     scene.add_mpm(x, volume, material=disk, name="disk")
     dhat = cfg.get("dhat", DHAT)
@@ -200,28 +254,38 @@ def _scene(cfg: dict, material: str, top_plate: str = "elastic") -> tuple[bfemp.
     y_bottom = float(x[:, 1].min()) - gap  # top face of the bottom plate
     y_top = float(x[:, 1].max()) + gap  # bottom face of the top plate
     w = PLATE_HALF_WIDTH
-    points, cells = _plate(-w, w, y_bottom - PLATE_THICKNESS, y_bottom)
-    rigid = bfemp.LinearElastic(E=E, nu=NU, density=RHO)
+    plate_h = cfg.get("plate_h")
+    points, cells = _plate(-w, w, y_bottom - PLATE_THICKNESS, y_bottom, plate_h)
+    # the fixed plate's density only weighs its nodes in augury's and lr's velocity mixing
+    heavy = RHO * cfg.get("bottom_density_factor", 1.0)
+    rigid = bfemp.LinearElastic(E=young, nu=NU, density=heavy)
     bottom = scene.add_fem(
         points, cells, material=rigid, prescribed=bfemp.motion.Fixed(), name="bottom_plate"
     )
-    points, cells = _plate(-w, w, y_top, y_top + PLATE_THICKNESS)
+    points, cells = _plate(-w, w, y_top, y_top + PLATE_THICKNESS, plate_h)
     push = bfemp.motion.Linear(velocity=(0.0, -SPEED))
     if top_plate == "rigid":  # every vertex scripted, as in the paper (see the docstring)
         top = scene.add_fem(points, cells, material=rigid, prescribed=push, name="top_plate")
     else:
-        stiff = bfemp.LinearElastic(E=PLATE_STIFFNESS_RATIO * E, nu=NU, density=RHO)
+        ratio = cfg.get("plate_stiffness_ratio", PLATE_STIFFNESS_RATIO)
+        density = RHO * cfg.get("plate_density_factor", 1.0)
+        stiff = bfemp.LinearElastic(E=ratio * young, nu=NU, density=density)
+        # SOFT: the plate starts at the push velocity (no wave from a plate set moving at once)
+        start = (0.0, -SPEED) if cfg.get("plate_moving_start", False) else (0.0, 0.0)
         top = scene.add_fem(
             points,
             cells,
             material=stiff,
+            velocity=start,
             prescribed=push,
             prescribed_nodes=points[:, 1] > y_top + 0.5 * PLATE_THICKNESS,
             name="top_plate",
         )
     scene.set_grid(dx=cfg["dx"])
-    scene.set_contact(dhat=dhat, kappa=KAPPA, mu=cfg["mu"], eps_v=cfg["eps_v"])
-    geo = dict(y_bottom=y_bottom, outer=outer, bottom=bottom, top=top, particles=x.shape[0])
+    kappa = cfg.get("kappa_Pa", KAPPA)
+    scene.set_contact(dhat=dhat, kappa=kappa, mu=cfg["mu"], eps_v=cfg["eps_v"])
+    geo = dict(y_bottom=y_bottom, y_top=y_top, outer=outer, bottom=bottom, top=top)
+    geo.update(particles=x.shape[0], material=disk, volume=volume)
     return scene, geo
 
 
@@ -267,24 +331,59 @@ def fit_constant(a: np.ndarray, force: np.ndarray, lo: float, hi: float) -> tupl
     return float(np.dot(force[sel], a2) / np.dot(a2, a2)), int(np.count_nonzero(sel))
 
 
+def stress_force(deformation: np.ndarray, geo: dict, t: float) -> float:
+    """The force in N/m between the plates from the disk's stresses alone (any strategy): in
+    static equilibrium the integral of the Cauchy stress over the disk equals the sum of
+    x (outer) f over the contact forces (tensor virial), so with +F and -F at the bottom and top
+    plates ``F = -sum_p sigma_yy,p V_p / (y_top(t) - y_bottom)``.
+
+    Args:
+        deformation: the particles' deformation gradients ``(P, 2, 2)``; geo: ``_scene``'s
+            facts; t: time in s (the top face is at ``y_top - SPEED t``).
+    """
+    sigma = geo["material"].cauchy_stress(deformation)
+    volume = geo["volume"] * np.linalg.det(deformation)
+    gap = geo["y_top"] - SPEED * t - geo["y_bottom"]
+    return -float(np.dot(sigma[:, 1, 1], volume)) / gap
+
+
 def _run_material(cfg: dict, material: str, top_plate: str = "elastic") -> dict:
-    """Compress the disk of one material; F and a after every step, and the fits."""
-    scene, geo = _scene(cfg, material, top_plate)
-    sim = bfemp.Simulation(
-        scene,
-        strategy=cfg.get("strategy", "barrier"),
-        integrator="backward_euler",
-        dt=cfg["dt"],
-        tol=cfg["tol"],
-        max_newton_iterations=cfg["max_newton_iterations"],
-    )
+    """Compress the disk of one material; F and a after every step, and the fits.
+
+    ``cfg["options"]`` (an options object; with ``strategy`` and ``integrator``) runs any
+    strategy, else barrier by backward Euler with ``tol`` and ``max_newton_iterations``;
+    ``cfg["width_from"] = "force"`` takes a from the particles the bottom plate pushes (``SOFT``).
+    Besides F (the bottom plate's contact force) the samples hold ``F_particles`` (the lower
+    half's particle contact forces), ``F_stress`` (``stress_force``) and ``lowest_gap`` (m, the
+    lowest particle above the plate; < 0: inside it).
+    """
+    scene, geo = _scene(cfg, material, cfg.get("top_plate", top_plate))
+    if cfg.get("options") is None:  # barrier, backward Euler (the paper's)
+        sim = bfemp.Simulation(
+            scene,
+            strategy=cfg.get("strategy", "barrier"),
+            integrator="backward_euler",
+            dt=cfg["dt"],
+            tol=cfg["tol"],
+            max_newton_iterations=cfg["max_newton_iterations"],
+        )
+    else:  # any strategy with its options object (the trade study's explicit ones on SOFT)
+        sim = bfemp.Simulation(
+            scene,
+            strategy=cfg["strategy"],
+            integrator=cfg["integrator"],
+            dt=cfg["dt"],
+            options=cfg["options"],
+        )
     model = sim.model
     dhat = cfg.get("dhat", DHAT)
     bottom = model.fem_bodies[geo["bottom"]].nodes
     top = model.fem_bodies[geo["top"]].nodes
+    lower = sim.state.mpm_x[:, 1] < 0.0  # the disk's lower half (its centre is at y = 0)
     x_mean0 = sim.state.mpm_x[:, 0].mean()
-    n_steps = int(round(cfg["t_end"] / cfg["dt"]))
+    n_steps = int(round(cfg["t_end"] / sim.dt))
     rows = {k: [] for k in ("t", "F", "F_top", "a", "a_interpolated", "n_contact", "newton")}
+    rows["F_particles"], rows["F_stress"], rows["lowest_gap"] = [], [], []
     rows["friction_iterations"] = []
     error = None
     start = time.perf_counter()
@@ -295,16 +394,25 @@ def _run_material(cfg: dict, material: str, top_plate: str = "elastic") -> dict:
             error = str(err)
             log.error("hertz/%s: %s", material, err)
             break
-        fem_f, _ = sim.contact_forces()
+        fem_f, mpm_f = sim.contact_forces()
         x = sim.state.mpm_x
         rows["t"].append(sim.state.t)
         rows["F"].append(-float(fem_f[bottom, 1].sum()))
+        rows["F_particles"].append(float(mpm_f[lower, 1].sum()))
+        rows["lowest_gap"].append(float(x[:, 1].min() - geo["y_bottom"]))  # < 0: inside the plate
+        rows["F_stress"].append(stress_force(sim.state.mpm_F, geo, sim.state.t))
         rows["F_top"].append(float(fem_f[top, 1].sum()))
-        rows["a"].append(contact_half_width(x, geo["y_bottom"], dhat))
+        if cfg.get("width_from") == "force":  # any strategy: the particles the plate pushes
+            pushed = lower & (mpm_f[:, 1] > PUSHED_FRACTION * max(float(mpm_f[:, 1].max()), 0.0))
+            xs = x[pushed, 0]
+            rows["a"].append(0.5 * float(xs.max() - xs.min()) if xs.size >= 2 else 0.0)
+            rows["n_contact"].append(int(np.count_nonzero(pushed)))
+        else:
+            rows["a"].append(contact_half_width(x, geo["y_bottom"], dhat))
+            rows["n_contact"].append(int(np.count_nonzero(x[:, 1] - geo["y_bottom"] < dhat)))
         rows["a_interpolated"].append(
             interpolated_half_width(x[geo["outer"]], geo["y_bottom"], dhat)
         )
-        rows["n_contact"].append(int(np.count_nonzero(x[:, 1] - geo["y_bottom"] < dhat)))
         rows["newton"].append(report.newton_iterations)
         rows["friction_iterations"].append(report.friction_iterations)
         log.info(
@@ -318,7 +426,7 @@ def _run_material(cfg: dict, material: str, top_plate: str = "elastic") -> dict:
         )
     wall = time.perf_counter() - start
     s = {k: np.asarray(v, dtype=np.float64) for k, v in rows.items()}
-    c_h = hertz_constant()
+    c_h = hertz_constant(E=cfg.get("E_Pa", E))
     lo, hi = FIT_MIN_CELLS * cfg["dx"], FIT_MAX_A_OVER_R * RADIUS
     c_fit, n_fit = fit_constant(s["a"], s["F"], lo, hi)
     c_int, n_int = fit_constant(s["a_interpolated"], s["F"], lo, hi)
@@ -340,6 +448,7 @@ def _run_material(cfg: dict, material: str, top_plate: str = "elastic") -> dict:
         "error": error,
         "steps": int(s["t"].size),
         "wall_s": wall,
+        "dt_s": float(sim.dt),
         "newton_iterations": int(s["newton"].sum()),
         "newton_iterations_max": int(s["newton"].max()) if s["newton"].size else 0,
         "friction_iterations": int(s["friction_iterations"].sum()),
@@ -348,6 +457,9 @@ def _run_material(cfg: dict, material: str, top_plate: str = "elastic") -> dict:
             "t": s["t"].tolist(),
             "F": s["F"].tolist(),
             "F_top": s["F_top"].tolist(),
+            "F_particles": s["F_particles"].tolist(),
+            "lowest_gap": s["lowest_gap"].tolist(),
+            "F_stress": s["F_stress"].tolist(),
             "a": s["a"].tolist(),
             "a_interpolated": s["a_interpolated"].tolist(),
             "n_contact": s["n_contact"].astype(int).tolist(),

@@ -12,7 +12,8 @@ Strategies go by the registry's names (``bfemp.steppers.STRATEGIES``: ``barrier`
 scene (``_tradeoff_scenes.SCENES[scene]["strategies"]``, with how each runs it), and so is why
 the others do not (``not_applicable``: lr refuses MPM-only FEM contact it cannot see, explicit
 strategies at the paper's stiffness need steps the scene cannot afford, the softened slope of
-``two_stage_slope`` stands in where the repo has one). Scenes and what the error is against:
+``two_stage_slope`` and the softened disk ``hertz_soft`` stand in, measured failures). Scenes
+and what the error is against:
 
 - ``rings``: barrier, two_stage, augury, lr; against the reference run (barrier at the finest
   value of each of its swept knobs): the energy loss over the collision window and the contact
@@ -20,8 +21,12 @@ strategies at the paper's stiffness need steps the scene cannot afford, the soft
 - ``slope``: barrier (E = 4e12 Pa), two_stage, augury, lr (the softened box, E = 1e5 Pa, at
   the explicit step); against the analytic acceleration (eq. 40).
 - ``hertz``: barrier; against Hertz's C (eq. 39).
-- ``sine_boundary``: barrier; against the reference run's largest compressive force.
-- ``augury_blocks`` (AUG Figs. 8-9, 3D): augury; against the reference run's energy loss.
+- ``hertz_soft``: barrier, two_stage on the softened disk (``hertz.SOFT``, E = 1e5 Pa: the
+  explicit step 5.4e-4 s); against Hertz's C of that E (augury and lr: measured why not).
+- ``sine_boundary``: barrier, two_stage, lr (the scripted strip leaves the box's E = 1e6 Pa to
+  set the explicit step, 6e-4 s); against the reference run's largest compressive force.
+- ``augury_blocks`` (AUG Figs. 8-9, 3D): augury, barrier (Newmark), two_stage; against the
+  reference run's (augury's) energy loss.
 - ``lr_compression`` (LR Fig. 5): lr; against the single-material run (the cost is that of the
   two-block run alone).
 
@@ -43,6 +48,9 @@ busy machine inflates less). Local runs use ``--workers`` processes at once (def
 number of cores); with ``--scheduler`` the same pure function ``execute_point`` is submitted to
 a Dask cluster (``distributed.Client``). Before the timed points a few steps of each scene and
 strategy (``warmup``) fill numba's on-disk cache.
+
+A later run of some scenes merges into a record with ``merge(record, rerun)`` (the quick record
+``benchmarks/records/tradeoff.json`` was so made: its header says which scenes, at which commit).
 
 Outputs in ``--out`` (default ``results/``): ``tradeoff.json`` (every point's record, the
 fronts, the winners per error range and the crossovers, the knob effects),
@@ -690,6 +698,54 @@ def rerender(path: str | Path) -> dict:
         )
         plot_scene(recs, path.parent / f"{NAME}_{scene}.png", title, label, payload["cost"])
     return payload
+
+
+def merge(record: str | Path, rerun: str | Path) -> dict:
+    """Merge a later run of some scenes (``rerun``, a ``tradeoff.json``) into ``record`` (a
+    ``tradeoff.json``, rewritten), then write its report and plots again (``rerender``).
+
+    The rerun's scenes replace the record's points, references, knobs and errors of those scenes
+    (new scenes join in ``SCENES``' order); the other scenes keep theirs, their not-run reasons and
+    the rerun scenes' strategy notes as ``SCENES`` declares them now. ``record["merged"]`` lists
+    each merged run (scenes, commit, points, workers, elapsed s, environment; the first merge also
+    the first run's point count); every point keeps its own ``commit``.
+    """
+    record, rerun = Path(record), Path(rerun)
+    old, new = json.loads(record.read_text()), json.loads(rerun.read_text())
+    scenes = new["scenes"]
+    order = [s for s in SCENES if s in old["scenes"] or s in scenes]
+    for key in ("strategies", "strategy_notes", "not_run", "knobs", "errors", "references"):
+        merged = {s: (new if s in scenes else old)[key].get(s) for s in order}
+        old[key] = {s: v for s, v in merged.items() if v is not None}
+    for s in order:
+        if s in scenes:
+            notes = old["strategy_notes"][s]
+            old["strategy_notes"][s] = {st: SCENES[s]["strategies"][st].get("note") for st in notes}
+        else:
+            why = SCENES[s]["not_applicable"]
+            old["not_run"][s] = {st: why.get(st, "not declared") for st in old["not_run"][s]}
+    before = len(old["points"])
+    points = [p for p in old["points"] if p["scene"] not in scenes]
+    for p in new["points"]:
+        p["replay"] = p["replay"].replace(str(rerun), record.name)
+    points += new["points"]
+    old["points"] = sorted(points, key=lambda p: order.index(p["scene"]))
+    old["scenes"] = order
+    old["failed"] = [p["id"] for p in old["points"] if p["failure"]]
+    part = {
+        "scenes": scenes,
+        "commit": new["environment"]["commit"],
+        "points": len(new["points"]),
+        "workers": new["executor"]["workers"],
+        "wall_s": new["wall_s"],
+        "warmup_s": new["warmup_s"],
+        "environment": new["environment"],
+    }
+    if "merged" not in old:
+        part["first_run_points"] = before
+    old.setdefault("merged", []).append(part)
+    record.write_text(json.dumps(old, indent=2, default=float))
+    return rerender(record)
 
 
 def run(mode: str = "full", out: str | Path = "results") -> dict:
