@@ -29,6 +29,18 @@ import math
 SCENE_FINER = {"dx": -1, "ppc": 1, "spacing": -1, "dhat": -1, "eps_v": -1}
 _HERTZ_PAPER_SPACING = math.sqrt(math.pi / 42920)  # m: the paper's particle count in the disk
 _SOFT = "the softened slope of two_stage_slope (E = 1e5 Pa instead of 4e12, kappa 1e6 Pa)"
+# the hertz and hertz_soft scenes share their discretisation (hertz_soft changes the material)
+_HERTZ_QUICK_BASE = dict(dx=0.05, spacing=0.035, dhat=1e-4, eps_v=1e-3, material="linear") | dict(
+    mu=1.0, t_end=0.6, boundary_refine=4, grid_offset_cells=0.25
+)
+_HERTZ_FULL = {
+    "base": dict(dx=0.025, spacing=_HERTZ_PAPER_SPACING, dhat=1e-4, eps_v=1e-5)
+    | dict(material="linear", mu=1.0, t_end=0.6, boundary_refine=4)
+    | {"grid_offset_cells": 0.25},
+    "sweeps": {"dx": (0.04, 1.0 / 30.0, 0.025)}
+    | {"spacing": (2.0 * _HERTZ_PAPER_SPACING, _HERTZ_PAPER_SPACING)}
+    | {"dhat": (2e-4, 1e-4, 5e-5), "eps_v": (1e-4, 1e-5, 1e-6)},
+}
 _HERTZ_SOFT = (
     "E = 1e5 Pa instead of 1e10, kappa scaled with E, the top plate as stiff as the disk and "
     "16 x denser, both plates meshed at dx / 2"
@@ -155,19 +167,11 @@ SCENES = {
         "scene_knobs": ("dx", "spacing", "dhat", "eps_v"),
         "modes": {
             "quick": {
-                "base": dict(dx=0.05, spacing=0.035, dhat=1e-4, eps_v=1e-3, material="linear")
-                | dict(mu=1.0, t_end=0.6, boundary_refine=4, grid_offset_cells=0.25),
+                "base": _HERTZ_QUICK_BASE,
                 "sweeps": {"dx": (0.05, 0.04), "spacing": (0.035, 0.025)}
                 | {"dhat": (2e-4, 1e-4, 5e-5), "eps_v": (1e-2, 1e-3, 1e-4)},
             },
-            "full": {
-                "base": dict(dx=0.025, spacing=_HERTZ_PAPER_SPACING, dhat=1e-4, eps_v=1e-5)
-                | dict(material="linear", mu=1.0, t_end=0.6, boundary_refine=4)
-                | {"grid_offset_cells": 0.25},
-                "sweeps": {"dx": (0.04, 1.0 / 30.0, 0.025)}
-                | {"spacing": (2.0 * _HERTZ_PAPER_SPACING, _HERTZ_PAPER_SPACING)}
-                | {"dhat": (2e-4, 1e-4, 5e-5), "eps_v": (1e-4, 1e-5, 1e-6)},
-            },
+            "full": _HERTZ_FULL,
         },
         "strategies": {
             "barrier": {
@@ -192,19 +196,11 @@ SCENES = {
         "scene_knobs": ("dx", "spacing", "dhat", "eps_v"),
         "modes": {
             "quick": {
-                "base": dict(dx=0.05, spacing=0.035, dhat=1e-4, eps_v=1e-3, material="linear")
-                | dict(mu=1.0, t_end=0.6, boundary_refine=4, grid_offset_cells=0.25),
+                "base": _HERTZ_QUICK_BASE,
                 "sweeps": {"dx": (0.05, 0.04), "spacing": (0.035, 0.025)}
                 | {"dhat": (2e-4, 1e-4), "eps_v": (1e-2, 1e-3)},
             },
-            "full": {
-                "base": dict(dx=0.025, spacing=_HERTZ_PAPER_SPACING, dhat=1e-4, eps_v=1e-5)
-                | dict(material="linear", mu=1.0, t_end=0.6, boundary_refine=4)
-                | {"grid_offset_cells": 0.25},
-                "sweeps": {"dx": (0.04, 1.0 / 30.0, 0.025)}
-                | {"spacing": (2.0 * _HERTZ_PAPER_SPACING, _HERTZ_PAPER_SPACING)}
-                | {"dhat": (2e-4, 1e-4, 5e-5), "eps_v": (1e-4, 1e-5, 1e-6)},
-            },
+            "full": _HERTZ_FULL,
         },
         "strategies": {
             "barrier": {
