@@ -39,8 +39,11 @@ format: setup
 	$(BIN)/ruff format .
 	$(BIN)/ruff check --fix .
 
+# the test files in parallel (one worker per core, at most 4; a file's tests share a worker and
+# its module fixtures), then the few tests that compare wall times, alone so no worker skews them
 test: lint
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n auto --maxprocesses 4 --dist loadfile -m "not serial"
+	$(BIN)/python -m pytest -q -m serial
 
 clean:
 	rm -rf $(VENV) .numba_cache results .pytest_cache

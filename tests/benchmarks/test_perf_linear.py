@@ -8,6 +8,9 @@ import pytest
 from benchmarks import perf_3d, perf_fem, perf_mpm
 from solvers.blas import cholmod_blas
 
+# the ratio Newton iteration / factorisation is a ratio of wall times: measured alone
+pytestmark = pytest.mark.serial
+
 
 @pytest.fixture(scope="module", params=["perf_fem", "perf_mpm", "perf_3d"])
 def record(request, tmp_path_factory):
