@@ -103,6 +103,7 @@ Measured (2 shared cores, load 4 to 7, CHOLMOD on OpenBLAS; ``benchmarks/records
 
 from __future__ import annotations
 
+import json
 import logging
 import math
 import time
@@ -299,6 +300,7 @@ def _run_one(
     t, cube = [0.0], [0.0]
     newton, friction_max, friction_unconverged, min_d, error = 0, 0, 0, math.inf, None
     slip_t = slip_angle = None
+    cut = False  # stopped by budget_s before the end of the run
     step_wall, step_newton, step_pairs = [], [], []
     phases: dict[str, float] = {}
     started = time.perf_counter()
@@ -338,6 +340,7 @@ def _run_one(
                 time.perf_counter() - started,
             )
         if time.perf_counter() - started > budget_s:
+            cut = True
             break
     wall = time.perf_counter() - started
     log.info(
@@ -355,6 +358,7 @@ def _run_one(
         "error": error,
         "steps": len(t) - 1,
         "t_end_s": t[-1],
+        "cut_at_budget_s": budget_s if cut else None,
         "slip_time_s": slip_t,
         "slip_angle_rad": slip_angle,
         "slip_angle_pi": None if slip_angle is None else slip_angle / math.pi,
@@ -549,7 +553,10 @@ def solver_probe(out: str | Path = "results", mu: float = 0.5) -> dict:
 
 
 def run(
-    mode: str = "full", out: str | Path = "results", mus: tuple[float, ...] | None = None
+    mode: str = "full",
+    out: str | Path = "results",
+    mus: tuple[float, ...] | None = None,
+    budget_s: float = math.inf,
 ) -> dict:
     """Press and twist at each mu; write ``twist.json`` and ``twist.png`` to ``out``.
 
@@ -558,6 +565,8 @@ def run(
             probe of one of them, ``"full_probe"`` / ``"partial_probe"`` (see ``probe``).
         out: output folder.
         mus: friction coefficients to run instead of the mode's (the quick-mode test runs two).
+        budget_s: wall time in s after which each case stops (its record then says
+            ``cut_at_budget_s`` and ends at ``t_end_s``: "no slip" means none up to there).
 
     Returns:
         ``{"json": path, "png": path, **payload}``; ``payload["cases"]`` per mu.
@@ -578,7 +587,7 @@ def run(
     started = time.perf_counter()
     runs: list[dict] = []
     for mu in cfg["mus"]:
-        runs.append(_run_one(cfg, mu))
+        runs.append(_run_one(cfg, mu, budget_s=budget_s))
         # written after every case, so a long run that is stopped keeps the cases it finished
         payload = _payload(mode, cfg, runs, time.perf_counter() - started, env)
         path = write_json(out, NAME, payload)
@@ -640,3 +649,34 @@ def _payload(mode: str, cfg: dict, runs: list[dict], wall_s: float, env: dict) -
         "environment": env,
     }
     return payload
+
+
+def merge(records: list[str | Path], out: str | Path = "results") -> dict:
+    """One record (``twist.json`` and ``twist.png`` in ``out``) from records of the same mode
+    whose cases ran in separate processes (one mu each, run side by side to fit a slot), cases
+    sorted by mu; ``wall_s`` is the sum of the cases' wall times, ``merged_from`` lists the
+    inputs with their own wall time."""
+    loaded = [json.loads(Path(p).read_text()) for p in records]
+    modes = {r["mode"] for r in loaded}
+    if len(modes) != 1:
+        raise ValueError(f"merge: records of one mode expected, got modes {sorted(modes)}")
+    mode = modes.pop()
+    by_mu = {}
+    for record in loaded:
+        for case in record["cases"]:
+            by_mu[case["mu"]] = case  # a later record's case replaces an earlier one
+    runs = [by_mu[mu] for mu in sorted(by_mu)]
+    cfg = dict(MODES[mode])
+    cfg["mus"] = tuple(sorted(by_mu))
+    payload = _payload(mode, cfg, runs, sum(r["wall_s"] for r in runs), loaded[0]["environment"])
+    payload["merged_from"] = [
+        {"path": str(p), "mus": [c["mu"] for c in r["cases"]], "wall_s": r["wall_s"]}
+        for p, r in zip(records, loaded, strict=True)
+    ]
+    payload["peak_memory_mb"] = max(r["peak_memory_mb"] for r in loaded)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    path = write_json(out, NAME, payload)
+    png = out / f"{NAME}.png"
+    _plot(runs, png, f"Shell pressed and twisted on an MPM cube ({mode} mode)")
+    return {"json": str(path), "png": str(png), **payload}

@@ -136,3 +136,27 @@ def test_slip_angle_increases_with_friction(result):
     angles = [data["slip_angle_pi"][str(mu)] for mu in QUICK_MUS]
     assert twist.slip_ordered(angles), angles
     assert data["slip_increases_with_mu"]
+
+
+def test_records_of_cases_run_apart_merge_into_the_record_of_one_run(result, tmp_path):
+    _, data, _ = result
+    # one record per mu, in reverse order, as processes run side by side would write them
+    paths = []
+    for k, case in enumerate(reversed(data["cases"])):
+        part = {**data, "cases": [case], "wall_s": case["wall_s"]}
+        paths.append(tmp_path / f"part{k}.json")
+        paths[-1].write_text(json.dumps(part))
+    merged = twist.merge(paths, tmp_path / "merged")
+    assert [c["mu"] for c in merged["cases"]] == sorted(QUICK_MUS)
+    assert merged["slip_angle_pi"] == data["slip_angle_pi"]
+    assert merged["slip_increases_with_mu"] == data["slip_increases_with_mu"]
+    assert merged["wall_s"] == pytest.approx(sum(c["wall_s"] for c in data["cases"]))
+    assert (tmp_path / "merged" / "twist.png").stat().st_size > 0
+    with pytest.raises(ValueError, match="one mode"):
+        twist.merge([paths[0], _with_mode(tmp_path, data, "partial")], tmp_path / "bad")
+
+
+def _with_mode(tmp_path, data, mode):
+    path = tmp_path / f"mode_{mode}.json"
+    path.write_text(json.dumps({**data, "mode": mode}))
+    return path
