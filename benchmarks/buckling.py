@@ -68,6 +68,7 @@ Choices where the paper is silent or the library forces a change (recorded in th
 
 from __future__ import annotations
 
+import json
 import logging
 import math
 import time
@@ -305,37 +306,68 @@ def _plot(runs: list[dict], cfg: dict, path: Path, title: str) -> None:
     fig.savefig(path, dpi=110)
 
 
-def run(mode: str = "full", out: str | Path = "results") -> dict:
-    """Press the rings at each mu; write ``buckling.json`` and ``buckling.png`` to ``out``.
+def run(
+    mode: str = "full", out: str | Path = "results", mus: tuple[float, ...] | None = None
+) -> dict:
+    """Press the rings at each mu; write ``buckling.json``, ``buckling.png`` and the final
+    shapes ``buckling_final.npz`` (``mpm_<mu>``, ``fem_<mu>``: positions in m) to ``out``.
 
     Args:
         mode: ``"full"`` (the paper's resolution and dt, to u = 8 m), ``"partial"`` (coarse,
             to u = 7 m), ``"quick"`` (coarse, to u = 3 m) or ``"plate_quick"`` (quick with the
             paper's FEM plate instead of the scripted cap).
         out: output folder.
+        mus: friction coefficients between the rings instead of ``MUS`` (one per process, to
+            run the full mode's cases side by side; ``merge`` joins their records).
 
     Returns:
-        ``{"json": path, "png": path, **payload}``; ``payload["cases"]`` per mu.
+        ``{"json": path, "png": path, **payload}``; ``payload["cases"]`` per mu. The record
+        and the figure are rewritten after every case, so a stopped run keeps the cases done.
     """
     if mode not in MODES:
         raise ValueError(f"mode must be one of {sorted(MODES)}, got {mode!r}")
     cfg = MODES[mode]
+    mus = MUS if mus is None else tuple(float(m) for m in mus)
     env = environment()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
-    runs = [_run_one(cfg, mu) for mu in MUS]
+    runs: list[dict] = []
+    for mu in mus:
+        runs.append(_run_one(cfg, mu))
+        payload = _payload(mode, cfg, mus, runs, time.perf_counter() - started, env)
+        path = write_json(out, NAME, payload)
+        _save_shapes(runs, out / f"{NAME}_final.npz")
+        png = out / f"{NAME}.png"
+        _plot(runs, cfg, png, f"Semicircular rings pressed at the crown ({mode} mode)")
+    return {"json": str(path), "png": str(png), **payload}
+
+
+def _save_shapes(runs: list[dict], path: Path) -> None:
+    arrays = {}
+    for r in runs:
+        arrays[f"mpm_{r['mu']:g}"] = np.asarray(r["final_mpm_x"])
+        arrays[f"fem_{r['mu']:g}"] = np.asarray(r["final_fem_x"])
+    np.savez_compressed(path, **arrays)
+
+
+def _payload(
+    mode: str, cfg: dict, mus: tuple[float, ...], runs: list[dict], wall_s: float, env: dict
+) -> dict:
+    """The record of ``mode`` after the finished ``runs`` (in ``mus`` order)."""
     end = [r["detachment_end_m"] for r in runs]
-    complete = all(r["error"] is None for r in runs)
-    payload = {
+    complete = all(r["error"] is None for r in runs) and len(runs) == len(MUS)
+    return {
         "benchmark": NAME,
         "mode": mode,
+        "cases_done": len(runs),
+        "cases_planned": len(mus),
         "detachment_end_m": {str(r["mu"]): r["detachment_end_m"] for r in runs},
         "u_buckle_m": {str(r["mu"]): r["u_buckle_m"] for r in runs},
         "ordered_at_end": bool(complete and end[0] > end[1] > end[2]),
         "failed_cases": [r["mu"] for r in runs if r["error"] is not None],
         "cases": [{k: v for k, v in r.items() if not k.startswith("final_")} for r in runs],
-        "wall_s": time.perf_counter() - started,
+        "wall_s": wall_s,
         "peak_memory_mb": peak_memory_mb(),
         "paper": PAPER,
         "targets": {
@@ -344,7 +376,7 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
         },
         "parameters": {
             **cfg,
-            "mus": MUS,
+            "mus": mus,
             "outer_radii_m": OUTER_RADII,
             "inner_radii_m": INNER_RADII,
             "material": {"model": "NeoHookean", **MATERIAL},
@@ -363,7 +395,42 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
         },
         "environment": env,
     }
+
+
+def merge(records: list[str | Path], out: str | Path = "results") -> dict:
+    """One record (``buckling.json``, ``.png``, ``_final.npz`` in ``out``) from records of the
+    same mode whose cases ran in separate processes (each with its ``buckling_final.npz``
+    beside it), cases sorted by mu; ``wall_s`` is the sum of the cases' wall times."""
+    loaded = [json.loads(Path(p).read_text()) for p in records]
+    modes = {r["mode"] for r in loaded}
+    if len(modes) != 1:
+        raise ValueError(f"merge: records of one mode expected, got modes {sorted(modes)}")
+    mode = modes.pop()
+    by_mu = {}
+    for p, record in zip(records, loaded, strict=True):
+        with np.load(Path(p).with_name(f"{NAME}_final.npz")) as shapes:
+            for case in record["cases"]:
+                key = f"{case['mu']:g}"
+                by_mu[case["mu"]] = {
+                    **case,
+                    "final_mpm_x": shapes[f"mpm_{key}"],
+                    "final_fem_x": shapes[f"fem_{key}"],
+                }
+    mus = tuple(sorted(by_mu))
+    runs = [by_mu[mu] for mu in mus]
+    cfg = MODES[mode]
+    payload = _payload(
+        mode, cfg, mus, runs, sum(r["wall_s"] for r in runs), loaded[0]["environment"]
+    )
+    payload["merged_from"] = [
+        {"path": str(p), "mus": [c["mu"] for c in r["cases"]], "wall_s": r["wall_s"]}
+        for p, r in zip(records, loaded, strict=True)
+    ]
+    payload["peak_memory_mb"] = max(r["peak_memory_mb"] for r in loaded)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
     path = write_json(out, NAME, payload)
+    _save_shapes(runs, out / f"{NAME}_final.npz")
     png = out / f"{NAME}.png"
     _plot(runs, cfg, png, f"Semicircular rings pressed at the crown ({mode} mode)")
     return {"json": str(path), "png": str(png), **payload}

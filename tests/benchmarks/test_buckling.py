@@ -80,3 +80,28 @@ def test_the_papers_plate_holds_the_crown_only_with_its_own_friction(plate_mu, m
         assert spread < 1e-4, spread
     else:
         assert spread > 1e-3, spread
+
+
+def test_records_of_cases_run_apart_merge_into_the_record_of_one_run(result, tmp_path):
+    _, data, out = result
+    shapes = np.load(out / "buckling_final.npz")
+    assert sorted(shapes.files) == sorted(
+        f"{kind}_{mu:g}" for kind in ("mpm", "fem") for mu in buckling.MUS
+    )
+    # one record per mu, in reverse order, each with the shapes file beside it
+    paths = []
+    for k, case in enumerate(reversed(data["cases"])):
+        folder = tmp_path / f"part{k}"
+        folder.mkdir()
+        (folder / "buckling.json").write_text(json.dumps({**data, "cases": [case]}))
+        (folder / "buckling_final.npz").write_bytes((out / "buckling_final.npz").read_bytes())
+        paths.append(folder / "buckling.json")
+    merged = buckling.merge(paths, tmp_path / "merged")
+    assert [c["mu"] for c in merged["cases"]] == list(buckling.MUS)
+    assert merged["u_buckle_m"] == data["u_buckle_m"]
+    assert merged["detachment_end_m"] == data["detachment_end_m"]
+    assert merged["ordered_at_end"] == data["ordered_at_end"]
+    again = np.load(tmp_path / "merged" / "buckling_final.npz")
+    for key in shapes.files:
+        np.testing.assert_array_equal(again[key], shapes[key])
+    assert (tmp_path / "merged" / "buckling.png").stat().st_size > 0
