@@ -80,6 +80,14 @@ Measured (2 shared cores, load 4 to 7, CHOLMOD on OpenBLAS; ``benchmarks/records
   angles for mu = 0.2 and 0.5 (and without its 0.1 pi at mu = 0).
   196 s for the four cases at load ~4 (mu = 1: 111 s), 334 s at load ~8 (the record), 351 MB
   peak. The test's three cases (0, 0.2, 0.5): 71 s to 180 s with the load.
+- Partial (``records/twist_partial.json``, code of b0e7e02; mu 0 / 0.2 / 0.5 in one process and
+  mu = 1 in a second beside it, merged): slip angle 0.005 pi (mu = 0), 0.136 pi (0.2), 0.387 pi
+  (0.5), no slip at mu = 1 (the cube's top at 0.862 pi when the shell stops at 0.9 pi): ordered,
+  closer to the paper's than quick mode but 0.16 pi and 0.31 pi short for mu = 0.2 and 0.5.
+  Per case 592 / 1005 / 3282 / 4767 s (load 3 to 8; 2.7 h of case time, 1.9 h of wall time
+  side by side), 60 / 95 / 160 / 275 steps, 1441 / 3371 / 8574 / 13723 Newton iterations,
+  0 / 15 / 34 / 49 steps at the friction-loop cap, 1.1 GB peak; factorisation 53-58% of the
+  step, element Hessians 21-24%, assembly 5-11%.
 - Partial probe: 72 steps (to t = 1.44 s, 22 of them twisting) in 519 s; 8.6 s and 14.6
   Newton iterations per twisting step, 603 MB peak; the three cases (825 steps) take 1.7 h at
   the probe's mean step in contact (7.3 s), 2.0 h at its twisting rate, more where the
