@@ -65,32 +65,25 @@ class NodeFrames:
 
         The index work depends only on ``t.rows``/``t.cols``; it is kept while the next call
         brings the very same array objects (a pattern fixed for the step), and then only the
-        values are recomputed and the returned index arrays are the same objects again. The
-        values are written into buffers kept with the pattern (no fresh arrays of the Hessian's
-        size per call: at 1e5 MPM particles in 3D their page faults cost more than the
-        arithmetic), so they are valid until the next call only.
+        values are recomputed and the returned index arrays are the same objects again.
         """
         cached = self._pattern
         if cached is None or cached[0] is not t.rows or cached[1] is not t.cols:
             cached = self._pattern = (t.rows, t.cols, *self._rotated_pattern(t.rows, t.cols))
-        same, touched, coef, rows, cols, vals, picked = cached[2:]
+        touched, coef, rows, cols = cached[2:]
         if touched is None:
             return t
-        n_same = same.size
-        np.take(t.vals, same, out=vals[:n_same])
-        np.take(t.vals, touched, out=picked)
-        np.multiply(picked[:, None, None], coef, out=vals[n_same:].reshape(coef.shape))
-        return Triplets(rows, cols, vals)
+        vals = t.vals[touched][:, None, None] * coef
+        return Triplets(rows, cols, np.concatenate([t.vals[~touched], vals.reshape(-1)]))
 
     def _rotated_pattern(self, r_all: np.ndarray, c_all: np.ndarray) -> tuple:
-        """(untouched entries (k,), touched entries (m,), coefficients (m, d, d), rows, cols,
-        value buffer (k + m d^2,), scratch (m,)) of the rotation of a pattern."""
+        """(touched mask, coefficients (m, d, d), rows, cols) of the rotation of a pattern."""
         d = self.dim
         row_slot = self._slot[r_all // d]
         col_slot = self._slot[c_all // d]
         touched = (row_slot >= 0) | (col_slot >= 0)
         if not touched.any():
-            return None, None, None, r_all, c_all, None, None
+            return None, None, r_all, c_all
         r, c = r_all[touched], c_all[touched]
         rs, cs = row_slot[touched], col_slot[touched]
         # coefficient of local axis a for the row: Q_i[rho, a] if rotated, else delta(rho, a)
@@ -104,14 +97,9 @@ class NodeFrames:
         rows = ((r // d) * d)[:, None, None] + comp[None, :, None] + 0 * comp[None, None, :]
         cols = ((c // d) * d)[:, None, None] + comp[None, None, :] + 0 * comp[None, :, None]
         coef = row_coef[:, :, None] * col_coef[:, None, :]
-        same = np.flatnonzero(~touched)
-        picked = np.flatnonzero(touched)
         return (
-            same,
-            picked,
+            touched,
             coef,
-            np.concatenate([r_all[same], rows.reshape(-1)]),
-            np.concatenate([c_all[same], cols.reshape(-1)]),
-            np.empty(same.size + coef.size),
-            np.empty(picked.size),
+            np.concatenate([r_all[~touched], rows.reshape(-1)]),
+            np.concatenate([c_all[~touched], cols.reshape(-1)]),
         )

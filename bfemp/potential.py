@@ -127,13 +127,13 @@ class IncrementalPotential:
         return g
 
     def hessian(self, y: np.ndarray, psd: bool) -> Triplets:
-        """All terms' triplets (potentials scaled by the weight), in the unknowns' frames.
-
-        The values are valid until the next call (they live in the stacker's reused buffer).
-        """
+        """All terms' triplets (potentials scaled by the weight), in the unknowns' frames."""
         x = self._x
-        parts = [term.hessian(x, psd) for term in self.terms]
-        total = self._stacker.stack(parts, [1.0, *self._weights])
+        parts = [self.inertia.hessian(x, psd)]
+        for weight, term in zip(self._weights, self.potentials, strict=True):
+            t = term.hessian(x, psd)
+            parts.append(Triplets(t.rows, t.cols, weight * t.vals))
+        total = self._stacker.stack(parts)
         return total if self.frames is None else self.frames.rotate(total)
 
     def increment_norm(self, p: np.ndarray) -> float:

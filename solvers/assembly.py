@@ -118,17 +118,12 @@ class Triplets:
 
 
 class TripletStacker:
-    """Stacks scaled triplet sets (``sum_k s_k A_k``), reusing the stacked arrays.
+    """Stacks triplet sets like :meth:`Triplets.concatenate`, reusing the stacked index arrays.
 
     While every part brings the very same ``rows``/``cols`` array objects as at the last call
     (terms whose pattern is fixed for a step return their cached index arrays), the stacked
-    index arrays of the last call are returned again (and ``NodeFrames.rotate`` keeps its
-    pattern work). The scaled values are written into one value buffer kept across calls, so
-    no part is copied twice and no fresh array of the stacked size is allocated per call (at
-    1e5 MPM particles in 3D that is about 150 MB, whose page faults cost more than the copy).
-
-    The returned values are therefore valid until the next :meth:`stack` call only: a caller
-    that keeps two stacked sets copies the first. Index arrays handed in must not be modified
+    index arrays of the last call are returned again and only the values are concatenated (and
+    ``NodeFrames.rotate`` keeps its pattern work). Index arrays handed in must not be modified
     in place (the terms' cached patterns never are).
     """
 
@@ -136,35 +131,22 @@ class TripletStacker:
         self._parts: list[tuple[np.ndarray, np.ndarray]] = []
         self._rows: np.ndarray | None = None
         self._cols: np.ndarray | None = None
-        self._vals: np.ndarray | None = None
 
-    def stack(self, parts: list[Triplets], scales: list[float] | None = None) -> Triplets:
-        """The sum of ``scales[k] * parts[k]`` as one triplet set (entries in the order of the
-        parts; ``scales`` default to 1)."""
-        if scales is None:
-            scales = [1.0] * len(parts)
-        if len(scales) != len(parts):
-            raise ValueError(f"stack: {len(parts)} parts but {len(scales)} scales")
-        # empty parts bring fresh arrays and no entries
-        kept = [(t, float(s)) for t, s in zip(parts, scales, strict=True) if t.nnz]
-        if not kept:
-            return Triplets.empty()
-        if len(kept) == 1 and kept[0][1] == 1.0:
-            return kept[0][0]
-        same = len(kept) == len(self._parts) and all(
-            t.rows is r and t.cols is c for (t, _), (r, c) in zip(kept, self._parts, strict=True)
+    def stack(self, parts: list[Triplets]) -> Triplets:
+        """The sum of ``parts`` as one triplet set (entries in the order of the parts)."""
+        parts = [t for t in parts if t.nnz]  # empty parts bring fresh arrays and no entries
+        if len(parts) <= 1:
+            return Triplets.concatenate(parts)
+        same = len(parts) == len(self._parts) and all(
+            t.rows is r and t.cols is c for t, (r, c) in zip(parts, self._parts, strict=True)
         )
         if not same:
-            stacked = Triplets.concatenate([t for t, _ in kept])
+            stacked = Triplets.concatenate(parts)
             # references keep the arrays alive, so their identity cannot be reused
-            self._parts = [(t.rows, t.cols) for t, _ in kept]
+            self._parts = [(t.rows, t.cols) for t in parts]
             self._rows, self._cols = stacked.rows, stacked.cols
-            self._vals = np.empty(stacked.nnz)
-        start = 0
-        for t, scale in kept:
-            np.multiply(t.vals, scale, out=self._vals[start : start + t.nnz])
-            start += t.nnz
-        return Triplets(self._rows, self._cols, self._vals)
+            return stacked
+        return Triplets(self._rows, self._cols, np.concatenate([t.vals for t in parts]))
 
 
 class TripletAssembler:

@@ -49,32 +49,24 @@ def _accumulate_blocks(  # noqa: ANN202
     volume,  # noqa: ANN001
     pair_code,  # noqa: ANN001
     nbr,  # noqa: ANN001
-    slot,  # noqa: ANN001
-    partial,  # noqa: ANN001
-    out,  # noqa: ANN001
+    n_nodes,  # noqa: ANN001
+    n_codes,  # noqa: ANN001
+    n_chunks,  # noqa: ANN001
 ):
-    """Write sum_p V_p g_a^T dP g_b (d x d per node pair; F-level PSD input) into ``out``.
+    """blocks (G, 5^d, d, d): sum_p V_p g_a^T dP g_b (d x d per node pair; F-level PSD input).
 
     ``dpdf`` is (S, d*d, d*d) with dP_im/dF_jl at [i*d + m, j*d + l]; ``grads`` are the effective
     gradients g (P, K, d) with F = sum_a y_a g_a^T; ``dpdf`` must be symmetric (a Hessian in F,
     projected or not): half the node pairs are accumulated, the other half mirrored through the
-    neighbour table ``nbr`` (G, 5^d). Block (i, code) goes row-major to
-    ``out[slot[i, code] : slot[i, code] + d*d]`` (``slot`` (G, 5^d), -1: dropped); ``out`` is
-    the compact value array of the term's triplets, every kept slot written.
-
-    ``partial`` (C, G, 5^d, d, d) is scratch the caller keeps across calls (zeroed here):
-    particles are split into C ranges accumulated in parallel into private copies (race-free),
-    then summed. Reusing it and writing the kept blocks straight into ``out`` avoid the fresh
-    full-grid arrays and the copies (each hundreds of MB at 1e5 particles in 3D) whose page
-    faults made the 3D Hessian's time vary 2x between identical calls (issue 13).
+    neighbour table ``nbr`` (G, 5^d). Particles are split into ``n_chunks`` ranges
+    accumulated in parallel into private copies (race-free), then summed.
     """
     n_p, k = nodes.shape
     d = grads.shape[2]
-    n_chunks, n_nodes, n_codes = partial.shape[0], partial.shape[1], partial.shape[2]
     centre = (n_codes - 1) // 2  # the code of offset 0; code(-o) = n_codes - 1 - code(o)
+    partial = np.zeros((n_chunks, n_nodes, n_codes, d, d))
     for c in prange(n_chunks):
         blocks = partial[c]
-        blocks[:] = 0.0
         tmp = np.empty((d * d, k * d))
         for p in range(c * n_p // n_chunks, (c + 1) * n_p // n_chunks):
             # tmp[(i, m), (b, j)] = sum_l dP[(i, m), (j, l)] g_b[l]
@@ -92,7 +84,7 @@ def _accumulate_blocks(  # noqa: ANN202
                 for b in range(k):
                     code = pair_code[a, b]
                     # dP is symmetric, so block (b, a) = block (a, b)^T: only offsets with
-                    # code >= centre are accumulated here, the others mirrored below
+                    # code >= centre are accumulated here, the others by _mirror_blocks
                     if code < centre or _is_void(weights, grads, p, b, d):
                         continue
                     for i in range(d):
@@ -101,23 +93,24 @@ def _accumulate_blocks(  # noqa: ANN202
                             for m in range(d):
                                 acc += grads[p, a, m] * tmp[i * d + m, b * d + j]
                             blocks[node_a, code, i, j] += volume[p] * acc
-    # sum the private copies into the kept slots; block (j, code(-o)) = block (i, code(o))^T
-    # for j = nbr[i, code(o)], code(o) > centre: each target is written by one (i, code) only
-    for i in prange(n_nodes):
-        for code in range(centre, n_codes):
+    out = partial[0].copy()
+    for c in range(1, n_chunks):
+        out += partial[c]
+    _mirror_blocks(out, nbr)
+    return out
+
+
+@njit(cache=True)
+def _mirror_blocks(blocks, nbr):  # noqa: ANN001, ANN202
+    """blocks[j, code(-o)] = blocks[i, code(o)]^T for j = nbr[i, code(o)], code(o) > centre."""
+    n_nodes, n_codes, d, _ = blocks.shape
+    centre = (n_codes - 1) // 2
+    for i in range(n_nodes):
+        for code in range(centre + 1, n_codes):
             j = nbr[i, code]
             if j < 0:
                 continue
-            at = slot[i, code]
-            back = slot[j, n_codes - 1 - code] if code > centre else -1
-            if at < 0 and back < 0:
-                continue
+            back = n_codes - 1 - code
             for r in range(d):
-                for q in range(d):
-                    acc = 0.0
-                    for c in range(n_chunks):
-                        acc += partial[c, i, code, r, q]
-                    if at >= 0:
-                        out[at + r * d + q] = acc
-                    if back >= 0:
-                        out[back + q * d + r] = acc
+                for s in range(d):
+                    blocks[j, back, r, s] = blocks[i, code, s, r]

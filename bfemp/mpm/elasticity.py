@@ -67,9 +67,6 @@ class MpmElasticityTerm(ElasticityTerm):
     ) -> None:
         super().__init__(law, lambda ctx: mpm_particle_stencils(ctx, particles, mu, lam), name)
         self.particles = particles
-        # scratch of the Hessian kernel, (chunks, G, 5^d, d, d), kept across calls (never
-        # handed out): one private copy of the grid's blocks per parallel chunk of particles
-        self._partial: np.ndarray | None = None
 
     def begin_step(self, ctx: StepContext) -> None:
         """New stencils at x^n and the node-pair pattern of this step's active grid."""
@@ -102,12 +99,10 @@ class MpmElasticityTerm(ElasticityTerm):
         comp = np.arange(d)
         rows = (dof_row[:, None, None] * d + comp[None, :, None]) * np.ones(d, dtype=np.int64)
         cols = (dof_col[:, None, None] * d + comp[None, None, :]) * np.ones((d, 1), dtype=np.int64)
-        kept = (dof_row >= 0) & (dof_col >= 0)  # per (node, offset) block
-        # where each kept block's d x d values start in the compact value array (-1: dropped)
-        self._slot = np.where(kept, (np.cumsum(kept) - 1) * d * d, -1).reshape(nbr.shape)
-        keep = (kept[:, None, None] & np.ones((d, d), dtype=bool)).reshape(-1)
-        rows = np.ascontiguousarray(rows.reshape(-1)[keep])
-        cols = np.ascontiguousarray(cols.reshape(-1)[keep])
+        keep = ((dof_row >= 0) & (dof_col >= 0))[:, None, None] & np.ones((d, d), dtype=bool)
+        self._keep = keep.reshape(-1)
+        rows = np.ascontiguousarray(rows.reshape(-1)[self._keep])
+        cols = np.ascontiguousarray(cols.reshape(-1)[self._keep])
         # Where the active grid and its node pairs are those of the last step (a body at rest
         # or moving within its cells), the last arrays are kept: the stacked, rotated and
         # assembled patterns downstream key on these very objects and are reused.
@@ -125,12 +120,7 @@ class MpmElasticityTerm(ElasticityTerm):
         dpdf = np.ascontiguousarray(dpdf.reshape(-1, d * d, d * d))
         if psd:
             dpdf = self.law.project_derivative(dpdf, self._F, st.mu, st.lam)
-        chunks = max(1, min(numba.get_num_threads(), st.nodes.shape[0] // 256))
-        shape = (chunks, self._n_grid, self._n_codes, d, d)
-        if self._partial is None or self._partial.shape != shape:
-            self._partial = np.empty(shape)
-        vals = np.empty(self._rows.size)
-        _accumulate_blocks(
+        blocks = _accumulate_blocks(
             self._local_nodes,
             self._weights,
             st.grads,
@@ -138,8 +128,8 @@ class MpmElasticityTerm(ElasticityTerm):
             st.volume,
             self._codes,
             self._nbr,
-            self._slot,
-            self._partial,
-            vals,
+            self._n_grid,
+            self._n_codes,
+            max(1, min(numba.get_num_threads(), st.nodes.shape[0] // 256)),
         )
-        return Triplets(self._rows, self._cols, vals)
+        return Triplets(self._rows, self._cols, blocks.reshape(-1)[self._keep])

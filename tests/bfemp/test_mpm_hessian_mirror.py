@@ -1,5 +1,4 @@
-"""The MPM node-pair Hessian accumulated over half the pairs and mirrored equals the full sum,
-written to the kept slots of the compact value array."""
+"""The MPM node-pair Hessian accumulated over half the pairs and mirrored equals the full sum."""
 
 import numpy as np
 import pytest
@@ -26,15 +25,7 @@ def test_mirrored_accumulation_equals_the_full_double_sum(dim):
     codes = pair_codes(dim)
     n_nodes, n_codes = side**dim, 5**dim
     nbr = _neighbour_table(nodes, weights, grads, codes, n_nodes, n_codes)
-    # every coupled block kept, in (node, offset) order; one block in three dropped below
-    kept = (nbr >= 0).reshape(-1)
-    slot = np.where(kept, (np.cumsum(kept) - 1) * dim * dim, -1).reshape(nbr.shape)
-    partial = np.full((2, n_nodes, n_codes, dim, dim), np.nan)  # scratch: zeroed by the kernel
-    vals = np.full(kept.sum() * dim * dim, np.nan)
-    _accumulate_blocks(nodes, weights, grads, dpdf, volume, codes, nbr, slot, partial, vals)
-    got = np.zeros((n_nodes * n_codes, dim, dim))
-    got[kept] = vals.reshape(-1, dim, dim)
-    got = got.reshape(n_nodes, n_codes, dim, dim)
+    got = _accumulate_blocks(nodes, weights, grads, dpdf, volume, codes, nbr, n_nodes, n_codes, 2)
     want = np.zeros_like(got)
     dp = dpdf.reshape(n_p, dim, dim, dim, dim)  # [p, i, m, j, l]
     for p in range(n_p):
@@ -43,17 +34,3 @@ def test_mirrored_accumulation_equals_the_full_double_sum(dim):
             for ib in range(k):
                 want[nodes[p, ia], codes[ia, ib]] += blk[ia, ib]
     np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12 * np.abs(want).max())
-    # a dropped block is not written; the others keep their places
-    dropped = np.flatnonzero(kept)[::3]
-    kept_some = kept.copy()
-    kept_some[dropped] = False
-    slot2 = np.where(kept_some, (np.cumsum(kept_some) - 1) * dim * dim, -1).reshape(nbr.shape)
-    vals2 = np.full(kept_some.sum() * dim * dim, np.nan)
-    _accumulate_blocks(nodes, weights, grads, dpdf, volume, codes, nbr, slot2, partial, vals2)
-    flat_want = want.reshape(-1, dim, dim)
-    np.testing.assert_allclose(
-        vals2.reshape(-1, dim, dim),
-        flat_want[kept_some],
-        rtol=1e-12,
-        atol=1e-12 * np.abs(want).max(),
-    )

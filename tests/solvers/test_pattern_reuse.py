@@ -57,7 +57,6 @@ def test_rotate_with_a_kept_pattern_equals_a_fresh_rotation():
     t2 = Triplets(t.rows, t.cols, rng.random(t.vals.size))
     second = frames.rotate(t2)
     assert second.rows is first.rows  # the pattern work was kept
-    assert second.vals is first.vals  # and its value buffer (valid until the next call)
     fresh = NodeFrames(dim, dim * n_nodes, frames.nodes, frames.frames).rotate(t2)
     asm = TripletAssembler(dim * n_nodes)
     np.testing.assert_allclose(asm.assemble(second).toarray(), asm.assemble(fresh).toarray())
@@ -120,24 +119,3 @@ def test_triplet_index_arrays_are_the_same_objects_from_step_to_step(kind):
     if kind != "fem":
         assert seen[1][0] is not None  # the slip floor rotates the bottom nodes
         assert seen[1][0] is seen[2][0]  # frames kept, with their rotated pattern
-
-
-def test_stacker_scales_the_parts_into_one_reused_value_buffer():
-    rng = np.random.default_rng(3)
-    a, b = _random_triplets(rng, 30, 50), _random_triplets(rng, 30, 40)
-    b_vals = b.vals.copy()
-    stacker = TripletStacker()
-    first = stacker.stack([a, b], [1.0, 0.5])
-    np.testing.assert_array_equal(first.vals, np.concatenate([a.vals, 0.5 * b.vals]))
-    buffer = first.vals
-    second = stacker.stack([a, b], [2.0, 3.0])
-    # same pattern: the values are rewritten in place (valid until the next call)
-    assert second.vals is buffer
-    np.testing.assert_array_equal(second.vals, np.concatenate([2.0 * a.vals, 3.0 * b.vals]))
-    # the parts themselves are never modified
-    np.testing.assert_array_equal(b.vals, b_vals)
-    # one part with a scale other than 1 is scaled too, not handed back as it is
-    only = stacker.stack([Triplets.empty(), b], [1.0, 4.0])
-    np.testing.assert_array_equal(only.vals, 4.0 * b.vals)
-    with pytest.raises(ValueError, match="2 parts but 1 scales"):
-        stacker.stack([a, b], [1.0])
