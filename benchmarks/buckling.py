@@ -68,7 +68,6 @@ Choices where the paper is silent or the library forces a change (recorded in th
 
 from __future__ import annotations
 
-import json
 import logging
 import math
 import time
@@ -79,7 +78,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 import bfemp
-from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks.common import cases_by_mu, environment, note_merge, peak_memory_mb, write_json
 
 log = logging.getLogger(__name__)
 
@@ -401,32 +400,13 @@ def merge(records: list[str | Path], out: str | Path = "results") -> dict:
     """One record (``buckling.json``, ``.png``, ``_final.npz`` in ``out``) from records of the
     same mode whose cases ran in separate processes (each with its ``buckling_final.npz``
     beside it), cases sorted by mu; ``wall_s`` is the sum of the cases' wall times."""
-    loaded = [json.loads(Path(p).read_text()) for p in records]
-    modes = {r["mode"] for r in loaded}
-    if len(modes) != 1:
-        raise ValueError(f"merge: records of one mode expected, got modes {sorted(modes)}")
-    mode = modes.pop()
-    by_mu = {}
-    for p, record in zip(records, loaded, strict=True):
-        with np.load(Path(p).with_name(f"{NAME}_final.npz")) as shapes:
-            for case in record["cases"]:
-                key = f"{case['mu']:g}"
-                by_mu[case["mu"]] = {
-                    **case,
-                    "final_mpm_x": shapes[f"mpm_{key}"],
-                    "final_fem_x": shapes[f"fem_{key}"],
-                }
-    mus = tuple(sorted(by_mu))
-    runs = [by_mu[mu] for mu in mus]
+    mode, loaded, runs = cases_by_mu(records, _with_shapes)
+    mus = tuple(r["mu"] for r in runs)
     cfg = MODES[mode]
     payload = _payload(
         mode, cfg, mus, runs, sum(r["wall_s"] for r in runs), loaded[0]["environment"]
     )
-    payload["merged_from"] = [
-        {"path": str(p), "mus": [c["mu"] for c in r["cases"]], "wall_s": r["wall_s"]}
-        for p, r in zip(records, loaded, strict=True)
-    ]
-    payload["peak_memory_mb"] = max(r["peak_memory_mb"] for r in loaded)
+    note_merge(payload, records, loaded)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     path = write_json(out, NAME, payload)
@@ -434,3 +414,10 @@ def merge(records: list[str | Path], out: str | Path = "results") -> dict:
     png = out / f"{NAME}.png"
     _plot(runs, cfg, png, f"Semicircular rings pressed at the crown ({mode} mode)")
     return {"json": str(path), "png": str(png), **payload}
+
+
+def _with_shapes(path: Path, case: dict) -> dict:
+    """``case`` with its final shapes from the ``buckling_final.npz`` beside its record."""
+    key = f"{case['mu']:g}"
+    with np.load(path.with_name(f"{NAME}_final.npz")) as shapes:
+        return {**case, "final_mpm_x": shapes[f"mpm_{key}"], "final_fem_x": shapes[f"fem_{key}"]}

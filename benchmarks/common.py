@@ -7,6 +7,7 @@ import os
 import platform
 import resource
 import subprocess
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -67,3 +68,32 @@ def write_json(out: str | Path, name: str, payload: dict) -> Path:
     path = out / f"{name}.json"
     path.write_text(json.dumps(payload, indent=2, default=float))
     return path
+
+
+def cases_by_mu(
+    records: list[str | Path], attach: Callable[[Path, dict], dict] | None = None
+) -> tuple[str, list[dict], list[dict]]:
+    """Read records of one mode whose cases (one per friction coefficient ``mu``) ran in
+    separate processes: ``(mode, records, cases sorted by mu)``; a later record's case replaces
+    an earlier one of the same mu. ``attach(path, case)`` returns the case with data kept
+    beside its record (e.g. arrays in an ``.npz``)."""
+    loaded = [json.loads(Path(p).read_text()) for p in records]
+    modes = {r["mode"] for r in loaded}
+    if len(modes) != 1:
+        raise ValueError(f"merge: records of one mode expected, got modes {sorted(modes)}")
+    by_mu = {}
+    for path, record in zip(records, loaded, strict=True):
+        for case in record["cases"]:
+            by_mu[case["mu"]] = case if attach is None else attach(Path(path), case)
+    return modes.pop(), loaded, [by_mu[mu] for mu in sorted(by_mu)]
+
+
+def note_merge(payload: dict, records: list[str | Path], loaded: list[dict]) -> dict:
+    """Add to a merged ``payload`` where its cases came from (``merged_from``: path, mus and
+    wall time of each record) and the largest peak memory of those runs; returns it."""
+    payload["merged_from"] = [
+        {"path": str(p), "mus": [c["mu"] for c in r["cases"]], "wall_s": r["wall_s"]}
+        for p, r in zip(records, loaded, strict=True)
+    ]
+    payload["peak_memory_mb"] = max(r["peak_memory_mb"] for r in loaded)
+    return payload

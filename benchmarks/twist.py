@@ -111,7 +111,6 @@ Measured (2 shared cores, load 4 to 7, CHOLMOD on OpenBLAS; ``benchmarks/records
 
 from __future__ import annotations
 
-import json
 import logging
 import math
 import time
@@ -122,7 +121,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 import bfemp
-from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks.common import cases_by_mu, environment, note_merge, peak_memory_mb, write_json
 from geometry.mesh import TetMesh
 from solvers.choice import make_linear_solver
 
@@ -664,24 +663,11 @@ def merge(records: list[str | Path], out: str | Path = "results") -> dict:
     whose cases ran in separate processes (one mu each, run side by side to fit a slot), cases
     sorted by mu; ``wall_s`` is the sum of the cases' wall times, ``merged_from`` lists the
     inputs with their own wall time."""
-    loaded = [json.loads(Path(p).read_text()) for p in records]
-    modes = {r["mode"] for r in loaded}
-    if len(modes) != 1:
-        raise ValueError(f"merge: records of one mode expected, got modes {sorted(modes)}")
-    mode = modes.pop()
-    by_mu = {}
-    for record in loaded:
-        for case in record["cases"]:
-            by_mu[case["mu"]] = case  # a later record's case replaces an earlier one
-    runs = [by_mu[mu] for mu in sorted(by_mu)]
+    mode, loaded, runs = cases_by_mu(records)
     cfg = dict(MODES[mode])
-    cfg["mus"] = tuple(sorted(by_mu))
+    cfg["mus"] = tuple(r["mu"] for r in runs)
     payload = _payload(mode, cfg, runs, sum(r["wall_s"] for r in runs), loaded[0]["environment"])
-    payload["merged_from"] = [
-        {"path": str(p), "mus": [c["mu"] for c in r["cases"]], "wall_s": r["wall_s"]}
-        for p, r in zip(records, loaded, strict=True)
-    ]
-    payload["peak_memory_mb"] = max(r["peak_memory_mb"] for r in loaded)
+    note_merge(payload, records, loaded)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     path = write_json(out, NAME, payload)
