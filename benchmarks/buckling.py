@@ -110,6 +110,7 @@ MODES = {
 MODES["plate_quick"] = dict(MODES["quick"], pusher="plate")
 PLATE_MU = 10.0  # the paper's plate-ring friction ("a BFEMP based no-slip boundary condition")
 PLATE_HALF_WIDTH, PLATE_THICKNESS = 6.0, 1.0  # m
+PROGRESS_EVERY = 20  # steps between progress lines in the log
 
 
 class _CapAndFeet(bfemp.motion.Motion):
@@ -215,8 +216,10 @@ class Detachment:
         return float(growth[k]), math.degrees(math.atan2(y, x))
 
 
-def _run_one(cfg: dict, mu: float) -> dict:
-    """Press the rings to ``u_end`` at friction ``mu``; the detachment after every step."""
+def _run_one(cfg: dict, mu: float, budget_s: float = math.inf) -> dict:
+    """Press the rings to ``u_end`` at friction ``mu``; the detachment after every step.
+    Stops after the step that ends past ``budget_s`` of wall time (s); the case then says
+    ``cut_at_budget_s`` and ends at ``u_end_m``."""
     sim = bfemp.Simulation(
         _scene(cfg, mu),
         integrator="backward_euler",
@@ -228,9 +231,9 @@ def _run_one(cfg: dict, mu: float) -> dict:
     measure = Detachment(sim.state.mpm_x, sim.state.fem_x, cfg["dx"])
     steps = round(cfg["u_end"] / (SPEED * cfg["dt"]))
     u, detach, angle = [0.0], [0.0], [90.0]
-    newton, friction_max, min_d, error = 0, 0, math.inf, None
+    newton, friction_max, min_d, error, cut = 0, 0, math.inf, None, False
     started = time.perf_counter()
-    for _ in range(steps):
+    for k in range(steps):
         try:
             report = sim.step()
         except bfemp.StepError as err:
@@ -245,6 +248,24 @@ def _run_one(cfg: dict, mu: float) -> dict:
         u.append(SPEED * sim.state.t)
         detach.append(d)
         angle.append(a)
+        elapsed = time.perf_counter() - started
+        if (k + 1) % PROGRESS_EVERY == 0:
+            log.info(
+                "buckling mu=%g: step %d/%d, u = %.2f m, detachment %.4f m, %d Newton, %.0f s",
+                mu,
+                k + 1,
+                steps,
+                u[-1],
+                d,
+                newton,
+                elapsed,
+            )
+        if elapsed > budget_s and k + 1 < steps:
+            cut = True
+            log.warning(
+                "buckling mu=%g: cut at the budget of %.0f s, u = %.2f m", mu, budget_s, u[-1]
+            )
+            break
     wall = time.perf_counter() - started
     threshold = BUCKLE_FRACTION * (INNER_RADII[1] - INNER_RADII[0])
     over = np.flatnonzero(np.array(detach) > threshold)
@@ -259,6 +280,7 @@ def _run_one(cfg: dict, mu: float) -> dict:
     return {
         "mu": mu,
         "error": error,
+        "cut_at_budget_s": budget_s if cut else None,
         "steps": len(u) - 1,
         "u_end_m": u[-1],
         "detachment_end_m": detach[-1],
@@ -306,7 +328,10 @@ def _plot(runs: list[dict], cfg: dict, path: Path, title: str) -> None:
 
 
 def run(
-    mode: str = "full", out: str | Path = "results", mus: tuple[float, ...] | None = None
+    mode: str = "full",
+    out: str | Path = "results",
+    mus: tuple[float, ...] | None = None,
+    budget_s: float = math.inf,
 ) -> dict:
     """Press the rings at each mu; write ``buckling.json``, ``buckling.png`` and the final
     shapes ``buckling_final.npz`` (``mpm_<mu>``, ``fem_<mu>``: positions in m) to ``out``.
@@ -318,6 +343,8 @@ def run(
         out: output folder.
         mus: friction coefficients between the rings instead of ``MUS`` (one per process, to
             run the full mode's cases side by side; ``merge`` joins their records).
+        budget_s: wall time in s after which each case stops (its record then says
+            ``cut_at_budget_s``; "not buckled" then means not up to its ``u_end_m``).
 
     Returns:
         ``{"json": path, "png": path, **payload}``; ``payload["cases"]`` per mu. The record
@@ -333,7 +360,7 @@ def run(
     started = time.perf_counter()
     runs: list[dict] = []
     for mu in mus:
-        runs.append(_run_one(cfg, mu))
+        runs.append(_run_one(cfg, mu, budget_s=budget_s))
         payload = _payload(mode, cfg, mus, runs, time.perf_counter() - started, env)
         path = write_json(out, NAME, payload)
         _save_shapes(runs, out / f"{NAME}_final.npz")
@@ -355,7 +382,9 @@ def _payload(
 ) -> dict:
     """The record of ``mode`` after the finished ``runs`` (in ``mus`` order)."""
     end = [r["detachment_end_m"] for r in runs]
-    complete = all(r["error"] is None for r in runs) and len(runs) == len(MUS)
+    complete = all(r["error"] is None and r.get("cut_at_budget_s") is None for r in runs) and len(
+        runs
+    ) == len(MUS)
     return {
         "benchmark": NAME,
         "mode": mode,
@@ -365,6 +394,7 @@ def _payload(
         "u_buckle_m": {str(r["mu"]): r["u_buckle_m"] for r in runs},
         "ordered_at_end": bool(complete and end[0] > end[1] > end[2]),
         "failed_cases": [r["mu"] for r in runs if r["error"] is not None],
+        "cut_cases": [r["mu"] for r in runs if r.get("cut_at_budget_s") is not None],
         "cases": [{k: v for k, v in r.items() if not k.startswith("final_")} for r in runs],
         "wall_s": wall_s,
         "peak_memory_mb": peak_memory_mb(),

@@ -105,3 +105,15 @@ def test_records_of_cases_run_apart_merge_into_the_record_of_one_run(result, tmp
     for key in shapes.files:
         np.testing.assert_array_equal(again[key], shapes[key])
     assert (tmp_path / "merged" / "buckling.png").stat().st_size > 0
+
+
+def test_a_budget_cuts_a_case_and_the_record_says_so(tmp_path):
+    """A case past its wall budget stops after the step it is in; the record names the cut and
+    does not claim the ordering of cases that did not reach the end."""
+    summary = buckling.run("quick", tmp_path, mus=(0.0,), budget_s=0.0)
+    case = summary["cases"][0]
+    assert case["cut_at_budget_s"] == 0.0
+    assert case["steps"] == 1
+    assert case["u_end_m"] < summary["parameters"]["u_end"]
+    assert summary["cut_cases"] == [0.0]
+    assert summary["ordered_at_end"] is False
