@@ -33,10 +33,14 @@ import sys
 import tempfile
 import time
 import traceback
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 
 log = logging.getLogger(__name__)
+
+#: ``on_done(k, measurement)``: job ``k`` of a batch has finished
+OnDone = Callable[[int, dict], None]
 
 #: environment variables that fix the thread count of a point's process
 THREAD_VARIABLES = (
@@ -94,12 +98,15 @@ def _log_done(point_id: str, measurement: dict) -> None:
     )
 
 
-def execute_local(ids: list[str], jobs: list[dict], workers: int) -> list[dict]:
+def execute_local(
+    ids: list[str], jobs: list[dict], workers: int, on_done: OnDone | None = None
+) -> list[dict]:
     """``execute_point`` of every job, ``workers`` point processes at once.
 
     Args:
         ids: ``(n,)`` point ids (for the log); jobs: ``(n,)`` arguments of ``execute_point``;
-        workers: processes at once (>= 1).
+        workers: processes at once (>= 1); on_done: called with ``(k, measurement)`` as job
+            ``k`` finishes (in the order they finish).
 
     Returns:
         ``(n,)`` measurements, in the order of ``jobs``.
@@ -111,6 +118,8 @@ def execute_local(ids: list[str], jobs: list[dict], workers: int) -> list[dict]:
             k = futures[future]
             results[k] = future.result()
             _log_done(ids[k], results[k])
+            if on_done is not None:
+                on_done(k, results[k])
     return results
 
 
@@ -127,11 +136,17 @@ def check_scheduler(address: str) -> str:
     return address.strip()
 
 
-def execute_dask(ids: list[str], jobs: list[dict], address: str, timeout_s: float) -> list[dict]:
+def execute_dask(
+    ids: list[str],
+    jobs: list[dict],
+    address: str,
+    timeout_s: float,
+    on_done: OnDone | None = None,
+) -> list[dict]:
     """``execute_point`` of every job on the Dask cluster of the scheduler at ``address``.
 
     Args:
-        ids, jobs: as for ``execute_local``.
+        ids, jobs, on_done: as for ``execute_local``.
         address: ``tcp://host:port`` of the scheduler.
         timeout_s: seconds to wait for the connection to the scheduler.
 
@@ -157,7 +172,10 @@ def execute_dask(ids: list[str], jobs: list[dict], address: str, timeout_s: floa
         futures = client.map(execute_point, jobs, pure=False)
         index = {future.key: k for k, future in enumerate(futures)}
         for future in distributed.as_completed(futures):
-            _log_done(ids[index[future.key]], future.result())
+            k = index[future.key]
+            _log_done(ids[k], future.result())
+            if on_done is not None:
+                on_done(k, future.result())
         return client.gather(futures)
 
 

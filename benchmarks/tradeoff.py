@@ -49,7 +49,11 @@ number of cores); with ``--scheduler`` the same pure function ``execute_point`` 
 a Dask cluster (``distributed.Client``). Before the timed points a few steps of each scene and
 strategy (``warmup``) fill numba's on-disk cache.
 
-A later run of some scenes merges into a record with ``merge(record, rerun)`` (the quick record
+Each point's measurement is kept in ``<out>/tradeoff_points/`` as it arrives
+(``benchmarks._tradeoff_cache``): ``--resume`` takes the points an earlier sweep of the same
+commit kept there (same settings and threads; failed points run again), so a stopped sweep
+goes on where it stopped. A later run of some scenes merges into a record with
+``merge(record, rerun)`` (the quick record
 ``benchmarks/records/tradeoff.json`` was so made: its header says which scenes, at which commit).
 
 Outputs in ``--out`` (default ``results/``): ``tradeoff.json`` (every point's record, the
@@ -86,6 +90,8 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks._tradeoff_cache import FOLDER as CACHE_FOLDER
+from benchmarks._tradeoff_cache import PointCache
 from benchmarks._tradeoff_knobs import (
     finer_key,
     ladder,
@@ -545,8 +551,12 @@ def sweep(
     sweeps: dict | None = None,
     cost: str = "wall",
     warmup: bool = True,
+    resume: bool = False,
 ) -> dict:
     """Run the trade study and write ``tradeoff.json``, ``tradeoff.md``, ``tradeoff_<scene>.png``.
+
+    Every point's measurement is also kept in ``out/tradeoff_points/`` as it arrives
+    (``benchmarks._tradeoff_cache``), so that a stopped sweep can be resumed.
 
     Args:
         mode, scenes, knobs, strategies, sweeps, threads: see :func:`plan`.
@@ -558,6 +568,9 @@ def sweep(
         cost: the cost axis of the Pareto fronts and knob effects: ``"wall"`` (the points' wall
             time, the default) or ``"cpu"`` (their CPU time: steadier on a busy machine).
         warmup: first run a few steps of each scene to fill numba's cache (untimed).
+        resume: take the points kept in ``out/tradeoff_points/`` by an earlier sweep of the same
+            commit (same settings and threads) instead of running them again; the record lists
+            them under ``resumed`` (their times are those of the run that measured them).
 
     Returns:
         ``{"json": path, "markdown": path, "png": {scene: path}, **payload}``.
@@ -579,26 +592,52 @@ def sweep(
     jobs = [_job(r, timeout_s) for r in records]
     log.info("tradeoff (%s): %d points of %s", mode, len(jobs), ", ".join(scene_names))
 
-    def execute(ids: list[str], batch: list[dict]) -> list[dict]:
+    def execute(ids: list[str], batch: list[dict], on_done=None) -> list[dict]:  # noqa: ANN001
         if scheduler is not None:
-            return execute_dask(ids, batch, scheduler, CONNECT_TIMEOUT_S)
-        return execute_local(ids, batch, workers)
+            return execute_dask(ids, batch, scheduler, CONNECT_TIMEOUT_S, on_done)
+        return execute_local(ids, batch, workers, on_done)
+
+    cache = PointCache(out / CACHE_FOLDER, env["commit"])
+    kept = [cache.get(job) if resume else None for job in jobs]
+    todo = [k for k, m in enumerate(kept) if m is None]
+    resumed = [records[k]["id"] for k, m in enumerate(kept) if m is not None]
+    resumed_ids = set(resumed)
+    if resume:
+        log.info(
+            "tradeoff: %d of %d points kept in %s, %d to run",
+            len(resumed),
+            len(jobs),
+            cache.folder,
+            len(todo),
+        )
 
     started = time.perf_counter()
-    warm = pairs if warmup else []
+    warm = [
+        (scene, strategy)
+        for scene, strategy in (pairs if warmup else [])
+        if any(records[k]["scene"] == scene and records[k]["strategy"] == strategy for k in todo)
+    ]
     warmed = execute(
         [f"{scene}/{strategy}/warmup" for scene, strategy in warm],
         [_warmup_job(scene, strategy, threads) for scene, strategy in warm],
     )
     warmup_s = time.perf_counter() - started
     started = time.perf_counter()
-    results = execute([r["id"] for r in records], jobs)
+    ran = execute(
+        [records[k]["id"] for k in todo],
+        [jobs[k] for k in todo],
+        lambda j, measurement: cache.put(records[todo[j]]["id"], jobs[todo[j]], measurement),
+    )
+    results = list(kept)
+    for k, measurement in zip(todo, ran, strict=True):
+        results[k] = measurement
     elapsed = time.perf_counter() - started
     references = _reference(records, results)
     finished = []
     for record, result in zip(records, results, strict=True):
         done = _finish(record, result, references.get(record["scene"]))
         done["commit"] = env["commit"]
+        done["resumed"] = record["id"] in resumed_ids
         done["replay"] = (
             f"python -m benchmarks tradeoff --replay {shlex.quote(str(json_path))} "
             f"--id {shlex.quote(record['id'])}"
@@ -646,6 +685,7 @@ def sweep(
         "warmup_s": warmup_s,
         "warmup_failures": [w["failure"] for w in warmed if w.get("failure")],
         "wall_s": elapsed,
+        "resumed": resumed,
         "point_wall_s_total": sum(r["wall_s"] or 0.0 for r in finished),
         "failed": [r["id"] for r in finished if r["failure"]],
         "pareto": {
@@ -862,6 +902,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     group.add_argument("--point-timeout", type=float, help="wall-time limit of one point in s")
     group.add_argument(
+        "--resume",
+        action="store_true",
+        help="take the points an earlier sweep of this commit kept in OUT/tradeoff_points/",
+    )
+    group.add_argument(
         "--cost",
         choices=("wall", "cpu"),
         default="wall",
@@ -902,6 +947,7 @@ def main_from_args(args: argparse.Namespace) -> int:
         threads=args.threads_per_point,
         timeout_s=args.point_timeout,
         cost=args.cost,
+        resume=args.resume,
     )
     print(f"tradeoff: wrote {summary['json']}, {summary['markdown']}")
     for scene in summary["scenes"]:

@@ -415,3 +415,74 @@ def test_replaying_a_record_reproduces_its_error(minimal, capsys):
     recorded = _by_id(data)["slope/barrier/tol=1e-7"]["error"]
     assert f"error {recorded} (recorded {record['error']})" in printed
     assert math.isfinite(recorded)
+
+
+# ----------------------------------------------------------------------------- resuming a sweep
+def test_a_resumed_sweep_runs_only_the_points_not_kept(minimal, tmp_path, monkeypatch):
+    """The minimal sweep kept each point as it finished; with one of them deleted, a resumed
+    sweep runs that one alone and gives every point the error of the first sweep."""
+    import shutil
+
+    from benchmarks import _tradeoff_point
+    from benchmarks._tradeoff_cache import FOLDER, PointCache
+
+    _, data, out = minimal
+    kept = sorted((out / FOLDER).glob("*.json"))
+    assert len(kept) == len(data["points"])  # one file per point, none for the warm-ups
+    shutil.copytree(out / FOLDER, tmp_path / FOLDER)
+    cache = PointCache(tmp_path / FOLDER, data["environment"]["commit"])
+    lost = _by_id(data)["slope/barrier/tol=1e-7"]
+    cache.path(tradeoff._job(lost, None)).unlink()
+
+    ran = []
+    real = _tradeoff_point.execute_point
+
+    def counting(job):  # noqa: ANN001, ANN202
+        ran.append(job["settings"])
+        return real(job)
+
+    monkeypatch.setattr(_tradeoff_point, "execute_point", counting)
+    again = tradeoff.sweep(
+        "quick",
+        tmp_path,
+        scenes="rings,slope",
+        strategies=MINIMAL_STRATEGIES,
+        knobs=MINIMAL_KNOBS,
+        workers=1,
+        sweeps=MINIMAL,
+        warmup=False,
+        resume=True,
+    )
+    assert ran == [tradeoff._job(lost, None)["settings"]]
+    assert sorted(again["resumed"]) == sorted(set(_by_id(data)) - {lost["id"]})
+    first = _by_id(data)
+    for p in again["points"]:
+        assert p["resumed"] == (p["id"] != lost["id"])
+        assert p["error"] == first[p["id"]]["error"], p["id"]
+        if p["resumed"]:  # its measurement as first taken, times included
+            assert p["wall_s"] == first[p["id"]]["wall_s"]
+    assert cache.get(tradeoff._job(lost, None)) is not None  # kept again
+    assert again["winners"]["slope"] and again["references"] == data["references"]
+
+
+def test_the_point_cache_keys_on_commit_settings_and_threads(tmp_path):
+    from benchmarks._tradeoff_cache import PointCache
+
+    job = {"module": "m", "settings": {"scene": "slope", "dt": 1e-3}, "threads": 1}
+    cache = PointCache(tmp_path, "abc")
+    assert cache.get(job) is None
+    assert cache.put("slope/x/base", job, {"metrics": {"e": 1.0}, "failure": None})
+    assert cache.get(job) == {"metrics": {"e": 1.0}, "failure": None}
+    # another commit, other settings or other threads: not the same point
+    assert PointCache(tmp_path, "def").get(job) is None
+    assert cache.get({**job, "settings": {"scene": "slope", "dt": 2e-3}}) is None
+    assert cache.get({**job, "threads": 2}) is None
+    # the timeout does not change what a point measures
+    assert cache.get({**job, "timeout_s": 60.0}) is not None
+    # failed points are not kept, so a resumed sweep runs them again
+    other = {**job, "threads": 3}
+    assert not cache.put("slope/x/base", other, {"metrics": None, "failure": "timed out"})
+    assert cache.get(other) is None
+    # a damaged file is not a measurement: the point runs again
+    cache.path(job).write_text("{not json")
+    assert cache.get(job) is None
