@@ -3,7 +3,7 @@ and of its knobs, on the BFEMP scenes and one scene of each explicit paper.
 
 ``python -m benchmarks tradeoff [--quick | --full] [--scenes rings,slope] [--strategies
 barrier,two_stage] [--knobs dt,tol] [--workers N | --scheduler tcp://host:port] [--cost
-wall|cpu] [--out DIR]``, also ``bfemp sweep`` with the same options. Replay one point:
+wall|cpu] [--resume] [--out DIR]``, also ``bfemp sweep`` with the same options. Replay one point:
 ``python -m benchmarks tradeoff --replay tradeoff.json --id ID`` or ``--point '<record as
 JSON>'``.
 
