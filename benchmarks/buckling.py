@@ -45,9 +45,17 @@ Choices where the paper is silent or the library forces a change (recorded in th
   PPC 9 in full mode (9898 particles; the paper's 10261 at dx = 0.25 m is 9.3 per cell); the
   MPM grid origin shifted by a quarter of the particle spacing (see ``benchmarks.rings``).
 - Full mode: dx = 0.25 m, PPC 9, FEM mesh size ``FULL_FEM_H`` (close to the paper's 2714
-  vertices), the paper's dt, run to u = 8 m (800 steps per mu). Not run: its first 10 steps
-  took 1.25 s per step at mu = 0 and 3.2 s per step at mu = 0.2 (2 cores under a load of ~7,
-  at cc5084f), so the three cases need at least 17 + 43 + 43 min, more as the contact grows.
+  vertices), the paper's dt, run to u = 8 m (800 steps per mu). Recorded
+  (``benchmarks/records/buckling.json`` / ``.png``, at fdead73, one mu per process, the three
+  side by side on 2 cores, one thread each; 757 MB peak): every case reaches u = 8 m with the
+  rings never closer than 9.7e-4 m (< dhat: in contact, never touching). u_buckle = 3.52 m
+  (mu = 0), 3.73 m (0.2) and 4.00 m (0.5); the detachment at u = 8 m is 2.04, 1.36 and
+  0.86 m. So mu 0 buckles first and 0.2 later, as in the paper, but by this measure mu = 0.5
+  buckles too, 0.27 m after mu = 0.2, where the paper's does not buckle at all: its inner ring
+  ends in a flatter shape than the others (the figure) with a detachment that stops growing
+  near 0.8 m after u = 6 m. Cost: 537 s, 1735 s and 2370 s of case time; 3925, 17160 and
+  23856 Newton iterations; the lagged-friction loop stops at its cap of 20 in 59 (mu = 0.2)
+  and 67 (mu = 0.5) of the 800 steps.
 - Quick mode: dx = 0.5 m, PPC 4 (1104 particles), FEM h = 0.5 m (537 vertices), dt = 5e-2 s
   (5 cm of push per step; the loading is quasi-static: waves cross the ring in 0.1 s), to
   u = 3 m. (Before eed4f00 the mu = 0.5 run stopped with MAX_ITERATIONS at u = 3.9 m, hence
