@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from solvers.allocator import allocator_report
 from solvers.blas import linear_algebra
 
 
@@ -52,6 +53,7 @@ def environment() -> dict:
         "commit": git_commit(),
         # the BLAS under CHOLMOD and the linear solvers installed (issue 13)
         "linear_algebra": linear_algebra(),
+        "allocator": allocator_report(),
         "load_average_1min": os.getloadavg()[0],
     }
 

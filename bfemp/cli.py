@@ -52,9 +52,13 @@ class _VersionAction(argparse.Action):
 
     def __call__(self, parser, namespace, values, option_string=None) -> None:  # noqa: ANN001
         import bfemp
+        from solvers.allocator import format_allocator
         from solvers.blas import format_linear_algebra, linear_algebra
 
-        print(f"bfemp {bfemp.__version__}\n{format_linear_algebra(linear_algebra())}")
+        print(
+            f"bfemp {bfemp.__version__}\n{format_linear_algebra(linear_algebra())}\n"
+            + format_allocator()
+        )
         parser.exit()
 
 

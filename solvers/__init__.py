@@ -11,6 +11,7 @@ import os as _os
 _os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 
+from solvers.allocator import keep_freed_memory as _keep_freed_memory
 from solvers.assembly import TripletAssembler, Triplets
 from solvers.line_search import LineSearchResult, backtracking_line_search
 from solvers.linear import (
@@ -25,6 +26,11 @@ from solvers.newton import Objective, minimize
 from solvers.options import NewtonOptions
 from solvers.psd import is_symmetric_psd, project_psd
 from solvers.result import TIMING_KEYS, NewtonIteration, NewtonResult, NewtonStatus
+
+# Newton's large arrays come from the heap, reused, instead of fresh pages from the kernel at
+# every iteration (3x on the 3D MPM Hessian on a VM that reports freed pages to its host:
+# solvers.allocator); BFEMP_KEEP_FREED_MEMORY=0 leaves glibc's defaults.
+_keep_freed_memory()
 
 __all__ = [
     "TIMING_KEYS",
