@@ -3,7 +3,8 @@ and of its knobs, on the BFEMP scenes and one scene of each explicit paper.
 
 ``python -m benchmarks tradeoff [--quick | --full] [--scenes rings,slope] [--strategies
 barrier,two_stage] [--knobs dt,tol] [--workers N | --scheduler tcp://host:port] [--cost
-wall|cpu] [--resume] [--out DIR]``, also ``bfemp sweep`` with the same options. Replay one point:
+wall|cpu] [--resume] [--points DIR] [--out DIR]``, also ``bfemp sweep`` with the same
+options. Replay one point:
 ``python -m benchmarks tradeoff --replay tradeoff.json --id ID`` or ``--point '<record as
 JSON>'``.
 
@@ -49,11 +50,12 @@ number of cores); with ``--scheduler`` the same pure function ``execute_point`` 
 a Dask cluster (``distributed.Client``). Before the timed points a few steps of each scene and
 strategy (``warmup``) fill numba's on-disk cache.
 
-Each point's measurement is kept in ``<out>/tradeoff_points/`` as it arrives
+Each point's measurement is kept in ``<out>/tradeoff_points/`` (``--points DIR``) as it arrives
 (``benchmarks._tradeoff_cache``): ``--resume`` takes the points an earlier sweep of the same
-commit kept there (same settings and threads; failed points run again), so a stopped sweep
-goes on where it stopped. A later run of some scenes merges into a record with
-``merge(record, rerun)`` (the quick record
+code kept there (same settings and threads; failed points run again), so a stopped sweep goes
+on where it stopped, in a later session too when the folder is committed
+(``benchmarks/records/tradeoff_full_points/`` holds the full sweep's points so far). A later
+run of some scenes merges into a record with ``merge(record, rerun)`` (the quick record
 ``benchmarks/records/tradeoff.json`` was so made: its header says which scenes, at which commit).
 
 Outputs in ``--out`` (default ``results/``): ``tradeoff.json`` (every point's record, the
@@ -552,6 +554,7 @@ def sweep(
     cost: str = "wall",
     warmup: bool = True,
     resume: bool = False,
+    points: str | Path | None = None,
 ) -> dict:
     """Run the trade study and write ``tradeoff.json``, ``tradeoff.md``, ``tradeoff_<scene>.png``.
 
@@ -568,9 +571,12 @@ def sweep(
         cost: the cost axis of the Pareto fronts and knob effects: ``"wall"`` (the points' wall
             time, the default) or ``"cpu"`` (their CPU time: steadier on a busy machine).
         warmup: first run a few steps of each scene to fill numba's cache (untimed).
-        resume: take the points kept in ``out/tradeoff_points/`` by an earlier sweep of the same
-            commit (same settings and threads) instead of running them again; the record lists
-            them under ``resumed`` (their times are those of the run that measured them).
+        resume: take the points kept in the points folder by an earlier sweep of the same code
+            (same settings and threads) instead of running them again; the record lists them
+            under ``resumed`` (their times, and their ``commit``, are those of the run that
+            measured them).
+        points: the folder where each point is kept as it finishes (default
+            ``out/tradeoff_points/``); a committed folder lets a sweep go on in a later session.
 
     Returns:
         ``{"json": path, "markdown": path, "png": {scene: path}, **payload}``.
@@ -597,11 +603,14 @@ def sweep(
             return execute_dask(ids, batch, scheduler, CONNECT_TIMEOUT_S, on_done)
         return execute_local(ids, batch, workers, on_done)
 
-    cache = PointCache(out / CACHE_FOLDER, env["commit"])
-    kept = [cache.get(job) if resume else None for job in jobs]
+    cache = PointCache(out / CACHE_FOLDER if points is None else Path(points), env["commit"])
+    entries = [cache.entry(job) if resume else None for job in jobs]
+    kept = [None if e is None else e["measurement"] for e in entries]
     todo = [k for k, m in enumerate(kept) if m is None]
     resumed = [records[k]["id"] for k, m in enumerate(kept) if m is not None]
-    resumed_ids = set(resumed)
+    measured_by = {
+        records[k]["id"]: e.get("commit") for k, e in enumerate(entries) if e is not None
+    }
     if resume:
         log.info(
             "tradeoff: %d of %d points kept in %s, %d to run",
@@ -636,8 +645,8 @@ def sweep(
     finished = []
     for record, result in zip(records, results, strict=True):
         done = _finish(record, result, references.get(record["scene"]))
-        done["commit"] = env["commit"]
-        done["resumed"] = record["id"] in resumed_ids
+        done["resumed"] = record["id"] in measured_by
+        done["commit"] = measured_by.get(record["id"], env["commit"])
         done["replay"] = (
             f"python -m benchmarks tradeoff --replay {shlex.quote(str(json_path))} "
             f"--id {shlex.quote(record['id'])}"
@@ -904,7 +913,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument(
         "--resume",
         action="store_true",
-        help="take the points an earlier sweep of this commit kept in OUT/tradeoff_points/",
+        help="take the points an earlier sweep of the same code kept in the points folder",
+    )
+    group.add_argument(
+        "--points",
+        metavar="DIR",
+        help="where each point is kept as it finishes (default OUT/tradeoff_points/)",
     )
     group.add_argument(
         "--cost",
@@ -948,6 +962,7 @@ def main_from_args(args: argparse.Namespace) -> int:
         timeout_s=args.point_timeout,
         cost=args.cost,
         resume=args.resume,
+        points=args.points,
     )
     print(f"tradeoff: wrote {summary['json']}, {summary['markdown']}")
     for scene in summary["scenes"]:

@@ -420,7 +420,9 @@ def test_replaying_a_record_reproduces_its_error(minimal, capsys):
 # ----------------------------------------------------------------------------- resuming a sweep
 def test_a_resumed_sweep_runs_only_the_points_not_kept(minimal, tmp_path, monkeypatch):
     """The minimal sweep kept each point as it finished; with one of them deleted, a resumed
-    sweep runs that one alone and gives every point the error of the first sweep."""
+    sweep (from a points folder of its own, as a committed one) runs that one alone, gives
+    every point the error of the first sweep and each kept point the commit that measured it."""
+    import json
     import shutil
 
     from benchmarks import _tradeoff_point
@@ -429,8 +431,13 @@ def test_a_resumed_sweep_runs_only_the_points_not_kept(minimal, tmp_path, monkey
     _, data, out = minimal
     kept = sorted((out / FOLDER).glob("*.json"))
     assert len(kept) == len(data["points"])  # one file per point, none for the warm-ups
-    shutil.copytree(out / FOLDER, tmp_path / FOLDER)
-    cache = PointCache(tmp_path / FOLDER, data["environment"]["commit"])
+    folder = tmp_path / "kept_points"
+    shutil.copytree(out / FOLDER, folder)
+    measured_elsewhere = "0" * 40  # as if an earlier commit with the same code measured them
+    for path in folder.glob("*.json"):
+        entry = json.loads(path.read_text())
+        path.write_text(json.dumps({**entry, "commit": measured_elsewhere}))
+    cache = PointCache(folder, data["environment"]["commit"])
     lost = _by_id(data)["slope/barrier/tol=1e-7"]
     cache.path(tradeoff._job(lost, None)).unlink()
 
@@ -452,29 +459,37 @@ def test_a_resumed_sweep_runs_only_the_points_not_kept(minimal, tmp_path, monkey
         sweeps=MINIMAL,
         warmup=False,
         resume=True,
+        points=folder,
     )
+    assert not (tmp_path / FOLDER).exists()  # the points went to the folder given
     assert ran == [tradeoff._job(lost, None)["settings"]]
     assert sorted(again["resumed"]) == sorted(set(_by_id(data)) - {lost["id"]})
     first = _by_id(data)
     for p in again["points"]:
         assert p["resumed"] == (p["id"] != lost["id"])
         assert p["error"] == first[p["id"]]["error"], p["id"]
-        if p["resumed"]:  # its measurement as first taken, times included
+        if p["resumed"]:  # its measurement as first taken, times and commit included
             assert p["wall_s"] == first[p["id"]]["wall_s"]
+        assert p["commit"] == (
+            measured_elsewhere if p["resumed"] else data["environment"]["commit"]
+        )
     assert cache.get(tradeoff._job(lost, None)) is not None  # kept again
     assert again["winners"]["slope"] and again["references"] == data["references"]
 
 
-def test_the_point_cache_keys_on_commit_settings_and_threads(tmp_path):
+def test_the_point_cache_keys_on_code_settings_and_threads(tmp_path):
     from benchmarks._tradeoff_cache import PointCache
 
     job = {"module": "m", "settings": {"scene": "slope", "dt": 1e-3}, "threads": 1}
-    cache = PointCache(tmp_path, "abc")
+    cache = PointCache(tmp_path, "abc", code="code1")
     assert cache.get(job) is None
     assert cache.put("slope/x/base", job, {"metrics": {"e": 1.0}, "failure": None})
     assert cache.get(job) == {"metrics": {"e": 1.0}, "failure": None}
-    # another commit, other settings or other threads: not the same point
-    assert PointCache(tmp_path, "def").get(job) is None
+    # another commit of the same code: the same point, measured by the first commit
+    later = PointCache(tmp_path, "def", code="code1")
+    assert later.get(job) == cache.get(job) and later.entry(job)["commit"] == "abc"
+    # other code, other settings or other threads: not the same point
+    assert PointCache(tmp_path, "abc", code="code2").get(job) is None
     assert cache.get({**job, "settings": {"scene": "slope", "dt": 2e-3}}) is None
     assert cache.get({**job, "threads": 2}) is None
     # the timeout does not change what a point measures
@@ -486,3 +501,24 @@ def test_the_point_cache_keys_on_commit_settings_and_threads(tmp_path):
     # a damaged file is not a measurement: the point runs again
     cache.path(job).write_text("{not json")
     assert cache.get(job) is None
+
+
+def test_the_code_version_changes_with_any_python_file_of_the_packages(tmp_path):
+    from benchmarks._tradeoff_cache import code_version
+
+    for package in ("bfemp", "benchmarks"):
+        (tmp_path / package).mkdir()
+        (tmp_path / package / "a.py").write_text("x = 1\n")
+    (tmp_path / "bfemp" / "notes.md").write_text("docs")
+    packages = ("bfemp", "benchmarks")
+    first = code_version(tmp_path, packages)
+    assert code_version(tmp_path, packages) == first  # deterministic
+    (tmp_path / "bfemp" / "notes.md").write_text("other docs")  # not code: the same
+    assert code_version(tmp_path, packages) == first
+    (tmp_path / "benchmarks" / "a.py").write_text("x = 2\n")  # edited code: another digest
+    edited = code_version(tmp_path, packages)
+    assert edited != first
+    (tmp_path / "benchmarks" / "a.py").rename(tmp_path / "benchmarks" / "b.py")  # renamed
+    assert code_version(tmp_path, packages) not in (first, edited)
+    # the project's own digest covers its packages
+    assert len(code_version()) == 20
