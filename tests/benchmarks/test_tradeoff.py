@@ -267,6 +267,23 @@ def test_bfemp_sweep_has_the_options_of_the_benchmark():
     assert "--strategies" in _options(bench)
 
 
+def test_the_command_line_passes_resume_and_the_points_folder_to_the_sweep(monkeypatch, tmp_path):
+    seen = {}
+
+    def fake_sweep(mode, out, **kwargs):  # noqa: ANN001, ANN003, ANN202
+        seen.update(mode=mode, out=out, **kwargs)
+        return {"json": "j", "markdown": "m", "scenes": [], "png": {}}
+
+    monkeypatch.setattr(tradeoff, "sweep", fake_sweep)
+    parser = bench_main._parser()
+    tradeoff.add_arguments(parser)
+    folder = str(tmp_path / "kept")
+    argv = ["tradeoff", "--full", "--scenes", "slope", "--resume", "--points", folder]
+    assert tradeoff.main_from_args(parser.parse_args(argv)) == 0
+    assert seen["mode"] == "full" and seen["resume"] is True and seen["points"] == folder
+    assert parser.parse_args(["tradeoff"]).points is None  # default: OUT/tradeoff_points/
+
+
 # ----------------------------------------------------------------------------- a minimal sweep
 @pytest.fixture(scope="module")
 def minimal(tmp_path_factory):
