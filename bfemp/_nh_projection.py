@@ -29,7 +29,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from solvers._psd_kernels import _project_block, _symmetric_eigen
+from solvers._psd_kernels import _project_block, _symmetric_eigen, _symmetric_eigen_2x2
 
 __all__ = ["project_nh_derivative"]
 
@@ -38,8 +38,17 @@ _MIN_SINGULAR_RATIO = 1e-4
 _CHUNK = 256
 
 
-@njit(cache=True)
+@njit(inline="always")
+def _small_eigen(A: np.ndarray, d: int, V: np.ndarray, w: np.ndarray, e: np.ndarray) -> bool:
+    """Eigenpairs of a symmetric d x d matrix: closed form for d = 2, QL iteration otherwise."""
+    if d == 2:
+        return _symmetric_eigen_2x2(A, V, w)
+    return _symmetric_eigen(A, d, V, w, e)
+
+
+@njit(inline="always")
 def _project_one(
+    d: int,
     A: np.ndarray,
     F: np.ndarray,
     lam: float,
@@ -57,7 +66,7 @@ def _project_one(
     es: np.ndarray,
     q: np.ndarray,
 ) -> None:
-    d = F.shape[0]
+    """Project one block A (d*d, d*d) in place; ``d`` is a literal at each call site."""
     n = d * d
     for i in range(d):
         for j in range(d):
@@ -65,7 +74,7 @@ def _project_one(
             for k in range(d):
                 acc += F[k, i] * F[k, j]
             C[i, j] = acc
-    if not _symmetric_eigen(C, d, V, s, e):
+    if not _small_eigen(C, d, V, s, e):
         _project_block(A, n, 0.0, W, ws, es)
         return
     s_max = 0.0
@@ -92,7 +101,7 @@ def _project_one(
         for b in range(d):
             S[a, b] = lam / (s[a] * s[b])
         S[a, a] += mu + coef / (s[a] * s[a])
-    if not _symmetric_eigen(S, d, Q, w, e):
+    if not _small_eigen(S, d, Q, w, e):
         _project_block(A, n, 0.0, W, ws, es)
         return
     negative = False
@@ -142,9 +151,12 @@ def _project_one(
             A[c, r] = A[r, c]
 
 
-@njit(cache=True, parallel=True)
-def _project_stack(blocks: np.ndarray, F: np.ndarray, mu: np.ndarray, lam: np.ndarray) -> None:
-    n_s, d = F.shape[0], F.shape[1]
+@njit(inline="always")
+def _project_stack(
+    d: int, blocks: np.ndarray, F: np.ndarray, mu: np.ndarray, lam: np.ndarray
+) -> None:
+    """_project_one on every block of (S, d*d, d*d), in parallel chunks with their workspace."""
+    n_s = F.shape[0]
     n = d * d
     for chunk in prange((n_s + _CHUNK - 1) // _CHUNK):
         C = np.empty((d, d))
@@ -169,7 +181,18 @@ def _project_stack(blocks: np.ndarray, F: np.ndarray, mu: np.ndarray, lam: np.nd
             if not finite:
                 _project_block(block, n, 0.0, W, ws, es)  # fills it with NaN
                 continue
-            _project_one(block, F[k], lam[k], mu[k], C, V, U, s, e, S, Q, w, W, ws, es, q)
+            _project_one(d, block, F[k], lam[k], mu[k], C, V, U, s, e, S, Q, w, W, ws, es, q)
+
+
+# one compiled kernel per dimension, d a constant (numba unrolls the d-loops)
+@njit(cache=True, parallel=True)
+def _project_stack_2d(blocks: np.ndarray, F: np.ndarray, mu: np.ndarray, lam: np.ndarray) -> None:
+    _project_stack(2, blocks, F, mu, lam)
+
+
+@njit(cache=True, parallel=True)
+def _project_stack_3d(blocks: np.ndarray, F: np.ndarray, mu: np.ndarray, lam: np.ndarray) -> None:
+    _project_stack(3, blocks, F, mu, lam)
 
 
 def project_nh_derivative(
@@ -187,8 +210,11 @@ def project_nh_derivative(
         with none returned unchanged); NaN for a non-finite block.
     """
     out = np.array(blocks, dtype=np.float64, order="C", copy=True)
+    kernel = {2: _project_stack_2d, 3: _project_stack_3d}.get(F.shape[-1])
+    if kernel is None or F.shape[1:] != (F.shape[-1],) * 2:
+        raise ValueError(f"F must be (S, 2, 2) or (S, 3, 3), got {F.shape}")
     if out.shape[0]:
-        _project_stack(
+        kernel(
             out,
             np.ascontiguousarray(F, dtype=np.float64),
             np.ascontiguousarray(mu, dtype=np.float64),

@@ -188,6 +188,34 @@ def _symmetric_eigen(A: np.ndarray, n: int, V: np.ndarray, w: np.ndarray, e: np.
     return _tql2(V, w, e, n)
 
 
+@njit(cache=True, inline="always")
+def _symmetric_eigen_2x2(A: np.ndarray, V: np.ndarray, w: np.ndarray) -> bool:
+    """Closed-form :func:`_symmetric_eigen` for n = 2 (same contract, no workspace).
+
+    For the symmetric part [[a, b], [b, c]]: w = m -/+ r with m = (a + c)/2,
+    r = hypot((a - c)/2, b); the eigenvector of m + r is (cos t, sin t), tan 2t = 2b/(a - c).
+    Absolute accuracy is eps |A|, as for the QL iteration.
+    """
+    a = A[0, 0]
+    c = A[1, 1]
+    b = 0.5 * (A[0, 1] + A[1, 0])
+    if not (math.isfinite(a) and math.isfinite(b) and math.isfinite(c)):
+        return False
+    m = 0.5 * (a + c)
+    h = 0.5 * (a - c)
+    r = math.hypot(h, b)
+    w[0] = m - r
+    w[1] = m + r
+    t = 0.5 * math.atan2(b, h)  # atan2(0, 0) = 0: the identity for a multiple of I
+    ct = math.cos(t)
+    st = math.sin(t)
+    V[0, 1] = ct
+    V[1, 1] = st
+    V[0, 0] = -st
+    V[1, 0] = ct
+    return True
+
+
 @njit(cache=True)
 def _project_block(
     A: np.ndarray, n: int, eps: float, V: np.ndarray, w: np.ndarray, e: np.ndarray

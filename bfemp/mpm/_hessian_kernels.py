@@ -40,8 +40,38 @@ def _is_void(weights, grads, p, a, d):  # noqa: ANN001, ANN202
     return True
 
 
-@njit(cache=True, parallel=True)
-def _accumulate_blocks(  # noqa: ANN202
+def _accumulate_blocks(
+    nodes: np.ndarray,
+    weights: np.ndarray,
+    grads: np.ndarray,
+    dpdf: np.ndarray,
+    volume: np.ndarray,
+    pair_code: np.ndarray,
+    nbr: np.ndarray,
+    n_nodes: int,
+    n_codes: int,
+    n_chunks: int,
+) -> np.ndarray:
+    """blocks (G, 5^d, d, d): sum_p V_p g_a^T dP g_b (d x d per node pair; F-level PSD input).
+
+    ``dpdf`` is (S, d*d, d*d) with dP_im/dF_jl at [i*d + m, j*d + l]; ``grads`` are the effective
+    gradients g (P, K, d) with F = sum_a y_a g_a^T; ``dpdf`` must be symmetric (a Hessian in F,
+    projected or not): half the node pairs are accumulated, the other half mirrored through the
+    neighbour table ``nbr`` (G, 5^d). Particles are split into ``n_chunks`` ranges
+    accumulated in parallel into private copies (race-free), then summed.
+
+    The kernel is compiled once per dimension with d a constant, so numba unrolls the d-loops
+    (about 2.5x faster in 2D than a kernel reading d from the array shape).
+    """
+    kernel = {2: _accumulate_blocks_2d, 3: _accumulate_blocks_3d}.get(grads.shape[2])
+    if kernel is None:
+        raise ValueError(f"grads must be (P, K, 2) or (P, K, 3), got {grads.shape}")
+    return kernel(nodes, weights, grads, dpdf, volume, pair_code, nbr, n_nodes, n_codes, n_chunks)
+
+
+@njit(inline="always")
+def _accumulate_impl(  # noqa: ANN202
+    dim,  # noqa: ANN001
     nodes,  # noqa: ANN001
     weights,  # noqa: ANN001
     grads,  # noqa: ANN001
@@ -53,51 +83,83 @@ def _accumulate_blocks(  # noqa: ANN202
     n_codes,  # noqa: ANN001
     n_chunks,  # noqa: ANN001
 ):
-    """blocks (G, 5^d, d, d): sum_p V_p g_a^T dP g_b (d x d per node pair; F-level PSD input).
-
-    ``dpdf`` is (S, d*d, d*d) with dP_im/dF_jl at [i*d + m, j*d + l]; ``grads`` are the effective
-    gradients g (P, K, d) with F = sum_a y_a g_a^T; ``dpdf`` must be symmetric (a Hessian in F,
-    projected or not): half the node pairs are accumulated, the other half mirrored through the
-    neighbour table ``nbr`` (G, 5^d). Particles are split into ``n_chunks`` ranges
-    accumulated in parallel into private copies (race-free), then summed.
-    """
+    """Body of _accumulate_blocks; ``dim`` is a literal at each call site (see the wrappers)."""
     n_p, k = nodes.shape
-    d = grads.shape[2]
     centre = (n_codes - 1) // 2  # the code of offset 0; code(-o) = n_codes - 1 - code(o)
-    partial = np.zeros((n_chunks, n_nodes, n_codes, d, d))
+    partial = np.zeros((n_chunks, n_nodes, n_codes, dim, dim))
     for c in prange(n_chunks):
         blocks = partial[c]
-        tmp = np.empty((d * d, k * d))
+        tmp = np.empty((k, dim, dim, dim))
+        void = np.empty(k, dtype=np.bool_)
         for p in range(c * n_p // n_chunks, (c + 1) * n_p // n_chunks):
-            # tmp[(i, m), (b, j)] = sum_l dP[(i, m), (j, l)] g_b[l]
-            for r in range(d * d):
-                for b in range(k):
-                    for j in range(d):
-                        acc = 0.0
-                        for l in range(d):
-                            acc += dpdf[p, r, j * d + l] * grads[p, b, l]
-                        tmp[r, b * d + j] = acc
+            # tmp[b, i, m, j] = V_p sum_l dP[(i, m), (j, l)] g_b[l]
+            v = volume[p]
+            for b in range(k):
+                void[b] = _is_void(weights, grads, p, b, dim)
+                for i in range(dim):
+                    for m in range(dim):
+                        for j in range(dim):
+                            acc = 0.0
+                            for l in range(dim):
+                                acc += dpdf[p, i * dim + m, j * dim + l] * grads[p, b, l]
+                            tmp[b, i, m, j] = v * acc
             for a in range(k):
-                if _is_void(weights, grads, p, a, d):
+                if void[a]:
                     continue
                 node_a = nodes[p, a]
                 for b in range(k):
                     code = pair_code[a, b]
                     # dP is symmetric, so block (b, a) = block (a, b)^T: only offsets with
                     # code >= centre are accumulated here, the others by _mirror_blocks
-                    if code < centre or _is_void(weights, grads, p, b, d):
+                    if code < centre or void[b]:
                         continue
-                    for i in range(d):
-                        for j in range(d):
+                    for i in range(dim):
+                        for j in range(dim):
                             acc = 0.0
-                            for m in range(d):
-                                acc += grads[p, a, m] * tmp[i * d + m, b * d + j]
-                            blocks[node_a, code, i, j] += volume[p] * acc
-    out = partial[0].copy()
+                            for m in range(dim):
+                                acc += grads[p, a, m] * tmp[b, i, m, j]
+                            blocks[node_a, code, i, j] += acc
+    out = partial[0]
     for c in range(1, n_chunks):
         out += partial[c]
     _mirror_blocks(out, nbr)
     return out
+
+
+@njit(cache=True, parallel=True)
+def _accumulate_blocks_2d(
+    nodes,  # noqa: ANN001
+    weights,  # noqa: ANN001
+    grads,  # noqa: ANN001
+    dpdf,  # noqa: ANN001
+    volume,  # noqa: ANN001
+    pair_code,  # noqa: ANN001
+    nbr,  # noqa: ANN001
+    n_nodes,  # noqa: ANN001
+    n_codes,  # noqa: ANN001
+    n_chunks,  # noqa: ANN001
+):  # noqa: ANN202
+    return _accumulate_impl(
+        2, nodes, weights, grads, dpdf, volume, pair_code, nbr, n_nodes, n_codes, n_chunks
+    )  # noqa: E501
+
+
+@njit(cache=True, parallel=True)
+def _accumulate_blocks_3d(
+    nodes,  # noqa: ANN001
+    weights,  # noqa: ANN001
+    grads,  # noqa: ANN001
+    dpdf,  # noqa: ANN001
+    volume,  # noqa: ANN001
+    pair_code,  # noqa: ANN001
+    nbr,  # noqa: ANN001
+    n_nodes,  # noqa: ANN001
+    n_codes,  # noqa: ANN001
+    n_chunks,  # noqa: ANN001
+):  # noqa: ANN202
+    return _accumulate_impl(
+        3, nodes, weights, grads, dpdf, volume, pair_code, nbr, n_nodes, n_codes, n_chunks
+    )  # noqa: E501
 
 
 @njit(cache=True)

@@ -2,7 +2,9 @@
 
 import numpy as np
 import pytest
+from numba import njit
 
+from solvers._psd_kernels import _symmetric_eigen_2x2
 from solvers.psd import is_symmetric_psd, project_psd
 
 
@@ -83,3 +85,30 @@ def test_non_finite_blocks_become_nan_and_leave_the_others():
     np.testing.assert_array_equal(out[0], np.eye(3))
     assert np.isnan(out[1]).all()
     np.testing.assert_array_equal(out[2], np.zeros((3, 3)))
+
+
+@njit
+def _eigen_2x2(a):  # noqa: ANN001, ANN202
+    v = np.empty((2, 2))
+    w = np.empty(2)
+    ok = _symmetric_eigen_2x2(a, v, w)
+    return ok, v, w
+
+
+def test_closed_form_2x2_eigen_matches_eigh():
+    rng = np.random.default_rng(7)
+    cases = [rng.standard_normal((2, 2)) * 10.0 ** rng.integers(-6, 7) for _ in range(500)]
+    cases += [3.0 * np.eye(2), np.diag([2.0, -1.0]), np.diag([-1.0, 2.0]), np.zeros((2, 2))]
+    cases += [np.array([[1.0, 1e-9], [1e-9, 1.0]]), np.array([[1e8, 1.0], [1.0, 1e-8]])]
+    for a in cases:
+        ok, v, w = _eigen_2x2(a)
+        sym = 0.5 * (a + a.T)
+        assert ok
+        np.testing.assert_allclose(
+            np.sort(w), np.linalg.eigvalsh(sym), atol=1e-14 * np.abs(sym).max()
+        )
+        np.testing.assert_allclose(v.T @ v, np.eye(2), atol=1e-14)  # orthonormal
+        np.testing.assert_allclose(sym @ v, v * w, atol=1e-13 * max(np.abs(sym).max(), 1e-300))
+    for bad in (np.nan, np.inf):
+        ok, _, _ = _eigen_2x2(np.array([[1.0, bad], [0.0, 1.0]]))
+        assert not ok
