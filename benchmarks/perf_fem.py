@@ -63,7 +63,7 @@ def _measure(name: str, matrices: dict, dim: int, n: tuple[int, ...]) -> dict:
     state = stepper.initialize(model.initial_state())
     state, _ = stepper.step(state)  # warm-up: compiles the numba kernels
     out = {"dim": dim, "cells": int(model.fem_cells.shape[0]), "nodes": int(model.n_fem_nodes)}
-    out.update(newton_phases(stepper, state, matrices=matrices, name=name))
+    out.update(newton_phases(stepper, state, matrices=matrices, name=name, step_repeats=3))
     return out
 
 

@@ -76,7 +76,7 @@ def _measure(name: str, matrices: dict, dim: int, cells: tuple[int, ...], ppc: i
             state.mpm_F,
         )
     )
-    out.update(newton_phases(stepper, state, matrices=matrices, name=name))
+    out.update(newton_phases(stepper, state, matrices=matrices, name=name, step_repeats=3))
     out["transfer_fraction_of_iteration"] = (out["p2g_s"] + out["g2p_s"]) / out[
         "time_per_newton_iteration_s"
     ]

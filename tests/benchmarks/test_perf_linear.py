@@ -46,6 +46,19 @@ def test_ratio_of_newton_iteration_to_factorisation_is_measured(record):
         assert case["newton_over_factorisation"] == pytest.approx(per_it / case["factorize_s"])
         # a Newton iteration contains at least one factorisation's worth of work
         assert case["linear_solve_over_factorisation"] > 0.5
+        if case["linear_solver"] != "cg_amg":  # (its floor is the CG solve)
+            assert case["factorize_median_s"] >= case["factorize_s"]  # the floor is the least
+        if name in ("perf_fem", "perf_mpm"):  # the same step three times, the median kept
+            times = sorted(case["step_times_s"])
+            assert len(times) == 3
+            assert times[1] == pytest.approx(per_it * case["newton_iterations"])
+
+
+def test_step_repeats_must_be_a_positive_int():
+    from benchmarks._phases import newton_phases
+
+    with pytest.raises(ValueError, match="step_repeats"):
+        newton_phases(None, None, step_repeats=0)
 
 
 def test_reference_blas_is_measured_beside_the_default_one(record):
