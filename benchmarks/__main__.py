@@ -20,6 +20,7 @@ BENCHMARKS = {
     "augury_probes": "benchmarks.augury_probes",
     "augury_ramp": "benchmarks.augury_ramp",
     "augury_scenes": "benchmarks.augury_scenes",
+    "blas_wall": "benchmarks.blas_wall",
     "explicit_speed": "benchmarks.explicit_speed",
     "buckling": "benchmarks.buckling",
     "extremes": "benchmarks.extremes",

@@ -1,0 +1,114 @@
+"""Wall time of whole benchmarks on the reference BLAS and on the optimised one (issue 13).
+
+The issue asks for the rings and hertz full wall times before and after the optimised BLAS
+under CHOLMOD. "Before" and "after" are taken in one run, on one machine and one commit: each
+benchmark runs twice as a child process (``python -m benchmarks NAME --MODE``), once with the
+loader pointed at Debian's reference BLAS and LAPACK (:func:`benchmarks._blas_switch.
+reference_blas_env`) and once on the system default (OpenBLAS after ``make setup``). The two
+runs are sequential, so they do not share the cores.
+
+Modes:
+    ``full``: hertz and rings in full mode (rings full alone is about 35 min on OpenBLAS);
+    ``hertz``: hertz in full mode only;
+    ``quick``: slope in quick mode (seconds; what the tests run).
+
+Recorded per benchmark and BLAS: the child's wall time (s, interpreter start and numba cache
+loads included), the benchmark's own ``wall_s`` from its JSON, and the BLAS CHOLMOD ran on as
+that JSON names it; then reference / optimised for both times.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from benchmarks._blas_switch import reference_blas_env
+from benchmarks.common import environment, write_json
+
+log = logging.getLogger(__name__)
+
+#: mode -> (benchmark, its mode) pairs run under each BLAS
+MODES = {
+    "full": (("hertz", "full"), ("rings", "full")),
+    "hertz": (("hertz", "full"),),
+    "quick": (("slope", "quick"),),
+}
+
+
+def _run_child(name: str, mode: str, out: Path, env: dict, timeout: float) -> dict:
+    """Run benchmark ``name`` in ``mode`` in a child process with ``env``; its wall and record."""
+    root = Path(__file__).resolve().parents[1]
+    env = dict(env)
+    env["PYTHONPATH"] = os.pathsep.join([str(root), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
+    command = [sys.executable, "-m", "benchmarks", name, f"--{mode}", "--out", str(out)]
+    start = time.perf_counter()
+    try:
+        done = subprocess.run(
+            command, capture_output=True, text=True, env=env, timeout=timeout, cwd=root
+        )
+    except subprocess.TimeoutExpired:
+        return {"error": f"timed out after {timeout:.0f} s"}
+    wall = time.perf_counter() - start
+    if done.returncode != 0:
+        tail = (done.stderr or done.stdout).strip().splitlines()[-3:]
+        return {"error": f"exit status {done.returncode}: {' | '.join(tail)}", "wall_s": wall}
+    record = json.loads(next(out.glob("*.json")).read_text())
+    la = record.get("environment", {}).get("linear_algebra", {})
+    return {
+        "wall_s": wall,
+        "benchmark_wall_s": record.get("wall_s"),
+        "blas": la.get("cholmod_blas"),
+        "blas_threads": la.get("blas_threads"),
+    }
+
+
+def run(mode: str = "full", out: str | Path = "results", timeout_s: float = 4 * 3600.0) -> dict:
+    """Run each benchmark of ``mode`` on both BLAS; write ``blas_wall.json`` to ``out``.
+
+    Args:
+        mode: a key of :data:`MODES`.
+        out: output folder; the children's own records go under ``out/blas_wall/``.
+        timeout_s: wall limit of one child (s); a child past it is recorded as an error.
+
+    Returns:
+        ``{"json": path, **payload}``; ``payload["runs"][name]`` holds ``reference`` and
+        ``optimised`` (each as :func:`_run_child` returns) and ``speedup`` (reference /
+        optimised wall) where both ran.
+    """
+    if mode not in MODES:
+        raise ValueError(f"mode must be one of {sorted(MODES)}, got {mode!r}")
+    reference = reference_blas_env()
+    runs: dict[str, dict] = {}
+    for name, bench_mode in MODES[mode]:
+        row: dict = {"mode": bench_mode}
+        for label, env in (("reference", reference), ("optimised", dict(os.environ))):
+            if env is None:
+                row[label] = {"error": "the reference BLAS (libblas3, liblapack3) is not installed"}
+                continue
+            folder = Path(out) / "blas_wall" / f"{name}_{label}"
+            folder.mkdir(parents=True, exist_ok=True)
+            for old in folder.glob("*.json"):
+                old.unlink()
+            log.info("blas_wall: %s --%s on the %s BLAS", name, bench_mode, label)
+            row[label] = _run_child(name, bench_mode, folder, env, timeout_s)
+            log.info("blas_wall: %s on the %s BLAS: %s", name, label, row[label])
+        ref, opt = row["reference"], row["optimised"]
+        if "error" not in ref and "error" not in opt:
+            row["speedup"] = ref["wall_s"] / max(opt["wall_s"], 1e-12)
+            if ref["benchmark_wall_s"] and opt["benchmark_wall_s"]:
+                row["benchmark_speedup"] = ref["benchmark_wall_s"] / opt["benchmark_wall_s"]
+        runs[name] = row
+    payload = {
+        "benchmark": "blas_wall",
+        "mode": mode,
+        "runs": runs,
+        "machine_note": "2 shared cores; the two runs of a benchmark are sequential",
+        "environment": environment(),
+    }
+    path = write_json(out, "blas_wall", payload)
+    return {"json": str(path), **payload}
