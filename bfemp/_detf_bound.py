@@ -43,7 +43,7 @@ import logging
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 __all__ = ["first_det_root", "max_step_det_positive"]
 
@@ -247,10 +247,10 @@ def _first_root_cubic(g0: float, g1: float, g2: float, g3: float, t_max: float) 
     return t_max
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def _first_det_root_kernel(F: np.ndarray, D: np.ndarray, alpha_max: float, out: np.ndarray) -> None:
     d = F.shape[1]
-    for s in range(F.shape[0]):
+    for s in prange(F.shape[0]):  # points are independent: the result is the serial one
         f_max = 0.0
         d_max = 0.0
         finite = True

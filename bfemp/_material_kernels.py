@@ -29,7 +29,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 __all__ = ["LINEAR_ELASTIC", "NEO_HOOKEAN", "LinearElasticLaw", "MaterialLaw", "NeoHookeanLaw"]
 
@@ -37,6 +37,16 @@ __all__ = ["LINEAR_ELASTIC", "NEO_HOOKEAN", "LinearElasticLaw", "MaterialLaw", "
 # --------------------------------------------------------------------------------------------
 # numba kernels
 # --------------------------------------------------------------------------------------------
+
+# The Neo-Hookean kernels run over point ranges in parallel (each range with its own scratch
+# matrix); every point is independent, so the results do not depend on the thread count.
+
+
+@njit(cache=True)
+def _n_ranges(n: int) -> int:
+    """Point ranges for a parallel loop over ``n`` points: up to 64 (the threads share them
+    out), >= 512 points each, so a range's scratch allocation is negligible."""
+    return max(1, min(64, n // 512))
 
 
 @njit(cache=True)
@@ -119,11 +129,19 @@ def _h_invariants(F: np.ndarray, s: int, H: np.ndarray) -> tuple[float, float, f
     return tr, tr + m2 + det_h, m2 + det_h
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def _nh_energy(F: np.ndarray, mu: np.ndarray, lam: np.ndarray, out: np.ndarray) -> None:
     d = F.shape[1]
+    n = F.shape[0]
+    n_ranges = _n_ranges(n)
+    for c in prange(n_ranges):
+        _nh_energy_range(F, mu, lam, out, c * n // n_ranges, (c + 1) * n // n_ranges, d)
+
+
+@njit(cache=True, inline="always")
+def _nh_energy_range(F, mu, lam, out, start, stop, d):  # noqa: ANN001, ANN202
     H = np.empty((d, d))
-    for s in range(F.shape[0]):
+    for s in range(start, stop):
         tr, jm1, _ = _h_invariants(F, s, H)
         if not jm1 > -1.0:
             out[s] = np.inf
@@ -137,11 +155,19 @@ def _nh_energy(F: np.ndarray, mu: np.ndarray, lam: np.ndarray, out: np.ndarray) 
         out[s] = mu[s] * (0.5 * sq + (tr - logj)) + 0.5 * lam[s] * logj * logj
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def _nh_piola(F: np.ndarray, mu: np.ndarray, lam: np.ndarray, out: np.ndarray) -> None:
     d = F.shape[1]
+    n = F.shape[0]
+    n_ranges = _n_ranges(n)
+    for c in prange(n_ranges):
+        _nh_piola_range(F, mu, lam, out, c * n // n_ranges, (c + 1) * n // n_ranges, d)
+
+
+@njit(cache=True, inline="always")
+def _nh_piola_range(F, mu, lam, out, start, stop, d):  # noqa: ANN001, ANN202
     H = np.empty((d, d))
-    for s in range(F.shape[0]):
+    for s in range(start, stop):
         tr, jm1, rest = _h_invariants(F, s, H)
         if not jm1 > -1.0:
             out[s] = np.nan
@@ -165,11 +191,19 @@ def _nh_piola(F: np.ndarray, mu: np.ndarray, lam: np.ndarray, out: np.ndarray) -
                 out[s, i, j] = (mu[s] * diff + lam[s] * logj * cof) / J
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def _nh_piola_derivative(F: np.ndarray, mu: np.ndarray, lam: np.ndarray, out: np.ndarray) -> None:
     d = F.shape[1]
+    n = F.shape[0]
+    n_ranges = _n_ranges(n)
+    for c in prange(n_ranges):
+        _nh_piola_derivative_range(F, mu, lam, out, c * n // n_ranges, (c + 1) * n // n_ranges, d)
+
+
+@njit(cache=True, inline="always")
+def _nh_piola_derivative_range(F, mu, lam, out, start, stop, d):  # noqa: ANN001, ANN202
     G = np.empty((d, d))
-    for s in range(F.shape[0]):
+    for s in range(start, stop):
         J = _det_inv_t(F, s, G)
         if not J > 0.0:
             out[s] = np.nan

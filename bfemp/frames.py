@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from solvers.assembly import Triplets
+from solvers.assembly import Triplets, new_pattern_key
 
 __all__ = ["NodeFrames"]
 
@@ -69,12 +69,14 @@ class NodeFrames:
         """
         cached = self._pattern
         if cached is None or cached[0] is not t.rows or cached[1] is not t.cols:
-            cached = self._pattern = (t.rows, t.cols, *self._rotated_pattern(t.rows, t.cols))
-        touched, coef, rows, cols = cached[2:]
+            pattern = self._rotated_pattern(t.rows, t.cols)
+            cached = self._pattern = (t.rows, t.cols, *pattern, new_pattern_key())
+        touched, coef, rows, cols, key = cached[2:]
         if touched is None:
             return t
         vals = t.vals[touched][:, None, None] * coef
-        return Triplets(rows, cols, np.concatenate([t.vals[~touched], vals.reshape(-1)]))
+        vals = np.concatenate([t.vals[~touched], vals.reshape(-1)])
+        return Triplets(rows, cols, vals, pattern_key=key)  # rows, cols: kept here, never edited
 
     def _rotated_pattern(self, r_all: np.ndarray, c_all: np.ndarray) -> tuple:
         """(touched mask, coefficients (m, d, d), rows, cols) of the rotation of a pattern."""

@@ -123,3 +123,51 @@ def test_bad_input_raises_value_error():
         TripletAssembler(3, free=np.ones(4, bool))
     with pytest.raises(ValueError, match="blocks"):
         Triplets.from_blocks(np.zeros((2, 3), int), np.zeros((2, 2, 2)))
+
+
+def test_sums_have_the_bits_of_bincount_with_duplicates_and_dropped_dofs():
+    rng = np.random.default_rng(7)
+    n = 300
+    t = _random_triplets(rng, n, 20_000)  # ~45 entries per slot, in scattered order
+    free = rng.random(n) > 0.2
+    asm = TripletAssembler(n, free=free)
+    A = asm.assemble(t)
+    # np.bincount adds in triplet order from 0.0; the parallel slot sums must give those bits
+    ref = np.bincount(asm._slots, weights=t.vals, minlength=A.nnz + 1)[: A.nnz]
+    assert np.array_equal(A.data, ref)
+    vals = rng.standard_normal(t.nnz) * 10.0 ** rng.integers(-8, 8, t.nnz)  # wide magnitudes
+    B = asm.assemble(Triplets(t.rows, t.cols, vals))
+    assert np.array_equal(B.data, np.bincount(asm._slots, weights=vals, minlength=A.nnz + 1)[:-1])
+
+
+def test_stacked_patterns_carry_a_key_and_the_assembler_trusts_it():
+    from solvers.assembly import TripletStacker
+
+    rng = np.random.default_rng(8)
+    n = 30
+    a, b = _random_triplets(rng, n, 50), _random_triplets(rng, n, 40)
+    stacker = TripletStacker()
+    first = stacker.stack([a, b])
+    again = stacker.stack([a, Triplets(b.rows, b.cols, 2.0 * b.vals)])  # same index objects
+    assert first.pattern_key is not None and again.pattern_key == first.pattern_key
+    assert again.rows is first.rows
+    c = Triplets(b.rows.copy(), b.cols, b.vals)  # equal arrays, other objects: a new pattern
+    other = stacker.stack([a, c])
+    assert other.pattern_key != first.pattern_key
+    asm = TripletAssembler(n)
+    asm.assemble(first)
+    A = asm.assemble(again)
+    assert not asm.pattern_changed and asm.n_rebuilds == 1
+    np.testing.assert_allclose(A.toarray(), _reference(again, n).toarray(), atol=1e-13)
+    # unkeyed or differently keyed triplets are compared: equal arrays keep the pattern,
+    # a moved index rebuilds it
+    asm.assemble(Triplets(again.rows.copy(), again.cols.copy(), again.vals))
+    assert not asm.pattern_changed
+    asm.assemble(other)
+    assert not asm.pattern_changed  # a new key, but the same arrays (c equals b)
+    rows = first.rows.copy()
+    rows[3] = (rows[3] + 1) % n
+    moved = Triplets(rows, first.cols, first.vals, pattern_key=None)
+    B = asm.assemble(moved)
+    assert asm.pattern_changed and asm.n_rebuilds == 2
+    np.testing.assert_allclose(B.toarray(), _reference(moved, n).toarray(), atol=1e-13)

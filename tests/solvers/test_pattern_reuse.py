@@ -57,6 +57,7 @@ def test_rotate_with_a_kept_pattern_equals_a_fresh_rotation():
     t2 = Triplets(t.rows, t.cols, rng.random(t.vals.size))
     second = frames.rotate(t2)
     assert second.rows is first.rows  # the pattern work was kept
+    assert second.pattern_key == first.pattern_key is not None  # and the assembler is told so
     fresh = NodeFrames(dim, dim * n_nodes, frames.nodes, frames.frames).rotate(t2)
     asm = TripletAssembler(dim * n_nodes)
     np.testing.assert_allclose(asm.assemble(second).toarray(), asm.assemble(fresh).toarray())
@@ -69,6 +70,7 @@ def test_rotate_with_a_kept_pattern_equals_a_fresh_rotation():
     # another pattern: rotated afresh, not with the kept one
     t3 = _random_triplets(rng, dim * n_nodes, 150)
     third = frames.rotate(t3)
+    assert third.pattern_key != first.pattern_key
     h3 = TripletAssembler(dim * n_nodes).assemble(t3).toarray()
     np.testing.assert_allclose(asm.assemble(third).toarray(), q.T @ h3 @ q, atol=1e-12)
 
