@@ -607,10 +607,11 @@ def sweep(
     entries = [cache.entry(job) if resume else None for job in jobs]
     kept = [None if e is None else e["measurement"] for e in entries]
     todo = [k for k, m in enumerate(kept) if m is None]
-    resumed = [records[k]["id"] for k, m in enumerate(kept) if m is not None]
+    # kept point id -> the commit that measured it
     measured_by = {
-        records[k]["id"]: e.get("commit") for k, e in enumerate(entries) if e is not None
+        records[k]["id"]: entries[k].get("commit") for k, m in enumerate(kept) if m is not None
     }
+    resumed = list(measured_by)
     if resume:
         log.info(
             "tradeoff: %d of %d points kept in %s, %d to run",
