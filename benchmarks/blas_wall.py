@@ -9,7 +9,7 @@ runs are sequential, so they do not share the cores.
 
 Modes:
     ``full``: hertz and rings in full mode (rings full alone is about 35 min on OpenBLAS);
-    ``hertz``: hertz in full mode only;
+    ``hertz``: hertz in full mode only; ``rings``: rings in full mode only;
     ``quick``: slope in quick mode (seconds; what the tests run).
 
 Recorded per benchmark and BLAS: the child's wall time (s, interpreter start and numba cache
@@ -36,6 +36,7 @@ log = logging.getLogger(__name__)
 MODES = {
     "full": (("hertz", "full"), ("rings", "full")),
     "hertz": (("hertz", "full"),),
+    "rings": (("rings", "full"),),
     "quick": (("slope", "quick"),),
 }
 
