@@ -14,6 +14,7 @@ import numpy as np
 
 from solvers.allocator import allocator_report
 from solvers.blas import linear_algebra
+from solvers.openmp import openmp_report
 
 
 def git_commit() -> str:
@@ -54,6 +55,8 @@ def environment() -> dict:
         # the BLAS under CHOLMOD and the linear solvers installed (issue 13)
         "linear_algebra": linear_algebra(),
         "allocator": allocator_report(),
+        # CHOLMOD's own OpenMP loops bounded (solvers.openmp)
+        "openmp": openmp_report(),
         "load_average_1min": os.getloadavg()[0],
     }
 

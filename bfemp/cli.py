@@ -54,10 +54,11 @@ class _VersionAction(argparse.Action):
         import bfemp
         from solvers.allocator import format_allocator
         from solvers.blas import format_linear_algebra, linear_algebra
+        from solvers.openmp import format_openmp
 
         print(
             f"bfemp {bfemp.__version__}\n{format_linear_algebra(linear_algebra())}\n"
-            + format_allocator()
+            f"{format_openmp()}\n{format_allocator()}"
         )
         parser.exit()
 

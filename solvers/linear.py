@@ -27,6 +27,8 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from solvers.openmp import bounded_openmp
+
 __all__ = [
     "CHOLMOD_INSTALL_HINT",
     "CholmodSolver",
@@ -181,6 +183,13 @@ class CholmodSolver:
         A, b = _check_system(A, b)
         if A.shape[0] == 0:
             return np.zeros(0)
+        with bounded_openmp():  # CHOLMOD's compiled-in 4 OpenMP threads cost 1.3-1.8x on 2 cores
+            return self._analyse_factorise_solve(A, b, pattern_version)
+
+    def _analyse_factorise_solve(
+        self, A: sp.csc_matrix, b: np.ndarray, pattern_version: int | None
+    ) -> np.ndarray:
+        """:meth:`solve` on a checked, non-empty system."""
         timings = {"analyze": 0.0, "factorize": 0.0, "solve": 0.0}
         self.last_timings = timings
         t0 = time.perf_counter()
@@ -227,8 +236,9 @@ class CholmodSolver:
         """
         if self._factor is None or self._shape is None or b.shape != (self._shape[0],):
             return None
-        x = np.asarray(self._factor.solve_A(np.asarray(b, dtype=np.float64)), dtype=np.float64)
-        x = x.reshape(-1)
+        with bounded_openmp():
+            x = self._factor.solve_A(np.asarray(b, dtype=np.float64))
+        x = np.asarray(x, dtype=np.float64).reshape(-1)
         return x if np.all(np.isfinite(x)) else None
 
 
@@ -255,6 +265,13 @@ class ScipySolver:
         A, b = _check_system(A, b)
         if A.shape[0] == 0:
             return np.zeros(0)
+        with bounded_openmp():  # CHOLMOD's compiled-in 4 OpenMP threads cost 1.3-1.8x on 2 cores
+            return self._analyse_factorise_solve(A, b, pattern_version)
+
+    def _analyse_factorise_solve(
+        self, A: sp.csc_matrix, b: np.ndarray, pattern_version: int | None
+    ) -> np.ndarray:
+        """:meth:`solve` on a checked, non-empty system."""
         timings = {"analyze": 0.0, "factorize": 0.0, "solve": 0.0}
         self.last_timings = timings
         t0 = time.perf_counter()
