@@ -55,6 +55,12 @@ class NewtonOptions:
             tol``, in [0, 1]; 0 turns the test off. The stale Hessian misjudges p by a relative
             O(||H_new - H_old|| ||H^{-1}||); the factor below 1 leaves room for it, and where the
             chord says no, the exact test runs as before.
+        chord_steps: where the chord test fails but predicts that one more chord iteration
+            would pass it (``4 ||p_chord||^2 / ||p_last|| < chord_stop_factor tol step_scale``,
+            ``p_last`` the step just taken; ``newton._chord_step_predicted_to_converge``), step
+            along the chord increment (line search and step bound as for a Newton step) instead
+            of factorising again; at most one chord step per factorisation. False: always
+            factorise.
         near_solution_factor: within this factor of the tolerance (``||p||_inf <= factor tol
             step_scale``) a step the energy cannot judge is taken when the gradient norm falls
             (``newton._accept_near_solution``), >= 0; 0 leaves only the round-off test. Where
@@ -74,6 +80,7 @@ class NewtonOptions:
     exact_near_solution: bool = True
     linear_rtol_max: float = 1e-2
     chord_stop_factor: float = 0.5
+    chord_steps: bool = True
     near_solution_factor: float = 1e3
 
     def __post_init__(self) -> None:
@@ -112,7 +119,7 @@ class NewtonOptions:
             raise ValueError(
                 f"NewtonOptions.near_solution_factor must be finite and >= 0, got {f!r}"
             )
-        for name in ("project_psd", "exact_near_solution"):
+        for name in ("project_psd", "exact_near_solution", "chord_steps"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(
                     f"NewtonOptions.{name} must be a bool, got {getattr(self, name)!r}"

@@ -85,6 +85,8 @@ class NewtonResult:
         step_inf_norm: ``||p||_inf`` of the last computed Newton increment (units of ``x``;
             the objective's ``increment_norm`` where it has one), nan if none was computed.
         alphas: accepted line-search step sizes, one per iteration.
+        chord_steps: iterations that stepped along a back-solve with the last factorisation
+            instead of a new one (``NewtonOptions.chord_steps``).
         linear_iterations: iterations of an iterative linear solver, summed over the solves
             (0 for direct solvers).
         timings: wall-clock seconds per phase, keys :data:`TIMING_KEYS`.
@@ -103,6 +105,7 @@ class NewtonResult:
     step_inf_norm: float = float("nan")
     alphas: list[float] = field(default_factory=list)
     linear_iterations: int = 0
+    chord_steps: int = 0
     timings: dict[str, float] = field(default_factory=lambda: dict.fromkeys(TIMING_KEYS, 0.0))
 
 

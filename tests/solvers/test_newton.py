@@ -615,3 +615,39 @@ def test_near_solution_steps_cannot_take_turns_with_armijo_steps():
     assert res.success, res.message
     assert res.nit < 20
     assert 0.3 < res.x[0] < 0.5  # the minimiser, x = 0.38 (E = -0.41 < E(A))
+
+
+def test_chord_steps_save_factorisations_and_reach_the_same_tolerance():
+    """Where the failed chord test predicts convergence after one more chord iteration, a step
+    along it replaces a factorisation; the returned point passes the exact test all the same.
+    The control (chord_steps=False) factorises at every iteration."""
+    rng = np.random.default_rng(3)
+    n = 50
+    c, x0 = rng.standard_normal(n), 4.0 * rng.standard_normal(n)
+    saved = 0
+    for tol in (1e-6, 1e-9, 1e-11):
+        runs = {}
+        for steps in (True, False):
+            solver = CholmodSolver()
+            res = minimize(
+                LogCoshChain(c),
+                x0,
+                options=NewtonOptions(tol=tol, chord_steps=steps),
+                linear_solver=solver,
+            )
+            assert res.success
+            runs[steps] = (res, solver.n_numeric)
+        (on, n_on), (off, n_off) = runs[True], runs[False]
+        assert off.chord_steps == 0 and n_off == off.nhev
+        assert n_on == on.nhev <= n_off
+        saved += n_off - n_on  # each chord step that ended the solve: one factorisation less
+        obj = LogCoshChain(c)
+        obj.solution_changed(on.x)
+        H = obj.hessian(on.x, psd=False)
+        Hm = sp.csc_matrix((H.vals, (H.rows, H.cols)), shape=(n, n))
+        p = sp.linalg.spsolve(Hm, -obj.gradient(on.x))
+        assert np.abs(p).max() < tol  # the exact increment at the returned point
+        np.testing.assert_allclose(on.x, off.x, atol=10 * tol)
+    assert saved >= 1
+    with pytest.raises(ValueError, match="chord_steps"):
+        NewtonOptions(chord_steps=1)
