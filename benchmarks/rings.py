@@ -30,13 +30,15 @@ Partial and full modes also run it (``COMPARED_INTEGRATORS``, unless ``compare=F
 record it under ``compared_integrators``. Every run records ``energy_peak_over_start`` (max of
 kinetic + elastic + barrier over its value at t = 0).
 
-Recorded (``benchmarks/records/rings.json``, full mode with compare=False: 19796 particles,
-1500 steps per transfer, 35 min on 2 cores): 8.45 % lost (APIC) and 7.98 % (FLIP) against the
-paper's 8.57 / 9.67 %, both within 2 points; the energy never rises above its start (peak
-1.0000000000000095 x), momentum drift 6.6e-14, closest approach 8.39e-3 m, no penetration,
-contact from 0.0252 s to 0.2974 s (APIC) / 0.2956 s (FLIP). Plain ``newmark`` at full
-resolution (the same ``_run_one``, run apart at 5d43a01): APIC gains 11.1 % (peak 1.117 x, an
-ENERGY_GROWTH diagnostic), FLIP loses 6.6 % (never above its start): the outcome of the
+Recorded (``benchmarks/records/rings.json``, full mode at b692bd6: 19796 particles, 1500 steps
+per transfer, 812 s (APIC) + 694 s (FLIP) on 2 cores, 35 min together at aac4bd8 on a machine
+with faster BLAS kernels; plain ``newmark`` beside them, 2096 s): 8.45 % lost (APIC) and 7.98 %
+(FLIP) against the paper's 8.57 / 9.67 %, both within 2 points; the energy never rises above its
+start (peak 1.0000000000000455 x), momentum drift 8.5e-14, closest approach 8.39e-3 m, no
+penetration, contact from 0.0252 s to 0.2974 s (APIC) / 0.2956 s (FLIP). Plain ``newmark`` at full
+resolution (``compared_integrators``): APIC gains 11.4 % (peak 1.125 x, an ENERGY_GROWTH
+diagnostic), FLIP loses 5.6 % (never above its start; run apart at 5d43a01: 11.1 % and 6.6 %):
+the outcome of the
 trapezoidal rule with the barrier inside depends on the transfer. Partial mode (MPM dx = 0.2 m):
 ``newmark_implicit_contact`` 15.3 % / 13.0 %, ``newmark`` -24.9 % / -23.8 % (gains),
 ``newmark_damped`` (gamma = 0.55, at 8f0e5c1) 17.5 % / 16.4 %; the loss halves from the partial
