@@ -25,8 +25,8 @@ def threads():
     return len(os.listdir("/proc/self/task"))
 
 def switches():
-    r = resource.getrusage(resource.RUSAGE_SELF)
-    return r.ru_nvcsw + r.ru_nivcsw
+    # voluntary only: a thread that sleeps on a futex; preemption by other load is involuntary
+    return resource.getrusage(resource.RUSAGE_SELF).ru_nvcsw
 
 m = 160
 t = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(m, m))
@@ -70,7 +70,7 @@ def test_bounded_factorisation_starts_no_openmp_threads_and_the_control_does():
     # the control: CHOLMOD's compiled-in count starts OpenMP threads and wakes them per
     # supernode (measured: 3 threads, 28,000 switches in two factorisations, against 9 bounded)
     assert control["new_threads"] >= 1
-    assert control["switches"] > 10 * max(bounded["switches"], 10)
+    assert control["switches"] > 5 * max(bounded["switches"], 100)
 
 
 def test_bound_gives_the_callers_settings_back():
