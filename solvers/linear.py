@@ -265,13 +265,6 @@ class ScipySolver:
         A, b = _check_system(A, b)
         if A.shape[0] == 0:
             return np.zeros(0)
-        with bounded_openmp():  # CHOLMOD's compiled-in 4 OpenMP threads cost 1.3-1.8x on 2 cores
-            return self._analyse_factorise_solve(A, b, pattern_version)
-
-    def _analyse_factorise_solve(
-        self, A: sp.csc_matrix, b: np.ndarray, pattern_version: int | None
-    ) -> np.ndarray:
-        """:meth:`solve` on a checked, non-empty system."""
         timings = {"analyze": 0.0, "factorize": 0.0, "solve": 0.0}
         self.last_timings = timings
         t0 = time.perf_counter()

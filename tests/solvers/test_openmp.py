@@ -77,11 +77,15 @@ def test_bound_gives_the_callers_settings_back():
     lib = openmp._load_runtime()
     if lib is None:
         pytest.skip("no OpenMP runtime in this process")
+    original = lib.omp_get_max_threads()
     lib.omp_set_num_threads(3)
-    before = (lib.omp_get_dynamic(), lib.omp_get_max_threads())
-    with openmp.bounded_openmp(1):
-        assert lib.omp_get_dynamic() == 1 and lib.omp_get_max_threads() == 1
-    assert (lib.omp_get_dynamic(), lib.omp_get_max_threads()) == before
+    try:
+        before = (lib.omp_get_dynamic(), lib.omp_get_max_threads())
+        with openmp.bounded_openmp(1):
+            assert lib.omp_get_dynamic() == 1 and lib.omp_get_max_threads() == 1
+        assert (lib.omp_get_dynamic(), lib.omp_get_max_threads()) == before
+    finally:
+        lib.omp_set_num_threads(original)
 
 
 @pytest.mark.parametrize("raw", ["-1", "two", "1.5"])
