@@ -8,8 +8,10 @@ reference_blas_env`) and once on the system default (OpenBLAS after ``make setup
 runs are sequential, so they do not share the cores.
 
 Modes:
-    ``full``: hertz and rings in full mode (rings full alone is about 35 min on OpenBLAS);
+    ``full``: hertz and rings in full mode (rings full alone is 35-60 min on OpenBLAS);
     ``hertz``: hertz in full mode only; ``rings``: rings in full mode only;
+    ``rings_transfers``: rings in full mode without its compared integrator (the APIC and FLIP
+    runs the record is about, half the time);
     ``quick``: slope in quick mode (seconds; what the tests run).
 
 Recorded per benchmark and BLAS: the child's wall time (s, interpreter start and numba cache
@@ -19,6 +21,7 @@ that JSON names it; then reference / optimised for both times.
 
 from __future__ import annotations
 
+import argparse
 import json
 import logging
 import os
@@ -32,21 +35,24 @@ from benchmarks.common import environment, write_json
 
 log = logging.getLogger(__name__)
 
-#: mode -> (benchmark, its mode) pairs run under each BLAS
+#: mode -> (benchmark, its mode, extra command-line options) run under each BLAS
 MODES = {
-    "full": (("hertz", "full"), ("rings", "full")),
-    "hertz": (("hertz", "full"),),
-    "rings": (("rings", "full"),),
-    "quick": (("slope", "quick"),),
+    "full": (("hertz", "full", ()), ("rings", "full", ())),
+    "hertz": (("hertz", "full", ()),),
+    "rings": (("rings", "full", ()),),
+    "rings_transfers": (("rings", "full", ("--no-compare",)),),
+    "quick": (("slope", "quick", ()),),
 }
 
 
-def _run_child(name: str, mode: str, out: Path, env: dict, timeout: float) -> dict:
+def _run_child(
+    name: str, mode: str, options: tuple[str, ...], out: Path, env: dict, timeout: float
+) -> dict:
     """Run benchmark ``name`` in ``mode`` in a child process with ``env``; its wall and record."""
     root = Path(__file__).resolve().parents[1]
     env = dict(env)
     env["PYTHONPATH"] = os.pathsep.join([str(root), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
-    command = [sys.executable, "-m", "benchmarks", name, f"--{mode}", "--out", str(out)]
+    command = [sys.executable, "-m", "benchmarks", name, f"--{mode}", *options, "--out", str(out)]
     start = time.perf_counter()
     try:
         done = subprocess.run(
@@ -60,21 +66,54 @@ def _run_child(name: str, mode: str, out: Path, env: dict, timeout: float) -> di
         return {"error": f"exit status {done.returncode}: {' | '.join(tail)}", "wall_s": wall}
     record = json.loads(next(out.glob("*.json")).read_text())
     la = record.get("environment", {}).get("linear_algebra", {})
+    runs = record.get("runs")
+    per_run = {}
+    if isinstance(runs, dict):  # rings: one run per transfer, each with its own wall time
+        per_run = {k: r["wall_s"] for k, r in runs.items() if isinstance(r, dict) and "wall_s" in r}
     return {
+        "command": " ".join(command[1:]),
         "wall_s": wall,
         "benchmark_wall_s": record.get("wall_s"),
+        "run_wall_s": per_run,
         "blas": la.get("cholmod_blas"),
         "blas_threads": la.get("blas_threads"),
     }
 
 
-def run(mode: str = "full", out: str | Path = "results", timeout_s: float = 4 * 3600.0) -> dict:
+#: the BLAS a run may be limited to (``--blas``)
+BLAS_CHOICES = ("both", "reference", "optimised")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--blas {both,reference,optimised}``: run one half only (default both)."""
+    parser.add_argument(
+        "--blas",
+        choices=BLAS_CHOICES,
+        default="both",
+        help="run on both BLAS (default) or on one (the other half of a record measured apart)",
+    )
+
+
+def main_from_args(args: argparse.Namespace) -> int:
+    """``python -m benchmarks blas_wall [--mode M] [--blas B] [--out D]``."""
+    summary = run(args.mode or "full", args.out, blas=args.blas)
+    print(f"blas_wall: wrote {summary['json']}")
+    return 0
+
+
+def run(
+    mode: str = "full",
+    out: str | Path = "results",
+    timeout_s: float = 4 * 3600.0,
+    blas: str = "both",
+) -> dict:
     """Run each benchmark of ``mode`` on both BLAS; write ``blas_wall.json`` to ``out``.
 
     Args:
         mode: a key of :data:`MODES`.
         out: output folder; the children's own records go under ``out/blas_wall/``.
         timeout_s: wall limit of one child (s); a child past it is recorded as an error.
+        blas: ``"both"``, or the one half to run (the other is then absent from the record).
 
     Returns:
         ``{"json": path, **payload}``; ``payload["runs"][name]`` holds ``reference`` and
@@ -83,11 +122,15 @@ def run(mode: str = "full", out: str | Path = "results", timeout_s: float = 4 * 
     """
     if mode not in MODES:
         raise ValueError(f"mode must be one of {sorted(MODES)}, got {mode!r}")
+    if blas not in BLAS_CHOICES:
+        raise ValueError(f"blas must be one of {BLAS_CHOICES}, got {blas!r}")
     reference = reference_blas_env()
+    halves = [("reference", reference), ("optimised", dict(os.environ))]
+    halves = [(label, env) for label, env in halves if blas in ("both", label)]
     runs: dict[str, dict] = {}
-    for name, bench_mode in MODES[mode]:
-        row: dict = {"mode": bench_mode}
-        for label, env in (("reference", reference), ("optimised", dict(os.environ))):
+    for name, bench_mode, options in MODES[mode]:
+        row: dict = {"mode": bench_mode, "options": list(options)}
+        for label, env in halves:
             if env is None:
                 row[label] = {"error": "the reference BLAS (libblas3, liblapack3) is not installed"}
                 continue
@@ -96,9 +139,9 @@ def run(mode: str = "full", out: str | Path = "results", timeout_s: float = 4 * 
             for old in folder.glob("*.json"):
                 old.unlink()
             log.info("blas_wall: %s --%s on the %s BLAS", name, bench_mode, label)
-            row[label] = _run_child(name, bench_mode, folder, env, timeout_s)
+            row[label] = _run_child(name, bench_mode, options, folder, env, timeout_s)
             log.info("blas_wall: %s on the %s BLAS: %s", name, label, row[label])
-        ref, opt = row["reference"], row["optimised"]
+        ref, opt = row.get("reference", {"error": "not run"}), row.get("optimised", {"error": ""})
         if "error" not in ref and "error" not in opt:
             row["speedup"] = ref["wall_s"] / max(opt["wall_s"], 1e-12)
             if ref["benchmark_wall_s"] and opt["benchmark_wall_s"]:
@@ -107,6 +150,7 @@ def run(mode: str = "full", out: str | Path = "results", timeout_s: float = 4 * 
     payload = {
         "benchmark": "blas_wall",
         "mode": mode,
+        "blas": blas,
         "runs": runs,
         "machine_note": "2 shared cores; the two runs of a benchmark are sequential",
         "environment": environment(),

@@ -70,6 +70,7 @@ Choices where the paper is silent (recorded in the JSON ``parameters``):
 
 from __future__ import annotations
 
+import argparse
 import logging
 import time
 from pathlib import Path
@@ -359,6 +360,23 @@ def _plot(runs: dict, path: Path, title: str, compared: dict | None = None) -> N
         ax.legend(fontsize="small", loc="best")
     fig.suptitle(title)
     fig.savefig(path, dpi=110)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--no-compare``: skip ``COMPARED_INTEGRATORS`` (the two transfers alone, half the time)."""
+    parser.add_argument(
+        "--no-compare",
+        dest="compare",
+        action="store_false",
+        help="run the two transfers only, without the compared integrators",
+    )
+
+
+def main_from_args(args: argparse.Namespace) -> int:
+    """``python -m benchmarks rings [--quick | --full | --mode M] [--no-compare] [--out D]``."""
+    summary = run(args.mode or "full", args.out, compare=args.compare)
+    print(f"rings: wrote {summary['json']}")
+    return 0
 
 
 def run(mode: str = "full", out: str | Path = "results", compare: bool = True) -> dict:

@@ -31,3 +31,35 @@ def test_quick_runs_the_benchmark_on_both_blas(tmp_path):
 def test_unknown_mode_is_named():
     with pytest.raises(ValueError, match="mode must be one of"):
         blas_wall.run("partial", "unused")
+
+
+def test_rings_transfers_runs_rings_full_without_its_compared_integrator(tmp_path, monkeypatch):
+    seen = []
+    real_run = blas_wall.subprocess.run  # the module is shared: git in environment() uses it
+
+    def fake_run(command, **kwargs):
+        if "benchmarks" not in command:
+            return real_run(command, **kwargs)
+        seen.append(command)
+        raise blas_wall.subprocess.TimeoutExpired(command, kwargs["timeout"])
+
+    monkeypatch.setattr(blas_wall.subprocess, "run", fake_run)
+    summary = blas_wall.run("rings_transfers", tmp_path, timeout_s=1.0, blas="optimised")
+    row = summary["runs"]["rings"]
+    assert row["options"] == ["--no-compare"] and "speedup" not in row
+    assert "timed out" in row["optimised"]["error"] and "reference" not in row
+    assert summary["blas"] == "optimised" and len(seen) == 1
+    assert seen[0][2:6] == ["benchmarks", "rings", "--full", "--no-compare"]
+    with pytest.raises(ValueError, match="blas must be one of"):
+        blas_wall.run("rings_transfers", tmp_path, blas="mkl")
+
+
+def test_rings_no_compare_option_reaches_run():
+    from benchmarks import rings
+    from benchmarks.__main__ import _parser
+
+    parser = _parser()
+    rings.add_arguments(parser)
+    assert parser.parse_args(["rings", "--full"]).compare is True
+    args = parser.parse_args(["rings", "--full", "--no-compare"])
+    assert args.compare is False and args.mode == "full"
