@@ -12,6 +12,7 @@
     bfemp sweep --replay TRADEOFF.json --id ID | --point JSON
     bfemp info RESULT_DIR [--json]
     bfemp regress [NAMES...] [--update] [--dir DIR] [--all] [--quiet]
+    bfemp warmup [--dir DIR] [--processes N] [--quiet]   (compile the numba kernels once)
     bfemp --version      (also the BLAS CHOLMOD runs on and the linear solvers installed)
 
 ``bench`` and ``sweep`` come from the ``benchmarks`` package of a source checkout, which registers
@@ -125,6 +126,16 @@ def _parser() -> argparse.ArgumentParser:
     regress.add_argument("--all", action="store_true", help="list every quantity, not only drifts")
     regress.add_argument("--quiet", action="store_true", help="warnings only")
     regress.add_argument("--verbose", action="store_true", help="log progress messages")
+
+    warmup = sub.add_parser(
+        "warmup", help="compile and cache the numba kernels by running small scenes in parallel"
+    )
+    warmup.add_argument(
+        "--dir", default=None, help="folder of the references (default the checkout's references/)"
+    )
+    warmup.add_argument("--processes", type=int, help="worker processes (default: CPU count)")
+    warmup.add_argument("--quiet", action="store_true", help="warnings only")
+    warmup.add_argument("--verbose", action="store_true", help="log each scene as it finishes")
     return parser
 
 
@@ -308,6 +319,24 @@ def _regress(args: argparse.Namespace) -> int:
     return 0
 
 
+def _warmup(args: argparse.Namespace) -> int:
+    import time
+
+    from numba.core import config
+
+    from bfemp.warmup import warm_up
+
+    start = time.perf_counter()
+    walls = warm_up(args.dir, args.processes)
+    where = config.CACHE_DIR or "the __pycache__ folders of the packages"
+    if not args.quiet:
+        print(
+            f"bfemp warmup: {len(walls)} scenes in {time.perf_counter() - start:.0f} s; "
+            f"numba kernels cached in {where}"
+        )
+    return 0
+
+
 def _log_warning(message, category, filename, lineno, file=None, line=None) -> None:  # noqa: ANN001
     """Library warnings (the SuperLU fall-back) as one log line each: ``--quiet`` silences them."""
     log.warning("%s: %s", category.__name__, message)
@@ -328,6 +357,7 @@ def main(argv: list[str] | None = None) -> int:
         "run": lambda a: _run(a, argv),
         "info": _info,
         "regress": _regress,
+        "warmup": _warmup,
         **plugins,
     }
     try:

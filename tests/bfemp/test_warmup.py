@@ -1,0 +1,53 @@
+"""bfemp warmup: the scenes it runs cover every strategy in 2D and 3D, and a run fills an empty
+numba cache with the kernels the scenes call."""
+
+import shutil
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+import pytest
+
+from bfemp import regress
+from bfemp.warmup import FIRST, warm_up, warmup_jobs
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def test_jobs_are_every_reference_and_the_quick_examples_3d_and_2d_first():
+    jobs = warmup_jobs()
+    names = [j.name for j in jobs]
+    refs = {r.name for r in regress.find_references(ROOT / "references")}
+    assert refs <= set(names) and {"cube_on_plate_3d", "rings"} <= set(names)
+    assert names[: len(FIRST)] == list(FIRST)
+    scenes = [tomllib.loads(Path(j.scene_file).read_text()) for j in jobs]
+    strategies = {s["simulation"].get("strategy", "barrier") for s in scenes}
+    assert {"barrier", "augury", "lr", "two_stage", "single_field"} <= strategies
+
+
+def test_bad_process_count_and_empty_folder_are_named(tmp_path):
+    with pytest.raises(ValueError, match="processes must be an integer >= 1"):
+        warm_up(processes=0)
+    with pytest.raises(Exception, match="no scene to warm up with"):
+        warm_up(tmp_path)
+
+
+def test_warmup_fills_an_empty_kernel_cache(tmp_path):
+    refs = tmp_path / "references"
+    refs.mkdir()
+    for suffix in (".toml", ".npz", ".json"):
+        shutil.copy(ROOT / "references" / f"single_field_2d{suffix}", refs)
+    cache = tmp_path / "cache"
+    env = {"NUMBA_CACHE_DIR": str(cache), "PATH": "/usr/bin:/bin"}
+    done = subprocess.run(
+        [sys.executable, "-m", "bfemp", "warmup", "--dir", str(refs), "--processes", "1"],
+        capture_output=True,
+        text=True,
+        env=env,
+        cwd=ROOT,
+        timeout=600,
+    )
+    assert done.returncode == 0, done.stderr
+    assert "1 scenes" in done.stdout and str(cache) in done.stdout
+    assert len(list(cache.rglob("*.nbi"))) >= 5  # the explicit MPM kernels, compiled and kept
