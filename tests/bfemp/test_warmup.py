@@ -4,10 +4,10 @@ numba cache with the kernels the scenes call."""
 import shutil
 import subprocess
 import sys
-import tomllib
 from pathlib import Path
 
 import pytest
+import tomllib
 
 from bfemp import regress
 from bfemp.warmup import FIRST, warm_up, warmup_jobs
