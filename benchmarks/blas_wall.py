@@ -92,13 +92,32 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default="both",
         help="run on both BLAS (default) or on one (the other half of a record measured apart)",
     )
+    parser.add_argument(
+        "--merge",
+        metavar="BLAS_WALL_JSON",
+        help="take the halves this run does not make from that record of the same mode",
+    )
 
 
 def main_from_args(args: argparse.Namespace) -> int:
-    """``python -m benchmarks blas_wall [--mode M] [--blas B] [--out D]``."""
-    summary = run(args.mode or "full", args.out, blas=args.blas)
+    """``python -m benchmarks blas_wall [--mode M] [--blas B] [--merge J] [--out D]``."""
+    summary = run(args.mode or "full", args.out, blas=args.blas, merge=args.merge)
     print(f"blas_wall: wrote {summary['json']}")
     return 0
+
+
+def _read_merge(path: str | Path, mode: str) -> dict:
+    """The ``blas_wall.json`` at ``path``; ValueError naming what does not fit ``mode``."""
+    try:
+        record = json.loads(Path(path).read_text())
+    except (OSError, json.JSONDecodeError) as err:
+        raise ValueError(f"merge: cannot read {path}: {err}") from None
+    if record.get("benchmark") != "blas_wall" or record.get("mode") != mode:
+        raise ValueError(
+            f"merge: {path} is not a blas_wall record of mode {mode!r} "
+            f"(benchmark {record.get('benchmark')!r}, mode {record.get('mode')!r})"
+        )
+    return record
 
 
 def run(
@@ -106,6 +125,7 @@ def run(
     out: str | Path = "results",
     timeout_s: float = 4 * 3600.0,
     blas: str = "both",
+    merge: str | Path | None = None,
 ) -> dict:
     """Run each benchmark of ``mode`` on both BLAS; write ``blas_wall.json`` to ``out``.
 
@@ -114,6 +134,9 @@ def run(
         out: output folder; the children's own records go under ``out/blas_wall/``.
         timeout_s: wall limit of one child (s); a child past it is recorded as an error.
         blas: ``"both"``, or the one half to run (the other is then absent from the record).
+        merge: a ``blas_wall.json`` of the same mode made by another run (``blas`` the other
+            half, same machine): its halves that this run does not make are copied in, and
+            ``merged_from`` names it (its commit, BLAS and load).
 
     Returns:
         ``{"json": path, **payload}``; ``payload["runs"][name]`` holds ``reference`` and
@@ -127,6 +150,7 @@ def run(
     reference = reference_blas_env()
     halves = [("reference", reference), ("optimised", dict(os.environ))]
     halves = [(label, env) for label, env in halves if blas in ("both", label)]
+    merged = _read_merge(merge, mode) if merge is not None else None
     runs: dict[str, dict] = {}
     for name, bench_mode, options in MODES[mode]:
         row: dict = {"mode": bench_mode, "options": list(options)}
@@ -141,6 +165,9 @@ def run(
             log.info("blas_wall: %s --%s on the %s BLAS", name, bench_mode, label)
             row[label] = _run_child(name, bench_mode, options, folder, env, timeout_s)
             log.info("blas_wall: %s on the %s BLAS: %s", name, label, row[label])
+        for label in ("reference", "optimised"):
+            if label not in row and merged is not None and label in merged["runs"].get(name, {}):
+                row[label] = {**merged["runs"][name][label], "merged": True}
         ref, opt = row.get("reference", {"error": "not run"}), row.get("optimised", {"error": ""})
         if "error" not in ref and "error" not in opt:
             row["speedup"] = ref["wall_s"] / max(opt["wall_s"], 1e-12)
@@ -155,5 +182,13 @@ def run(
         "machine_note": "2 shared cores; the two runs of a benchmark are sequential",
         "environment": environment(),
     }
+    if merged is not None:
+        env = merged.get("environment", {})
+        payload["merged_from"] = {
+            "path": str(merge),
+            "blas": merged.get("blas", "both"),
+            "commit": env.get("commit"),
+            "load_average_1min": env.get("load_average_1min"),
+        }
     path = write_json(out, "blas_wall", payload)
     return {"json": str(path), **payload}

@@ -63,3 +63,32 @@ def test_rings_no_compare_option_reaches_run():
     assert parser.parse_args(["rings", "--full"]).compare is True
     args = parser.parse_args(["rings", "--full", "--no-compare"])
     assert args.compare is False and args.mode == "full"
+
+
+def test_a_half_merged_from_another_record_gives_the_speedup(tmp_path, monkeypatch):
+    def fake_child(name, mode, options, folder, env, timeout):
+        return {"wall_s": 10.0, "benchmark_wall_s": 9.0, "blas": "openblas", "run_wall_s": {}}
+
+    monkeypatch.setattr(blas_wall, "_run_child", fake_child)
+    other = tmp_path / "reference.json"
+    half = {"wall_s": 25.0, "benchmark_wall_s": 24.0, "blas": "reference", "run_wall_s": {}}
+    other.write_text(
+        json.dumps(
+            {
+                "benchmark": "blas_wall",
+                "mode": "rings_transfers",
+                "blas": "reference",
+                "runs": {"rings": {"reference": half}},
+                "environment": {"commit": "abc", "load_average_1min": 0.1},
+            }
+        )
+    )
+    summary = blas_wall.run("rings_transfers", tmp_path / "out", blas="optimised", merge=other)
+    row = summary["runs"]["rings"]
+    assert row["reference"]["merged"] is True and "merged" not in row["optimised"]
+    assert row["speedup"] == pytest.approx(2.5) and row["benchmark_speedup"] == pytest.approx(
+        24 / 9
+    )
+    assert summary["merged_from"]["commit"] == "abc"
+    with pytest.raises(ValueError, match="not a blas_wall record of mode 'hertz'"):
+        blas_wall.run("hertz", tmp_path / "out", blas="optimised", merge=other)
