@@ -255,6 +255,12 @@ def _run_one(cfg: dict, transfer: str) -> dict:
         "diagnostics": list(getattr(sim, "diagnostics", [])),
         "newton_iterations": int(np.nansum(iters)),
         "newton_iterations_max": int(np.nanmax(iters)) if iters.size else 0,
+        # seconds per phase summed over the steps (factorize, assemble, line_search, ...)
+        "phase_s": {
+            c[len("time_") :]: float(np.nansum(m.column(c)))
+            for c in m.columns
+            if c.startswith("time_")
+        },
         "series": {
             "t": t,
             "kinetic": m.column("energy_kinetic"),

@@ -24,6 +24,9 @@ def test_writes_json_and_plot(result):
         assert key in data, key
     assert summary["json"] == str(out / "rings.json")
     assert all(run["error"] is None for run in data["runs"].values())
+    for run in data["runs"].values():  # where each run's time went, summed over its steps
+        phases = run["phase_s"]
+        assert 0.0 < phases["factorize"] < phases["step"] <= run["wall_s"], phases
 
 
 def test_total_momentum_is_conserved(result):
