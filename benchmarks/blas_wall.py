@@ -178,8 +178,8 @@ def run(
         for label in ("reference", "optimised"):
             if label not in row and merged is not None and label in merged["runs"].get(name, {}):
                 row[label] = {**merged["runs"][name][label], "merged": True}
-        ref, opt = row.get("reference", {"error": "not run"}), row.get("optimised", {"error": ""})
-        if "error" not in ref and "error" not in opt:
+        ref, opt = row.get("reference"), row.get("optimised")
+        if ref and opt and "error" not in ref and "error" not in opt:
             row["speedup"] = ref["wall_s"] / max(opt["wall_s"], 1e-12)
             if ref["benchmark_wall_s"] and opt["benchmark_wall_s"]:
                 row["benchmark_speedup"] = ref["benchmark_wall_s"] / opt["benchmark_wall_s"]

@@ -101,11 +101,11 @@ def warm_up(
         ValueError: ``processes`` below 1.
         SceneError: no scene found; a job that fails raises its own error.
     """
-    jobs = warmup_jobs(references)
     if processes is None:
         processes = os.cpu_count() or 1
     if not isinstance(processes, int) or processes < 1:
         raise ValueError(f"processes must be an integer >= 1, got {processes!r}")
+    jobs = warmup_jobs(references)
     processes = min(processes, len(jobs))
     walls: dict[str, float] = {}
     # spawn, not fork: a forked child would inherit this process's numba and OpenMP threads
