@@ -296,6 +296,15 @@ def _val(value: object) -> str:
     return "none" if value is None else format(value, "g")
 
 
+def _executor_words(part: dict) -> str:
+    """Where a merged run's points ran, in words (its ``executor``; older records: workers)."""
+    ex = part.get("executor")
+    if ex is not None and ex.get("kind") == "dask":
+        return f"Dask scheduler {ex['scheduler']}"
+    workers = ex["workers"] if ex is not None else part["workers"]
+    return f"{workers} local worker process(es)"
+
+
 def markdown(payload: dict) -> str:
     """The trade study's report: per scene, what the error is against, the strategies run and
     those that do not apply (why), the winner per error range and the crossovers (computed from
@@ -329,7 +338,7 @@ def markdown(payload: dict) -> str:
         lines += [
             "",
             f"Scenes {', '.join(part['scenes'])}: rerun at commit `{part['commit'][:10]}` "
-            f"({part['points']} points on {part['workers']} local worker process(es), elapsed "
+            f"({part['points']} points on {_executor_words(part)}, elapsed "
             f"{part['wall_s']:.1f} s) and merged into this record; the figures above are those "
             "of the other scenes' run.",
         ]

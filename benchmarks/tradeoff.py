@@ -727,8 +727,9 @@ def sweep(
 
 
 def rerender(path: str | Path) -> dict:
-    """Write ``tradeoff.md`` and the plots again from a ``tradeoff.json`` (its points as
-    recorded: the fronts, winners and knob effects are recomputed from them)."""
+    """Write the report (``<stem>.md``) and the plots (``<stem>_<scene>.png``) again from a
+    ``tradeoff.json`` (its points as recorded: the fronts, winners and knob effects are
+    recomputed from them)."""
     path = Path(path)
     payload = json.loads(path.read_text())
     points, scenes = payload["points"], payload["scenes"]
@@ -746,7 +747,8 @@ def rerender(path: str | Path) -> dict:
         label = (
             "error vs reference run" if "reference_keys" in SCENES[scene] else "error vs analytic"
         )
-        plot_scene(recs, path.parent / f"{NAME}_{scene}.png", title, label, payload["cost"])
+        png = path.parent / f"{path.stem}_{scene}.png"  # tradeoff_full.json: tradeoff_full_*.png
+        plot_scene(recs, png, title, label, payload["cost"])
     return payload
 
 
@@ -776,9 +778,12 @@ def merge(record: str | Path, rerun: str | Path) -> dict:
             old["not_run"][s] = {st: why.get(st, "not declared") for st in old["not_run"][s]}
     before = len(old["points"])
     points = [p for p in old["points"] if p["scene"] not in scenes]
-    for p in new["points"]:
-        p["replay"] = p["replay"].replace(str(rerun), record.name)
     points += new["points"]
+    for p in points:  # replay from the merged record, wherever each run was written
+        p["replay"] = (
+            f"python -m benchmarks tradeoff --replay {shlex.quote(str(record))} "
+            f"--id {shlex.quote(p['id'])}"
+        )
     old["points"] = sorted(points, key=lambda p: order.index(p["scene"]))
     old["scenes"] = order
     old["failed"] = [p["id"] for p in old["points"] if p["failure"]]
@@ -787,6 +792,7 @@ def merge(record: str | Path, rerun: str | Path) -> dict:
         "commit": new["environment"]["commit"],
         "points": len(new["points"]),
         "workers": new["executor"]["workers"],
+        "executor": new["executor"],
         "wall_s": new["wall_s"],
         "warmup_s": new["warmup_s"],
         "environment": new["environment"],

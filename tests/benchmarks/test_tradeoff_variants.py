@@ -115,7 +115,7 @@ def test_the_quick_record_holds_the_explicit_strategies_with_finite_errors():
 
 
 def test_merging_a_rerun_replaces_its_scenes_and_keeps_the_others(tmp_path):
-    record = tmp_path / "tradeoff.json"
+    record = tmp_path / "tradeoff_full.json"
     shutil.copy(RECORD, record)
     data = json.loads(RECORD.read_text())
     # a "rerun" of sine_boundary alone: the record's own sine points, one error changed
@@ -124,6 +124,7 @@ def test_merging_a_rerun_replaces_its_scenes_and_keeps_the_others(tmp_path):
     lr = next(p for p in rerun["points"] if p["strategy"] == "lr")
     lr["error"] = 0.5 * lr["error"]
     rerun["environment"] = dict(data["environment"], commit="f" * 40)
+    rerun["executor"] = dict(data["executor"], kind="dask", scheduler="tcp://h:1", workers=None)
     (tmp_path / "rerun.json").write_text(json.dumps(rerun))
     out = tradeoff.merge(record, tmp_path / "rerun.json")
     assert out["scenes"] == data["scenes"] and len(out["points"]) == len(data["points"])
@@ -133,7 +134,11 @@ def test_merging_a_rerun_replaces_its_scenes_and_keeps_the_others(tmp_path):
         p["error"] for p in data["points"] if p["id"] == "rings/barrier/base"
     )
     assert out["merged"][-1]["scenes"] == ["sine_boundary"]
-    assert (
-        "Scenes sine_boundary: rerun at commit `ffffffffff`"
-        in (tmp_path / "tradeoff.md").read_text()
-    )
+    md = (tmp_path / "tradeoff_full.md").read_text()
+    # the plots are named after the record, beside it (not over the quick record's)
+    assert (tmp_path / "tradeoff_full_sine_boundary.png").stat().st_size > 10_000
+    assert not (tmp_path / "tradeoff_sine_boundary.png").exists()
+    line = next(x for x in md.splitlines() if x.startswith("Scenes sine_boundary: rerun"))
+    assert "at commit `ffffffffff`" in line and "on Dask scheduler tcp://h:1," in line, line
+    # every point, merged or kept, replays from the merged record
+    assert all(f"--replay {record} --id {p['id']}" in p["replay"] for p in out["points"])
