@@ -59,6 +59,7 @@ def _parser() -> argparse.ArgumentParser:
         "--mode",
         dest="mode",
         help="another mode of the benchmark (rings: partial; hertz: refined; "
+        "buckling: partial, plate_quick, plate_partial; "
         "twist: partial, partial_probe, full_probe)",
     )
     parser.add_argument("--out", default="results", help="output folder (default results/)")

@@ -37,6 +37,18 @@ Choices where the paper is silent or the library forces a change (recorded in th
   is 0.162 m (mu = 0) and 0.142 m (0.2) against 0.330 and 0.315 m with the cap, at 11x the
   Newton iterations (5378 and 15430 against 480 and 1444); mu = 0.5 stops with
   MAX_ITERATIONS at u = 1.45 m (||p|| / dt = 6.0 m/s after 500 iterations). Hence the cap.
+  That stall is gone at 30a3b59 (the Newton changes since d3e77a1: that step now converges in
+  144 iterations). ``--mode plate_partial`` (the partial discretisation to u = 7 m with the
+  plate; ``records/buckling_plate_partial.json`` / ``.png``, at 30a3b59, one mu per process on
+  2 cores, 340 s, 1193 s and 1343 s, 13785, 63217 and 71330 Newton iterations, 286 MB peak)
+  shows the paper's picture more clearly than the cap: the inner ring snaps through at
+  u = 4.8-5 m for mu = 0 and 0.2 (detachment 0.24 m at u = 4 m, 1.42 m at 6 m for mu = 0; 0.21
+  and 0.87 m for mu = 0.2) and runs to 2.24 and 1.48 m at u = 7 m, while at mu = 0.5 it stays
+  flatter and peaks at 0.51 m near u = 6 m, then 0.40 m at 6.5 m and 0.47 m at 7 m. By the
+  measure above u_buckle = 5.00, 5.15 and 5.85 m: mu = 0.5 crosses the threshold by 0.01 m
+  for about 0.3 m of travel, so it still counts as buckled. Full mode with the plate: not run
+  (here the plate took 10-20x the cap's Newton iterations, 1316, 3165 and 5180 in
+  ``buckling_partial.json``, and 20-30x its wall time; the cap's full run took 40 min).
 - Feet: the outer ring's nodes on y = 0 are fixed (level sets act on MPM grid nodes only); the
   inner ring's feet are held by two sticky level-set boxes ``9 <= |x| <= 13, -2 <= y <= 0``; a
   slip box ``|x| <= 9, -2 <= y <= 0`` lies under the middle. One scripted motion serves the cap
@@ -116,6 +128,7 @@ MODES = {
 }
 # the paper's pusher: a FEM plate at mu = PLATE_MU (scene.set_friction), quick discretisation
 MODES["plate_quick"] = dict(MODES["quick"], pusher="plate")
+MODES["plate_partial"] = dict(MODES["partial"], pusher="plate")
 PLATE_MU = 10.0  # the paper's plate-ring friction ("a BFEMP based no-slip boundary condition")
 PLATE_HALF_WIDTH, PLATE_THICKNESS = 6.0, 1.0  # m
 PROGRESS_EVERY = 20  # steps between progress lines in the log
@@ -346,8 +359,9 @@ def run(
 
     Args:
         mode: ``"full"`` (the paper's resolution and dt, to u = 8 m), ``"partial"`` (coarse,
-            to u = 7 m), ``"quick"`` (coarse, to u = 3 m) or ``"plate_quick"`` (quick with the
-            paper's FEM plate instead of the scripted cap).
+            to u = 7 m), ``"quick"`` (coarse, to u = 3 m), ``"plate_quick"`` or
+            ``"plate_partial"`` (quick or partial with the paper's FEM plate instead of the
+            scripted cap).
         out: output folder.
         mus: friction coefficients between the rings instead of ``MUS`` (one per process, to
             run the full mode's cases side by side; ``merge`` joins their records).

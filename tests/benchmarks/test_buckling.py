@@ -117,3 +117,14 @@ def test_a_budget_cuts_a_case_and_the_record_says_so(tmp_path):
     assert case["u_end_m"] < summary["parameters"]["u_end"]
     assert summary["cut_cases"] == [0.0]
     assert summary["ordered_at_end"] is False
+
+
+def test_plate_partial_is_the_partial_discretisation_pressed_by_the_papers_plate():
+    """The plate_partial record's mode: partial's grid, mesh, dt and travel, with the FEM plate
+    (a second FEM body above the crown) instead of the scripted cap."""
+    cfg = buckling.MODES["plate_partial"]
+    partial = buckling.MODES["partial"]
+    assert {k: cfg[k] for k in partial} == partial and cfg["pusher"] == "plate"
+    names = [b.name for b in buckling._scene(cfg, 0.5).build().fem_bodies]
+    assert names == ["outer_ring", "plate"], names
+    assert [b.name for b in buckling._scene(partial, 0.5).build().fem_bodies] == ["outer_ring"]
