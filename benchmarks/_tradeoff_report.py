@@ -337,7 +337,7 @@ def markdown(payload: dict) -> str:
     for part in payload.get("merged", []):  # scenes rerun later and merged in (each point: commit)
         lines += [
             "",
-            f"Scenes {', '.join(part['scenes'])}: rerun at commit `{part['commit'][:10]}` "
+            f"Scenes {', '.join(part['scenes'])}: run at commit `{part['commit'][:10]}` "
             f"({part['points']} points on {_executor_words(part)}, elapsed "
             f"{part['wall_s']:.1f} s) and merged into this record; the figures above are those "
             "of the other scenes' run.",

@@ -138,7 +138,7 @@ def test_merging_a_rerun_replaces_its_scenes_and_keeps_the_others(tmp_path):
     # the plots are named after the record, beside it (not over the quick record's)
     assert (tmp_path / "tradeoff_full_sine_boundary.png").stat().st_size > 10_000
     assert not (tmp_path / "tradeoff_sine_boundary.png").exists()
-    line = next(x for x in md.splitlines() if x.startswith("Scenes sine_boundary: rerun"))
+    line = next(x for x in md.splitlines() if x.startswith("Scenes sine_boundary: run at"))
     assert "at commit `ffffffffff`" in line and "on Dask scheduler tcp://h:1," in line, line
     # every point, merged or kept, replays from the merged record
     assert all(f"--replay {record} --id {p['id']}" in p["replay"] for p in out["points"])
