@@ -37,9 +37,11 @@ Choices where the paper is silent or the library forces a change (recorded in th
   is 0.162 m (mu = 0) and 0.142 m (0.2) against 0.330 and 0.315 m with the cap, at 11x the
   Newton iterations (5378 and 15430 against 480 and 1444); mu = 0.5 stops with
   MAX_ITERATIONS at u = 1.45 m (||p|| / dt = 6.0 m/s after 500 iterations). Hence the cap.
-  That stall is gone at 30a3b59 (the Newton changes since d3e77a1: that step now converges in
-  144 iterations). ``--mode plate_partial`` (the partial discretisation to u = 7 m with the
-  plate; ``records/buckling_plate_partial.json`` / ``.png``, at 30a3b59, one mu per process on
+  That stall is gone at 30a3b59 (a change to the solver between d3e77a1 and 30a3b59, not
+  singled out: restarted from a checkpoint at u = 1.40 m, that step now converges in 144
+  iterations). ``--mode plate_partial`` (the partial discretisation to u = 7 m with the
+  plate; ``records/buckling_plate_partial.json`` / ``.png``, run from 30a3b59 with this mode
+  added, the library code unchanged since, one mu per process on
   2 cores, 340 s, 1193 s and 1343 s, 13785, 63217 and 71330 Newton iterations, 286 MB peak)
   shows the paper's picture more clearly than the cap: the inner ring snaps through at
   u = 4.8-5 m for mu = 0 and 0.2 (detachment 0.24 m at u = 4 m, 1.42 m at 6 m for mu = 0; 0.21
