@@ -29,6 +29,7 @@ BENCHMARKS = {
     "lr_contact_time": "benchmarks.lr_contact_time",
     "lr_ellipses": "benchmarks.lr_ellipses",
     "lr_scenes": "benchmarks.lr_scenes",
+    "lr_variants": "benchmarks.lr_variants",
     "perf_broadphase": "benchmarks.perf_broadphase",
     "perf_contact": "benchmarks.perf_contact",
     "perf_explicit": "benchmarks.perf_explicit",

@@ -16,6 +16,7 @@ from __future__ import annotations
 import logging
 import math
 import time
+from collections.abc import Callable
 
 import numpy as np
 
@@ -42,7 +43,8 @@ def _check(settings: dict, keys: tuple[str, ...], scene: str) -> None:
 RINGS_KEYS = ("strategy", "dt", "options", "transfer", "dx", "ppc", "dhat", "fem_h", "t_end")
 
 
-def _rings(s: dict) -> dict:
+def _rings(s: dict, on_done: Callable[[bfemp.Simulation], None] | None = None) -> dict:
+    """One rings point; ``on_done(sim)`` is called after the run (``benchmarks.lr_variants``)."""
     from benchmarks import rings
 
     _check(s, RINGS_KEYS, "rings")
@@ -65,6 +67,8 @@ def _rings(s: dict) -> dict:
         sim.run(t_end=s["t_end"], progress=False, callback=check)
     except bfemp.StepError as err:  # recorded; the metrics so far are still reduced
         failure = str(err)
+    if on_done is not None:
+        on_done(sim)
     m = sim.metrics
     t = m.column("t")
     energy = m.column("energy_kinetic") + m.column("energy_elastic")
@@ -90,7 +94,9 @@ SLOPE_KEYS = ("strategy", "dt", "options", "dx", "ppc", "dhat", "eps_v", "mu")
 SLOPE_KEYS += ("settle_s", "release_s", "fit_start_s")
 
 
-def _slope(s: dict) -> dict:
+def slope_physics(s: dict) -> tuple[dict, str]:
+    """The ``slope`` physics dict and ``slope.VARIANTS`` name of a slope point's settings (the
+    keys of ``SLOPE_KEYS``, plus ``transfer`` for lr)."""
     from benchmarks import lr_scenes, slope, two_stage_slope
 
     strategy = s["strategy"]
@@ -110,6 +116,13 @@ def _slope(s: dict) -> dict:
         if strategy == "lr":
             p.update(transfer=s["transfer"], slope_lower_upper_m=lr_scenes.LR_SLOPE)
             variant = "dense_slope"
+    return p, variant
+
+
+def _slope(s: dict) -> dict:
+    from benchmarks import slope
+
+    p, variant = slope_physics(s)
     dt = s["dt"]
     try:
         settled, settle = slope._settle(variant, round(s["settle_s"] / dt), p)

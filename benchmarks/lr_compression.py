@@ -161,6 +161,11 @@ def run_case(
         "dt": stepper.dt,
         "steps": n_steps,
         "wall_s": wall,
+        # LRStepper's run totals: the first and second corrections' sum |dp| (kg m/s) over the
+        # steps with contact, and the windows given the LR_FIRST_CORRECTION note
+        "first_correction_impulse": stepper.first_correction_impulse,
+        "second_correction_impulse": stepper.second_correction_impulse,
+        "first_correction_windows": stepper.first_correction_windows,
         "t": hist_t,
         "strain": [v0 * t / HEIGHT for t in hist_t],
         "stress": hist_s,

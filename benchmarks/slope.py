@@ -50,6 +50,7 @@ from __future__ import annotations
 import logging
 import math
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -188,12 +189,20 @@ def _com(sim: bfemp.Simulation) -> tuple[np.ndarray, np.ndarray]:
     return m @ sim.state.mpm_x / m.sum(), m @ sim.state.mpm_v / m.sum()
 
 
-def _settle(variant: str, steps: int, p: dict = PHYSICS) -> tuple[bfemp.State, dict]:
-    """Frictionless settling against the slope and the stop plane; the settled state."""
+def _settle(
+    variant: str, steps: int, p: dict = PHYSICS, on_step: Callable | None = None
+) -> tuple[bfemp.State, dict]:
+    """Frictionless settling against the slope and the stop plane; the settled state.
+
+    ``on_step(sim, report)`` is called after every step (``benchmarks.lr_variants``).
+    """
     sim = _simulation(_scene(variant, 0.0, with_stop=True, p=p), p)
     started, newton = time.perf_counter(), 0
     for _ in range(steps):
-        newton += sim.step().newton_iterations
+        report = sim.step()
+        newton += report.newton_iterations
+        if on_step is not None:
+            on_step(sim, report)
     _, v = _com(sim)
     info = {
         "steps": steps,
@@ -234,11 +243,12 @@ def _release(
     steps: int,
     fit_start: float,
     p: dict = PHYSICS,
+    on_step: Callable | None = None,
 ) -> dict:
     """Continue the settled box without the stop plane at friction ``mu``; fit its motion.
 
     A failed step (``StepError``) ends the case; it is recorded in ``error`` and the fit uses
-    the steps completed before it.
+    the steps completed before it. ``on_step(sim, report)`` is called after every step.
     """
     theta = math.atan(p["tan_theta"])
     downhill = _rotation(VARIANTS[variant][0], theta) @ np.array([-1.0, 0.0])
@@ -272,6 +282,8 @@ def _release(
         friction_ok = friction_ok and report.friction_converged
         if np.isfinite(report.min_distance):
             min_d = min(min_d, report.min_distance)
+        if on_step is not None:
+            on_step(sim, report)
         record()
     wall = time.perf_counter() - started
     fit = _fit_acceleration(np.array(tau), np.array(s), fit_start)

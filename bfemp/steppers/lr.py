@@ -19,6 +19,8 @@ velocity field on the shared grid (``_multimaterial_kernels``). One USL step:
 4. Provisional momenta p^a0+ = p^a + f^a0 dt (eq. 30); second correction with the same planes
    (eq. 31) gives p^a+, v^a+ = p^a+ / m^a, then the boundaries.
 5. a^a = (v^a+ - v^a) / dt: the force f^{C,1} of eq. 34 (Uintah's form, boundaries included).
+   ``contact_force="c0"`` (FLIP only) gives the particles and FEM boundary nodes f^{C,0} of
+   eq. 33 instead: the first correction's dv^a as well.
 6. Particles: FLIP (eq. 32) V^{n+1} = V^n + dt S a, X^{n+1} = X^n + dt S (v + dt a / 2);
    XPIC(m) (eqs. 35, 37; ``bfemp.mpm.xpic``) V^{n+1} = S v* + dt S a,
    X^{n+1} = X^n + dt (S v + (V^{n+1} - V^n) / 2); USL F^{n+1} = (I + dt S grad v+) F^n.
@@ -80,6 +82,11 @@ INTERFACES = ("contact", "perfect")
 DETECTORS = ("lr", "velocity", "cp")
 LUMPS = ("lumped", "conservative")
 TRANSFERS = ("flip", "pic")
+CONTACT_FORCES = ("c1", "c0")
+#: contact steps per window, and the first/second correction impulse ratio above which the
+#: ``LR_FIRST_CORRECTION`` note is given (``LRStepper._watch_first_correction``)
+FIRST_CORRECTION_WINDOW = 100
+FIRST_CORRECTION_RATIO = 1.0
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -97,6 +104,16 @@ class LROptions(ExplicitOptions):
         cp_offset: the constant offset of the ``"cp"`` detector in cells (LR: 0.8, calibrated
             for GIMP, pitfall L-P3).
         corrections: 2 (the paper: after P2G and after the momentum update) or 1 ("LR once").
+        contact_force: ``"c1"`` (the paper's f^{C,1}, eq. 33: only the second correction reaches
+            the particles; exact for perfect interfaces, eq. 34) or ``"c0"`` (f^{C,0}: both
+            corrections do; FLIP only). Measured (``benchmarks.lr_variants``, quick): under FLIP
+            with c1 an approach velocity the particles bring into a lasting contact stays in
+            them: the slope box keeps 0.061 m/s into the slope after landing and slides at
+            0.95 m/s^2 against eq. 40's 0.50; on the quick rings 213 particles end up inside
+            the FEM ring (energy-loss error 4.2). c0, ``corrections=1`` and PIC remove it (slope
+            within 1 %, rings 0 / 0 / 7 particles inside); XPIC(5) only partly (0.15, 91). On
+            ``lr_compression`` (no landing) c1 is the best (0.13 % stress error, c0 1.5 %,
+            once 0.37 %). The ``LR_FIRST_CORRECTION`` note flags the c1 case in a run.
         lump: ``"lumped"`` (eq. 50: each material against the lumped others, dp to it alone;
             not momentum-conserving) or ``"conservative"`` (bfemp's: -dp spread over the
             others by mass) at nodes with three or more materials.
@@ -129,6 +146,7 @@ class LROptions(ExplicitOptions):
         default=2, metadata={"sweep": {"finer": 1, "step": 1, "min": 1, "max": 2}}
     )
     lump: str = "lumped"
+    contact_force: str = "c1"
     xpic_order: int | None = field(
         default=None, metadata={"sweep": {"finer": 1, "step": 4, "min": 1, "first": 1}}
     )
@@ -152,6 +170,10 @@ class LROptions(ExplicitOptions):
             value = getattr(self, field_name)
             if value not in allowed:
                 raise ValueError(f"{name}.{field_name} must be one of {allowed}, got {value!r}")
+        if self.contact_force not in CONTACT_FORCES:
+            raise ValueError(
+                f"{name}.contact_force must be one of {CONTACT_FORCES}, got {self.contact_force!r}"
+            )
         if self.corrections not in (1, 2) or isinstance(self.corrections, bool):
             raise ValueError(f"{name}.corrections must be 1 or 2, got {self.corrections!r}")
         order = self.xpic_order
@@ -258,12 +280,31 @@ class LRStepper(ExplicitStepper):
         self.xpic_order = (
             opts.xpic_order if opts.xpic_order is not None else (1 if transfer == "pic" else None)
         )
+        self.contact_force = self._resolve_contact_force(opts)
         if self.mu > 0.0 and opts.law == "frictionless":
             log.info("lr: law='frictionless' ignores mu = %g", self.mu)
         #: steps with at least one node in contact, and the LR fits that hit the cap
         self.steps_with_contact = 0
         self.unconverged_fits = 0
         self._warned_unconverged = False
+        #: sum |dp| of the first and of the second correction over the current window of
+        #: ``FIRST_CORRECTION_WINDOW`` steps with contact (``_watch_first_correction``)
+        self._window = [0, 0.0, 0.0]
+        self._warned_first_correction = False
+        #: over the run's steps with contact: sum |dp^a| of the first and of the second
+        #: correction (kg m/s), and the windows given the ``LR_FIRST_CORRECTION`` note
+        self.first_correction_impulse = 0.0
+        self.second_correction_impulse = 0.0
+        self.first_correction_windows = 0
+
+    def _resolve_contact_force(self, opts: LROptions) -> str:
+        """``LROptions.contact_force``, refused where it does not apply (c0 under XPIC)."""
+        if opts.contact_force == "c0" and self.xpic_order is not None:
+            raise ValueError(
+                "lr: contact_force='c0' is a FLIP rule; XPIC(m) (xpic_order or transfer='pic') "
+                "takes the first correction through v* (eq. 37): use contact_force='c1'"
+            )
+        return opts.contact_force
 
     # ------------------------------------------------------------------ FEM as a material
     def _friction_table(self, model: Model) -> np.ndarray | None:
@@ -615,6 +656,8 @@ class LRStepper(ExplicitStepper):
         v_plus_free = (mom_plus0 + dp2) * inv_mass[..., None]
         v_plus = self._apply_constraints(cons, v_plus_free)
         accel = (v_plus - v) / dt
+        # the contact momentum particles and FEM nodes receive (eq. 33): f^{C,1} dt or f^{C,0} dt
+        dp_kick = dp2 + dp1 if self.contact_force == "c0" else dp2
         timings["corrections"] = time.perf_counter() - t0
 
         t0 = time.perf_counter()
@@ -623,6 +666,8 @@ class LRStepper(ExplicitStepper):
         )
         if self.xpic_order is None:  # FLIP (eq. 32)
             new_v = state.mpm_v + (sv_plus - sv)
+            if self.contact_force == "c0":  # the first correction reaches the particles
+                new_v += g2p_field(nodes, weights, self.material, dv)
             new_x = state.mpm_x + dt * 0.5 * (sv + sv_plus)
         else:  # XPIC(m) (eqs. 35, 37)
 
@@ -644,10 +689,12 @@ class LRStepper(ExplicitStepper):
         new.mpm_x, new.mpm_v, new.mpm_F = new_x, new_v, new_F
         new.mpm_C = np.zeros_like(state.mpm_C)
         if model.n_fem_nodes:
-            new.fem_x, new.fem_v = self._fem_update(state, st, fem_force, dp2, inv_mass)
+            new.fem_x, new.fem_v = self._fem_update(state, st, fem_force, dp_kick, inv_mass)
             new.fem_a = (new.fem_v - state.fem_v) / dt
         if touching:
             self.steps_with_contact += 1
+        impulse_1, impulse_2 = float(np.abs(dp1).sum()), float(np.abs(dp2).sum())
+        notes += self._watch_first_correction(touching > 0, impulse_1, impulse_2, new.step)
         unconverged = int((~planes.converged).sum())
         self.unconverged_fits += unconverged
         if unconverged:
@@ -662,7 +709,7 @@ class LRStepper(ExplicitStepper):
         reactions = self._reactions(
             cons, mass, v_plus_free, v_plus, dt, len(model.boundaries), model.dim
         )
-        self._store_contact(planes, dp2, pts, inv_mass, dt)
+        self._store_contact(planes, dp_kick, pts, inv_mass, dt)
         timings["step"] = time.perf_counter() - started
         extra = {
             "contact_nodes": float(np.unique(planes.node).size),
@@ -672,6 +719,8 @@ class LRStepper(ExplicitStepper):
             "lr_unconverged": float(unconverged),
             "lr_fallbacks": float(planes.fallback.sum()),
             "lump_momentum_drift": float(np.linalg.norm(drift)),
+            "first_correction_impulse": impulse_1,
+            "second_correction_impulse": impulse_2,
         }
         report = StepReport(
             step=new.step,
@@ -687,6 +736,55 @@ class LRStepper(ExplicitStepper):
             extra=extra,
         )
         return new, report
+
+    def _watch_first_correction(
+        self, touching: bool, impulse_1: float, impulse_2: float, step: int
+    ) -> list[str]:
+        """The ``LR_FIRST_CORRECTION`` note (and one warning per run) when, under FLIP with
+        f^{C,1}, the first correction keeps removing momentum the particles never lose.
+
+        Under f^{C,1} (eq. 33) the first correction's dp^a reaches neither V_p nor the FEM
+        nodes, so an approach velocity the particles carry into a lasting contact (a landing,
+        an impact) is removed from the grid again every step and is never lost by the
+        particles. Over each window of ``FIRST_CORRECTION_WINDOW`` steps with contact, the
+        note is given when sum |dp^a| of the first correction exceeds
+        ``FIRST_CORRECTION_RATIO`` times that of the second. Measured under FLIP with c1
+        (``benchmarks.lr_variants``, quick, ratio over the run): 0.011 on ``lr_compression``
+        (stress within 0.13 % of the single material, never flagged), 7.3 while the slope box
+        settles and 30 while it slides (friction lost) and 11 on the quick rings (213
+        particles inside the FEM ring), all flagged. Where the particles do get the first
+        correction (c0, PIC) a lasting contact gives 0.3-1.9 and the physics holds, so the note
+        is for c1 only.
+        """
+        if touching:
+            self.first_correction_impulse += impulse_1
+            self.second_correction_impulse += impulse_2
+        flip_c1 = self.xpic_order is None and self.contact_force == "c1"
+        if not (flip_c1 and self.options.corrections == 2 and touching):
+            return []
+        window = self._window
+        window[0] += 1
+        window[1] += impulse_1
+        window[2] += impulse_2
+        if window[0] < FIRST_CORRECTION_WINDOW:
+            return []
+        ratio = window[1] / window[2] if window[2] > 0.0 else math.inf
+        self._window = [0, 0.0, 0.0]
+        if ratio <= FIRST_CORRECTION_RATIO:
+            return []
+        self.first_correction_windows += 1
+        if not self._warned_first_correction:
+            self._warned_first_correction = True
+            log.warning(
+                "lr: over the last %d contact steps (to step %d) the first correction removed "
+                "%.3g times the momentum of the second: under FLIP with contact_force='c1' "
+                "(eq. 33) the particles keep an approach velocity that contact removes from the "
+                "grid every step (measured on a landing box: friction lost; on impacting rings: "
+                "particles inside the FEM ring); corrections=1, transfer='pic' or "
+                "contact_force='c0' remove it (benchmarks.lr_variants)",
+                FIRST_CORRECTION_WINDOW, step, ratio,
+            )  # fmt: skip
+        return [f"LR_FIRST_CORRECTION: first/second correction impulse ratio {ratio:.3g}"]
 
     def _fem_update(
         self,

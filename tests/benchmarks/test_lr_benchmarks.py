@@ -1,9 +1,9 @@
 """The LR reproductions in quick mode: lr_compression (Fig. 5), lr_contact_time (Fig. 2B),
-lr_ellipses (Fig. 6) and the BFEMP scenes under lr (smoke)."""
+lr_ellipses (Fig. 6), the BFEMP scenes under lr (smoke) and lr's update variants (smoke)."""
 
 import numpy as np
 
-from benchmarks import lr_compression, lr_contact_time, lr_ellipses, lr_scenes
+from benchmarks import lr_compression, lr_contact_time, lr_ellipses, lr_scenes, lr_variants
 
 
 def test_lr_compression_quick_stress_error_against_single_material(tmp_path):
@@ -46,3 +46,35 @@ def test_lr_scenes_smoke_rings_keep_momentum(tmp_path):
     assert rec["lr_mpm_rings_drift_below_1e-10"]
     assert runs["lr_fem_material"]["momentum_drift_rel"] < 1e-10
     assert runs["lr_fem_material"]["contact_steps"] > 0
+
+
+def test_lr_variants_smoke_flip_c1_loses_friction_after_landing_c0_and_once_keep_it(
+    tmp_path, caplog
+):
+    """The slope box lands on the FEM slope and slides at mu = 0.1 (eq. 40). Under FLIP with
+    f^{C,1} (lr's default) the bottom row keeps its landing velocity into the slope (measured
+    -0.061 m/s against -0.003), the run is flagged, and the box slides at nearly the frictionless
+    rate (error 0.90); f^{C,0} and one correction give the particles the contact impulse and
+    the analytic rate (0.9 %). On the compressed column (no landing) f^{C,1} holds the paper's
+    1 % and is not flagged, and f^{C,0} is the worse one there (1.5 % against 0.13 %)."""
+    with caplog.at_level("WARNING", logger="bfemp.steppers.lr"):
+        rec = lr_variants.run("smoke", tmp_path)
+    slope, column = rec["slope"]["runs"], rec["compression"]["runs"]
+    c1 = slope["flip_c1"]
+    assert c1["bottom_row_normal_velocity_m_s"] < -0.03
+    assert c1["error"] > 0.5 and c1["accel_m_s2"] > 1.5 * c1["accel_analytic_m_s2"]
+    assert c1["settle"]["first_correction_windows"] + c1["slide"]["first_correction_windows"] > 0
+    assert c1["slide"]["first_over_second"] > 10.0
+    assert "the first correction removed" in caplog.text
+    for name in ("flip_c0", "once"):
+        run = slope[name]
+        assert abs(run["bottom_row_normal_velocity_m_s"]) < 0.01, name
+        assert run["error"] < 0.03, name
+        assert run["settle"]["first_correction_windows"] == 0
+        assert run["slide"]["first_correction_windows"] == 0
+    assert column["flip_c1"]["error_pct"] < lr_compression.TOL_LR
+    assert column["flip_c1"]["run"]["first_correction_windows"] == 0
+    assert column["flip_c1"]["run"]["first_over_second"] < 0.1
+    assert column["flip_c0"]["error_pct"] > 3.0 * column["flip_c1"]["error_pct"]
+    assert (tmp_path / "lr_variants_smoke.json").exists()
+    assert (tmp_path / "lr_variants_smoke.png").exists()

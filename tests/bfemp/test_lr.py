@@ -61,13 +61,15 @@ def _largest_difference(a, b):
 @pytest.mark.parametrize("n_materials", [2, 3])
 def test_perfect_interface_multimaterial_flip_equals_single_material(n_materials):
     """L1: two corrections and f^{C,1} make the split block move as one to round-off; one
-    correction ("LR once") does not (the negative control)."""
+    correction ("LR once") and f^{C,0} (the a^{a,0} option) do not (the negative controls)."""
     single = _run(1, 50)
     split = _run(n_materials, 50, interface="perfect")
     assert split[3].extra["contact_nodes"] > 10  # the interfaces are really crossed
     assert _largest_difference(single, split) < 1e-12
     once = _run(n_materials, 50, interface="perfect", corrections=1)
     assert _largest_difference(single, once) > 1e-8
+    c0 = _run(n_materials, 50, interface="perfect", contact_force="c0")
+    assert _largest_difference(single, c0) > 1e-8
 
 
 @pytest.mark.parametrize("n_materials", [2, 3])
@@ -178,10 +180,17 @@ def test_lr_is_registered_and_refuses_apic_no_mpm_and_bad_options():
         {"mass_fraction": 0.7},
         {"mu": -0.1},
         {"lr_max_iterations": 0},
+        {"contact_force": "c2"},
     ):
         field = next(iter(bad))
         with pytest.raises(ValueError, match=field):
             LROptions(**bad)
+    # f^{C,0} is a FLIP rule: XPIC(m), PIC included, is refused by name
+    model = scene.build()
+    for transfer, options in (("flip", {"xpic_order": 2}), ("pic", {})):
+        with pytest.raises(ValueError, match="contact_force='c0' is a FLIP rule"):
+            LRStepper(model, dt=1e-3, transfer=transfer,
+                      options=LROptions(contact_force="c0", **options))  # fmt: skip
 
 
 # ---------------------------------------------------------------- FEM bodies as a material
@@ -262,7 +271,10 @@ def _momentum_run(scene, steps=150, **options):
     return stepper, drift, lumped_steps, drift_when_lumped
 
 
-@pytest.mark.parametrize("options", [{}, {"mu": 0.3}, {"xpic_order": 5}, {"detector": "cp"}])
+@pytest.mark.parametrize(
+    "options",
+    [{}, {"mu": 0.3}, {"xpic_order": 5}, {"detector": "cp"}, {"mu": 0.3, "contact_force": "c0"}],
+)
 def test_two_material_contact_conserves_momentum(options):
     """L4: the blocks collide (contact is found and corrected) with Sigma m V kept to 1e-12."""
     stepper, drift, lumped, _ = _momentum_run(_colliding_blocks(), **options)
@@ -350,3 +362,42 @@ def test_capped_lr_fits_are_counted_every_step_and_warned_once(caplog):
             counted += report.extra["lr_unconverged"] > 0
     assert counted > 5 and stepper.unconverged_fits > 5
     assert sum("hit the cap" in r.message for r in caplog.records) == 1
+
+
+# ---------------------------------------------------------------- f^{C,1} at a lasting contact
+def test_first_correction_note_needs_a_window_of_contact_steps_above_the_ratio(caplog):
+    """``LR_FIRST_CORRECTION``: given once per window of contact steps whose first-correction
+    impulse exceeds the ratio times the second's, warned once per run, never under f^{C,0},
+    one correction or XPIC (the physics: ``benchmarks.lr_variants``, tested with its scenes)."""
+    from bfemp.steppers.lr import FIRST_CORRECTION_RATIO, FIRST_CORRECTION_WINDOW
+
+    model = _colliding_blocks().build()
+
+    def feed(stepper, ratio, steps, touching=True):
+        notes = []
+        for k in range(steps):
+            notes += stepper._watch_first_correction(touching, ratio, 1.0, k)
+        return notes
+
+    stepper = LRStepper(model, dt=1e-3)
+    with caplog.at_level("WARNING", logger="bfemp.steppers.lr"):
+        assert feed(stepper, 2.0 * FIRST_CORRECTION_RATIO, FIRST_CORRECTION_WINDOW - 1) == []
+        assert feed(stepper, 0.0, 50, touching=False) == []  # steps without contact do not count
+        (note,) = feed(stepper, 2.0 * FIRST_CORRECTION_RATIO, 1)
+        assert note.startswith("LR_FIRST_CORRECTION") and "2" in note
+        assert len(feed(stepper, 2.0 * FIRST_CORRECTION_RATIO, 2 * FIRST_CORRECTION_WINDOW)) == 2
+        assert feed(stepper, 0.5 * FIRST_CORRECTION_RATIO, FIRST_CORRECTION_WINDOW) == []
+    assert stepper.first_correction_windows == 3
+    assert caplog.text.count("the first correction removed") == 1
+    assert stepper.first_correction_impulse == pytest.approx(
+        2.0 * FIRST_CORRECTION_RATIO * 3 * FIRST_CORRECTION_WINDOW
+        + 0.5 * FIRST_CORRECTION_RATIO * FIRST_CORRECTION_WINDOW
+    )
+    for options, transfer in (
+        ({"contact_force": "c0"}, "flip"),
+        ({"corrections": 1}, "flip"),
+        ({"xpic_order": 5}, "flip"),
+        ({}, "pic"),
+    ):
+        quiet = LRStepper(model, dt=1e-3, transfer=transfer, options=LROptions(**options))
+        assert feed(quiet, 10.0, 3 * FIRST_CORRECTION_WINDOW) == [], options

@@ -1,0 +1,277 @@
+"""``lr_variants``: which of lr's settings holds on which kind of contact (issue 17).
+
+The trade study (``benchmarks.tradeoff``) found lr's default (FLIP, two corrections, the
+paper's f^{C,1}) off by 100 % on ``slope`` and 415 % on the quick ``rings``, while
+``corrections=1`` was within 2 % and 69 %. This benchmark runs lr's update variants side by
+side on three scenes, each a different kind of contact, and records where each one breaks.
+
+Variants (``LROptions``, all other options the scene's):
+
+- ``flip_c1``: FLIP, two corrections, f^{C,1} (eq. 33): the paper's and lr's default;
+- ``flip_c0``: the same with ``contact_force="c0"`` (f^{C,0}: the particles get both corrections);
+- ``once``: ``corrections=1`` ("LR once", Fig. 5);
+- ``pic``: ``xpic_order=1`` (PIC, eq. 38);
+- ``xpic5``: ``xpic_order=5`` (the paper's validation setting).
+
+Scenes:
+
+- ``slope``: the trade study's lr slope point (``_tradeoff_runs.slope_physics``: the box of
+  ``two_stage_slope`` softened to E = 1e5 Pa, on the 1 cm thick FEM slope meshed at dx / 2,
+  gravity tilted, mu = 0.1, dt = 5e-5 s, dx = 5 mm, PPC 4). It settles frictionless against a
+  stop, then slides; error = |a_fit - a| / a against eq. 40. Also recorded: the mean normal
+  velocity of the box's bottom particle row at release (m/s; negative = into the slope), the
+  landing velocity the particles still carry.
+- ``rings``: the trade study's quick lr point (dx = 0.5 m, PPC 4, the FEM ring meshed at
+  dx / 2 as a material, frictionless, dt = "auto", to 0.3 s); error = the trade study's
+  max(|L - L_ref| / L_ref, |T - T_ref| / T_ref) of the energy loss L and contact duration T
+  against the barrier reference run of that discretisation (run here); also the particles found
+  inside the FEM ring at any step (``rings._PenetrationCheck``).
+- ``compression``: ``lr_compression``'s column (mu = 0.2, v0 = 0.5 % of c_K quick, 0.05 % full);
+  error = the largest |stress error| in % past 1 % strain against the single-material run with
+  the same particle update (FLIP for flip_c1, flip_c0 and once; PIC; XPIC(5)).
+
+Per run also the wall time and ``LRStepper``'s run totals: the first and second corrections'
+sum |dp| over the steps with contact, their ratio, and the windows of 100 contact steps given the
+``LR_FIRST_CORRECTION`` note (ratio above ``bfemp.steppers.lr.FIRST_CORRECTION_RATIO``).
+
+Modes: ``smoke`` (what the tests run: slope at 0.02 s settling and 0.03 s sliding, compression
+quick; variants flip_c1, flip_c0, once), ``quick`` (every variant; slope as smoke, rings,
+compression quick) and ``full`` (slope at the full trade study's 0.1 s + 0.2 s, fit from 0.05 s;
+rings as quick: the full rings discretisation costs hours per explicit run; compression full).
+No (T) target: the record says where each variant holds.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from benchmarks.common import environment, peak_memory_mb, write_json
+
+log = logging.getLogger(__name__)
+
+NAME = "lr_variants"
+VARIANTS = {
+    "flip_c1": {},
+    "flip_c0": {"contact_force": "c0"},
+    "once": {"corrections": 1},
+    "pic": {"xpic_order": 1},
+    "xpic5": {"xpic_order": 5},
+}
+#: the single-material reference of each variant's particle update (compression)
+_SMM_REFERENCE = {"flip_c1": {}, "flip_c0": {}, "once": {}, "pic": {"xpic_order": 1}}
+_SMM_REFERENCE["xpic5"] = {"xpic_order": 5}
+_SLOPE = {"smoke": (0.02, 0.03, 0.01), "quick": (0.02, 0.03, 0.01), "full": (0.1, 0.2, 0.05)}
+MODES = {
+    "smoke": {"variants": ("flip_c1", "flip_c0", "once"), "scenes": ("slope", "compression")},
+    "quick": {"variants": tuple(VARIANTS), "scenes": ("slope", "rings", "compression")},
+    "full": {"variants": tuple(VARIANTS), "scenes": ("slope", "rings", "compression")},
+}
+_COMPRESSION_MODE = {"smoke": "quick", "quick": "quick", "full": "full"}
+
+
+def _totals(stepper: object) -> dict:
+    """``LRStepper``'s first/second correction totals of a run."""
+    first, second = stepper.first_correction_impulse, stepper.second_correction_impulse
+    return {
+        "first_correction_impulse": first,
+        "second_correction_impulse": second,
+        "first_over_second": first / second if second > 0.0 else None,
+        "first_correction_windows": stepper.first_correction_windows,
+    }
+
+
+def slope_case(mode: str, options: dict) -> dict:
+    """The settle-and-slide slope case with lr ``options`` (module docstring)."""
+    from benchmarks import _tradeoff_runs, slope
+
+    settle_s, release_s, fit_start_s = _SLOPE[mode]
+    s = dict(strategy="lr", dt=5e-5, options=options, transfer="flip", dx=5e-3, ppc=4)
+    s |= dict(dhat=1e-3, eps_v=1e-5, mu=0.1, settle_s=settle_s, release_s=release_s)
+    s["fit_start_s"] = fit_start_s
+    p, variant = _tradeoff_runs.slope_physics(s)
+    seen: dict[str, object] = {}
+
+    def keep(sim: object, _report: object) -> None:
+        seen["stepper"] = sim.stepper
+
+    started = time.perf_counter()
+    settled, _ = slope._settle(variant, round(settle_s / s["dt"]), p, on_step=keep)
+    settle_totals = _totals(seen["stepper"])
+    # tilted gravity: the slope is the plane y = 0, its normal +y; the bottom row of the lattice
+    spacing = s["dx"] / math.sqrt(s["ppc"])
+    y = settled.mpm_x[:, 1]
+    bottom = y < y.min() + 0.5 * spacing
+    case = slope._release(variant, s["mu"], settled, round(release_s / s["dt"]), fit_start_s, p,
+                          on_step=keep)  # fmt: skip
+    return {
+        "error": case["accel_rel_error"],
+        "accel_m_s2": case["accel"],
+        "accel_analytic_m_s2": case["accel_analytic"],
+        "bottom_row_normal_velocity_m_s": float(settled.mpm_v[bottom, 1].mean()),
+        "box_normal_velocity_m_s": float(settled.mpm_v[:, 1].mean()),
+        "settle": settle_totals,
+        "slide": _totals(seen["stepper"]),
+        "failure": case["error"],
+        "wall_s": time.perf_counter() - started,
+    }
+
+
+def _rings_settings(strategy: str, label: str) -> dict:
+    from benchmarks.tradeoff import plan
+
+    (point,) = [p for p in plan("quick", "rings", strategies=strategy) if p["label"] == label]
+    return dict(point["settings"])
+
+
+def rings_reference() -> dict:
+    """The barrier reference run of the quick rings (the trade study's, at its settings)."""
+    from benchmarks import _tradeoff_runs
+
+    started = time.perf_counter()
+    out = _tradeoff_runs._rings(_rings_settings("barrier", "reference"))
+    return {k: out[k] for k in ("energy_loss_pct", "contact_duration_s", "failure")} | {
+        "wall_s": time.perf_counter() - started
+    }
+
+
+def rings_case(options: dict, reference: dict) -> dict:
+    """The quick rings lr point with ``options`` added; error against ``reference``."""
+    from benchmarks import _tradeoff_runs
+
+    s = _rings_settings("lr", "base")
+    s["options"] = dict(s["options"]) | options
+    seen: dict[str, object] = {}
+    started = time.perf_counter()
+    out = _tradeoff_runs._rings(s, on_done=lambda sim: seen.update(stepper=sim.stepper))
+    parts = [
+        abs(out[k] - reference[k]) / reference[k]
+        for k in ("energy_loss_pct", "contact_duration_s")
+        if out[k] is not None and reference[k]
+    ]
+    return {
+        "error": max(parts) if len(parts) == 2 else None,
+        "energy_loss_pct": out["energy_loss_pct"],
+        "contact_duration_s": out["contact_duration_s"],
+        "particles_inside_fem_ring": out["penetrations"],
+        "run": _totals(seen["stepper"]),
+        "failure": out["failure"],
+        "wall_s": time.perf_counter() - started,
+    }
+
+
+def compression_case(mode: str, options: dict, reference: dict) -> dict:
+    """``lr_compression``'s column with ``options``; error against the ``reference`` run."""
+    from benchmarks import lr_compression as lc
+
+    frac, strain = lc.MODES[mode]
+    v0 = frac * lc.C_K
+    started = time.perf_counter()
+    case = lc.run_case(lc.column_scene(v0=v0), strain=strain, v0=v0, **options)
+    _, worst = lc.stress_error(case, reference)
+    totals = {k: case[k] for k in ("first_correction_impulse", "second_correction_impulse")}
+    second = totals["second_correction_impulse"]
+    totals["first_over_second"] = (
+        totals["first_correction_impulse"] / second if second > 0.0 else None
+    )
+    totals["first_correction_windows"] = case["first_correction_windows"]
+    return {"error_pct": worst, "run": totals, "wall_s": time.perf_counter() - started}
+
+
+def _compression(mode: str, variants: tuple[str, ...]) -> dict:
+    from benchmarks import lr_compression as lc
+
+    cmode = _COMPRESSION_MODE[mode]
+    frac, strain = lc.MODES[cmode]
+    v0 = frac * lc.C_K
+    references, runs = {}, {}
+    for name in variants:
+        key = tuple(sorted(_SMM_REFERENCE[name].items()))
+        if key not in references:
+            scene = lc.column_scene(v0=v0, single=True)
+            references[key] = lc.run_case(scene, strain=strain, v0=v0, **_SMM_REFERENCE[name])
+        log.info("lr_variants compression %s: %s", cmode, name)
+        runs[name] = compression_case(cmode, VARIANTS[name], references[key])
+    return {"mode": cmode, "v0_m_s": v0, "final_strain": strain, "runs": runs}
+
+
+def run(mode: str = "full", out: str | Path = "results") -> dict:
+    """Run ``mode``; write ``lr_variants[_MODE].json`` and its PNG."""
+    if mode not in MODES:
+        raise ValueError(f"lr_variants mode must be one of {sorted(MODES)}, got {mode!r}")
+    variants, scenes = MODES[mode]["variants"], MODES[mode]["scenes"]
+    started = time.perf_counter()
+    payload: dict = {
+        "benchmark": NAME,
+        "mode": mode,
+        "variants": {v: VARIANTS[v] for v in variants},
+    }
+    if "slope" in scenes:
+        payload["slope"] = {"settle_release_fit_s": _SLOPE[mode], "runs": {}}
+        for name in variants:
+            log.info("lr_variants slope: %s", name)
+            payload["slope"]["runs"][name] = slope_case(mode, VARIANTS[name])
+    if "rings" in scenes:
+        reference = rings_reference()
+        payload["rings"] = {"reference": reference, "runs": {}}
+        for name in variants:
+            log.info("lr_variants rings: %s", name)
+            payload["rings"]["runs"][name] = rings_case(VARIANTS[name], reference)
+    if "compression" in scenes:
+        payload["compression"] = _compression(mode, variants)
+    payload["wall_s"] = time.perf_counter() - started
+    payload["peak_memory_mb"] = peak_memory_mb()
+    payload["environment"] = environment()
+    name = NAME if mode == "full" else f"{NAME}_{mode}"
+    path = write_json(out, name, payload)
+    plot(payload, Path(out) / f"{name}.png")
+    return {"json": str(path), **payload}
+
+
+def _error(scene: str, run_: dict) -> float | None:
+    if scene == "compression":
+        return run_["error_pct"] / 100.0
+    return run_["error"]
+
+
+def _title(scene: str, payload: dict) -> str:
+    if scene == "slope":
+        settle, slide, _ = payload["slope"]["settle_release_fit_s"]
+        return f"slope: settle {settle:g} s, slide {slide:g} s"
+    if scene == "rings":
+        return "rings: quick discretisation, to 0.3 s"
+    return f"compression: lr_compression {payload['compression']['mode']}"
+
+
+def plot(payload: dict, path: Path) -> None:
+    """Bars: each variant's error per scene (log scale), the first/second ratio above them."""
+    scenes = [s for s in ("slope", "rings", "compression") if s in payload]
+    variants = list(payload["variants"])
+    fig = Figure(figsize=(3.6 * len(scenes), 3.8))
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(1, len(scenes), squeeze=False)[0]
+    for ax, scene in zip(axes, scenes, strict=True):
+        runs = payload[scene]["runs"]
+        errors = [_error(scene, runs[v]) for v in variants]
+        heights = [e if e is not None and e > 0 else np.nan for e in errors]
+        ax.bar(range(len(variants)), heights, color=[f"C{k}" for k in range(len(variants))])
+        ax.set_yscale("log")
+        ax.set_xticks(range(len(variants)), variants, rotation=30, fontsize=8)
+        for k, v in enumerate(variants):
+            totals = runs[v].get("slide") or runs[v].get("run") or {}
+            ratio = totals.get("first_over_second")
+            if ratio is not None and np.isfinite(heights[k]):
+                ax.annotate(f"{ratio:.2g}", (k, heights[k]), ha="center", va="bottom", fontsize=7)
+        label = "stress error (fraction)" if scene == "compression" else "relative error"
+        ax.set_ylabel(label)
+        ax.set_title(_title(scene, payload), fontsize=9)
+    fig.suptitle("lr variants: error (bars) and first/second correction impulse (labels)",
+                 fontsize=9)  # fmt: skip
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
