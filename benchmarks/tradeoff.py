@@ -264,6 +264,14 @@ def _check_sweeps(sweeps: dict | None) -> None:
                 )
 
 
+def run_order(records: list[dict], todo: list[int]) -> list[int]:
+    """The indices ``todo`` of ``records`` in the order they are submitted: each scene's
+    reference run first (every error of its scene waits for it, and it is the longest, the
+    finest value of every knob at once, so a sweep stopped early has it kept), then the plan's
+    order."""
+    return sorted(todo, key=lambda k: not records[k]["is_reference"])
+
+
 def plan(
     mode: str,
     scenes: str | list[str] | None = None,
@@ -606,7 +614,7 @@ def sweep(
     cache = PointCache(out / CACHE_FOLDER if points is None else Path(points), env["commit"])
     entries = [cache.entry(job) if resume else None for job in jobs]
     kept = [None if e is None else e["measurement"] for e in entries]
-    todo = [k for k, m in enumerate(kept) if m is None]
+    todo = run_order(records, [k for k, m in enumerate(kept) if m is None])
     # kept point id -> the commit that measured it
     measured_by = {
         records[k]["id"]: entries[k].get("commit") for k, m in enumerate(kept) if m is not None

@@ -211,6 +211,19 @@ def test_plan_is_one_at_a_time_around_each_strategys_base_with_one_reference():
         assert declared == set(tradeoff._registry()), scene
 
 
+def test_reference_runs_are_submitted_first_then_the_plans_order():
+    records = tradeoff.plan("full", "rings,slope")
+    ids = [r["id"] for r in records]
+    assert ids.index("rings/barrier/reference") > 0  # the plan lists it after barrier's knobs
+    order = tradeoff.run_order(records, list(range(len(records))))
+    assert ids[order[0]] == "rings/barrier/reference"
+    assert order[1:] == sorted(order[1:])  # the others keep the plan's order
+    assert sorted(order) == list(range(len(records)))
+    ref = ids.index("rings/barrier/reference")
+    assert tradeoff.run_order(records, [1, 3, ref]) == [ref, 1, 3]  # a resumed sweep's rest
+    assert tradeoff.run_order(records, [1, 3]) == [1, 3]
+
+
 def test_bad_input_names_what_is_wrong(capsys, monkeypatch, tmp_path):
     with pytest.raises(ValueError, match="unknown knob 'dtt'; available: dt, dx"):
         tradeoff.plan("quick", None, "dt,dtt")
