@@ -335,12 +335,21 @@ def markdown(payload: dict) -> str:
         "with `python -m benchmarks tradeoff --replay tradeoff.json --id ID`.",
     ]
     for part in payload.get("merged", []):  # scenes rerun later and merged in (each point: commit)
+        of_part = [r for r in payload["points"] if r["scene"] in part["scenes"]]
+        resumed = sum(1 for r in of_part if r.get("resumed"))
         lines += [
             "",
             f"Scenes {', '.join(part['scenes'])}: run at commit `{part['commit'][:10]}` "
             f"({part['points']} points on {_executor_words(part)}, elapsed "
-            f"{part['wall_s']:.1f} s) and merged into this record; the figures above are those "
-            "of the other scenes' run.",
+            f"{part['wall_s']:.1f} s"
+            + (
+                f"; {resumed} of them measured by an earlier, stopped run of the same code "
+                "and resumed from their kept files"
+                if resumed
+                else ""
+            )
+            + f"; sum of the point wall times {sum(r['wall_s'] for r in of_part):.1f} s) and "
+            "merged into this record; the figures above are those of the other scenes' run.",
         ]
     for scene in payload["scenes"]:
         records = [r for r in payload["points"] if r["scene"] == scene]

@@ -123,6 +123,8 @@ def test_merging_a_rerun_replaces_its_scenes_and_keeps_the_others(tmp_path):
     rerun["points"] = [dict(p) for p in data["points"] if p["scene"] == "sine_boundary"]
     lr = next(p for p in rerun["points"] if p["strategy"] == "lr")
     lr["error"] = 0.5 * lr["error"]
+    for p in rerun["points"]:  # one point resumed from a stopped run's kept file
+        p["resumed"] = p is lr
     rerun["environment"] = dict(data["environment"], commit="f" * 40)
     rerun["executor"] = dict(data["executor"], kind="dask", scheduler="tcp://h:1", workers=None)
     (tmp_path / "rerun.json").write_text(json.dumps(rerun))
@@ -140,5 +142,8 @@ def test_merging_a_rerun_replaces_its_scenes_and_keeps_the_others(tmp_path):
     assert not (tmp_path / "tradeoff_sine_boundary.png").exists()
     line = next(x for x in md.splitlines() if x.startswith("Scenes sine_boundary: run at"))
     assert "at commit `ffffffffff`" in line and "on Dask scheduler tcp://h:1," in line, line
+    assert "; 1 of them measured by an earlier, stopped run of the same code" in line, line
+    wall = sum(p["wall_s"] for p in rerun["points"])
+    assert f"sum of the point wall times {wall:.1f} s)" in line, line
     # every point, merged or kept, replays from the merged record
     assert all(f"--replay {record} --id {p['id']}" in p["replay"] for p in out["points"])
