@@ -541,14 +541,55 @@ def test_the_code_version_changes_with_any_python_file_of_the_packages(tmp_path)
         (tmp_path / package / "a.py").write_text("x = 1\n")
     (tmp_path / "bfemp" / "notes.md").write_text("docs")
     packages = ("bfemp", "benchmarks")
-    first = code_version(tmp_path, packages)
-    assert code_version(tmp_path, packages) == first  # deterministic
+    first = code_version(tmp_path, packages, ())
+    assert code_version(tmp_path, packages, ()) == first  # deterministic
     (tmp_path / "bfemp" / "notes.md").write_text("other docs")  # not code: the same
-    assert code_version(tmp_path, packages) == first
+    assert code_version(tmp_path, packages, ()) == first
     (tmp_path / "benchmarks" / "a.py").write_text("x = 2\n")  # edited code: another digest
-    edited = code_version(tmp_path, packages)
+    edited = code_version(tmp_path, packages, ())
     assert edited != first
     (tmp_path / "benchmarks" / "a.py").rename(tmp_path / "benchmarks" / "b.py")  # renamed
-    assert code_version(tmp_path, packages) not in (first, edited)
+    assert code_version(tmp_path, packages, ()) not in (first, edited)
     # the project's own digest covers its packages
     assert len(code_version()) == 20
+
+
+def test_the_code_version_follows_the_point_modules_imports_and_nothing_else(tmp_path):
+    """Of a package outside ``packages``, only the modules the point's modules import (in any
+    statement, inside functions too, relative or absolute, at any depth) change the digest."""
+    from benchmarks._tradeoff_cache import POINT_MODULES, ROOT, code_version, imported_modules
+
+    bench = tmp_path / "bench"
+    (bench / "sub").mkdir(parents=True)
+    files = {
+        "__init__.py": "",
+        "point.py": "import math\n\ndef run():\n    from bench import scene\n    return scene\n",
+        "scene.py": "from .sub.helper import f\nfrom bench.sub import other\n",
+        "sub/__init__.py": "",
+        "sub/helper.py": "def f():\n    return 1\n",
+        "sub/other.py": "X = 1\n",
+        "report.py": "from bench import scene\n",  # imports the scene; nobody imports it
+    }
+    for name, text in files.items():
+        (bench / name).write_text(text)
+    found = imported_modules(tmp_path, ("bench.point",))
+    assert sorted(found) == [
+        "bench",
+        "bench.point",
+        "bench.scene",
+        "bench.sub",
+        "bench.sub.helper",
+        "bench.sub.other",
+    ]
+    first = code_version(tmp_path, (), ("bench.point",))
+    (bench / "report.py").write_text("from bench import scene  # edited\n")
+    assert code_version(tmp_path, (), ("bench.point",)) == first  # not imported: the same
+    (bench / "sub" / "helper.py").write_text("def f():\n    return 2\n")  # two imports deep
+    assert code_version(tmp_path, (), ("bench.point",)) != first
+    with pytest.raises(ValueError, match="'bench.nothing' has no file"):
+        imported_modules(tmp_path, ("bench.nothing",))
+    # the project's points: the scene modules are in, the sweep's driver and report are not
+    assert tradeoff.RUNS_MODULE in POINT_MODULES  # loaded by name: the digest must name it
+    project = imported_modules(ROOT, POINT_MODULES)
+    assert {"benchmarks.rings", "benchmarks.sine_boundary", "benchmarks.common"} <= set(project)
+    assert not {"benchmarks.tradeoff", "benchmarks._tradeoff_report"} & set(project)
