@@ -14,6 +14,11 @@ from matplotlib.figure import Figure
 MIN_TIME_RATIO = 1.05
 #: refining a knob counts as a gain when the error drops by at least this factor
 MIN_ERROR_RATIO = 1.02
+#: two strategies' costs closer than this fraction are a close call, not a firm lead: one
+#: point's wall time varies by about this much between runs of the same work (the full rings
+#: sweep: augury's base and cfl_safety_fem=1 points, identical steps and error, 132.9 s and
+#: 139.1 s, 4.7 %)
+CLOSE_COST_FRACTION = 0.05
 #: the cost axes: record key -> words
 COSTS = {"wall_s": "wall time", "cpu_s": "CPU time"}
 
@@ -109,10 +114,20 @@ def crossovers(ranges: list[dict]) -> list[dict]:
     ]
 
 
+def close_call(r: dict) -> bool:
+    """Whether range ``r`` of ``winners`` has a runner-up within ``CLOSE_COST_FRACTION`` of the
+    winner's cost at the range's tightest target."""
+    return bool(r["runner_up"]) and r["runner_up_cost_s"] <= r["cost_s"] * (
+        1.0 + CLOSE_COST_FRACTION
+    )
+
+
 def winner_sentences(scene: str, ranges: list[dict], cost_words: str = "wall time") -> list[str]:
-    """The ranges and crossovers in words (one sentence each)."""
+    """The ranges and crossovers in words (one sentence each); a close call (``close_call``)
+    says that the lead is within the timing noise."""
     if not ranges:
         return [f"{scene}: no point has an error, no winner."]
+    close = f"within {CLOSE_COST_FRACTION:.0%} in cost, about the spread of one point's time"
     lines = []
     for r in ranges:
         span = (
@@ -128,12 +143,14 @@ def winner_sentences(scene: str, ranges: list[dict], cost_words: str = "wall tim
         )
         lines.append(
             f"For {span}, **{r['winner']}** is the cheapest ({r['cost_s']:.3g} s of "
-            f"{cost_words} at {at}{other})."
+            f"{cost_words} at {at}{other})"
+            + (f": a close call ({close} between runs), not a firm lead." if close_call(r) else ".")
         )
-    for c in crossovers(ranges):
+    for loose, c in zip(ranges, crossovers(ranges), strict=False):
         lines.append(
             f"Crossover at error {c['error']:.3g}: below it {c['below']} is faster than "
-            f"{c['above']} on {scene} (at or above it, {c['above']} wins)."
+            f"{c['above']} on {scene} (at or above it, {c['above']} wins"
+            + (f"; a close call at {c['error']:.3g}: {close})." if close_call(loose) else ").")
         )
     lowest = ranges[-1]
     if lowest["error_from"] > 0:

@@ -16,6 +16,7 @@ from benchmarks import tradeoff
 from benchmarks._tradeoff_knobs import ladder, option_knobs
 from benchmarks._tradeoff_report import (
     best_knob,
+    close_call,
     crossovers,
     knob_effect,
     pareto_front,
@@ -131,6 +132,16 @@ def test_winners_per_error_range_from_a_hand_made_table():
     text = " ".join(winner_sentences("slope", ranges))
     assert "below it B is faster than A on slope" in text
     assert "No strategy reached an error below 1e-05" in text
+    assert "close call" not in text  # 1 s against 3 s: a firm lead
+    # B's 3 s point made 1.04 s: within 5 % of A's 1 s at 1e-2, a close call there only
+    near = [dict(p, wall_s=1.04) if p["wall_s"] == 3.0 else p for p in table]
+    near_ranges = winners(near)
+    assert [close_call(r) for r in near_ranges] == [True, False]
+    text = winner_sentences("slope", near_ranges)
+    assert "a close call (within 5% in cost" in text[0] and "close call" not in text[1]
+    assert "; a close call at 0.01: within 5% in cost" in text[2], text[2]
+    # a runner-up 6 % dearer is a firm lead
+    assert not close_call(dict(near_ranges[0], runner_up_cost_s=1.06))
     # the CPU time as the cost can change the winner: B is cheaper in CPU at every target
     cpu = [dict(r, cpu_s=c) for r, c in zip(table, (4.0, 9.0, 2.0, 3.0, 0.1, 5.0), strict=True)]
     assert [r["winner"] for r in winners(cpu, "cpu_s")] == ["B"]
