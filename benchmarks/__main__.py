@@ -60,7 +60,7 @@ def _parser() -> argparse.ArgumentParser:
         "--mode",
         dest="mode",
         help="another mode of the benchmark (rings: partial; hertz: refined; "
-        "buckling: partial, plate_quick, plate_partial; "
+        "buckling: partial, plate_quick, plate_partial, plate_full; "
         "twist: partial, partial_probe, full_probe)",
     )
     parser.add_argument("--out", default="results", help="output folder (default results/)")

@@ -48,9 +48,16 @@ Choices where the paper is silent or the library forces a change (recorded in th
   and 0.87 m for mu = 0.2) and runs to 2.24 and 1.48 m at u = 7 m, while at mu = 0.5 it stays
   flatter and peaks at 0.51 m near u = 6 m, then 0.40 m at 6.5 m and 0.47 m at 7 m. By the
   measure above u_buckle = 5.00, 5.15 and 5.85 m: mu = 0.5 crosses the threshold by 0.01 m
-  for about 0.3 m of travel, so it still counts as buckled. Full mode with the plate: not run
-  (here the plate took 10-20x the cap's Newton iterations, 1316, 3165 and 5180 in
-  ``buckling_partial.json``, and 20-30x its wall time; the cap's full run took 40 min).
+  for about 0.3 m of travel, so it still counts as buckled. Full mode with the plate
+  (``--mode plate_full``: the full discretisation, dt and travel with the plate, Newton cap
+  2000 as in partial mode): not run to the end here (the plate took 10-20x the cap's Newton
+  iterations, 1316, 3165 and 5180 in ``buckling_partial.json``, and 20-30x its wall time; the
+  cap's full run took 40 min, so hours per mu on 2 cores). Its cases are resumable:
+  ``python -m benchmarks buckling --mode plate_full --mu 0.5 --budget-s 7200 --resumable
+  --out DIR`` checkpoints the case in ``DIR/cases/`` every ``CHECKPOINT_EVERY`` steps and at
+  the budget, and the same command goes on from there, in a later session too when ``DIR`` is
+  kept (``benchmarks._case_checkpoint``; the segments together equal one uninterrupted run bit
+  for bit, ``tests/benchmarks/test_buckling_resume.py``); ``merge`` joins the per-mu records.
 - Feet: the outer ring's nodes on y = 0 are fixed (level sets act on MPM grid nodes only); the
   inner ring's feet are held by two sticky level-set boxes ``9 <= |x| <= 13, -2 <= y <= 0``; a
   slip box ``|x| <= 9, -2 <= y <= 0`` lies under the middle. One scripted motion serves the cap
@@ -90,6 +97,7 @@ Choices where the paper is silent or the library forces a change (recorded in th
 
 from __future__ import annotations
 
+import argparse
 import logging
 import math
 import time
@@ -100,6 +108,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 import bfemp
+from benchmarks._case_checkpoint import CaseCheckpoint
 from benchmarks.common import cases_by_mu, environment, note_merge, peak_memory_mb, write_json
 
 log = logging.getLogger(__name__)
@@ -131,9 +140,12 @@ MODES = {
 # the paper's pusher: a FEM plate at mu = PLATE_MU (scene.set_friction), quick discretisation
 MODES["plate_quick"] = dict(MODES["quick"], pusher="plate")
 MODES["plate_partial"] = dict(MODES["partial"], pusher="plate")
+# the paper's experiment: full resolution with the plate, hours per mu on 2 cores (resumable)
+MODES["plate_full"] = dict(MODES["full"], pusher="plate", max_newton=2000)
 PLATE_MU = 10.0  # the paper's plate-ring friction ("a BFEMP based no-slip boundary condition")
 PLATE_HALF_WIDTH, PLATE_THICKNESS = 6.0, 1.0  # m
 PROGRESS_EVERY = 20  # steps between progress lines in the log
+CHECKPOINT_EVERY = 20  # steps between a resumable case's checkpoints
 
 
 class _CapAndFeet(bfemp.motion.Motion):
@@ -142,6 +154,9 @@ class _CapAndFeet(bfemp.motion.Motion):
 
     def __init__(self, speed: float, y_split: float) -> None:
         self.speed, self.y_split = float(speed), float(y_split)
+
+    def __repr__(self) -> str:  # by value: the model fingerprint of a checkpoint reads it
+        return f"_CapAndFeet(speed={self.speed!r}, y_split={self.y_split!r})"
 
     def positions(self, x0: np.ndarray, tau: float) -> np.ndarray:
         x = np.array(x0, dtype=np.float64, copy=True)
@@ -239,10 +254,19 @@ class Detachment:
         return float(growth[k]), math.degrees(math.atan2(y, x))
 
 
-def _run_one(cfg: dict, mu: float, budget_s: float = math.inf) -> dict:
+def _run_one(
+    cfg: dict,
+    mu: float,
+    budget_s: float = math.inf,
+    checkpoint: CaseCheckpoint | None = None,
+    checkpoint_every: int = CHECKPOINT_EVERY,
+) -> dict:
     """Press the rings to ``u_end`` at friction ``mu``; the detachment after every step.
     Stops after the step that ends past ``budget_s`` of wall time (s); the case then says
-    ``cut_at_budget_s`` and ends at ``u_end_m``."""
+    ``cut_at_budget_s`` and ends at ``u_end_m``. With ``checkpoint`` the case is saved there
+    every ``checkpoint_every`` steps, at the cut and at the end, and a checkpoint found there
+    is resumed (``_case_checkpoint``): ``wall_s`` is then the sum of the ``segments_s`` of
+    every process that ran the case, and ``budget_s`` bounds this process's segment."""
     sim = bfemp.Simulation(
         _scene(cfg, mu),
         integrator="backward_euler",
@@ -253,10 +277,42 @@ def _run_one(cfg: dict, mu: float, budget_s: float = math.inf) -> dict:
     )
     measure = Detachment(sim.state.mpm_x, sim.state.fem_x, cfg["dx"])
     steps = round(cfg["u_end"] / (SPEED * cfg["dt"]))
-    u, detach, angle = [0.0], [0.0], [90.0]
-    newton, friction_max, min_d, error, cut = 0, 0, math.inf, None, False
+    progress = {
+        "u": [0.0],
+        "detach": [0.0],
+        "angle": [90.0],
+        "newton": 0,
+        "friction_max": 0,
+        "min_d": None,
+        "error": None,
+        "segments_s": [],
+    }
+    if checkpoint is not None and checkpoint.exists():
+        progress = checkpoint.restore(sim)
+    u, detach, angle = progress["u"], progress["detach"], progress["angle"]
+    newton, friction_max = progress["newton"], progress["friction_max"]
+    min_d = math.inf if progress["min_d"] is None else progress["min_d"]
+    error, cut = progress["error"], False
+    segments, first_step = progress["segments_s"], sim.state.step
     started = time.perf_counter()
-    for k in range(steps):
+
+    def save(done_segments: list[float] | None = None) -> None:
+        if checkpoint is not None:
+            checkpoint.save(
+                sim,
+                {
+                    "u": u,
+                    "detach": detach,
+                    "angle": angle,
+                    "newton": newton,
+                    "friction_max": friction_max,
+                    "min_d": min_d if math.isfinite(min_d) else None,
+                    "error": error,
+                    "segments_s": done_segments or [*segments, time.perf_counter() - started],
+                },
+            )
+
+    for k in range(sim.state.step, steps if error is None else 0):
         try:
             report = sim.step()
         except bfemp.StepError as err:
@@ -289,7 +345,12 @@ def _run_one(cfg: dict, mu: float, budget_s: float = math.inf) -> dict:
                 "buckling mu=%g: cut at the budget of %.0f s, u = %.2f m", mu, budget_s, u[-1]
             )
             break
-    wall = time.perf_counter() - started
+        if (k + 1) % checkpoint_every == 0 and k + 1 < steps:
+            save()
+    if sim.state.step > first_step or error != progress["error"]:  # this process ran steps
+        segments = [*segments, time.perf_counter() - started]
+        save(segments)
+    wall = sum(segments)
     threshold = BUCKLE_FRACTION * (INNER_RADII[1] - INNER_RADII[0])
     over = np.flatnonzero(np.array(detach) > threshold)
     log.info(
@@ -312,6 +373,7 @@ def _run_one(cfg: dict, mu: float, budget_s: float = math.inf) -> dict:
         "friction_iterations_max": friction_max,
         "min_distance_m": min_d if math.isfinite(min_d) else None,
         "wall_s": wall,
+        "segments_s": segments,
         "particles": int(sim.model.n_particles),
         "fem_vertices": int(sim.model.n_fem_nodes),
         "fem_triangles": int(sim.model.fem_cells.shape[0]),
@@ -355,6 +417,7 @@ def run(
     out: str | Path = "results",
     mus: tuple[float, ...] | None = None,
     budget_s: float = math.inf,
+    resumable: bool = False,
 ) -> dict:
     """Press the rings at each mu; write ``buckling.json``, ``buckling.png`` and the final
     shapes ``buckling_final.npz`` (``mpm_<mu>``, ``fem_<mu>``: positions in m) to ``out``.
@@ -369,6 +432,10 @@ def run(
             run the full mode's cases side by side; ``merge`` joins their records).
         budget_s: wall time in s after which each case stops (its record then says
             ``cut_at_budget_s``; "not buckled" then means not up to its ``u_end_m``).
+        resumable: checkpoint each case in ``out/cases/<mode>_mu<mu>/`` (every
+            ``CHECKPOINT_EVERY`` steps, at a cut and at the end) and go on from a checkpoint
+            found there: a case longer than a session runs as several budgeted segments,
+            in later sessions too when the folder is kept (``_case_checkpoint``).
 
     Returns:
         ``{"json": path, "png": path, **payload}``; ``payload["cases"]`` per mu. The record
@@ -384,7 +451,9 @@ def run(
     started = time.perf_counter()
     runs: list[dict] = []
     for mu in mus:
-        runs.append(_run_one(cfg, mu, budget_s=budget_s))
+        folder = out / "cases" / f"{mode}_mu{mu:g}"
+        checkpoint = CaseCheckpoint(folder) if resumable else None
+        runs.append(_run_one(cfg, mu, budget_s=budget_s, checkpoint=checkpoint))
         payload = _payload(mode, cfg, mus, runs, time.perf_counter() - started, env)
         path = write_json(out, NAME, payload)
         _save_shapes(runs, out / f"{NAME}_final.npz")
@@ -475,3 +544,33 @@ def _with_shapes(path: Path, case: dict) -> dict:
     key = f"{case['mu']:g}"
     with np.load(path.with_name(f"{NAME}_final.npz")) as shapes:
         return {**case, "final_mpm_x": shapes[f"mpm_{key}"], "final_fem_x": shapes[f"fem_{key}"]}
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--mu`` (repeatable), ``--budget-s`` and ``--resumable`` (see ``run``)."""
+    group = parser.add_argument_group("buckling")
+    group.add_argument(
+        "--mu", type=float, action="append", help="friction between the rings (repeatable)"
+    )
+    group.add_argument(
+        "--budget-s", type=float, default=math.inf, help="wall-time budget of each case in s"
+    )
+    group.add_argument(
+        "--resumable",
+        action="store_true",
+        help="checkpoint each case in OUT/cases/ and go on from a checkpoint found there",
+    )
+
+
+def main_from_args(args: argparse.Namespace) -> int:
+    if not args.budget_s >= 0.0:
+        raise ValueError(f"--budget-s must be >= 0, got {args.budget_s}")
+    summary = run(
+        args.mode or "full",
+        args.out,
+        mus=tuple(args.mu) if args.mu else None,
+        budget_s=args.budget_s,
+        resumable=args.resumable,
+    )
+    print(f"buckling: wrote {summary['json']}")
+    return 0
