@@ -382,10 +382,14 @@ def _strategy_points(
             add(_with(base, knob, value), "sweep", knob, f"{knob}={_short(value)}")
     if reference and "reference_keys" in SCENES[scene]:
         finest = dict(base)
+        at_base = SCENES[scene]["modes"][mode].get("reference_at_base", {})
         for knob, entry in table.items():
+            if knob in at_base:  # declared with the reason (_tradeoff_scenes)
+                continue
             value = max(entry["values"], key=lambda v, e=entry: finer_key(e, v))
             finest = _with(finest, knob, value)
-        add(finest, "reference", None, "reference")["is_reference"] = True
+        record = add(finest, "reference", None, "reference")  # or the sweep point it equals
+        record["is_reference"], record["role"] = True, "reference"
     return list(by_settings.values())
 
 

@@ -222,6 +222,28 @@ def test_plan_is_one_at_a_time_around_each_strategys_base_with_one_reference():
         assert declared == set(tradeoff._registry()), scene
 
 
+def test_a_knob_declared_reference_at_base_keeps_the_base_in_the_reference_run():
+    """sine_boundary's full reference keeps barrier's base tol (declared with its reason):
+    it is then the dt = 5e-4 s sweep point, one run, marked as the reference; the quick
+    reference, with no such declaration, takes the finest tol as before."""
+    why = tradeoff.SCENES["sine_boundary"]["modes"]["full"]["reference_at_base"]
+    assert set(why) == {"tol"} and "2 h" in why["tol"]
+    full = tradeoff.plan("full", "sine_boundary", strategies="barrier")
+    base = tradeoff.strategy_base("sine_boundary", "barrier", "full")
+    (ref,) = [p for p in full if p["is_reference"]]
+    assert ref["id"] == "sine_boundary/barrier/dt=5e-4" and ref["role"] == "reference"
+    assert ref["settings"] == {**base, "dt": 5e-4}
+    assert sum(p["settings"] == ref["settings"] for p in full) == 1
+    quick = tradeoff.plan("quick", "sine_boundary", strategies="barrier")
+    (qref,) = [p for p in quick if p["is_reference"]]
+    assert qref["id"] == "sine_boundary/barrier/reference"
+    assert qref["settings"]["options"]["tol"] == 1e-5
+    # the scripted strip sets no stable step there: the FEM CFL fraction is no knob of the
+    # explicit strategies (declared in no_knobs)
+    knobs = {p["knob"] for p in tradeoff.plan("full", "sine_boundary")}
+    assert "cfl_safety_mpm" in knobs and "cfl_safety_fem" not in knobs
+
+
 def test_reference_runs_are_submitted_first_then_the_plans_order():
     records = tradeoff.plan("full", "rings,slope")
     ids = [r["id"] for r in records]
