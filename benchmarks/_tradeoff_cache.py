@@ -13,8 +13,12 @@ instead of running them again; a point of other code, other settings or other th
 another name and runs again. Keying on the code rather than the commit lets a sweep that takes
 several sessions go on across commits that touch only documentation, tests, records or the
 benchmarks a point does not run (the report, the sweep's driver, other benchmarks; the folder
-can be committed); each kept point names the commit that measured it. Failed points (a crash,
-a timeout, a refusal) are not kept: a resumed sweep runs them again.
+can be committed); each kept point names the commit that measured it. A point whose run ended
+in a named step failure (``StepError``: TUNNELED, MAX_ITERATIONS, ...; its metrics say where)
+is kept like any measurement, since the same code and settings end the same way (a full
+sine_boundary point took 26 min to reach its TUNNELED step); points that gave no metrics (a
+crash, a timeout, a refusal raised before the run) are not kept: a resumed sweep runs them
+again.
 """
 
 from __future__ import annotations
@@ -156,8 +160,9 @@ class PointCache:
         return None if entry is None else entry["measurement"]
 
     def put(self, point_id: str, job: dict, measurement: dict) -> bool:
-        """Keep ``measurement`` of ``job`` (not a failed one); whether it was written."""
-        if measurement.get("failure"):
+        """Keep ``measurement`` of ``job`` (not one without metrics: a crash, a timeout or a
+        refusal; a run's own step failure is kept); whether it was written."""
+        if measurement.get("metrics") is None:
             return False
         self.folder.mkdir(parents=True, exist_ok=True)
         path = self.path(job)

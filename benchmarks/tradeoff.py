@@ -52,8 +52,8 @@ strategy (``warmup``) fill numba's on-disk cache.
 
 Each point's measurement is kept in ``<out>/tradeoff_points/`` (``--points DIR``) as it arrives
 (``benchmarks._tradeoff_cache``): ``--resume`` takes the points an earlier sweep of the same
-code kept there (same settings and threads; failed points run again), so a stopped sweep goes
-on where it stopped, in a later session too when the folder is committed
+code kept there (same settings and threads; points that gave no metrics run again), so a
+stopped sweep goes on where it stopped, in a later session too when the folder is committed
 (``benchmarks/records/tradeoff_full_points/`` holds the full sweep's points so far). A later
 run of some scenes merges into a record with ``merge(record, rerun)`` (the quick record
 ``benchmarks/records/tradeoff.json`` was so made: its header says which scenes, at which commit).

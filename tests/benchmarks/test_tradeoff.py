@@ -557,10 +557,15 @@ def test_the_point_cache_keys_on_code_settings_and_threads(tmp_path):
     assert cache.get({**job, "threads": 2}) is None
     # the timeout does not change what a point measures
     assert cache.get({**job, "timeout_s": 60.0}) is not None
-    # failed points are not kept, so a resumed sweep runs them again
+    # points that gave no metrics (a timeout, a crash, a refusal raised before the run) are not
+    # kept, so a resumed sweep runs them again
     other = {**job, "threads": 3}
     assert not cache.put("slope/x/base", other, {"metrics": None, "failure": "timed out"})
     assert cache.get(other) is None
+    # a run that ended in a named step failure is its outcome, measured: kept like any other
+    tunneled = {"metrics": {"steps": 692, "failure": "TUNNELED"}, "failure": "TUNNELED"}
+    assert cache.put("slope/x/dt=2e-3", other, tunneled)
+    assert cache.get(other) == tunneled
     # a damaged file is not a measurement: the point runs again
     cache.path(job).write_text("{not json")
     assert cache.get(job) is None
