@@ -276,7 +276,8 @@ SCENES = {
             # 0.05 m, ~1,700 steps in quick mode): no softened variant is needed
             # Newton cap: barrier's 1000, not two_stage's default 100, at which the full base
             # stopped with MAX_ITERATIONS at step 3664 (t = 0.879 s, ||p|| / scale 3.2e-3
-            # against tol 1e-4, 352 s in; measured at d578db5); no quick point reached 100
+            # against tol 1e-4, 352 s in; measured at d578db5), as the quick cfl_safety_mpm =
+            # 0.2 point did (2.6e-4 at t = 0.782 s; the quick record keeps its cap of 100)
             "two_stage": {
                 "dt": {"quick": "auto", "full": "auto"},
                 "options": {"tol": 1e-4, "max_newton_iterations": 1000},
