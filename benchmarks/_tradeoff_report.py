@@ -254,7 +254,8 @@ def plot_scene(
         records: the scene's point records (``strategy``, ``label``, ``role``, ``knob``,
             ``sweeps``, ``settings``, ``error``, ``pareto`` and the cost); failed points are left
             out. An error of exactly 0 (the point is the reference run) is drawn at a tenth of
-            the smallest positive error.
+            the smallest positive error. With no point left (the scene's reference run failed,
+            so no error exists) the figure says so on linear axes.
         path: the PNG file.
         title, error_label: the title and the error axis label.
         cost: the record key of the cost in s (``COSTS``).
@@ -297,7 +298,12 @@ def plot_scene(
     ax.plot([], [], "ks", mfc="none", label="base (square), sweep (circle)")
     if any(r["role"] == "reference" for r in done):
         ax.plot([], [], "k*", markersize=11, label="reference run")
-    ax.set(xscale="log", yscale="log", xlabel=f"{COSTS[cost]} of the point [s]", ylabel=error_label)
+    if done:
+        ax.set(xscale="log", yscale="log")
+    else:  # nothing to place on log axes (the reference run failed, or every point did)
+        ax.text(0.5, 0.5, "no finished point with an error", ha="center", va="center",
+                transform=ax.transAxes)  # fmt: skip
+    ax.set(xlabel=f"{COSTS[cost]} of the point [s]", ylabel=error_label)
     ax.set_title(title, fontsize="medium")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize="small", loc="best")

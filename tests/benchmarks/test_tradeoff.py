@@ -149,6 +149,18 @@ def test_winners_per_error_range_from_a_hand_made_table():
 
 
 # ----------------------------------------------------------------------------- planning, input
+def test_a_scene_without_any_error_is_plotted_with_the_reason_not_a_crash(tmp_path):
+    """A scene whose reference run failed has no error at any point (measured: the full
+    sine_boundary sweep's report stopped with "Data cannot be log-scaled"); its figure says
+    so instead."""
+    from benchmarks._tradeoff_report import plot_scene
+
+    point = {"strategy": "lr", "label": "base", "role": "base", "knob": None, "sweeps": []}
+    records = [{**point, "error": None, "wall_s": 214.6, "pareto": False}]
+    path = plot_scene(records, tmp_path / "scene.png", "sine_boundary", "error")
+    assert path.stat().st_size > 5_000
+
+
 def test_each_strategy_sweeps_the_knobs_its_options_declare():
     # the declaration: options fields with "sweep" metadata
     assert set(option_knobs("barrier")) == {"tol"}
