@@ -23,7 +23,6 @@ from pathlib import Path
 from bfemp.checkpoint import (
     CHECKPOINT_FILE,
     read_checkpoint,
-    remove_checkpoint,
     restore_checkpoint,
     write_checkpoint,
 )
@@ -77,10 +76,3 @@ class CaseCheckpoint:
         restore_checkpoint(self.folder, sim)
         log.info("case resumed at step %d from %s", step, self.folder)
         return progress
-
-    def clear(self) -> None:
-        """Delete the checkpoint and the progress (a fresh case must not resume an old one)."""
-        remove_checkpoint(self.folder)
-        path = self.folder / PROGRESS_FILE
-        if path.is_file():
-            path.unlink()
