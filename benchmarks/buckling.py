@@ -186,7 +186,12 @@ def _scene(cfg: dict, mu: float) -> bfemp.Scene:
             prescribed_nodes=feet,
             name="outer_ring",
         )
-        bottom = OUTER_RADII[1] + 0.5 * DHAT  # the plate starts half d-hat above the crown
+        # the plate starts half d-hat above the crown's arc (radius OUTER_RADII[1]) and at least
+        # half d-hat clear of the barrier of the mesh's highest node: the full mesh has no node
+        # on the crown's top, its highest two are 0.33 mm below the arc (0.83 mm from the plate,
+        # inside d-hat = 1 mm, which the scene refuses at the start); the quick mesh's highest
+        # is 1.9 mm below it, where the first rule holds
+        bottom = max(OUTER_RADII[1] + 0.5 * DHAT, p[:, 1].max() + 1.5 * DHAT)
         plate = bfemp.shapes.rectangle(
             (-PLATE_HALF_WIDTH, bottom),
             (PLATE_HALF_WIDTH, bottom + PLATE_THICKNESS),

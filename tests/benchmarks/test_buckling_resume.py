@@ -10,6 +10,7 @@ from benchmarks import buckling
 from benchmarks.__main__ import main
 from benchmarks._case_checkpoint import PROGRESS_FILE, CaseCheckpoint
 from bfemp.errors import SceneError
+from bfemp.validation import validate_initial
 
 #: the quick discretisation pressed 0.3 m (6 steps): the rings meet at the first step
 CFG = dict(buckling.MODES["quick"], u_end=0.3)
@@ -101,3 +102,15 @@ def test_plate_full_is_the_full_discretisation_pressed_by_the_papers_plate():
         cfg["pusher"] == "plate"
         and cfg["max_newton"] == buckling.MODES["plate_partial"]["max_newton"]
     )
+
+
+@pytest.mark.parametrize("mode", ["plate_quick", "plate_partial", "plate_full"])
+def test_the_plate_starts_clear_of_the_crowns_barrier(mode):
+    """The plate is placed where the scene accepts it at the start (no node within d-hat of
+    another body): the full mesh has no node on the crown's top, so half d-hat above the arc
+    put its highest nodes 0.83 mm from the plate, inside d-hat = 1 mm, and refused the run."""
+    model = buckling._scene(buckling.MODES[mode], 0.5).build()
+    validate_initial(model)
+    outer, plate = (b for b in model.fem_bodies)
+    gap = model.fem_X[plate.nodes, 1].min() - model.fem_X[outer.nodes, 1].max()
+    assert buckling.DHAT < gap < 2.5 * buckling.DHAT, gap
