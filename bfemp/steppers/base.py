@@ -153,7 +153,8 @@ class StepReport:
         min_distance: smallest active contact distance at the end of the step in m (NaN when no
             pair is within d-hat or the strategy has no distance).
         contact_pairs: number of active contact pairs (or contact nodes) at the end of the step.
-        friction_converged: whether the friction loop met the tolerance within its cap.
+        friction_converged: whether the friction loop met the tolerance within its cap (False
+            when it reached the cap or stalled before it).
         boundary_forces: per level-set boundary, the reaction force (d,) in N its slip nodes
             exert on the body (empty without slip constraints).
         notes: named observations of the step (``"SCRIPTED_FOREGROUND: ..."``), never silent.
