@@ -58,9 +58,28 @@ Choices where the paper is silent or the library forces a change (recorded in th
   the budget, and the same command goes on from there, in a later session too when ``DIR`` is
   kept (``benchmarks._case_checkpoint``; the segments together equal one uninterrupted run bit
   for bit, ``tests/benchmarks/test_buckling_resume.py``); ``merge`` joins the per-mu records.
-  Under way in ``records/buckling_plate_full_runs/mu<mu>/`` (from 9cd6176, one mu per
-  process on 2 cores, 1 BLAS thread each): mu 0 to u = 4.15 m in 3637 s (62,171 Newton
-  iterations, detachment 0.21 m), mu 0.5 to u = 2.72 m in 4018 s (62,161, 0.08 m).
+  Run in ``records/buckling_plate_full_runs/mu<mu>/`` (one mu per process on 2 cores, 1 BLAS
+  thread each; every segment's seconds in the case's ``progress.json``). The segments are not
+  all of one commit: from 25a03e5 the friction loop stops when it stalls
+  (``bfemp.steppers._barrier_solve.stalled``) instead of running to its cap of 20, which
+  changes the steps where it does not converge; before it, at mu = 0 from u = 3.2 m on, the
+  loop reached its cap on most steps (20 minimisations, up to 902 Newton iterations a step).
+  mu = 0, finished: buckles at u = 5.24 m (detachment 0.21 m at u = 4, 0.37 at 5, 1.08 at 6,
+  2.12 at 7, peak 2.54 m at 7.28, 1.60 m at 8), 6616 s over three segments (steps 0-440 on
+  9cd6176, 440-800 on 25a03e5), 98,155 Newton iterations, closest 0.96 mm. mu = 0.5: to
+  u = 4.88 m (steps 0-380 on 9cd6176, 380-488 on 25a03e5), 12,164 s, 157,952 Newton
+  iterations, detachment 0.16 m. mu = 0.2: to u = 3.00 m, all on 25a03e5, 4714 s, 57,358
+  Newton iterations, detachment 0.08 m. Cost per step, measured: mu = 0 took 58-113 s from
+  u = 4.2 to 4.4 m (the loop at its cap), then 4.3 s to 4.6 m and about 1.3 s to the end (on
+  25a03e5; the state got cheaper, not only the loop: the stall rule replayed from the
+  u = 4.2 m checkpoint cut three steps from 902 to 245-422 Newton iterations, while the steps
+  from u = 4.4 m took 76 and fewer). mu = 0.5 takes 30-45 s a step from u = 2.8 m (435-650
+  Newton iterations), mu = 0.2 12-15 s to u = 3 m. In mu = 0.5's steps the loop
+  converges in 5-6 re-lags (to u = 3.8 m); the cost is the step's first solve, 235-336 Newton
+  iterations at step sizes 1e-7 to 0.1 (Armijo backtracking, 3-19 trials, below CCD bounds of
+  0.02-0.7). Its steepest components are grid nodes of 1e-9 of the largest node mass, but
+  holding every unknown below 1e-4 of it fixed left the count as it was (409, 244 and 331
+  against 297, 243 and 263 for the three steps from u = 2.8 m): the cause is not found.
 - Feet: the outer ring's nodes on y = 0 are fixed (level sets act on MPM grid nodes only); the
   inner ring's feet are held by two sticky level-set boxes ``9 <= |x| <= 13, -2 <= y <= 0``; a
   slip box ``|x| <= 9, -2 <= y <= 0`` lies under the middle. One scripted motion serves the cap
