@@ -43,3 +43,21 @@ def block_scene(dim, material, *, prescribed_bottom=True, gravity=True, h=0.5):
         )
     scene.add_fem(mesh, material=material, name="block", **kwargs)
     return scene
+
+
+def pressed_block_scene(friction_iterations):
+    """A 0.5 m particle block on a sticky floor, pressed and dragged by a scripted FEM plate
+    moving at (0.2, -1.0) m/s with mu = 0.5; the lagged-friction loop capped at
+    ``friction_iterations`` minimisations."""
+    scene = bfemp.Scene(dim=2)
+    mat = bfemp.NeoHookean(E=1e6, nu=0.2, density=1000.0)
+    x, vol = bfemp.sample.box((0.0, 0.0), (0.5, 0.5), dx=0.05, ppc=4)
+    scene.add_mpm(x, vol, material=mat)
+    scene.set_grid(dx=0.05)
+    scene.add_boundary(bfemp.levelset.HalfPlane(point=(0, 0), normal=(0, 1)), "sticky")
+    plate = bfemp.shapes.rectangle((-0.2, 0.52), (0.7, 0.57), h=0.025)
+    scene.add_fem(plate, material=mat, prescribed=bfemp.motion.Linear(velocity=(0.2, -1.0)))
+    scene.set_contact(
+        dhat=1e-3, kappa=1e4, mu=0.5, eps_v=1e-3, friction_iterations=friction_iterations
+    )
+    return scene

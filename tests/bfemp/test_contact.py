@@ -9,7 +9,7 @@ from bfemp.contact.term import BarrierTerm
 from bfemp.steppers._barrier_solve import ScriptedSolve
 from bfemp.testing import check_term
 from solvers.result import TIMING_KEYS
-from tests.bfemp.conftest import started_stepper
+from tests.bfemp.conftest import pressed_block_scene, started_stepper
 
 STIFF = bfemp.NeoHookean(E=1e6, nu=0.3, density=1000.0)
 DHAT = 0.05
@@ -550,16 +550,8 @@ def test_step_timings_and_friction_counts_cover_every_sub_step_of_a_scripted_pla
     solved in CCD-limited sub-steps. The phases are summed over all of them (before, only the
     last sub-step's were kept: hertz quick gave 0.29 s of 69.9 s) and the friction count is per
     sub-step, within the cap (before, sums of up to cap x sub-steps were reported)."""
-    scene = bfemp.Scene(dim=2)
-    mat = bfemp.NeoHookean(E=1e6, nu=0.2, density=1000.0)
-    x, vol = bfemp.sample.box((0.0, 0.0), (0.5, 0.5), dx=0.05, ppc=4)
-    scene.add_mpm(x, vol, material=mat)
-    scene.set_grid(dx=0.05)
-    scene.add_boundary(bfemp.levelset.HalfPlane(point=(0, 0), normal=(0, 1)), "sticky")
-    plate = bfemp.shapes.rectangle((-0.2, 0.52), (0.7, 0.57), h=0.025)
-    scene.add_fem(plate, material=mat, prescribed=bfemp.motion.Linear(velocity=(0.2, -1.0)))
     cap = 2
-    scene.set_contact(dhat=1e-3, kappa=1e4, mu=0.5, eps_v=1e-3, friction_iterations=cap)
+    scene = pressed_block_scene(friction_iterations=cap)
     sim = bfemp.Simulation(scene, dt=1e-2, tol=1e-4)
     newton_phases = [k for k in TIMING_KEYS if k != "total"]
     covered = step_time = 0.0

@@ -7,6 +7,7 @@ import pytest
 import bfemp
 from bfemp.contact.friction import FrictionTerm
 from bfemp.steppers._barrier_solve import ScriptedSolve, stalled
+from tests.bfemp.conftest import pressed_block_scene
 
 WINDOW, FACTOR = ScriptedSolve.STALL_WINDOW, ScriptedSolve.STALL_FACTOR
 
@@ -36,16 +37,7 @@ def test_a_bump_before_a_halving_is_not_a_stall():
 
 def _pressed_block(cap: int) -> bfemp.Simulation:
     """A particle block pressed and dragged by a scripted FEM plate at mu = 0.5."""
-    scene = bfemp.Scene(dim=2)
-    mat = bfemp.NeoHookean(E=1e6, nu=0.2, density=1000.0)
-    x, vol = bfemp.sample.box((0.0, 0.0), (0.5, 0.5), dx=0.05, ppc=4)
-    scene.add_mpm(x, vol, material=mat)
-    scene.set_grid(dx=0.05)
-    scene.add_boundary(bfemp.levelset.HalfPlane(point=(0, 0), normal=(0, 1)), "sticky")
-    plate = bfemp.shapes.rectangle((-0.2, 0.52), (0.7, 0.57), h=0.025)
-    scene.add_fem(plate, material=mat, prescribed=bfemp.motion.Linear(velocity=(0.2, -1.0)))
-    scene.set_contact(dhat=1e-3, kappa=1e4, mu=0.5, eps_v=1e-3, friction_iterations=cap)
-    return bfemp.Simulation(scene, dt=1e-2, tol=1e-4)
+    return bfemp.Simulation(pressed_block_scene(cap), dt=1e-2, tol=1e-4)
 
 
 def _friction_steps(sim: bfemp.Simulation, n: int) -> list:
