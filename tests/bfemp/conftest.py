@@ -45,16 +45,24 @@ def block_scene(dim, material, *, prescribed_bottom=True, gravity=True, h=0.5):
     return scene
 
 
-def pressed_block_scene(friction_iterations):
-    """A 0.5 m particle block on a sticky floor, pressed and dragged by a scripted FEM plate
-    moving at (0.2, -1.0) m/s with mu = 0.5; the lagged-friction loop capped at
-    ``friction_iterations`` minimisations."""
+def particle_block_on_sticky_floor():
+    """A 2D scene holding a 0.5 x 0.5 m particle block (E = 1 MPa, 4 particles a 5 cm cell) on
+    a sticky floor at y = 0. Returns the scene, the block's material and its particle positions
+    (n, 2) in m."""
     scene = bfemp.Scene(dim=2)
     mat = bfemp.NeoHookean(E=1e6, nu=0.2, density=1000.0)
     x, vol = bfemp.sample.box((0.0, 0.0), (0.5, 0.5), dx=0.05, ppc=4)
     scene.add_mpm(x, vol, material=mat)
     scene.set_grid(dx=0.05)
     scene.add_boundary(bfemp.levelset.HalfPlane(point=(0, 0), normal=(0, 1)), "sticky")
+    return scene, mat, x
+
+
+def pressed_block_scene(friction_iterations):
+    """A 0.5 m particle block on a sticky floor, pressed and dragged by a scripted FEM plate
+    moving at (0.2, -1.0) m/s with mu = 0.5; the lagged-friction loop capped at
+    ``friction_iterations`` minimisations."""
+    scene, mat, _ = particle_block_on_sticky_floor()
     plate = bfemp.shapes.rectangle((-0.2, 0.52), (0.7, 0.57), h=0.025)
     scene.add_fem(plate, material=mat, prescribed=bfemp.motion.Linear(velocity=(0.2, -1.0)))
     scene.set_contact(

@@ -9,7 +9,11 @@ from bfemp.contact.term import BarrierTerm
 from bfemp.steppers._barrier_solve import ScriptedSolve
 from bfemp.testing import check_term
 from solvers.result import TIMING_KEYS
-from tests.bfemp.conftest import pressed_block_scene, started_stepper
+from tests.bfemp.conftest import (
+    particle_block_on_sticky_floor,
+    pressed_block_scene,
+    started_stepper,
+)
 
 STIFF = bfemp.NeoHookean(E=1e6, nu=0.3, density=1000.0)
 DHAT = 0.05
@@ -574,12 +578,7 @@ def test_a_plate_pressing_particles_at_one_gap_per_step_costs_few_newton_iterati
     took 435 Newton iterations per step held, 52 carried). A plate moving one dhat per step
     into a block: held, each step from the fifth on took 14 iterations in CCD-limited
     sub-steps; carried, 2."""
-    scene = bfemp.Scene(dim=2)
-    mat = bfemp.NeoHookean(E=1e6, nu=0.2, density=1000.0)
-    x, vol = bfemp.sample.box((0.0, 0.0), (0.5, 0.5), dx=0.05, ppc=4)
-    scene.add_mpm(x, vol, material=mat)
-    scene.set_grid(dx=0.05)
-    scene.add_boundary(bfemp.levelset.HalfPlane(point=(0, 0), normal=(0, 1)), "sticky")
+    scene, mat, x = particle_block_on_sticky_floor()
     top = x[:, 1].max() + 0.0125  # the block's top particles are a quarter cell inside
     plate = bfemp.shapes.rectangle((-0.2, top - 0.0105), (0.7, top + 0.04), h=0.025)
     scene.add_fem(plate, material=mat, prescribed=bfemp.motion.Linear(velocity=(0.0, -1.0)))
