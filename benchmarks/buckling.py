@@ -67,19 +67,24 @@ Choices where the paper is silent or the library forces a change (recorded in th
   mu = 0, finished: buckles at u = 5.24 m (detachment 0.21 m at u = 4, 0.37 at 5, 1.08 at 6,
   2.12 at 7, peak 2.54 m at 7.28, 1.60 m at 8), 6616 s over three segments (steps 0-440 on
   9cd6176, 440-800 on 25a03e5), 98,155 Newton iterations, closest 0.96 mm. mu = 0.5: to
-  u = 4.88 m (steps 0-380 on 9cd6176, 380-488 on 25a03e5), 12,164 s, 157,952 Newton
-  iterations, detachment 0.16 m. mu = 0.2: to u = 3.00 m, all on 25a03e5, 4714 s, 57,358
-  Newton iterations, detachment 0.08 m. Cost per step, measured: mu = 0 took 58-113 s from
-  u = 4.2 to 4.4 m (the loop at its cap), then 4.3 s to 4.6 m and about 1.3 s to the end (on
-  25a03e5; the state got cheaper, not only the loop: the stall rule replayed from the
-  u = 4.2 m checkpoint cut three steps from 902 to 245-422 Newton iterations, while the steps
-  from u = 4.4 m took 76 and fewer). mu = 0.5 takes 30-45 s a step from u = 2.8 m (435-650
-  Newton iterations), mu = 0.2 12-15 s to u = 3 m. In mu = 0.5's steps the loop
-  converges in 5-6 re-lags (to u = 3.8 m); the cost is the step's first solve, 235-336 Newton
-  iterations at step sizes 1e-7 to 0.1 (Armijo backtracking, 3-19 trials, below CCD bounds of
-  0.02-0.7). Its steepest components are grid nodes of 1e-9 of the largest node mass, but
-  holding every unknown below 1e-4 of it fixed left the count as it was (409, 244 and 331
-  against 297, 243 and 263 for the three steps from u = 2.8 m): the cause is not found.
+  u = 6.62 m (steps 0-380 on 9cd6176, 380-662 on 25a03e5), 19,493 s over four segments, 245,572
+  Newton iterations, not buckled: detachment 0.19 m at u = 5, 0.36 at 6, peak 0.40 m at 6.28, 0.39
+  m at 6.62. mu = 0.2: to u = 5.45 m, all on 25a03e5, 12,041 s over two segments, 147,775 Newton
+  iterations, not buckled yet: detachment 0.16 m at u = 4, 0.27 at 5, 0.45 m at 5.45 (mu = 0 had
+  0.37 m at u = 5 and crossed 0.5 m at 5.24, so if mu = 0.2 buckles, it buckles later). Closest
+  0.97 mm in both; 434 and 424 MB peak. Cost per step, measured: mu = 0 took 58-113 s from u = 4.2
+  to 4.4 m (the loop at its cap), then 4.3 s to 4.6 m and about 1.3 s to the end (on 25a03e5; the
+  state got cheaper, not only the loop: the stall rule replayed from the u = 4.2 m checkpoint cut
+  three steps from 902 to 245-422 Newton iterations, while the steps from u = 4.4 m took 76 and
+  fewer). mu = 0.5 takes 30-45 s a step from u = 2.8 m (435-650 Newton iterations) and 36-54 s
+  from u = 5 m (420-700), mu = 0.2 12-15 s to u = 3 m and 20-46 s from there to 5.45 m. In the
+  last segments the loop stopped on its stall rule 123 times in mu = 0.5's 174 steps (twice at its
+  cap) and 181 times in mu = 0.2's 245. In mu = 0.5's steps the loop converges in 5-6 re-lags (to
+  u = 3.8 m); the cost is the step's first solve, 235-336 Newton iterations at step sizes 1e-7 to
+  0.1 (Armijo backtracking, 3-19 trials, below CCD bounds of 0.02-0.7). Its steepest components
+  are grid nodes of 1e-9 of the largest node mass, but holding every unknown below 1e-4 of it
+  fixed left the count as it was (409, 244 and 331 against 297, 243 and 263 for the three steps
+  from u = 2.8 m): the cause is not found.
 - Feet: the outer ring's nodes on y = 0 are fixed (level sets act on MPM grid nodes only); the
   inner ring's feet are held by two sticky level-set boxes ``9 <= |x| <= 13, -2 <= y <= 0``; a
   slip box ``|x| <= 9, -2 <= y <= 0`` lies under the middle. One scripted motion serves the cap
