@@ -31,21 +31,23 @@ Choices where the paper is silent or the library forces a change (recorded in th
   a flat plate would flatten a wider crown. ``--mode plate_quick`` runs the paper's plate
   (``PLATE_HALF_WIDTH`` x ``PLATE_THICKNESS``, scripted down at 1 m/s, half d-hat above the
   crown) with ``scene.set_friction("plate", "outer_ring", PLATE_MU)`` and the rings at mu.
-  Measured (``records/buckling_plate_quick.json``, 522 s at load ~4.7): the plate touches
-  only the top 4 crown nodes at u = 0.2 m (the 2 m thick ring does not flatten like a Hertz
-  contact) and holds them (0 m of slip, against 6 mm frictionless); the detachment at u = 3 m
-  is 0.162 m (mu = 0) and 0.142 m (0.2) against 0.330 and 0.315 m with the cap, at 11x the
-  Newton iterations (5378 and 15430 against 480 and 1444); mu = 0.5 stops with
-  MAX_ITERATIONS at u = 1.45 m (||p|| / dt = 6.0 m/s after 500 iterations). Hence the cap.
-  That stall is gone at 30a3b59 (a change to the solver between d3e77a1 and 30a3b59, not
-  singled out: restarted from a checkpoint at u = 1.40 m, that step now converges in 144
-  iterations). ``--mode plate_partial`` (the partial discretisation to u = 7 m with the
-  plate; ``records/buckling_plate_partial.json`` / ``.png``, run from 30a3b59 with this mode
-  added, the library code unchanged since, one mu per process on
-  2 cores, 340 s, 1193 s and 1343 s, 13785, 63217 and 71330 Newton iterations, 286 MB peak)
-  shows the paper's picture more clearly than the cap: the inner ring snaps through at
-  u = 4.8-5 m for mu = 0 and 0.2 (detachment 0.24 m at u = 4 m, 1.42 m at 6 m for mu = 0; 0.21
-  and 0.87 m for mu = 0.2) and runs to 2.24 and 1.48 m at u = 7 m, while at mu = 0.5 it stays
+  Measured (``records/buckling_plate_quick.json``, rerun at b49aa3b with the friction loop's
+  stall rule, 610 s on 2 loaded cores): the plate touches only the top 4 crown nodes at
+  u = 0.2 m (the 2 m thick ring does not flatten like a Hertz contact) and holds them (0 m of
+  slip, against 6 mm frictionless); the detachment at u = 3 m is 0.162 m (mu = 0) and 0.144 m
+  (0.2) against 0.330 and 0.315 m with the cap, at 11x and 16x the Newton iterations (5354 and
+  14859 against 481 and 916); mu = 0.5 stops with MAX_ITERATIONS at its last step, u = 2.95 m
+  (||p|| / dt = 8.2 m/s after 500 iterations). Hence the cap. Before, at d3e77a1, mu = 0.5
+  stopped at u = 1.45 m (6.0 m/s); that stall went with a solver change between d3e77a1 and
+  30a3b59, not singled out (restarted from a checkpoint at u = 1.40 m, that step converged in
+  144 iterations). The stall at u = 2.95 m is not examined. ``--mode plate_partial`` (the
+  partial discretisation to u = 7 m with the plate, Newton cap 2000;
+  ``records/buckling_plate_partial.json`` / ``.png``, run at 30a3b59, before the stall rule,
+  and not rerun since: one mu per process on 2 cores, 340 s, 1193 s and 1343 s, 13785, 63217
+  and 71330 Newton iterations, 286 MB peak) shows the paper's picture more clearly than the cap: the
+  inner ring snaps through at u = 4.8-5 m for mu = 0 and 0.2 (detachment 0.24 m at u = 4 m, 1.42 m
+  at 6 m for mu = 0; 0.21 and 0.87 m for mu = 0.2) and runs to 2.24 and 1.48 m at u = 7 m, while at
+  mu = 0.5 it stays
   flatter and peaks at 0.51 m near u = 6 m, then 0.40 m at 6.5 m and 0.47 m at 7 m. By the
   measure above u_buckle = 5.00, 5.15 and 5.85 m: mu = 0.5 crosses the threshold by 0.01 m
   for about 0.3 m of travel, so it still counts as buckled. Full mode with the plate
@@ -112,14 +114,17 @@ Choices where the paper is silent or the library forces a change (recorded in th
   Newton cap of 2000, for u_buckle at a coarse resolution. At dt = 2e-2 s, mu = 0 buckles at
   u = 3.92 m; the friction cases stopped with MAX_ITERATIONS at u = 0.34 m and 0.36 m at
   cc5084f (the 2-cycle below); mu = 0.2 now passes u = 1.2 m (checked, 60 steps).
-  Recorded (``benchmarks/records/buckling_partial.json``, 122 s on 2 loaded cores, at
-  10db032): every case reaches u = 7 m; u_buckle = 3.95 m (mu = 0), 4.05 m (mu = 0.2) and
-  4.35 m (mu = 0.5), and the detachment at u = 7 m is 1.97, 1.35 and 0.73 m: the full mode's
-  ordering at this coarse resolution. (Before eed4f00, a Newton 2-cycle of the near-solution
-  rule stopped mu = 0.2 at u = 6.65 m and mu = 0.5 at u = 3.85 m with MAX_ITERATIONS.)
+  Recorded (``benchmarks/records/buckling_partial.json``, 85 s on 2 loaded cores, rerun at
+  b49aa3b with the friction loop's stall rule): every case reaches u = 7 m; u_buckle = 3.95 m
+  (mu = 0), 4.05 m (mu = 0.2) and 4.35 m (mu = 0.5), and the detachment at u = 7 m is 1.97,
+  1.35 and 0.77 m: the full mode's ordering at this coarse resolution (before the stall rule,
+  at 10db032: the same u_buckle, 1.97, 1.35 and 0.73 m, and 1316, 3165 and 5180 Newton
+  iterations against 1319, 2312 and 3266 now). (Before eed4f00, a Newton 2-cycle of the
+  near-solution rule stopped mu = 0.2 at u = 6.65 m and mu = 0.5 at u = 3.85 m with MAX_ITERATIONS.)
 - Newton iteration cap 500 (partial mode 2000); lagged-friction loop capped at 20 iterations
-  (the default; quick mode logs "friction loop did not converge" in about 10 of the 120 friction
-  steps and goes on, as the library does).
+  (the default). The loop stops earlier when it stalls (``bfemp.steppers._barrier_solve``):
+  quick mode logs "friction loop stalled" in 7 of its 120 friction steps and goes on, as the
+  library does, and never reaches the cap (before the stall rule it did, on about 10 steps).
 """
 
 from __future__ import annotations
