@@ -47,46 +47,46 @@ Choices where the paper is silent or the library forces a change (recorded in th
   and 71330 Newton iterations, 286 MB peak) shows the paper's picture more clearly than the cap: the
   inner ring snaps through at u = 4.8-5 m for mu = 0 and 0.2 (detachment 0.24 m at u = 4 m, 1.42 m
   at 6 m for mu = 0; 0.21 and 0.87 m for mu = 0.2) and runs to 2.24 and 1.48 m at u = 7 m, while at
-  mu = 0.5 it stays
-  flatter and peaks at 0.51 m near u = 6 m, then 0.40 m at 6.5 m and 0.47 m at 7 m. By the
-  measure above u_buckle = 5.00, 5.15 and 5.85 m: mu = 0.5 crosses the threshold by 0.01 m
+  mu = 0.5 it stays flatter and peaks at 0.51 m near u = 6 m, then 0.40 m at 6.5 m and 0.47 m at 7
+  m. By the measure above u_buckle = 5.00, 5.15 and 5.85 m: mu = 0.5 crosses the threshold by 0.01 m
   for about 0.3 m of travel, so it still counts as buckled. Full mode with the plate
   (``--mode plate_full``: the full discretisation, dt and travel with the plate, Newton cap
-  2000 as in partial mode): not run to the end here (the plate took 10-20x the cap's Newton
-  iterations, 1316, 3165 and 5180 in ``buckling_partial.json``, and 20-30x its wall time; the
-  cap's full run took 40 min, so hours per mu on 2 cores). Its cases are resumable:
-  ``python -m benchmarks buckling --mode plate_full --mu 0.5 --budget-s 7200 --resumable
-  --out DIR`` checkpoints the case in ``DIR/cases/`` every ``CHECKPOINT_EVERY`` steps and at
-  the budget, and the same command goes on from there, in a later session too when ``DIR`` is
-  kept (``benchmarks._case_checkpoint``; the segments together equal one uninterrupted run bit
-  for bit, ``tests/benchmarks/test_buckling_resume.py``); ``merge`` joins the per-mu records.
-  Run in ``records/buckling_plate_full_runs/mu<mu>/`` (one mu per process on 2 cores, 1 BLAS
-  thread each; every segment's seconds in the case's ``progress.json``). The segments are not
-  all of one commit: from 25a03e5 the friction loop stops when it stalls
+  2000 as in partial mode) is the paper's experiment itself. It takes hours per mu on 2 cores,
+  so its cases are resumable: ``python -m benchmarks buckling --mode plate_full --mu 0.5
+  --budget-s 7200 --resumable --out DIR`` checkpoints the case in ``DIR/cases/`` every
+  ``CHECKPOINT_EVERY`` steps and at the budget, and the same command goes on from there, in a
+  later session too when ``DIR`` is kept (``benchmarks._case_checkpoint``; the segments
+  together equal one uninterrupted run bit for bit, ``tests/benchmarks/test_buckling_resume.py``);
+  ``merge`` joins the per-mu records. Recorded (``benchmarks/records/buckling_plate_full/``,
+  merged from ``records/buckling_plate_full_runs/mu<mu>/``, one mu per process on 2 cores, 1
+  BLAS thread each, CHOLMOD on OpenBLAS; every segment's seconds in the case's
+  ``progress.json``): u_buckle = 5.24 m (mu = 0), 5.57 m (mu = 0.2) and none for mu = 0.5,
+  whose detachment peaks at 0.41 m (u = 7.48 m) and ends at 0.35 m: the paper's result, mu = 0
+  first, 0.2 later, 0.5 not at all. Detachment at u = 4, 5, 6, 7 and 8 m: 0.21, 0.37, 1.08,
+  2.12 and 1.60 m (mu = 0, peak 2.54 m at 7.28); 0.16, 0.27, 0.72, 1.11 and 1.48 m (0.2); 0.07,
+  0.19, 0.36, 0.40 and 0.35 m (0.5). Case time 6616 s (mu = 0, three segments), 19,181 s
+  (0.2, three) and 25,232 s (0.5, five), 51,029 s in all; 98,155, 234,931 and 312,532 Newton
+  iterations; closest approach 0.96-0.97 mm (dhat 1 mm); 444 MB peak. The segments are not all
+  of one commit: from 25a03e5 the friction loop stops when it stalls
   (``bfemp.steppers._barrier_solve.stalled``) instead of running to its cap of 20, which
   changes the steps where it does not converge; before it, at mu = 0 from u = 3.2 m on, the
   loop reached its cap on most steps (20 minimisations, up to 902 Newton iterations a step).
-  mu = 0, finished: buckles at u = 5.24 m (detachment 0.21 m at u = 4, 0.37 at 5, 1.08 at 6,
-  2.12 at 7, peak 2.54 m at 7.28, 1.60 m at 8), 6616 s over three segments (steps 0-440 on
-  9cd6176, 440-800 on 25a03e5), 98,155 Newton iterations, closest 0.96 mm. mu = 0.5: to
-  u = 6.62 m (steps 0-380 on 9cd6176, 380-662 on 25a03e5), 19,493 s over four segments, 245,572
-  Newton iterations, not buckled: detachment 0.19 m at u = 5, 0.36 at 6, peak 0.40 m at 6.28, 0.39
-  m at 6.62. mu = 0.2: to u = 5.45 m, all on 25a03e5, 12,041 s over two segments, 147,775 Newton
-  iterations, not buckled yet: detachment 0.16 m at u = 4, 0.27 at 5, 0.45 m at 5.45 (mu = 0 had
-  0.37 m at u = 5 and crossed 0.5 m at 5.24, so if mu = 0.2 buckles, it buckles later). Closest
-  0.97 mm in both; 434 and 424 MB peak. Cost per step, measured: mu = 0 took 58-113 s from u = 4.2
-  to 4.4 m (the loop at its cap), then 4.3 s to 4.6 m and about 1.3 s to the end (on 25a03e5; the
-  state got cheaper, not only the loop: the stall rule replayed from the u = 4.2 m checkpoint cut
-  three steps from 902 to 245-422 Newton iterations, while the steps from u = 4.4 m took 76 and
-  fewer). mu = 0.5 takes 30-45 s a step from u = 2.8 m (435-650 Newton iterations) and 36-54 s
-  from u = 5 m (420-700), mu = 0.2 12-15 s to u = 3 m and 20-46 s from there to 5.45 m. In the
-  last segments the loop stopped on its stall rule 123 times in mu = 0.5's 174 steps (twice at its
-  cap) and 181 times in mu = 0.2's 245. In mu = 0.5's steps the loop converges in 5-6 re-lags (to
-  u = 3.8 m); the cost is the step's first solve, 235-336 Newton iterations at step sizes 1e-7 to
-  0.1 (Armijo backtracking, 3-19 trials, below CCD bounds of 0.02-0.7). Its steepest components
-  are grid nodes of 1e-9 of the largest node mass, but holding every unknown below 1e-4 of it
-  fixed left the count as it was (409, 244 and 331 against 297, 243 and 263 for the three steps
-  from u = 2.8 m): the cause is not found.
+  Steps 0-440 of mu = 0 and 0-380 of mu = 0.5 ran on 9cd6176, the rest of them and all of mu =
+  0.2 on 25a03e5's library code, so the record is not one run bit for bit. Cost per step,
+  measured: mu = 0 took 58-113 s from u = 4.2 to 4.4 m (the loop at its cap), then 4.3 s to
+  4.6 m and about 1.3 s to the end (on 25a03e5; the state got cheaper, not only the loop: the
+  stall rule replayed from the u = 4.2 m checkpoint cut three steps from 902 to 245-422 Newton
+  iterations, while the steps from u = 4.4 m took 76 and fewer). mu = 0.5 takes 30-45 s a step
+  from u = 2.8 m (435-650 Newton iterations), 36-54 s from u = 5 m (420-700) and 42 s on
+  average from 6.62 m to the end; mu = 0.2 12-15 s to u = 3 m, 20-46 s from there to 5.45 m
+  and 28 s on average from 5.45 m to the end (it did not get cheaper after buckling as mu = 0
+  did). In the last segments the loop stopped on its stall rule in 61 of mu = 0.5's 138 steps
+  and in 81 of mu = 0.2's 255, never at its cap. In mu = 0.5's steps the loop converges in 5-6
+  re-lags (to u = 3.8 m); the cost is the step's first solve, 235-336 Newton iterations at
+  step sizes 1e-7 to 0.1 (Armijo backtracking, 3-19 trials, below CCD bounds of 0.02-0.7). Its
+  steepest components are grid nodes of 1e-9 of the largest node mass, but holding every
+  unknown below 1e-4 of it fixed left the count as it was (409, 244 and 331 against 297, 243
+  and 263 for the three steps from u = 2.8 m): the cause is not found.
 - Feet: the outer ring's nodes on y = 0 are fixed (level sets act on MPM grid nodes only); the
   inner ring's feet are held by two sticky level-set boxes ``9 <= |x| <= 13, -2 <= y <= 0``; a
   slip box ``|x| <= 9, -2 <= y <= 0`` lies under the middle. One scripted motion serves the cap
