@@ -21,7 +21,7 @@ _os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 import logging
 
 from bfemp import levelset, motion, sample, scenefile, shapes
-from bfemp.errors import SceneError
+from bfemp.errors import SceneError, StepNoteWarning
 from bfemp.integrators import BACKWARD_EULER, NEWMARK, Integrator
 from bfemp.materials import BulkShearHyperelastic, LinearElastic, NeoHookean
 from bfemp.model import FemBody, Model, MpmBody
@@ -36,6 +36,7 @@ from bfemp.steppers import (
     StepError,
     StepperOptions,
     StepReport,
+    strategy_table,
 )
 
 logging.getLogger(__name__).addHandler(logging.NullHandler())
@@ -60,6 +61,7 @@ __all__ = [
     "Simulation",
     "State",
     "StepError",
+    "StepNoteWarning",
     "StepReport",
     "StepperOptions",
     "levelset",
@@ -68,4 +70,5 @@ __all__ = [
     "sample",
     "scenefile",
     "shapes",
+    "strategy_table",
 ]

@@ -113,6 +113,12 @@ def _parser() -> argparse.ArgumentParser:
     info.add_argument("result_dir", help="the output folder of a run")
     info.add_argument("--json", action="store_true", help="print the summary as JSON")
 
+    strategies = sub.add_parser(
+        "strategies",
+        help="which body pairs each coupling strategy couples, friction, penetration guarantee",
+    )
+    strategies.add_argument("--json", action="store_true", help="print the table as JSON")
+
     regress = sub.add_parser(
         "regress", help="rerun regression references and report drifted quantities"
     )
@@ -294,6 +300,27 @@ def _info(args: argparse.Namespace) -> int:
     return 0
 
 
+def _strategies(args: argparse.Namespace) -> int:
+    from bfemp.steppers import STRATEGIES, strategy_table
+
+    if args.json:
+        table = {
+            name: {
+                "pairs": dict(cls.capabilities.pairs),
+                "friction": cls.capabilities.friction,
+                "needs_contact_settings": cls.capabilities.needs_contact_settings,
+                "penetration_bound_cells": cls.capabilities.penetration_bound_cells,
+                "penetration_note": cls.capabilities.penetration_note,
+                "inversion_free": cls.capabilities.inversion_free,
+            }
+            for name, cls in STRATEGIES.items()
+        }
+        print(json.dumps(table, indent=2))
+    else:
+        print(strategy_table())
+    return 0
+
+
 def _regress(args: argparse.Namespace) -> int:
     from bfemp import regress
 
@@ -338,7 +365,14 @@ def _warmup(args: argparse.Namespace) -> int:
 
 
 def _log_warning(message, category, filename, lineno, file=None, line=None) -> None:  # noqa: ANN001
-    """Library warnings (the SuperLU fall-back) as one log line each: ``--quiet`` silences them."""
+    """Library warnings (the SuperLU fall-back) as one log line each: ``--quiet`` silences them.
+
+    A ``StepNoteWarning`` is left out: ``Simulation`` logs it itself.
+    """
+    from bfemp.errors import StepNoteWarning
+
+    if issubclass(category, StepNoteWarning):
+        return
     log.warning("%s: %s", category.__name__, message)
 
 
@@ -356,6 +390,7 @@ def main(argv: list[str] | None = None) -> int:
         "demo": _demo,
         "run": lambda a: _run(a, argv),
         "info": _info,
+        "strategies": _strategies,
         "regress": _regress,
         "warmup": _warmup,
         **plugins,

@@ -12,7 +12,7 @@ The command line prints that message after ``bfemp: error:`` without a traceback
 
 from __future__ import annotations
 
-__all__ = ["SceneError"]
+__all__ = ["SceneError", "StepNoteWarning", "note_name"]
 
 
 class SceneError(ValueError):
@@ -61,3 +61,16 @@ class SceneError(ValueError):
             field=self.field,
             hint=self.hint,
         )
+
+
+class StepNoteWarning(UserWarning):
+    """What a run noticed and the user should see: a step's named note (``INTERPENETRATION``,
+    ``LR_UNCONVERGED``, ...), an energy growth, a pair of bodies the strategy does not couple.
+
+    The message starts with the note's name in capitals followed by a colon.
+    """
+
+
+def note_name(note: str) -> str:
+    """The name of a named note ``"NAME: text"`` (the whole note when it has no colon)."""
+    return note.split(":", 1)[0].strip()

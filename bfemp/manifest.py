@@ -221,7 +221,14 @@ class RunManifest:
             to_t=sim.state.t,
             wall_s=round(time.perf_counter() - self._clock, 3),
             status=status,
+            notes=dict(getattr(sim, "note_counts", {})),
         )
+        # named step notes (Simulation.note_counts) summed over the run's sessions
+        totals: dict[str, int] = {}
+        for s in self.data["sessions"]:
+            for name, count in s.get("notes", {}).items():
+                totals[name] = totals.get(name, 0) + int(count)
+        self.data["notes"] = totals
         result = {"t": sim.state.t, "step": sim.state.step, "frames": frames}
         if "iterations_newton" in metrics.columns:
             result["newton_iterations_total"] = int(np.nansum(metrics.column("iterations_newton")))
@@ -312,6 +319,9 @@ def format_info(info: dict) -> str:
         sessions = man.get("sessions", [])
         wall = sum(s.get("wall_s", 0.0) for s in sessions)
         lines.append(f"sessions:      {len(sessions)} (wall time {wall:.1f} s)")
+        if man.get("notes"):
+            counts = ", ".join(f"{k} x {v}" for k, v in sorted(man["notes"].items()))
+            lines.append(f"step notes:    {counts} (steps reporting each; warned once per run)")
         git = man.get("git", {})
         vers = man.get("versions", {})
         lines.append(

@@ -14,6 +14,7 @@ from __future__ import annotations
 import logging
 import math
 import numbers
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 
@@ -23,7 +24,8 @@ from tqdm.auto import tqdm
 from bfemp import diagnostics, scenefile
 from bfemp._run_arguments import check_t_end
 from bfemp.checkpoint import InterruptGuard, restore_checkpoint, write_checkpoint
-from bfemp.errors import SceneError
+from bfemp.contact.penetration import PenetrationCheck
+from bfemp.errors import SceneError, StepNoteWarning, note_name
 from bfemp.integrators import Integrator, integrator_from_name
 from bfemp.io import outputs
 from bfemp.io.metrics import MetricsLog
@@ -36,12 +38,14 @@ from bfemp.plotting import plot_metrics
 from bfemp.scene import Scene
 from bfemp.state import State
 from bfemp.steppers import (
+    STRATEGIES,
     StepperOptions,
     StepReport,
     options_for,
     options_to_dict,
     stepper_class,
 )
+from bfemp.steppers.capabilities import check_scene
 from bfemp.terms import fem_elastic_groups
 from bfemp.validation import validate_initial
 from solvers.linear import LinearSolver
@@ -70,6 +74,17 @@ class Simulation:
             for its defaults.
         tol, max_newton_iterations, linear_solver, warm_start: the ``BarrierOptions`` fields as
             flat keywords (``barrier`` only; not together with ``options``).
+        allow_uncoupled: run a scene with a pair of bodies the strategy does not couple (an MPM
+            and a FEM body under ``single_field``, ...), with a warning, instead of refusing it
+            (:mod:`bfemp.steppers.capabilities`; ``bfemp strategies`` lists what each couples).
+
+    Every named note of a step (``StepReport.notes``: ``INTERPENETRATION``, ``LR_UNCONVERGED``,
+    ...) is counted in ``note_counts`` (also in the run's manifest and ``bfemp info``) and, the
+    first time each name occurs, issued as a ``bfemp.StepNoteWarning`` (Python's ``warnings``:
+    a plain script sees it), logged, and kept in ``diagnostics``. Scenes with a FEM body and
+    another body get a ``penetration_depth`` metrics column: the deepest any FEM node or particle
+    lies inside another FEM body, in m (``bfemp.contact.penetration``, the same geometric check
+    for every strategy).
     """
 
     def __init__(
@@ -85,6 +100,7 @@ class Simulation:
         max_newton_iterations: int | None = None,
         linear_solver: LinearSolver | None = None,
         warm_start: bool | None = None,
+        allow_uncoupled: bool = False,
     ) -> None:
         stepper_cls = stepper_class(strategy)
         if transfer is None:
@@ -103,6 +119,14 @@ class Simulation:
         }
         options = _merge_flat_options(strategy, options, flat)
         self.model = scene.build() if isinstance(scene, Scene) else scene
+        #: named warnings raised during the run (e.g. "ENERGY_GROWTH: ..."), also logged
+        self.diagnostics: list[str] = []
+        for message in check_scene(
+            self.model, strategy, STRATEGIES, allow_uncoupled=allow_uncoupled
+        ):
+            self._warn(message, already_logged=True)
+        #: how many steps reported each named note (``StepReport.notes``), by name
+        self.note_counts: dict[str, int] = {}
         #: the scene this simulation was built from (written to ``out/scene.toml`` by runs)
         self.scene = scene if isinstance(scene, Scene) else None
         #: the text of the scene file this simulation was read from (``from_file``), or None
@@ -127,6 +151,8 @@ class Simulation:
             "dt": self.dt,
             **options_to_dict(options),  # the strategy's options, one key per field
         }
+        if allow_uncoupled:
+            self.settings["allow_uncoupled"] = True
         self.stepper = stepper_cls(
             self.model,
             integrator=self.integrator,
@@ -136,11 +162,10 @@ class Simulation:
         )
         self.state: State = self.stepper.initialize(initial)
         self.metrics = MetricsLog()
-        #: named warnings raised during the run (e.g. "ENERGY_GROWTH: ..."), also logged
-        self.diagnostics: list[str] = []
         self._closed = _is_closed(self.model)
         self._fem_groups = fem_elastic_groups(self.model)
         self._contact_columns = self.model.contact is not None
+        self._penetration = PenetrationCheck.for_model(self.model)
         self.metrics.append(self._metrics_row(None))
 
     @classmethod
@@ -204,8 +229,29 @@ class Simulation:
     def step(self) -> StepReport:
         """Advance one time step; returns its report (raises ``StepError`` on failure)."""
         self.state, report = self.stepper.step(self.state)
+        self._count_notes(report)
         self.metrics.append(self._metrics_row(report))
         return report
+
+    def _count_notes(self, report: StepReport) -> None:
+        """Count the step's named notes; warn the first time each name occurs."""
+        for note in report.notes:
+            name = note_name(note)
+            self.note_counts[name] = self.note_counts.get(name, 0) + 1
+            if self.note_counts[name] == 1:
+                self._warn(
+                    f"{note} (step {report.step}, t = {report.t:.6g} s; the first {name} note "
+                    "of this run: later ones are counted in note_counts, the manifest and "
+                    "bfemp info)",
+                )
+
+    def _warn(self, message: str, *, already_logged: bool = False) -> None:
+        """A warning the user sees: ``diagnostics``, the log and Python's ``warnings`` (the
+        command line shows it once, as its log line)."""
+        self.diagnostics.append(message)
+        if not already_logged:
+            log.warning(message)
+        warnings.warn(message, StepNoteWarning, stacklevel=3)
 
     def run(
         self,
@@ -408,6 +454,8 @@ class Simulation:
         angular = diagnostics.angular_momentum(self.model, self.state, self.transfer)
         for k, value in enumerate(angular):
             row[f"angular_momentum_{'z' if angular.size == 1 else axes[k]}"] = float(value)
+        if self._penetration is not None:
+            row["penetration_depth"] = self._penetration.depth(self.state)
         forces = self.stepper.contact().body_forces if report is not None else None
         row.update(diagnostics.body_metrics(self.model, self.state, self.transfer, forces))
         if report is not None:
@@ -458,8 +506,7 @@ class Simulation:
                 "integrator='newmark_implicit_contact', a smaller dt or "
                 "integrator='backward_euler'"
             )
-            self.diagnostics.append(message)
-            log.warning(message)
+            self._warn(message)
 
     def frame_blocks(self) -> list[Block]:
         """One VTK block per FEM body with velocity, J and von Mises stress."""

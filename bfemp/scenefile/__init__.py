@@ -20,6 +20,8 @@ Format (``#`` comments; numbers in SI units, scalars may also be strings with a 
     tol = 1e-6                    # Newton tolerance on ||p||_inf / dt, m/s
     max_newton_iterations = 200
     warm_start = false            # true: Newton starts from the predicted x^{n+1} (no contact)
+    allow_uncoupled = false       # true: run a pair of bodies the strategy does not couple
+                                  #    (refused otherwise; `bfemp strategies` lists the pairs)
     # tol, max_newton_iterations and warm_start are the barrier strategy's options written flat;
     # every strategy's options may instead be given as a table, checked field by field
     # (unknown field, wrong type, options of another strategy are refused by name):

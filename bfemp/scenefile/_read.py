@@ -219,6 +219,7 @@ def _simulation(root: Table) -> dict:
         "tol",
         "max_newton_iterations",
         "warm_start",
+        "allow_uncoupled",
     )
     t.check_keys(keys)
     out: dict = {}
@@ -238,6 +239,8 @@ def _simulation(root: Table) -> dict:
         out["max_newton_iterations"] = t.integer("max_newton_iterations", minimum=1)
     if t.has("warm_start"):
         out["warm_start"] = t.boolean("warm_start")
+    if t.has("allow_uncoupled"):
+        out["allow_uncoupled"] = t.boolean("allow_uncoupled")
     if t.has("options"):
         out["options"] = _options(t.sub("options"), out.get("strategy", "barrier"))
     return out

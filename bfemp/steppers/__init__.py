@@ -25,6 +25,8 @@ from bfemp.steppers.base import (
     options_from_mapping,
     options_to_dict,
 )
+from bfemp.steppers.capabilities import Capabilities
+from bfemp.steppers.capabilities import strategy_table as _strategy_table
 from bfemp.steppers.lr import LROptions, LRStepper
 from bfemp.steppers.single_field import SingleFieldOptions, SingleFieldStepper
 from bfemp.steppers.two_stage import TwoStageOptions, TwoStageStepper
@@ -37,6 +39,7 @@ __all__ = [
     "SingleFieldOptions",
     "SingleFieldStepper",
     "BarrierStepper",
+    "Capabilities",
     "ContactView",
     "ImplicitStepper",
     "LROptions",
@@ -49,6 +52,7 @@ __all__ = [
     "options_from_mapping",
     "options_to_dict",
     "stepper_class",
+    "strategy_table",
     "TwoStageOptions",
     "TwoStageStepper",
 ]
@@ -88,3 +92,10 @@ def options_for(strategy: str, options: StepperOptions | None) -> StepperOptions
             f"{type(options).__name__} (the options of strategy {options.strategy!r})"
         )
     return options
+
+
+def strategy_table() -> str:
+    """The registered strategies as a text table: which body pairs each couples (and how),
+    friction, and the penetration each guarantees (``bfemp strategies`` prints it; see
+    :mod:`bfemp.steppers.capabilities`)."""
+    return _strategy_table(STRATEGIES)

@@ -64,11 +64,17 @@ from bfemp.integrators import ExplicitIntegrator
 from bfemp.model import Model
 from bfemp.state import State
 from bfemp.steppers.base import ContactView, StepperOptions, StepReport
+from bfemp.steppers.capabilities import Capabilities
 from bfemp.steppers.explicit import ExplicitOptions, ExplicitStepper
 
 __all__ = ["AuguryOptions", "AuguryStepper"]
 
 log = logging.getLogger(__name__)
+
+#: the deepest penetration of a particle or FEM node into a FEM body stated for this strategy,
+#: in grid cells (``Capabilities.penetration_bound_cells``), and how it was measured
+AUGURY_PENETRATION_CELLS = 1.0  # MEASURE
+AUGURY_PENETRATION_NOTE = "MEASURE"
 
 PREDICTORS = ("symplectic", "paper")
 TRANSFERS = ("apic", "pic")
@@ -175,6 +181,16 @@ class AuguryStepper(ExplicitStepper):
     name: ClassVar[str] = "augury"
     Options: ClassVar[type[AuguryOptions]] = AuguryOptions
     explicit: ClassVar[bool] = True
+    #: FEM boundary nodes and particles meet on the contact grid (AUG; particles: bfemp's
+    #: extension, section 1.4); MPM bodies also share the engine's MPM grid, where they stick
+    capabilities: ClassVar[Capabilities] = Capabilities(
+        pairs={"mpm-mpm": "grid", "mpm-fem": "contact", "mpm-prescribed": "contact",
+               "fem-fem": "contact"},
+        friction=True,
+        needs_contact_settings=False,
+        penetration_bound_cells=AUGURY_PENETRATION_CELLS,
+        penetration_note=AUGURY_PENETRATION_NOTE,
+    )  # fmt: skip
 
     def __init__(
         self,

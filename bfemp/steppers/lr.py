@@ -67,12 +67,18 @@ from bfemp.steppers._multimaterial_kernels import (
     p2g_nodal,
 )
 from bfemp.steppers.base import ContactView, StepperOptions, StepReport
+from bfemp.steppers.capabilities import Capabilities
 from bfemp.steppers.explicit import ExplicitOptions, ExplicitStepper
 from geometry.grid import ParticleStencils, particle_stencils
 
 __all__ = ["LROptions", "LRStepper"]
 
 log = logging.getLogger(__name__)
+
+#: the deepest penetration of a particle or FEM node into a FEM body stated for this strategy,
+#: in grid cells (``Capabilities.penetration_bound_cells``), and how it was measured
+LR_PENETRATION_CELLS = 1.0  # MEASURE
+LR_PENETRATION_NOTE = "MEASURE"
 
 #: per material, the level-set constraints of its field (None: no boundaries)
 _Constraints = list[GridConstraints] | None
@@ -244,6 +250,16 @@ class LRStepper(ExplicitStepper):
     name: ClassVar[str] = "lr"
     Options: ClassVar[type[LROptions]] = LROptions
     explicit: ClassVar[bool] = True
+    #: one velocity field per body (LR sec. 2); FEM bodies take part through their surface
+    #: nodes (bfemp's design, module docstring)
+    capabilities: ClassVar[Capabilities] = Capabilities(
+        pairs={"mpm-mpm": "contact", "mpm-fem": "contact", "mpm-prescribed": "contact",
+               "fem-fem": "contact"},
+        friction=True,
+        needs_contact_settings=False,
+        penetration_bound_cells=LR_PENETRATION_CELLS,
+        penetration_note=LR_PENETRATION_NOTE,
+    )  # fmt: skip
     #: the transfer ``Simulation`` takes when none is given
     default_transfer: ClassVar[str] = "flip"
     transfers: ClassVar[tuple[str, ...]] = TRANSFERS

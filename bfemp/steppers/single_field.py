@@ -27,6 +27,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar
 
+from bfemp.steppers.capabilities import Capabilities
 from bfemp.steppers.explicit import ExplicitOptions, ExplicitStepper
 
 __all__ = ["SingleFieldOptions", "SingleFieldStepper"]
@@ -51,3 +52,11 @@ class SingleFieldStepper(ExplicitStepper):
     name: ClassVar[str] = "single_field"
     Options: ClassVar[type[SingleFieldOptions]] = SingleFieldOptions
     explicit: ClassVar[bool] = True
+    #: no contact algorithm: MPM bodies share the grid field, FEM bodies meet only level sets
+    capabilities: ClassVar[Capabilities] = Capabilities(
+        pairs={"mpm-mpm": "grid"},
+        friction=False,
+        needs_contact_settings=False,
+        penetration_bound_cells=None,
+        penetration_note="couples nothing with a FEM body (no contact algorithm)",
+    )

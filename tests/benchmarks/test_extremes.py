@@ -243,7 +243,7 @@ def test_checks_catch_a_particle_inside_and_an_inverted_cell():
 def test_checks_count_but_allow_crossing_where_the_strategy_makes_no_promise():
     case = next(c for c in CASES if c.name == "base")
     scene, _ = build_scene(case.config, "quick")
-    sim = bfemp.Simulation(scene, strategy="single_field", dt="auto")
+    sim = bfemp.Simulation(scene, strategy="single_field", dt="auto", allow_uncoupled=True)
     checks = extremes._Checks(sim, energy_ref=1.0, energy_tol=1e-2, crossing_allowed=True)
     assert checks() == [] and checks.first_penetration is None
     sim.state.mpm_x[:2] = ((0.1, -0.05), (0.2, -0.05))  # inside the slab

@@ -1,0 +1,222 @@
+"""What each coupling strategy couples, and what it promises: declared in code, checked on scenes.
+
+Every stepper class carries ``capabilities: ClassVar[Capabilities]``. ``Simulation`` calls
+:func:`check_scene` before it builds a stepper:
+
+- a pair of bodies the strategy does not couple (e.g. an MPM body and a FEM body under
+  ``single_field``, which has no contact algorithm) is refused with a ``ValueError`` that names
+  both bodies, the strategy and the strategies that do couple that kind of pair;
+- a strategy whose contact needs ``scene.set_contact(...)`` (``barrier``, ``two_stage``) on a
+  scene that has MPM and FEM bodies (or two FEM bodies) but no contact settings gets one warning
+  naming the bodies: they would pass through each other;
+- MPM bodies that share one background grid (every strategy but ``lr``) stick where they meet
+  and never separate (MPM's native no-slip coupling): one warning names them.
+
+Pair kinds (:data:`PAIR_KINDS`), for two different bodies a and b:
+
+- ``"mpm-mpm"``: two MPM bodies;
+- ``"mpm-fem"``: an MPM body and a FEM body with at least one free node (deformable);
+- ``"mpm-prescribed"``: an MPM body and a FEM body whose every node is scripted (a fixed plate,
+  a moving indenter);
+- ``"fem-fem"``: two FEM bodies, at least one of them with a free node.
+
+Two fully scripted FEM bodies never interact in any strategy and are not a pair.
+
+How a strategy couples a kind (:data:`COUPLINGS`): ``"contact"`` (the bodies meet at a contact
+interface: they can separate, slide and, where the strategy has friction, stick) or ``"grid"``
+(one shared grid velocity field: the bodies stick where they meet and never separate again).
+
+Penetration guarantee: ``penetration_bound_cells`` is 0 for the strategies that promise that no
+particle or FEM node ever ends inside another FEM body (``barrier``, ``two_stage``: a step that
+would is a named failure), else the deepest penetration the strategy is stated to keep, in cells
+of its grid (measured: see each strategy's declaration), or None where it couples nothing with a
+FEM body. ``bfemp strategies`` prints :func:`strategy_table`.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Mapping
+from dataclasses import dataclass
+from types import MappingProxyType
+
+__all__ = [
+    "COUPLINGS",
+    "PAIR_KINDS",
+    "Capabilities",
+    "check_scene",
+    "pair_kind",
+    "scene_pairs",
+    "strategy_table",
+]
+
+log = logging.getLogger(__name__)
+
+#: the kinds of body pairs (module docstring)
+PAIR_KINDS: tuple[str, ...] = ("mpm-mpm", "mpm-fem", "mpm-prescribed", "fem-fem")
+#: how a strategy couples a pair kind (module docstring)
+COUPLINGS: tuple[str, ...] = ("contact", "grid")
+
+_KIND_TEXT = {
+    "mpm-mpm": "MPM-MPM",
+    "mpm-fem": "MPM-deformable FEM",
+    "mpm-prescribed": "MPM-prescribed FEM",
+    "fem-fem": "FEM-FEM",
+}
+
+
+@dataclass(frozen=True)
+class Capabilities:
+    """What one strategy couples and guarantees.
+
+    Attributes:
+        pairs: pair kind -> coupling (``"contact"`` or ``"grid"``); a kind not listed is not
+            coupled: a scene with such a pair is refused.
+        friction: whether contact can carry Coulomb friction (``scene.set_contact(mu=...)``).
+        needs_contact_settings: whether the contact pairs act only with
+            ``scene.set_contact(...)`` (the barrier's d-hat and kappa).
+        penetration_bound_cells: 0.0 when no particle or FEM node ever ends inside another FEM
+            body (a step that would is a named failure); else the deepest penetration stated, in
+            grid cells (dx of the MPM grid, or of the strategy's contact grid); None when the
+            strategy couples nothing with a FEM body.
+        penetration_note: how the bound was obtained, or why there is none.
+        inversion_free: whether every FEM cell and particle keeps J > 0 (a step that would
+            invert is refused by the line search, not taken).
+    """
+
+    pairs: Mapping[str, str]
+    friction: bool
+    needs_contact_settings: bool
+    penetration_bound_cells: float | None
+    penetration_note: str
+    inversion_free: bool = False
+
+    def __post_init__(self) -> None:
+        for kind, how in self.pairs.items():
+            if kind not in PAIR_KINDS:
+                raise ValueError(f"Capabilities.pairs: unknown pair kind {kind!r} ({PAIR_KINDS})")
+            if how not in COUPLINGS:
+                raise ValueError(f"Capabilities.pairs[{kind!r}] must be one of {COUPLINGS}")
+        object.__setattr__(self, "pairs", MappingProxyType(dict(self.pairs)))
+
+    def couples(self, kind: str) -> str | None:
+        """How this strategy couples ``kind`` (``"contact"``, ``"grid"``), None if not at all."""
+        return self.pairs.get(kind)
+
+
+def _fully_prescribed(model: object) -> list[bool]:
+    return [bool(model.fem_prescribed[b.nodes].all()) for b in model.fem_bodies]
+
+
+def pair_kind(a_is_mpm: bool, b_is_mpm: bool, a_fixed: bool, b_fixed: bool) -> str | None:
+    """The kind of a pair of bodies (None for two fully scripted FEM bodies: never a pair)."""
+    if a_is_mpm and b_is_mpm:
+        return "mpm-mpm"
+    if a_is_mpm or b_is_mpm:
+        fixed = b_fixed if a_is_mpm else a_fixed
+        return "mpm-prescribed" if fixed else "mpm-fem"
+    if a_fixed and b_fixed:
+        return None
+    return "fem-fem"
+
+
+def scene_pairs(model: object) -> list[tuple[str, str, str]]:
+    """Every pair of bodies of ``model`` that may meet: ``(kind, name a, name b)``.
+
+    FEM bodies come first, in insertion order, then MPM bodies (``bfemp.diagnostics`` order).
+    """
+    fixed = _fully_prescribed(model)
+    bodies = [(b.name, False, fixed[i]) for i, b in enumerate(model.fem_bodies)]
+    bodies += [(b.name, True, False) for b in model.mpm_bodies]
+    out = []
+    for i, (name_a, mpm_a, fixed_a) in enumerate(bodies):
+        for name_b, mpm_b, fixed_b in bodies[i + 1 :]:
+            kind = pair_kind(mpm_a, mpm_b, fixed_a, fixed_b)
+            if kind is not None:
+                out.append((kind, name_a, name_b))
+    return out
+
+
+def _serving(kind: str, registry: Mapping[str, type]) -> list[str]:
+    """Strategies that couple ``kind`` through contact (else through the grid)."""
+    contact = [n for n, c in registry.items() if c.capabilities.couples(kind) == "contact"]
+    return contact or [n for n, c in registry.items() if c.capabilities.couples(kind)]
+
+
+def check_scene(
+    model: object, strategy: str, registry: Mapping[str, type], *, allow_uncoupled: bool = False
+) -> list[str]:
+    """Refuse the pairs ``strategy`` does not couple; return the warnings the scene deserves.
+
+    Args:
+        model: the ``bfemp.Model``.
+        strategy: the strategy's registry name.
+        registry: name -> stepper class (``bfemp.steppers.STRATEGIES``).
+        allow_uncoupled: turn the refusal of uncoupled pairs into a warning (for a scene whose
+            bodies are known never to meet, or to show what happens without coupling).
+
+    Returns:
+        the warning messages (already logged); ``Simulation`` keeps them in ``diagnostics``.
+
+    Raises:
+        ValueError: a pair the strategy does not couple, naming both bodies, the strategy and
+            the strategies that would serve.
+    """
+    caps: Capabilities = registry[strategy].capabilities
+    pairs = scene_pairs(model)
+    warnings: list[str] = []
+    for kind, a, b in pairs:
+        if caps.couples(kind) is None:
+            serving = ", ".join(repr(s) for s in _serving(kind, registry)) or "none"
+            message = (
+                f"strategy {strategy!r} does not couple bodies {a!r} and {b!r} "
+                f"({_KIND_TEXT[kind]}): they would pass through each other; strategies that "
+                f"couple {_KIND_TEXT[kind]} pairs: {serving} (`bfemp strategies` lists what each "
+                "couples)"
+            )
+            if not allow_uncoupled:
+                raise ValueError(message + "; Simulation(..., allow_uncoupled=True) runs it anyway")
+            warnings.append("UNCOUPLED: " + message)
+    contact_pairs = [(a, b) for kind, a, b in pairs if caps.couples(kind) == "contact"]
+    if caps.needs_contact_settings and model.contact is None and contact_pairs:
+        names = ", ".join(f"{a!r} and {b!r}" for a, b in contact_pairs)
+        warnings.append(
+            f"NO_CONTACT: bodies {names} share the scene without contact settings: under "
+            f"{strategy!r} they pass through each other; call scene.set_contact(dhat=..., "
+            "kappa=...) (scene file: [contact]) to make them meet"
+        )
+    grid_pairs = [(a, b) for kind, a, b in pairs if caps.couples(kind) == "grid"]
+    if grid_pairs:
+        names = ", ".join(f"{a!r} and {b!r}" for a, b in grid_pairs)
+        warnings.append(
+            f"GRID_COUPLED: MPM bodies {names} share one grid velocity field under {strategy!r}: "
+            "they stick where they meet and never separate (strategy 'lr' gives each body its "
+            "own field and separates them)"
+        )
+    for message in warnings:
+        log.warning(message)
+    return warnings
+
+
+def strategy_table(registry: Mapping[str, type]) -> str:
+    """A text table: per strategy, how it couples each pair kind, friction and the guarantees."""
+    header = ["strategy", *(_KIND_TEXT[k] for k in PAIR_KINDS), "friction", "penetration"]
+    rows = [header]
+    for name, cls in registry.items():
+        caps: Capabilities = cls.capabilities
+        bound = caps.penetration_bound_cells
+        if bound is None:
+            pen = "-"
+        elif bound == 0.0:
+            pen = "none (named failure)"
+        else:
+            pen = f"<= {bound:g} cells"
+        rows.append(
+            [name, *(caps.couples(k) or "refused" for k in PAIR_KINDS)]
+            + ["yes" if caps.friction else "no", pen]
+        )
+    widths = [max(len(r[i]) for r in rows) for i in range(len(header))]
+    lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip() for r in rows]
+    lines.insert(1, "  ".join("-" * w for w in widths))
+    notes = [f"{name}: {cls.capabilities.penetration_note}" for name, cls in registry.items()]
+    return "\n".join(lines + ["", "penetration:"] + ["  " + n for n in notes])
