@@ -21,7 +21,7 @@ _os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 import logging
 
 from bfemp import levelset, motion, sample, scenefile, shapes
-from bfemp.errors import SceneError
+from bfemp.errors import RunFolderError, SceneError
 from bfemp.integrators import BACKWARD_EULER, NEWMARK, Integrator
 from bfemp.materials import BulkShearHyperelastic, LinearElastic, NeoHookean
 from bfemp.model import FemBody, Model, MpmBody
@@ -55,6 +55,7 @@ __all__ = [
     "Model",
     "MpmBody",
     "NeoHookean",
+    "RunFolderError",
     "Scene",
     "SceneError",
     "Simulation",
