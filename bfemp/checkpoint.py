@@ -32,12 +32,15 @@ import json
 import logging
 import signal
 import threading
+import xml.etree.ElementTree as ET
+import zipfile
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from bfemp.errors import SceneError
+from bfemp.errors import RunFolderError, SceneError
 from bfemp.io.metrics import MetricsLog
 from bfemp.io.vtk import atomic_path
 from bfemp.state import State
@@ -47,6 +50,7 @@ __all__ = [
     "InterruptGuard",
     "SIDECAR_FILE",
     "Checkpoint",
+    "check_frames",
     "model_fingerprint",
     "read_checkpoint",
     "remove_checkpoint",
@@ -170,35 +174,167 @@ def write_checkpoint(out: str | Path, sim: object, *, every: int | None = None) 
     return path
 
 
+def _no_checkpoint(out: Path) -> RunFolderError:
+    """The refusal of ``--resume`` in a folder without a checkpoint, with a hint that works:
+    a folder holding an earlier run's outputs (a run killed before its first checkpoint) is
+    refused by a fresh run unless it overwrites them."""
+    from bfemp.io.outputs import earlier_run_outputs  # outputs imports this module
+
+    if earlier_run_outputs(out):
+        hint = (
+            f"the run in {out} stopped before its first checkpoint: start it again from t = 0 "
+            "with --overwrite instead of --resume (overwrite=True instead of resume=True)"
+        )
+    else:
+        hint = "run without --resume (resume=False) to start from t = 0"
+    return RunFolderError(f"no checkpoint in {out} ({CHECKPOINT_FILE} is missing)", hint=hint)
+
+
+#: how to go on when a checkpoint cannot be read
+_CORRUPT_HINT = (
+    "the run cannot continue from it: put back a good copy, or start again from t = 0 with "
+    "--overwrite (overwrite=True)"
+)
+
+
 def read_checkpoint(out: str | Path) -> Checkpoint:
-    """Read ``{out}/checkpoint.npz``; ``SceneError`` when missing or unreadable."""
-    path = Path(out) / CHECKPOINT_FILE
+    """Read ``{out}/checkpoint.npz``.
+
+    Raises:
+        RunFolderError: ``out`` is a file, the checkpoint is missing, or it is corrupt (not a
+            complete zip archive, a member that does not decompress, a meta or metrics record
+            that does not parse, another format version); the message names the file and what
+            is wrong with it.
+    """
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise RunFolderError("is a file, not a run folder", file=str(out))
+    path = out / CHECKPOINT_FILE
     if not path.is_file():
-        raise SceneError(
-            f"no checkpoint in {Path(out)} ({CHECKPOINT_FILE} is missing)",
-            hint="run without --resume to start from t = 0",
+        raise _no_checkpoint(out)
+    if not zipfile.is_zipfile(path):  # np.load would try it as a pickle: a misleading message
+        size = path.stat().st_size
+        raise RunFolderError(
+            f"corrupt checkpoint: not a complete zip archive ({size} bytes; truncated or "
+            "overwritten)",
+            file=str(path),
+            hint=_CORRUPT_HINT,
         )
     try:
         with np.load(path, allow_pickle=False) as data:
             contents = {key: data[key] for key in data.files}
+        if "meta" not in contents or "metrics" not in contents:
+            raise KeyError("no 'meta' or 'metrics' record")
         meta = json.loads(str(contents.pop("meta")))
         metrics = _metrics_from_json(str(contents.pop("metrics")))
-    except (OSError, ValueError, KeyError) as err:
-        raise SceneError(f"cannot read checkpoint {path}: {err}") from None
+        if not isinstance(meta, dict):
+            raise TypeError("the 'meta' record is not a JSON object")
+    except (
+        OSError,
+        ValueError,
+        KeyError,
+        TypeError,
+        EOFError,
+        zipfile.BadZipFile,
+        zlib.error,
+    ) as err:
+        raise RunFolderError(
+            f"corrupt checkpoint: {type(err).__name__}: {err}", file=str(path), hint=_CORRUPT_HINT
+        ) from None
     if meta.get("format") != FORMAT_VERSION:
-        raise SceneError(f"checkpoint {path} has format {meta.get('format')}, not {FORMAT_VERSION}")
+        raise RunFolderError(
+            f"checkpoint of format {meta.get('format')}, not {FORMAT_VERSION} (written by "
+            "another bfemp version)",
+            file=str(path),
+            hint="resume it with the bfemp version that wrote it, or start again with --overwrite",
+        )
+    missing = [k for k in ("scalars", "fingerprint", "settings") if k not in meta]
+    if missing:
+        raise RunFolderError(
+            f"corrupt checkpoint: its meta record lacks {', '.join(missing)}",
+            file=str(path),
+            hint=_CORRUPT_HINT,
+        )
     state_arrays = {k[6:]: v for k, v in contents.items() if k.startswith("state.")}
-    state = State(**meta["scalars"], **state_arrays)
+    try:
+        state = State(**meta["scalars"], **state_arrays)
+    except TypeError as err:
+        raise RunFolderError(
+            f"corrupt checkpoint: its state does not match a State ({err})",
+            file=str(path),
+            hint=_CORRUPT_HINT,
+        ) from None
     pvd = {k[4:]: str(v) for k, v in contents.items() if k.startswith("pvd.")}
     stepper = {k[8:]: v for k, v in contents.items() if k.startswith("stepper.")}
     return Checkpoint(state=state, metrics=metrics, meta=meta, pvd=pvd, stepper=stepper)
 
 
+#: how to go on when a frame before the checkpoint is damaged
+_FRAME_HINT = (
+    "the frames before the checkpoint are not recomputed on resume: put back a good copy, or "
+    "start again from t = 0 with --overwrite (overwrite=True)"
+)
+#: the closing tag of a complete VTU file (meshio ends it with a newline)
+_VTU_END = b"</VTKFile>"
+
+
+def check_frames(out: str | Path, pvd: dict[str, str]) -> int:
+    """Check that every frame listed in the ``.pvd`` texts ``pvd`` (block -> collection text,
+    as a checkpoint stores them) is a complete file in ``out``; return how many were checked.
+
+    A frame is complete when it exists and ends with ``</VTKFile>``: a frame truncated by a
+    crash (a file renamed into place before its data reached the disk) or by a full disk
+    fails this. Only the last 64 bytes of each file are read (a run of thousands of frames is
+    checked in milliseconds); damage inside a file that keeps its end is not detected.
+
+    Raises:
+        RunFolderError: a collection that does not parse, or a missing or incomplete frame
+            (named, with its time).
+    """
+    out = Path(out)
+    checked = 0
+    for block, text in pvd.items():
+        try:
+            root = ET.fromstring(text)
+        except ET.ParseError as err:
+            raise RunFolderError(
+                f"corrupt checkpoint: its copy of {block}.pvd does not parse ({err})",
+                file=str(out / CHECKPOINT_FILE),
+                hint=_CORRUPT_HINT,
+            ) from None
+        for dataset in root.iter("DataSet"):
+            rel, t = dataset.get("file", ""), f"{float(dataset.get('timestep', 'nan')):.9g}"
+            path = out / rel
+            try:
+                size = path.stat().st_size
+                with path.open("rb") as fh:
+                    fh.seek(max(0, size - 64))
+                    tail = fh.read().rstrip()
+            except OSError as err:
+                raise RunFolderError(
+                    f"frame of block {block!r} at t = {t} s listed by the checkpoint cannot be "
+                    f"read ({err.strerror or err})",
+                    file=str(path),
+                    hint=_FRAME_HINT,
+                ) from None
+            if not tail.endswith(_VTU_END):
+                raise RunFolderError(
+                    f"corrupt frame of block {block!r} at t = {t} s: {size} bytes, not ending "
+                    "with </VTKFile> (truncated)",
+                    file=str(path),
+                    hint=_FRAME_HINT,
+                )
+            checked += 1
+    return checked
+
+
 def restore_checkpoint(out: str | Path, sim: object, *, every: int | None = None) -> Checkpoint:
     """Load the checkpoint of ``out`` into ``sim`` and put back the run's ``.pvd`` files.
 
-    Raises ``SceneError`` when the checkpoint belongs to another model; warns when the
-    simulation settings or the frame interval differ from the checkpoint's.
+    Raises ``SceneError`` when the checkpoint belongs to another model, ``RunFolderError``
+    when it is missing or corrupt or a frame it lists is (:func:`check_frames`), before
+    anything is changed; warns when the simulation settings or the frame interval differ
+    from the checkpoint's.
     """
     out = Path(out)
     ckpt = read_checkpoint(out)
@@ -207,6 +343,7 @@ def restore_checkpoint(out: str | Path, sim: object, *, every: int | None = None
             f"the checkpoint in {out} was written for another model (the scene changed)",
             hint="resume with the scene the run started with, or run without --resume",
         )
+    check_frames(out, ckpt.pvd)
     old, new = ckpt.meta["settings"], dict(sim.settings)
     changed = sorted(k for k in set(old) | set(new) if old.get(k) != new.get(k))
     if changed:

@@ -265,11 +265,21 @@ def _run(args: argparse.Namespace, argv: list[str]) -> int:
             scene_toml=sf.text,
         )
     except KeyboardInterrupt:
-        print(
-            f"bfemp: interrupted at t = {sim.state.t:.6g} s (step {sim.state.step}); "
-            f"checkpoint in {out}\n  continue with: bfemp run {scene_path} --out {out} --resume",
-            file=sys.stderr,
-        )
+        from bfemp.checkpoint import CHECKPOINT_FILE
+
+        where = f"interrupted at t = {sim.state.t:.6g} s (step {sim.state.step})"
+        if (out / CHECKPOINT_FILE).is_file():
+            print(
+                f"bfemp: {where}; checkpoint in {out}\n"
+                f"  continue with: bfemp run {scene_path} --out {out} --resume",
+                file=sys.stderr,
+            )
+        else:  # stopped before any checkpoint: --resume would be refused
+            print(
+                f"bfemp: {where}; no checkpoint was written to {out}\n"
+                f"  start again with: bfemp run {scene_path} --out {out} --overwrite",
+                file=sys.stderr,
+            )
         return EXIT_INTERRUPTED
     print(f"run finished: t = {sim.state.t:.6g} s, step {sim.state.step}; output in {out}")
     for pvd in sorted(out.glob("*.pvd")):

@@ -12,7 +12,7 @@ The command line prints that message after ``bfemp: error:`` without a traceback
 
 from __future__ import annotations
 
-__all__ = ["SceneError", "StepNoteWarning", "note_name"]
+__all__ = ["RunFolderError", "SceneError", "StepNoteWarning", "note_name"]
 
 
 class SceneError(ValueError):
@@ -61,6 +61,16 @@ class SceneError(ValueError):
             field=self.field,
             hint=self.hint,
         )
+
+
+class RunFolderError(SceneError):
+    """A run folder that cannot be written or continued: in use by another run, a file where
+    the folder should be, or a corrupt checkpoint, manifest or frame.
+
+    ``file`` is the path at fault (the folder, or the file in it); the message says what is
+    wrong with it and the hint how to go on. A :class:`SceneError` (and so a ``ValueError``):
+    the command line prints it after ``bfemp: error:`` and exits with status 2.
+    """
 
 
 class StepNoteWarning(UserWarning):

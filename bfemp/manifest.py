@@ -13,7 +13,12 @@ The manifest records what a run was and how it went, so that a result folder exp
   and status (``running``, ``completed``, ``interrupted`` or ``failed`` with its message);
 - ``status``, ``message`` and ``result`` (t, step, frames, Newton iterations) of the last session.
 
-The file is rewritten atomically at the start and at the end of every session.
+The file is rewritten atomically at the start and at the end of every session. A session that
+was killed (SIGKILL, a crash, power loss) cannot record its end and stays ``running`` in the
+file; the run folder's lock (:mod:`bfemp.io.outputs`) tells it from a live one: ``bfemp info``
+shows it as ``interrupted``, and the next session (``--resume``) records it so in the file, with
+the step of the checkpoint it was resumed from. A manifest that is not a JSON object with a
+``sessions`` list is refused (``RunFolderError``), never silently replaced.
 """
 
 from __future__ import annotations
@@ -31,12 +36,21 @@ from pathlib import Path
 import numpy as np
 
 from bfemp.checkpoint import SIDECAR_FILE, model_fingerprint
-from bfemp.errors import SceneError
+from bfemp.errors import RunFolderError, SceneError
 from bfemp.io.metrics import MetricsLog
+from bfemp.io.outputs import lock_holder
 from bfemp.io.vtk import atomic_path, read_pvd
 from bfemp.materials import BulkShearHyperelastic
 
-__all__ = ["MANIFEST_FILE", "RunManifest", "format_info", "git_info", "run_info", "versions"]
+__all__ = [
+    "MANIFEST_FILE",
+    "RunManifest",
+    "format_info",
+    "git_info",
+    "read_manifest",
+    "run_info",
+    "versions",
+]
 
 log = logging.getLogger(__name__)
 
@@ -145,6 +159,41 @@ def _finite(value: float) -> float | None:
     return float(value) if np.isfinite(value) else None
 
 
+def read_manifest(out: str | Path) -> dict | None:
+    """The manifest of run folder ``out`` (None when it has none).
+
+    Raises:
+        RunFolderError: the file is unreadable, not JSON (e.g. truncated) or not an object
+            with a ``sessions`` list; the message names the file and what is wrong.
+    """
+    path = Path(out) / MANIFEST_FILE
+    if not path.is_file():
+        return None
+    hint = (
+        "it records the run's earlier sessions: put back a good copy, or move it away to go "
+        "on with a new manifest (that record is then lost)"
+    )
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as err:
+        what = "not valid JSON (truncated?)" if isinstance(err, ValueError) else "unreadable"
+        raise RunFolderError(
+            f"corrupt run manifest: {what}: {err}", file=str(path), hint=hint
+        ) from None
+    if not isinstance(data, dict) or not isinstance(data.get("sessions"), list):
+        raise RunFolderError(
+            "corrupt run manifest: not a JSON object with a 'sessions' list",
+            file=str(path),
+            hint=hint,
+        )
+    return data
+
+
+#: what a session left ``running`` by a killed process is recorded as
+_STALE = "interrupted"
+_STALE_NOTE = "the session ended without recording its end (the process was killed or crashed)"
+
+
 class RunManifest:
     """The manifest of one run folder, updated at the start and end of each session.
 
@@ -160,6 +209,11 @@ class RunManifest:
     def path(self) -> Path:
         """``{out}/manifest.json``."""
         return self.out / MANIFEST_FILE
+
+    @staticmethod
+    def read(out: str | Path) -> dict | None:
+        """:func:`read_manifest` (``RunFolderError`` for a corrupt one)."""
+        return read_manifest(out)
 
     @classmethod
     def start(
@@ -181,12 +235,14 @@ class RunManifest:
             extra: caller's parameters (e.g. ``{"scene_file": ..., "command": [...]}``).
         """
         out = Path(out)
-        data: dict = {}
-        if resume and (out / MANIFEST_FILE).is_file():
-            try:
-                data = json.loads((out / MANIFEST_FILE).read_text())
-            except (OSError, ValueError):
-                log.warning("unreadable %s replaced", out / MANIFEST_FILE)
+        data: dict = (read_manifest(out) if resume else None) or {}
+        for earlier in data.get("sessions", []):  # the caller holds the folder: none is live
+            if earlier.get("status", "running") == "running":
+                earlier.update(
+                    status=_STALE,
+                    message=f"{_STALE_NOTE}; resumed from the checkpoint at step "
+                    f"{sim.state.step} (t = {sim.state.t:.6g} s)",
+                )
         data.setdefault("created", _now())
         data["parameters"] = {
             "simulation": dict(sim.settings),
@@ -252,11 +308,17 @@ def run_info(out: str | Path) -> dict:
             hint="give the --out folder of a run",
         )
     info: dict = {"folder": str(out)}
-    if manifest_path.is_file():
-        try:
-            info["manifest"] = json.loads(manifest_path.read_text())
-        except ValueError as err:
-            raise SceneError(f"{manifest_path} is not valid JSON: {err}") from None
+    manifest = read_manifest(out)
+    if manifest is not None:
+        info["manifest"] = manifest
+        info["status"] = manifest.get("status", "?")
+        holder = lock_holder(out)
+        if holder is not None:  # a live run holds the folder (its manifest may lag behind)
+            info["running"] = holder
+            info["status"] = "running"
+        elif info["status"] == "running":  # no live run holds the folder: it was killed
+            info["status"] = _STALE
+            info["status_note"] = _STALE_NOTE
     if metrics_path.is_file():
         metrics = MetricsLog.from_csv(metrics_path)
         summary: dict = {"rows": len(metrics)}
@@ -279,8 +341,15 @@ def run_info(out: str | Path) -> dict:
         info["metrics"] = summary
     info["frames"] = {p.stem: len(read_pvd(p)) for p in sorted(out.glob("*.pvd"))}
     if (out / SIDECAR_FILE).is_file():
-        ckpt = json.loads((out / SIDECAR_FILE).read_text())
-        info["checkpoint"] = {"t": ckpt.get("t"), "step": ckpt.get("step")}
+        try:
+            ckpt = json.loads((out / SIDECAR_FILE).read_text())
+            info["checkpoint"] = {"t": ckpt.get("t"), "step": ckpt.get("step")}
+        except (OSError, ValueError, AttributeError) as err:
+            info["checkpoint"] = {"error": f"{out / SIDECAR_FILE} unreadable: {err}"}
+    if info.get("status_note") and "step" in info.get("checkpoint", {}):
+        info["status_note"] += (
+            f"; --resume continues from the checkpoint at step {info['checkpoint']['step']}"
+        )
     return info
 
 
@@ -290,13 +359,22 @@ def _fmt(value: object, unit: str = "") -> str:
     return f"{value}{unit}" if value is not None else "?"
 
 
+def _running_note(holder: dict) -> str:
+    pid, host, since = (holder.get(k, "?") for k in ("pid", "host", "started"))
+    where = "" if holder.get("alive") else ", not checked: another host"
+    return f"pid {pid} on {host}{where}, since {since}"
+
+
 def format_info(info: dict) -> str:
     """The text ``bfemp info`` prints for :func:`run_info`."""
     lines = [f"result folder: {info['folder']}"]
     man = info.get("manifest", {})
     if man:
-        note = f" ({man['message']})" if man.get("message") else ""
-        lines.append(f"status:        {man.get('status', '?')}{note}")
+        status = info.get("status", man.get("status", "?"))
+        note = info.get("status_note") or man.get("message")
+        if "running" in info:
+            note = _running_note(info["running"])
+        lines.append(f"status:        {status}" + (f" ({note})" if note else ""))
         params = man.get("parameters", {})
         if "scene_file" in params:
             lines.append(f"scene file:    {params['scene_file']}")
@@ -346,5 +424,8 @@ def format_info(info: dict) -> str:
         lines.append(f"frames:        {name}.pvd: {count}")
     if "checkpoint" in info:
         c = info["checkpoint"]
-        lines.append(f"checkpoint:    step {c['step']}, t = {_fmt(c['t'], ' s')}")
+        if "error" in c:
+            lines.append(f"checkpoint:    {c['error']}")
+        else:
+            lines.append(f"checkpoint:    step {c['step']}, t = {_fmt(c['t'], ' s')}")
     return "\n".join(lines)

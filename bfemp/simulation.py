@@ -282,7 +282,10 @@ class Simulation:
         PVD files and metrics; wall-clock ``time_*`` columns excepted).
 
         A fresh run refuses a folder that holds an earlier run's outputs unless ``overwrite``
-        (then deletes them first: :mod:`bfemp.io.outputs`). Every run with ``out`` writes
+        (then deletes them first: :mod:`bfemp.io.outputs`). One run writes a folder at a time:
+        it holds the folder's lock, and a second run into it is refused (``RunFolderError``
+        naming the holder), as are, on resume, a corrupt checkpoint, manifest or frame; the
+        temporary files of a killed run are removed. Every run with ``out`` writes
         ``snapshots.png`` (the bodies at up to 6 frame times, coloured by von Mises stress) and
         ``scene.toml``; ``animation="gif"`` (or ``"mp4"``, with ffmpeg) also writes
         ``animation.gif`` of every frame (:mod:`bfemp.io.snapshots`).
@@ -312,9 +315,29 @@ class Simulation:
         if out is None:
             self._loop(self._n_steps(t_end), progress, callback)
             return self.metrics
-        out = Path(out)
-        out.mkdir(parents=True, exist_ok=True)
+        with outputs.lock_run_folder(out):  # one writer per folder; RunFolderError if in use
+            return self._run_to_folder(
+                Path(out), t_end, every, progress, callback, checkpoint_every, resume,
+                metadata, overwrite, animation, scene_toml,
+            )  # fmt: skip
+
+    def _run_to_folder(
+        self,
+        out: Path,
+        t_end: float,
+        every: int,
+        progress: bool,
+        callback: Callable[[Simulation], None] | None,
+        checkpoint_every: int | None,
+        resume: bool,
+        metadata: dict | None,
+        overwrite: bool,
+        animation: str | None,
+        scene_toml: str | None,
+    ) -> MetricsLog:
+        """:meth:`run` with the output folder ``out``, whose lock the caller holds."""
         if resume:
+            RunManifest.read(out)  # a corrupt manifest is refused before anything changes
             restore_checkpoint(out, self, every=every)
             check_t_end(t_end, self.state.t, self.dt, f"the checkpoint in {out}")
         else:

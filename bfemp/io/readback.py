@@ -15,6 +15,7 @@ from pathlib import Path
 import meshio
 import numpy as np
 
+from bfemp.errors import RunFolderError
 from bfemp.io.metrics import MetricsLog
 from bfemp.io.vtk import read_pvd
 
@@ -29,10 +30,28 @@ def read_frames(path: str | Path) -> tuple[np.ndarray, list[meshio.Mesh]]:
 
     Points are 3D (2D runs: z = 0); FEM fields are cell data (``J``, ``von_mises``) and point
     data (``velocity``, ``contact_force``), MPM fields point data (see ``frame_blocks``).
+
+    Raises:
+        RunFolderError: a frame file is missing or does not read (named, with its time).
     """
     entries = read_pvd(path)
     times = np.array([t for t, _ in entries], dtype=np.float64)
-    return times, [meshio.read(file) for _, file in entries]
+    return times, [_read_frame(file, t) for t, file in entries]
+
+
+def _read_frame(file: Path, t: float) -> meshio.Mesh:
+    """One frame file; ``RunFolderError`` naming it (and its time) when missing or corrupt."""
+    if not file.is_file():
+        raise RunFolderError(f"frame at t = {t:.9g} s is missing", file=str(file))
+    try:  # not meshio.read: on a file it cannot read, that prints and calls sys.exit(1)
+        return meshio.vtu.read(str(file))
+    except Exception as err:  # ReadError, ParseError, ValueError, zlib.error, ...
+        detail = f"{type(err).__name__}: {err}" if str(err) else type(err).__name__
+        raise RunFolderError(
+            f"frame at t = {t:.9g} s is corrupt ({file.stat().st_size} bytes; truncated?): "
+            f"{detail}",
+            file=str(file),
+        ) from None
 
 
 def read_metrics(path: str | Path) -> MetricsLog:

@@ -1,12 +1,15 @@
 """Checkpoint/restart: a resumed run equals the uninterrupted one bit for bit (state, metrics
 without the wall-clock time_* columns, VTU frames and PVD files), after a normal stop, a crash
-(frames written after the last checkpoint), Ctrl-C and a double Ctrl-C; refusals and atomicity."""
+(frames written after the last checkpoint), Ctrl-C and a double Ctrl-C; refusals and atomicity;
+run folders that are damaged (checkpoint, manifest, frame), in use, or a file, and the temporary
+files of a killed run (issue 44, defect 6)."""
 
 import json
 import logging
 import os
 import shutil
 import signal
+import threading
 
 import numpy as np
 import pytest
@@ -16,6 +19,7 @@ from bfemp import checkpoint as ckpt_module
 from bfemp.checkpoint import read_checkpoint
 from bfemp.errors import SceneError
 from bfemp.io.metrics import MetricsLog
+from bfemp.manifest import run_info
 
 DT, EVERY = 0.01, 3
 T_END = 12 * DT
@@ -266,3 +270,149 @@ def test_a_first_ctrl_c_in_the_final_writes_lets_them_finish(tmp_path, monkeypat
     assert written == ["metrics.png", "snapshots.png"]
     manifest = json.loads((tmp_path / "manifest.json").read_text())
     assert manifest["status"] == "interrupted" and "(all written)" in manifest["message"]
+
+
+# ---------------------------------------------------------------- damaged and shared run folders
+# (issue 44, defect 6: each of these failed before the fix, as said in its docstring)
+
+
+def _copy_of(reference, tmp_path):
+    """A copy of the reference run folder (checkpoint at step 12), to damage."""
+    out = tmp_path / "run"
+    shutil.copytree(reference[1], out)
+    return out
+
+
+def _files(out):
+    return {p.relative_to(out): p.read_bytes() for p in sorted(out.rglob("*")) if p.is_file()}
+
+
+@pytest.mark.parametrize("damage", ["truncated", "garbage", "damaged member"])
+def test_a_corrupt_checkpoint_is_refused_naming_the_file(reference, tmp_path, damage):
+    """Before: zipfile.BadZipFile escaped (truncated, damaged member: a traceback, exit 1), and
+    a garbage file was blamed on ``allow_pickle``."""
+    out = _copy_of(reference, tmp_path)
+    path = out / "checkpoint.npz"
+    data = bytearray(path.read_bytes())
+    if damage == "truncated":
+        data = data[: len(data) // 2]
+    elif damage == "garbage":
+        data = b"x" * 1000
+    else:  # the zip directory intact, the data of a member overwritten
+        data[len(data) // 3 : len(data) // 3 + 64] = bytes(64)
+    path.write_bytes(bytes(data))
+    before = _files(out)
+    with pytest.raises(bfemp.RunFolderError) as err:
+        _run(_sim(), out, t_end=14 * DT, resume=True)
+    message = str(err.value)
+    assert message.startswith(f"{path}: corrupt checkpoint: "), message
+    if damage != "damaged member":
+        assert "not a complete zip archive" in message, message
+    assert "pickle" not in message and "--overwrite" in message
+    assert _files(out) == before  # refused before anything was changed
+
+
+def test_a_truncated_frame_before_the_checkpoint_is_refused(reference, tmp_path):
+    """Before: the resume went on and the run folder kept a frame no reader can open."""
+    out = _copy_of(reference, tmp_path)
+    frame = out / "beam" / "frame_00004.vtu"  # the frame at the checkpoint, t = 0.12 s
+    frame.write_bytes(frame.read_bytes()[:700])
+    before = _files(out)
+    with pytest.raises(bfemp.RunFolderError) as err:
+        _run(_sim(), out, t_end=14 * DT, resume=True)
+    assert str(err.value).startswith(
+        f"{frame}: corrupt frame of block 'beam' at t = 0.12 s: 700 bytes, not ending with "
+        "</VTKFile> (truncated)"
+    ), str(err.value)
+    assert _files(out) == before
+
+
+def test_a_corrupt_manifest_is_refused_not_replaced(reference, tmp_path):
+    """Before: a truncated manifest.json was replaced by a new one (the earlier sessions lost)
+    with only a log line."""
+    out = _copy_of(reference, tmp_path)
+    path = out / "manifest.json"
+    path.write_text(path.read_text()[:200])
+    before = _files(out)
+    with pytest.raises(bfemp.RunFolderError) as err:
+        _run(_sim(), out, t_end=14 * DT, resume=True)
+    assert str(err.value).startswith(f"{path}: corrupt run manifest: not valid JSON (truncated?)")
+    assert "earlier sessions" in str(err.value)
+    assert _files(out) == before
+
+
+def test_a_second_writer_is_refused_naming_the_holder(reference, tmp_path):
+    """Two runs into one folder at once (here two threads; two processes are refused alike).
+    Before: both ran, and the manifest kept only the session that finished last."""
+    out = _copy_of(reference, tmp_path)
+    inside, leave = threading.Event(), threading.Event()
+
+    def hold(sim):
+        inside.set()
+        assert leave.wait(120)
+
+    first = threading.Thread(
+        target=lambda: _run(_sim(), out, t_end=14 * DT, resume=True, callback=hold)
+    )
+    first.start()
+    try:
+        assert inside.wait(120)  # the first run is inside its time loop
+        with pytest.raises(bfemp.RunFolderError) as err:
+            _run(_sim(), out, t_end=16 * DT, resume=True)
+        info = run_info(out)  # bfemp info: running, by this process
+        assert info["status"] == "running" and info["running"]["pid"] == os.getpid()
+    finally:
+        leave.set()
+        first.join(120)
+    message = str(err.value)
+    assert message.startswith(
+        f"{out}: the folder is in use by another bfemp run (pid {os.getpid()}"
+    )
+    assert ", started 20" in message and ".bfemp.lock" in message, message
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert [s["status"] for s in manifest["sessions"]] == ["completed", "completed"]
+    assert manifest["sessions"][1]["to_step"] == 14
+    assert not (out / ".bfemp.lock").exists()  # released
+
+
+def test_temporary_files_of_a_killed_run_are_removed_on_resume(reference, tmp_path):
+    """Before: a 0-byte ``.metrics.png.*.tmp`` (a write cut by SIGKILL) survived the resume."""
+    out = _copy_of(reference, tmp_path)
+    ours = [
+        out / ".metrics.png.k3j_9xq2.tmp",
+        out / ".checkpoint.npz.a1b2c3d4.tmp",
+        out / ".beam.pvd.0f9e8d7c.tmp",
+        out / "beam" / ".frame_00005.vtu.zz0011yy.tmp",
+    ]
+    theirs = [out / ".notes.txt.a1b2c3d4.tmp", out / "beam" / "mine.tmp", out / "x.tmp"]
+    for path in ours + theirs:
+        path.write_bytes(b"")
+    _run(_sim(), out, t_end=14 * DT, resume=True)
+    assert [p.name for p in ours if p.exists()] == []
+    assert all(p.exists() for p in theirs)  # not of a run's write: the user's
+
+
+def test_out_naming_a_file_is_refused(tmp_path):
+    """Before: ``FileExistsError: [Errno 17] File exists`` from ``mkdir``."""
+    path = tmp_path / "a_file"
+    path.write_text("mine")
+    with pytest.raises(bfemp.RunFolderError, match=rf"^{path}: the output folder is a file"):
+        _run(_sim(), path)
+    with pytest.raises(bfemp.RunFolderError, match="cannot create the output folder: Not a dir"):
+        _run(_sim(), path / "sub")
+    assert path.read_text() == "mine"
+
+
+def test_a_run_stopped_before_its_first_checkpoint_restarts_as_the_hint_says(reference, tmp_path):
+    """Aborted (double Ctrl-C; a SIGKILL alike) before the first checkpoint. Before: the hint
+    said to run without ``resume``, which refuses a folder holding a run."""
+    with pytest.raises(KeyboardInterrupt):
+        _run(_sim(), tmp_path, checkpoint_every=4, callback=_interrupt_at(2, 2))
+    assert not (tmp_path / "checkpoint.npz").exists()
+    with pytest.raises(bfemp.RunFolderError, match="no checkpoint") as err:
+        _run(_sim(), tmp_path, resume=True)
+    assert "stopped before its first checkpoint" in err.value.hint
+    assert "overwrite=True instead of resume=True" in err.value.hint
+    sim = _sim()
+    _run(sim, tmp_path, overwrite=True)  # what the hint says
+    _assert_same_run(*reference, sim, tmp_path)

@@ -1,8 +1,12 @@
 """The command line end to end on a tiny scene: run, resume, info, bench dispatch, and errors
-printed as one line without a traceback (exit 2), failed checks (exit 1), Ctrl-C (exit 130)."""
+printed as one line without a traceback (exit 2), failed checks (exit 1), Ctrl-C (exit 130), a
+run killed by SIGKILL (shown interrupted, resumed, or restarted as the hint says), damaged run
+folders (exit 2)."""
 
 import json
+import logging
 import os
+import signal
 import subprocess
 import sys
 import types
@@ -192,13 +196,22 @@ def test_a_second_run_into_the_same_folder_needs_overwrite(scene_file, tmp_path,
 
 
 def test_ctrl_c_exits_130_with_the_resume_command(scene_file, tmp_path, capsys, monkeypatch):
+    """With a checkpoint the hint is --resume; without one (stopped before the first) it is
+    --overwrite, since --resume is refused there (it said --resume in both cases)."""
+    out = tmp_path / "out"
+
     def interrupted(self, *args, **kwargs):
         raise KeyboardInterrupt
 
     monkeypatch.setattr(bfemp.Simulation, "run", interrupted)
-    assert _run(scene_file, "--out", tmp_path / "out") == 130
+    assert _run(scene_file, "--out", out) == 130
     err = capsys.readouterr().err
-    assert "interrupted at t = 0 s" in err and f"--out {tmp_path / 'out'} --resume" in err
+    assert "interrupted at t = 0 s" in err and "no checkpoint was written" in err
+    assert f"start again with: bfemp run {scene_file} --out {out} --overwrite" in err
+    out.mkdir()
+    (out / "checkpoint.npz").write_bytes(b"")  # the run wrote one before it was interrupted
+    assert _run(scene_file, "--out", out) == 130
+    assert f"continue with: bfemp run {scene_file} --out {out} --resume" in capsys.readouterr().err
 
 
 def test_bench_calls_the_registered_run(tmp_path, monkeypatch, capsys):
@@ -277,3 +290,101 @@ def test_a_first_run_says_it_compiles_the_kernels_and_where_they_go(
     (cache / "bfemp_0" / "kernel.nbi").write_bytes(b"")
     assert first_run_notice() is None
     assert first_run_notice(str(tmp_path / "elsewhere")) is not None
+
+
+KILLED = """
+import os, signal, sys
+import bfemp
+
+def die(sim):
+    if sim.state.step == int(sys.argv[3]):
+        os.kill(os.getpid(), signal.SIGKILL)
+
+sim = bfemp.Simulation.from_file(sys.argv[1])
+sim.run(0.06, out=sys.argv[2], every=2, checkpoint_every=2, progress=False, callback=die)
+"""
+
+
+def _killed_run(scene_file, out, step):
+    """Run the tiny scene (checkpoints at even steps) in another process and SIGKILL it after
+    step ``step``; return its pid."""
+    root = Path(bfemp.__file__).resolve().parents[1]
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join([str(root), os.environ.get("PYTHONPATH", "")]),
+    }
+    args = [sys.executable, "-c", KILLED, str(scene_file), str(out), str(step)]
+    proc = subprocess.Popen(
+        args, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    _, err = proc.communicate(timeout=300)
+    assert proc.returncode == -signal.SIGKILL, err
+    return proc.pid
+
+
+def test_a_killed_run_is_shown_interrupted_and_its_session_recorded_on_resume(
+    scene_file, tmp_path, capsys, caplog, no_plots
+):
+    """Before: `bfemp info` said "running", the resume left the killed session without a
+    status, and nothing said that the killed run's lock was taken over (there was none)."""
+    out = tmp_path / "out"
+    pid = _killed_run(scene_file, out, 3)  # after the checkpoint of step 2
+    assert json.loads((out / "manifest.json").read_text())["status"] == "running"  # as left
+    assert main(["info", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "status:        interrupted (the session ended without recording its end" in printed
+    assert "--resume continues from the checkpoint at step 2" in printed, printed
+    assert main(["info", str(out), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["status"] == "interrupted"
+    with caplog.at_level(logging.WARNING, logger="bfemp.io.outputs"):
+        assert _run(scene_file, "--out", out, "--resume") == 0
+    assert "took over the lock" in caplog.text and f"pid {pid} on " in caplog.text, caplog.text
+    sessions = json.loads((out / "manifest.json").read_text())["sessions"]
+    assert [s["status"] for s in sessions] == ["interrupted", "completed"]
+    assert "killed or crashed" in sessions[0]["message"]
+    assert "resumed from the checkpoint at step 2" in sessions[0]["message"]
+    assert sessions[1]["from_step"] == 2 and sessions[1]["to_step"] == 6
+    assert not (out / ".bfemp.lock").exists()
+    assert main(["info", str(out)]) == 0
+    assert "status:        completed" in capsys.readouterr().out
+
+
+def test_a_run_killed_before_its_first_checkpoint_restarts_as_the_hint_says(
+    scene_file, tmp_path, capsys, no_plots
+):
+    """Before: the hint said "run without --resume", which refuses the folder."""
+    out = tmp_path / "out"
+    _killed_run(scene_file, out, 1)
+    err = _error(capsys, ["run", str(scene_file), "--out", str(out), "--resume"])
+    assert "no checkpoint in" in err and "with --overwrite instead of --resume" in err, err
+    assert _run(scene_file, "--out", out, "--overwrite") == 0
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["status"] == "completed" and len(manifest["sessions"]) == 1
+
+
+def test_damaged_run_folders_and_a_file_as_out_exit_2_naming_the_file(
+    scene_file, tmp_path, capsys, no_plots
+):
+    """Before: a truncated checkpoint gave a traceback (exit 1), a truncated manifest was
+    replaced on --resume, --out naming a file printed "[Errno 17] File exists"."""
+    out = tmp_path / "out"
+    assert _run(scene_file, "--out", out, "--t-end", 0.02) == 0
+    resume = ["run", str(scene_file), "--out", str(out), "--resume"]
+    checkpoint = (out / "checkpoint.npz").read_bytes()
+    (out / "checkpoint.npz").write_bytes(checkpoint[: len(checkpoint) // 2])
+    err = _error(capsys, resume)
+    assert err.startswith(f"bfemp: error: {out / 'checkpoint.npz'}: corrupt checkpoint: not a")
+    (out / "checkpoint.npz").write_bytes(checkpoint)
+    truncated = (out / "manifest.json").read_text()[:150]
+    (out / "manifest.json").write_text(truncated)
+    for argv in (resume, ["info", str(out)]):
+        err = _error(capsys, argv)
+        assert err.startswith(f"bfemp: error: {out / 'manifest.json'}: corrupt run manifest: not")
+    assert (out / "manifest.json").read_text() == truncated  # not replaced
+    a_file = tmp_path / "a_file"
+    a_file.write_text("")
+    err = _error(capsys, ["run", str(scene_file), "--out", str(a_file)])
+    assert (
+        err.startswith(f"bfemp: error: {a_file}: the output folder is a file")
+        and "Errno" not in err
+    )

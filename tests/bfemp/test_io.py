@@ -1,15 +1,22 @@
-"""Run output: VTU frames and PVD collections read back, atomic writes, metrics CSV round trip."""
+"""Run output: VTU frames and PVD collections read back, atomic writes, metrics CSV round trip,
+a damaged frame read back, the lock of a run folder."""
 
 import json
+import logging
 import math
 import os
+import socket
 import stat
+import subprocess
+import sys
 
 import meshio
 import numpy as np
 import pytest
 
-from bfemp.io import Block, FrameWriter, MetricsLog, atomic_path, read_pvd
+from bfemp.errors import RunFolderError
+from bfemp.io import Block, FrameWriter, MetricsLog, atomic_path, read_frames, read_pvd
+from bfemp.io.outputs import LOCK_FILE, RunFolderLock, lock_holder
 
 
 def _square_2d():
@@ -283,3 +290,49 @@ def test_metrics_rejects_bad_input(tmp_path):
     bad.write_text("t,t\n0.0,1.0\n")
     with pytest.raises(ValueError, match="duplicate columns \\['t'\\]"):
         MetricsLog.from_csv(bad)
+
+
+def test_read_frames_names_a_truncated_or_missing_frame(tmp_path):
+    """Before: meshio printed "Couldn't read file" and called sys.exit(1)."""
+    rng = np.random.default_rng(3)
+    with FrameWriter(tmp_path) as writer:
+        for t in (0.0, 0.5):
+            writer.write_frame(t, _frames(rng, t))
+    times, meshes = read_frames(tmp_path / "ring.pvd")
+    assert times.tolist() == [0.0, 0.5] and meshes[1].points.shape == (4, 3)
+    frame = tmp_path / "ring" / "frame_00001.vtu"
+    frame.write_bytes(frame.read_bytes()[:300])
+    with pytest.raises(RunFolderError, match=rf"^{frame}: frame at t = 0.5 s is corrupt \(300 "):
+        read_frames(tmp_path / "ring.pvd")
+    frame.unlink()
+    with pytest.raises(RunFolderError, match=rf"^{frame}: frame at t = 0.5 s is missing"):
+        read_frames(tmp_path / "ring.pvd")
+
+
+def test_a_run_folder_lock_refuses_a_second_holder_and_takes_over_a_dead_ones(tmp_path, caplog):
+    lock = RunFolderLock(tmp_path)
+    holder = lock_holder(tmp_path)
+    assert holder["pid"] == os.getpid() and holder["alive"] is True
+    with pytest.raises(
+        RunFolderError, match=rf"in use by another bfemp run \(pid {os.getpid()} on"
+    ):
+        RunFolderLock(tmp_path)  # flock conflicts between two opens, even in one process
+    lock.release()
+    assert not (tmp_path / LOCK_FILE).exists() and lock_holder(tmp_path) is None
+    # the lock file of a killed run: its process has ended, nobody holds the flock
+    ended = subprocess.run(
+        [sys.executable, "-c", "import os; print(os.getpid())"],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    pid = int(ended.stdout)
+    record = {"pid": pid, "host": socket.gethostname(), "started": "2026-01-02T03:04:05+00:00"}
+    (tmp_path / LOCK_FILE).write_text(json.dumps(record))
+    assert lock_holder(tmp_path) is None  # bfemp info: not running
+    with caplog.at_level(logging.WARNING, logger="bfemp.io.outputs"):
+        lock = RunFolderLock(tmp_path)
+    assert "took over the lock" in caplog.text
+    assert f"pid {pid} on {socket.gethostname()}, started 2026-01-02T03:04:05+00:00" in caplog.text
+    assert json.loads((tmp_path / LOCK_FILE).read_text())["pid"] == os.getpid()
+    lock.release()
