@@ -322,6 +322,7 @@ def _strategies(args: argparse.Namespace) -> int:
                 "penetration_bound_cells": cls.capabilities.penetration_bound_cells,
                 "penetration_note": cls.capabilities.penetration_note,
                 "inversion_free": cls.capabilities.inversion_free,
+                "needs_mpm_body": cls.capabilities.needs_mpm_body,
             }
             for name, cls in STRATEGIES.items()
         }

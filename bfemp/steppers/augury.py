@@ -182,7 +182,7 @@ class AuguryStepper(ExplicitStepper):
     Options: ClassVar[type[AuguryOptions]] = AuguryOptions
     explicit: ClassVar[bool] = True
     #: FEM boundary nodes and particles meet on the contact grid (AUG; particles: bfemp's
-    #: extension, section 1.4); MPM bodies also share the engine's MPM grid, where they stick
+    #: extension, section 1.4); MPM bodies also share the engine's MPM grid velocity field
     capabilities: ClassVar[Capabilities] = Capabilities(
         pairs={"mpm-mpm": "grid", "mpm-fem": "contact", "mpm-prescribed": "contact",
                "fem-fem": "contact"},

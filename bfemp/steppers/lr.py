@@ -259,6 +259,7 @@ class LRStepper(ExplicitStepper):
         needs_contact_settings=False,
         penetration_bound_cells=LR_PENETRATION_CELLS,
         penetration_note=LR_PENETRATION_NOTE,
+        needs_mpm_body=True,
     )  # fmt: skip
     #: the transfer ``Simulation`` takes when none is given
     default_transfer: ClassVar[str] = "flip"

@@ -208,3 +208,9 @@ particles = { sample = "box", lower = [-0.1, 0.005], upper = [0.1, 0.205], ppc =
     path.write_text(text.replace("allow_uncoupled = true\n", ""))
     with pytest.raises(ValueError, match="does not couple"):
         bfemp.Simulation.from_file(path)
+
+
+def test_lr_refuses_a_scene_without_an_mpm_body_naming_who_serves():
+    with pytest.raises(ValueError, match="only scenes with an MPM body") as err:
+        bfemp.Simulation(block_on_plate(fem_block=True), strategy="lr", dt="auto")
+    assert "'barrier'" in str(err.value) and "'lr'" in str(err.value)
