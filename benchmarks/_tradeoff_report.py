@@ -193,7 +193,11 @@ def bound_words(point: dict) -> str:
     if bound == 0.0:
         return "0 m (its strategy lets nothing end inside a FEM body)"
     if cells is not None and dx is not None:
-        return f"{bound:.3g} m ({cells:g} cell(s) of its {dx:.3g} m grid)"
+        which = {
+            point.get("penetration_mpm_grid_dx_m"): "MPM grid",
+            point.get("penetration_contact_grid_dx_m"): "contact grid",
+        }.get(dx, "grid")
+        return f"{bound:.3g} m ({cells:g} cell(s) of the {dx:.3g} m {which})"
     return f"{bound:.3g} m"
 
 
@@ -440,9 +444,10 @@ def markdown(payload: dict) -> str:
         "",
         "Penetration: the deepest any FEM node or particle went inside another FEM body over "
         "the point's run (the shared `penetration_depth` check), against its strategy's stated "
-        "bound (`penetration_bound_cells` of the strategy, read when the point ran, times its "
-        "grid's dx; 0 for barrier and two_stage). A point beyond its bound is infeasible: drawn "
-        "as a cross, named below, never on a front, never a winner.",
+        "bound (`penetration_bound_cells` of the strategy, read when the point ran, times the "
+        "dx of the point's MPM grid, or of augury's contact grid in a scene without particles; "
+        "0 for barrier and two_stage). A point beyond its bound is infeasible: drawn as a "
+        "cross, named below, never on a front, never a winner.",
     ]
     for part in payload.get("merged", []):  # scenes rerun later and merged in (each point: commit)
         of_part = [r for r in payload["points"] if r["scene"] in part["scenes"]]

@@ -26,6 +26,7 @@ from collections.abc import Callable
 import numpy as np
 
 import bfemp
+from benchmarks._penetration import KEYS as PENETRATION_KEYS
 from benchmarks._penetration import penetration_bound, penetration_summary
 from bfemp.steppers import stepper_class
 
@@ -232,8 +233,7 @@ def _sine_boundary(s: dict) -> dict:
         cfg |= {"strategy": s["strategy"], "integrator": EXPLICIT_INTEGRATOR, "options": options}
     run = sine_boundary._run_one(cfg, "bfemp")
     keys = ("steps", "t_end", "penetrations", "max_penetration_depth", "max_tensile_force")
-    keys += ("dt_s", "max_penetration_m", "penetration_bound_m", "penetration_bound_cells")
-    keys += ("penetration_grid_dx_m",)
+    keys += ("dt_s", *PENETRATION_KEYS)
     out = {k: run[k] for k in keys + ("max_compressive_force", "particles", "min_distance")}
     out.update(iterations=run["newton_iterations"], failure=run["error"])
     return out

@@ -61,8 +61,9 @@ run of some scenes merges into a record with ``merge(record, rerun)`` (the quick
 Feasibility (issue 40): every point records ``max_penetration_m`` (the deepest any FEM node or
 particle went inside another FEM body over its run, the shared ``penetration_depth`` check) and
 the bound it is judged against, ``penetration_bound_m`` (its strategy's
-``capabilities.penetration_bound_cells``, read when the point runs, times the grid's dx; 0 for
-barrier and two_stage; ``benchmarks._penetration``). A point beyond its bound is infeasible
+``capabilities.penetration_bound_cells``, read when the point runs, times the dx of the point's
+MPM grid, or of augury's contact grid in a scene without particles; 0 for barrier and
+two_stage; ``benchmarks._penetration``). A point beyond its bound is infeasible
 (``record["infeasible"]``): drawn as a cross, named in the report with its depth and bound,
 never on a Pareto front and never the winner of an error range.
 
@@ -100,6 +101,7 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks._penetration import KEYS as PENETRATION_SUMMARY_KEYS
 from benchmarks._tradeoff_cache import FOLDER as CACHE_FOLDER
 from benchmarks._tradeoff_cache import PointCache
 from benchmarks._tradeoff_knobs import (
@@ -445,12 +447,7 @@ def point_error(scene: str, measurement: dict, reference: dict | None) -> tuple:
 
 #: the penetration measurement of a point (``benchmarks._penetration``), lifted from its metrics
 #: into its record (None where the run did not give it)
-PENETRATION_KEYS = (
-    "max_penetration_m",
-    "penetration_bound_m",
-    "penetration_bound_cells",
-    "penetration_grid_dx_m",
-)
+PENETRATION_KEYS = PENETRATION_SUMMARY_KEYS
 
 
 def _finish(record: dict, measurement: dict, reference: dict | None) -> dict:

@@ -120,6 +120,8 @@ def test_an_infeasible_point_is_named_in_the_report_and_drawn_as_a_cross(tmp_pat
         penetration_bound_m=0.005,
         penetration_bound_cells=0.5,
         penetration_grid_dx_m=0.01,
+        penetration_mpm_grid_dx_m=0.01,
+        penetration_contact_grid_dx_m=0.02,
     )
     record.write_text(json.dumps(data))
     figures = []
@@ -143,7 +145,7 @@ def test_an_infeasible_point_is_named_in_the_report_and_drawn_as_a_cross(tmp_pat
     named = next(line for line in rings.splitlines() if "**Infeasible**" in line)
     assert "rings, **augury** at base" in named
     assert "went 0.0123 m inside a FEM body, beyond its bound of 0.005 m" in named
-    assert "(0.5 cell(s) of its 0.01 m grid)" in named
+    assert "(0.5 cell(s) of the 0.01 m MPM grid)" in named
     front = next(line for line in rings.splitlines() if line.startswith("Non-dominated front"))
     assert "augury/base" not in front
     assert "| augury | base (infeasible) |" in rings and "0.0123 / 0.005" in rings
@@ -178,15 +180,21 @@ def test_the_bound_is_read_from_the_stepper_class_when_the_point_runs(monkeypatc
         monkeypatch.setattr(
             cls, "capabilities", replace(cls.capabilities, penetration_bound_cells=cells)
         )
-    # augury counts cells of its own contact grid, lr of the MPM grid
+    # cells of the MPM grid (the point's dx) where the scene has one, both spacings recorded
     a = penetration_bound(_stub(augury, grid_dx=0.004, model=grid))
     assert a == {
         "penetration_bound_cells": 0.75,
-        "penetration_grid_dx_m": 0.004,
-        "penetration_bound_m": pytest.approx(0.003),
+        "penetration_mpm_grid_dx_m": 0.02,
+        "penetration_contact_grid_dx_m": 0.004,
+        "penetration_grid_dx_m": 0.02,
+        "penetration_bound_m": pytest.approx(0.015),
     }
     b = penetration_bound(_stub(lr, model=grid))
     assert b["penetration_bound_m"] == pytest.approx(0.05) and b["penetration_grid_dx_m"] == 0.02
+    # augury on FEM bodies alone (augury_blocks): cells of its own contact grid
+    fem_only = penetration_bound(_stub(augury, grid_dx=0.004, model=SimpleNamespace(grid=None)))
+    assert fem_only["penetration_bound_m"] == pytest.approx(0.003)
+    assert fem_only["penetration_grid_dx_m"] == 0.004
     # barrier and two_stage: 0 m on any grid; single_field: no bound
     for name in ("barrier", "two_stage"):
         assert (
@@ -213,7 +221,8 @@ def test_the_bound_is_read_from_the_stepper_class_when_the_point_runs(monkeypatc
 def test_a_point_run_records_its_depth_and_the_bound_of_its_strategy_class(monkeypatch):
     """A few steps of the slope by augury in this process (the trade study's warm-up length):
     the point's metrics carry the column's largest value and the bound of the class as it is
-    when the point runs, on augury's contact grid."""
+    when the point runs, counted on the point's MPM grid (its dx), augury's contact grid
+    recorded beside it."""
     from benchmarks import _tradeoff_runs
 
     cls = stepper_class("augury")
@@ -227,5 +236,7 @@ def test_a_point_run_records_its_depth_and_the_bound_of_its_strategy_class(monke
     depth = metrics["max_penetration_m"]
     assert depth is not None and depth >= 0.0
     assert metrics["penetration_bound_cells"] == 0.375
-    dx = metrics["penetration_grid_dx_m"]
-    assert dx > 0.0 and metrics["penetration_bound_m"] == pytest.approx(0.375 * dx)
+    assert metrics["penetration_grid_dx_m"] == metrics["penetration_mpm_grid_dx_m"]
+    assert metrics["penetration_grid_dx_m"] == pytest.approx(settings["dx"])
+    assert metrics["penetration_bound_m"] == pytest.approx(0.375 * settings["dx"])
+    assert metrics["penetration_contact_grid_dx_m"] > 0.0
