@@ -1,5 +1,14 @@
 """Analysis and reporting of the trade study (``benchmarks.tradeoff``): the Pareto front, what
-each knob buys per second, the Pareto plots and the markdown summary."""
+each knob buys per second, the Pareto plots and the markdown summary.
+
+Feasibility (issue 40): a point whose ``max_penetration_m`` (the deepest any FEM node or
+particle went inside another FEM body over its run) exceeds its ``penetration_bound_m`` (its
+strategy's stated bound, ``benchmarks._penetration``) is infeasible (:func:`infeasible`): it is
+drawn (a cross, with a legend entry), named in the report with its depth against the bound,
+and kept off every Pareto front and out of every winner of an error range, however cheap and
+accurate it is. A point without either number (no FEM body in the scene, a record from before
+the measurement) is not judged.
+"""
 
 from __future__ import annotations
 
@@ -50,6 +59,21 @@ def pareto_front(cost: np.ndarray, error: np.ndarray) -> np.ndarray:
     return order[sorted_error < best_before]
 
 
+def infeasible(point: dict) -> bool:
+    """Whether ``point`` went deeper inside a FEM body than its strategy's stated bound.
+
+    Args:
+        point: a point record with ``max_penetration_m`` and ``penetration_bound_m`` (m; either
+            missing or None: not judged, feasible).
+
+    Returns:
+        ``max_penetration_m > penetration_bound_m`` (strictly: a bound of 0 m admits no depth
+        at all, a depth equal to the bound is within it).
+    """
+    depth, bound = point.get("max_penetration_m"), point.get("penetration_bound_m")
+    return depth is not None and bound is not None and depth > bound
+
+
 def winners(points: list[dict], cost: str = "wall_s") -> list[dict]:
     """Which strategy reaches each error target at the least cost.
 
@@ -59,7 +83,8 @@ def winners(points: list[dict], cost: str = "wall_s") -> list[dict]:
 
     Args:
         points: dicts with ``strategy``, ``error`` (dimensionless; None for a failed point, which
-            takes no part) and the cost (``cost``, s).
+            takes no part) and the cost (``cost``, s); an infeasible point (:func:`infeasible`)
+            takes no part either.
         cost: the key of the cost.
 
     Returns:
@@ -73,6 +98,7 @@ def winners(points: list[dict], cost: str = "wall_s") -> list[dict]:
         p
         for p in points
         if p.get("error") is not None
+        and not infeasible(p)
         and math.isfinite(p["error"])
         and p.get(cost) is not None
         and math.isfinite(p[cost])
@@ -157,6 +183,58 @@ def winner_sentences(scene: str, ranges: list[dict], cost_words: str = "wall tim
         lines.append(f"No strategy reached an error below {lowest['error_from']:.3g} on {scene}.")
     else:
         lines.append(f"Error 0 is the reference run itself ({lowest['winner']}).")
+    return lines
+
+
+def bound_words(point: dict) -> str:
+    """A point's penetration bound in words: metres, and the cells and grid it came from."""
+    bound = point["penetration_bound_m"]
+    cells, dx = point.get("penetration_bound_cells"), point.get("penetration_grid_dx_m")
+    if bound == 0.0:
+        return "0 m (its strategy lets nothing end inside a FEM body)"
+    if cells is not None and dx is not None:
+        which = {
+            point.get("penetration_mpm_grid_dx_m"): "MPM grid",
+            point.get("penetration_contact_grid_dx_m"): "contact grid",
+        }.get(dx, "grid")
+        return f"{bound:.3g} m ({cells:g} cell(s) of the {dx:.3g} m {which})"
+    return f"{bound:.3g} m"
+
+
+def infeasible_sentences(scene: str, records: list[dict]) -> list[str]:
+    """The scene's infeasible points (:func:`infeasible`) in words, one sentence each: scene,
+    strategy, knob value (the point's label), depth against bound; or one sentence saying that
+    every point judged kept within its bound (and how many could be judged)."""
+    judged = [
+        r
+        for r in records
+        if r.get("max_penetration_m") is not None and r.get("penetration_bound_m") is not None
+    ]
+    bad = [r for r in records if infeasible(r)]
+    if not bad:
+        if not judged:
+            return [
+                f"No point on {scene} has both a penetration depth and a bound to judge it by "
+                "(no FEM body in the scene, or a record from before the measurement)."
+            ]
+        return [
+            f"Every point judged on {scene} ({len(judged)} of {len(records)}) kept within its "
+            "strategy's penetration bound."
+        ]
+    lines = []
+    for r in bad:
+        error = "" if r.get("error") is None else f" (error {r['error']:.3g})"
+        line = (
+            f"**Infeasible**: {scene}, **{r['strategy']}** at {r['label']}{error} went "
+            f"{r['max_penetration_m']:.3g} m inside a FEM body, beyond its bound of "
+            f"{bound_words(r)}: drawn as a cross, never on the front, never a winner."
+        )
+        if r.get("is_reference"):
+            line += (
+                " It is the scene's reference run: the other points' errors are their "
+                "difference from a run that penetrates."
+            )
+        lines.append(line)
     return lines
 
 
@@ -253,9 +331,10 @@ def plot_scene(
     Args:
         records: the scene's point records (``strategy``, ``label``, ``role``, ``knob``,
             ``sweeps``, ``settings``, ``error``, ``pareto`` and the cost); failed points are left
-            out. An error of exactly 0 (the point is the reference run) is drawn at a tenth of
-            the smallest positive error. With no point left (the scene's reference run failed,
-            so no error exists) the figure says so on linear axes.
+            out; an infeasible point (:func:`infeasible`) is drawn as a cross. An error of
+            exactly 0 (the point is the reference run) is drawn at a tenth of the smallest
+            positive error. With no point left (the scene's reference run failed, so no error
+            exists) the figure says so on linear axes.
         path: the PNG file.
         title, error_label: the title and the error axis label.
         cost: the record key of the cost in s (``COSTS``).
@@ -284,9 +363,12 @@ def plot_scene(
         for r in mine:
             marker = {"base": "s", "reference": "*"}.get(r["role"], "o")
             size = 11 if r["role"] == "reference" else 6
+            if infeasible(r):  # a cross: drawn, but never on the front nor a winner
+                marker, size = "X", 9
             ax.plot(r[cost], shown(r), linestyle="none", marker=marker, color=colors[s],
                     markersize=size)  # fmt: skip
             text = r["label"] + (" (error 0)" if r["error"] == 0 else "")
+            text += " (infeasible)" if infeasible(r) else ""
             ax.annotate(text, (r[cost], shown(r)), xytext=(4, 3), textcoords="offset points",
                         fontsize=6, color=colors[s])  # fmt: skip
         ax.plot([], [], "o", color=colors[s], label=s if mine else f"{s} (no finished point)")
@@ -298,6 +380,9 @@ def plot_scene(
     ax.plot([], [], "ks", mfc="none", label="base (square), sweep (circle)")
     if any(r["role"] == "reference" for r in done):
         ax.plot([], [], "k*", markersize=11, label="reference run")
+    if any(infeasible(r) for r in done):
+        ax.plot([], [], "kX", markersize=9,
+                label="infeasible: deeper inside a FEM body than its strategy's bound")  # fmt: skip
     if done:
         ax.set(xscale="log", yscale="log")
     else:  # nothing to place on log axes (the reference run failed, or every point did)
@@ -356,6 +441,13 @@ def markdown(payload: dict) -> str:
         f"memory: that process's peak resident set; iterations: Newton iterations summed over "
         f"the run (0 for the purely explicit strategies). Cost axis: {words}. Replay any point "
         "with `python -m benchmarks tradeoff --replay tradeoff.json --id ID`.",
+        "",
+        "Penetration: the deepest any FEM node or particle went inside another FEM body over "
+        "the point's run (the shared `penetration_depth` check), against its strategy's stated "
+        "bound (`penetration_bound_cells` of the strategy, read when the point ran, times the "
+        "dx of the point's MPM grid, or of augury's contact grid in a scene without particles; "
+        "0 for barrier and two_stage). A point beyond its bound is infeasible: drawn as a "
+        "cross, named below, never on a front, never a winner.",
     ]
     for part in payload.get("merged", []):  # scenes rerun later and merged in (each point: commit)
         of_part = [r for r in payload["points"] if r["scene"] in part["scenes"]]
@@ -384,6 +476,8 @@ def markdown(payload: dict) -> str:
             lines.append(f"- {s}: not run: {why}.")
         lines += ["", "### Winner per error range", ""]
         lines += [f"- {line}" for line in winner_sentences(scene, payload["winners"][scene], words)]
+        lines += ["", "### Penetration", ""]
+        lines += [f"- {line}" for line in infeasible_sentences(scene, records)]
         front = sorted((r for r in records if r["pareto"]), key=lambda r: r[cost])
         lines += [
             "",
@@ -420,15 +514,18 @@ def markdown(payload: dict) -> str:
             "### Points",
             "",
             "| strategy | point | error | wall [s] | CPU [s] | iterations | peak memory [MiB] | "
-            "failure |",
-            "|---|---|---|---|---|---|---|---|",
+            "penetration / bound [m] | failure |",
+            "|---|---|---|---|---|---|---|---|---|",
         ]
         for r in records:
             failure = (r["failure"] or "").replace("|", "\\|")[:120]
             mark = " (front)" if r["pareto"] else ""
+            mark += " (infeasible)" if infeasible(r) else ""
+            depth = f"{_num(r.get('max_penetration_m'))} / {_num(r.get('penetration_bound_m'))}"
             lines.append(
                 f"| {r['strategy']} | {r['label']}{mark} | {_num(r['error'])} | "
                 f"{_num(r['wall_s'], '.2f')} | {_num(r['cpu_s'], '.2f')} | "
-                f"{_num(r['iterations'], 'd')} | {_num(r['peak_memory_mb'], '.0f')} | {failure} |"
+                f"{_num(r['iterations'], 'd')} | {_num(r['peak_memory_mb'], '.0f')} | {depth} | "
+                f"{failure} |"
             )
     return "\n".join(lines) + "\n"

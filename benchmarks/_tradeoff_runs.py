@@ -8,7 +8,12 @@ softened ``hertz_soft``, ``sine_boundary``, ``augury_blocks``, ``lr_compression`
 variant each strategy needs (``_tradeoff_scenes`` states which). Returns JSON-ready scalars;
 ``iterations`` is the sum over the run of the strategy's iteration counts (Newton for barrier and
 two_stage; 0 for the purely explicit ones), ``failure`` the ``StepError`` message (None when
-every step ran).
+every step ran). Every point also returns ``max_penetration_m`` (m, the deepest any FEM node or
+particle went inside another FEM body over the run, from the shared ``penetration_depth`` check;
+None for a scene without FEM bodies, lr_compression) and, where the run built a stepper, the
+bound it is judged against: ``penetration_bound_m`` (m), ``penetration_bound_cells`` (read
+from the stepper's class when the point runs) and ``penetration_grid_dx_m``
+(``benchmarks._penetration``).
 """
 
 from __future__ import annotations
@@ -21,6 +26,8 @@ from collections.abc import Callable
 import numpy as np
 
 import bfemp
+from benchmarks._penetration import KEYS as PENETRATION_KEYS
+from benchmarks._penetration import penetration_bound, penetration_summary
 from bfemp.steppers import stepper_class
 
 log = logging.getLogger(__name__)
@@ -85,6 +92,7 @@ def _rings(s: dict, on_done: Callable[[bfemp.Simulation], None] | None = None) -
         "penetrations": int(check.worst),
         "particles": int(sim.model.n_particles),
         "fem_vertices": int(sim.model.n_fem_nodes),
+        **penetration_summary(sim),
         "failure": failure,
     }
 
@@ -124,18 +132,26 @@ def _slope(s: dict) -> dict:
 
     p, variant = slope_physics(s)
     dt = s["dt"]
+    sims: list[bfemp.Simulation] = []  # the settling's and the release's, for the penetration
+
+    def keep(sim: bfemp.Simulation, _report: object) -> None:
+        if not sims or sims[-1] is not sim:
+            sims.append(sim)
+
     try:
-        settled, settle = slope._settle(variant, round(s["settle_s"] / dt), p)
+        settled, settle = slope._settle(variant, round(s["settle_s"] / dt), p, on_step=keep)
     except bfemp.StepError as err:  # no release without a settled box
-        return {"accel_rel_error": None, "steps": None, "failure": str(err)}
+        out = {"accel_rel_error": None, "steps": None, "failure": str(err)}
+        return out | (penetration_summary(*sims) if sims else {"max_penetration_m": None})
     case = slope._release(
-        variant, s["mu"], settled, round(s["release_s"] / dt), s["fit_start_s"], p
+        variant, s["mu"], settled, round(s["release_s"] / dt), s["fit_start_s"], p, on_step=keep
     )
     out = {k: v for k, v in case.items() if k not in ("series", "error")}
     out.update(
         steps=settle["steps"] + case["steps"],
         iterations=settle["newton_iterations"] + case["newton_iterations"],
         failure=case["error"],
+        **penetration_summary(*sims),
     )
     return out
 
@@ -217,7 +233,7 @@ def _sine_boundary(s: dict) -> dict:
         cfg |= {"strategy": s["strategy"], "integrator": EXPLICIT_INTEGRATOR, "options": options}
     run = sine_boundary._run_one(cfg, "bfemp")
     keys = ("steps", "t_end", "penetrations", "max_penetration_depth", "max_tensile_force")
-    keys += ("dt_s",)
+    keys += ("dt_s", *PENETRATION_KEYS)
     out = {k: run[k] for k in keys + ("max_compressive_force", "particles", "min_distance")}
     out.update(iterations=run["newton_iterations"], failure=run["error"])
     return out
@@ -230,6 +246,7 @@ BLOCKS_KEYS = ("strategy", "dt", "options", "dx", "t_end")
 def _augury_blocks(s: dict) -> dict:
     from benchmarks import augury_blocks
     from bfemp import diagnostics
+    from bfemp.contact.penetration import PenetrationCheck
     from bfemp.terms import fem_elastic_groups
 
     _check(s, BLOCKS_KEYS, "augury_blocks")
@@ -251,6 +268,10 @@ def _augury_blocks(s: dict) -> dict:
     e0 = energy(state)
     p0 = diagnostics.linear_momentum(model, state)
     steps = int(round(s["t_end"] / s["dt"]))
+    # the stepper runs without a Simulation, so without its penetration_depth column: the same
+    # check (bfemp.contact.penetration) after every step, as Simulation does (and pays)
+    check = PenetrationCheck.for_model(model)
+    deepest = check.depth(state)
     failure, done = None, 0
     for _ in range(steps):
         try:
@@ -259,6 +280,7 @@ def _augury_blocks(s: dict) -> dict:
             failure = str(err)
             break
         done += 1
+        deepest = max(deepest, check.depth(state))
     drift = np.linalg.norm(diagnostics.linear_momentum(model, state) - p0) / np.linalg.norm(p0)
     return {
         "energy_loss": 1.0 - energy(state) / e0,
@@ -266,6 +288,8 @@ def _augury_blocks(s: dict) -> dict:
         "steps": done,
         "iterations": 0,
         "nodes_per_block": int(model.fem_bodies[0].n_nodes),
+        "max_penetration_m": deepest,
+        **penetration_bound(stepper),
         "failure": failure,
     }
 
@@ -325,6 +349,7 @@ def _blocks_barrier(s: dict) -> dict:
         "min_distance": float(np.nanmin(sim.metrics.column("min_distance")[1:]))
         if "min_distance" in sim.metrics.columns and done
         else None,
+        **penetration_summary(sim),
         "failure": failure,
     }
 
@@ -361,6 +386,7 @@ def _lr_compression(s: dict) -> dict:
         "point_wall_s": cost["column"][0],
         "point_cpu_s": cost["column"][1],
         "reference_wall_s": cost["single_material"][0],
+        "max_penetration_m": None,  # MPM blocks only: no FEM body to be inside
         "failure": None,
     }
 

@@ -80,6 +80,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 import bfemp
+from benchmarks._penetration import penetration_summary
 from benchmarks.common import environment, peak_memory_mb, write_json
 
 log = logging.getLogger(__name__)
@@ -453,6 +454,8 @@ def _run_material(cfg: dict, material: str, top_plate: str = "elastic") -> dict:
         "newton_iterations_max": int(s["newton"].max()) if s["newton"].size else 0,
         "friction_iterations": int(s["friction_iterations"].sum()),
         "particles": int(geo["particles"]),
+        # the shared penetration_depth column's largest value and the strategy's bound (issue 40)
+        **penetration_summary(sim),
         "samples": {
             "t": s["t"].tolist(),
             "F": s["F"].tolist(),

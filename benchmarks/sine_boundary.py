@@ -76,6 +76,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 import bfemp
+from benchmarks._penetration import penetration_summary
 from benchmarks.common import environment, peak_memory_mb, write_json
 
 log = logging.getLogger(__name__)
@@ -364,6 +365,8 @@ def _run_one(cfg: dict, treatment: str) -> dict:
         "newton_iterations": int(s["newton"].sum()),
         "newton_iterations_max": int(s["newton"].max()),
         "dt_s": float(sim.dt),
+        # the shared penetration_depth column's largest value and the strategy's bound (issue 40)
+        **penetration_summary(sim),
         "series": s,
         "snapshots": snapshots,
     }

@@ -58,8 +58,17 @@ stopped sweep goes on where it stopped, in a later session too when the folder i
 run of some scenes merges into a record with ``merge(record, rerun)`` (the quick record
 ``benchmarks/records/tradeoff.json`` was so made: its header says which scenes, at which commit).
 
+Feasibility (issue 40): every point records ``max_penetration_m`` (the deepest any FEM node or
+particle went inside another FEM body over its run, the shared ``penetration_depth`` check) and
+the bound it is judged against, ``penetration_bound_m`` (its strategy's
+``capabilities.penetration_bound_cells``, read when the point runs, times the dx of the point's
+MPM grid, or of augury's contact grid in a scene without particles; 0 for barrier and
+two_stage; ``benchmarks._penetration``). A point beyond its bound is infeasible
+(``record["infeasible"]``): drawn as a cross, named in the report with its depth and bound,
+never on a Pareto front and never the winner of an error range.
+
 Outputs in ``--out`` (default ``results/``): ``tradeoff.json`` (every point's record, the
-fronts, the winners per error range and the crossovers, the knob effects),
+fronts, the winners per error range and the crossovers, the knob effects, the infeasible points),
 ``tradeoff_<scene>.png`` (error against cost, log-log, one colour per strategy, the scene's
 non-dominated front) and ``tradeoff.md`` (per scene: what the error is against, the strategies
 run and why the others are not, the winner in each error range and the crossovers, computed by
@@ -92,6 +101,7 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks._penetration import KEYS as PENETRATION_SUMMARY_KEYS
 from benchmarks._tradeoff_cache import FOLDER as CACHE_FOLDER
 from benchmarks._tradeoff_cache import PointCache
 from benchmarks._tradeoff_knobs import (
@@ -111,6 +121,7 @@ from benchmarks._tradeoff_report import (
     COSTS,
     best_knob,
     crossovers,
+    infeasible,
     knob_effect,
     markdown,
     pareto_front,
@@ -434,16 +445,26 @@ def point_error(scene: str, measurement: dict, reference: dict | None) -> tuple:
     return max(parts.values()), parts
 
 
+#: the penetration measurement of a point (``benchmarks._penetration``), lifted from its metrics
+#: into its record (None where the run did not give it)
+PENETRATION_KEYS = PENETRATION_SUMMARY_KEYS
+
+
 def _finish(record: dict, measurement: dict, reference: dict | None) -> dict:
     """A record with its measurement and error. A point whose metrics carry ``point_wall_s``
-    and ``point_cpu_s`` (a run that also runs its own reference, lr_compression) costs those."""
+    and ``point_cpu_s`` (a run that also runs its own reference, lr_compression) costs those.
+    The penetration and its bound (``PENETRATION_KEYS``) come up from the metrics, and
+    ``infeasible`` says whether the depth exceeds the bound (``_tradeoff_report.infeasible``)."""
     error, parts = point_error(record["scene"], measurement, reference)
     metrics = measurement.get("metrics")
     wall, cpu = measurement.get("wall_s"), measurement.get("cpu_s")
     if metrics and metrics.get("point_wall_s") is not None:
         wall, cpu = metrics["point_wall_s"], metrics.get("point_cpu_s")
+    penetration = {key: (metrics or {}).get(key) for key in PENETRATION_KEYS}
     return {
         **record,
+        **penetration,
+        "infeasible": infeasible(penetration),
         "error": error,
         "error_parts": parts,
         "wall_s": wall,
@@ -498,25 +519,34 @@ def swept_knobs(records: list[dict], scene: str) -> dict[str, list[str]]:
 
 
 def _front(recs: list[dict], cost: str) -> set[int]:
+    """Indices of ``recs`` on their non-dominated front; infeasible points take no part."""
     seconds = np.array([r[cost] if r[cost] else np.nan for r in recs], dtype=float)
-    err = np.array([np.nan if r["error"] is None else r["error"] for r in recs], dtype=float)
+    err = np.array(
+        [np.nan if r["error"] is None or infeasible(r) else r["error"] for r in recs], dtype=float
+    )
     return set(pareto_front(seconds, err).tolist())
 
 
 def analyse(records: list[dict], scenes: list[str], cost: str = "wall_s") -> dict:
     """Mark the Pareto points; per scene the winners; per scene and strategy the knob effects.
 
-    ``record["pareto"]``: on the scene's front over every strategy; ``record["strategy_pareto"]``:
-    on its strategy's own front. ``cost`` is the record key of the cost axis (``"wall_s"`` or
-    ``"cpu_s"``).
+    ``record["infeasible"]``: deeper inside a FEM body than its strategy's bound
+    (``_tradeoff_report.infeasible``: never on a front, never a winner); ``record["pareto"]``:
+    on the scene's front over every strategy; ``record["strategy_pareto"]``: on its strategy's
+    own front. ``cost`` is the record key of the cost axis (``"wall_s"`` or ``"cpu_s"``).
 
     Returns:
         ``{"knob_effects": {scene: {strategy: {knob: effect}}}, "best_knob": {scene: {strategy:
-        knob}}, "winners": {scene: ranges}, "crossovers": {scene: [...]}}``.
+        knob}}, "winners": {scene: ranges}, "crossovers": {scene: [...]}, "infeasible":
+        {scene: [point ids]}}``.
     """
     out: dict = {"knob_effects": {}, "best_knob": {}, "winners": {}, "crossovers": {}}
+    out["infeasible"] = {}
     for scene in scenes:
         recs = [r for r in records if r["scene"] == scene]
+        for r in recs:
+            r["infeasible"] = infeasible(r)
+        out["infeasible"][scene] = [r["id"] for r in recs if r["infeasible"]]
         front = _front(recs, cost)
         for k, r in enumerate(recs):
             r["pareto"] = k in front
@@ -988,5 +1018,9 @@ def main_from_args(args: argparse.Namespace) -> int:
         won = ", ".join(
             f"{w['winner']} from {w['error_from']:.3g}" for w in summary["winners"][scene]
         )
-        print(f"  {scene}: winners {won or '-'}; plot {summary['png'][scene]}")
+        bad = summary["infeasible"][scene]
+        print(
+            f"  {scene}: winners {won or '-'}; infeasible (beyond their penetration bound): "
+            f"{', '.join(bad) or 'none'}; plot {summary['png'][scene]}"
+        )
     return 0

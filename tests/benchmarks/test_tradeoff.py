@@ -392,6 +392,15 @@ def test_minimal_sweep_writes_records_plots_and_report(minimal):
         assert p["iterations"] > 0 if p["strategy"] == "barrier" else p["iterations"] == 0
         assert p["settings"]["strategy"] == p["strategy"]
         assert f"--id {p['id']}" in p["replay"]
+        # the deepest penetration into a FEM body and the bound it is judged against (issue 40)
+        assert p["max_penetration_m"] is not None and p["max_penetration_m"] >= 0.0
+        if p["strategy"] == "barrier":
+            assert p["penetration_bound_m"] == 0.0
+        else:
+            cells = p["penetration_bound_cells"]
+            assert p["penetration_bound_m"] == pytest.approx(cells * p["penetration_grid_dx_m"])
+        assert p["infeasible"] == (p["max_penetration_m"] > p["penetration_bound_m"])
+        assert not (p["infeasible"] and p["pareto"])
     # the analytic errors are those the scenes' own metrics give
     slope = points["slope/barrier/tol=1e-7"]
     assert slope["error"] == slope["metrics"]["accel_rel_error"]
@@ -402,16 +411,19 @@ def test_minimal_sweep_writes_records_plots_and_report(minimal):
         front = data["pareto"][scene]
         assert front and all(points[i]["pareto"] for i in front)
         assert (out / f"tradeoff_{scene}.png").stat().st_size > 10_000
-        # the winners are computed from the points: the cheapest strategy at each target
+        # the winners are computed from the feasible points: the cheapest strategy at each target
         for r in data["winners"][scene]:
             reach = [
-                p for p in points.values() if p["scene"] == scene and p["error"] <= r["error_from"]
+                p
+                for p in points.values()
+                if p["scene"] == scene and p["error"] <= r["error_from"] and not p["infeasible"]
             ]
             assert r["cost_s"] == min(p["wall_s"] for p in reach)
     md = (out / "tradeoff.md").read_text()
     for scene in data["scenes"]:
         assert f"## {scene}" in md
     assert "### Winner per error range" in md and "Non-dominated front" in md
+    assert md.count("### Penetration") == len(data["scenes"])
     assert "Crossover" in md or len(data["winners"]["rings"]) == 1
 
 
