@@ -530,6 +530,8 @@ def contact_momentum(
     mu: float | np.ndarray,
     law: str,
     detector: str = "lr",
+    rigid_a: np.ndarray | None = None,
+    rigid_b: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The momentum change of material a at C two-material contact nodes (LR eqs. 7-10, 14-15).
 
@@ -552,6 +554,13 @@ def contact_momentum(
     removes kinetic energy of the pair or keeps it: Delta KE = (|Delta p|^2 -
     2 Delta p . Delta p(0)) / (2 m_red) <= 0.
 
+    A rigid (kinematic) side has infinite mass: its velocity is scripted and no impulse
+    changes it, so m_red is the other side's mass, Delta p(0) = m_a (v_b - v_a) where b is
+    rigid and m_b (v_b - v_a) where a is (NairnMPM's rigid-material contact,
+    ``CrackVelocityFieldMulti::RigidMaterialContactOnCVF``: delta p_i = m_i (v_rigid - v_i);
+    LR itself has no rigid materials). The caller then leaves the rigid side's momentum as it
+    is. Where both sides are rigid there is no contact.
+
     Args:
         m_a, m_b: grid masses ``(C,)`` in kg (> 0).
         p_a, p_b: grid momenta ``(C, d)`` in kg m/s.
@@ -560,6 +569,8 @@ def contact_momentum(
         mu: Coulomb friction coefficient (>= 0; used by "coulomb" only), one for every contact
             or ``(C,)`` per contact (``scene.set_friction`` pairs).
         law: one of ``LAWS``. detector: one of ``DETECTORS``.
+        rigid_a, rigid_b: ``(C,)`` bool, the side's field at the node is scripted (None: no
+            node is).
 
     Returns:
         ``(dp (C, d) in kg m/s, in_contact (C,) bool)``.
@@ -590,12 +601,28 @@ def contact_momentum(
             raise ValueError(f"contact_momentum: detector {detector!r} needs a separation")
         separation = _float_array("separation", separation, (n_c,))
 
+    rigid = []
+    for name, flag in (("rigid_a", rigid_a), ("rigid_b", rigid_b)):
+        if flag is None:
+            rigid.append(np.zeros(n_c, dtype=bool))
+            continue
+        flag = np.asarray(flag)
+        if flag.dtype != bool or flag.shape != (n_c,):
+            raise ValueError(f"contact_momentum: {name} must be a ({n_c},) bool array")
+        rigid.append(flag)
+    ra, rb = rigid
+
     total = m_a + m_b
     dp0 = (m_a[:, None] * p_b - m_b[:, None] * p_a) / total[:, None]  # m_red (v_b - v_a)
+    if ra.any() or rb.any():  # an infinite mass: m_red is the other side's
+        v_rel = p_b / m_b[:, None] - p_a / m_a[:, None]
+        dp0[rb] = m_a[rb, None] * v_rel[rb]
+        dp0[ra] = m_b[ra, None] * v_rel[ra]
+        dp0[ra & rb] = 0.0
     if law == "perfect":
-        return dp0, np.ones(n_c, dtype=bool)
+        return dp0, ~(ra & rb)
     d_n = np.einsum("cd,cd->c", dp0, normal)
-    in_contact = d_n < 0.0  # approaching (eq. 14)
+    in_contact = d_n < 0.0  # approaching (eq. 14); never where both sides are rigid
     if detector != "velocity":
         in_contact &= separation < 0.0  # touching (eqs. 15, 24)
     dp = d_n[:, None] * normal

@@ -6,8 +6,11 @@ velocity field on the shared grid (``_multimaterial_kernels``). One USL step:
 
 1. Stencils at X_p^n; P2G per material (eq. 5): m^a, p^a0, f^a0 (eq. 29, gravity included).
    Level-set boundaries act on every field (``bfemp.mpm.boundaries``).
-2. Contact nodes: nodes where two or more materials have mass above ``mass_fraction`` of the
-   node's total (Uintah's 1e-8). At a node with two materials one pair (a, b), a the lower
+2. Contact nodes: nodes where two or more materials have mass, however little (LR section 3.1:
+   nodes that "see" two or more materials; NairnMPM activates a material's field wherever one
+   of its particles contributes). ``mass_fraction`` > 0 (Uintah's 1e-8) leaves out a material
+   whose mass there is below that fraction of the node's total: an option, not LR's rule.
+   At a node with two materials one pair (a, b), a the lower
    index; at a node with three or more, one pair per material a against the lumped others
    (eq. 50). Each pair's point cloud is every particle whose stencil weight at the node is
    positive; one logistic-regression fit per pair and step gives the normal n (from a to b)
@@ -39,8 +42,14 @@ force m_n a_n^mech; the internal force stays on the mesh), and the point cloud h
 nodes plus facet samples at spacing <= dx / 2, all of radius 0 (they lie on the surface). The
 boundary nodes then move like FLIP particles, v_n^{n+1} = v_n^n + dt a_n^mech + sum_i w_in
 dp_i^{F+} / m_i^F, which conserves momentum since m_i^F = sum_n w_in m_n; interior nodes take the
-mechanical update. Scripted nodes enter with their mass and velocity and keep their script (the
-momentum they absorb is not conserved). A grid finer than twice the FEM boundary edge is warned
+mechanical update. Scripted nodes enter with their mass and velocity, and with the force that
+takes them to their script at t^{n+1}; they keep their script. Where a FEM material's grid mass
+at a node comes from scripted nodes alone, that field is rigid in the contact law (infinite mass,
+NairnMPM's rigid materials; LR has none): the other material takes its velocity along the normal
+(``_kinematic_fields`` says why: with its finite grid mass a fixed plate let bodies through).
+The momentum such a field takes is the support's reaction, not applied and not conserved among
+the bodies; it is reported per step as ``StepReport.extra["scripted_impulse"]`` (|sum|, kg m/s)
+and in the contact view's FEM forces. A grid finer than twice the FEM boundary edge is warned
 about (the FEM material's grid mass then has holes between its nodes).
 """
 
@@ -126,10 +135,17 @@ class LROptions(ExplicitOptions):
         xpic_order: None (the transfer alone) or the XPIC order m >= 1 (m = 1 is PIC).
         xpic_variant: ``"paper"`` (eq. 37), ``"uncorrected"`` or ``"corrected_velocity"``.
         mass_fraction: a material takes part at a node when its mass there exceeds this
-            fraction of the node's total mass (Uintah: 1e-8); with ``interface="perfect"``
-            every material with mass does (measured: with the threshold, a particle 1.5 cells
-            from a node left its material out there and the column of ``lr_compression``
-            drifted 8e-4 from the single-material run).
+            fraction of the node's total mass. 0 (the default) is LR's contact node (section
+            3.1: a node that sees two or more materials) and NairnMPM's (a material's field
+            is active wherever one of its particles has weight). A positive value is Uintah's
+            choice (1e-8), kept as an option; it is not LR's. Why 0 (measured, issue 40, on
+            ``lr_compression`` at the paper's loading rate 0.05 % c_K to 3.5 % strain,
+            largest stress error against the single material): with 1e-8 a particle about
+            1.5 cells from a node keeps its material's field there uncorrected and nearly
+            massless, and the error steps near 2.8 % strain: LR-XPIC(5) 3.44 %, LR-FLIP
+            1.06 %; with every material counted 0.046 % and 0.007 %. ``interface="perfect"`` always
+            counts every material with mass (with the threshold the column drifted 8e-4 from
+            the single-material run).
         penalty: LR penalty on the normal components, times dx^2 (LR: 1e-7).
         lr_tol: LR stop criterion 1 - n_new . n_old (LR: 1e-5).
         lr_max_iterations: cap of the Gauss-Newton iterations (LR: 15).
@@ -157,7 +173,7 @@ class LROptions(ExplicitOptions):
         default=None, metadata={"sweep": {"finer": 1, "step": 4, "min": 1, "first": 1}}
     )
     xpic_variant: str = "paper"
-    mass_fraction: float = 1e-8
+    mass_fraction: float = 0.0
     penalty: float = 1e-7
     lr_tol: float = 1e-5
     lr_max_iterations: int = 15
@@ -193,7 +209,7 @@ class LROptions(ExplicitOptions):
         for field_name, allow_none, low_open in (
             ("mu", True, False),
             ("cp_offset", False, False),
-            ("mass_fraction", False, True),
+            ("mass_fraction", False, False),
             ("penalty", False, False),
             ("lr_tol", False, True),
             ("thin_cloud", False, False),
@@ -417,6 +433,47 @@ class LRStepper(ExplicitStepper):
         st = particle_stencils(model.grid, x)
         return _Points(st, x, F, R0, mat, mass)
 
+    def _scripted_force(self, state: State, fem_force: np.ndarray) -> np.ndarray:
+        """The forces ``(B, d)`` in N the FEM boundary nodes bring to P2G: the mechanical force
+        on free nodes; on scripted nodes m_n (v_n^script(t^{n+1}) - v_n^n) / dt, so that their
+        field reaches the script's velocity at t^{n+1} (their mechanical force, gravity
+        included, never moves them: a fixed plate's field would otherwise fall at g)."""
+        b = self._fem_points
+        force = fem_force[b]
+        scripted = ~self._fem_point_free
+        if not scripted.any():
+            return force
+        nodes = b[scripted]
+        v_next = self.model.prescribed_velocities(state.t + self.dt)[nodes]
+        force = force.copy()
+        force[scripted] = self.model.fem_mass[nodes, None] * (v_next - state.fem_v[nodes]) / self.dt
+        return force
+
+    def _kinematic_fields(self, st: ParticleStencils, mass: np.ndarray) -> np.ndarray | None:
+        """``(M, G)`` bool: the fields whose whole grid mass at the node comes from scripted FEM
+        nodes (None when no FEM node is scripted).
+
+        Why (issue 40, measured on the drop of ``tests/bfemp/test_lr.py``: a disk at 1.4 m/s on
+        a fixed FEM plate): the plate's field holds only its boundary nodes' masses, so at the
+        contact nodes the disk had 0.5-0.8 of the pair's mass. The centre-of-mass law (eqs.
+        7-10) then took only m_b / (m_a + m_b) of the disk's approach velocity each step and
+        gave the rest to a plate whose script undoes it: the momentum left, the disk kept
+        moving down, and its lowest particle reached -0.53 m (the plate is 0.1 m thick).
+        A scripted field is therefore infinitely heavy in the contact law (NairnMPM's rigid
+        materials; LR has none), which stops the approach at once (``_correct``). A field
+        mixing free and scripted nodes is left finite (its free nodes take the kick)."""
+        if not self._n_fem_points or self._fem_point_free.all():
+            return None
+        n_p = self.model.n_particles
+        scripted = ~self._fem_point_free
+        rows = np.arange(n_p, n_p + self._n_fem_points)[scripted]
+        nodes = st.nodes[rows]
+        w = st.weights[rows] * self.model.fem_mass[self._fem_points[scripted], None]
+        mat = np.broadcast_to(self._fem_point_material[scripted, None], nodes.shape)
+        held = np.zeros_like(mass)
+        np.add.at(held, (mat, nodes), w)
+        return (mass > 0.0) & (held >= (1.0 - 1e-9) * mass)
+
     # ------------------------------------------------------------------ contact detection
     def _pairs(self, pts: _Points, grid_x: np.ndarray, mass: np.ndarray) -> _Pairs:
         """The contact pairs of this step with their planes (step 2 of the docstring)."""
@@ -499,25 +556,53 @@ class LRStepper(ExplicitStepper):
 
     # ------------------------------------------------------------------ the contact law
     def _correct(
-        self, planes: _Pairs, mass: np.ndarray, mom: np.ndarray
-    ) -> tuple[np.ndarray, int, np.ndarray]:
-        """Momentum changes ``(M, G, d)`` of the contact law on momenta ``mom (M, G, d)``, the
-        number of pairs in contact and the net momentum change (lumping's drift) ``(d,)``."""
+        self, planes: _Pairs, mass: np.ndarray, mom: np.ndarray, kinematic: np.ndarray | None
+    ) -> tuple[np.ndarray, int, np.ndarray, np.ndarray]:
+        """The contact law on momenta ``mom (M, G, d)``: the momentum changes ``(M, G, d)``
+        applied, the number of pairs in contact, the net momentum change (lumping's drift)
+        ``(d,)`` and the momentum ``(M, G, d)`` the scripted fields take and do not apply.
+
+        ``kinematic (M, G)`` bool (``_kinematic_fields``; None: none) marks the scripted
+        fields. A pair against one takes it as infinitely heavy (``contact_momentum``'s
+        ``rigid_a``/``rigid_b``, NairnMPM's rigid-material contact); the scripted field's
+        reaction -dp is returned in the last array, never applied (its velocity is the
+        script). A lumped pair (eq. 50) whose others include a scripted field meets that field
+        alone (the heaviest there, as NairnMPM picks one rigid material per node); a scripted
+        a of a lumped pair is not corrected.
+        """
+        from bfemp.contact import lr as lr_contact  # the LR kernels (numba)
+
         opts = self.options
         delta = np.zeros_like(mom)
+        absorbed = np.zeros_like(mom)
         node, a, b = planes.node, planes.a, planes.b
         if node.size == 0:
-            return delta, 0, np.zeros(mom.shape[2])
+            return delta, 0, np.zeros(mom.shape[2]), absorbed
         m_a, p_a = mass[a, node], mom[a, node]
         lumped = b < 0
+        partner = b.copy()  # the material that takes -dp; -1: the lumped others
         m_b = np.where(lumped, mass[:, node].sum(axis=0) - m_a, mass[np.maximum(b, 0), node])
         p_b = np.where(lumped[:, None], mom[:, node].sum(axis=0) - p_a, mom[np.maximum(b, 0), node])
+        rigid_a = rigid_b = None
+        if kinematic is not None:
+            rigid_a = kinematic[a, node]
+            rigid_b = kinematic[np.maximum(b, 0), node] & ~lumped
+            rows = np.flatnonzero(lumped & ~rigid_a)
+            if rows.size:  # lumped others holding a scripted field: that field alone
+                kin_mass = np.where(kinematic[:, node[rows]], mass[:, node[rows]], 0.0)
+                kin_mass[a[rows], np.arange(rows.size)] = 0.0
+                heavy = np.argmax(kin_mass, axis=0)
+                hit = kin_mass[heavy, np.arange(rows.size)] > 0.0
+                rows, heavy = rows[hit], heavy[hit]
+                m_b[rows], p_b[rows] = mass[heavy, node[rows]], mom[heavy, node[rows]]
+                partner[rows] = heavy
+                rigid_b[rows] = True
         if opts.interface == "perfect":
-            dp = (m_a[:, None] * p_b - m_b[:, None] * p_a) / (m_a + m_b)[:, None]
-            touching = np.ones(node.size, dtype=bool)
+            dp, touching = lr_contact.contact_momentum(
+                m_a, m_b, p_a, p_b, np.zeros_like(p_a), None, mu=0.0, law="perfect",
+                detector="velocity", rigid_a=rigid_a, rigid_b=rigid_b,
+            )  # fmt: skip
         else:
-            from bfemp.contact import lr as lr_contact
-
             most = self.mu if self.mu_table is None else float(self.mu_table.max())
             law = "frictionless" if opts.law == "frictionless" or most == 0.0 else "coulomb"
             sep = planes.separation
@@ -526,10 +611,16 @@ class LRStepper(ExplicitStepper):
             dp, touching = lr_contact.contact_momentum(
                 m_a, m_b, p_a, p_b, planes.normal, sep,
                 mu=self._pair_mu(a, b, mass[:, node]), law=law, detector=opts.detector,
+                rigid_a=rigid_a, rigid_b=rigid_b,
             )  # fmt: skip
+        if rigid_a is not None:
+            stays = lumped & rigid_a  # a scripted a keeps its script (eq. 50 corrects a alone)
+            dp[stays] = 0.0
+            touching = touching & ~stays
+        lumped = partner < 0
         np.add.at(delta, (a, node), dp)
         pair = ~lumped
-        np.add.at(delta, (b[pair], node[pair]), -dp[pair])
+        np.add.at(delta, (partner[pair], node[pair]), -dp[pair])
         if opts.lump == "conservative" and lumped.any():
             ln, la, ldp = node[lumped], a[lumped], dp[lumped]
             share = mass[:, ln] / m_b[lumped][None, :]  # (M, L)
@@ -539,7 +630,10 @@ class LRStepper(ExplicitStepper):
             spread = (share[..., None] * ldp[None]).reshape(-1, ldp.shape[1])
             np.add.at(delta, (mats, nodes_rep), -spread)
         drift = delta.sum(axis=(0, 1))
-        return delta, int(touching.sum()), drift
+        if kinematic is not None:  # the scripted fields' reactions: reported, not applied
+            absorbed = np.where(kinematic[..., None], delta, 0.0)
+            delta = np.where(kinematic[..., None], 0.0, delta)
+        return delta, int(touching.sum()), drift, absorbed
 
     # ------------------------------------------------------------------ boundaries
     def _constraints(self, grid_x: np.ndarray, v: np.ndarray, t_next: float) -> _Constraints:
@@ -644,8 +738,10 @@ class LRStepper(ExplicitStepper):
             b = self._fem_points
             p2g_nodal(
                 st.nodes[rows], st.weights[rows], self._fem_point_material,
-                model.fem_mass[b], state.fem_v[b], fem_force[b], mass, mom0, force,
+                model.fem_mass[b], state.fem_v[b], self._scripted_force(state, fem_force),
+                mass, mom0, force,
             )  # fmt: skip
+        kinematic = self._kinematic_fields(st, mass)
         timings["fem_forces"] = 0.0
         inv_mass = np.zeros_like(mass)
         np.divide(1.0, mass, out=inv_mass, where=mass > 0.0)
@@ -660,8 +756,11 @@ class LRStepper(ExplicitStepper):
         timings["lr_fits"] = time.perf_counter() - t0
 
         t0 = time.perf_counter()
+        absorbed = np.zeros_like(mom0)  # momentum the scripted fields take (not applied)
         if opts.corrections == 2:
-            dp1 = self._correct(planes, mass, mom0)[0]
+            dp1, _, _, absorbed1 = self._correct(planes, mass, mom0, kinematic)
+            if self.contact_force == "c0":
+                absorbed += absorbed1
         else:
             dp1 = np.zeros_like(mom0)
         mom = mom0 + dp1
@@ -669,7 +768,8 @@ class LRStepper(ExplicitStepper):
         dv = dp1 * inv_mass[..., None]
         mom_plus0 = mom + dt * force
         # only the second correction reaches the particles' momentum (f^{C,1}, eq. 34)
-        dp2, touching, drift = self._correct(planes, mass, mom_plus0)
+        dp2, touching, drift, absorbed2 = self._correct(planes, mass, mom_plus0, kinematic)
+        absorbed += absorbed2
         v_plus_free = (mom_plus0 + dp2) * inv_mass[..., None]
         v_plus = self._apply_constraints(cons, v_plus_free)
         accel = (v_plus - v) / dt
@@ -726,7 +826,7 @@ class LRStepper(ExplicitStepper):
         reactions = self._reactions(
             cons, mass, v_plus_free, v_plus, dt, len(model.boundaries), model.dim
         )
-        self._store_contact(planes, dp_kick, pts, inv_mass, dt)
+        self._store_contact(planes, dp_kick + absorbed, pts, inv_mass, dt)
         timings["step"] = time.perf_counter() - started
         extra = {
             "contact_nodes": float(np.unique(planes.node).size),
@@ -736,6 +836,7 @@ class LRStepper(ExplicitStepper):
             "lr_unconverged": float(unconverged),
             "lr_fallbacks": float(planes.fallback.sum()),
             "lump_momentum_drift": float(np.linalg.norm(drift)),
+            "scripted_impulse": float(np.linalg.norm(absorbed.sum(axis=(0, 1)))),
             "first_correction_impulse": impulse_1,
             "second_correction_impulse": impulse_2,
         }
