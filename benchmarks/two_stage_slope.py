@@ -54,7 +54,8 @@ PHYSICS = {
     "integrator": "symplectic_euler",
     "dt_s": DT,
     "tol_m_s": 1e-6,
-    "options": TwoStageOptions(tol=1e-6),
+    # Newton from x* as recorded (issue 40 made "auto" the default: x^n under friction)
+    "options": TwoStageOptions(tol=1e-6, start="free"),
 }
 PHYSICS.pop("velocity_update")
 

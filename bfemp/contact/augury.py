@@ -188,10 +188,22 @@ class ContactOperator:
         x: particle positions ``(P, d)`` in m.
         mass: particle masses ``(P,)`` in kg (> 0).
         apic: H_APIC (True) or H_PIC (False: B is ignored on input and returned as zeros).
+        kinematic: ``(P,)`` bool, particles of infinite inertia (scripted FEM nodes; None:
+            none). A contact node that any of them touches takes their mass-weighted velocity
+            (and affine part) alone, sum_k w_ik m_k (v_k + C_k (x_i - x_k)) / sum_k w_ik m_k over
+            the kinematic k, so contact cannot move a scripted body, whatever its density. H
+            then conserves momentum only among the other particles; the momentum the kinematic
+            ones exchange is the caller's to report. Their own energy is left out of
+            ``kinetic_energy`` (it is scripted). Not in AUG, which has no scripted bodies.
     """
 
     def __init__(
-        self, stencils: ContactStencils, x: np.ndarray, mass: np.ndarray, apic: bool = True
+        self,
+        stencils: ContactStencils,
+        x: np.ndarray,
+        mass: np.ndarray,
+        apic: bool = True,
+        kinematic: np.ndarray | None = None,
     ) -> None:
         self.stencils = stencils
         self.x = np.ascontiguousarray(x, dtype=np.float64)
@@ -199,6 +211,14 @@ class ContactOperator:
         self.apic = bool(apic)
         self.applications = 0
         d = self.x.shape[1]
+        if kinematic is not None:
+            kinematic = np.asarray(kinematic, dtype=bool)
+            if kinematic.shape != (self.x.shape[0],):
+                raise ValueError(
+                    f"ContactOperator: kinematic must have shape ({self.x.shape[0]},), "
+                    f"got {kinematic.shape}"
+                )
+        self.kinematic = kinematic if kinematic is not None and kinematic.any() else None
         if self.apic and self.x.shape[0]:
             det = np.linalg.det(stencils.D)
             if np.any(np.abs(det) <= 1e-14 * stencils.dx ** (2 * d)):
@@ -215,9 +235,10 @@ class ContactOperator:
     def kinetic_energy(self, v: np.ndarray, B: np.ndarray) -> float:
         """Generalised kinetic energy 1/2 sum_p m_p (|v_p|^2 + B_p D_p^-1 : B_p) in J of
         ``v (P, d)`` and ``B (P, d, d)`` (PIC: the velocity term only)."""
-        e = np.einsum("p,pd,pd->", self.mass, v, v)
+        mass = self.mass if self.kinematic is None else np.where(self.kinematic, 0.0, self.mass)
+        e = np.einsum("p,pd,pd->", mass, v, v)
         if self.apic:
-            e += np.einsum("p,pab,pbc,pac->", self.mass, B, self.D_inv, B)
+            e += np.einsum("p,pab,pbc,pac->", mass, B, self.D_inv, B)
         return 0.5 * float(e)
 
     def apply(self, v: np.ndarray, B: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -233,6 +254,14 @@ class ContactOperator:
         grid_v = np.zeros_like(mom)
         heavy = mass > 0.0
         grid_v[heavy] = mom[heavy] / mass[heavy, None]
+        if self.kinematic is not None:  # infinite inertia: the scripted velocity alone
+            k = self.kinematic
+            mass_k, mom_k = p2g(
+                st.nodes[k], st.weights[k], st.node_x, self.x[k], self.mass[k], v[k], C[k],
+                self.apic,
+            )  # fmt: skip
+            held = mass_k > 0.0
+            grid_v[held] = mom_k[held] / mass_k[held, None]
         out_v, out_B = g2p(st.nodes, st.weights, st.node_x, self.x, grid_v)
         if not self.apic:
             out_B[:] = 0.0

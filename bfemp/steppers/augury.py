@@ -21,15 +21,45 @@ With tau = dt and N = 0 this gives v^{n+1} = H(v^n + dt a) on the foreground exa
 The engine is used as is: the augury pass runs after ``ExplicitStepper.step`` returns (the hooks
 ``after_p2g``/``resolve`` come before G2P, where MPM foreground velocities do not exist yet).
 The FEM result is the same as a correction inside ``resolve`` (v and x are linear in the
-correction), and the MPM particles get theirs after G2P as section 1.4 prescribes; F_p is left as
-the engine's G2P made it (contact reaches F through the next P2G, O(dt)).
+correction), and the MPM particles get theirs after G2P as section 1.4 prescribes; F_p takes the
+correction's gradient (``contact_strain``, below).
 
 Conservation: every H - I term has zero net linear momentum and, with APIC and B, zero net
 angular momentum, so the correction conserves both for FEM-only scenes (angular momentum about
 x^n: the B term of ``bfemp.diagnostics.angular_momentum`` is the one H_APIC keeps). PIC keeps
-linear momentum only. Scripted (prescribed) FEM nodes are left out of the foreground, or, with
-``kinematic_foreground=True``, enter H with their mass and scripted velocity and have their
-correction dropped; the momentum they absorb is reported in a ``SCRIPTED_FOREGROUND`` note.
+linear momentum only.
+
+Scripted (prescribed) FEM boundary nodes are kinematic foreground by default
+(``kinematic_foreground=True``): they enter H with their scripted velocity and infinite inertia
+(``ContactOperator(kinematic=...)``: a contact node one of them touches takes their velocity
+alone, so a fixed plate holds whatever its density) and their own correction is dropped. AUG has
+no scripted bodies (its ramp's fixed face is 0.25 below the free top face in contact), so this
+is a choice the paper leaves open; with their lumped mass instead (measured, issue 40) a fixed
+plate only damps: the drop below sank at 0.08 m/s for as long as it ran. The cost in
+conservation: the free bodies exchange momentum with the scripted nodes, which do not give it
+back. Every step reports it, ``StepReport.extra["kinematic_impulse_x"|"_y"|"_z"]`` in N s (N s/m
+in 2D): the impulse the scripted nodes deliver to the free foreground in the step (the free
+particles' summed m dt a^; H conserves momentum among them), and a ``SCRIPTED_FOREGROUND`` note.
+Measured on issue 40's drop (MPM disk r 0.1 m, 31.6 kg/m, E 1e5 Pa, thrown at (1, -1) m/s onto
+a fixed FEM plate of edge 0.025 m, mu 0.3, MPM dx 0.02 m, dt "auto" = 6.1e-4 s, grid_dx 0.05 m,
+0.3 s): the plate delivered (-30.8, 123.4) N s/m, up to 1.5 N s/m in one step, which is the
+disk's momentum change less gravity's impulse to round-off; the lowest particle never went below
++0.050 m (1.0 grid_dx, 2.5 MPM cells above the plate top: augury stops a body about one contact
+cell short of a scripted one, the nodes both stencils share) and the disk stopped sliding and
+rolling (AUG's drag, ``bfemp.contact.augury``). 3D (a 0.2 m MPM cube at (1, 0, -1) m/s on a
+plate of edge 0.05 m, MPM dx 0.04 m, grid_dx 0.114 m, 0.3 s): lowest particle +0.035 m (0.31
+grid_dx). With ``False`` (the default before issue 40) scripted nodes are not in H and the body
+falls through a fixed plate (the drop: lowest particle -0.69 m at 0.3 s; the cube -0.35 m at 0.2
+s).
+
+MPM particles' F (``contact_strain=True``, bfemp's): section 1.4 item 3 leaves F_p as the
+engine's G2P made it from the free grid velocities, expecting contact to reach F through the
+next P2G. It does not: the next P2G sees the corrected velocities, but the F increment of the
+correction itself, dt grad(dt a^), is never applied, so under sustained contact the particles
+crowd together while F stays near I (the drop's disk, resting on the plate, had lost 14 % of its
+particle-cloud height at 0.3 s with mean det F 0.996). F_p^{n+1} += dt (sum_i dv_i grad w_ip^T)
+F_p^n, dv_i the correction's mass-weighted field on the engine's MPM grid per body
+(``_correction_gradient``): 5 % with it.
 
 Named notes in every report where they apply: ``SCRIPTED_FOREGROUND``, ``AUGURY_REACH`` (tau
 times the velocity spread at shared contact nodes above grid_dx / 3, AUG eq. 50),
@@ -66,6 +96,7 @@ from bfemp.state import State
 from bfemp.steppers.base import ContactView, StepperOptions, StepReport
 from bfemp.steppers.capabilities import Capabilities
 from bfemp.steppers.explicit import ExplicitOptions, ExplicitStepper
+from geometry.grid import particle_stencils
 
 __all__ = ["AuguryOptions", "AuguryStepper"]
 
@@ -104,8 +135,10 @@ class AuguryOptions(ExplicitOptions):
             ``"aug_b2avg"`` (AUG App. B, 4 nodes) or ``"linear"`` (hats).
         predictor: ``"symplectic"`` (v-bar = v^n + tau a) or ``"paper"`` (v^n + (dt/2 + tau) a).
         contact_transfer: transfer of the contact operator H, ``"apic"`` or ``"pic"``.
-        kinematic_foreground: scripted FEM nodes on the boundary enter H (their correction is
-            dropped; conservation is then lost, stated in the report).
+        kinematic_foreground: scripted FEM nodes on the boundary enter H with their mass and
+            scripted velocity (their correction is dropped: the momentum they deliver is
+            reported per step in ``StepReport.extra["kinematic_impulse_*"]``, module docstring);
+            default True since issue 40 (False: a fixed floor does not exist for augury).
         mpm_foreground: MPM particles are foreground particles (bfemp's extension).
         region: ``"all"`` (every foreground particle, AUG) or ``"shared"`` (only those whose
             stencil touches a contact node with mass from another body).
@@ -116,6 +149,9 @@ class AuguryOptions(ExplicitOptions):
             at corners and edges the averaged normal is tilted, so that the normal part of a
             sliding drag is kept as a push: measured, a block on a 30 degree ramp at mu = 0
             then barely slides).
+        contact_strain: MPM particles' F takes the gradient of their contact correction (bfemp's;
+            module docstring: without it a body resting on another crowds together while F
+            stays near I).
         energy_guard: stop the augury iterations before an iterate with more generalised
             kinetic energy than the prediction V-bar (bfemp's; ``bfemp.contact.augury``: with
             friction and N > 1 the iterations were measured to inject energy, a block at
@@ -134,12 +170,13 @@ class AuguryOptions(ExplicitOptions):
     kernel: str = "quadratic"
     predictor: str = "symplectic"
     contact_transfer: str = "apic"
-    kinematic_foreground: bool = False
+    kinematic_foreground: bool = True
     mpm_foreground: bool = True
     region: str = "all"
     penetration_check_every: int = 1
     normals: str = "own"
     energy_guard: bool = True
+    contact_strain: bool = True
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -170,7 +207,12 @@ class AuguryOptions(ExplicitOptions):
             value = getattr(self, field_name)
             if value not in allowed:
                 raise ValueError(f"{name}.{field_name} must be one of {allowed}, got {value!r}")
-        for field_name in ("kinematic_foreground", "mpm_foreground", "energy_guard"):
+        for field_name in (
+            "kinematic_foreground",
+            "mpm_foreground",
+            "energy_guard",
+            "contact_strain",
+        ):
             if not isinstance(getattr(self, field_name), bool):
                 raise ValueError(f"{name}.{field_name} must be True or False")
 
@@ -369,7 +411,16 @@ class AuguryStepper(ExplicitStepper):
     def _mpm_normals(
         self, stencils: ContactStencils, first: int, mass: np.ndarray, body: np.ndarray
     ) -> np.ndarray:
-        """n_p = normalize(-sum_i N_ip g_i), g_i = sum_{q in body} m_q grad N_iq (section 1.4)."""
+        """Outward unit normals ``(P, d)`` of the MPM foreground: n_p = normalize(sum_i N_ip
+        g_i), g_i = sum_{q in body} m_q grad N_iq (EXPLICIT_STRATEGIES.md section 1.4 item 4).
+
+        grad N_iq is the gradient of node i's kernel at x_q (``contact_stencils``), which points
+        from x_q toward node i, so g_i points away from the body's mass: outward. Section 1.4
+        writes -sum N_ip g_i, the sign for the gradient taken at the node; with this
+        convention it gave inward normals (issue 40: on a disk every rim particle had
+        cos(n_p, radial) = -1), which turned compressive corrections into "tensile" ones that
+        the augury iteration removes, and an MPM body sank through a fixed plate.
+        """
         rows = np.arange(first, first + mass.size)
         nodes = stencils.nodes[rows]
         grads = stencils.grads[rows]
@@ -383,8 +434,32 @@ class AuguryStepper(ExplicitStepper):
                 nodes[sel].reshape(-1),
                 (mass[sel, None, None] * grads[sel]).reshape(-1, g.shape[1]),
             )
-            out[sel] = -np.einsum("pk,pkd->pd", w[sel], g[nodes[sel]])
+            out[sel] = np.einsum("pk,pkd->pd", w[sel], g[nodes[sel]])  # outward (docstring)
         return _normalize(out)
+
+    def _correction_gradient(self, x: np.ndarray, dv: np.ndarray) -> np.ndarray:
+        """Gradient ``(P, d, d)`` in 1/s of the MPM velocity correction ``dv (P, d)`` (m/s) on the
+        engine's MPM grid at x^n ``(P, d)``: per MPM body, the mass-weighted nodal field
+        dv_i = sum_p w_ip m_p dv_p / sum_p w_ip m_p, then sum_i dv_i grad w_ip^T (the G2P
+        velocity gradient the engine's F update uses)."""
+        model = self.model
+        st = particle_stencils(model.grid, x)
+        d = model.dim
+        m = model.mpm_mass
+        out = np.zeros((x.shape[0], d, d))
+        body = model.mpm_particle_body
+        for b in np.unique(body):
+            sel = np.flatnonzero(body == b)
+            nodes = st.nodes[sel]
+            wm = st.weights[sel] * m[sel, None]
+            flat = nodes.reshape(-1)
+            mass = np.bincount(flat, wm.reshape(-1), st.n_nodes)
+            field = np.zeros((st.n_nodes, d))
+            for a in range(d):
+                field[:, a] = np.bincount(flat, (wm * dv[sel, a, None]).reshape(-1), st.n_nodes)
+            np.divide(field, mass[:, None], out=field, where=mass[:, None] > 0.0)
+            out[sel] = np.einsum("pka,pkc->pac", field[nodes], st.grads[sel])
+        return out
 
     # ------------------------------------------------------------------ the step
     def step(self, state: State) -> tuple[State, StepReport]:
@@ -433,6 +508,7 @@ class AuguryStepper(ExplicitStepper):
         shared_count = 0
         h_applications = 0
         stats = {"iterations": 0}
+        kinematic_impulse = None
         if n_all:
             x = np.concatenate(parts_x)
             m = np.concatenate(parts_m)
@@ -470,7 +546,7 @@ class AuguryStepper(ExplicitStepper):
             if sel.size:
                 t0 = time.perf_counter()
                 sub = st if sel.size == n_all else _subset(st, sel)
-                op = ContactOperator(sub, x[sel], m[sel], apic=self.apic)
+                op = ContactOperator(sub, x[sel], m[sel], apic=self.apic, kinematic=~movable[sel])
                 v_s, B_s = augury_correction(
                     op,
                     v_bar[sel],
@@ -488,7 +564,10 @@ class AuguryStepper(ExplicitStepper):
                 timings["augury_H"] = time.perf_counter() - t0
             a_hat = (v_hat - v_bar) / tau
             Bdot = (B_hat - B_bar) / tau
-            kinematic_impulse = m[~movable] @ a_hat[~movable] if (~movable).any() else None
+            # impulse (N s; N s/m in 2D) the kinematic nodes deliver to the free foreground this
+            # step: H conserves momentum among the free particles, so it is the free particles'
+            # whole correction
+            kinematic_impulse = dt * (m[movable] @ a_hat[movable]) if (~movable).any() else None
             a_hat[~movable] = 0.0
             Bdot[~movable] = 0.0
             B_new = B_bar + dt * Bdot
@@ -504,12 +583,22 @@ class AuguryStepper(ExplicitStepper):
                 new.mpm_v = new.mpm_v + dt * a_hat[n_fem:]
                 new.mpm_x = new.mpm_x + dt * dt * a_hat[n_fem:]
                 new.aug_Bp = B_new[n_fem:]
+                if self.options.contact_strain:
+                    new.mpm_F = new.mpm_F + dt * np.einsum(
+                        "pab,pbc->pac",
+                        self._correction_gradient(state.mpm_x, dt * a_hat[n_fem:]),
+                        state.mpm_F,
+                    )
             if kinematic_impulse is not None:
                 notes.append(
-                    f"SCRIPTED_FOREGROUND: {self._n_kinematic} scripted nodes in H; the momentum "
-                    f"rate {np.linalg.norm(kinematic_impulse):.6g} N of their dropped correction "
-                    "is not conserved"
+                    f"SCRIPTED_FOREGROUND: {self._n_kinematic} scripted nodes in H delivered an "
+                    f"impulse of {np.linalg.norm(kinematic_impulse):.6g} N s to the free bodies "
+                    "(their dropped correction: momentum not conserved)"
                 )
+        extra = {}
+        if self._n_kinematic:
+            impulse = np.zeros(d) if kinematic_impulse is None else kinematic_impulse
+            extra = {f"kinematic_impulse_{'xyz'[a]}": float(impulse[a]) for a in range(d)}
         self._steps += 1
         self.steps_with_contact += shared_count > 0
         every = self.options.penetration_check_every
@@ -531,6 +620,7 @@ class AuguryStepper(ExplicitStepper):
             timings=timings,
             contact_pairs=shared_count,
             notes=tuple(notes),
+            extra={**report.extra, **extra},
         )
         return new, report
 

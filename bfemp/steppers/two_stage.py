@@ -32,12 +32,33 @@ Choices (not in the notes):
 - Friction is semi-implicit by default (``friction="once"``): lagged once per step at x^n
   (normal forces and tangent bases of the contacts active at x^n), one minimisation; ``"loop"``
   runs the BFEMP friction loop (re-lag at the solution until a minimisation needs no Newton
-  step, capped by ``scene.set_contact(friction_iterations=...)``).
-- Newton starts at x* (``start="free"``) when the straight move x^n -> x* passes CCD and no
-  scripted node moves in the step, else at x^n. From x* the inertia gradient sums to zero and
-  every barrier and friction block has translations in its kernel (also after PSD projection),
-  so each Newton iterate keeps sum M (x - x*) = 0: linear momentum of free bodies is exact
-  (EXPLICIT_STRATEGIES.md S3). From x^n it is so only to the Newton tolerance.
+  step, capped by ``scene.set_contact(friction_iterations=...)``). ``"once"`` stays the default
+  by measurement (issue 40's drop, Newton from x^n, 0.3 s): once 831 Newton iterations in
+  all, at most 14 per step; loop 1,076, at most 17. The drop's ``MAX_ITERATIONS`` came from
+  the Newton start, not from the lagging (next item).
+- Newton starts at x* when the straight move x^n -> x* passes CCD and no scripted node moves
+  in the step, else at x^n; by default (``start="auto"``) also at x^n when friction has a
+  contact within d-hat at x^n. From x* the inertia gradient sums to zero and every barrier
+  and friction block has translations in its kernel (also after PSD projection), so each
+  Newton iterate keeps sum M (x - x*) = 0: linear momentum of free bodies is exact
+  (EXPLICIT_STRATEGIES.md S3). From x^n it is so only to the Newton tolerance (measured: a
+  frictional MPM disk-FEM slab impact, 0.1 s, drifted 9e-13 kg m/s of 31.2; 2e-12 from x*).
+  Why x^n under friction (issue 40): x* is the frictionless free motion, so every contact
+  starts sliding a full step v* dt (6e-4 m on the drop below), thousands of times the
+  mollifier's stick width eps_v dt (6e-9 m at eps_v = 1e-5 m/s); the friction Hessian there
+  is that of sliding (none along the slip), and Newton crossed back into sticking in
+  backtracking steps (alpha down to 1e-3). From x^n every lagged contact starts at zero
+  sliding, in the stick regime, where its quadratic model is exact. Measured on issue 40's
+  drop (MPM disk r 0.1 m, E 1e5 Pa, at (1, -1) m/s onto a fixed FEM plate, mu 0.3, eps_v
+  1e-5 m/s, dt "auto" = 6.1e-4 s, 0.3 s), Newton iterations per contact step: from x*
+  (``"free"``, the default before) mean 22.6, max 75 of the cap 100 (max 86 at dt / 2; the
+  issue's run hit the cap: ``MAX_ITERATIONS`` at t = 0.058 s); ``"auto"`` mean 5.1, max 14;
+  ``friction="loop"`` from x* mean 24.7, max 63; raising eps_v to 1e-4 / 1e-3 m/s (from x*)
+  mean 17.9 / 15.0, max 43 / 29; frictionless 9.7, max 12. ``two_stage_slope`` (quick, box
+  sticking at mu = 0.3): 4.5 Newton iterations per step against 12.1 from x*, the same
+  motion (acceleration -1.29e-3 / -1.27e-3 m/s^2, top speed 1.6e-4 m/s both). The relative
+  stationarity residual of a frictional step reflects the stick stiffness mu N / (eps_v dt):
+  up to 8.7e-3 at the increment tolerance on this drop, either start.
 - ``StepReport.residual`` is the relative stationarity residual
   ||M (v - v*) - h J^T gamma||_inf / max(||M v*||_inf, ||h J^T gamma||_inf) at the returned
   step (dimensionless here; over the unknowns, slip-normal coordinates excluded).
@@ -54,14 +75,14 @@ Choices (not in the notes):
   the step as ``INTERSECTION`` or ``TUNNELED`` if anything ended inside or went through a FEM
   body, as in ``barrier``.
 
-Measured (``benchmarks/records/two_stage_*.json``; 2 shared cores): Newton takes 4-6 iterations
-per contact step on a block landing on a plate, 8.1 on the coarse rings and 5-17 at static
-friction (EXPLICIT_STRATEGIES.md expected 1-3: the contact blocks are stiff against the
-mass-only rest of the Hessian); rings quick: momentum drift 2.3e-14, closest distance 8.8e-3 m;
-a block at rest on a plate sits 0.999e-3 m above it (dhat = 1e-3 m). The stationarity residual
-is below 3e-6 (relative) at the Newton tolerance 1e-6 m/s. Near mu = tan(theta) the soft box of
-``two_stage_slope`` creeps at 2-4 % of g sin(theta): its undamped elastic vibration modulates
-the normal force and friction never exceeds mu times it.
+Measured (``benchmarks/records/two_stage_*.json``; 2 shared cores; Newton from x*, before issue
+40): Newton takes 4-6 iterations per contact step on a block landing on a plate, 8.1 on the
+coarse rings and 5-17 at static friction (EXPLICIT_STRATEGIES.md expected 1-3: the contact
+blocks are stiff against the mass-only rest of the Hessian); rings quick: momentum drift
+2.3e-14, closest distance 8.8e-3 m; a block at rest on a plate sits 0.999e-3 m above it (dhat =
+1e-3 m). The stationarity residual is below 3e-6 (relative) at the Newton tolerance 1e-6 m/s.
+Near mu = tan(theta) the soft box of ``two_stage_slope`` creeps at 2-4 % of g sin(theta): its
+undamped elastic vibration modulates the normal force and friction never exceeds mu times it.
 """
 
 from __future__ import annotations
@@ -76,6 +97,7 @@ import numpy as np
 
 from bfemp.contact.friction import FrictionTerm
 from bfemp.contact.intersection import step_intersection
+from bfemp.contact.pairs import find_pairs
 from bfemp.contact.parameters import warn_mpm_pairs
 from bfemp.contact.term import BarrierTerm
 from bfemp.integrators import ExplicitIntegrator
@@ -102,7 +124,7 @@ log = logging.getLogger(__name__)
 #: the names ``TwoStageOptions.friction`` accepts
 FRICTION_LAGGING = ("once", "loop")
 #: the names ``TwoStageOptions.start`` accepts
-STARTS = ("free", "start")
+STARTS = ("auto", "free", "start")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -117,8 +139,10 @@ class TwoStageOptions(ExplicitOptions):
             no FEM node, particle position or (times dx) particle deformation gradient by more
             than ``tol * dt`` (as ``BarrierOptions.tol``).
         max_newton_iterations: Newton iteration cap per minimisation.
-        start: Newton's start, ``"free"`` (the free motion x*, when the move there passes CCD
-            and no scripted node moves; else x^n) or ``"start"`` (always x^n).
+        start: Newton's start, ``"auto"`` (as ``"free"``, but x^n when friction has a contact
+            within d-hat at x^n: module docstring, issue 40), ``"free"`` (the free motion x*,
+            when the move there passes CCD and no scripted node moves; else x^n) or
+            ``"start"`` (always x^n).
         linear_solver: the linear solver of the contact solve (names of
             ``BarrierOptions.linear_solver``).
         cfl_safety_fem: safety factor on the FEM bound h_min / c_p, in (0, 1] (default 0.5).
@@ -133,7 +157,7 @@ class TwoStageOptions(ExplicitOptions):
         default=1e-6, metadata={"unit": "velocity", "sweep": {"finer": -1, "factor": 10.0}}
     )
     max_newton_iterations: int = 100
-    start: str = "free"
+    start: str = "auto"
     linear_solver: str = "default"
 
     def __post_init__(self) -> None:
@@ -404,11 +428,19 @@ class TwoStageStepper(ExplicitStepper):
     def _newton_start(
         self, nodes: StepNodes, x_start: np.ndarray, x_hat: np.ndarray, state: State
     ) -> tuple[np.ndarray, bool]:
-        """x* (slip-normal coordinates kept) when ``start="free"``, no scripted node moves and
-        the straight move x^n -> x* passes CCD with a finite energy; else x^n."""
+        """x* (slip-normal coordinates kept) when ``start="free"`` (or ``"auto"`` with no
+        friction contact within d-hat at x^n), no scripted node moves and the straight move
+        x^n -> x* passes CCD with a finite energy; else x^n."""
         pot = self.potential
-        if self.options.start != "free":
+        if self.options.start == "start":
             return x_start, False
+        if self.options.start == "auto" and self.friction is not None:
+            bar = self.barrier
+            near = find_pairs(
+                bar.collisions, bar.collision_positions(pot.to_unknowns(x_start)), bar.dhat
+            )
+            if near.n_pairs:  # friction lagged at x^n: start where its sliding is zero
+                return x_start, False
         model = self.model
         moving = not np.array_equal(
             nodes.fixed[: model.n_fem_nodes][model.fem_prescribed],
