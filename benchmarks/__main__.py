@@ -23,6 +23,7 @@ BENCHMARKS = {
     "blas_wall": "benchmarks.blas_wall",
     "explicit_speed": "benchmarks.explicit_speed",
     "buckling": "benchmarks.buckling",
+    "conformance": "benchmarks.conformance",
     "extremes": "benchmarks.extremes",
     "hertz": "benchmarks.hertz",
     "lr_compression": "benchmarks.lr_compression",
