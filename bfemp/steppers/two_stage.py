@@ -53,10 +53,12 @@ Choices (not in the notes):
 - An independent check after the step (``bfemp.contact.intersection``) fails the step as
   ``INVERTED`` if a FEM cell or particle ended with det F <= 0 (checked first), else as
   ``INTERSECTION`` or ``TUNNELED`` if anything ended inside or went through a FEM body along
-  the step's straight-line motion, as in ``barrier``. Stage 2 holds no elasticity term, so
-  neither its energy (+inf at J <= 0) nor its det F line-search filter (section 5) keeps the
-  contact solve from pushing a cell's nodes through each other (issue 44: a one-cell FEM box
-  hit by an MPM cube at 89 m/s ended with J = -0.072 and was CONVERGED).
+  the step's straight-line motion, as in ``barrier``. Nothing else keeps J > 0: the CFL bound
+  of stage 1 is one of linear stability, and the explicit free motion x* of a soft cell crushed
+  in an impact can be inverted; stage 2 holds no elasticity term, so neither its energy (+inf at
+  J <= 0) nor its det F line-search filter (section 5) stops Newton following E toward x*
+  (issue 44: measured on a soft square at 89 m/s onto an MPM block, dt the CFL step: J* =
+  -0.0009 at x*, Newton from x^n (J > 0) to J = -0.0011 in 5 iterations, then CONVERGED).
 
 Measured (``benchmarks/records/two_stage_*.json``; 2 shared cores): Newton takes 4-6 iterations
 per contact step on a block landing on a plate, 8.1 on the coarse rings and 5-17 at static

@@ -337,8 +337,8 @@ def _box_onto_mpm(speed):
 def test_two_stage_never_converges_with_an_inverted_cell():
     """Issue 44, defect 2: two_stage stepped a FEM cell to J = -0.0011 (step 18) and said
     CONVERGED. Stage 1's explicit free motion crushes the soft square (J* = -0.0009 at x*) and
-    stage 2, which holds no elasticity (no det F filter), starts from x* and keeps it. Now every
-    converged step has J > 0 and the run fails as INVERTED, not as a crossing."""
+    stage 2, which holds no elasticity (no det F filter), follows its energy toward x*. Now
+    every converged step has J > 0 and the run fails as INVERTED, not as a crossing."""
     sim = bfemp.Simulation(_box_onto_mpm(89.0), strategy="two_stage", dt="auto")
     for _ in range(30):
         try:
