@@ -48,6 +48,7 @@ convex vertex of the strip 0.42 mm deep.
 from __future__ import annotations
 
 import logging
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -337,11 +338,26 @@ def _point_name(model: Model, cs: CollisionSet, c: int) -> str:
     return f"particle {p - owner.particles.start} of body {owner.name!r}"
 
 
+#: id(model) -> (weak reference to the model, its collision set): built once per model
+_POINTS_CACHE: dict[int, tuple[weakref.ref, CollisionSet]] = {}
+
+
 def end_of_step_points(model: Model) -> CollisionSet:
     """The collision points and facets of the end-of-step check: every FEM boundary node and
     every particle (as itself: all-node positions are ``[fem_x; mpm_x]``, particle p is node
     ``N + p``), the FEM boundary facets and (3D) boundary edges, with their bodies
-    (``bfemp.contact.collision``)."""
+    (``bfemp.contact.collision``). Built once per model (10-30 ms for 58k tetrahedra)."""
+    cached = _POINTS_CACHE.get(id(model))
+    if cached is not None and cached[0]() is model:
+        return cached[1]
+    cs = _build_points(model)
+    for key in [k for k, (ref, _) in _POINTS_CACHE.items() if ref() is None]:
+        del _POINTS_CACHE[key]
+    _POINTS_CACHE[id(model)] = (weakref.ref(model), cs)
+    return cs
+
+
+def _build_points(model: Model) -> CollisionSet:
     n_fem, n_mpm = model.n_fem_nodes, model.n_particles
     particles = None
     if n_mpm:
