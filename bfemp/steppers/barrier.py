@@ -16,11 +16,12 @@ One step:
    are kept out of a^{n+1} and added to the velocity as an impulse (``bfemp.integrators``).
 4. MPM: one G2P of positions, velocities, F (and APIC C, Newmark a) per Tables 1-3 (line 12)
    (``bfemp.steppers._scaffold.write_state``).
-5. An independent check (``bfemp.contact.intersection``): no node or particle ends inside
-   another FEM body, or went through one along the step's straight-line motion; otherwise the
-   step fails as ``INTERSECTION`` or ``TUNNELED`` (the barrier keeps every Newton iterate
-   clear, but with |v| dt far above the bodies' size frictionless iterates can take them around
-   each other in configuration space).
+5. An independent check (``bfemp.contact.intersection``): no FEM cell or particle inverted
+   (else ``INVERTED``, checked first), no node or particle ends inside another FEM body, or
+   went through one along the step's straight-line motion (an exact CCD of x^n -> x^{n+1});
+   otherwise the step fails as ``INTERSECTION`` or ``TUNNELED`` (the barrier keeps every
+   Newton iterate clear, but with |v| dt far above the bodies' size frictionless iterates can
+   take them around each other in configuration space).
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ import numpy as np
 
 from bfemp.contact.adaptive import AdaptiveKappa
 from bfemp.contact.friction import FrictionTerm
-from bfemp.contact.intersection import step_intersection
+from bfemp.contact.intersection import step_intersection, step_inversion
 from bfemp.contact.term import BarrierTerm
 from bfemp.dofs import DofLayout
 from bfemp.frames import NodeFrames
@@ -321,7 +322,9 @@ class BarrierStepper:
         timings["update"] = g2p_start - update_start
         timings["g2p"] = time.perf_counter() - g2p_start
         checked = time.perf_counter()  # independent of the barrier: bfemp.contact.intersection
-        crossing = None if self.barrier is None else step_intersection(self.model, state, new)
+        crossing = step_inversion(self.model, new)  # det F > 0 is kept by the line search
+        if crossing is None and self.barrier is not None:
+            crossing = step_intersection(self.model, state, new)
         if crossing is not None:
             report_args.update(success=False, status=crossing.status, message=crossing.message)
             raise StepError(StepReport(**report_args, timings=timings))

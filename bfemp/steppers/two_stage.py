@@ -71,9 +71,15 @@ Choices (not in the notes):
   0``): at static friction it took steps on a falling gradient norm that raised the energy, and
   Armijo stepped back, a 2-cycle until MAX_ITERATIONS (the slope at mu = 0.2; a block at
   mu = 0.21 failed at step 28).
-- An independent check after the step (``bfemp.contact.intersection.step_intersection``) fails
-  the step as ``INTERSECTION`` or ``TUNNELED`` if anything ended inside or went through a FEM
-  body, as in ``barrier``.
+- An independent check after the step (``bfemp.contact.intersection``) fails the step as
+  ``INVERTED`` if a FEM cell or particle ended with det F <= 0 (checked first), else as
+  ``INTERSECTION`` or ``TUNNELED`` if anything ended inside or went through a FEM body along
+  the step's straight-line motion, as in ``barrier``. Nothing else keeps J > 0: the CFL bound
+  of stage 1 is one of linear stability, and the explicit free motion x* of a soft cell crushed
+  in an impact can be inverted; stage 2 holds no elasticity term, so neither its energy (+inf at
+  J <= 0) nor its det F line-search filter (section 5) stops Newton following E toward x*
+  (issue 44: measured on a soft square at 89 m/s onto an MPM block, dt the CFL step: J* =
+  -0.0009 at x*, Newton from x^n (J > 0) to J = -0.0011 in 5 iterations, then CONVERGED).
 
 Measured (``benchmarks/records/two_stage_*.json``; 2 shared cores; Newton from x*, before issue
 40): Newton takes 4-6 iterations per contact step on a block landing on a plate, 8.1 on the
@@ -96,7 +102,7 @@ from typing import ClassVar
 import numpy as np
 
 from bfemp.contact.friction import FrictionTerm
-from bfemp.contact.intersection import step_intersection
+from bfemp.contact.intersection import step_intersection, step_inversion
 from bfemp.contact.pairs import find_pairs
 from bfemp.contact.parameters import warn_mpm_pairs
 from bfemp.contact.term import BarrierTerm
@@ -287,7 +293,8 @@ class TwoStageStepper(ExplicitStepper):
             return new, replace(report, iterations={"newton": 0, "friction": 0})
         timings = {**report.timings, **solved.timings}
         t0 = time.perf_counter()
-        crossing = step_intersection(self.model, state, new)
+        # stage 2 has no elasticity (nor its det F filter): nothing in the solve keeps J > 0
+        crossing = step_inversion(self.model, new) or step_intersection(self.model, state, new)
         timings["intersection"] = time.perf_counter() - t0
         iterations = {"newton": solved.nit, "friction": solved.friction_its}
         if crossing is not None:

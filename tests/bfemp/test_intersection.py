@@ -5,7 +5,12 @@ import numpy as np
 import pytest
 
 import bfemp
-from bfemp.contact.intersection import points_inside, step_intersection
+from bfemp.contact.intersection import (
+    fem_cell_J,
+    points_inside,
+    step_intersection,
+    step_inversion,
+)
 from bfemp.steppers import barrier as barrier_stepper
 
 STIFF = bfemp.NeoHookean(E=1e6, nu=0.3, density=1000.0)
@@ -103,9 +108,11 @@ def test_check_fires_when_only_the_trajectory_crosses():
     assert found is not None and found.status == "TUNNELED" and 0.0 < found.s < 1.0
 
 
-def test_a_sliding_step_past_a_corner_is_not_a_crossing():
-    """A node sliding past a convex boundary vertex cuts the corner on the chord by less than
-    d-hat: no finding; the same slide cut deeper than d-hat is TUNNELED."""
+def test_a_sliding_step_past_a_corner_is_a_crossing_only_when_its_chord_cuts_it():
+    """A triangle sliding 0.03 m above a block past its corner (1, 1) is clear; the same slide
+    ending 0.015 m below the corner's height beside the block cuts the corner on its chord: the
+    straight-line motion enters the block, TUNNELED (the depth-thresholded sampling let cuts
+    shallower than d-hat through)."""
     scene = bfemp.Scene(dim=2)
     scene.add_fem(bfemp.shapes.rectangle((0, 0), (1, 1), h=0.5), material=STIFF, name="block")
     scene.add_fem(
@@ -117,25 +124,30 @@ def test_a_sliding_step_past_a_corner_is_not_a_crossing():
     scene.set_contact(dhat=0.02)
     model = scene.build()
     start = model.initial_state()
-    end = start.copy()
     tri = slice(model.fem_bodies[1].nodes.start, None)
-    end.fem_x[tri] += (0.11, -0.045)  # cuts the block's corner (1, 1) by at most 0.015 m
-    assert not brute_force_inside(model, end).any()
-    assert step_intersection(model, start, end) is None
-    found = step_intersection(model, start, end, depth=0.002)
-    assert found is not None and found.status == "TUNNELED"
+    above = start.copy()
+    above.fem_x[tri] += (0.11, 0.0)
+    assert step_intersection(model, start, above) is None
+    cut = start.copy()
+    cut.fem_x[tri] += (0.11, -0.045)  # node 0 ends at (1.01, 0.985): beside the block
+    assert not brute_force_inside(model, cut).any()
+    found = step_intersection(model, start, cut)
+    assert found is not None and found.status == "TUNNELED" and 0.0 < found.s < 1.0
+    assert {found.body, found.point.split("'")[1]} == {"block", "tri"}
 
 
 @pytest.mark.parametrize(
     "begin, end, found",
-    [((0.99, 1.0005), (1.0005, 0.99), False), ((0.8, 1.0005), (1.0005, 0.5), True)],
+    [
+        ((0.99, 1.0005), (1.0005, 0.99), True),  # round the corner on the chord: cuts 4.75 mm
+        ((0.99, 1.0005), (1.02, 1.0005), False),  # past it at a 0.5 mm gap
+        ((0.8, 1.0005), (1.0005, 0.5), True),
+    ],
 )
-def test_a_particle_sliding_round_a_corner_may_cut_it(begin, end, found):
-    """A particle in contact (0.5 mm, d-hat 1 mm) above the block's top and, at the end of the
-    step, beside its right side, cuts the corner on the chord by 4.75 mm: a corner cut, allowed
-    up to half its 15 mm move. From 0.2 m left of the corner to 0.5 m down the side, the chord
-    cuts 0.14 m deep, beyond the allowance's cap (a quarter of the block's 0.5 m edges):
-    TUNNELED."""
+def test_a_particle_round_a_corner_is_a_crossing_when_its_chord_cuts_it(begin, end, found):
+    """A particle in contact (0.5 mm, d-hat 1 mm) above the block's top that ends beside its
+    right side has crossed the block's corner on its straight-line motion (the frames show it
+    inside): TUNNELED. One that slides on past the corner at its gap has not."""
     scene = bfemp.Scene(dim=2)
     scene.add_fem(bfemp.shapes.rectangle((0, 0), (1, 1), h=0.5), material=STIFF, name="block")
     scene.add_mpm(np.array([begin]), np.array([1e-6]), material=STIFF, name="blob")
@@ -146,15 +158,16 @@ def test_a_particle_sliding_round_a_corner_may_cut_it(begin, end, found):
     stop = start.copy()
     stop.mpm_x[0] = end
     assert not brute_force_inside(model, stop).any()
-    result = step_intersection(model, start, stop, spacing=1e-3)  # sampled finely: the criterion
+    result = step_intersection(model, start, stop)
     assert (result is not None) == found
     if found:
         assert result.status == "TUNNELED" and result.point == "particle 0 of body 'blob'"
 
 
-def test_equal_aligned_boxes_passing_through_are_seen_by_cell_centroids():
+def test_equal_aligned_boxes_passing_through_are_tunneled():
     """3D: two equal cubes, one tet wide, swapped along x with every vertex on the other's
-    surface during the pass: only the cell centroids see the overlap."""
+    surface during the pass (the sampling needed the cell centroids to see it): the CCD finds
+    vertices reaching the other's faces."""
     scene = bfemp.Scene(dim=3)
     scene.add_fem(bfemp.shapes.box((-0.7, 0, 0), (-0.1, 0.6, 0.6), h=0.6), material=STIFF, name="A")
     scene.add_fem(bfemp.shapes.box((0.1, 0, 0), (0.7, 0.6, 0.6), h=0.6), material=STIFF, name="B")
@@ -164,9 +177,178 @@ def test_equal_aligned_boxes_passing_through_are_seen_by_cell_centroids():
     end = start.copy()
     end.fem_x[model.fem_bodies[0].nodes] += (1.6, 0.0, 0.0)
     end.fem_x[model.fem_bodies[1].nodes] -= (1.6, 0.0, 0.0)
+    assert not brute_force_inside(model, end).any()
     found = step_intersection(model, start, end)
     assert found is not None and found.status == "TUNNELED"
-    assert "centroid" in found.point
+    assert found.s == pytest.approx(0.2 / 3.2, rel=1e-6)  # the faces meet at 0.2 m of 3.2 m
+
+
+def _tet(points):
+    """One right-handed tetrahedron (4, 3) and its cell."""
+    points = np.asarray(points, dtype=float)
+    e = points[1:] - points[0]
+    if np.linalg.det(e) < 0:
+        points = points[[0, 2, 1, 3]]
+    return points, np.array([[0, 1, 2, 3]])
+
+
+def test_a_crossing_seen_only_by_edge_edge_ccd_3d():
+    """3D: a long tet 'A' (vertices at x = +-1) falls through a long thin tet 'B' (vertices at
+    y = +-1) so that only their long edges cross: no vertex passes through a face, the end state
+    is clear, and edge-edge CCD alone sees it. A miss (A falls beside B) is clear."""
+    scene = bfemp.Scene(dim=3)
+    a = [(-1, 0, 0.3), (1, 0, 0.3), (-1, 0.1, 0.4), (-1, -0.1, 0.4)]
+    b = [(0, -1, 0), (0, 1, 0), (0.05, -1, -0.1), (-0.05, -1, -0.1)]
+    scene.add_fem(*_tet(a), material=STIFF, name="A")
+    scene.add_fem(*_tet(b), material=STIFF, name="B")
+    scene.set_contact(dhat=1e-3)
+    model = scene.build()
+    start = model.initial_state()
+    nodes_a = model.fem_bodies[0].nodes
+    through = start.copy()
+    through.fem_x[nodes_a] -= (0.0, 0.0, 1.0)  # from 0.3 m above B's edge to 0.7 m below it
+    assert not brute_force_inside(model, through).any()
+    found = step_intersection(model, start, through)
+    assert found is not None and found.status == "TUNNELED"
+    assert "edge" in found.point and found.s == pytest.approx(0.3, rel=1e-6)
+    beside = start.copy()
+    beside.fem_x[nodes_a] += (0.0, 5.0, -1.0)  # A's edge passes z = 0 at y = 1.5: past B's end
+    assert step_intersection(model, start, beside) is None
+
+
+# ------------------------------------------------------------------ thin bodies (issue 44, 1)
+
+
+def _thin_bar(dhat, mpm=False):
+    """Issue 44's reproducer: a disk at 16 m/s onto a free bar 0.088 m thick (< 2 d-hat)."""
+    scene = bfemp.Scene(dim=2)
+    if mpm:
+        particles, volumes = bfemp.sample.mesh(
+            bfemp.shapes.disk((0.05, 0.324), 0.08, h=0.02), dx=0.04, ppc=4
+        )
+        scene.add_mpm(particles, volumes, material=STIFF, velocity=(0.0, -16.0), name="disk")
+        scene.set_grid(dx=0.04, origin=(0.005, 0.005))
+    else:
+        disk = bfemp.shapes.disk((0.05, 0.324), 0.08, h=0.04)
+        scene.add_fem(disk, material=STIFF, velocity=(0.0, -16.0), name="disk")
+    bar = bfemp.shapes.rectangle((-0.37, -0.044), (0.37, 0.044), h=0.088)
+    scene.add_fem(bar, material=STIFF, name="bar")
+    scene.set_contact(dhat=dhat, kappa=1e7)
+    return scene
+
+
+def _thin_plate():
+    """3D: a cube at 16 m/s onto a free plate 0.08 m thick (d-hat 0.1 m)."""
+    scene = bfemp.Scene(dim=3)
+    cube = bfemp.shapes.box((-0.06, -0.06, 0.25), (0.06, 0.06, 0.37), h=0.12)
+    scene.add_fem(cube, material=STIFF, velocity=(0, 0, -16.0), name="disk")
+    plate = bfemp.shapes.box((-0.3, -0.3, -0.04), (0.3, 0.3, 0.04), h=0.3)
+    scene.add_fem(plate, material=STIFF, name="bar")
+    scene.set_contact(dhat=0.1, kappa=1e7)
+    return scene
+
+
+@pytest.mark.parametrize(
+    "scene, dt",
+    [
+        (lambda: _thin_bar(0.1), 1.45),
+        (lambda: _thin_bar(0.1, mpm=True), 1.45),
+        (lambda: _thin_bar(0.05, mpm=True), 0.5),
+        (_thin_plate, 1.45),
+    ],
+    ids=["fem_2d", "mpm_2d", "mpm_2d_dhat_0.05", "fem_3d_plate"],
+)
+def test_a_thin_body_passed_through_is_never_converged(scene, dt):
+    """Issue 44, defect 1: the disk (cube) ended 23 m below the bar (plate) and the step said
+    CONVERGED, the sampled check counting only points deeper than d-hat, which a body thinner
+    than 2 d-hat never holds. Now: TUNNELED, naming the bar, and the state left at the start."""
+    sim = bfemp.Simulation(scene(), integrator="backward_euler", dt=dt)
+    start = sim.state.copy()
+    with pytest.raises(bfemp.StepError) as err:
+        sim.step()
+    report = err.value.report
+    assert report.status == "TUNNELED" and not report.success
+    assert "'bar'" in report.message and "'disk'" in report.message
+    np.testing.assert_array_equal(sim.state.fem_x, start.fem_x)
+
+
+def test_the_trajectory_check_finds_a_pass_through_a_bar_of_any_thickness():
+    """A point passing through a bar 1e-4 m thick (d-hat 0.1 m) is found, one passing 1e-6 m
+    beside its end is not (the CCD's floor is 1e-10 x the coordinates here)."""
+    scene = bfemp.Scene(dim=2)
+    bar = np.array([[-0.005, 0.0], [0.005, 0.0], [0.005, 1e-4], [-0.005, 1e-4]])
+    scene.add_fem(bar, np.array([[0, 1, 2], [0, 2, 3]]), material=STIFF, name="bar")
+    scene.add_mpm(np.array([[0.002, 0.5]]), np.array([1e-6]), material=STIFF, name="blob")
+    scene.set_grid(dx=0.25)
+    scene.set_contact(dhat=0.1)
+    model = scene.build()
+    start = model.initial_state()
+    for x_mid, crossed in ((0.003, True), (0.005 + 1e-6, False)):
+        end = start.copy()
+        end.mpm_x[0] = (2.0 * x_mid - 0.002, -0.5 + 1e-4)  # through (x_mid, 5e-5) at s = 1/2
+        found = step_intersection(model, start, end)
+        assert (found is not None) == crossed, x_mid
+        if crossed:
+            assert found.status == "TUNNELED" and found.s == pytest.approx(0.49995, abs=1e-6)
+
+
+# ------------------------------------------------------------------ inversion (issue 44, 2)
+
+
+def test_step_inversion_finds_a_flipped_cell_and_particle():
+    """A hand-made state with one FEM cell folded over (J < 0) and one particle with
+    det F < 0: INVERTED, naming the smallest J; the rest state has none."""
+    scene, a, b = _disks()
+    scene.add_mpm(np.array([[0.0, 2.0]]), np.array([1e-4]), material=STIFF, name="blob")
+    scene.set_grid(dx=0.25)
+    model = scene.build()
+    state = model.initial_state()
+    assert step_inversion(model, state) is None
+    np.testing.assert_allclose(fem_cell_J(model, state.fem_x), 1.0, rtol=1e-12)
+    cell = model.fem_cells[3]
+    x = state.fem_x
+    x[cell[0]] = x[cell[1]] + x[cell[2]] - x[cell[0]]  # mirrored across the opposite edge
+    state.mpm_F[0] = np.diag([1.0, -0.5])
+    found = step_inversion(model, state)
+    J = fem_cell_J(model, x)
+    assert found is not None and found.status == "INVERTED"
+    assert found.n_cells == int((J <= 0).sum()) >= 1 and found.n_particles == 1
+    assert found.min_J == pytest.approx(min(J.min(), -0.5))
+    assert "det F <= 0" in found.message
+
+
+def _box_onto_mpm(speed):
+    """2D two_stage: a one-cell-thick soft FEM square (E = 1e5 Pa) falling at ``speed`` onto
+    a stiff MPM block (E = 1e7 Pa), dt the CFL step."""
+    soft = bfemp.NeoHookean(E=1e5, nu=0.3, density=1000.0)
+    hard = bfemp.NeoHookean(E=1e7, nu=0.3, density=1000.0)
+    scene = bfemp.Scene(dim=2)
+    box = bfemp.shapes.rectangle((0.0, 0.42), (0.4, 0.82), h=0.4)
+    scene.add_fem(box, material=soft, velocity=(0.0, -speed), name="A")
+    particles, volumes = bfemp.sample.mesh(
+        bfemp.shapes.rectangle((0.0, 0.0), (0.4, 0.4), h=0.2), dx=0.1, ppc=4
+    )
+    scene.add_mpm(particles, volumes, material=hard, name="B")
+    scene.set_grid(dx=0.1, origin=(0.0013, 0.0013))
+    scene.set_contact(dhat=1e-3, kappa=1e6)
+    return scene
+
+
+def test_two_stage_never_converges_with_an_inverted_cell():
+    """Issue 44, defect 2: two_stage stepped a FEM cell to J = -0.0011 (step 18) and said
+    CONVERGED. Stage 1's explicit free motion crushes the soft square (J* = -0.0009 at x*) and
+    stage 2, which holds no elasticity (no det F filter), follows its energy toward x*. Now
+    every converged step has J > 0 and the run fails as INVERTED, not as a crossing."""
+    sim = bfemp.Simulation(_box_onto_mpm(89.0), strategy="two_stage", dt="auto")
+    for _ in range(30):
+        try:
+            sim.step()
+        except bfemp.StepError as err:
+            assert err.report.status == "INVERTED"
+            assert "cell 0 of body 'A'" in err.report.message
+            return
+        assert fem_cell_J(sim.model, sim.state.fem_x).min() > 0.0
+    pytest.fail("the square was expected to invert within 30 steps")
 
 
 @pytest.mark.parametrize("dim", [2, 3])

@@ -14,7 +14,7 @@ from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 import bfemp
-from bfemp.contact.intersection import points_inside
+from bfemp.contact.intersection import points_inside, trajectory_crossing
 from tests.bfemp.test_intersection import brute_force_inside
 
 MATERIAL = bfemp.NeoHookean(E=1e6, nu=0.3, density=1000.0)
@@ -147,5 +147,104 @@ def test_no_point_ever_ends_inside_another_body(dim, mpm):
     @given(case=cases(dim), dt=dts)
     def run(case, dt):
         _check_run(_scene(dim, mpm, case), case["head_on"], dt)
+
+    run()
+
+
+# ------------------------------------------------------------------ thin bodies (issue 44)
+
+#: seeded (derandomised) on every machine: the same examples every run, bounded time
+THIN_SETTINGS = settings(
+    max_examples=12,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow],
+    derandomize=True,
+)
+#: dt log-uniform in [1e-3, 2] s
+thin_dts = st.floats(np.log10(1e-3), np.log10(2.0)).map(lambda e: float(10.0**e))
+
+
+@st.composite
+def thin_cases(draw):
+    """A disk (FEM or MPM) thrown at a free bar thinner than 2 d-hat or not."""
+    return dict(
+        thickness=draw(st.floats(0.01, 0.1)),
+        dhat=draw(st.floats(0.01, 0.12)),
+        radius=draw(st.floats(0.05, 0.1)),
+        speed=draw(st.floats(2.0, 30.0)),
+        angle=draw(st.floats(-0.5, 0.5)),  # rad off the downward vertical
+        offset=draw(st.floats(-0.3, 0.3)),  # m, the disk's x
+        mpm=draw(st.booleans()),
+    )
+
+
+def _thin_scene(c):
+    """The scene of a thin-bar case: the bar 0.74 m long centred at the origin, the disk
+    0.15 m above its top."""
+    scene = bfemp.Scene(dim=2)
+    t, r = c["thickness"], c["radius"]
+    centre = (c["offset"], 0.5 * t + r + 0.15)
+    v = c["speed"] * np.array([np.sin(c["angle"]), -np.cos(c["angle"])])
+    if c["mpm"]:
+        dx = 0.5 * r
+        particles, volumes = bfemp.sample.mesh(
+            bfemp.shapes.disk(centre, r, h=0.25 * r), dx=dx, ppc=4
+        )
+        scene.add_mpm(particles, volumes, material=MATERIAL, velocity=tuple(v), name="disk")
+        scene.set_grid(dx=dx, origin=(0.13 * dx, 0.13 * dx))
+    else:
+        disk = bfemp.shapes.disk(centre, r, h=0.5 * r)
+        scene.add_fem(disk, material=MATERIAL, velocity=tuple(v), name="disk")
+    bar = bfemp.shapes.rectangle((-0.37, -0.5 * t), (0.37, 0.5 * t), h=t)
+    scene.add_fem(bar, material=MATERIAL, name="bar")
+    scene.set_contact(dhat=c["dhat"], kappa=1e7)
+    return scene
+
+
+def _oracle_J(model, state):
+    """J of every FEM cell and det F of every particle, by numpy's det (independent)."""
+    v = state.fem_x[model.fem_cells]
+    ds = np.transpose(v[:, 1:] - v[:, :1], (0, 2, 1))
+    rest = model.fem_X[model.fem_cells]
+    dm = np.transpose(rest[:, 1:] - rest[:, :1], (0, 2, 1))
+    J = np.linalg.det(ds) / np.linalg.det(dm)
+    if model.n_particles:
+        J = np.concatenate([J, np.linalg.det(state.mpm_F)])
+    return J
+
+
+#: samples of the straight-line motion for the oracle's point-in-cell test
+ORACLE_SAMPLES = 64
+
+
+def test_thin_bodies_are_never_passed_through_silently():
+    """Issue 44, property: a disk (FEM or MPM) thrown at a free bar (thinner than 2 d-hat or
+    not; dt 1e-3 to 2 s, 2D) either fails by name or ends a step with nothing inside another
+    body, no inverted cell or particle, and a straight-line motion that is clear by the library's
+    CCD and by an independent oracle: the barycentric point-in-cell test of every FEM node and
+    particle at the end and at 64 interior samples of the motion."""
+
+    @THIN_SETTINGS
+    @given(case=thin_cases(), dt=thin_dts)
+    def run(case, dt):
+        sim = bfemp.Simulation(_thin_scene(case), integrator="backward_euler", dt=dt)
+        model = sim.model
+        for _ in range(STEPS):
+            start = sim.state.copy()
+            try:
+                report = sim.step()
+            except bfemp.StepError as err:
+                status = err.report.status
+                assert re.fullmatch(r"[A-Z][A-Z_]+", status) and status != "CONVERGED", status
+                return
+            assert report.status == "CONVERGED"
+            end = sim.state
+            assert (_oracle_J(model, end) > 0.0).all()
+            assert trajectory_crossing(model, start, end) is None
+            for s in np.linspace(0.0, 1.0, ORACLE_SAMPLES + 1)[1:]:
+                mid = end.copy()
+                mid.fem_x = (1.0 - s) * start.fem_x + s * end.fem_x
+                mid.mpm_x = (1.0 - s) * start.mpm_x + s * end.mpm_x
+                assert not brute_force_inside(model, mid).any(), s
 
     run()
