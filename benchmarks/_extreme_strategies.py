@@ -16,8 +16,8 @@ strategy:
   logistic-regression contact; FLIP, its default transfer): no barrier, so the d-hat and kappa
   cases are NOT_APPLICABLE (the scene's d-hat only sets the initial gap, which the case changes);
   friction comes from ``scene.set_contact(mu=...)``. augury takes the fixed slab of the resting
-  case as kinematic foreground (``AuguryOptions(kinematic_foreground=True)``; by default it
-  leaves scripted nodes out of its contact grid, and the block fell through). Promise: none
+  case as kinematic foreground (``AuguryOptions(kinematic_foreground=True)``, its default since
+  issue 40; without it the block fell through). Promise: none
   about crossing (AUG pitfall A9; LR detects contact on the grid, a cell or so wide): particles
   inside the FEM body are a named ``PENETRATION``, not a bug. Their inversions are named too
   (``INVERTED``, as for every explicit strategy: no det F > 0 guard).
@@ -129,8 +129,8 @@ def strategy_options(config: CaseConfig, strategy: str):
     if strategy == "two_stage":
         return TwoStageOptions(tol=config.tol, max_newton_iterations=config.max_newton_iterations)
     if strategy == "augury" and config.geometry == "resting":
-        # the slab is fixed (scripted): augury leaves scripted nodes out of the contact grid
-        # unless they are kinematic foreground, and the block would fall through it
+        # the slab is fixed (scripted): it must be kinematic foreground (augury's default since
+        # issue 40), else the block falls through it
         return AuguryOptions(kinematic_foreground=True)
     return None
 
