@@ -139,15 +139,19 @@ def test_a_sliding_step_past_a_corner_is_a_crossing_only_when_its_chord_cuts_it(
 @pytest.mark.parametrize(
     "begin, end, found",
     [
-        ((0.99, 1.0005), (1.0005, 0.99), True),  # round the corner on the chord: cuts 4.75 mm
+        # slides round the corner: its chord cuts it by 4.75 mm, under min(L / 2, edge / 4)
+        ((0.99, 1.0005), (1.0005, 0.99), False),
         ((0.99, 1.0005), (1.02, 1.0005), False),  # past it at a 0.5 mm gap
+        # round the corner in one 0.54 m move: the chord cuts 0.14 m deep, over edge / 4
         ((0.8, 1.0005), (1.0005, 0.5), True),
+        # from contact on the top straight through the block to below it: the far side
+        ((0.5, 1.0005), (0.5, -0.0005), True),
     ],
 )
 def test_a_particle_round_a_corner_is_a_crossing_when_its_chord_cuts_it(begin, end, found):
-    """A particle in contact (0.5 mm, d-hat 1 mm) above the block's top that ends beside its
-    right side has crossed the block's corner on its straight-line motion (the frames show it
-    inside): TUNNELED. One that slides on past the corner at its gap has not."""
+    """A particle in contact (0.5 mm, d-hat 1 mm) above the block's top that slides round its
+    corner cuts it on the chord by a corner's cut (the solver's iterates went round it): no
+    crossing. A cut deeper than the allowance, or a pass to the far side, is TUNNELED."""
     scene = bfemp.Scene(dim=2)
     scene.add_fem(bfemp.shapes.rectangle((0, 0), (1, 1), h=0.5), material=STIFF, name="block")
     scene.add_mpm(np.array([begin]), np.array([1e-6]), material=STIFF, name="blob")
