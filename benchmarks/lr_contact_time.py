@@ -44,7 +44,7 @@ def contact_time(mode: str) -> dict:
             scene = column_scene(v0=v0, interface_y=y, gap=GAP, moving_top=True)
             case = run_case(
                 scene, strain=0.0, v0=v0, stop_at_contact=1.2 * t_c, samples=50,
-                detector=detector,
+                detector=detector, corrections=2,  # the paper's two corrections
             )  # fmt: skip
             t_det = case["t_detect"]
             cases[f"{where}/{detector}"] = {

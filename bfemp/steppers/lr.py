@@ -16,7 +16,8 @@ velocity field on the shared grid (``_multimaterial_kernels``). One USL step:
    positive; one logistic-regression fit per pair and step gives the normal n (from a to b)
    and the separation d_LR with the deformed particle radius (eqs. 19-25,
    ``bfemp.contact.lr.lr_planes``).
-3. First correction (eqs. 7-10), skipped with ``corrections=1`` ("LR once"): the contact law
+3. First correction (eqs. 7-10), with ``corrections=2`` (the paper's; the default is 1, "LR
+   once", chosen by measurement: ``LROptions.corrections``): the contact law
    (``bfemp.contact.lr.contact_momentum``: contact iff approaching and touching) on p^a0
    gives dp^a; v^a = (p^a0 + dp^a) / m^a; dv^a = dp^a / m^a is kept for XPIC.
 4. Provisional momenta p^a0+ = p^a + f^a0 dt (eq. 30); second correction with the same planes
@@ -33,6 +34,14 @@ or more materials does not (the paper says so): its momentum change per step is 
 ``StepReport.extra["lump_momentum_drift"]`` (kg m/s); ``lump="conservative"`` (bfemp's) gives
 -dp to the others in proportion to their masses. ``interface="perfect"`` takes dp = dp(0) at every
 contact node: the multimaterial step then equals the single-material one (eq. 34, L1).
+
+Penetration (measured for issue 40, defaults, an MPM disk, box or cube dropped at (1, -1) m/s
+onto a fixed FEM plate, mu 0 and 0.3, dx 0.02 and 0.05 m, 2D and 3D, to 0.3 s): no particle
+centre went below the plate's top (the lowest stayed 0.19-0.23 cells above, about one particle
+radius: d_LR counts the deformed radius, eq. 25); a particle's undeformed extent (centre minus
+half its spacing) went at most 0.057 cells (1.14 mm at dx = 0.02 m, mu 0, 3D) below the top,
+about one step's travel at the impact speed (1.4 m/s x 0.6 ms). Against deformable FEM bodies
+contact is met through their boundary nodes only and nothing is guaranteed.
 
 Transfers: ``"flip"`` (the default) and ``"pic"`` (= XPIC(1)); ``xpic_order`` m >= 1 selects
 XPIC(m). APIC is refused: LR's corrections and XPIC are written for FLIP-type updates.
@@ -118,17 +127,39 @@ class LROptions(ExplicitOptions):
             constant-offset separation of eq. 16, ``cp_offset`` cells), the paper's comparison.
         cp_offset: the constant offset of the ``"cp"`` detector in cells (LR: 0.8, calibrated
             for GIMP, pitfall L-P3).
-        corrections: 2 (the paper: after P2G and after the momentum update) or 1 ("LR once").
+        corrections: 1 ("LR once", LR Fig. 5: one correction, after the momentum update; the
+            default) or 2 (the paper's: after P2G and after the momentum update). Set 2 for
+            ``interface="perfect"`` (only then is the run exactly the single-material one, eq.
+            34) and for the paper's multimaterial XPIC(m) (eq. 37's dv term is the first
+            correction's; with 1 it is zero). Why 1 by default (measured for issue 40 under
+            FLIP, mass_fraction 0, fixed FEM bodies rigid; "c1" is 2 with f^{C,1}):
+
+            ============================  ========  ========  ========  ========
+            scene                         once      c1        c0        PIC
+            ============================  ========  ========  ========  ========
+            landing: disk on a deformable 2D plate (bottom row fixed, E 1 MPa),
+            lowest particle, cells        +0.025    -4.76     +0.048    +0.003
+            landing: slope box, accel.
+            error (lr_variants quick)     0.021     0.021     0.021     0.021
+            impact: quick rings, error    0.69      4.16      0.71      1.70
+            (particles inside FEM ring)   (0)       (214)     (0)       (7)
+            compression at 0.05 % c_K
+            (paper's rate) to 15 %        0.107 %   0.112 %   0.765 %   0.471 %
+            ============================  ========  ========  ========  ========
+
+            Under c1 neither the particles nor the FEM nodes ever receive the first correction
+            (f^{C,1}, eq. 33), so in a lasting contact the pair keeps approaching at its
+            centre-of-mass velocity: the disk sank through the deformable plate and ring
+            particles ended inside the FEM ring. Once is as good as c1 where c1 is at its best
+            (compression, the paper's Fig. 5 setting; LR reports its errors larger, which this
+            grid does not reproduce) and the best or tied elsewhere; c0 loses the compression
+            and PIC damps (the disk on a fixed plate stops rolling). XPIC(5) (with 2) sank
+            1.1 cells into the deformable plate and left 91 particles inside the ring.
         contact_force: ``"c1"`` (the paper's f^{C,1}, eq. 33: only the second correction reaches
             the particles; exact for perfect interfaces, eq. 34) or ``"c0"`` (f^{C,0}: both
-            corrections do; FLIP only). Measured (``benchmarks.lr_variants``, quick): under FLIP
-            with c1 an approach velocity the particles bring into a lasting contact stays in
-            them: the slope box keeps 0.061 m/s into the slope after landing and slides at
-            0.95 m/s^2 against eq. 40's 0.50; on the quick rings 213 particles end up inside
-            the FEM ring (energy-loss error 4.2). c0, ``corrections=1`` and PIC remove it (slope
-            within 1 %, rings 0 / 0 / 7 particles inside); XPIC(5) only partly (0.15, 91). On
-            ``lr_compression`` (no landing) c1 is the best (0.13 % stress error, c0 1.5 %,
-            once 0.37 %). The ``LR_FIRST_CORRECTION`` note flags the c1 case in a run.
+            corrections do; FLIP only). With one correction the two are the same. The
+            ``LR_FIRST_CORRECTION`` note flags a run with two corrections and c1 under FLIP
+            whose first correction keeps removing more than the second.
         lump: ``"lumped"`` (eq. 50: each material against the lumped others, dp to it alone;
             not momentum-conserving) or ``"conservative"`` (bfemp's: -dp spread over the
             others by mass) at nodes with three or more materials.
@@ -165,7 +196,7 @@ class LROptions(ExplicitOptions):
     detector: str = "lr"
     cp_offset: float = 0.8
     corrections: int = field(
-        default=2, metadata={"sweep": {"finer": 1, "step": 1, "min": 1, "max": 2}}
+        default=1, metadata={"sweep": {"finer": 1, "step": 1, "min": 1, "max": 2}}
     )
     lump: str = "lumped"
     contact_force: str = "c1"
@@ -453,7 +484,7 @@ class LRStepper(ExplicitStepper):
         """``(M, G)`` bool: the fields whose whole grid mass at the node comes from scripted FEM
         nodes (None when no FEM node is scripted).
 
-        Why (issue 40, measured on the drop of ``tests/bfemp/test_lr.py``: a disk at 1.4 m/s on
+        Why (issue 40, measured on the drop of ``tests/bfemp/test_lr_drop.py``: a disk at 1.4 m/s on
         a fixed FEM plate): the plate's field holds only its boundary nodes' masses, so at the
         contact nodes the disk had 0.5-0.8 of the pair's mass. The centre-of-mass law (eqs.
         7-10) then took only m_b / (m_a + m_b) of the disk's approach velocity each step and

@@ -28,7 +28,7 @@ def test_lr_contact_time_quick_exact_for_lr_early_for_the_velocity_detector(tmp_
 
 
 def test_lr_ellipses_smoke_interpenetration(tmp_path):
-    """The quick box to 35 % (the quick record, to 50 %, has LR 0 against CP 402)."""
+    """The quick box to 35 % (the quick record, to 50 %, has LR 0 against CP 400)."""
     rec = lr_ellipses.run("smoke", tmp_path)
     lr, cp = rec["runs"]["lr"], rec["runs"]["cp_0.8"]
     assert rec["targets"]["lr_interpenetration_below_0.1pct"]
@@ -48,31 +48,24 @@ def test_lr_scenes_smoke_rings_keep_momentum(tmp_path):
     assert runs["lr_fem_material"]["contact_steps"] > 0
 
 
-def test_lr_variants_smoke_flip_c1_loses_friction_after_landing_c0_and_once_keep_it(
-    tmp_path, caplog
-):
-    """The slope box lands on the FEM slope and slides at mu = 0.1 (eq. 40). Under FLIP with
-    f^{C,1} (lr's default) the bottom row keeps its landing velocity into the slope (measured
-    -0.061 m/s against -0.003), the run is flagged, and the box slides at nearly the frictionless
-    rate (error 0.90); f^{C,0} and one correction give the particles the contact impulse and
-    the analytic rate (0.9 %). On the compressed column (no landing) f^{C,1} holds the paper's
-    1 % and is not flagged, and f^{C,0} is the worse one there (1.5 % against 0.13 %)."""
-    with caplog.at_level("WARNING", logger="bfemp.steppers.lr"):
-        rec = lr_variants.run("smoke", tmp_path)
+def test_lr_variants_smoke_every_update_holds_the_fixed_slope_and_c1_the_column(tmp_path):
+    """The slope box lands on the fixed FEM slope and slides at mu = 0.1 (eq. 40). The fixed
+    slope is rigid in lr's contact law (issue 40), so every update gives the analytic rate
+    (measured error 0.021 each; before, f^{C,1} kept the landing velocity, -0.061 m/s into the
+    slope, and slid at nearly the frictionless rate, 0.90) and none is flagged. On the
+    compressed column f^{C,1} and one correction (lr's default) hold the paper's 1 %, and
+    f^{C,0} is the worse one (1.5 % against 0.33 / 0.36 %). The landing f^{C,1} still loses
+    (a deformable plate) is ``tests/bfemp/test_lr_drop.py``'s."""
+    rec = lr_variants.run("smoke", tmp_path)
     slope, column = rec["slope"]["runs"], rec["compression"]["runs"]
-    c1 = slope["flip_c1"]
-    assert c1["bottom_row_normal_velocity_m_s"] < -0.03
-    assert c1["error"] > 0.5 and c1["accel_m_s2"] > 1.5 * c1["accel_analytic_m_s2"]
-    assert c1["settle"]["first_correction_windows"] + c1["slide"]["first_correction_windows"] > 0
-    assert c1["slide"]["first_over_second"] > 10.0
-    assert "the first correction removed" in caplog.text
-    for name in ("flip_c0", "once"):
+    for name in ("flip_c1", "flip_c0", "once"):
         run = slope[name]
         assert abs(run["bottom_row_normal_velocity_m_s"]) < 0.01, name
         assert run["error"] < 0.03, name
         assert run["settle"]["first_correction_windows"] == 0
         assert run["slide"]["first_correction_windows"] == 0
-    assert column["flip_c1"]["error_pct"] < lr_compression.TOL_LR
+    for name in ("flip_c1", "once"):
+        assert column[name]["error_pct"] < lr_compression.TOL_LR, name
     assert column["flip_c1"]["run"]["first_correction_windows"] == 0
     assert column["flip_c1"]["run"]["first_over_second"] < 0.1
     assert column["flip_c0"]["error_pct"] > 3.0 * column["flip_c1"]["error_pct"]

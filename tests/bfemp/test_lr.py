@@ -44,6 +44,7 @@ def _split_block(n_materials, *, seed=0, gravity=(0.0, -9.81), noise=0.1, spin=0
 
 
 def _run(n_materials, steps, transfer="flip", **options):
+    options.setdefault("corrections", 2)  # the paper's (eq. 34's limit), not lr's default
     scene, back = _split_block(n_materials)
     model = scene.build()
     stepper = LRStepper(model, dt=1e-3, transfer=transfer, options=LROptions(**options))
@@ -118,7 +119,7 @@ def test_perfect_interface_xpic2_differs_from_single_material_by_eq_47_or_48(var
     for n in (1, 2):
         scene, back = _split_block(n, gravity=(0.0, 0.0), noise=0.02, spin=2.0)
         model = scene.build()
-        opts = LROptions(interface="perfect", xpic_order=2, xpic_variant=variant)
+        opts = LROptions(interface="perfect", xpic_order=2, xpic_variant=variant, corrections=2)
         stepper = LRStepper(model, dt=1e-4, transfer="flip", options=opts)
         state = stepper.initialize(model.initial_state())
         new, _ = stepper.step(state)
@@ -379,7 +380,7 @@ def test_first_correction_note_needs_a_window_of_contact_steps_above_the_ratio(c
             notes += stepper._watch_first_correction(touching, ratio, 1.0, k)
         return notes
 
-    stepper = LRStepper(model, dt=1e-3)
+    stepper = LRStepper(model, dt=1e-3, options=LROptions(corrections=2))  # the paper's c1
     with caplog.at_level("WARNING", logger="bfemp.steppers.lr"):
         assert feed(stepper, 2.0 * FIRST_CORRECTION_RATIO, FIRST_CORRECTION_WINDOW - 1) == []
         assert feed(stepper, 0.0, 50, touching=False) == []  # steps without contact do not count
@@ -394,10 +395,10 @@ def test_first_correction_note_needs_a_window_of_contact_steps_above_the_ratio(c
         + 0.5 * FIRST_CORRECTION_RATIO * FIRST_CORRECTION_WINDOW
     )
     for options, transfer in (
-        ({"contact_force": "c0"}, "flip"),
-        ({"corrections": 1}, "flip"),
-        ({"xpic_order": 5}, "flip"),
-        ({}, "pic"),
+        ({"contact_force": "c0", "corrections": 2}, "flip"),
+        ({}, "flip"),  # one correction, the default
+        ({"xpic_order": 5, "corrections": 2}, "flip"),
+        ({"corrections": 2}, "pic"),
     ):
         quiet = LRStepper(model, dt=1e-3, transfer=transfer, options=LROptions(**options))
         assert feed(quiet, 10.0, 3 * FIRST_CORRECTION_WINDOW) == [], options
