@@ -178,7 +178,10 @@ def test_case_has_its_expected_outcome(rows, strategy, case):
         assert run["penetrations"] > 0 and strategy not in NO_CROSSING
         assert run["steps"] == run["steps_planned"]  # the run went on to the end
     if status == "INVERTED":
-        assert run["min_J"] <= 0.0 and strategy in EXPLICIT
+        # found in an accepted state by the benchmark's checks, or refused by the step itself
+        # (two_stage checks J > 0 after its step: the states it kept all have J > 0)
+        assert strategy in EXPLICIT
+        assert run["min_J"] <= 0.0 or run["outcome"].startswith("INVERTED at step")
     if status == "DRIFT":
         assert run["drift_m"] > extremes.DRIFT_TOL * row["dhat_m"] and strategy in EXPLICIT
     if status == "pass" and strategy in NO_CROSSING:
