@@ -222,17 +222,21 @@ STICKING_NOTES = {
     "paper_numbers": "TS (two-page lecture notes) gives no Newton iteration count, benchmark or "
     "static-friction figure; 'expect 1-3 iterations' was EXPLICIT_STRATEGIES.md 3.3's guess, "
     "not TS's, and is not a target here. Nothing is compared with a published figure.",
-    "setup": "Settled as two_stage_slope (frictionless, against the slope and the stop plane, "
-    "kappa_paper), then every particle velocity and affine velocity set to zero and released "
-    "without the plane: released from rest. mu = tan(theta) with a box released still moving "
-    "(two_stage_slope's records: 8.6e-4 m/s at release, 86 eps_v) is an ill-posed sticking "
-    "test (exact Coulomb friction then leaves that speed alone); mu = 1.05 and 1.5 tan(theta) "
-    "from rest are not. The box's elastic vibration after the plane goes (undamped under "
-    "symplectic Euler) still modulates the normal force.",
+    "setup": "release_from 'initial': the unstressed particle lattice at rest, d-hat above the "
+    "slope, friction on from the first step, no stop plane, no settling. release_from "
+    "'settled': settled as two_stage_slope (frictionless, against the slope and the stop "
+    "plane, kappa_paper), every particle velocity and affine velocity then set to zero, "
+    "released without the plane (the plane's removal releases the box's along-slope "
+    "compression: a kick). mu = tan(theta) with a box released still moving (two_stage_slope's "
+    "records: 8.6e-4 m/s at release, 86 eps_v) is an ill-posed sticking test (exact Coulomb "
+    "friction then leaves that speed alone); mu = 1.05 and 1.5 tan(theta) from rest are not. "
+    "The box's elastic vibration (undamped under symplectic Euler) modulates the normal force.",
     "sticking_criterion": "mean speed along the slope over [fit_start_s, end] (net displacement "
-    "/ time) below eps_v: the mollified friction reaches its Coulomb bound at slip speed eps_v, "
-    "so a sticking box creeps below it; the maximum speed is recorded too, and measures the "
-    "box's elastic vibration after the plane goes (undamped), not sliding",
+    "/ time) below eps_v: the mollified friction (BFEMP eq. 36) reaches its Coulomb bound at "
+    "slip speed eps_v, so a sticking box creeps below it, at eps_v (1 - sqrt(1 - tan(theta) / "
+    "mu)) for a rigid box (creep_speed_mollifier_m_s: 0.78 eps_v at 1.05 tan(theta), 0.42 "
+    "eps_v at 1.5); the maximum speed is recorded too, and measures the box's undamped elastic "
+    "vibration, not sliding",
     "newton_start": "start='auto' (the library default since issue 40, 6bb6211: Newton from x^n "
     "when friction has a contact within d-hat, where every lagged contact starts in the stick "
     "regime) is what a user gets and what the sticking cases use; start='free' (Newton from "
@@ -241,91 +245,94 @@ STICKING_NOTES = {
 }
 
 
+#: (Newton start, eps_v in m/s, mu / tan(theta)) of ``run_sticking``'s record
+#: (benchmarks/records/two_stage_slope_sticking.json), in the order run
+STICKING_PLAN = tuple(
+    (start, eps_v, f)
+    for start, eps_v in (
+        ("auto", 1e-5),
+        ("free", 1e-5),
+        ("auto", 1e-4),
+        ("auto", 1e-3),
+        ("free", 1e-3),
+    )
+    for f in (1.05, 1.5)
+)
+
+
 def run_sticking(
     out: str | Path = "results",
-    mu_factors: tuple[float, ...] = (1.05, 1.5),
-    eps_vs: tuple[float, ...] = (1e-5, 1e-4, 1e-3),
-    starts: tuple[str, ...] = ("auto", "free"),
+    plan: tuple[tuple[str, float, float], ...] = STICKING_PLAN,
+    release_from: str = "initial",
+    release_s: float = 0.1,
+    fit_start_s: float = 0.05,
     settle_s: float = 0.02,
-    release_s: float = 0.03,
-    fit_start_s: float = 0.01,
     name: str = "two_stage_slope_sticking",
-    plan: list[tuple[str, float, float]] | None = None,
     on_case: Callable[[dict], None] | None = None,
-    release_from: str = "settled",
+    cases: list[dict] | None = None,
 ) -> dict:
-    """Sticking at mu = f tan(theta) for f in ``mu_factors``, released from rest, and Newton
-    iterations per step against eps_v (m/s) for each Newton start; writes ``name``.json/.png.
+    """Sticking at mu = f tan(theta), released from rest, and Newton iterations per step
+    against eps_v (m/s), for each (Newton start, eps_v, f) of ``plan``; writes
+    ``name``.json/.png.
 
-    Settled once (frictionless, ``kappa_paper``; eps_v plays no part there), the velocities
-    zeroed (``STICKING_NOTES``), then released for ``release_s`` s at each (start, eps_v, mu).
-    ``plan`` (start, eps_v, mu factor) triples replace the full product of the three; ``on_case``
-    is called with each finished case. ``release_from``: ``"settled"`` (the settled box, its
-    velocities zeroed; removing the plane releases its along-slope compression) or
-    ``"initial"`` (no settling: the unstressed lattice at rest at its initial gap d-hat above
-    the slope, friction on from the first step). Per case: Newton iterations per step, the mean
-    speed along the slope over [``fit_start_s``, end] (net displacement / time, m/s: the box's
-    elastic vibration after the plane goes moves its centre back and forth at well above
-    eps_v, so the maximum speed measures the vibration, not sliding) and its ratio to eps_v,
-    the maximum speed, the displacement over the release (m), the fitted acceleration."""
+    ``release_from``: ``"initial"`` (no settling: the unstressed lattice at rest at its
+    initial gap d-hat above the slope, friction on from the first step) or ``"settled"``
+    (settled for ``settle_s`` s as ``two_stage_slope``, frictionless against the slope and the
+    stop plane, ``kappa_paper``; the velocities then zeroed; removing the plane releases the
+    box's along-slope compression). Each case runs ``release_s`` s; ``on_case`` is called
+    with each finished case. Per case: Newton iterations per step, the mean speed along the
+    slope over [``fit_start_s``, end] (net displacement / time, m/s: the box's undamped elastic
+    vibration moves its centre back and forth at well above eps_v, so the maximum speed
+    measures the vibration, not sliding) and its ratio to eps_v, the maximum speed, the
+    displacement over the release (m), the fitted acceleration (m/s^2) over [``fit_start_s``,
+    end], and the steady creep speed of the friction mollifier (``_sticking_metrics``).
+    ``cases`` (``on_case`` results saved by a long driver, with their series) are recorded,
+    their metrics recomputed at ``fit_start_s``, instead of running ``plan``."""
+    if release_from not in ("settled", "initial"):
+        raise ValueError(f"release_from must be 'settled' or 'initial', got {release_from!r}")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
     base = {**PHYSICS, "kappa_Pa": KAPPAS["kappa_paper"]}
-    if release_from == "settled":
+    ran = cases is None
+    if not ran:  # the saved cases' settling is not in them
+        settle = {"steps": 0} if release_from == "initial" else {"steps": None}
+    elif release_from == "settled":
         settled, settle = slope._settle("tilted_gravity", round(settle_s / DT), base)
         settle["com_speed_before_zeroing_m_s"] = settle.pop("com_speed_at_release_m_s")
         rest = settled.copy()
         rest.mpm_v[:] = 0.0
         rest.mpm_C[:] = 0.0
-    elif release_from == "initial":
+    else:  # "initial"
         scene = slope._scene("tilted_gravity", 0.0, with_stop=False, p=base)
         rest, settle = slope._simulation(scene, base).state.copy(), {"steps": 0}
-    else:
-        raise ValueError(f"release_from must be 'settled' or 'initial', got {release_from!r}")
-    cases = []
-    if plan is None:
-        plan = [(st, e, f) for st in starts for e in eps_vs for f in mu_factors]
-    for start, eps_v, f in plan:
+    cases = [] if cases is None else [dict(c) for c in cases]
+    for start, eps_v, f in plan if ran else ():
         p = {**base, "eps_v_m_s": eps_v, "options": TwoStageOptions(tol=1e-6, start=start)}
         mu = f * PHYSICS["tan_theta"]
         case = slope._release("tilted_gravity", mu, rest, round(release_s / DT), fit_start_s, p)
-        tau = np.array(case["series"]["tau_s"])
-        v = np.array(case["series"]["speed_along_m_s"])
-        after = np.abs(v[tau >= fit_start_s])
-        s_t = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(tau))])
-        disp = float(s_t[-1])
-        i0 = int(np.searchsorted(tau, fit_start_s - 1e-12))
-        mean_v = float((s_t[-1] - s_t[i0]) / (tau[-1] - tau[i0])) if i0 < tau.size - 1 else None
-        case.update(
-            start=start,
-            eps_v=eps_v,
-            mu_over_tan_theta=f,
-            newton_per_step=case["newton_iterations"] / max(case["steps"], 1),
-            max_speed_after_fit_start=float(after.max()) if after.size else None,
-            max_speed_over_eps_v=float(after.max() / eps_v) if after.size else None,
-            displacement_m=disp,
-            mean_speed_after_fit_start=mean_v,
-            mean_speed_over_eps_v=None if mean_v is None else abs(mean_v) / eps_v,
-            sticks=bool(case["error"] is None and mean_v is not None and abs(mean_v) < eps_v),
-        )
+        case.update(start=start, eps_v=eps_v, mu_over_tan_theta=f)
+        _sticking_metrics(case, fit_start_s)
         log.info(
-            "%s start=%s eps_v=%g mu=%.3g: %.2f Newton/step, max speed %.3g m/s "
-            "(%.3g eps_v), mean %s m/s, slide %.3g m, %.1f s",
+            "%s start=%s eps_v=%g mu=%.3g: %.2f Newton/step, mean speed %s m/s after %g s "
+            "(mollifier creep %.3g), max %.3g m/s, slide %.3g m, %.1f s",
             name,
             start,
             eps_v,
             mu,
             case["newton_per_step"],
+            case["mean_speed_after_fit_start"],
+            fit_start_s,
+            case["creep_speed_mollifier_m_s"],
             case["max_speed_after_fit_start"],
-            case["max_speed_over_eps_v"],
-            mean_v,
-            disp,
+            case["displacement_m"],
             case["wall_s"],
         )
         cases.append(case)
         if on_case is not None:
             on_case(case)
+    for case in cases if not ran else ():
+        _sticking_metrics(case, fit_start_s)
     payload = {
         "benchmark": name,
         "settle": settle,
@@ -336,14 +343,12 @@ def run_sticking(
             "kappa_Pa": KAPPAS["kappa_paper"],
             "options": {"friction": "once", "tol_m_s": 1e-6},
             "plan_start_eps_v_mu_factor": [list(x) for x in plan],
-            "eps_vs_m_s": list(eps_vs),
-            "mu_factors": list(mu_factors),
             "release_from": release_from,
             "settle_s": settle_s if release_from == "settled" else 0.0,
             "release_s": release_s,
             "fit_start_s": fit_start_s,
         },
-        "wall_s": time.perf_counter() - started,
+        "wall_s": time.perf_counter() - started if ran else sum(c["wall_s"] for c in cases),
         "peak_memory_mb": peak_memory_mb(),
         "environment": environment(),
         "series": {
@@ -354,6 +359,38 @@ def run_sticking(
     png = out / f"{name}.png"
     _plot_sticking(cases, png)
     return {"json": str(path), "png": str(png), **payload}
+
+
+def _sticking_metrics(case: dict, fit_start_s: float) -> None:
+    """Adds the sticking metrics of a released case (``slope._release`` with ``start``,
+    ``eps_v`` and ``mu_over_tan_theta`` set) at ``fit_start_s`` s after release, in place.
+
+    ``creep_speed_mollifier_m_s``: the speed at which the mollified friction of BFEMP eq. 36
+    (f1(y) = 2 y / eps - y^2 / eps^2 for y < eps = eps_v dt, 1 beyond) balances gravity on a
+    rigid box, f1 = tan(theta) / mu: v = eps_v (1 - sqrt(1 - tan(theta) / mu)). A box that
+    sticks as well as the smoothed friction allows creeps at this speed."""
+    eps_v, f = case["eps_v"], case["mu_over_tan_theta"]
+    tau = np.array(case["series"]["tau_s"])
+    v = np.array(case["series"]["speed_along_m_s"])
+    after = np.abs(v[tau >= fit_start_s - 1e-12])
+    s_t = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(tau))])
+    i0 = int(np.searchsorted(tau, fit_start_s - 1e-12))
+    mean_v = float((s_t[-1] - s_t[i0]) / (tau[-1] - tau[i0])) if i0 < tau.size - 1 else None
+    fit = slope._fit_acceleration(tau, s_t, fit_start_s)
+    creep = eps_v * (1.0 - np.sqrt(1.0 - 1.0 / f)) if f > 1.0 else None
+    case.update(
+        fit_start_s=fit_start_s,
+        accel=fit["accel"],
+        fit_window_s=fit["fit_window_s"],
+        newton_per_step=case["newton_iterations"] / max(case["steps"], 1),
+        max_speed_after_fit_start=float(after.max()) if after.size else None,
+        max_speed_over_eps_v=float(after.max() / eps_v) if after.size else None,
+        displacement_m=float(s_t[-1]),
+        mean_speed_after_fit_start=mean_v,
+        mean_speed_over_eps_v=None if mean_v is None else abs(mean_v) / eps_v,
+        creep_speed_mollifier_m_s=None if creep is None else float(creep),
+        sticks=bool(case["error"] is None and mean_v is not None and abs(mean_v) < eps_v),
+    )
 
 
 def _plot_sticking(cases: list[dict], path: Path) -> None:
