@@ -188,9 +188,9 @@ def _plot(runs: list[dict], path: Path) -> None:
         lab = f"{r['transfer']} N={r['iterations']} h={r['h']:g}"
         ls = "-" if r["h"] == runs[-1]["h"] else ":"
         s = r["series"]
-        axes[0].semilogy(s["t"], np.maximum(s["L_drift"], 1e-17), ls, color=f"C{k % 4}", label=lab)
-        axes[1].semilogy(s["t"], np.maximum(s["P_drift"], 1e-17), ls, color=f"C{k % 4}")
-        axes[2].plot(s["t"], np.array(s["E"]) / r["E0"], ls, color=f"C{k % 4}")
+        axes[0].semilogy(s["t"], np.maximum(s["L_drift"], 1e-17), ls, color=f"C{k % 10}", label=lab)
+        axes[1].semilogy(s["t"], np.maximum(s["P_drift"], 1e-17), ls, color=f"C{k % 10}")
+        axes[2].plot(s["t"], np.array(s["E"]) / r["E0"], ls, color=f"C{k % 10}")
     axes[0].set(xlabel="t (s)", ylabel="|L - L0| / |L0|", title="angular momentum (Fig. 8)")
     axes[1].set(xlabel="t (s)", ylabel="|P - P0| / |P0|", title="linear momentum")
     axes[2].set(xlabel="t (s)", ylabel="E / E0", title="energy (KE + strain), Fig. 9")

@@ -386,45 +386,53 @@ CONFORMING_NOTES = {
 }
 
 
+#: (placement, h in m, mu, transfer) of ``run_conforming``'s record (benchmarks/records/
+#: augury_ramp_conforming.json), in its order: conforming APIC and PIC at mu = 0, APIC at the
+#: sticking control 0.7 and at 0.2; the spec placement (APIC, mu = 0) beside it; h = 1/8 last
+#: (APIC mu = 0 and 0.7, PIC mu = 0)
+RECORD_PLAN = (
+    *(("conforming", h, 0.0, t) for t in ("apic", "pic") for h in (1.0, 0.5, 1.0 / 3.0, 0.25)),
+    *(("conforming", h, MU_STICK, "apic") for h in (1.0, 0.5, 1.0 / 3.0, 0.25)),
+    *(("spec", h, 0.0, "apic") for h in (1.0, 0.5, 1.0 / 3.0, 0.25)),
+    *(("conforming", h, 0.2, "apic") for h in (1.0, 0.5, 1.0 / 3.0, 0.25)),
+    ("conforming", 0.125, 0.0, "apic"),
+    ("conforming", 0.125, MU_STICK, "apic"),
+    ("conforming", 0.125, 0.0, "pic"),
+)
+
+
 def run_conforming(
     out: str | Path = "results",
-    hs: tuple[float, ...] = (1.0, 0.5, 0.25),
-    mus: tuple[float, ...] = (0.0,),
-    transfers: tuple[str, ...] = ("apic", "pic"),
+    plan: tuple[tuple[str, float, float, str], ...] = RECORD_PLAN,
     t_end: float = 0.1,
-    spec_hs: tuple[float, ...] = (),
     not_run: dict | None = None,
     name: str = "augury_ramp_conforming",
     cases: list[dict] | None = None,
 ) -> dict:
-    """The paper's settings (N = 1, averaged normals) with ``placement="conforming"`` at every
-    h of ``hs`` (and ``"spec"`` at ``spec_hs`` for comparison in the same run); writes
-    ``name``.json and .png. ``not_run`` lists the cases left out with their estimated cost;
-    ``cases`` (``run_case`` results, e.g. saved one by one by a long driver) are recorded
-    instead of running them."""
+    """The paper's settings (N = 1, averaged normals) for each (placement, h, mu, transfer) of
+    ``plan`` to ``t_end`` s; writes ``name``.json and .png. ``not_run`` lists the cases left
+    out with their estimated cost; ``cases`` (``run_case`` results, e.g. saved one by one by a
+    long driver) are recorded instead of running them."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
     ran = cases is None
     cases = [] if cases is None else list(cases)
-    for placement, hh in (("conforming", hs), ("spec", spec_hs)) if ran else ():
-        for h in hh:
-            for mu in mus:
-                for transfer in transfers:
-                    c = run_case(h, mu, transfer, t_end, placement=placement)
-                    log.info(
-                        "%s %s h=%g mu=%g %s: s %.5g (exact %.5g), error %s, %.1f s",
-                        name,
-                        placement,
-                        h,
-                        mu,
-                        transfer,
-                        c["s_end"],
-                        c["s_analytic"],
-                        c["rel_error"],
-                        c["wall_s"],
-                    )
-                    cases.append(c)
+    for placement, h, mu, transfer in plan if ran else ():
+        c = run_case(h, mu, transfer, t_end, placement=placement)
+        log.info(
+            "%s %s h=%g mu=%g %s: s %.5g (exact %.5g), error %s, %.1f s",
+            name,
+            placement,
+            h,
+            mu,
+            transfer,
+            c["s_end"],
+            c["s_analytic"],
+            c["rel_error"],
+            c["wall_s"],
+        )
+        cases.append(c)
     for c in cases:  # AUDIT_EXPLICIT.md's figure: s / s_exact at 0.05 s (the block stops after)
         exact = analytic_s(c["mu"], 0.05)
         c["s_over_exact_at_0.05s"] = (
@@ -432,20 +440,26 @@ def run_conforming(
             if exact > 0 and c["t"][-1] >= 0.05
             else None
         )
-    conf = {(c["h"], c["mu"], c["transfer"]): c for c in cases if c["placement"] == "conforming"}
-    observations = {
-        "apic_error_falls_with_h_conforming": {
-            str(mu): bool(
+    observations = {}
+    for placement, mu, transfer in sorted(
+        {(c["placement"], c["mu"], c["transfer"]) for c in cases}
+    ):
+        rows = sorted(
+            (
+                c
+                for c in cases
+                if (c["placement"], c["mu"], c["transfer"]) == (placement, mu, transfer)
+                and c["rel_error"] is not None
+            ),
+            key=lambda c: -c["h"],
+        )
+        if len(rows) > 1:  # an observation, not a target (CONFORMING_NOTES)
+            observations[f"error_falls_with_h {placement} {transfer} mu={mu:g}"] = bool(
                 all(
-                    conf[(hs[i + 1], mu, "apic")]["rel_error"]
-                    < conf[(hs[i], mu, "apic")]["rel_error"]
-                    for i in range(len(hs) - 1)
+                    b["rel_error"] < a["rel_error"]
+                    for a, b in zip(rows[:-1], rows[1:], strict=True)
                 )
             )
-            for mu in mus
-            if mu < np.tan(THETA) and "apic" in transfers
-        },
-    }
     payload = {
         "benchmark": name,
         "cases": cases,
@@ -456,9 +470,9 @@ def run_conforming(
             **MATERIAL,
             "theta_deg": 30.0,
             "g": G,
-            "hs": list(hs),
-            "spec_hs": list(spec_hs),
-            "mus": list(mus),
+            "plan_placement_h_mu_transfer": [
+                [c["placement"], c["h"], c["mu"], c["transfer"]] for c in cases
+            ],
             "t_end": t_end,
             "dt": "2.5e-5 h",
             "tau": "dt",
