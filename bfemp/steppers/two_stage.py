@@ -83,8 +83,9 @@ Choices (not in the notes):
 
 Measured (``benchmarks/records/two_stage_*.json``; 2 shared cores; Newton from x*, before issue
 40): Newton takes 4-6 iterations per contact step on a block landing on a plate, 8.1 on the
-coarse rings and 5-17 at static friction (EXPLICIT_STRATEGIES.md expected 1-3: the contact
-blocks are stiff against the mass-only rest of the Hessian); rings quick: momentum drift
+coarse rings and 5-17 at static friction (EXPLICIT_STRATEGIES.md's guess of 1-3 is no target:
+TS states no count; the stick stiffness mu N / (eps_v dt) sets it: per step against eps_v and
+start in ``benchmarks/records/two_stage_slope_sticking.md``); rings quick: momentum drift
 2.3e-14, closest distance 8.8e-3 m; a block at rest on a plate sits 0.999e-3 m above it (dhat =
 1e-3 m). The stationarity residual is below 3e-6 (relative) at the Newton tolerance 1e-6 m/s.
 Near mu = tan(theta) the soft box of ``two_stage_slope`` creeps at 2-4 % of g sin(theta): its

@@ -42,3 +42,15 @@ def test_initial_grid_damping_falls_with_h(data):
     assert all(data["targets"]["initial_energy_loss_falls_with_h"].values())
     for run in data["runs"]:
         assert 0.0 < run["initial_energy_loss"] < run["energy_loss"] < 1.0
+
+
+def test_separation_bookkeeping_while_the_blocks_share_nodes():
+    # h = 1, 5 ms: the blocks start inside each other's stencils (gap 0.37 m < grid_dx 2 m)
+    # and share contact nodes at every step, so no separation time is recorded
+    run = augury_blocks.run_variant(1.0, "apic", 1, t_end=0.005)
+    assert run["steps"] == 50 and run["t_end"] == pytest.approx(0.005)
+    assert run["contact_steps"] == run["steps"]
+    assert run["last_contact_t"] == pytest.approx(0.005)
+    assert run["separation_t"] is None
+    assert run["E_ratio_end"] == pytest.approx(1.0 - run["energy_loss"])
+    assert 0.0 < run["E_ratio_end"] < 1.0

@@ -40,3 +40,16 @@ def test_analytic_displacement():
         0.5 * 100 * (0.5 - 0.2 * 0.866025), rel=1e-5
     )
     assert augury_ramp.analytic_s(0.7, 1.0) == 0.0
+
+
+def test_conforming_placement_puts_block_nodes_on_ramp_nodes():
+    # issue 40: "spec" (the old records) has the block's bottom nodes h/2 off the ramp's along
+    # s and w (distance h/2 sqrt 2 at h = 1 and 0.5) and on them at h = 0.25; "conforming" has
+    # them on the ramp's at every h that divides 1 m
+    for h in (1.0, 0.5, 1.0 / 3.0, 0.25):
+        assert augury_ramp.node_offset(h, "conforming") < 1e-12
+    for h in (1.0, 0.5):
+        assert augury_ramp.node_offset(h, "spec") == pytest.approx(0.25 * 2**0.5)
+    assert augury_ramp.node_offset(0.25, "spec") < 1e-12
+    with pytest.raises(ValueError, match="placement must be one of"):
+        augury_ramp.ramp_scene(1.0, "centred")

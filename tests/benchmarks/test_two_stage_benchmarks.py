@@ -2,6 +2,8 @@
 
 import json
 
+import pytest
+
 from benchmarks import two_stage_gap, two_stage_rings, two_stage_slope
 
 
@@ -37,3 +39,43 @@ def test_two_stage_slope_quick_slides_at_the_analytic_acceleration(tmp_path_fact
     assert frictionless["accel_rel_error"] < two_stage_slope.TARGET_REL["quick"]
     assert data["targets"]["accel_met"]
     assert data["stable_dt_s"] >= two_stage_slope.DT
+
+
+def _creeping_case(speed_after, f, eps_v=1e-5):
+    """A released case whose box moves at 1e-3 m/s for 0.05 s, then at ``speed_after`` m/s."""
+    tau = [k * 1e-3 for k in range(101)]
+    v = [1e-3 if t < 0.05 - 1e-12 else speed_after for t in tau]
+    return {
+        "start": "auto",
+        "eps_v": eps_v,
+        "mu_over_tan_theta": f,
+        "newton_iterations": 300,
+        "steps": 100,
+        "error": None,
+        "series": {"tau_s": tau, "speed_along_m_s": v},
+    }
+
+
+def test_sticking_metrics_judge_the_creep_after_the_window_start():
+    # the mollifier of BFEMP eq. 36 holds a rigid box where f1 = tan(theta) / mu:
+    # v = eps_v (1 - sqrt(1 - 1 / f)), 0.4226 eps_v at f = 1.5, 0.7818 eps_v at f = 1.05
+    stuck = _creeping_case(4e-6, 1.5)
+    two_stage_slope._sticking_metrics(stuck, 0.05)
+    assert stuck["creep_speed_mollifier_m_s"] == pytest.approx(4.226e-6, rel=1e-3)
+    assert stuck["mean_speed_after_fit_start"] == pytest.approx(4e-6, rel=1e-9)
+    assert stuck["max_speed_after_fit_start"] == pytest.approx(4e-6)  # the kick is before 0.05 s
+    assert stuck["sticks"] and stuck["newton_per_step"] == 3.0
+    assert abs(stuck["accel"]) < 1e-9
+    sliding = _creeping_case(2e-5, 1.05)  # twice eps_v: not held
+    two_stage_slope._sticking_metrics(sliding, 0.05)
+    assert sliding["creep_speed_mollifier_m_s"] == pytest.approx(7.818e-6, rel=1e-3)
+    assert not sliding["sticks"]
+    # the window matters: from t = 0 the kick makes the same stuck box "slide"
+    early = _creeping_case(4e-6, 1.5)
+    two_stage_slope._sticking_metrics(early, 0.0)
+    assert not early["sticks"]
+
+
+def test_sticking_refuses_an_unknown_release():
+    with pytest.raises(ValueError, match="release_from must be 'settled' or 'initial'"):
+        two_stage_slope.run_sticking("unused", release_from="moving")
