@@ -1,0 +1,333 @@
+"""CCD against an exact rational oracle (and ipctk when installed): adversarial families (issue 44).
+
+Families (seeded, ``FAMILIES``), each for the three pair kinds (2D point-edge, 3D point-triangle
+and edge-edge); the relative motion of the two sides is a translation (every vertex of a side
+moves alike), which the exact oracle needs:
+
+- ``gap_through``: the point (edge b) starts ``g = 10^U(-18, -12)`` x the pair's size from the
+  feature, on either side, and moves through it; ``gap_away``: the same moving away;
+- ``far``: as ``gap_through`` with the pair ``10^U(2, 7)`` m from the origin, gaps relative to
+  ``|x|`` (so the starting gap is at or below the rounding of the coordinates);
+- ``coplanar``: the point on the segment's line (in the triangle's plane, both edges in one plane),
+  coordinates in an axis plane so that this holds exactly, moving in the line / plane, often
+  starting inside the feature;
+- ``grazing``: passing a vertex at ``10^U(-18, -8)`` x size on a random side, or through it;
+- ``sliding``: moving parallel to the feature at a fixed gap ``10^U(-12, -3)`` m (never touching).
+
+The oracle (:func:`exact_toi`) is exact: in rationals (``fractions.Fraction`` of the float inputs),
+contact at ``t`` means ``t v`` lies in the Minkowski difference ``hull(A) - hull(B)`` (``v`` the
+relative velocity of B), so the earliest contact is the linear program ``min t`` subject to ``t v =
+sum_k lam_k (a_i - b_j)_k``, ``sum lam = 1``, ``t, lam >= 0``, solved by enumerating its basic
+solutions. A CCD result is a *false negative* when it is later than the exact first contact, or
+positive where the pair touches at ``t = 0``.
+
+Recorded per family and kind: cases, exact contacts, false negatives of bfemp (and ipctk), toi
+statistics on no-contact cases (fraction returning ``t_max``), ACCD iterations (max, median) and
+microseconds per query (one call of the public function on the family's pairs, its overhead
+included: a few hundred microseconds per call on the 2-core machine). ipctk (optional ``bench``
+extra: ``pip install .[bench]``) is the second oracle: its Tight-Inclusion CCD,
+``conservative_rescaling = 1``; without it its columns are ``None``.
+"""
+
+from __future__ import annotations
+
+import time
+from fractions import Fraction
+from itertools import combinations
+from pathlib import Path
+
+import numpy as np
+
+from benchmarks.common import environment, write_json
+from geometry import ccd
+from geometry._ccd_kernels import _accd
+from geometry._distance_kernels import KIND_EE, KIND_PE, KIND_PT
+
+try:  # pragma: no cover - exercised where ipctk is installed
+    import ipctk
+except ImportError:  # pragma: no cover - exercised where ipctk is absent
+    ipctk = None
+
+KINDS = ("point_edge", "point_triangle", "edge_edge")
+N_SIDE_A = {"point_edge": 1, "point_triangle": 1, "edge_edge": 2}
+_KIND_CODE = {"point_edge": KIND_PE, "point_triangle": KIND_PT, "edge_edge": KIND_EE}
+FAMILIES = ("gap_through", "gap_away", "far", "coplanar", "grazing", "sliding")
+CASES = {"quick": 60, "full": 400}
+
+
+# --------------------------------------------------------------------------- exact oracle
+def _solve_exact(cols: list[list[Fraction]], rhs: list[Fraction]) -> list[Fraction] | None:
+    """The unique solution x of sum_j x_j cols[j] = rhs, or None when the columns are dependent
+    or the system is inconsistent (Gaussian elimination in rationals)."""
+    n_rows, n_cols = len(rhs), len(cols)
+    M = [[cols[j][i] for j in range(n_cols)] + [rhs[i]] for i in range(n_rows)]
+    row = 0
+    pivots = []
+    for j in range(n_cols):
+        pivot = next((i for i in range(row, n_rows) if M[i][j] != 0), None)
+        if pivot is None:
+            return None  # dependent columns: not a basis
+        M[row], M[pivot] = M[pivot], M[row]
+        for i in range(n_rows):
+            if i != row and M[i][j] != 0:
+                f = M[i][j] / M[row][j]
+                M[i] = [a - f * b for a, b in zip(M[i], M[row], strict=True)]
+        pivots.append(row)
+        row += 1
+    if any(M[i][n_cols] != 0 for i in range(row, n_rows)):
+        return None  # inconsistent
+    return [M[r][n_cols] / M[r][j] for j, r in enumerate(pivots)]
+
+
+def exact_toi(kind: str, X: np.ndarray, dX: np.ndarray, t_max: float = 1.0) -> Fraction | None:
+    """Exact first contact time (a Fraction in [0, t_max]) of one pair, or None if none.
+
+    ``X``, ``dX`` (nv, dim) float, the pair's vertices in argument order of ``geometry.ccd`` and
+    their displacements (m); the trajectories are ``X + t dX`` in exact arithmetic. The vertices of
+    each side must move alike (relative translation), else ValueError.
+    """
+    n_a = N_SIDE_A[kind]
+    P = [[Fraction(float(c)) for c in row] for row in np.asarray(X)]
+    V = [[Fraction(float(c)) for c in row] for row in np.asarray(dX)]
+    if any(V[k] != V[0] for k in range(n_a)) or any(V[k] != V[n_a] for k in range(n_a, len(V))):
+        raise ValueError(f"exact_toi needs each side to translate rigidly, got dX={dX.tolist()}")
+    dim = len(P[0])
+    v = [V[n_a][c] - V[0][c] for c in range(dim)]
+    diffs = [
+        [P[i][c] - P[j][c] for c in range(dim)] for i in range(n_a) for j in range(n_a, len(P))
+    ]
+    # columns: t -> (v, 0); lam_k -> (-p_k, 1); rhs (0, ..., 0, 1)
+    columns = [v + [Fraction(0)]] + [[-c for c in p] + [Fraction(1)] for p in diffs]
+    rhs = [Fraction(0)] * dim + [Fraction(1)]
+    best = None
+    for size in range(1, min(len(columns), dim + 1) + 1):
+        for basis in combinations(range(len(columns)), size):
+            x = _solve_exact([columns[j] for j in basis], rhs)
+            if x is None or any(val < 0 for val in x):
+                continue
+            t = x[0] if basis[0] == 0 else Fraction(0)
+            best = t if best is None else min(best, t)
+    if best is None or best > Fraction(float(t_max)):
+        return None
+    return best
+
+
+def false_negative(toi: float, t_exact: Fraction | None) -> bool:
+    """A CCD result later than the exact first contact, or positive where it touches at 0."""
+    if t_exact is None:
+        return False
+    return not (Fraction(float(toi)) < t_exact or toi == 0.0)
+
+
+# --------------------------------------------------------------------------- families
+def _normalised(x: np.ndarray) -> np.ndarray:
+    return x / np.linalg.norm(x, axis=1, keepdims=True)
+
+
+def _unit(rng: np.random.Generator, n: int, dim: int) -> np.ndarray:
+    u = rng.standard_normal((n, dim))
+    return u / np.linalg.norm(u, axis=1, keepdims=True)
+
+
+def _feature(rng, kind: str, n: int):
+    """Side B (edge a for edge-edge) of random size ~1, a point c on it and the unit normal
+    there: (B (n, k, dim), c (n, dim), normal (n, dim), tangent (n, dim))."""
+    if kind == "point_edge":
+        e0 = rng.uniform(-1, 1, (n, 2))
+        t = _unit(rng, n, 2)
+        e1 = e0 + rng.uniform(0.3, 2.0, (n, 1)) * t
+        s = rng.uniform(0.05, 0.95, (n, 1))
+        c = e0 + s * (e1 - e0)
+        normal = np.stack([-t[:, 1], t[:, 0]], axis=1)
+        return np.stack([e0, e1], 1), c, normal, t
+    t0 = rng.uniform(-1, 1, (n, 3))
+    u = rng.uniform(-1, 1, (n, 3))
+    w = rng.uniform(-1, 1, (n, 3))
+    if kind == "point_triangle":
+        t1, t2 = t0 + u, t0 + w
+        b = rng.dirichlet([1, 1, 1], n)
+        c = b[:, :1] * t0 + b[:, 1:2] * t1 + b[:, 2:] * t2
+        normal = np.cross(u, w)
+        normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+        return np.stack([t0, t1, t2], 1), c, normal, u / np.linalg.norm(u, axis=1, keepdims=True)
+    s = rng.uniform(0.05, 0.95, (n, 1))
+    c = t0 + s * u
+    normal = np.cross(u, w)
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    return np.stack([t0, t0 + u], 1), c, normal, u / np.linalg.norm(u, axis=1, keepdims=True)
+
+
+def _assemble(
+    rng: np.random.Generator, kind: str, B: np.ndarray, q: np.ndarray, w: np.ndarray | None
+) -> np.ndarray:
+    """The pair (n, nv, dim) in argument order: point q against B, or edge b through q along w
+    (random position of q on it) against edge a = B."""
+    if kind != "edge_edge":
+        return np.concatenate([q[:, None], B], axis=1)
+    r = rng.uniform(0.1, 0.9, (len(q), 1))
+    b0, b1 = q - r * w, q + (1 - r) * w
+    return np.stack([B[:, 0], B[:, 1], b0, b1], axis=1)
+
+
+def _motion(rng, kind: str, X: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Displacements (n, nv, dim) with relative translation v of side B... of the moving side:
+    the point / edge b moves by v, or the feature by -v, or both by halves plus a common drift."""
+    n, nv, dim = X.shape
+    n_a = N_SIDE_A[kind]
+    dX = np.zeros_like(X)
+    # the first side is the point (edge a for edge-edge: the feature, so flip)
+    mover = slice(0, n_a) if kind != "edge_edge" else slice(n_a, nv)
+    other = slice(n_a, nv) if kind != "edge_edge" else slice(0, n_a)
+    which = rng.integers(0, 3, n)
+    drift = rng.standard_normal((n, 1, dim)) * (which == 2)[:, None, None]
+    dX[:, mover] = np.where((which != 1)[:, None, None], v[:, None], 0.0)
+    dX[:, other] = np.where((which == 1)[:, None, None], -v[:, None], 0.0)
+    return dX + drift
+
+
+def family(name: str, kind: str, n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Pairs ``X, dX`` (n, nv, dim) of one adversarial family (module docstring)."""
+    rng = np.random.default_rng([seed, FAMILIES.index(name), KINDS.index(kind)])
+    dim = 2 if kind == "point_edge" else 3
+    if name == "coplanar":
+        return _coplanar(rng, kind, n)
+    B, c, normal, tangent = _feature(rng, kind, n)
+    side = rng.choice([-1.0, 1.0], (n, 1))
+    w = _unit(rng, n, dim) if kind == "edge_edge" else None
+    if kind == "edge_edge":  # edge b crosses edge a's line: direction not parallel to a
+        w = np.cross(normal, tangent) * rng.uniform(0.5, 2, (n, 1)) + 0.5 * w
+        w -= np.einsum("ij,ij->i", w, normal)[:, None] * normal  # in the common plane
+    offset = np.zeros((n, 1, dim))
+    if name == "far":
+        offset = 10.0 ** rng.uniform(2, 7, (n, 1, 1)) * _unit(rng, n, dim)[:, None]
+    scale = 1.0 if name != "far" else np.abs(offset).max(axis=(1, 2))[:, None]
+    if name in ("gap_through", "gap_away", "far"):
+        g = 10.0 ** rng.uniform(-18, -12, (n, 1)) * scale
+        q = c + side * g * normal
+        speed = rng.uniform(0.1, 2.0, (n, 1))
+        lateral = 0.3 * rng.standard_normal((n, 1)) * tangent
+        sign = 1.0 if name == "gap_away" else -1.0
+        v = sign * side * speed * normal + lateral
+    elif name == "grazing":  # crossing the feature's line / plane just beyond or at a vertex
+        vert = B[:, 0]
+        outward = -tangent if kind != "point_triangle" else -(tangent + _normalised(B[:, 2] - vert))
+        outward = _normalised(outward)
+        g = np.where(rng.random((n, 1)) < 0.2, 0.0, 10.0 ** rng.uniform(-18, -8, (n, 1)))
+        v = rng.uniform(0.5, 2.0, (n, 1)) * normal + 0.1 * rng.standard_normal((n, 1)) * tangent
+        q = vert + side * g * outward - 0.5 * v  # at the vertex's line / plane at t ~ 0.5
+        if kind == "edge_edge":
+            w = np.cross(normal, tangent) * rng.uniform(0.5, 2, (n, 1))
+    else:  # sliding: a fixed absolute gap, motion along the feature
+        g = 10.0 ** rng.uniform(-12, -3, (n, 1))
+        q = c + g * side * normal
+        v = rng.uniform(0.2, 2.0, (n, 1)) * tangent
+        if kind == "edge_edge":
+            w = tangent * rng.uniform(0.3, 1.0, (n, 1))  # parallel edges
+    X = _assemble(rng, kind, B, q, w) + offset
+    return X, _motion(rng, kind, X, v)
+
+
+def _coplanar(rng, kind: str, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Pairs in one axis line / plane (exactly), moving in it; offsets up to 1e6 m."""
+    dim = 2 if kind == "point_edge" else 3
+    off = 10.0 ** rng.uniform(-1, 6, (n, 1, 1)) * rng.choice([-1.0, 1.0], (n, 1, dim))
+    if kind == "point_edge":
+        xs = rng.uniform(-1, 1, (n, 3))
+        X = np.zeros((n, 3, 2))
+        X[:, :, 0] = xs
+        X[:, :, 1] = rng.uniform(-1, 1, (n, 1))
+        dX = np.zeros_like(X)
+        dX[:, 0, 0] = rng.uniform(-2, 2, n)
+    else:
+        X = rng.uniform(-1, 1, (n, 4, 3))
+        X[:, :, 2] = rng.uniform(-1, 1, (n, 1))
+        dX = np.zeros_like(X)
+        v = rng.uniform(-2, 2, (n, 3))
+        v[:, 2] = 0.0
+        dX[:, N_SIDE_A[kind] :] = v[:, None]
+    return X + np.round(off), dX
+
+
+# --------------------------------------------------------------------------- measuring
+def bfemp_toi(kind: str, X: np.ndarray, dX: np.ndarray, **options) -> tuple[np.ndarray, np.ndarray]:
+    """geometry.ccd times of impact (n,) and ACCD iterations (n,) of pairs X, dX (n, nv, dim)."""
+    toi = _public_toi(kind, X, dX, **options)
+    _, it = _accd(
+        np.ascontiguousarray(X, dtype=float),
+        np.ascontiguousarray(dX, dtype=float),
+        _KIND_CODE[kind],
+        N_SIDE_A[kind],
+        float(options.get("t_max", 1.0)),
+        float(options.get("min_distance", 0.0)),
+        float(options.get("tolerance", 0.1)),
+        int(options.get("max_iterations", 1_000_000)),
+    )
+    return toi, it
+
+
+def _public_toi(kind: str, X: np.ndarray, dX: np.ndarray, **options) -> np.ndarray:
+    cols = [np.ascontiguousarray(X[:, j]) for j in range(X.shape[1])]
+    cols += [np.ascontiguousarray(dX[:, j]) for j in range(X.shape[1])]
+    return getattr(ccd, kind + "_ccd")(*cols, **options)
+
+
+def ipctk_toi(kind: str, X: np.ndarray, dX: np.ndarray) -> np.ndarray | None:  # pragma: no cover
+    """ipctk's Tight-Inclusion times of impact (n,) (1.0 where it reports no collision), or None
+    without ipctk."""
+    if ipctk is None:
+        return None
+    narrow = ipctk.TightInclusionCCD()
+    narrow.conservative_rescaling = 1.0
+    fn = getattr(narrow, kind + "_ccd")
+    out = np.ones(len(X))
+    for i in range(len(X)):
+        x0, x1 = list(X[i]), list(X[i] + dX[i])
+        hit, t = fn(*x0, *x1)
+        out[i] = t if hit else 1.0
+    return out
+
+
+def _measure(name: str, kind: str, n: int) -> dict:
+    X, dX = family(name, kind, n)
+    exact = [exact_toi(kind, X[i], dX[i]) for i in range(n)]
+    toi, it = bfemp_toi(kind, X, dX)
+    start = time.perf_counter()
+    _public_toi(kind, X, dX)
+    seconds = time.perf_counter() - start
+    none = np.array([e is None for e in exact])
+    out = {
+        "cases": n,
+        "exact_contacts": int((~none).sum()),
+        "bfemp_false_negatives": int(
+            sum(false_negative(t, e) for t, e in zip(toi, exact, strict=True))
+        ),
+        "bfemp_no_contact_toi_1_fraction": float(np.mean(toi[none] == 1.0)) if none.any() else None,
+        "bfemp_no_contact_toi_min": float(toi[none].min()) if none.any() else None,
+        "iterations_max": int(it.max()),
+        "iterations_median": float(np.median(it)),
+        "us_per_query": 1e6 * seconds / n,
+        "ipctk_false_negatives": None,
+    }
+    ip = ipctk_toi(kind, X, dX)
+    if ip is not None:  # pragma: no cover
+        out["ipctk_false_negatives"] = int(
+            sum(false_negative(t, e) for t, e in zip(ip, exact, strict=True))
+        )
+    return out
+
+
+def run(mode: str = "full", out: str | Path = "results") -> dict:
+    """Every family x kind against the exact oracle; writes ``ccd_oracle.json`` to ``out``."""
+    n = CASES[mode]
+    bfemp_toi("point_edge", *family("sliding", "point_edge", 2))  # load the kernels
+    results = {f"{name}/{kind}": _measure(name, kind, n) for name in FAMILIES for kind in KINDS}
+    payload = {
+        "benchmark": "ccd_oracle",
+        "mode": mode,
+        "ipctk": None if ipctk is None else getattr(ipctk, "__version__", "installed"),
+        "families": results,
+        "bfemp_false_negatives": sum(r["bfemp_false_negatives"] for r in results.values()),
+        "environment": environment(),
+    }
+    path = write_json(out, "ccd_oracle", payload)
+    return {"json": str(path), **payload}
