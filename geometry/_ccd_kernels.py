@@ -1,6 +1,11 @@
 """numba kernels of :mod:`geometry.ccd`: additive continuous collision detection (ACCD) with
 certified distance bounds and a separating-plane step.
 
+The line search's first step is 0.9 x this conservative time of impact (BFEMP sec. 5, "the
+critical value for 0 distance is computed via continuous collision detection"; the paper cites
+CCD without fixing the method, so ACCD, the certified bounds and the plane step are this
+module's choices).
+
 Private: array-in / array-out, no validation. Additive CCD (Li, Kaufman, Jiang 2021,
 "Codimensional Incremental Potential Contact", Alg. 1) for one pair with vertices
 ``X0 (nv, dim)`` moving linearly by ``dX (nv, dim)``: ``x_k(t) = X0_k + t dX_k``. Side A is the
@@ -34,8 +39,8 @@ max_k |Y_k(t)|``, not with the distance from the origin. :func:`_certified_gap` 
 larger of
 
 - the ACCD step ``(1 - eta) g(t) / l_p`` with ``l_p = max_A |P_k| + max_B |P_k|``, ``P_k = dX_k
-  - mean(dX)``, which bounds ``|d'|`` (Li et al. 2021, eq. 9-10), so ``d - s >= eta g(t) > 0``
-  on the step;
+  - mean(dX)``, which bounds ``|d'|`` (Li et al. 2021, Alg. 1), so ``d - s >= eta g(t) > 0`` on
+  the step;
 - the separating-plane step (a choice of this module; the ACCD paper only has the first): with
   ``n`` the unit direction between the closest points at ``t``, ``d(t') >= min_B n.x_b(t') -
   max_A n.x_a(t') = min_{a, b} (alpha_ab + beta_ab t')``, a concave, piecewise-linear function of
