@@ -12,7 +12,10 @@ moves alike), which the exact oracle needs:
   coordinates in an axis plane so that this holds exactly, moving in the line / plane, often
   starting inside the feature;
 - ``grazing``: passing a vertex at ``10^U(-18, -8)`` x size on a random side, or through it;
-- ``sliding``: moving parallel to the feature at a fixed gap ``10^U(-12, -3)`` m (never touching).
+- ``sliding``: moving parallel to the feature at a fixed gap ``10^U(-12, -3)`` m (never touching);
+- ``turning`` (2D point-edge only): general linear motion, every vertex its own displacement (the
+  segment turns and stretches), from rounding-level gaps (:func:`turning_point_edge`), against
+  :func:`exact_toi_point_edge_2d` (quadratic orientation, roots as exact surds).
 
 The oracle (:func:`exact_toi`) is exact: in rationals (``fractions.Fraction`` of the float inputs),
 contact at ``t`` means ``t v`` lies in the Minkowski difference ``hull(A) - hull(B)`` (``v`` the
@@ -116,11 +119,148 @@ def exact_toi(kind: str, X: np.ndarray, dX: np.ndarray, t_max: float = 1.0) -> F
     return best
 
 
-def false_negative(toi: float, t_exact: Fraction | None) -> bool:
+class Surd:
+    """An exact number ``a + b sqrt(D)`` (a, b, D Fractions, D >= 0 shared by the operands)."""
+
+    def __init__(self, a, b=0, D=0):
+        self.a, self.b, self.D = Fraction(a), Fraction(b), Fraction(D)
+
+    def _lift(self, other) -> Surd:
+        return other if isinstance(other, Surd) else Surd(other, 0, self.D)
+
+    def __add__(self, other) -> Surd:
+        o = self._lift(other)
+        return Surd(self.a + o.a, self.b + o.b, self._common(o))
+
+    def _common(self, o: Surd) -> Fraction:
+        if self.b != 0 and o.b != 0 and self.D != o.D:
+            raise ValueError("Surd arithmetic needs one radicand; compare with _less")
+        return self.D if self.b != 0 else o.D
+
+    __radd__ = __add__
+
+    def __neg__(self) -> Surd:
+        return Surd(-self.a, -self.b, self.D)
+
+    def __sub__(self, other) -> Surd:
+        return self + (-self._lift(other))
+
+    def __rsub__(self, other) -> Surd:
+        return self._lift(other) - self
+
+    def __mul__(self, other) -> Surd:
+        o = self._lift(other)
+        D = self._common(o)
+        return Surd(self.a * o.a + self.b * o.b * D, self.a * o.b + self.b * o.a, D)
+
+    __rmul__ = __mul__
+
+    def sign(self) -> int:
+        """Exact sign: compare a with -b sqrt(D) by squares."""
+        sa, sb = (self.a > 0) - (self.a < 0), (self.b > 0) - (self.b < 0)
+        if self.D == 0 or sb == 0:
+            return sa
+        if sa == 0 or sa == sb:
+            return sb
+        big = self.a * self.a - self.b * self.b * self.D  # |a| vs |b| sqrt(D)
+        return sa if big > 0 else (-sa if big < 0 else 0)
+
+    def __float__(self) -> float:
+        return float(self.a) + float(self.b) * float(self.D) ** 0.5
+
+
+def _less(x: Surd, y: Surd) -> bool:
+    """x < y exactly for surds of possibly different radicands: the sign of u + C sqrt(D_y) with
+    u = (x.a - y.a) + x.b sqrt(D_x), C = -y.b, by squares."""
+    u = Surd(x.a - y.a, x.b, x.D)
+    C = -y.b
+    su, sc = u.sign(), (C > 0) - (C < 0)
+    if sc == 0 or y.D == 0:
+        return su < 0
+    if su == 0 or su == sc:
+        return sc < 0
+    big = (u * u - C * C * y.D).sign()  # |u| vs |C| sqrt(D_y)
+    return (su if big > 0 else -su if big < 0 else 0) < 0
+
+
+def _quadratic_roots(c2: Fraction, c1: Fraction, c0: Fraction) -> list[Surd] | None:
+    """Real roots of c2 t^2 + c1 t + c0 (None when it is identically zero)."""
+    if c2 == 0:
+        if c1 == 0:
+            return None if c0 == 0 else []
+        return [Surd(-c0 / c1)]
+    disc = c1 * c1 - 4 * c2 * c0
+    if disc < 0:
+        return []
+    return [Surd(-c1 / (2 * c2), sg / (2 * c2), disc) for sg in ((-1, 1) if disc else (1,))]
+
+
+def _poly(coef: tuple[Fraction, Fraction, Fraction], t) -> Surd:
+    return (
+        coef[0] * t * t + coef[1] * t + coef[2]
+        if isinstance(t, Surd)
+        else Surd(coef[0] * t * t + coef[1] * t + coef[2])
+    )
+
+
+def exact_toi_point_edge_2d(X: np.ndarray, dX: np.ndarray, t_max: float = 1.0):
+    """Exact first contact time of a 2D point-edge pair under *any* linear vertex motion (each
+    vertex its own displacement), as a Fraction or :class:`Surd`, or None.
+
+    Contact at t: the orientation ``o(t) = (e1 - e0) x (p - e0)`` (quadratic in t) vanishes and
+    ``0 <= N(t) <= M(t)`` with ``N = (p - e0).(e1 - e0)``, ``M = |e1 - e0|^2`` (both quadratic),
+    or the edge has collapsed onto the point. The contact set's earliest point is t = 0 or a root
+    of o, N, M - N or |p - e0|^2 (its boundary), checked exactly.
+    """
+    (p, e0, e1), (dp, de0, de1) = (
+        [[Fraction(float(c)) for c in row] for row in np.asarray(A)] for A in (X, dX)
+    )
+    r0 = [p[c] - e0[c] for c in range(2)]
+    r1 = [dp[c] - de0[c] for c in range(2)]
+    e_0 = [e1[c] - e0[c] for c in range(2)]
+    e_1 = [de1[c] - de0[c] for c in range(2)]
+
+    def cross(a, b):
+        return a[0] * b[1] - a[1] * b[0]
+
+    def dot(a, b):
+        return a[0] * b[0] + a[1] * b[1]
+
+    o = (cross(e_1, r1), cross(e_0, r1) + cross(e_1, r0), cross(e_0, r0))
+    N = (dot(e_1, r1), dot(e_0, r1) + dot(e_1, r0), dot(e_0, r0))
+    M = (dot(e_1, e_1), 2 * dot(e_0, e_1), dot(e_0, e_0))
+    R = (dot(r1, r1), 2 * dot(r0, r1), dot(r0, r0))
+    T = Fraction(float(t_max))
+
+    def contact(t) -> bool:
+        if _poly(o, t).sign() != 0:
+            return False
+        if _poly(M, t).sign() == 0:  # collapsed edge: contact iff on the point
+            return _poly(R, t).sign() == 0
+        n = _poly(N, t)
+        return n.sign() >= 0 and (_poly(M, t) - n).sign() >= 0
+
+    candidates = [Surd(0)]
+    for coef in (o, N, (M[0] - N[0], M[1] - N[1], M[2] - N[2]), R):
+        roots = _quadratic_roots(*coef)
+        candidates += roots or []
+    inside = [t for t in candidates if t.sign() >= 0 and (T - t).sign() >= 0 and contact(t)]
+    if not inside:
+        return None
+    best = inside[0]
+    for t in inside[1:]:
+        if _less(t, best):
+            best = t
+    return best.a if best.b == 0 else best
+
+
+def false_negative(toi: float, t_exact: Fraction | Surd | None) -> bool:
     """A CCD result later than the exact first contact, or positive where it touches at 0."""
     if t_exact is None:
         return False
-    return not (Fraction(float(toi)) < t_exact or toi == 0.0)
+    margin = t_exact - Fraction(float(toi))
+    later = (margin.sign() if isinstance(margin, Surd) else (margin > 0) - (margin < 0)) <= 0
+    return later and toi != 0.0
 
 
 # --------------------------------------------------------------------------- families
@@ -252,6 +392,26 @@ def _coplanar(rng, kind: str, n: int) -> tuple[np.ndarray, np.ndarray]:
     return X + np.round(off), dX
 
 
+def turning_point_edge(n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """2D point-edge pairs (n, 3, 2) under general linear motion (every vertex its own
+    displacement: the segment turns and stretches) with the point starting 10^U(-18, -12) x the
+    pair's size from the segment, on either side, often 1e3..1e6 m from the origin; for
+    :func:`exact_toi_point_edge_2d`."""
+    rng = np.random.default_rng([seed, 99])
+    B, c, normal, tangent = _feature(rng, "point_edge", n)
+    side = rng.choice([-1.0, 1.0], (n, 1))
+    g = 10.0 ** rng.uniform(-18, -12, (n, 1))
+    X = np.concatenate([(c + side * g * normal)[:, None], B], axis=1)
+    far = rng.random(n) < 0.5
+    X[far] += np.round(10.0 ** rng.uniform(3, 6, (int(far.sum()), 1, 1)))
+    dX = rng.standard_normal((n, 3, 2))
+    turn = rng.random(n) < 0.3  # the segment turns about the point's foot, the point stays
+    dX[turn, 0] = 0.0
+    dX[turn, 1] = -(side * normal)[turn] * rng.uniform(0.1, 1.0, (int(turn.sum()), 1))
+    dX[turn, 2] = -dX[turn, 1]
+    return X, dX
+
+
 # --------------------------------------------------------------------------- measuring
 def bfemp_toi(kind: str, X: np.ndarray, dX: np.ndarray, **options) -> tuple[np.ndarray, np.ndarray]:
     """geometry.ccd times of impact (n,) and ACCD iterations (n,) of pairs X, dX (n, nv, dim)."""
@@ -338,8 +498,12 @@ def ipctk_toi(kind: str, X: np.ndarray, dX: np.ndarray, timeout: float = 2.0) ->
 
 
 def _measure(name: str, kind: str, n: int, mode: str) -> dict:
-    X, dX = family(name, kind, n)
-    exact = [exact_toi(kind, X[i], dX[i]) for i in range(n)]
+    if name == "turning":
+        X, dX = turning_point_edge(n)
+        exact = [exact_toi_point_edge_2d(X[i], dX[i]) for i in range(n)]
+    else:
+        X, dX = family(name, kind, n)
+        exact = [exact_toi(kind, X[i], dX[i]) for i in range(n)]
     toi, it = bfemp_toi(kind, X, dX)
     start = time.perf_counter()
     _public_toi(kind, X, dX)
@@ -376,6 +540,7 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
     results = {
         f"{name}/{kind}": _measure(name, kind, n, mode) for name in FAMILIES for kind in KINDS
     }
+    results["turning/point_edge"] = _measure("turning", "point_edge", n, mode)
     payload = {
         "benchmark": "ccd_oracle",
         "mode": mode,

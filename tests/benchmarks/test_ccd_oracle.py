@@ -15,7 +15,8 @@ def test_run_writes_a_record_without_false_negatives(tmp_path, monkeypatch):
     out = ccd_oracle.run("quick", tmp_path)
     record = json.loads((tmp_path / "ccd_oracle.json").read_text())
     assert out["json"].endswith("ccd_oracle.json")
-    assert len(record["families"]) == len(ccd_oracle.FAMILIES) * len(ccd_oracle.KINDS)
+    assert len(record["families"]) == len(ccd_oracle.FAMILIES) * len(ccd_oracle.KINDS) + 1
+    assert "turning/point_edge" in record["families"]
     assert record["bfemp_false_negatives"] == 0
     assert record["ipctk"] is None and record["ipctk_false_negatives"] is None
     sliding = record["families"]["sliding/edge_edge"]
@@ -39,3 +40,16 @@ def test_families_are_reproducible_and_translate_rigidly(kind):
     assert np.array_equal(X, X2) and np.array_equal(dX, dX2)
     n_a = ccd_oracle.N_SIDE_A[kind]
     assert np.all(dX[:, :n_a] == dX[:, :1]) and np.all(dX[:, n_a:] == dX[:, n_a : n_a + 1])
+
+
+def test_surd_sign_and_order():
+    from fractions import Fraction
+
+    S = ccd_oracle.Surd
+    root2 = S(0, 1, 2)
+    assert (root2 - Fraction(141, 100)).sign() == 1 and (root2 - Fraction(142, 100)).sign() == -1
+    assert (root2 * root2 - 2).sign() == 0
+    assert ccd_oracle._less(S(0, 1, 2), S(0, 1, 3))  # sqrt 2 < sqrt 3, different radicands
+    assert ccd_oracle._less(S(1, 1, 3), S(2, 1, 2))  # 2.732 < 3.414
+    assert not ccd_oracle._less(S(2, 1, 2), S(1, 1, 3))
+    assert not ccd_oracle._less(S(0, 1, 2), S(0, 1, 2))

@@ -394,3 +394,34 @@ def test_exact_oracle_on_known_cases():
     turning[1] = [0.0, 1.0, 0.0]  # a1 moves, a0 does not: not a translation of edge a
     with pytest.raises(ValueError, match="translate rigidly"):
         oracle.exact_toi("edge_edge", X[0], turning)
+
+
+def test_general_motion_point_edge_from_rounding_level_has_no_false_negative():
+    # Every vertex its own displacement (the segment turns and stretches), starting 1e-18 ..
+    # 1e-12 x size from the segment; exact oracle: the quadratic orientation's roots as surds.
+    X, dX = oracle.turning_point_edge(150, seed=44)
+    exact = [oracle.exact_toi_point_edge_2d(X[i], dX[i]) for i in range(len(X))]
+    assert sum(e is not None for e in exact) > 50
+    toi = run_ccd("point_edge", X, dX)
+    late = [i for i in range(len(X)) if oracle.false_negative(toi[i], exact[i])]
+    assert not late, [(i, toi[i], float(exact[i])) for i in late[:5]]
+
+
+def test_quadratic_oracle_agrees_with_the_translation_oracle():
+    for family in oracle.FAMILIES:
+        X, dX = oracle.family(family, "point_edge", 10, seed=45)
+        for i in range(10):
+            a = oracle.exact_toi("point_edge", X[i], dX[i])
+            b = oracle.exact_toi_point_edge_2d(X[i], dX[i])
+            assert a == b, (family, i, a, b)  # both rational here (linear orientation)
+    # A turning edge: its line is y = t x. A point at (0, 0.5) is never on it; one at
+    # (0.5 + 0.5 t, 0.5) is when t^2 + t - 1 = 0, t = (sqrt 5 - 1) / 2, inside the segment.
+    X = one([0.0, 0.5], [-1, 0], [1, 0])
+    dX = one([0.0, 0.0], [0, -1.0], [0, 1.0])
+    assert oracle.exact_toi_point_edge_2d(X[0], dX[0]) is None
+    X, dX = one([0.5, 0.5], [-1, 0], [1, 0]), one([0.5, 0.0], [0, -1.0], [0, 1.0])
+    t = oracle.exact_toi_point_edge_2d(X[0], dX[0])
+    assert isinstance(t, oracle.Surd) and (t * t + t - 1).sign() == 0
+    assert float(t) == pytest.approx((5**0.5 - 1) / 2)
+    toi = run_ccd("point_edge", X, dX)[0]
+    assert 0.5 * float(t) < toi < float(t)
