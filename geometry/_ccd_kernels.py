@@ -17,7 +17,8 @@ distance itself: that is what defect 3 of issue 44 missed (a point starting 1.3e
 segment was stepped through it because the computed distance of a configuration at rounding level
 is noise). Positions are taken relative to vertex 0, ``Y_k(t) = (X0_k - X0_0) + t (dX_k - dX_0)``
 (the distance is translation invariant), so rounding scales with the pair's extent ``S(t) =
-max_k |Y_k(t)|``, not with the distance from the origin. :func:`_certified_gap` bounds
+max_k (|D_k| + t |Q_k|) >= max_k |Y_k(t)|`` (``D_k``, ``Q_k`` the two differences), not with the
+distance from the origin. :func:`_certified_gap` bounds
 
 - the rounding of ``Y`` itself: ``3 u (|D_k| + t |Q_k|)`` per vertex (``u = 2^-53``), counted
   twice (one vertex per side);
