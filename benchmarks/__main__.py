@@ -23,6 +23,7 @@ BENCHMARKS = {
     "blas_wall": "benchmarks.blas_wall",
     "explicit_speed": "benchmarks.explicit_speed",
     "buckling": "benchmarks.buckling",
+    "ccd_oracle": "benchmarks.ccd_oracle",
     "conformance": "benchmarks.conformance",
     "extremes": "benchmarks.extremes",
     "hertz": "benchmarks.hertz",

@@ -1,12 +1,18 @@
 """Tests of geometry.ccd: never a missed or late impact against a dense-sampled reference, always a
 positive distance at the reported time, not uselessly conservative, and the special motions
-(grazing, sliding parallel edges, through a vertex, zero motion, close start, min_distance)."""
+(grazing, sliding parallel edges, through a vertex, zero motion, close start, min_distance); no
+false negative against an exact rational oracle on adversarial families and on cases ported from
+ipc-toolkit's CCD tests, and a bounded cost of parallel sliding (issue 44)."""
 
+import json
 import logging
+from fractions import Fraction
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+from benchmarks import ccd_oracle as oracle
 from geometry import ccd
 from geometry import distance as gd
 
@@ -230,12 +236,15 @@ def test_t_max_bounds_the_result():
 
 
 def test_iteration_cap_returns_a_safe_time_and_warns(caplog):
-    # Sliding along a long edge at a constant 1e-3 gap: ~1100 ACCD steps to reach t = 1.
-    X, dX = one([0.0, 1e-3], [-1, 0], [2, 0]), one([1.0, 0.0], [0, 0], [0, 0])
+    # An edge turning about the foot of a point 1e-3 above it: the gap stays ~1e-3 but the
+    # separating direction turns, so the steps stay ~gap / speed (~1100 to reach t = 1).
+    X, dX = one([0.0, 1e-3], [-1, 0], [1, 0]), one([0.0, 0.0], [0, -1], [0, 1])
     assert run_ccd("point_edge", X, dX)[0] == 1.0
     with caplog.at_level(logging.WARNING, logger="geometry.ccd"):
         capped = run_ccd("point_edge", X, dX, max_iterations=10)[0]
     assert 0 < capped < 0.02 and "max_iterations" in caplog.text
+    d = gd.point_edge_distance(*cols(at(X, dX, np.array([capped]))))[0]
+    assert d > 1e-4
 
 
 def test_earliest_impact_takes_the_minimum_over_pair_kinds():
@@ -280,3 +289,139 @@ def test_bad_displacement_shape_raises():
     X = one([0.5, 1.0], [0, 0], [1, 0])
     with pytest.raises(ValueError, match="dp must have shape"):
         ccd.point_edge_ccd(*cols(X), np.zeros((2, 2)), np.zeros((1, 2)), np.zeros((1, 2)))
+
+
+# --------------------------------------------------------------------------- issue 44
+# Defect 3: a pair starting at rounding level was stepped through; defect 4: parallel sliding at
+# a small gap took 1e6 steps and still reported an impact. Exact reference: the rational
+# Minkowski-difference oracle of benchmarks.ccd_oracle (relative translation of the two sides).
+N_FAMILY = 40
+DATA = Path(__file__).parent / "data"
+
+
+def test_point_starting_at_rounding_level_above_a_segment_reports_zero():
+    # The point starts 1.3e-17 m above the segment and ends 0.79 m beyond it (issue 44).
+    X = one([0.7, 0.21], [0, 0], [1, 0.3])
+    dX = one([0, -1.0], [0, 0], [0, 0])
+    assert oracle.exact_toi("point_edge", X[0], dX[0]) is not None  # a real contact
+    assert run_ccd("point_edge", X, dX)[0] == 0.0
+
+
+def test_gap_above_rounding_far_from_the_origin_still_moves():
+    # Rounding scales with the pair's size, not with |x|: a one-ulp gap (1.2e-10 m, pair size
+    # ~1 m) at 1e6 m from the origin is above it and must not be reported as contact at t = 0.
+    X = one([1e6 + 0.5, np.nextafter(1e6, 2e6)], [1e6, 1e6], [1e6 + 1, 1e6])  # 1 ulp above
+    dX = one([0.0, -1.0], [0, 0], [0, 0])
+    t_exact = oracle.exact_toi("point_edge", X[0], dX[0])
+    toi = run_ccd("point_edge", X, dX)[0]
+    assert 0.0 < toi < t_exact
+
+
+@pytest.mark.parametrize("kind", oracle.KINDS)
+@pytest.mark.parametrize("family", oracle.FAMILIES)
+def test_adversarial_families_have_no_false_negative(family, kind):
+    X, dX = oracle.family(family, kind, N_FAMILY, seed=44)
+    exact = [oracle.exact_toi(kind, X[i], dX[i]) for i in range(N_FAMILY)]
+    toi, _ = oracle.bfemp_toi(kind, X, dX)
+    late = [i for i in range(N_FAMILY) if oracle.false_negative(toi[i], exact[i])]
+    assert not late, [(i, toi[i], exact[i]) for i in late[:5]]
+    if family in ("gap_through", "far", "grazing"):
+        assert sum(e is not None for e in exact) > N_FAMILY // 4  # the family does hit
+
+
+@pytest.mark.parametrize("kind", oracle.KINDS)
+def test_parallel_sliding_at_a_fixed_gap_is_one_step_and_no_impact(kind):
+    # Gaps 1e-12 .. 1e-3 m, sliding 0.2 .. 2 m along the feature: never touching. Before the
+    # fix: up to 1e6 ACCD steps (the cap) and toi down to 1e-3.
+    X, dX = oracle.family("sliding", kind, N_FAMILY, seed=44)
+    assert all(oracle.exact_toi(kind, X[i], dX[i]) is None for i in range(N_FAMILY))
+    toi, iterations = oracle.bfemp_toi(kind, X, dX)
+    assert np.all(iterations <= 2), iterations.max()
+    assert np.all(toi == 1.0), toi.min()
+
+
+def test_point_sliding_parallel_to_a_segment_at_1e_9():
+    # issue 44, defect 4: constant 1e-9 m gap, never touching; was toi 9e-4 after 1e6 steps.
+    X = one([0.5, 1e-9], [0, 0], [1, 0])
+    dX = one([0.4, 0.0], [0, 0], [0, 0])
+    toi, iterations = oracle.bfemp_toi("point_edge", X, dX)
+    assert toi[0] == 1.0 and iterations[0] == 1
+
+
+def _ported_cases():
+    with open(DATA / "ipctk_ccd_cases.json") as fh:
+        return json.load(fh)["cases"]
+
+
+def test_ported_ipc_toolkit_cases():
+    cases = _ported_cases()
+    assert len(cases) > 500
+    missed, too_early, not_exact = [], [], []
+    for c in cases:
+        x0, x1 = np.array(c["x0"]), np.array(c["x1"])
+        dX = x1 - x0
+        toi = run_ccd(c["kind"], x0[None], dX[None], t_max=c["t_max"])[0]
+        assert 0.0 <= toi <= c["t_max"]
+        if c["collision"] and not (
+            toi < c["t_max"] and (c["toi_expected"] is None or toi <= c["toi_expected"])
+        ):
+            missed.append((c["name"], toi))
+        if c["must_match"] and not c["collision"] and toi != c["t_max"]:
+            too_early.append((c["name"], toi))
+        try:  # where each side translates, the exact oracle too
+            exact = oracle.exact_toi(c["kind"], x0, dX, c["t_max"])
+        except ValueError:
+            continue
+        if oracle.false_negative(toi, exact):
+            not_exact.append((c["name"], toi, exact))
+    assert not missed and not too_early and not not_exact, (missed, too_early, not_exact)
+
+
+def test_exact_oracle_on_known_cases():
+    # head-on at t = 1/2, a miss beside the segment, touching at t = 0, collinear entry at 1/4
+    X, dX = one([0.5, 1.0], [0, 0], [1, 0]), one([0, -2.0], [0, 0], [0, 0])
+    assert oracle.exact_toi("point_edge", X[0], dX[0]) == Fraction(1, 2)
+    point = np.array([[1.0], [0.0], [0.0]])
+    assert oracle.exact_toi("point_edge", X[0] + point * [2.0, 0.0], dX[0]) is None
+    assert oracle.exact_toi("point_edge", X[0] - point * [0.0, 1.0], -dX[0]) == 0
+    X, dX = one([-1.0, 0.0], [0, 0], [1, 0]), one([4.0, 0.0], [0, 0], [0, 0])
+    assert oracle.exact_toi("point_edge", X[0], dX[0]) == Fraction(1, 4)
+    # crossing edges at t = 1/8 (as test_parallel_edges_sliding_and_approaching)
+    X = one([0.0, 0, 0], [1, 0, 0], [0.5, -1, 1], [0.5, 1, 1])
+    dX = one([0.0, 0, 0], [0, 0, 0], [0, 0, -8.0], [0, 0, -8.0])
+    assert oracle.exact_toi("edge_edge", X[0], dX[0]) == Fraction(1, 8)
+    turning = dX[0].copy()
+    turning[1] = [0.0, 1.0, 0.0]  # a1 moves, a0 does not: not a translation of edge a
+    with pytest.raises(ValueError, match="translate rigidly"):
+        oracle.exact_toi("edge_edge", X[0], turning)
+
+
+def test_general_motion_point_edge_from_rounding_level_has_no_false_negative():
+    # Every vertex its own displacement (the segment turns and stretches), starting 1e-18 ..
+    # 1e-12 x size from the segment; exact oracle: the quadratic orientation's roots as surds.
+    X, dX = oracle.turning_point_edge(150, seed=44)
+    exact = [oracle.exact_toi_point_edge_2d(X[i], dX[i]) for i in range(len(X))]
+    assert sum(e is not None for e in exact) > 50
+    toi = run_ccd("point_edge", X, dX)
+    late = [i for i in range(len(X)) if oracle.false_negative(toi[i], exact[i])]
+    assert not late, [(i, toi[i], float(exact[i])) for i in late[:5]]
+
+
+def test_quadratic_oracle_agrees_with_the_translation_oracle():
+    for family in oracle.FAMILIES:
+        X, dX = oracle.family(family, "point_edge", 10, seed=45)
+        for i in range(10):
+            a = oracle.exact_toi("point_edge", X[i], dX[i])
+            b = oracle.exact_toi_point_edge_2d(X[i], dX[i])
+            assert a == b, (family, i, a, b)  # both rational here (linear orientation)
+    # A turning edge: its line is y = t x. A point at (0, 0.5) is never on it; one at
+    # (0.5 + 0.5 t, 0.5) is when t^2 + t - 1 = 0, t = (sqrt 5 - 1) / 2, inside the segment.
+    X = one([0.0, 0.5], [-1, 0], [1, 0])
+    dX = one([0.0, 0.0], [0, -1.0], [0, 1.0])
+    assert oracle.exact_toi_point_edge_2d(X[0], dX[0]) is None
+    X, dX = one([0.5, 0.5], [-1, 0], [1, 0]), one([0.5, 0.0], [0, -1.0], [0, 1.0])
+    t = oracle.exact_toi_point_edge_2d(X[0], dX[0])
+    assert isinstance(t, oracle.Surd) and (t * t + t - 1).sign() == 0
+    assert float(t) == pytest.approx((5**0.5 - 1) / 2)
+    toi = run_ccd("point_edge", X, dX)[0]
+    assert 0.5 * float(t) < toi < float(t)
