@@ -214,3 +214,23 @@ def test_lr_refuses_a_scene_without_an_mpm_body_naming_who_serves():
     with pytest.raises(ValueError, match="only scenes with an MPM body") as err:
         bfemp.Simulation(block_on_plate(fem_block=True), strategy="lr", dt="auto")
     assert "'barrier'" in str(err.value) and "'lr'" in str(err.value)
+
+
+def test_augury_says_when_its_contact_grid_is_too_coarse_for_its_stated_bound():
+    """A coarse FEM plate (edge 0.15 m) under a fine MPM grid (5 cm): augury's contact grid is
+    6 MPM cells, beyond what its penetration bound is claimed for; the control (plate edge 5 cm,
+    contact grid 2 cells) gets no such note."""
+    for h, expect in ((0.15, True), (0.05, False)):
+        scene = bfemp.Scene(dim=2, gravity=(0.0, -9.81))
+        plate = bfemp.shapes.rectangle((-0.3, -0.15), (0.3, 0.0), h=h)
+        scene.add_fem(plate, material=STIFF, prescribed=bfemp.motion.Fixed(), name="plate")
+        x, vol = bfemp.sample.box((-0.1, 0.005), (0.1, 0.205), dx=0.05, ppc=4)
+        scene.add_mpm(x, vol, material=SOFT, name="block")
+        scene.set_grid(dx=0.05)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", bfemp.StepNoteWarning)
+            sim = bfemp.Simulation(scene, strategy="augury", dt="auto")
+            sim.step()
+        coarse = [w for w in caught if "AUGURY_COARSE_GRID" in str(w.message)]
+        assert (len(coarse) == 1) == expect, h
+        assert ("AUGURY_COARSE_GRID" in sim.note_counts) == expect
