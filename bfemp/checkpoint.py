@@ -178,9 +178,10 @@ def _no_checkpoint(out: Path) -> RunFolderError:
     """The refusal of ``--resume`` in a folder without a checkpoint, with a hint that works:
     a folder holding an earlier run's outputs (a run killed before its first checkpoint) is
     refused by a fresh run unless it overwrites them."""
-    from bfemp.io.outputs import earlier_run_outputs  # outputs imports this module
-
-    if earlier_run_outputs(out):
+    # the evidence of an earlier run that bfemp.io.outputs (which imports this module) refuses
+    # to write over: its manifest, its metrics or a frame collection
+    earlier = any((out / name).is_file() for name in ("manifest.json", "metrics.csv"))
+    if earlier or any(out.glob("*.pvd")):
         hint = (
             f"the run in {out} stopped before its first checkpoint: start it again from t = 0 "
             "with --overwrite instead of --resume (overwrite=True instead of resume=True)"
