@@ -392,7 +392,11 @@ def readme_table(payload: dict) -> str:
             text = f"{verdicts.count('PASS')}/{len(rows)} pass"
             extra = [
                 f"{verdicts.count(v)} {label}"
-                for v, label in (("FAIL", "FAIL"), ("NAMED_FAILURE", "named failure"))
+                for v, label in (
+                    ("FAIL", "FAIL"),
+                    ("NAMED_FAILURE", "named failure"),
+                    ("REFUSED", "refused"),
+                )
                 if verdicts.count(v)
             ]
             off = sorted({k for r in rows for k in r.get("accuracy_failed", [])})

@@ -107,14 +107,19 @@ def test_an_infeasible_point_is_never_a_winner_nor_on_a_front_even_cheapest_at_t
 
 
 def test_an_infeasible_point_is_named_in_the_report_and_drawn_as_a_cross(tmp_path, monkeypatch):
-    """The quick record's rings winner (augury's base, the cheapest at targets >= 3.42) made
-    infeasible: the report names it with its depth and bound and the winner changes; the plot
-    draws it with a legend entry."""
+    """The quick record's cheapest rings point at the coarsest targets (augury's front point,
+    the winner at the top error range) made infeasible: the report names it with its depth and
+    bound and the winner changes; the plot draws it with a legend entry."""
     record = tmp_path / "tradeoff.json"
     shutil.copy(RECORD, record)
     data = json.loads(record.read_text())
-    target = next(p for p in data["points"] if p["id"] == "rings/augury/base")
-    assert target["pareto"] and data["winners"]["rings"][0]["winner"] == "augury"
+    assert data["winners"]["rings"][0]["winner"] == "augury"
+    target = next(
+        p
+        for p in data["points"]
+        if p["scene"] == "rings" and p["strategy"] == "augury" and p["pareto"]
+    )
+    label = target["label"]
     target.update(
         max_penetration_m=0.0123,
         penetration_bound_m=0.005,
@@ -133,25 +138,29 @@ def test_an_infeasible_point_is_named_in_the_report_and_drawn_as_a_cross(tmp_pat
 
     monkeypatch.setattr(_tradeoff_report, "Figure", Keep)
     out = tradeoff.rerender(record)
-    assert out["infeasible"]["rings"] == ["rings/augury/base"]
+    assert target["id"] in out["infeasible"]["rings"]
     points = {p["id"]: p for p in out["points"]}
-    assert points["rings/augury/base"]["infeasible"] and not points["rings/augury/base"]["pareto"]
-    # the winners are those of the scene without the point
-    others = [p for p in out["points"] if p["scene"] == "rings" and p["id"] != target["id"]]
+    assert points[target["id"]]["infeasible"] and not points[target["id"]]["pareto"]
+    # the winners are those of the scene's feasible points
+    others = [
+        p
+        for p in out["points"]
+        if p["scene"] == "rings" and p["id"] not in out["infeasible"]["rings"]
+    ]
     assert out["winners"]["rings"] == winners(others, out["cost"])
     assert out["winners"]["rings"] != data["winners"]["rings"]
     md = record.with_suffix(".md").read_text()
     rings = md.split("\n## rings")[1].split("\n## ")[0]
-    named = next(line for line in rings.splitlines() if "**Infeasible**" in line)
-    assert "rings, **augury** at base" in named
+    named = next(line for line in rings.splitlines() if "**Infeasible**: rings, **augury**" in line)
+    assert f"rings, **augury** at {label}" in named
     assert "went 0.0123 m inside a FEM body, beyond its bound of 0.005 m" in named
     assert "(0.5 cell(s) of the 0.01 m MPM grid)" in named
     front = next(line for line in rings.splitlines() if line.startswith("Non-dominated front"))
-    assert "augury/base" not in front
-    assert "| augury | base (infeasible) |" in rings and "0.0123 / 0.005" in rings
-    # the other scenes' records predate the measurement: not judged, and said so
-    slope = md.split("\n## slope")[1].split("\n## ")[0]
-    assert "No point on slope has both a penetration depth and a bound" in slope
+    assert f"augury/{label} " not in front
+    assert f"| augury | {label} (infeasible) |" in rings and "0.0123 / 0.005" in rings
+    # a scene without FEM bodies has nothing to judge, and says so
+    lrc = md.split("\n## lr_compression")[1].split("\n## ")[0]
+    assert "No point on lr_compression has both a penetration depth and a bound" in lrc
     # the rings figure: a cross for the point, a legend entry for infeasible points
     rings_fig = next(f for f in figures if f.axes[0].get_title().startswith("rings"))
     ax = rings_fig.axes[0]
