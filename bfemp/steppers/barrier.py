@@ -47,7 +47,7 @@ from bfemp.steppers._barrier_potential import build_potential, contact_view, has
 from bfemp.steppers._barrier_solve import ScriptedSolve
 from bfemp.steppers._scaffold import StepNodes, gather_nodes, write_state
 from bfemp.steppers.base import ContactView, StepError, StepReport, finite_or_nan
-from bfemp.steppers.capabilities import Capabilities
+from bfemp.steppers.capabilities import BARRIER_PAIRS, Capabilities
 from bfemp.terms import StepContext
 from solvers.options import NewtonOptions
 from solvers.result import NewtonResult, NewtonStatus
@@ -71,11 +71,10 @@ class BarrierStepper:
     name: ClassVar[str] = "barrier"
     Options: ClassVar[type] = BarrierOptions
     explicit: ClassVar[bool] = False
-    #: BFEMP couples particles and FEM nodes with FEM boundaries through the barrier (paper
-    #: eq. 27) and MPM bodies through their shared grid (never particle-particle, section 4)
+    #: BFEMP couples particles and FEM nodes with FEM boundaries through the barrier (BFEMP
+    #: eq. 27) and MPM bodies through their shared grid (never particle-particle, BFEMP section 4)
     capabilities: ClassVar[Capabilities] = Capabilities(
-        pairs={"mpm-mpm": "grid", "mpm-fem": "contact", "mpm-prescribed": "contact",
-               "fem-fem": "contact"},
+        pairs=BARRIER_PAIRS,
         friction=True,
         needs_contact_settings=True,
         penetration_bound_cells=0.0,

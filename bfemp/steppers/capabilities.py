@@ -45,6 +45,7 @@ from dataclasses import dataclass
 from types import MappingProxyType
 
 __all__ = [
+    "BARRIER_PAIRS",
     "COUPLINGS",
     "PAIR_KINDS",
     "Capabilities",
@@ -60,6 +61,16 @@ log = logging.getLogger(__name__)
 PAIR_KINDS: tuple[str, ...] = ("mpm-mpm", "mpm-fem", "mpm-prescribed", "fem-fem")
 #: how a strategy couples a pair kind (module docstring)
 COUPLINGS: tuple[str, ...] = ("contact", "grid")
+
+#: the pairs the barrier's collision sets couple (particles and FEM nodes against FEM boundary
+#: facets, BFEMP eq. 27; never particle-particle: MPM bodies share the grid): ``barrier`` and
+#: ``two_stage``, whose contact stage is the barrier's
+BARRIER_PAIRS: dict[str, str] = {
+    "mpm-mpm": "grid",
+    "mpm-fem": "contact",
+    "mpm-prescribed": "contact",
+    "fem-fem": "contact",
+}
 
 _KIND_TEXT = {
     "mpm-mpm": "MPM-MPM",

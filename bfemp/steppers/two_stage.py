@@ -118,7 +118,7 @@ from bfemp.steppers._barrier_potential import contact_view, has_contact
 from bfemp.steppers._barrier_solve import ScriptedSolve
 from bfemp.steppers._scaffold import StepNodes, gather_nodes, nodes_of_step
 from bfemp.steppers.base import ContactView, StepError, StepperOptions, StepReport, finite_or_nan
-from bfemp.steppers.capabilities import Capabilities
+from bfemp.steppers.capabilities import BARRIER_PAIRS, Capabilities
 from bfemp.steppers.explicit import ExplicitOptions, ExplicitStep, ExplicitStepper
 from bfemp.terms import InertiaTerm, StepContext
 from solvers.choice import LINEAR_SOLVER_NAMES, make_linear_solver
@@ -215,8 +215,7 @@ class TwoStageStepper(ExplicitStepper):
     #: stage 2 is the barrier's contact solve at the particles (TS notes): the barrier's pairs,
     #: particles and FEM nodes against FEM boundaries; MPM bodies share the engine's grid
     capabilities: ClassVar[Capabilities] = Capabilities(
-        pairs={"mpm-mpm": "grid", "mpm-fem": "contact", "mpm-prescribed": "contact",
-               "fem-fem": "contact"},
+        pairs=BARRIER_PAIRS,
         friction=True,
         needs_contact_settings=True,
         penetration_bound_cells=0.0,
