@@ -26,6 +26,7 @@ BENCHMARKS = {
     "ccd_oracle": "benchmarks.ccd_oracle",
     "conformance": "benchmarks.conformance",
     "extremes": "benchmarks.extremes",
+    "fuzz": "benchmarks.fuzz",
     "hertz": "benchmarks.hertz",
     "lr_compression": "benchmarks.lr_compression",
     "lr_contact_time": "benchmarks.lr_contact_time",
