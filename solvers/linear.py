@@ -13,6 +13,10 @@ CHOLMOD may choose a supernodal ``L L^T`` (which fails on a non-positive pivot) 
 
 :class:`ScipySolver` is the fallback without scikit-sparse: SuperLU in symmetric mode with
 diagonal pivoting only; positive definiteness is checked on the pivots the same way.
+
+:func:`rounding_shift` and :func:`shift_diagonal` are the bounded retry for a matrix that is
+positive definite by construction (projected Newton's proxy matrix) but whose floating-point
+sum is not: :func:`solvers.newton.minimize` refactorises once with that diagonal shift.
 """
 
 from __future__ import annotations
@@ -34,9 +38,12 @@ __all__ = [
     "CholmodSolver",
     "LinearSolveError",
     "LinearSolver",
+    "ROUNDING_SHIFT_ULPS",
     "ScipySolver",
     "cholmod_available",
     "default_linear_solver",
+    "rounding_shift",
+    "shift_diagonal",
 ]
 
 logger = logging.getLogger(__name__)
@@ -103,6 +110,79 @@ def _check_system(A: sp.spmatrix, b: np.ndarray) -> tuple[sp.csc_matrix, np.ndar
     if not np.all(np.isfinite(b)):
         raise LinearSolveError("right-hand side has non-finite entries")
     return A, b
+
+
+#: Machine epsilons of a row's absolute sum that :func:`rounding_shift` adds to its diagonal.
+#: A choice (no paper fixes it), by measurement on MPM-FEM barrier systems that CHOLMOD refused
+#: (pair distances 1e-14 to 1e-9 m at d-hat 1.5e-5 m, random orientations, B-spline weights and
+#: masses, the library's kernels and assembly): the smallest multiple that made them factorise
+#: was at most 1 on 162 2D systems, and 0.25 / 0.5 / 1 / 2 / 4 on 86 / 26 / 11 / 5 / 1 of 129
+#: 3D ones (27-node stencils); 16 leaves a factor 4 above the worst. The issue's scene (before
+#: the CCD change 454b0d4) factorised with the shift at every multiple tried, 0.5 to 16.
+ROUNDING_SHIFT_ULPS = 16.0
+
+
+def rounding_shift(A: sp.spmatrix, ulps: float = ROUNDING_SHIFT_ULPS) -> np.ndarray:
+    """Per-row bound on the rounding of a sum of PSD terms: ``ulps eps sum_j |a_ij|`` (n,).
+
+    Projected Newton (BFEMP sec. 5, Algorithm 2 line 5) sums per-stencil Hessians projected to
+    PSD with the mass matrix: positive definite in exact arithmetic, but each term carries
+    rounding of ``O(eps)`` times its own size (the eigen-decomposition of the projection, the
+    chain rule ``W^T H W`` to grid nodes, the summation). Near contact the barrier's curvature
+    grows like ``kappa / d^2`` (IPC / BFEMP eq. 27), so at ``d ~ 1e-9 d-hat`` a pair's block
+    reaches ``1e17`` N/m and its rounding (``eps x 1e17 ~ 27``) exceeds the masses of the grid
+    nodes it touches (``2e-5`` to a few kg): the computed sum is indefinite although no term is
+    (issue 44 defect 5: non-positive pivots down to ``-37``; rebuilt from the library's kernels,
+    ``tests/bfemp/test_psd_rounding.py``, smallest eigenvalues ``-4`` to ``-34``).
+
+    With ``A = A_exact + E`` and ``|E_ij| <= c eps |a_ij|`` (the entrywise model of a rounded
+    sum without cancellation), Gershgorin's theorem bounds every eigenvalue of ``E`` below by
+    ``-max_i c eps sum_j |a_ij|``; adding this row's bound to each diagonal entry gives
+    ``A + D >= A_exact``, positive definite. The model is a choice, not a proof: a block's
+    rounding is relative to the block's norm, not to each entry, so a row that a block barely
+    touches may carry more; :data:`ROUNDING_SHIFT_ULPS` says how much room the measurements
+    found. The shift is a rounding-level perturbation (relative ``ulps eps`` of the row), so a
+    matrix that is indefinite by more than its rounding (a negative block, an unprojected
+    barrier block, whose negative curvature is ``~ d / L ~ 1e-12`` of it) still fails after it.
+
+    Args:
+        A: sparse square matrix ``(n, n)`` (both triangles stored), any units.
+        ulps: the multiple ``c`` of the machine epsilon, > 0.
+
+    Returns:
+        The shift ``(n,)`` float64, in the units of ``A``.
+    """
+    if not (np.isfinite(ulps) and ulps > 0.0):
+        raise ValueError(f"rounding_shift ulps must be finite and > 0, got {ulps!r}")
+    if not sp.issparse(A) or A.shape[0] != A.shape[1]:
+        raise ValueError(f"A must be a square scipy sparse matrix, got {type(A).__name__}")
+    A = sp.csc_matrix(A)
+    row_abs = np.bincount(A.indices, weights=np.abs(A.data), minlength=A.shape[0])
+    return ulps * np.finfo(np.float64).eps * row_abs
+
+
+def shift_diagonal(A: sp.csc_matrix, shift: np.ndarray) -> tuple[sp.csc_matrix, bool]:
+    """``A + diag(shift)`` as a new CSC matrix; A is not modified.
+
+    Args:
+        A: CSC matrix ``(n, n)`` with sorted indices.
+        shift: diagonal increments ``(n,)`` in the units of A.
+
+    Returns:
+        The shifted matrix and whether it kept A's sparsity pattern (every diagonal entry was
+        stored): then a linear solver may reuse A's symbolic analysis (same pattern version).
+    """
+    n = A.shape[0]
+    shift = np.asarray(shift, dtype=np.float64)
+    if shift.shape != (n,):
+        raise ValueError(f"shift must have shape ({n},), got {shift.shape}")
+    cols = np.repeat(np.arange(n), np.diff(A.indptr))
+    on_diag = np.flatnonzero(A.indices == cols)
+    if on_diag.size == n:
+        out = A.copy()
+        out.data[on_diag] += shift[cols[on_diag]]
+        return out, True
+    return sp.csc_matrix(A + sp.diags(shift)), False
 
 
 def _check_pivots(pivots: np.ndarray) -> None:

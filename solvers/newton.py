@@ -5,7 +5,9 @@ Each iteration at the iterate ``x`` (flattened DOFs, e.g. node positions in m):
 1. ``g = grad E(x)`` and the proxy matrix ``H`` = sum of the per-stencil Hessians projected to
    PSD (``objective.hessian(x, psd=True)``), assembled with sparsity-pattern reuse;
 2. ``H p = -g`` on the free DOFs (fixed DOFs are eliminated: ``p = 0`` there), solved with
-   CHOLMOD whose symbolic analysis is reused while the pattern is unchanged;
+   CHOLMOD whose symbolic analysis is reused while the pattern is unchanged; where the projected
+   H (positive definite by construction) fails to factorise, once more with a rounding-level
+   diagonal shift (:func:`solvers.linear.rounding_shift`; counted in ``shifted_solves``);
 3. stop if ``||p||_inf / step_scale < tol`` (paper Sec. 5: with ``step_scale = dt`` the Newton
    increment as a velocity, in m/s, a second-order estimate of the distance to the solution);
    the test comes before the line search, so the returned ``x`` is the iterate where it held;
@@ -35,11 +37,19 @@ from contextlib import contextmanager
 from typing import Protocol
 
 import numpy as np
+import scipy.sparse as sp
 
 from solvers.assembly import TripletAssembler, Triplets
 from solvers.blas import serial_wheel_blas
 from solvers.line_search import LineSearchResult, backtracking_line_search
-from solvers.linear import LinearSolveError, LinearSolver, default_linear_solver
+from solvers.linear import (
+    ROUNDING_SHIFT_ULPS,
+    LinearSolveError,
+    LinearSolver,
+    default_linear_solver,
+    rounding_shift,
+    shift_diagonal,
+)
 from solvers.options import NewtonOptions
 from solvers.result import NewtonIteration, NewtonResult, NewtonStatus
 
@@ -118,16 +128,63 @@ def _solve(
     rhs: np.ndarray,
     timings: dict[str, float],
     rtol: float | None = None,
+    res: NewtonResult | None = None,
 ) -> np.ndarray:
+    """Assemble and solve ``H p = rhs`` on the free DOFs.
+
+    ``res`` given: H is PSD-projected, positive definite by construction (BFEMP sec. 5), and a
+    failed factorisation is retried once with the rounding-level diagonal shift of
+    :func:`solvers.linear.rounding_shift` (its floating-point sum can be indefinite by the
+    rounding of a barrier block near ``d = 0``); a success counts in ``res.shifted_solves``, a
+    second failure raises :class:`LinearSolveError` with both messages. ``res`` None: no retry
+    (the exact Hessian may be indefinite for real).
+    """
     with _timed(timings, "assemble"):
         matrix = assembler.assemble(triplets)
     if rhs.size == 0:
         return np.zeros(0)
-    start = time.perf_counter()
     kwargs = {"rtol": rtol} if rtol is not None else {}
     try:
+        return _timed_solve(solver, matrix, rhs, assembler.pattern_version, timings, kwargs)
+    except LinearSolveError as err:
+        if res is None:
+            raise
+        with _timed(timings, "assemble"):
+            shift = rounding_shift(matrix)
+            shifted, same = shift_diagonal(matrix, shift)
+        version = assembler.pattern_version if same else None
+        try:
+            p = _timed_solve(solver, shifted, rhs, version, timings, kwargs)
+        except LinearSolveError as err2:
+            raise LinearSolveError(
+                f"{err}; again with the rounding shift ({ROUNDING_SHIFT_ULPS:g} eps x the row's "
+                f"absolute sum on the diagonal, at most {shift.max():.3e}): {err2}"
+            ) from err2
+        res.shifted_solves += 1
+        res.max_shift = max(res.max_shift, float(shift.max()))
+        logger.info(
+            "newton: the projected Hessian's factorisation failed (%s); solved with the "
+            "rounding-level diagonal shift (at most %.3e, %g eps x the row's absolute sum)",
+            err,
+            shift.max(),
+            ROUNDING_SHIFT_ULPS,
+        )
+        return p
+
+
+def _timed_solve(
+    solver: LinearSolver,
+    matrix: sp.csc_matrix,
+    rhs: np.ndarray,
+    pattern_version: int | None,
+    timings: dict[str, float],
+    kwargs: dict[str, float],
+) -> np.ndarray:
+    """``solver.solve`` with its phase seconds added to ``timings``."""
+    start = time.perf_counter()
+    try:
         return np.asarray(
-            solver.solve(matrix, rhs, pattern_version=assembler.pattern_version, **kwargs),
+            solver.solve(matrix, rhs, pattern_version=pattern_version, **kwargs),
             dtype=np.float64,
         )
     finally:
@@ -294,7 +351,8 @@ def _newton_direction(
     rtol: float | None = None,
 ) -> np.ndarray:
     """Solve ``H p = -g`` on the free DOFs with the exact (or per-stencil projected) Hessian;
-    ``rtol``: the relative residual an inexact solver may stop at (None: its own)."""
+    ``rtol``: the relative residual an inexact solver may stop at (None: its own). A projected
+    Hessian that fails to factorise is retried with the rounding shift (:func:`_solve`)."""
     with _timed(timings, "hessian"):
         triplets = objective.hessian(x, psd=not exact)
     res.nhev += 1
@@ -303,7 +361,7 @@ def _newton_direction(
     if not np.all(np.isfinite(triplets.vals)):
         raise _NonFiniteHessian
     try:
-        return _solve(solver, assembler, triplets, -g_free, timings, rtol)
+        return _solve(solver, assembler, triplets, -g_free, timings, rtol, None if exact else res)
     finally:
         res.linear_iterations += int(getattr(solver, "last_iterations", 0) or 0)
 

@@ -89,6 +89,10 @@ class NewtonResult:
             instead of a new one (``NewtonOptions.chord_steps``).
         linear_iterations: iterations of an iterative linear solver, summed over the solves
             (0 for direct solvers).
+        shifted_solves: linear solves of the projected Hessian that failed and succeeded with
+            the rounding-level diagonal shift (:func:`solvers.linear.rounding_shift`).
+        max_shift: the largest diagonal shift those solves added, in the units of the Hessian
+            (0 when none).
         timings: wall-clock seconds per phase, keys :data:`TIMING_KEYS`.
     """
 
@@ -106,6 +110,8 @@ class NewtonResult:
     alphas: list[float] = field(default_factory=list)
     linear_iterations: int = 0
     chord_steps: int = 0
+    shifted_solves: int = 0
+    max_shift: float = 0.0
     timings: dict[str, float] = field(default_factory=lambda: dict.fromkeys(TIMING_KEYS, 0.0))
 
 

@@ -82,6 +82,9 @@ class ScriptedSolve:
         self.phases += ("scripted_ccd",) * (barrier is not None)
         # kept across steps so an unchanged Hessian pattern is not rebuilt every step
         self._assembler: TripletAssembler | None = None
+        #: over the minimisations of the last ``solve``: Newton systems solved only with the
+        #: rounding-level diagonal shift (``NewtonResult.shifted_solves``) and its largest value
+        self.shifted_solves, self.max_shift = 0, 0.0
 
     def solve(
         self,
@@ -117,6 +120,7 @@ class ScriptedSolve:
                 start when None); ``two_stage`` lags at x^n.
         """
         model, pot, barrier = self.model, self.potential, self.barrier
+        self.shifted_solves, self.max_shift = 0, 0.0
         target = nodes.fixed.copy()
         start = target.copy()
         n_fem = model.n_fem_nodes
@@ -326,7 +330,20 @@ class ScriptedSolve:
             assembler=self._assembler,
         )
         add_timings(timings, result.timings)
+        self.shifted_solves += result.shifted_solves
+        self.max_shift = max(self.max_shift, result.max_shift)
         return result
+
+    def rounding_notes(self) -> list[str]:
+        """The named note of the last ``solve`` when a Newton system needed the rounding shift
+        (``PSD_ROUNDING_SHIFT``, :func:`solvers.linear.rounding_shift`), else none."""
+        if not self.shifted_solves:
+            return []
+        return [
+            f"PSD_ROUNDING_SHIFT: {self.shifted_solves} projected Newton system(s) were "
+            f"indefinite by floating-point rounding (a barrier block near d = 0) and were solved "
+            f"with a rounding-level diagonal shift (at most {self.max_shift:.3e})"
+        ]
 
     def _back_solve(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
         """The Newton increment p ``(n,)`` at y with the last factorisation and the gradient at

@@ -300,6 +300,7 @@ class BarrierStepper:
             message=result.message,
             iterations=self._iterations(int(result.nit), friction_its),
             residual=float(result.step_inf_norm) / dt,
+            notes=tuple(self._solver.rounding_notes()) if layout.n_dof else (),
         )
         if not result.success:
             raise StepError(StepReport(**report_args, timings=dict(result.timings)))

@@ -288,6 +288,9 @@ class TwoStageStepper(ExplicitStepper):
         """Free motion, contact solve, G2P (module docstring); ``StepError`` when the contact
         solve fails or the independent crossing check finds a crossing."""
         self._state, self._solved, self._contact = state, None, None
+        solver = getattr(self, "_solver", None)  # None: no contact term in this scene
+        if solver is not None:  # the note of this step's solve only
+            solver.shifted_solves, solver.max_shift = 0, 0.0
         new, report = super().step(state)
         self._state = None
         solved = self._solved
@@ -311,7 +314,7 @@ class TwoStageStepper(ExplicitStepper):
                 )
             )
         abs_r, scale = self.stationarity()
-        notes = list(report.notes)
+        notes = list(report.notes) + self._solver.rounding_notes()
         if not solved.friction_ok:
             notes.append("FRICTION_LOOP: the friction loop did not converge within its cap")
         report = replace(

@@ -158,3 +158,30 @@ def test_default_solver_falls_back_with_exactly_one_warning(monkeypatch, caplog)
     assert not any("scikit-sparse" in r.getMessage() for r in caplog.records)
     with pytest.raises(RuntimeError, match="scikit-sparse"):
         CholmodSolver()
+
+
+def test_rounding_shift_is_ulps_eps_times_the_row_absolute_sum():
+    A = sp.csc_matrix(np.array([[4.0, -1.0, 0.0], [-1.0, 3.0, 2.0], [0.0, 2.0, 5.0]]))
+    eps = np.finfo(float).eps
+    np.testing.assert_allclose(linear.rounding_shift(A), 16.0 * eps * np.array([5.0, 6.0, 7.0]))
+    np.testing.assert_allclose(linear.rounding_shift(A, ulps=2.0), 2.0 * eps * np.array([5, 6, 7]))
+    with pytest.raises(ValueError, match="ulps"):
+        linear.rounding_shift(A, ulps=-1.0)
+    with pytest.raises(ValueError, match="square"):
+        linear.rounding_shift(sp.csc_matrix(np.ones((2, 3))))
+
+
+def test_shift_diagonal_keeps_the_pattern_where_the_diagonal_is_stored():
+    A = sp.csc_matrix(np.array([[4.0, 1.0], [1.0, 3.0]]))
+    shifted, same = linear.shift_diagonal(A, np.array([0.5, 0.25]))
+    assert same
+    np.testing.assert_array_equal(shifted.indices, A.indices)
+    np.testing.assert_array_equal(shifted.toarray(), [[4.5, 1.0], [1.0, 3.25]])
+    np.testing.assert_array_equal(A.toarray(), [[4.0, 1.0], [1.0, 3.0]])  # A untouched
+    # a diagonal entry not stored: a new pattern
+    B = sp.csc_matrix(np.array([[0.0, 1.0], [1.0, 3.0]]))
+    shifted, same = linear.shift_diagonal(B, np.array([2.0, 1.0]))
+    assert not same
+    np.testing.assert_array_equal(shifted.toarray(), [[2.0, 1.0], [1.0, 4.0]])
+    with pytest.raises(ValueError, match="shift"):
+        linear.shift_diagonal(A, np.ones(3))

@@ -7,10 +7,11 @@ import pytest
 import scipy.sparse as sp
 
 from solvers import linear
-from solvers.assembly import Triplets
+from solvers.assembly import TripletAssembler, Triplets
 from solvers.linear import CholmodSolver, LinearSolveError, ScipySolver
 from solvers.newton import minimize
 from solvers.options import NewtonOptions
+from solvers.psd import project_psd
 from solvers.result import TIMING_KEYS, NewtonStatus
 
 
@@ -651,3 +652,82 @@ def test_chord_steps_save_factorisations_and_reach_the_same_tolerance():
     assert saved >= 1
     with pytest.raises(ValueError, match="chord_steps"):
         NewtonOptions(chord_steps=1)
+
+
+def _rounded_psd_sum(theta: float = 0.5) -> Triplets:
+    """Masses of 1e-5 kg on 2 DOFs plus one block of curvature 1e17 N/m along
+    ``(cos theta, sin theta)`` projected to PSD by :func:`solvers.psd.project_psd`: positive
+    definite in exact arithmetic, indefinite as computed (the projected block's rounding, eps x
+    1e17 ~ 22, swamps the masses; issue 44 defect 5 in two unknowns)."""
+    v = np.array([np.cos(theta), np.sin(theta)])
+    w = np.array([-v[1], v[0]])
+    block = project_psd((1e17 * np.outer(v, v) - 1e3 * np.outer(w, w))[None])[0]
+    rows, cols = np.repeat(np.arange(2), 2), np.tile(np.arange(2), 2)
+    mass = Triplets(np.arange(2), np.arange(2), np.full(2, 1e-5))
+    return Triplets.concatenate([mass, Triplets(rows, cols, block.ravel())])
+
+
+class _MassWithProxy:
+    """E = 1/2 |x - c|^2_M (M = 1e-5 kg I) whose Newton proxy is ``hessian_triplets`` (a
+    projected Newton proxy: M plus PSD blocks, never below M)."""
+
+    def __init__(self, hessian_triplets: Triplets) -> None:
+        self.triplets = hessian_triplets
+        self.c = np.array([1e-3, -2e-3])
+
+    def solution_changed(self, x):
+        pass
+
+    def value(self, x):
+        return 0.5e-5 * float((x - self.c) @ (x - self.c))
+
+    def gradient(self, x):
+        return 1e-5 * (x - self.c)
+
+    def hessian(self, x, psd):
+        return self.triplets
+
+    def max_step_size(self, x, p):
+        return 1.0
+
+
+@pytest.mark.parametrize("solver_cls", [ScipySolver, CholmodSolver])
+def test_projected_matrix_indefinite_by_rounding_is_solved_with_the_shift(solver_cls):
+    if solver_cls is CholmodSolver and not linear.cholmod_available():
+        pytest.skip("needs scikit-sparse")
+    triplets = _rounded_psd_sum()
+    A = TripletAssembler(2).assemble(triplets)
+    # the premise: the rounded sum does not factorise (both solvers, at theta = 0.5)
+    with pytest.raises(LinearSolveError, match="positive definite|factori"):
+        solver_cls().solve(A, np.ones(2))
+    obj = _MassWithProxy(triplets)
+    e0 = obj.value(np.zeros(2))
+    opts = NewtonOptions(tol=1e-14, max_iter=1)  # one step, then the MAX_ITERATIONS stop
+    res = minimize(obj, np.zeros(2), options=opts, linear_solver=solver_cls())
+    # before the rounding shift: LINEAR_SOLVE_FAILED at iteration 0
+    assert res.status == NewtonStatus.MAX_ITERATIONS, res.message
+    assert res.shifted_solves >= 1
+    assert res.fun < e0  # the shifted proxy still gives a descent step
+    # the shift is rounding-level: ROUNDING_SHIFT_ULPS eps of the row (|a_ij| <= 1e17)
+    assert 0.0 < res.max_shift <= linear.ROUNDING_SHIFT_ULPS * np.finfo(float).eps * 2e17
+
+
+def test_indefinite_projected_matrix_still_fails_after_the_shift():
+    # a matrix indefinite beyond rounding (a bug producing a negative block) is not hidden
+    A = sp.csc_matrix(np.array([[2.0, 0.0], [0.0, -1e-6]]))
+    res = minimize(Quadratic(A, np.ones(2)), np.zeros(2), linear_solver=ScipySolver())
+    assert res.status == NewtonStatus.LINEAR_SOLVE_FAILED
+    assert "again with the rounding shift" in res.message
+    assert res.shifted_solves == 0
+
+
+def test_exact_hessian_is_not_shifted():
+    # without projection the Hessian may be indefinite for real: no retry
+    res = minimize(
+        _MassWithProxy(_rounded_psd_sum()),
+        np.zeros(2),
+        options=NewtonOptions(project_psd=False),
+        linear_solver=ScipySolver(),
+    )
+    assert res.status == NewtonStatus.LINEAR_SOLVE_FAILED
+    assert "rounding shift" not in res.message and res.shifted_solves == 0
