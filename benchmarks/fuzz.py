@@ -57,7 +57,7 @@ from benchmarks.common import environment, git_commit, write_json
 log = logging.getLogger(__name__)
 
 #: cases per class and strategy
-CASES = {"quick": 3, "full": 400}
+CASES = {"quick": 3, "full": 300}
 IMPLICIT_STEPS = 3
 EXPLICIT_EXTRA_STEPS = 6
 EXPLICIT_MAX_STEPS = 80
