@@ -521,20 +521,20 @@ def plot(record: dict, path: Path) -> None:
         zx.plot(100 * np.asarray(run["strain"]), run["error_percent"], label=label, c=color[name])
     for k, rel in enumerate(comp["cause"]["releases"]):
         zx.axvline(100 * rel["strain"], color="r", lw=0.6, ls=":")
-        left = rel["strain"] > 0.5 * comp["final_strain"]
         zx.annotate(
-            f"{rel['nodes']} nodes released,\nd_LR {max(rel['d_lr_cells']):+.1e} cells",
+            f"step {rel['step']}: {rel['nodes']} nodes released, d_LR "
+            f"{max(rel['d_lr_cells']):+.1e} cells;\nerror {rel['error_change_percent']:+.2f} %, "
+            f"overlap {rel['overlap_when_contact_resumes_cells'] or 0.0:.3f} cells",
             (100 * rel["strain"], rel["sample_after"]["error_percent"]),
-            xytext=(-130 if left else 15, -25 - 24 * (k % 3)), textcoords="offset points",
-            fontsize=7,
-            color="r", arrowprops={"arrowstyle": "->", "color": "r", "lw": 0.6},
+            xytext=(0.03, 0.52 - 0.12 * (k % 4)), textcoords="axes fraction", fontsize=6.5,
+            color="r", arrowprops={"arrowstyle": "->", "color": "r", "lw": 0.5},
         )  # fmt: skip
     zx.axhline(TOL_XPIC, color="k", lw=0.6, ls="--")
     zx.axhline(-TOL_XPIC, color="k", lw=0.6, ls="--")
     zx.set_ylim(-1.6, 0.6)
     zx.set_xlabel("strain (%)")
     zx.set_title("LR runs; dotted: LR-XPIC(5)'s d_LR releases", fontsize=9)
-    zx.legend(fontsize=7, loc="lower left")
+    zx.legend(fontsize=6.5, loc="lower right")
     for name, run_ in comp["runs"].items():
         bx.plot(100 * np.asarray(run_["strain"]), -1e-6 * np.asarray(run_["stress"]), label=name)
     bx.set_xlabel("strain (%)")
