@@ -22,7 +22,9 @@ lr's default is one since issue 40): LR-FLIP and "LR once" (``corrections=1``) a
 LR-XPIC(5) against
 SMM-XPIC(5); the comparison detectors "velocity" (mass-gradient normals, contact when
 approaching) and "cp" (constant offset 0.8 cells, GIMP-calibrated, pitfall L-P3) against
-SMM-FLIP.
+SMM-FLIP. LR-XPIC(5) and once + XPIC(5) run under ``WatchedLRStepper`` (unchanged, each pair's
+contact state recorded), and the diagnostic ``lr_xpic5_dlr_forced`` (LR-XPIC(5) with d_LR < 0
+forced: contact iff approaching) against SMM-XPIC(5).
 
 Targets (T): max |error| of LR-FLIP < 1 %, of LR-XPIC(5) < 0.5 % (paper: 1 % and 0.24 %); LR
 once above LR. Measured (records, up to issue 40, with Uintah's contact-node threshold
@@ -32,12 +34,23 @@ issue 40): quick LR-FLIP 0.33 %, LR once 0.36 %, LR-XPIC(5) 0.91 %, once + XPIC(
 (the quick rate is 10x the paper's and does not test its claim); full (the paper's rate, to
 15 %) LR-FLIP 0.112 %, LR once 0.107 % (so the paper's "once is worse" is not reproduced
 here), LR-XPIC(5) 1.21 %, once + XPIC(5) 0.239 % (the paper's LR-XPIC(5): 0.24 %), velocity
-9.9 %, cp 40 %. LR-XPIC(5) stays above its target (its step near 9 % strain is a d_LR
-release, the audit of issue 40), while XPIC(5) with one correction is within it: with
-B-spline stencils the first correction and the
-multimaterial projection of eq. 37 do not combine as in the paper's GIMP runs (not resolved;
-re-imposing the contact law on the projected field, NairnMPM's later form approximated, made it
-worse: 1.9 %). The record also carries the time per step split into P2G, LR fits, corrections
+9.9 %, cp 40 %. LR-XPIC(5) stays above its target, and the record's ``cause`` section
+(``release_cause``) measures why: from 1 to 8.7 % strain its error is at most 0.044 % and
+0.005 % just before the step; then at step 10760 (8.752 %) the contact of the
+3 nodes at x = 20 mm is released for one step with d_LR = +1.8e-7 cells (it was -7.2e-7), the
+compressed faces approach at 137-180 m/s in the uncorrected fields for that step and contact
+resumes at an overlap of 0.017 cells, and at step 10852 (8.827 %) 14 nodes likewise (d_LR
++1.2e-6 cells, overlap 0.023 cells): the error goes -0.005 % -> -0.44 % -> -1.21 %, and the
+overlap, never pushed apart by the law (eq. 14), stays. The same run with d_LR < 0 forced
+(``lr_xpic5_dlr_forced``, a diagnostic, not the paper's rule) has 0.26 % (the paper: 0.24 %).
+The interface reaches d_LR = 0 because with two corrections the particles move with the
+contact-corrected fields while R_p (eq. 25) follows F: the measured gap opens (forced:
+d_LR up to +2.4e-3 cells, quick); with one correction the particles overlap more and more, so
+LR once + XPIC(5) is never released (0.239 %). The paper states d_LR < 0 strictly; whether a
+touching interface should tolerate d_LR ~ 0 is a choice it leaves open, not taken here.
+(Measured before, on older code: re-imposing the contact law on the XPIC-projected field,
+NairnMPM's later form approximated, made LR-XPIC(5) worse, 1.9 %.)
+The record also carries the time per step split into P2G, LR fits, corrections
 and G2P (XPIC inside G2P), the share of contact nodes and the LR / velocity-detector time ratio
 (the paper reports LR about 55 % slower).
 
@@ -57,6 +70,7 @@ from matplotlib.figure import Figure
 
 import bfemp
 from benchmarks.common import environment, peak_memory_mb, write_json
+from bfemp.contact import lr as lr_contact
 from bfemp.materials import BulkShearHyperelastic
 from bfemp.motion import Linear
 from bfemp.steppers.lr import LROptions, LRStepper
@@ -83,6 +97,104 @@ MIN_STRAIN = 0.01
 #: at 3 % strain): the single-material column buckled at 18 % in the full run (mean stress
 #: 521 -> 51 MPa), so the full run stops at 15 %.
 TOP_KIND = "slip"
+
+
+#: the detection rules of ``WatchedLRStepper``: ``"lr"`` is the paper's (contact iff approaching
+#: and d_LR < 0, eqs. 14, 24 and section 4.2's "both"); ``"forced"`` takes d_LR < 0 at every
+#: contact node (contact iff approaching, eq. 14 alone, with the LR normal): a diagnostic that
+#: removes the release edge d_LR = 0, not a method (the paper rejects d_LR alone and uses both)
+TOUCHING = ("lr", "forced")
+#: the run with d_LR < 0 forced (LR-XPIC(5), two corrections): the diagnostic of the release edge
+FORCED = "lr_xpic5_dlr_forced"
+#: events (changes of the set of pairs in contact) kept per watched run
+MAX_EVENTS = 100
+
+
+class WatchedLRStepper(LRStepper):
+    """``LRStepper`` that records, every step, each contact pair's state at the second
+    correction (the one the particles receive, eq. 31): the benchmark's diagnostic of the
+    release edge d_LR = 0 (LR sec. 3.1, eq. 24). Nothing of the step is changed unless
+    ``touching="forced"`` (``TOUCHING``).
+
+    After each ``step``, ``last`` holds, per pair (C rows): ``key (C, 2)`` int grid indices of
+    the node, ``x (C, 2)`` its position in m, ``d_lr (C,)`` the measured separation in m (eq.
+    24; negative = overlapping), ``in_contact (C,)`` bool (eqs. 14 and 24, as the law decided),
+    ``v_n (C,)`` the pair's relative normal velocity (v_b - v_a) . n in m/s of the provisional
+    fields p^+ / m (eq. 30, negative = approaching) and ``d_n (C,)`` the normal momentum change
+    the law computes, Delta p(0) . n in kg m/s per m of thickness (applied where in contact).
+    """
+
+    def __init__(self, *args: object, touching: str = "lr", **kwargs: object) -> None:
+        if touching not in TOUCHING:
+            raise ValueError(
+                f"WatchedLRStepper: touching must be one of {TOUCHING}, got {touching!r}"
+            )
+        super().__init__(*args, **kwargs)
+        if self.n_materials != 2 or self.options.detector != "lr":
+            raise ValueError("WatchedLRStepper: two MPM materials and detector='lr' only")
+        self.touching = touching
+        self.last: dict[str, np.ndarray] = {}
+        self._seen: list = []
+
+    def _pairs(self, pts, grid_x, mass):  # noqa: ANN001, ANN202 (LRStepper's signature)
+        planes = super()._pairs(pts, grid_x, mass)
+        measured = planes.separation.copy()
+        if self.touching == "forced":
+            planes.separation = np.full_like(measured, -self.model.grid.dx)
+        self._seen = [planes, grid_x[planes.node], measured]
+        return planes
+
+    def _correct(self, planes, mass, mom, kinematic):  # noqa: ANN001, ANN202
+        out = super()._correct(planes, mass, mom, kinematic)
+        self._seen[3:] = [mass, mom]  # the last call of a step is the second correction
+        return out
+
+    def step(self, state: bfemp.State) -> tuple[bfemp.State, object]:
+        new, report = super().step(state)
+        planes, node_x, measured, mass, mom = self._seen
+        node, a, b = planes.node, planes.a, planes.b
+        m_a, m_b = mass[a, node], mass[b, node]
+        p_a, p_b = mom[a, node], mom[b, node]
+        _, in_contact = lr_contact.contact_momentum(
+            m_a, m_b, p_a, p_b, planes.normal, planes.separation, mu=self.mu, law="coulomb"
+        )
+        dp0 = (m_a[:, None] * p_b - m_b[:, None] * p_a) / (m_a + m_b)[:, None]
+        v_rel = p_b / m_b[:, None] - p_a / m_a[:, None]
+        dx = self.model.grid.dx
+        self.last = {
+            "key": np.rint(node_x / dx).astype(np.int64),
+            "x": node_x,
+            "d_lr": measured,
+            "in_contact": in_contact,
+            "v_n": np.einsum("cd,cd->c", v_rel, planes.normal),
+            "d_n": np.einsum("cd,cd->c", dp0, planes.normal),
+        }
+        return new, report
+
+
+def _switch_event(step: int, strain: float, before: dict, after: dict, dx: float) -> dict | None:
+    """The pairs whose contact state changed between two steps' ``WatchedLRStepper.last``
+    (matched by grid node; pairs present in one step only are left out), with their d_LR in
+    cells before and after, or None when none changed."""
+    code_b = before["key"][:, 0] * 1_000_003 + before["key"][:, 1]
+    code_a = after["key"][:, 0] * 1_000_003 + after["key"][:, 1]
+    _, ib, ia = np.intersect1d(code_b, code_a, assume_unique=True, return_indices=True)
+    changed = before["in_contact"][ib] != after["in_contact"][ia]
+    if not changed.any():
+        return None
+    ib, ia = ib[changed], ia[changed]
+    return {
+        "step": step,
+        "strain": strain,
+        "pairs": int(code_a.size),
+        "in_contact": int(after["in_contact"].sum()),
+        "released": [bool(not c) for c in after["in_contact"][ia]],
+        "node_x_mm": (1e3 * after["x"][ia]).tolist(),
+        "d_lr_cells_before": (before["d_lr"][ib] / dx).tolist(),
+        "d_lr_cells": (after["d_lr"][ia] / dx).tolist(),
+        "v_n_m_s": after["v_n"][ia].tolist(),
+        "d_n_kg_m_s": after["d_n"][ia].tolist(),
+    }
 
 
 def material() -> object:
@@ -139,16 +251,32 @@ def run_case(
     transfer: str = "flip",
     samples: int = 200,
     stop_at_contact: float | None = None,
+    watch: str | None = None,
     **options: object,
 ) -> dict:
-    """Run one column to ``strain`` (or to ``stop_at_contact`` s); stress history and timings."""
+    """Run one column to ``strain`` (or to ``stop_at_contact`` s); stress history and timings.
+
+    ``watch`` (one of ``TOUCHING``) runs ``WatchedLRStepper`` with that detection rule and adds
+    ``"switches"``: the steps at which a pair's contact state changed (``_switch_event``, the
+    first ``MAX_EVENTS``), their count, and the smallest |d_LR| in cells met at a pair in contact.
+    """
     model = scene.build()
-    stepper = LRStepper(model, dt="auto", transfer=transfer, options=LROptions(**options))
+    lr_options = LROptions(**options)
+    if watch is None:
+        stepper = LRStepper(model, dt="auto", transfer=transfer, options=lr_options)
+    else:
+        stepper = WatchedLRStepper(
+            model, dt="auto", transfer=transfer, options=lr_options, touching=watch
+        )
     state = stepper.initialize(model.initial_state())
+    events: list[dict] = []
+    n_switch_steps = held_open = 0
+    closest = math.inf  # smallest |d_LR| (m) at a pair in contact
+    previous: dict = {}
     t_end = strain * HEIGHT / v0 if stop_at_contact is None else stop_at_contact
     n_steps = int(math.ceil(t_end / stepper.dt))
     every = max(1, n_steps // samples)
-    hist_t, hist_s = [], []
+    hist_t, hist_s, hist_d = [], [], []
     phases: dict[str, float] = {}
     contact_nodes = 0.0
     t_detect = None
@@ -160,11 +288,27 @@ def run_case(
         contact_nodes += report.extra["contact_nodes"]
         if t_detect is None and report.contact_pairs > 0:
             t_detect = state.t
+        if watch is not None:
+            last = stepper.last
+            held = last["in_contact"]
+            if held.any():
+                closest = min(closest, float(np.abs(last["d_lr"][held]).min()))
+                held_open += bool((last["d_lr"][held] >= 0.0).any())
+            event = previous and _switch_event(k + 1, v0 * state.t / HEIGHT, previous, last, DX)
+            if event:
+                n_switch_steps += 1
+                if len(events) < MAX_EVENTS:
+                    events.append(event)
+            previous = last
         if (k + 1) % every == 0 or k + 1 == n_steps:
             hist_t.append(state.t)
             hist_s.append(mean_stress_yy(model, state))
+            if watch is not None:
+                inside = (stepper.last["x"][:, 0] >= 0.0) & (stepper.last["x"][:, 0] <= WIDTH)
+                d_lr = stepper.last["d_lr"][inside] / DX
+                hist_d.append((float(d_lr.mean()), float(d_lr.max())) if d_lr.size else (0.0, 0.0))
     wall = time.perf_counter() - started
-    return {
+    out = {
         "options": {k: v for k, v in options.items()},
         "transfer": transfer,
         "dt": stepper.dt,
@@ -182,6 +326,19 @@ def run_case(
         "ms_per_step": {k: 1e3 * v / n_steps for k, v in phases.items()},
         "mean_contact_nodes": contact_nodes / n_steps,
     }
+    if watch is not None:
+        out["switches"] = {
+            "touching": watch,
+            "steps_with_a_switch": n_switch_steps,
+            "events": events,
+            "closest_d_lr_in_contact_cells": closest / DX,
+            "steps_held_at_d_lr_nonnegative": held_open,
+            # per sample, over the pairs at nodes across the column (0 <= x <= WIDTH): the mean
+            # and the largest measured d_LR in cells (the largest is the pair nearest release)
+            "d_lr_mean_cells": [m for m, _ in hist_d],
+            "d_lr_max_cells": [x for _, x in hist_d],
+        }
+    return out
 
 
 def stress_error(case: dict, reference: dict) -> tuple[list[float], float]:
@@ -193,6 +350,107 @@ def stress_error(case: dict, reference: dict) -> tuple[list[float], float]:
     return [float(e) for e in err], float(np.nanmax(np.abs(err[mask])))
 
 
+def _d_lr_released(event: dict) -> np.ndarray:
+    """``(n,)`` bool over an event's pairs: released while approaching (d_n < 0), i.e. by
+    d_LR >= 0 (eq. 24) and not by separation (eq. 14)."""
+    return np.asarray(event["released"], dtype=bool) & (np.asarray(event["d_n_kg_m_s"]) < 0.0)
+
+
+def release_cause(runs: dict, errors: dict) -> dict:
+    """The measured cause of LR-XPIC(5)'s error step (issue 40, item 5): the d_LR releases.
+
+    A release is a pair whose contact the law ends while the pair still approaches (d_n < 0):
+    by eq. 24 alone, d_LR >= 0. The interface of this column starts touching (d_LR = 0) and,
+    held by contact, stays within about 1e-6 cells of d_LR = 0, where the sign is set by the
+    small mismatch of the particle positions and deformation gradients. For the step a pair is
+    released, its two fields take the traction-free update (the compressed faces accelerate
+    towards each other, |v_n| ~ sigma dx dt / m), the particles enter each other by that one
+    step's travel, and the contact law (approach stopped, never pushed apart) keeps the overlap:
+    the column is shorter by it and its stress lower. Per release after ``MIN_STRAIN``: the
+    step, strain, the nodes (mm), d_LR in cells the step before and at release, the overlap
+    (d_LR) when contact resumes, v_n and d_n (the normal momentum change withheld for one step),
+    and the error at the samples around it. ``estimated_error_change_percent`` is the change of
+    the mean d_LR over the nodes across the column between those samples, as a length over the
+    column's shortening (strain x HEIGHT): the stress loss a rigid overlap of that size gives.
+    ``variant``: the same run with d_LR < 0 forced (``WatchedLRStepper``, ``TOUCHING``).
+
+    Why d_LR reaches 0 (``d_lr_drift``, measured): with two corrections the particles move
+    with the first-corrected fields (eqs. 32, 35-37: no relative normal velocity at a node in
+    contact), while the radii R_p (eq. 25) follow F, so the measured gap opens slowly; held in
+    contact regardless (the variant) d_LR rises to +2.4e-3 cells by 9 % strain (quick) and
+    is >= 0 at almost every step. With one correction the particles keep the approach of the
+    uncorrected fields and overlap more and more (d_LR -8.6e-3 cells at 9 %, quick), so the
+    pairs never reach d_LR = 0 and LR once + XPIC(5) is not released. The paper gives d_LR < 0
+    strictly (eq. 24) and no tolerance; a tolerance is a choice it leaves open, not taken here.
+    """
+    run = runs["lr_xpic5"]
+    strain = np.asarray(run["strain"])
+    err = np.asarray(run["error_percent"])
+    steps = np.rint(np.asarray(run["t"]) / run["dt"]).astype(np.int64)
+    d_mean = np.asarray(run["switches"]["d_lr_mean_cells"])
+    events = run["switches"]["events"]
+    releases = []
+    for i, ev in enumerate(events):
+        rel = _d_lr_released(ev)
+        if ev["strain"] <= MIN_STRAIN or not rel.any():
+            continue
+        after = events[i + 1] if i + 1 < len(events) else None
+        back = None
+        if after is not None and not any(after["released"]):
+            back = float(min(after["d_lr_cells"]))
+        j = int(np.searchsorted(steps, ev["step"]))  # first sample at or after the release
+        j = min(max(j, 1), steps.size - 1)
+        pick = np.flatnonzero(rel)
+        releases.append({
+            "step": ev["step"],
+            "strain": ev["strain"],
+            "nodes": int(rel.sum()),
+            "node_x_mm": [ev["node_x_mm"][k] for k in pick],
+            "d_lr_cells_before": [ev["d_lr_cells_before"][k] for k in pick],
+            "d_lr_cells": [ev["d_lr_cells"][k] for k in pick],
+            "overlap_when_contact_resumes_cells": back,
+            "v_n_m_s": [ev["v_n_m_s"][k] for k in pick],
+            "d_n_kg_m_s": [ev["d_n_kg_m_s"][k] for k in pick],
+            "sample_before": {"strain": float(strain[j - 1]), "error_percent": float(err[j - 1])},
+            "sample_after": {"strain": float(strain[j]), "error_percent": float(err[j])},
+            "error_change_percent": float(err[j] - err[j - 1]),
+            "estimated_error_change_percent": float(
+                100.0 * (d_mean[j] - d_mean[j - 1]) * DX / (strain[j] * HEIGHT)
+            ),
+        })  # fmt: skip
+    drift = {}
+    for name in ("lr_xpic5", "lr_once_xpic5", FORCED):
+        sw = runs[name]["switches"]
+        drift[name] = {
+            "largest_d_lr_cells": float(max(sw["d_lr_max_cells"])),
+            "final_mean_d_lr_cells": float(sw["d_lr_mean_cells"][-1]),
+            "d_lr_releases": sum(
+                1 for ev in sw["events"] if ev["strain"] > MIN_STRAIN and _d_lr_released(ev).any()
+            ),
+            "steps_held_at_d_lr_nonnegative": sw["steps_held_at_d_lr_nonnegative"],
+        }
+    above = strain > MIN_STRAIN
+    first = releases[0]["strain"] if releases else math.inf
+    before = above & (strain < first)
+    return {
+        "releases": releases,
+        "max_abs_error_before_first_release_percent": (
+            float(np.nanmax(np.abs(err[before]))) if before.any() else None
+        ),
+        "max_abs_error_percent": errors["lr_xpic5"],
+        "error_change_at_releases_percent": float(sum(r["error_change_percent"] for r in releases)),
+        "variant": {
+            "name": FORCED,
+            "touching": "forced",
+            "max_abs_error_percent": errors[FORCED],
+        },
+        # why the interface reaches d_LR = 0 with two corrections and not with one: per watched
+        # run, the largest and the final mean d_LR (cells) across the column, the releases
+        # after MIN_STRAIN, and the steps a pair was held in contact at d_LR >= 0 (forced only)
+        "d_lr_drift": drift,
+    }
+
+
 def compression(mode: str) -> dict:
     """Fig. 5: the stress error of each detector against the single-material run."""
     frac, strain = MODES[mode]
@@ -202,11 +460,13 @@ def compression(mode: str) -> dict:
         "smm_xpic5": (dict(single=True), "flip", {"xpic_order": 5}),
         # the paper's two corrections (lr's default is one since issue 40)
         "lr_flip": ({}, "flip", {"corrections": 2}),
-        "lr_xpic5": ({}, "flip", {"xpic_order": 5, "corrections": 2}),
+        "lr_xpic5": ({}, "flip", {"xpic_order": 5, "corrections": 2, "watch": "lr"}),
         "lr_once": ({}, "flip", {"corrections": 1}),
-        "lr_once_xpic5": ({}, "flip", {"corrections": 1, "xpic_order": 5}),
+        "lr_once_xpic5": ({}, "flip", {"corrections": 1, "xpic_order": 5, "watch": "lr"}),
         "velocity": ({}, "flip", {"detector": "velocity", "corrections": 2}),
         "cp_0.8": ({}, "flip", {"detector": "cp", "cp_offset": 0.8, "corrections": 2}),
+        # the diagnostic variant of the release edge (``TOUCHING``, ``release_cause``)
+        FORCED: ({}, "flip", {"xpic_order": 5, "corrections": 2, "watch": "forced"}),
     }
     results = {}
     for name, (scene_kw, transfer, opts) in runs.items():
@@ -216,7 +476,7 @@ def compression(mode: str) -> dict:
     errors = {}
     for name, ref in (("lr_flip", "smm_flip"), ("lr_once", "smm_flip"), ("velocity", "smm_flip"),
                       ("cp_0.8", "smm_flip"), ("lr_xpic5", "smm_xpic5"),
-                      ("lr_once_xpic5", "smm_xpic5")):  # fmt: skip
+                      ("lr_once_xpic5", "smm_xpic5"), (FORCED, "smm_xpic5")):  # fmt: skip
         series, worst = stress_error(results[name], results[ref])
         results[name]["error_percent"] = series
         errors[name] = worst
@@ -233,29 +493,53 @@ def compression(mode: str) -> dict:
             "lr_xpic5_below_0.5pct": errors["lr_xpic5"] < TOL_XPIC,
             "lr_once_above_lr": errors["lr_once"] > errors["lr_flip"],
         },
+        "cause": release_cause(results, errors),
     }
 
 
 def plot(record: dict, path: Path) -> None:
-    """Fig. 5: the stress error against strain per detector, and the stresses themselves."""
-    fig = Figure(figsize=(11, 4.2))
+    """Fig. 5: the stress error against strain per detector (all; the LR runs zoomed, with
+    LR-XPIC(5)'s d_LR releases marked, ``release_cause``), and the stresses themselves."""
+    fig = Figure(figsize=(15, 4.4))
     FigureCanvasAgg(fig)
-    ax, bx = fig.subplots(1, 2)
+    ax, zx, bx = fig.subplots(1, 3)
     comp = record["compression"]
-    for name in ("lr_flip", "lr_xpic5", "lr_once", "velocity", "cp_0.8"):
+    names = ("lr_flip", "lr_xpic5", "lr_once", "velocity", "cp_0.8", "lr_once_xpic5", FORCED)
+    color = {name: f"C{k}" for k, name in enumerate(names)}
+    for name in names[:5]:
         run = comp["runs"][name]
-        ax.plot(100 * np.asarray(run["strain"]), run["error_percent"], label=name)
+        ax.plot(100 * np.asarray(run["strain"]), run["error_percent"], label=name, c=color[name])
     ax.axhline(TOL_LR, color="k", lw=0.6, ls="--")
     ax.axhline(-TOL_LR, color="k", lw=0.6, ls="--")
     ax.set_ylim(-15, 15)
     ax.set_xlabel("strain (%)")
     ax.set_ylabel("stress error vs single material (%)")
     ax.legend(fontsize=8)
+    for name in ("lr_flip", "lr_once", "lr_xpic5", "lr_once_xpic5", FORCED):
+        run = comp["runs"][name]
+        label = "lr_xpic5, d_LR < 0 forced" if name == FORCED else name
+        zx.plot(100 * np.asarray(run["strain"]), run["error_percent"], label=label, c=color[name])
+    for k, rel in enumerate(comp["cause"]["releases"]):
+        zx.axvline(100 * rel["strain"], color="r", lw=0.6, ls=":")
+        zx.annotate(
+            f"step {rel['step']}: {rel['nodes']} nodes released, d_LR "
+            f"{max(rel['d_lr_cells']):+.1e} cells;\nerror {rel['error_change_percent']:+.2f} %, "
+            f"overlap {rel['overlap_when_contact_resumes_cells'] or 0.0:.3f} cells",
+            (100 * rel["strain"], rel["sample_after"]["error_percent"]),
+            xytext=(0.03, 0.52 - 0.12 * (k % 4)), textcoords="axes fraction", fontsize=6.5,
+            color="r", arrowprops={"arrowstyle": "->", "color": "r", "lw": 0.5},
+        )  # fmt: skip
+    zx.axhline(TOL_XPIC, color="k", lw=0.6, ls="--")
+    zx.axhline(-TOL_XPIC, color="k", lw=0.6, ls="--")
+    zx.set_ylim(-1.6, 0.6)
+    zx.set_xlabel("strain (%)")
+    zx.set_title("LR runs; dotted: LR-XPIC(5)'s d_LR releases", fontsize=9)
+    zx.legend(fontsize=6.5, loc="lower right")
     for name, run_ in comp["runs"].items():
         bx.plot(100 * np.asarray(run_["strain"]), -1e-6 * np.asarray(run_["stress"]), label=name)
     bx.set_xlabel("strain (%)")
     bx.set_ylabel("mean -sigma_yy (MPa)")
-    bx.legend(fontsize=8)
+    bx.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
 
