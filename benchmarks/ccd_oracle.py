@@ -15,7 +15,9 @@ moves alike), which the exact oracle needs:
 - ``sliding``: moving parallel to the feature at a fixed gap ``10^U(-12, -3)`` m (never touching);
 - ``turning`` (2D point-edge only): general linear motion, every vertex its own displacement (the
   segment turns and stretches), from rounding-level gaps (:func:`turning_point_edge`), against
-  :func:`exact_toi_point_edge_2d` (quadratic orientation, roots as exact surds).
+  :func:`exact_toi_point_edge_2d` (quadratic orientation, roots as exact surds); ``tangent`` (2D
+  point-edge only): the segment's line touches the point (a near-double root of the orientation,
+  :func:`tangent_point_edge`), against the same oracle.
 
 The oracle (:func:`exact_toi`) is exact: in rationals (``fractions.Fraction`` of the float inputs),
 contact at ``t`` means ``t v`` lies in the Minkowski difference ``hull(A) - hull(B)`` (``v`` the
@@ -412,6 +414,38 @@ def turning_point_edge(n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     return X, dX
 
 
+def tangent_point_edge(n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """2D point-edge pairs (m, 3, 2), m <= n, whose segment's line touches the point at some time
+    instead of crossing it: the orientation ``o(t)`` (a quadratic) has a double root, perturbed by
+    a relative ``10^U(-18, -6)`` either way (a near miss or two close crossings), scaled by
+    ``10^U(-3, 3)``, half of them ``10^U(0, 6)`` m from the origin and half with a common drift;
+    adversarial for the kernel's line step, which steps to the first root of that quadratic; for
+    :func:`exact_toi_point_edge_2d`.
+
+    With the point at the origin, ends ``(-1, y0) + t (a, b)`` and ``(1, y0) + t (c, d)``:
+    ``o(t) = -2 y0 + t (y0 (a - c) - b - d) + t^2 (a d - b c)``, whose discriminant vanishes for
+    ``y0`` a root of ``k^2 y0^2 + (8 A - 2 k (b + d)) y0 + (b + d)^2`` (``k = a - c``, ``A = a d -
+    b c``); draws without a real ``y0`` are dropped."""
+    rng = np.random.default_rng([seed, 98])
+    a, b, c, d = rng.uniform(-2, 2, (4, n))
+    k, A = a - c, a * d - b * c
+    qa, qb, qc = k * k, 8 * A - 2 * k * (b + d), (b + d) ** 2
+    disc = qb * qb - 4 * qa * qc
+    ok = (disc >= 0) & (qa > 0)
+    y0 = (-qb + rng.choice([-1.0, 1.0], n) * np.sqrt(np.maximum(disc, 0))) / (
+        2 * np.where(ok, qa, 1)
+    )
+    y0 *= 1 + rng.choice([-1.0, 1.0], n) * 10.0 ** rng.uniform(-18, -6, n)
+    one = np.ones(n)
+    X = np.stack([np.zeros((n, 2)), np.stack([-one, y0], 1), np.stack([one, y0], 1)], axis=1)
+    dX = np.stack([np.zeros((n, 2)), np.stack([a, b], 1), np.stack([c, d], 1)], axis=1)
+    far = rng.random((n, 1, 1)) < 0.5
+    offset = np.where(far, np.round(10.0 ** rng.uniform(0, 6, (n, 1, 1))), 0.0)
+    drift = rng.standard_normal((n, 1, 2)) * ~far
+    scale = 10.0 ** rng.uniform(-3, 3, (n, 1, 1))
+    return (X * scale + offset)[ok], (dX * scale + drift)[ok]
+
+
 # --------------------------------------------------------------------------- measuring
 def bfemp_toi(kind: str, X: np.ndarray, dX: np.ndarray, **options) -> tuple[np.ndarray, np.ndarray]:
     """geometry.ccd times of impact (n,) and ACCD iterations (n,) of pairs X, dX (n, nv, dim)."""
@@ -498,8 +532,9 @@ def ipctk_toi(kind: str, X: np.ndarray, dX: np.ndarray, timeout: float = 2.0) ->
 
 
 def _measure(name: str, kind: str, n: int, mode: str) -> dict:
-    if name == "turning":
-        X, dX = turning_point_edge(n)
+    if name in ("turning", "tangent"):
+        X, dX = (turning_point_edge if name == "turning" else tangent_point_edge)(n)
+        n = len(X)
         exact = [exact_toi_point_edge_2d(X[i], dX[i]) for i in range(n)]
     else:
         X, dX = family(name, kind, n)
@@ -541,6 +576,7 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
         f"{name}/{kind}": _measure(name, kind, n, mode) for name in FAMILIES for kind in KINDS
     }
     results["turning/point_edge"] = _measure("turning", "point_edge", n, mode)
+    results["tangent/point_edge"] = _measure("tangent", "point_edge", n, mode)
     payload = {
         "benchmark": "ccd_oracle",
         "mode": mode,

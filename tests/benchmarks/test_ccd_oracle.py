@@ -15,8 +15,8 @@ def test_run_writes_a_record_without_false_negatives(tmp_path, monkeypatch):
     out = ccd_oracle.run("quick", tmp_path)
     record = json.loads((tmp_path / "ccd_oracle.json").read_text())
     assert out["json"].endswith("ccd_oracle.json")
-    assert len(record["families"]) == len(ccd_oracle.FAMILIES) * len(ccd_oracle.KINDS) + 1
-    assert "turning/point_edge" in record["families"]
+    assert len(record["families"]) == len(ccd_oracle.FAMILIES) * len(ccd_oracle.KINDS) + 2
+    assert {"turning/point_edge", "tangent/point_edge"} <= set(record["families"])
     assert record["bfemp_false_negatives"] == 0
     assert record["ipctk"] is None and record["ipctk_false_negatives"] is None
     sliding = record["families"]["sliding/edge_edge"]

@@ -236,15 +236,35 @@ def test_t_max_bounds_the_result():
 
 
 def test_iteration_cap_returns_a_safe_time_and_warns(caplog):
-    # An edge turning about the foot of a point 1e-3 above it: the gap stays ~1e-3 but the
-    # separating direction turns, so the steps stay ~gap / speed (~1100 to reach t = 1).
-    X, dX = one([0.0, 1e-3], [-1, 0], [1, 0]), one([0.0, 0.0], [0, -1], [0, 1])
-    assert run_ccd("point_edge", X, dX)[0] == 1.0
+    # A triangle tilting about the foot of a point 1e-3 above it (3D: no line step): the gap
+    # stays ~1e-3 but the separating direction turns, so the steps stay ~gap / speed (~1100 to
+    # reach t = 1).
+    X = one([0.0, 0.0, 1e-3], [-1, -1, 0], [1, -1, 0], [0, 1, 0])
+    dX = one([0.0, 0.0, 0.0], [0, 0, -1], [0, 0, -1], [0, 0, 1])
+    assert run_ccd("point_triangle", X, dX)[0] == 1.0
     with caplog.at_level(logging.WARNING, logger="geometry.ccd"):
-        capped = run_ccd("point_edge", X, dX, max_iterations=10)[0]
+        capped = run_ccd("point_triangle", X, dX, max_iterations=10)[0]
     assert 0 < capped < 0.02 and "max_iterations" in caplog.text
-    d = gd.point_edge_distance(*cols(at(X, dX, np.array([capped]))))[0]
+    d = gd.point_triangle_distance(*cols(at(X, dX, np.array([capped]))))[0]
     assert d > 1e-4
+
+
+@pytest.mark.parametrize("gap", [1e-3, 1e-6, 1e-9, 1e-12])
+def test_edge_turning_near_a_point_is_one_step_in_2d(gap):
+    # An edge turning about the foot of a point `gap` above it: the distance, gap / sqrt(1 +
+    # t^2), never reaches 0 but the separating direction turns, so ACCD's steps stay ~gap / speed
+    # (1130 iterations at 1e-3, the 1e6 cap below; 197 ms at 1e-9). The orientation e0 x e1 is a
+    # quadratic in t (here the constant 2 gap): its certified root bound clears [0, 1] at once.
+    X, dX = one([0.0, gap], [-1, 0], [1, 0]), one([0.0, 0.0], [0, -1], [0, 1])
+    assert oracle.exact_toi_point_edge_2d(X[0], dX[0]) is None
+    toi, iterations = oracle.bfemp_toi("point_edge", X, dX)
+    assert toi[0] == 1.0 and iterations[0] == 1
+    # Turned the other way (the point sweeps across the line at t = 1 / 2), a contact at 1 / 2
+    X2, dX2 = one([0.5, 0.0], [-1, -0.5 * gap], [1, 0.5 * gap]), one([0, 0], [0, gap], [0, -gap])
+    t_exact = oracle.exact_toi_point_edge_2d(X2[0], dX2[0])
+    toi, iterations = oracle.bfemp_toi("point_edge", X2, dX2)
+    assert not oracle.false_negative(toi[0], t_exact) and 0.4 < toi[0] < float(t_exact) == 0.5
+    assert iterations[0] <= 3
 
 
 def test_earliest_impact_takes_the_minimum_over_pair_kinds():
@@ -405,6 +425,24 @@ def test_general_motion_point_edge_from_rounding_level_has_no_false_negative():
     toi = run_ccd("point_edge", X, dX)
     late = [i for i in range(len(X)) if oracle.false_negative(toi[i], exact[i])]
     assert not late, [(i, toi[i], float(exact[i])) for i in late[:5]]
+
+
+def test_turning_near_contact_cost_is_bounded_without_false_negative():
+    # The turning family's seed with the costliest pair (212965 ACCD iterations, 85 ms, before
+    # the line step: an edge turning about the foot of a point ~1e-14 above it) and the
+    # tangent family (the segment's line touching the point: a near-double root of the
+    # orientation quadratic, the line step's hardest case; 16171 iterations before). Now 22 and
+    # 8 at most.
+    for X, dX in (oracle.turning_point_edge(2000, seed=1), oracle.tangent_point_edge(2000, 3)):
+        exact = [oracle.exact_toi_point_edge_2d(X[i], dX[i]) for i in range(len(X))]
+        assert sum(e is not None for e in exact) > 100
+        toi, iterations = oracle.bfemp_toi("point_edge", X, dX)
+        late = [i for i in range(len(X)) if oracle.false_negative(toi[i], exact[i])]
+        assert not late, [(i, toi[i], float(exact[i])) for i in late[:5]]
+        assert iterations.max() <= 64, (iterations.max(), np.argmax(iterations))
+        # not uselessly conservative: where the exact oracle finds no contact, mostly t_max
+        none = np.array([e is None for e in exact])
+        assert np.mean(toi[none] == 1.0) > 0.5
 
 
 def test_quadratic_oracle_agrees_with_the_translation_oracle():
