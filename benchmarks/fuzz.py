@@ -50,7 +50,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks import _fuzz_scenes as scenes
-from benchmarks._crossing_oracle import Bodies, judge_step
+from benchmarks._crossing_oracle import MAX_SAMPLES, Bodies, judge_step
 from benchmarks._tradeoff_cache import code_version
 from benchmarks.common import environment, git_commit, write_json
 
@@ -261,6 +261,11 @@ def markdown(payload: dict) -> str:
         f"Silent crossings: **{s['total']['outcomes']['silent_crossing']}**; converged "
         f"inversions: **{s['total']['outcomes']['converged_inversion']}**; crashes: "
         f"**{s['total']['outcomes']['crash']}**.",
+        "",
+        f"Corner cuts (shallow chords of a sliding point, not crossings: "
+        f"`benchmarks/_crossing_oracle.py`): {s['total']['corner_cuts']}, deepest "
+        f"{s['total']['max_cut_depth_m']:.3g} m. Steps whose motion needed more than "
+        f"{MAX_SAMPLES} oracle samples (judged at {MAX_SAMPLES}): {s['total']['capped_steps']}.",
         "",
     ]
     for title, key in (("class", "by_class"), ("pair kind", "by_pair_kind")):
