@@ -378,11 +378,12 @@ def _warmup(args: argparse.Namespace) -> int:
 def _log_warning(message, category, filename, lineno, file=None, line=None) -> None:  # noqa: ANN001
     """Library warnings (the SuperLU fall-back) as one log line each: ``--quiet`` silences them.
 
-    A ``StepNoteWarning`` is left out: ``Simulation`` logs it itself.
+    A ``BfempWarning`` (step notes included) is left out: ``bfemp.errors.warn_user`` and
+    ``Simulation`` log it themselves.
     """
-    from bfemp.errors import StepNoteWarning
+    from bfemp.errors import BfempWarning
 
-    if issubclass(category, StepNoteWarning):
+    if issubclass(category, BfempWarning):
         return
     log.warning("%s: %s", category.__name__, message)
 

@@ -27,6 +27,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from bfemp.errors import warn_user
 from bfemp.io.metrics import MetricsLog
 from bfemp.io.vtk import atomic_path
 
@@ -211,7 +212,11 @@ def plot_series(
         if y.shape != x.shape:
             raise ValueError(f"ys[{label!r}] has shape {y.shape}, expected {x.shape} like x")
         if logy and np.any(y <= 0.0):
-            logger.warning("plot_series: ys[%r] has non-positive values, hidden on log axis", label)
+            warn_user(
+                f"PLOT_HIDDEN_VALUES: plot_series: ys[{label!r}] has non-positive values, "
+                "hidden on the log axis",
+                logger=logger,
+            )
         series[str(label)] = y
     fig = Figure(figsize=(6.4, 4.4), layout="constrained")
     FigureCanvasAgg(fig)
