@@ -295,7 +295,7 @@ class Simulation:
         t_end: float,
         *,
         out: str | Path | None = None,
-        every: int = 1,
+        every: int | None = None,
         progress: bool = True,
         callback: Callable[[Simulation], None] | None = None,
         checkpoint_every: int | None = None,
@@ -330,10 +330,12 @@ class Simulation:
         Args:
             t_end: end time in s.
             out: output folder, or None for no output.
-            every: frame interval in steps (>= 1).
+            every: frame interval in steps (>= 1); None: 1, or on resume the interval of the
+                run being continued (its checkpoint's).
             progress: show a tqdm progress bar.
             callback: called as ``callback(sim)`` after every step.
-            checkpoint_every: checkpoint interval in steps (None or 0: only at the end).
+            checkpoint_every: checkpoint interval in steps (0: only at the end); None: 0, or on
+                resume the interval of the run being continued (its manifest's).
             resume: continue from the checkpoint in ``out``.
             metadata: extra parameters recorded in the manifest (e.g. the scene file).
             overwrite: replace the outputs of an earlier run in ``out`` (else refused).
@@ -375,15 +377,22 @@ class Simulation:
     ) -> MetricsLog:
         """:meth:`run` with the output folder ``out``, whose lock the caller holds."""
         if resume:
-            RunManifest.read(out)  # a corrupt manifest is refused before anything changes
-            restore_checkpoint(out, self, every=every)
+            # a corrupt manifest is refused before anything changes
+            earlier = RunManifest.read(out) or {}
+            ckpt = restore_checkpoint(out, self, every=every)
             check_t_end(t_end, self.state.t, self.dt, f"the checkpoint in {out}")
+            if every is None:  # the continued run's frame interval
+                every = ckpt.meta.get("every")
+            if checkpoint_every is None:
+                checkpoint_every = (
+                    earlier.get("parameters", {}).get("run", {}).get("checkpoint_every")
+                )
         else:
             outputs.prepare_run_folder(out, overwrite=overwrite)
             text = scene_toml if scene_toml is not None else self.scene_file_text()
             if text is not None:
                 outputs.write_scene_file(out, text)
-        every, checkpoint_every = int(every), int(checkpoint_every or 0)
+        every, checkpoint_every = int(every or 1), int(checkpoint_every or 0)
         run = {"t_end": float(t_end), "every": every, "checkpoint_every": checkpoint_every}
         writer = FrameWriter(out, resume=resume)
         manifest = RunManifest.start(out, self, run=run, resume=resume, extra=metadata)
@@ -700,7 +709,9 @@ def _check_run_args(
     t_end: object, every: object, checkpoint_every: object, resume: bool, out: object
 ) -> None:
     """Validate the arguments of ``Simulation.run`` (errors name the argument)."""
-    if isinstance(every, bool) or not isinstance(every, numbers.Integral) or every < 1:
+    if every is not None and (
+        isinstance(every, bool) or not isinstance(every, numbers.Integral) or every < 1
+    ):
         raise ValueError(f"Simulation.run: every must be an integer >= 1, got {every!r}")
     if checkpoint_every is not None and (
         isinstance(checkpoint_every, bool)
