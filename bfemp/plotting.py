@@ -9,7 +9,9 @@ groups are: energies (``energy_*``), momenta (``momentum_*``), iterations (``ite
 Newton, friction, ... per step), closest distance, contact forces per body pair
 (``contact_force.*``), per-body energies and momenta (``body.*``) and timings (``time_*``, log
 scale). A group none of whose columns is in the log is skipped; the ``x`` column itself is never
-plotted as a series.
+plotted as a series. A column NaN in every row is not computed by the run (:func:`undefined_column`:
+``energy_contact`` of a strategy without a contact energy, ``min_distance`` of an explicit one):
+its legend entry says so, and a panel none of whose columns is computed says so in its middle.
 
 Readable at a glance: every panel's y axis names its quantity and unit (:data:`GROUP_UNITS`), the
 x axis ``t [s]``; every curve of a panel has its own colour (tab10, tab20, then line styles:
@@ -28,7 +30,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from bfemp.errors import warn_user
-from bfemp.io.metrics import MetricsLog
+from bfemp.io.metrics import MetricsLog, undefined_column
 from bfemp.io.vtk import atomic_path
 
 logger = logging.getLogger(__name__)
@@ -130,8 +132,21 @@ def metrics_figure(
     axes = fig.subplots(len(resolved), 1, sharex=True, squeeze=False)[:, 0]
     marker = "." if len(log) <= 200 else None
     for ax, (group, names) in zip(axes, resolved.items(), strict=True):
+        undefined = [n for n in names if undefined_column(log.column(n))]
         for name, style in zip(names, curve_styles(len(names)), strict=True):
-            ax.plot(x_values, log.column(name), marker=marker, label=name, **style)
+            label = f"{name} ({UNDEFINED_TEXT})" if name in undefined else name
+            ax.plot(x_values, log.column(name), marker=marker, label=label, **style)
+        if len(undefined) == len(names):  # an empty panel says why
+            ax.text(
+                0.5,
+                0.5,
+                f"{', '.join(names)}: {UNDEFINED_TEXT}",
+                transform=ax.transAxes,
+                ha="center",
+                va="center",
+                fontsize="small",
+                color="0.35",
+            )
         ax.set_title(group.replace("_", " "), fontsize="medium")
         ax.set_ylabel(GROUP_UNITS.get(group, ""), fontsize="small")
         if group in LOG_GROUPS and np.any(np.concatenate([log.column(n) for n in names]) > 0):
@@ -146,6 +161,10 @@ def metrics_figure(
     if title:
         fig.suptitle(title)
     return fig
+
+
+#: what the metrics plot says of a column that is NaN in every row
+UNDEFINED_TEXT = "not computed in this run: NaN in every row"
 
 
 def curve_styles(n: int) -> list[dict[str, object]]:
