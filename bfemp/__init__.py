@@ -21,7 +21,7 @@ _os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 import logging
 
 from bfemp import levelset, motion, sample, scenefile, shapes
-from bfemp.errors import RunFolderError, SceneError, StepNoteWarning
+from bfemp.errors import BfempWarning, RunFolderError, SceneError, StepNoteWarning
 from bfemp.integrators import BACKWARD_EULER, NEWMARK, Integrator
 from bfemp.materials import BulkShearHyperelastic, LinearElastic, NeoHookean
 from bfemp.model import FemBody, Model, MpmBody
@@ -39,6 +39,8 @@ from bfemp.steppers import (
     strategy_table,
 )
 
+# library convention: no log output unless the application configures logging; what the user
+# must see is issued through Python's warnings as well (bfemp.BfempWarning, errors.warn_user)
 logging.getLogger(__name__).addHandler(logging.NullHandler())
 
 __version__ = "0.1.0"
@@ -48,6 +50,7 @@ __all__ = [
     "NEWMARK",
     "STRATEGIES",
     "BarrierOptions",
+    "BfempWarning",
     "BulkShearHyperelastic",
     "ContactView",
     "FemBody",

@@ -40,7 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bfemp.errors import RunFolderError, SceneError
+from bfemp.errors import RunFolderError, SceneError, warn_user
 from bfemp.io.metrics import MetricsLog
 from bfemp.io.vtk import atomic_path
 from bfemp.state import State
@@ -348,14 +348,18 @@ def restore_checkpoint(out: str | Path, sim: object, *, every: int | None = None
     old, new = ckpt.meta["settings"], dict(sim.settings)
     changed = sorted(k for k in set(old) | set(new) if old.get(k) != new.get(k))
     if changed:
-        log.warning(
-            "resuming with settings %s different from the checkpoint's %s: the continued run "
-            "will differ from an uninterrupted one",
-            {k: new.get(k) for k in changed},
-            {k: old.get(k) for k in changed},
+        now, before = {k: new.get(k) for k in changed}, {k: old.get(k) for k in changed}
+        warn_user(
+            f"RESUME_SETTINGS_CHANGED: resuming with settings {now} different from the "
+            f"checkpoint's {before}: the continued run will differ from an uninterrupted one",
+            logger=log,
         )
     if every is not None and ckpt.meta.get("every") not in (None, every):
-        log.warning("resuming with a frame every %d steps instead of %s", every, ckpt.meta["every"])
+        warn_user(
+            f"RESUME_EVERY_CHANGED: resuming with a frame every {every} steps instead of the "
+            f"checkpoint's {ckpt.meta['every']}",
+            logger=log,
+        )
     try:
         sim.stepper.restore_checkpoint_data(dict(ckpt.stepper))
     except ValueError as err:

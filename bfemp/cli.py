@@ -227,9 +227,11 @@ def _run(args: argparse.Namespace, argv: list[str]) -> int:
     scene_path = Path(args.scene)
     sf = scenefile.load(scene_path)
     settings = sf.run_settings(quick=args.quick, t_end=args.t_end)
-    every = _positive_int(args.every, "--every", 1) or settings["every"]
+    every = _positive_int(args.every, "--every", 1)
     ckpt = _positive_int(args.checkpoint_every, "--checkpoint-every", 0)
-    ckpt = settings["checkpoint_every"] if ckpt is None else ckpt
+    if not args.resume:  # a resumed run keeps the intervals of the run it continues
+        every = every or settings["every"]
+        ckpt = settings["checkpoint_every"] if ckpt is None else ckpt
     out = Path(args.out or settings.get("out") or Path("results") / scene_path.stem)
     if not args.dry_run:
         _first_run_notice(args)
@@ -271,7 +273,8 @@ def _run(args: argparse.Namespace, argv: list[str]) -> int:
         if (out / CHECKPOINT_FILE).is_file():
             print(
                 f"bfemp: {where}; checkpoint in {out}\n"
-                f"  continue with: bfemp run {scene_path} --out {out} --resume",
+                f"  continue with: bfemp run {scene_path} --out {out} --resume"
+                + _repeated_options(args),
                 file=sys.stderr,
             )
         else:  # stopped before any checkpoint: --resume would be refused
@@ -300,6 +303,17 @@ def _run(args: argparse.Namespace, argv: list[str]) -> int:
             print("bfemp: error: a check failed", file=sys.stderr)
             return EXIT_RUN
     return 0
+
+
+def _repeated_options(args: argparse.Namespace) -> str:
+    """The options of ``bfemp run`` a continuation must repeat (``--quick``, ``--t-end``,
+    ``--animate``); the frame and checkpoint intervals are the checkpoint's by default."""
+    text = " --quick" if args.quick else ""
+    if args.t_end is not None:
+        text += f" --t-end {args.t_end!r}"
+    if args.animate:
+        text += f" --animate {args.animate}"
+    return text
 
 
 def _info(args: argparse.Namespace) -> int:
@@ -378,11 +392,12 @@ def _warmup(args: argparse.Namespace) -> int:
 def _log_warning(message, category, filename, lineno, file=None, line=None) -> None:  # noqa: ANN001
     """Library warnings (the SuperLU fall-back) as one log line each: ``--quiet`` silences them.
 
-    A ``StepNoteWarning`` is left out: ``Simulation`` logs it itself.
+    A ``BfempWarning`` (step notes included) is left out: ``bfemp.errors.warn_user`` and
+    ``Simulation`` log it themselves.
     """
-    from bfemp.errors import StepNoteWarning
+    from bfemp.errors import BfempWarning
 
-    if issubclass(category, StepNoteWarning):
+    if issubclass(category, BfempWarning):
         return
     log.warning("%s: %s", category.__name__, message)
 

@@ -12,7 +12,23 @@ The command line prints that message after ``bfemp: error:`` without a traceback
 
 from __future__ import annotations
 
-__all__ = ["RunFolderError", "SceneError", "StepNoteWarning", "note_name"]
+import logging
+import warnings
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
+
+__all__ = [
+    "BfempWarning",
+    "RunFolderError",
+    "SceneError",
+    "StepNoteWarning",
+    "collect_warnings",
+    "note_name",
+    "warn_user",
+]
+
+log = logging.getLogger("bfemp")
 
 
 class SceneError(ValueError):
@@ -73,12 +89,66 @@ class RunFolderError(SceneError):
     """
 
 
-class StepNoteWarning(UserWarning):
+class BfempWarning(UserWarning):
+    """What bfemp tells the user to act on or to know (:func:`warn_user`): a setting that is
+    not used, a grid that does not fit the mesh, an output file not written, ...
+
+    The message starts with a name in capitals followed by a colon (``P2G_ZERO_MASS: ...``).
+    ``warnings.simplefilter("ignore", bfemp.BfempWarning)`` silences all of them.
+    """
+
+
+class StepNoteWarning(BfempWarning):
     """What a run noticed and the user should see: a step's named note (``INTERPENETRATION``,
     ``LR_UNCONVERGED``, ...), an energy growth, a pair of bodies the strategy does not couple.
 
     The message starts with the note's name in capitals followed by a colon.
     """
+
+
+#: the receiver of :func:`warn_user` while a simulation works (``Simulation`` sets it)
+_SINK: ContextVar[Callable[[str, type, logging.Logger], None] | None] = ContextVar(
+    "bfemp_warning_sink", default=None
+)
+
+
+def warn_user(
+    message: str,
+    *,
+    category: type[Warning] = BfempWarning,
+    logger: logging.Logger | None = None,
+    stacklevel: int = 2,
+) -> None:
+    """Tell the user ``message`` (``"NAME: text"``): something to act on or to know.
+
+    Inside a simulation's work (its construction, ``step``, ``run``, ``load_checkpoint``: the
+    simulation collects through :func:`collect_warnings`) the warning is counted in
+    ``sim.note_counts`` by its name, and only the first of each name in a simulation is kept in
+    ``sim.diagnostics``, logged and issued through Python's ``warnings`` as ``category``.
+    Elsewhere it is logged (``logger``, else ``bfemp``) and issued every time (Python's default
+    filter shows an identical message from one place once).
+
+    Python's ``warnings`` reach a plain script without any logging set up (the package logger
+    has a ``NullHandler``, so its records alone would not); the log line serves the command
+    line and log files. Internal detail stays ``logging`` only.
+    """
+    sink = _SINK.get()
+    if sink is not None:
+        sink(message, category, logger or log)
+        return
+    (logger or log).warning("%s", message)
+    warnings.warn(message, category, stacklevel=stacklevel + 1)
+
+
+@contextmanager
+def collect_warnings(sink: Callable[[str, type, logging.Logger], None]) -> Iterator[None]:
+    """Send :func:`warn_user` calls to ``sink(message, category, logger)`` within the block
+    (nested blocks: the innermost sink)."""
+    token = _SINK.set(sink)
+    try:
+        yield
+    finally:
+        _SINK.reset(token)
 
 
 def note_name(note: str) -> str:

@@ -279,7 +279,7 @@ class RunManifest:
             status=status,
             notes=dict(getattr(sim, "note_counts", {})),
         )
-        # named step notes (Simulation.note_counts) summed over the run's sessions
+        # named step notes and warnings (Simulation.note_counts) summed over the run's sessions
         totals: dict[str, int] = {}
         for s in self.data["sessions"]:
             for name, count in s.get("notes", {}).items():
@@ -399,7 +399,7 @@ def format_info(info: dict) -> str:
         lines.append(f"sessions:      {len(sessions)} (wall time {wall:.1f} s)")
         if man.get("notes"):
             counts = ", ".join(f"{k} x {v}" for k, v in sorted(man["notes"].items()))
-            lines.append(f"step notes:    {counts} (steps reporting each; warned once per run)")
+            lines.append(f"notes:         {counts} (times each was reported; warned once per run)")
         git = man.get("git", {})
         vers = man.get("versions", {})
         lines.append(

@@ -9,7 +9,9 @@ groups are: energies (``energy_*``), momenta (``momentum_*``), iterations (``ite
 Newton, friction, ... per step), closest distance, contact forces per body pair
 (``contact_force.*``), per-body energies and momenta (``body.*``) and timings (``time_*``, log
 scale). A group none of whose columns is in the log is skipped; the ``x`` column itself is never
-plotted as a series.
+plotted as a series. A column NaN in every row is not computed by the run (:func:`undefined_column`:
+``energy_contact`` of a strategy without a contact energy, ``min_distance`` of an explicit one):
+its legend entry says so, and a panel none of whose columns is computed says so in its middle.
 
 Readable at a glance: every panel's y axis names its quantity and unit (:data:`GROUP_UNITS`), the
 x axis ``t [s]``; every curve of a panel has its own colour (tab10, tab20, then line styles:
@@ -27,7 +29,8 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from bfemp.io.metrics import MetricsLog
+from bfemp.errors import warn_user
+from bfemp.io.metrics import MetricsLog, undefined_column
 from bfemp.io.vtk import atomic_path
 
 logger = logging.getLogger(__name__)
@@ -129,8 +132,21 @@ def metrics_figure(
     axes = fig.subplots(len(resolved), 1, sharex=True, squeeze=False)[:, 0]
     marker = "." if len(log) <= 200 else None
     for ax, (group, names) in zip(axes, resolved.items(), strict=True):
+        undefined = [n for n in names if undefined_column(log.column(n))]
         for name, style in zip(names, curve_styles(len(names)), strict=True):
-            ax.plot(x_values, log.column(name), marker=marker, label=name, **style)
+            label = f"{name} ({UNDEFINED_TEXT})" if name in undefined else name
+            ax.plot(x_values, log.column(name), marker=marker, label=label, **style)
+        if len(undefined) == len(names):  # an empty panel says why
+            ax.text(
+                0.5,
+                0.5,
+                f"{', '.join(names)}: {UNDEFINED_TEXT}",
+                transform=ax.transAxes,
+                ha="center",
+                va="center",
+                fontsize="small",
+                color="0.35",
+            )
         ax.set_title(group.replace("_", " "), fontsize="medium")
         ax.set_ylabel(GROUP_UNITS.get(group, ""), fontsize="small")
         if group in LOG_GROUPS and np.any(np.concatenate([log.column(n) for n in names]) > 0):
@@ -145,6 +161,10 @@ def metrics_figure(
     if title:
         fig.suptitle(title)
     return fig
+
+
+#: what the metrics plot says of a column that is NaN in every row
+UNDEFINED_TEXT = "not computed in this run: NaN in every row"
 
 
 def curve_styles(n: int) -> list[dict[str, object]]:
@@ -211,7 +231,11 @@ def plot_series(
         if y.shape != x.shape:
             raise ValueError(f"ys[{label!r}] has shape {y.shape}, expected {x.shape} like x")
         if logy and np.any(y <= 0.0):
-            logger.warning("plot_series: ys[%r] has non-positive values, hidden on log axis", label)
+            warn_user(
+                f"PLOT_HIDDEN_VALUES: plot_series: ys[{label!r}] has non-positive values, "
+                "hidden on the log axis",
+                logger=logger,
+            )
         series[str(label)] = y
     fig = Figure(figsize=(6.4, 4.4), layout="constrained")
     FigureCanvasAgg(fig)

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from bfemp.checkpoint import restore_checkpoint
 from bfemp.errors import SceneError
 from bfemp.simulation import Simulation
 
@@ -39,5 +38,5 @@ def load_run(out: str | Path, *, checkpoint: bool = True) -> Simulation:
         )
     sim = Simulation.from_file(scene_file)
     if checkpoint:
-        restore_checkpoint(out, sim)
+        sim.load_checkpoint(out)
     return sim

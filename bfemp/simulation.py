@@ -25,7 +25,7 @@ from bfemp import diagnostics, scenefile
 from bfemp._run_arguments import check_t_end
 from bfemp.checkpoint import InterruptGuard, restore_checkpoint, write_checkpoint
 from bfemp.contact.penetration import PenetrationCheck
-from bfemp.errors import SceneError, StepNoteWarning, note_name
+from bfemp.errors import SceneError, StepNoteWarning, collect_warnings, note_name, warn_user
 from bfemp.integrators import Integrator, integrator_from_name
 from bfemp.io import outputs
 from bfemp.io.metrics import MetricsLog
@@ -79,9 +79,12 @@ class Simulation:
             (:mod:`bfemp.steppers.capabilities`; ``bfemp strategies`` lists what each couples).
 
     Every named note of a step (``StepReport.notes``: ``INTERPENETRATION``, ``LR_UNCONVERGED``,
-    ...) is counted in ``note_counts`` (also in the run's manifest and ``bfemp info``) and, the
-    first time each name occurs, issued as a ``bfemp.StepNoteWarning`` (Python's ``warnings``:
-    a plain script sees it), logged, and kept in ``diagnostics``. Scenes with a FEM body and
+    ...), and every warning the library issues while the simulation works
+    (:func:`bfemp.errors.warn_user`: ``P2G_ZERO_MASS``, ``LR_GRID_FINE``, ``ENERGY_GROWTH``,
+    ``OUTPUT_NOT_WRITTEN``, ...), is counted in ``note_counts`` (also in the run's manifest and
+    ``bfemp info``) and, the first time each name occurs, issued through Python's ``warnings``
+    (a ``bfemp.StepNoteWarning`` or ``bfemp.BfempWarning``: a plain script sees it without
+    configuring logging), logged, and kept in ``diagnostics``. Scenes with a FEM body and
     another body get a ``penetration_depth`` metrics column: the deepest any FEM node or particle
     lies inside another FEM body, in m (``bfemp.contact.penetration``, the same geometric check
     for every strategy).
@@ -118,15 +121,33 @@ class Simulation:
             "warm_start": warm_start,
         }
         options = _merge_flat_options(strategy, options, flat)
-        self.model = scene.build() if isinstance(scene, Scene) else scene
-        #: named warnings raised during the run (e.g. "ENERGY_GROWTH: ..."), also logged
+        #: the first warning of each name (e.g. "ENERGY_GROWTH: ..."), as issued and logged
         self.diagnostics: list[str] = []
+        #: how many times each named note (``StepReport.notes``) or warning was reported
+        self.note_counts: dict[str, int] = {}
+        with collect_warnings(self._notice):
+            self._build(
+                scene, stepper_cls, strategy, integrator, transfer, dt, options, allow_uncoupled
+            )
+
+    def _build(
+        self,
+        scene: Scene | Model,
+        stepper_cls: type,
+        strategy: str,
+        integrator: str | Integrator | None,
+        transfer: str,
+        dt: float | str,
+        options: StepperOptions,
+        allow_uncoupled: bool,
+    ) -> None:
+        """The body of ``__init__``, within which :func:`bfemp.errors.warn_user` reaches
+        ``diagnostics``."""
+        self.model = scene.build() if isinstance(scene, Scene) else scene
         for message in check_scene(
             self.model, strategy, STRATEGIES, allow_uncoupled=allow_uncoupled
         ):
-            self._warn(message, already_logged=True)
-        #: how many steps reported each named note (``StepReport.notes``), by name
-        self.note_counts: dict[str, int] = {}
+            warn_user(message, category=StepNoteWarning, logger=log)
         #: the scene this simulation was built from (written to ``out/scene.toml`` by runs)
         self.scene = scene if isinstance(scene, Scene) else None
         #: the text of the scene file this simulation was read from (``from_file``), or None
@@ -166,6 +187,8 @@ class Simulation:
         self._fem_groups = fem_elastic_groups(self.model)
         self._contact_columns = self.model.contact is not None
         self._penetration = PenetrationCheck.for_model(self.model)
+        self._energy_floor = self.ENERGY_FLOOR_STRAIN**2 * _shear_volume(self.model)
+        self._energy_log: MetricsLog | None = None
         self.metrics.append(self._metrics_row(None))
 
     @classmethod
@@ -217,7 +240,11 @@ class Simulation:
         try:
             return scenefile.save(self.scene, simulation=self.scene_settings())
         except ValueError as err:
-            log.warning("no scene.toml written: the scene cannot be written as TOML (%s)", err)
+            warn_user(
+                f"NO_SCENE_FILE: no scene.toml written: the scene cannot be written as TOML "
+                f"({err})",
+                logger=log,
+            )
             return None
 
     @property
@@ -228,37 +255,47 @@ class Simulation:
     # ------------------------------------------------------------------ stepping
     def step(self) -> StepReport:
         """Advance one time step; returns its report (raises ``StepError`` on failure)."""
-        self.state, report = self.stepper.step(self.state)
-        self._count_notes(report)
-        self.metrics.append(self._metrics_row(report))
+        with collect_warnings(self._notice):
+            self.state, report = self.stepper.step(self.state)
+            self._count_notes(report)
+            self.metrics.append(self._metrics_row(report))
         return report
 
     def _count_notes(self, report: StepReport) -> None:
         """Count the step's named notes; warn the first time each name occurs."""
         for note in report.notes:
             name = note_name(note)
-            self.note_counts[name] = self.note_counts.get(name, 0) + 1
-            if self.note_counts[name] == 1:
-                self._warn(
+            if name not in self.note_counts:
+                note = (
                     f"{note} (step {report.step}, t = {report.t:.6g} s; the first {name} note "
                     "of this run: later ones are counted in note_counts, the manifest and "
-                    "bfemp info)",
+                    "bfemp info)"
                 )
+            self._notice(note, StepNoteWarning, log)
 
-    def _warn(self, message: str, *, already_logged: bool = False) -> None:
-        """A warning the user sees: ``diagnostics``, the log and Python's ``warnings`` (the
-        command line shows it once, as its log line)."""
+    def _notice(
+        self, message: str, category: type[Warning] = StepNoteWarning, logger: object = log
+    ) -> None:
+        """A named warning ``"NAME: text"`` of this simulation (:func:`bfemp.errors.warn_user`
+        sends those of the library here while the simulation works): counted in
+        ``note_counts``; the first of each name kept in ``diagnostics``, logged and issued
+        through Python's ``warnings`` (the command line shows it once, as its log line), later
+        ones logged at debug level only."""
+        name = note_name(message)
+        self.note_counts[name] = self.note_counts.get(name, 0) + 1
+        if self.note_counts[name] > 1:
+            logger.debug("%s", message)
+            return
         self.diagnostics.append(message)
-        if not already_logged:
-            log.warning(message)
-        warnings.warn(message, StepNoteWarning, stacklevel=3)
+        logger.warning("%s", message)
+        warnings.warn(message, category, stacklevel=3)
 
     def run(
         self,
         t_end: float,
         *,
         out: str | Path | None = None,
-        every: int = 1,
+        every: int | None = None,
         progress: bool = True,
         callback: Callable[[Simulation], None] | None = None,
         checkpoint_every: int | None = None,
@@ -293,10 +330,12 @@ class Simulation:
         Args:
             t_end: end time in s.
             out: output folder, or None for no output.
-            every: frame interval in steps (>= 1).
+            every: frame interval in steps (>= 1); None: 1, or on resume the interval of the
+                run being continued (its checkpoint's).
             progress: show a tqdm progress bar.
             callback: called as ``callback(sim)`` after every step.
-            checkpoint_every: checkpoint interval in steps (None or 0: only at the end).
+            checkpoint_every: checkpoint interval in steps (0: only at the end); None: 0, or on
+                resume the interval of the run being continued (its manifest's).
             resume: continue from the checkpoint in ``out``.
             metadata: extra parameters recorded in the manifest (e.g. the scene file).
             overwrite: replace the outputs of an earlier run in ``out`` (else refused).
@@ -315,7 +354,8 @@ class Simulation:
         if out is None:
             self._loop(self._n_steps(t_end), progress, callback)
             return self.metrics
-        with outputs.lock_run_folder(out):  # one writer per folder; RunFolderError if in use
+        # one writer per folder: RunFolderError if in use
+        with collect_warnings(self._notice), outputs.lock_run_folder(out):
             return self._run_to_folder(
                 Path(out), t_end, every, progress, callback, checkpoint_every, resume,
                 metadata, overwrite, animation, scene_toml,
@@ -337,15 +377,22 @@ class Simulation:
     ) -> MetricsLog:
         """:meth:`run` with the output folder ``out``, whose lock the caller holds."""
         if resume:
-            RunManifest.read(out)  # a corrupt manifest is refused before anything changes
-            restore_checkpoint(out, self, every=every)
+            # a corrupt manifest is refused before anything changes
+            earlier = RunManifest.read(out) or {}
+            ckpt = restore_checkpoint(out, self, every=every)
             check_t_end(t_end, self.state.t, self.dt, f"the checkpoint in {out}")
+            if every is None:  # the continued run's frame interval
+                every = ckpt.meta.get("every")
+            if checkpoint_every is None:
+                checkpoint_every = (
+                    earlier.get("parameters", {}).get("run", {}).get("checkpoint_every")
+                )
         else:
             outputs.prepare_run_folder(out, overwrite=overwrite)
             text = scene_toml if scene_toml is not None else self.scene_file_text()
             if text is not None:
                 outputs.write_scene_file(out, text)
-        every, checkpoint_every = int(every), int(checkpoint_every or 0)
+        every, checkpoint_every = int(every or 1), int(checkpoint_every or 0)
         run = {"t_end": float(t_end), "every": every, "checkpoint_every": checkpoint_every}
         writer = FrameWriter(out, resume=resume)
         manifest = RunManifest.start(out, self, run=run, resume=resume, extra=metadata)
@@ -435,7 +482,8 @@ class Simulation:
 
     def load_checkpoint(self, out: str | Path) -> None:
         """Continue from the checkpoint in the folder ``out`` (same model required)."""
-        restore_checkpoint(out, self)
+        with collect_warnings(self._notice):
+            restore_checkpoint(out, self)
 
     # ------------------------------------------------------------------ output
     def energies(self, state: State | None = None) -> dict[str, float]:
@@ -469,8 +517,8 @@ class Simulation:
     def _metrics_row(self, report: StepReport | None) -> dict[str, float]:
         row: dict[str, float] = {"t": self.state.t, "step": self.state.step}
         row.update(self.energies())
-        if report is not None and self._closed:
-            self._check_energy(row["energy_total"])
+        if self._closed:
+            self._check_energy(row, report is not None)
         axes = "xyz"
         for k, p in enumerate(diagnostics.linear_momentum(self.model, self.state)):
             row[f"momentum_{axes[k]}"] = float(p)
@@ -505,9 +553,19 @@ class Simulation:
 
     #: relative growth of the total energy of a closed scene that triggers ENERGY_GROWTH
     ENERGY_GROWTH_TOL = 1e-2
+    #: the strain whose elastic energy mu V strain^2 floors the ENERGY_GROWTH scale
+    ENERGY_FLOOR_STRAIN = 1e-6
 
-    def _check_energy(self, total: float) -> None:
-        """Warn once when a scene on which nothing external works gains energy.
+    def _check_energy(self, row: dict[str, float], stepped: bool) -> None:
+        """Warn (once, counted) when a scene on which nothing external works gains energy.
+
+        The growth E(t) - E(0) of the total energy is judged against the run's energy scale:
+        the largest of |E(0)|, the kinetic and the elastic energy at any row so far, the change
+        of the gravitational energy from t = 0 at any row so far, and a floor, the elastic
+        energy of every body at a uniform strain of ``ENERGY_FLOOR_STRAIN`` (sum mu V e^2, J;
+        J/m in 2D). The floor is this module's choice (no paper sets one): it keeps round-off
+        of a scene at rest (measured 1.8e-19 J in a block at rest far from the origin, E(0) =
+        0) from reading as growth, and lies far below any energy a run resolves.
 
         Backward Euler only dissipates; Newmark's trapezoidal rule conserves energy for linear
         problems but can gain it when a stiff barrier switches on and off within steps (known for
@@ -515,21 +573,47 @@ class Simulation:
         h = 0.05 m, none at h = 0.025 m). The remedies are ``"newmark_implicit_contact"``
         (contact forces without the trapezoidal rule's memory), a smaller dt (resolving the
         approach through dhat in a few steps), ``"newmark_damped"`` or backward Euler.
+
+        Args:
+            row: this row's energies (``energy_total``, ``energy_kinetic``, ...; J).
+            stepped: a row after a step (False: the initial row, which only sets the scale).
         """
-        first = self.metrics.column("energy_total")[0] if len(self.metrics) else total
-        scale = max(abs(first), 1e-300)
-        growth = (total - first) / scale
-        if growth > self.ENERGY_GROWTH_TOL and not any(
-            d.startswith("ENERGY_GROWTH") for d in self.diagnostics
-        ):
-            message = (
-                f"ENERGY_GROWTH: the total energy grew by {100 * growth:.1f} % since t = 0 at "
-                f"t = {self.state.t:.6g} s although nothing external works on the scene "
+        if self._energy_log is not self.metrics:  # a new run or a restored checkpoint
+            self._energy_log, self._energy_peak = self.metrics, self._energy_floor
+            self._energy_first = None
+            if len(self.metrics):
+                first = self.metrics.rows[0]
+                self._energy_first = (first["energy_total"], first["energy_gravity"])
+                for r in self.metrics.rows:
+                    self._energy_peak = max(self._energy_peak, self._energy_magnitude(r))
+        if self._energy_first is None:
+            self._energy_first = (row["energy_total"], row["energy_gravity"])
+        self._energy_peak = max(self._energy_peak, self._energy_magnitude(row))
+        if not stepped:
+            return
+        change = row["energy_total"] - self._energy_first[0]
+        growth = change / self._energy_peak if self._energy_peak > 0.0 else 0.0
+        if growth > self.ENERGY_GROWTH_TOL:
+            warn_user(
+                f"ENERGY_GROWTH: the total energy grew by {100 * growth:.3g} % of the run's "
+                f"energy scale {self._energy_peak:.3g} J (J/m in 2D) since t = 0, at t = "
+                f"{self.state.t:.6g} s, although nothing external works on the scene "
                 f"({self.integrator.name}); with contact, Newmark can gain energy: use "
                 "integrator='newmark_implicit_contact', a smaller dt or "
-                "integrator='backward_euler'"
+                "integrator='backward_euler'",
+                category=StepNoteWarning,
+                logger=log,
             )
-            self._warn(message)
+
+    def _energy_magnitude(self, row: dict[str, float]) -> float:
+        """The energy scale a row adds (:meth:`_check_energy`), in J."""
+        values = (
+            abs(self._energy_first[0]),
+            abs(row["energy_kinetic"]),
+            abs(row["energy_elastic"]),
+            abs(row["energy_gravity"] - self._energy_first[1]),
+        )
+        return max((v for v in values if math.isfinite(v)), default=0.0)
 
     def frame_blocks(self) -> list[Block]:
         """One VTK block per FEM body with velocity, J and von Mises stress."""
@@ -587,6 +671,17 @@ def _is_closed(model: Model) -> bool:
     return not (moving or moving_boundary or model.has_load)
 
 
+def _shear_volume(model: Model) -> float:
+    """sum mu V over the FEM cells and particles, in J (J/m in 2D): the bodies' elastic energy
+    per unit squared strain (the scale of :meth:`Simulation._check_energy`'s floor)."""
+    total = 0.0
+    for body in model.fem_bodies:  # a few bodies; vectorised over cells
+        total += body.material.mu * float(model.fem_cell_volume[body.cells].sum())
+    for body in model.mpm_bodies:
+        total += body.material.mu * float(model.mpm_volume[body.particles].sum())
+    return total
+
+
 def _von_mises(material: object, F: np.ndarray) -> np.ndarray:
     """Von Mises Cauchy stress ``(n,)`` in Pa of deformation gradients ``(n, d, d)``.
 
@@ -614,7 +709,9 @@ def _check_run_args(
     t_end: object, every: object, checkpoint_every: object, resume: bool, out: object
 ) -> None:
     """Validate the arguments of ``Simulation.run`` (errors name the argument)."""
-    if isinstance(every, bool) or not isinstance(every, numbers.Integral) or every < 1:
+    if every is not None and (
+        isinstance(every, bool) or not isinstance(every, numbers.Integral) or every < 1
+    ):
         raise ValueError(f"Simulation.run: every must be an integer >= 1, got {every!r}")
     if checkpoint_every is not None and (
         isinstance(checkpoint_every, bool)

@@ -58,6 +58,7 @@ from scipy.sparse.csgraph import dijkstra
 
 from bfemp.contact.collision import CollisionSet, PointStencils, build_collision_set
 from bfemp.contact.pairs import candidate_pairs, edge_edge_active, edge_edge_pairs
+from bfemp.errors import warn_user
 from bfemp.model import Model
 from bfemp.state import State
 from geometry.broadphase import point_simplex_candidates
@@ -415,13 +416,11 @@ def _certify(kind: str, X0: np.ndarray, dX: np.ndarray, floor: float) -> np.ndar
         active = active[~clear & ~stuck]
         if active.size == 0:
             return hit
-    log.warning(
-        "end-of-step check: %d %s pair(s) not certified clear after %d CCD rounds (grazing "
-        "motion near the floor %.3g m): counted as crossings",
-        active.size,
-        kind,
-        MAX_ROUNDS,
-        floor,
+    warn_user(
+        f"CCD_UNCERTIFIED: end-of-step check: {active.size} {kind} pair(s) not certified clear "
+        f"after {MAX_ROUNDS} CCD rounds (grazing motion near the floor {floor:.3g} m): counted "
+        "as crossings",
+        logger=log,
     )
     hit[active] = tau[active]
     return hit

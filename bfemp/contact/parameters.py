@@ -7,6 +7,7 @@ import math
 from dataclasses import dataclass
 
 from bfemp.contact.pair_friction import PairFriction
+from bfemp.errors import warn_user
 
 __all__ = ["ContactParameters", "refuse_pair_friction", "warn_mpm_pairs"]
 
@@ -111,10 +112,9 @@ def warn_mpm_pairs(contact: ContactParameters | None, strategy: str, mpm_names: 
         return
     unused = [(a, b) for a, b, _ in contact.pair_mu if a < 0 and b < 0]
     for a, b in unused:
-        log.warning(
-            "%s: the friction of MPM bodies %r and %r (scene.set_friction) is not used: they "
-            "share one grid velocity field and never meet through the barrier",
-            strategy,
-            mpm_names[-1 - a],
-            mpm_names[-1 - b],
+        warn_user(
+            f"FRICTION_UNUSED: {strategy}: the friction of MPM bodies {mpm_names[-1 - a]!r} and "
+            f"{mpm_names[-1 - b]!r} (scene.set_friction) is not used: they share one grid "
+            "velocity field and never meet through the barrier",
+            logger=log,
         )

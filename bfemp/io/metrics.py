@@ -8,6 +8,11 @@ CSV format (:meth:`MetricsLog.to_csv`): a header line with the column names, the
 row; integers as integers, floats with ``repr`` (shortest text that reads back to the same
 float64), NaN as ``nan`` and infinities as ``inf``/``-inf``. Reading accepts an empty field as NaN.
 So a round trip keeps every value bit for bit, and integer columns stay integers.
+
+A column NaN in every row, the initial one included, is not defined in its run
+(:func:`undefined_column`: ``energy_contact`` under a strategy without a contact energy,
+``min_distance`` and ``residual`` under an explicit one); checks (``[check]``) and plots treat
+it as absent, not as non-finite.
 """
 
 from __future__ import annotations
@@ -27,6 +32,17 @@ from bfemp.io.vtk import atomic_path
 _INT_RE = re.compile(r"[+-]?\d+")
 
 Number = float | int
+
+__all__ = ["MetricsLog", "undefined_column"]
+
+
+def undefined_column(values: np.ndarray) -> bool:
+    """Whether a metrics column ``(rows,)`` is not defined in its run: NaN in every row, the
+    initial one included (a strategy without a contact energy has ``energy_contact`` NaN, an
+    explicit strategy ``min_distance``). A column that turns NaN after finite rows is
+    defined and went non-finite."""
+    values = np.asarray(values, dtype=np.float64)
+    return bool(values.size) and bool(np.all(np.isnan(values)))
 
 
 def _as_number(column: str, value: object) -> Number:

@@ -41,7 +41,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 
 from bfemp.checkpoint import CHECKPOINT_FILE, SIDECAR_FILE, InterruptGuard, write_checkpoint
-from bfemp.errors import RunFolderError, SceneError
+from bfemp.errors import RunFolderError, SceneError, warn_user
 from bfemp.io.vtk import atomic_path
 
 __all__ = [
@@ -253,8 +253,10 @@ class RunFolderLock:
         try:
             import fcntl
         except ImportError:  # pragma: no cover - not POSIX
-            log.warning(
-                "no fcntl on this platform: %s is not locked against a second run", self.out
+            warn_user(
+                f"RUN_FOLDER_UNLOCKED: no fcntl on this platform: {self.out} is not locked "
+                "against a second run",
+                logger=log,
             )
             return
         while True:
@@ -278,10 +280,10 @@ class RunFolderLock:
                 ) from None
             except OSError as err:  # a file system without locks (some network mounts)
                 os.close(fd)
-                log.warning(
-                    "%s cannot be locked (%s): a second run into it is not refused",
-                    self.out,
-                    err.strerror or err,
+                warn_user(
+                    f"RUN_FOLDER_UNLOCKED: {self.out} cannot be locked "
+                    f"({err.strerror or err}): a second run into it is not refused",
+                    logger=log,
                 )
                 return
             try:
@@ -294,11 +296,11 @@ class RunFolderLock:
         text = os.read(fd, 1 << 16).decode("utf-8", "replace")
         if text.strip():  # a lock file nobody held: left by a run that was killed
             self.previous = _read_holder(text)
-            log.warning(
-                "took over the lock of %s left by a run that ended without releasing it "
-                "(killed or crashed): %s",
-                self.out,
-                _describe(self.previous) if self.previous else "holder unknown",
+            holder = _describe(self.previous) if self.previous else "holder unknown"
+            warn_user(
+                f"STALE_LOCK: took over the lock of {self.out} left by a run that ended without "
+                f"releasing it (killed or crashed): {holder}",
+                logger=log,
             )
         record = {
             "pid": os.getpid(),
@@ -429,7 +431,7 @@ def finish_outputs(
                 except (ValueError, RuntimeError, OSError) as err:
                     if any(name == e for e, _ in essential):
                         raise
-                    log.warning("%s not written: %s", name, err)
+                    warn_user(f"OUTPUT_NOT_WRITTEN: {name} not written: {err}", logger=log)
                     continue
                 done.append(name)
     except KeyboardInterrupt:

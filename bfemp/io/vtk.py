@@ -43,6 +43,8 @@ from types import TracebackType
 import meshio
 import numpy as np
 
+from bfemp.errors import warn_user
+
 logger = logging.getLogger(__name__)
 
 _NAME_RE = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.\-]*")
@@ -132,7 +134,11 @@ def _check_points(block: str, points: object) -> np.ndarray:
         )
     finite = np.isfinite(arr)
     if not np.all(finite):
-        logger.warning("block %r: %d non-finite point coordinates", block, np.sum(~finite))
+        warn_user(
+            f"NON_FINITE_POINTS: block {block!r}: {int(np.sum(~finite))} non-finite point "
+            "coordinates written",
+            logger=logger,
+        )
     return np.ascontiguousarray(arr, dtype=np.float64)
 
 

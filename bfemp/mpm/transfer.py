@@ -32,6 +32,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from bfemp.errors import warn_user
 from bfemp.mpm._transfer_kernels import _apic_inertia, _g2p, _p2g
 
 __all__ = [
@@ -227,10 +228,11 @@ def particles_to_grid(
     inv_mass = np.zeros(n_grid)
     inv_mass[heavy] = 1.0 / grid_mass[heavy]
     if not heavy.all():
-        logger.warning(
-            "P2G: %d grid nodes with (near) zero mass get zero velocity: %s",
-            int((~heavy).sum()),
-            np.flatnonzero(~heavy)[:10],
+        warn_user(
+            f"P2G_ZERO_MASS: {int((~heavy).sum())} grid nodes with (near) zero mass get zero "
+            f"velocity (the first: {np.flatnonzero(~heavy)[:10].tolist()}): a particle whose "
+            "B-spline weights nearly vanish there, e.g. on a half-integer grid coordinate",
+            logger=logger,
         )
     velocity = grid_mom * inv_mass[:, None]
     acceleration = grid_ma * inv_mass[:, None] if with_a else None

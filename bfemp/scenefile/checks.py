@@ -16,6 +16,12 @@ Keys (all optional):
 
 The metrics checks see the whole run (a resumed run restores the earlier rows); ``finite`` and
 ``bounds`` see the states of the current session, which :class:`CheckRecorder` records.
+
+A metrics column NaN in every row, the initial one included, is not defined in the run
+(:func:`bfemp.io.metrics.undefined_column`: ``energy_contact`` under a strategy without a
+contact energy, ``min_distance`` under an explicit strategy): ``finite`` does not judge it (its
+detail names it), and a ``drift_max``, ``min`` or ``max`` check of it is skipped (printed
+``skip``, not failed: the strategy does not measure it) rather than compared with NaN.
 """
 
 from __future__ import annotations
@@ -25,6 +31,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from bfemp.io.metrics import undefined_column
 from bfemp.scenefile._fields import Table
 
 __all__ = ["CheckRecorder", "CheckResult", "evaluate_checks", "validate_checks"]
@@ -100,14 +107,26 @@ class CheckRecorder:
 
 @dataclass(frozen=True)
 class CheckResult:
-    """Outcome of one check: its name, whether it holds and what was measured."""
+    """Outcome of one check: its name, whether it holds and what was measured; ``skipped``: a
+    check of a column the run does not define (``ok``, printed ``skip``)."""
 
     name: str
     ok: bool
     detail: str = field(default="")
+    skipped: bool = False
 
     def __str__(self) -> str:
-        return f"{'ok  ' if self.ok else 'FAIL'} {self.name}: {self.detail}"
+        mark = "skip" if self.skipped else ("ok  " if self.ok else "FAIL")
+        return f"{mark} {self.name}: {self.detail}"
+
+
+def _skipped(name: str, column: str) -> CheckResult:
+    return CheckResult(
+        name,
+        True,
+        f"{column} is not defined in this run (NaN in every row: the strategy does not compute it)",
+        skipped=True,
+    )
 
 
 def _column(metrics: object, name: str) -> np.ndarray:
@@ -121,9 +140,12 @@ def evaluate_checks(check: dict, metrics: object, recorder: CheckRecorder) -> li
     results = []
     if check.get("finite"):
         cols = [c for c in metrics.columns if c.startswith(("energy_", "momentum_", "angular_"))]
-        bad = [c for c in cols if not np.all(np.isfinite(metrics.column(c)))]
+        undefined = [c for c in cols if undefined_column(metrics.column(c))]
+        bad = [c for c in cols if c not in undefined and not np.all(np.isfinite(metrics.column(c)))]
         ok = recorder.finite and not bad
         detail = "state and metrics finite" if ok else f"non-finite state/columns {bad}"
+        if undefined:
+            detail += f" (not defined in this run, NaN in every row: {', '.join(undefined)})"
         if recorder.first_non_finite_t is not None:
             detail += f" (state first non-finite at t = {recorder.first_non_finite_t:g} s)"
         results.append(CheckResult("finite", ok, detail))
@@ -149,12 +171,21 @@ def evaluate_checks(check: dict, metrics: object, recorder: CheckRecorder) -> li
             )
     for name, tol in check.get("drift_max", {}).items():
         c = _column(metrics, name)
+        if undefined_column(c):
+            results.append(_skipped(f"drift_max.{name}", name))
+            continue
         drift = float(np.nanmax(np.abs(c - c[0])))
         results.append(CheckResult(f"drift_max.{name}", drift <= tol, f"{drift:.3g} <= {tol:g}"))
     for name, v in check.get("min", {}).items():
+        if undefined_column(_column(metrics, name)):
+            results.append(_skipped(f"min.{name}", name))
+            continue
         low = float(np.nanmin(_column(metrics, name)))
         results.append(CheckResult(f"min.{name}", low >= v, f"{low:.6g} >= {v:g}"))
     for name, v in check.get("max", {}).items():
+        if undefined_column(_column(metrics, name)):
+            results.append(_skipped(f"max.{name}", name))
+            continue
         high = float(np.nanmax(_column(metrics, name)))
         results.append(CheckResult(f"max.{name}", high <= v, f"{high:.6g} <= {v:g}"))
     if "bounds" in check:

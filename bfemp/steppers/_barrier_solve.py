@@ -261,10 +261,10 @@ class ScriptedSolve:
         The loop ends when a minimisation under freshly lagged friction data needs no Newton
         step (its first increment is already below the tolerance), or at the cap, or earlier
         when it stalls (``stalled``: its re-solves stop shrinking), which is reported
-        (``friction_converged = False`` and a warning), not silent. ``loop=False``: friction lagged
-        once at ``x_n`` (or ``lag_at``), one minimisation (a scripted sub-step before the last,
-        or ``two_stage``'s semi-implicit friction). The first lag is at ``lag_at`` (positions
-        ``(n_dof,)`` in m) when given, else at ``x_n``. The result
+        (``friction_converged = False`` and the step's ``FRICTION_LOOP`` note), not silent.
+        ``loop=False``: friction lagged once at ``x_n`` (or ``lag_at``), one minimisation (a
+        scripted sub-step before the last, or ``two_stage``'s semi-implicit friction). The first
+        lag is at ``lag_at`` (positions ``(n_dof,)`` in m) when given, else at ``x_n``. The result
         carries the Newton iterations of all the loop's minimisations; their phase seconds are
         added to ``timings``.
         """
@@ -296,7 +296,7 @@ class ScriptedSolve:
             if j > 0:
                 moves.append(pot.increment_norm(result.x - y))
                 if j + 1 < cap and stalled(moves, self.STALL_WINDOW, self.STALL_FACTOR):
-                    log.warning(
+                    log.info(  # the user sees the step's FRICTION_LOOP note
                         "friction loop stalled after %d iterations: its last %d re-solves moved "
                         "the unknowns by %s m, none below %g x the least move before them "
                         "(%.3e m); stopped before the cap of %d, unconverged",
@@ -313,7 +313,7 @@ class ScriptedSolve:
         result.nit = total_it
         if not loop:
             return result, 1, True
-        log.warning("friction loop did not converge in %d iterations", cap)
+        log.info("friction loop did not converge in %d iterations", cap)  # FRICTION_LOOP note
         return result, cap, False
 
     def _minimize(self, y: np.ndarray, timings: dict[str, float]) -> NewtonResult:

@@ -90,6 +90,7 @@ from bfemp.contact.augury import (
     facet_normals,
 )
 from bfemp.contact.parameters import refuse_pair_friction
+from bfemp.errors import warn_user
 from bfemp.integrators import ExplicitIntegrator
 from bfemp.model import Model
 from bfemp.state import State
@@ -328,11 +329,11 @@ class AuguryStepper(ExplicitStepper):
             if self.grid_dx <= 0.0:
                 raise ValueError("augury: no FEM boundary and no MPM foreground to set grid_dx")
         if edges.size and edges.max() > 1.5 * self.grid_dx:
-            log.warning(
-                "augury: FEM boundary edges up to %.4g m exceed 1.5 grid_dx = %.4g m: particles "
-                "of a body may pass each other's contact nodes (AUG: grid_dx about 2 x the edge)",
-                edges.max(),
-                1.5 * self.grid_dx,
+            warn_user(
+                f"AUGURY_LONG_EDGES: FEM boundary edges up to {edges.max():.4g} m exceed 1.5 "
+                f"grid_dx = {1.5 * self.grid_dx:.4g} m: particles of a body may pass each "
+                "other's contact nodes (AUG: grid_dx about 2 x the edge)",
+                logger=log,
             )
         self._cell_body = np.asarray(model.fem_cell_body, dtype=np.int64)
         #: the AUGURY_COARSE_GRID note of every step, or None (``_coarse_grid_note``)

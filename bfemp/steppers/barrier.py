@@ -56,6 +56,9 @@ __all__ = ["LINEAR_SOLVERS", "BarrierOptions", "BarrierStepper", "build_potentia
 
 log = logging.getLogger(__name__)
 
+#: the note of a step whose friction loop stopped unconverged (at its cap, or stalled)
+FRICTION_LOOP_NOTE = "FRICTION_LOOP: the friction loop did not converge within its cap"
+
 
 class BarrierStepper:
     """The ``"barrier"`` strategy: one incremental-potential minimisation per step.
@@ -300,7 +303,8 @@ class BarrierStepper:
             message=result.message,
             iterations=self._iterations(int(result.nit), friction_its),
             residual=float(result.step_inf_norm) / dt,
-            notes=tuple(self._solver.rounding_notes()) if layout.n_dof else (),
+            notes=tuple(self._solver.rounding_notes() if layout.n_dof else ())
+            + (() if friction_ok else (FRICTION_LOOP_NOTE,)),
         )
         if not result.success:
             raise StepError(StepReport(**report_args, timings=dict(result.timings)))

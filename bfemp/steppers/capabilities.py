@@ -39,7 +39,6 @@ FEM body. ``bfemp strategies`` prints :func:`strategy_table`.
 
 from __future__ import annotations
 
-import logging
 from collections.abc import Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
@@ -55,7 +54,6 @@ __all__ = [
     "strategy_table",
 ]
 
-log = logging.getLogger(__name__)
 
 #: the kinds of body pairs (module docstring)
 PAIR_KINDS: tuple[str, ...] = ("mpm-mpm", "mpm-fem", "mpm-prescribed", "fem-fem")
@@ -174,7 +172,8 @@ def check_scene(
             bodies are known never to meet, or to show what happens without coupling).
 
     Returns:
-        the warning messages (already logged); ``Simulation`` keeps them in ``diagnostics``.
+        the warning messages (``NAME: text``); ``Simulation`` issues them
+        (:func:`bfemp.errors.warn_user`: logged, warned, kept in ``diagnostics``).
 
     Raises:
         ValueError: a pair the strategy does not couple, naming both bodies, the strategy and
@@ -219,8 +218,6 @@ def check_scene(
             "law) and they feel each other about a grid cell before touching (strategy 'lr' "
             "gives each body its own field and a contact law)"
         )
-    for message in warnings:
-        log.warning(message)
     return warnings
 
 

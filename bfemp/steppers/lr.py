@@ -72,6 +72,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from bfemp.errors import warn_user
 from bfemp.integrators import ExplicitIntegrator
 from bfemp.model import Model
 from bfemp.mpm.boundaries import GridConstraints, grid_constraints
@@ -434,12 +435,11 @@ class LRStepper(ExplicitStepper):
                 edge = np.maximum(edge, np.linalg.norm(ends[:, 2] - ends[:, 1], axis=1))
                 edge = np.maximum(edge, np.linalg.norm(ends[:, 0] - ends[:, 2], axis=1))
             if dx < 2.0 * edge.max() * (1.0 - 1e-9):
-                log.warning(
-                    "lr: the MPM grid (dx = %.4g m) is finer than twice the FEM boundary edge "
-                    "(up to %.4g m): the FEM material's grid mass has gaps between its nodes "
-                    "(spec section 2.6 asks for dx >= 2 x the edge)",
-                    dx,
-                    edge.max(),
+                warn_user(
+                    f"LR_GRID_FINE: the MPM grid (dx = {dx:.4g} m) is finer than twice the FEM "
+                    f"boundary edge (up to {edge.max():.4g} m): the FEM material's grid mass "
+                    "has gaps between its nodes (spec section 2.6 asks for dx >= 2 x the edge)",
+                    logger=log,
                 )
             # facet samples at spacing <= dx / 2 (barycentric, the vertices left out)
             per_edge = np.maximum(1, np.ceil(edge / (0.5 * dx)).astype(np.int64))

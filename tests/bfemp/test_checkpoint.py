@@ -10,6 +10,7 @@ import os
 import shutil
 import signal
 import threading
+import warnings
 
 import numpy as np
 import pytest
@@ -416,3 +417,24 @@ def test_a_run_stopped_before_its_first_checkpoint_restarts_as_the_hint_says(ref
     sim = _sim()
     _run(sim, tmp_path, overwrite=True)  # what the hint says
     _assert_same_run(*reference, sim, tmp_path)
+
+
+def test_resume_keeps_the_frame_and_checkpoint_intervals_of_the_run(reference, tmp_path):
+    """The README's ``load_run(out).run(t_end, out=out, resume=True)``, with no ``every``:
+    it wrote a frame every step (``every`` defaulted to 1, with a warning about it) instead of
+    the run's every 3 (issue 42, defect 2). Now the intervals are the checkpoint's (frames)
+    and the manifest's (checkpoints), and the continued run equals the uninterrupted one."""
+    first = _sim()
+    _run(first, tmp_path, t_end=5 * DT, checkpoint_every=4)
+    resumed = bfemp.load_run(tmp_path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)  # no RESUME_EVERY_CHANGED
+        resumed.run(T_END, out=tmp_path, progress=False, resume=True)
+    _assert_same_run(*reference, resumed, tmp_path)  # frames every 3 steps, bit for bit
+    manifest = json.loads((tmp_path / "manifest.json").read_text())
+    assert manifest["parameters"]["run"]["every"] == EVERY
+    assert manifest["parameters"]["run"]["checkpoint_every"] == 4
+    # an interval given on resume wins, and the change is warned about once
+    _run(_sim(), tmp_path / "b", t_end=5 * DT)
+    with pytest.warns(bfemp.BfempWarning, match="RESUME_EVERY_CHANGED: .* every 2 steps"):
+        _sim().run(T_END, out=tmp_path / "b", every=2, progress=False, resume=True)

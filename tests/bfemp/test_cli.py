@@ -112,6 +112,20 @@ def test_resume_from_the_command_line_equals_one_run(scene_file, tmp_path, no_pl
     assert [s["from_step"] for s in manifest["sessions"]] == [0, 3]
 
 
+def test_resume_keeps_the_frame_interval_given_to_the_first_session(scene_file, tmp_path, no_plots):
+    """``--every 3`` on the first session, ``--resume`` without it (as the interrupt hint says):
+    the continuation took the scene file's ``every = 2`` (issue 42, defect 2); now the
+    checkpoint's, so the frames are those of one run."""
+    whole, parts = tmp_path / "whole", tmp_path / "parts"
+    assert _run(scene_file, "--out", whole, "--every", 3) == 0
+    assert _run(scene_file, "--out", parts, "--t-end", 0.03, "--every", 3) == 0
+    assert _run(scene_file, "--out", parts, "--resume") == 0
+    assert [round(t, 9) for t, _ in read_pvd(parts / "beam.pvd")] == [0.0, 0.03, 0.06]
+    assert (whole / "beam.pvd").read_bytes() == (parts / "beam.pvd").read_bytes()
+    manifest = json.loads((parts / "manifest.json").read_text())
+    assert manifest["parameters"]["run"]["every"] == 3
+
+
 def test_resume_towards_an_end_time_before_the_checkpoint_is_refused(
     scene_file, tmp_path, capsys, no_plots
 ):
@@ -212,6 +226,10 @@ def test_ctrl_c_exits_130_with_the_resume_command(scene_file, tmp_path, capsys, 
     (out / "checkpoint.npz").write_bytes(b"")  # the run wrote one before it was interrupted
     assert _run(scene_file, "--out", out) == 130
     assert f"continue with: bfemp run {scene_file} --out {out} --resume" in capsys.readouterr().err
+    # the options a continuation must repeat are in the hint (the intervals are the checkpoint's)
+    assert _run(scene_file, "--out", out, "--quick", "--t-end", 0.04, "--every", 3) == 130
+    hint = f"continue with: bfemp run {scene_file} --out {out} --resume --quick --t-end 0.04\n"
+    assert hint in capsys.readouterr().err
 
 
 def test_bench_calls_the_registered_run(tmp_path, monkeypatch, capsys):

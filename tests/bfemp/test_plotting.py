@@ -1,5 +1,6 @@
 """PNG plots: files are valid, non-trivial images; groups resolve against the log's columns."""
 
+import math
 import subprocess
 import sys
 
@@ -171,3 +172,26 @@ def test_metrics_figure_is_readable_at_a_glance():
     assert len(timings.get_lines()) == 12 and timings.get_yscale() == "log"
     assert fig.axes[-1].get_xlabel() == "t [s]"
     assert fig.axes[0].get_ylabel().startswith("energy [J]")
+
+
+def test_a_panel_of_columns_the_run_does_not_compute_says_why_it_is_empty():
+    """An explicit strategy's ``min_distance`` (and a strategy's ``energy_contact``) is NaN in
+    every row: the panel was drawn empty without a word (issue 42, defect 3)."""
+    log = MetricsLog(
+        {**row, "energy_contact": math.nan, "min_distance": math.nan} for row in _log(5).rows
+    )
+    fig = metrics_figure(log)
+    panels = {ax.get_title(): ax for ax in fig.axes}
+    empty = panels["min distance"]
+    assert [t.get_text() for t in empty.texts] == [
+        "min_distance: not computed in this run: NaN in every row"
+    ]
+    energies = panels["energies"]
+    labels = energies.get_legend_handles_labels()[1]
+    assert "energy_contact (not computed in this run: NaN in every row)" in labels
+    assert "energy_kinetic" in labels and not energies.texts  # computed columns: as before
+    # the control: a column that went NaN after finite rows is plotted as it is, unlabelled
+    broken = MetricsLog(
+        {**row, "min_distance": math.nan if i else 1e-3} for i, row in enumerate(_log(5).rows)
+    )
+    assert not {ax.get_title(): ax for ax in metrics_figure(broken).axes}["min distance"].texts
