@@ -56,9 +56,6 @@ root_doc = "index"
 exclude_patterns = ["_build", "README.md", "examples/README.txt", "**.ipynb_checkpoints"]
 myst_enable_extensions = ["colon_fence", "dollarmath"]
 myst_heading_anchors = 3
-# links from Markdown pages to repository files outside docs/ (the README's targets) are
-# plain links on GitHub; the built site shows them as text rather than failing the build
-suppress_warnings = ["myst.xref_missing"]
 
 # autodoc: the public API's docstrings, in source order, with type hints in the signature
 autodoc_member_order = "bysource"

@@ -276,7 +276,7 @@ def benchmark_pages(root: Path, out: Path) -> dict[str, list[str]]:
         "One page per benchmark, generated when the site is built from the records the "
         "benchmarks committed in `benchmarks/records/` (JSON, PNG and markdown): rerun "
         "`python -m benchmarks NAME` and commit its record, and the page follows. "
-        "[The benchmark guide](../guide/benchmarks.md) says what each one measures and how "
+        "[The benchmark guide](../../guide/benchmarks.md) says what each one measures and how "
         "to run the long ones.",
         "",
     ]
@@ -305,7 +305,7 @@ def strategy_page(root: Path, out: Path) -> None:
         "Measured by the conformance catalogue (`benchmarks/records/conformance.json`, "
         "`python -m benchmarks conformance --full`): per scene family, how many cases kept every "
         "declared guarantee; `off:` names accuracy checks that missed their limit "
-        "([every case](reproductions/conformance.md)):",
+        "([every case](/generated/reproductions/conformance.md)):",
         "",
         conformance.readme_table(record),
         "",
