@@ -143,3 +143,27 @@ def test_api_reference_documents_the_public_api(site):
     assert "bfemp.steppers.BarrierOptions.tol" in steppers
     ccd = set(re.findall(r'id="([^"]+)"', (site / "api" / "geometry.html").read_text()))
     assert "geometry.ccd.point_triangle_ccd" in ccd
+
+
+def test_readme_capability_table_is_the_codes():
+    """The README's capability table is what ``bfemp.strategy_table()`` prints now."""
+    import bfemp
+
+    readme = (ROOT / "README.md").read_text()
+    rows = [ln for ln in bfemp.strategy_table().splitlines() if ln.startswith("strategy ")]
+    rows += [
+        ln for ln in bfemp.strategy_table().splitlines() if ln.split(" ")[0] in bfemp.STRATEGIES
+    ]
+    assert len(rows) == len(bfemp.STRATEGIES) + 1
+    for row in rows:
+        assert row in readme, row
+
+
+def test_readme_links_resolve_inside_the_clone():
+    """Every relative link of the README names a file of the repository (GitHub renders them)."""
+    readme = (ROOT / "README.md").read_text()
+    links = re.findall(r"\]\(([^)#]+)\)", readme)
+    local = [ln for ln in links if "://" not in ln]
+    assert any(ln.startswith("docs/tutorials/") for ln in local)
+    for link in local:
+        assert (ROOT / link).is_file(), link
