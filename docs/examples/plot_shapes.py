@@ -5,7 +5,8 @@ Meshes and particles
 FEM bodies are meshes from :mod:`bfemp.shapes` (or any meshio mesh); MPM bodies are particles
 sampled from a shape with :mod:`bfemp.sample`. This scene puts one of each shape side by side
 and draws the scene's first frame, the way a run's ``snapshots.png`` draws it: FEM cells
-outlined, particles as dots, coloured by von Mises stress (zero here: nothing has moved).
+outlined, particles as dots, coloured by von Mises stress (round-off only, about 1e-8 Pa:
+nothing has moved yet).
 """
 
 import bfemp
