@@ -1,4 +1,5 @@
-# Two entry points that work on a fresh machine: `make demo` and `make test`.
+# Two entry points that work on a fresh machine: `make demo` and `make test` (`make docs` builds
+# the documentation site into docs/_build/html).
 # Both create .venv (and install SuiteSparse headers with apt when missing) before running.
 PY      ?= python3
 VENV    := .venv
@@ -7,7 +8,7 @@ STAMP   := $(VENV)/.installed
 # numba's compiled kernels, shared by demo and test; the first run fills it (bfemp says so)
 export NUMBA_CACHE_DIR ?= $(CURDIR)/.numba_cache
 
-.PHONY: setup demo test lint format clean
+.PHONY: setup demo test docs lint format clean
 
 setup: $(STAMP)
 
@@ -22,7 +23,8 @@ $(STAMP): pyproject.toml
 	@sh tools/install_openblas.sh
 	@test -x $(BIN)/python || $(PY) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
-	$(BIN)/python -m pip install -q -e ".[test]"
+	@# the docs extra too: the tests build the documentation site (tests/test_docs.py)
+	$(BIN)/python -m pip install -q -e ".[test,docs]"
 	$(BIN)/python -m pip install -q "scikit-sparse<0.5" \
 	  || echo "warning: scikit-sparse did not build; bfemp will use the scipy fallback"
 	@$(BIN)/python -m bfemp --version
@@ -34,6 +36,12 @@ $(STAMP): pyproject.toml
 
 demo: setup
 	$(BIN)/python -m bfemp demo --out results/demo
+
+# the documentation site: every gallery example runs, a warning fails the build
+# (BFEMP_DOCS_QUICK=1 runs one example only; docs/README.md)
+docs: setup
+	$(BIN)/python -m sphinx -W --keep-going -b html docs docs/_build/html
+	@echo "docs/_build/html/index.html"
 
 lint: setup
 	$(BIN)/ruff check .
@@ -50,4 +58,4 @@ test: lint
 	$(BIN)/python -m pytest -q -m serial
 
 clean:
-	rm -rf $(VENV) .numba_cache results .pytest_cache
+	rm -rf $(VENV) .numba_cache results .pytest_cache docs/_build docs/generated docs/auto_examples

@@ -1,9 +1,11 @@
 """Time integrators as parameters of one incremental potential (BFEMP paper eqs. 10-12, 21-22).
 
-The Newmark family with the paper's extra alpha:
+The Newmark family with the paper's extra alpha::
+
     x^{n+1} = x^n + dt v^n + alpha dt^2 ((1 - 2 beta) a^n + 2 beta a^{n+1})      (21)
     v^{n+1} = v^n + dt ((1 - gamma) a^n + gamma a^{n+1})                          (21)
-is the minimiser of 1/2 ||x - x_hat||_M^2 + 2 alpha beta dt^2 Psi(x)              (22)
+
+x^{n+1} is the minimiser of 1/2 ||x - x_hat||_M^2 + 2 alpha beta dt^2 Psi(x) (22)
 with x_hat = x^n + dt v^n + alpha (1 - 2 beta) dt^2 a^n. After the solve a^{n+1} = -M^-1 dPsi/dx
 at x^{n+1} (Algorithm 2, line 14), and the velocity follows (21).
 

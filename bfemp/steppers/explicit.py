@@ -98,7 +98,7 @@ class ExplicitOptions(StepperOptions):
 
     Attributes:
         cfl_safety_fem: safety factor on the FEM bound h_min / c_p, in (0, 1].
-        cfl_safety_mpm: safety factor on the MPM bound dx / (c_p + |v_p|), in (0, 1].
+        cfl_safety_mpm: safety factor on the MPM bound ``dx / (c_p + |v_p|)``, in (0, 1].
     """
 
     strategy: ClassVar[str] = "explicit"

@@ -139,20 +139,20 @@ class LROptions(ExplicitOptions):
             ``interface="perfect"`` (only then is the run exactly the single-material one, eq.
             34) and for the paper's multimaterial XPIC(m) (eq. 37's dv term is the first
             correction's; with 1 it is zero). Why 1 by default (measured for issue 40 under
-            FLIP, mass_fraction 0, fixed FEM bodies rigid; "c1" is 2 with f^{C,1}):
+            FLIP, mass_fraction 0, fixed FEM bodies rigid; "c1" is 2 with f^{C,1})::
 
-            ============================  ========  ========  ========  ========
-            scene                         once      c1        c0        PIC
-            ============================  ========  ========  ========  ========
-            landing: disk on a deformable 2D plate (bottom row fixed, E 1 MPa),
-            lowest particle, cells        +0.025    -4.76     +0.048    +0.003
-            landing: slope box, accel.
-            error (lr_variants quick)     0.021     0.021     0.021     0.021
-            impact: quick rings, error    0.69      4.16      0.71      1.70
-            (particles inside FEM ring)   (0)       (214)     (0)       (7)
-            compression at 0.05 % c_K
-            (paper's rate) to 15 %        0.107 %   0.112 %   0.765 %   0.471 %
-            ============================  ========  ========  ========  ========
+                ============================  ========  ========  ========  ========
+                scene                         once      c1        c0        PIC
+                ============================  ========  ========  ========  ========
+                landing: disk on a deformable 2D plate (bottom row fixed, E 1 MPa),
+                lowest particle, cells        +0.025    -4.76     +0.048    +0.003
+                landing: slope box, accel.
+                error (lr_variants quick)     0.021     0.021     0.021     0.021
+                impact: quick rings, error    0.69      4.16      0.71      1.70
+                (particles inside FEM ring)   (0)       (214)     (0)       (7)
+                compression at 0.05 % c_K
+                (paper's rate) to 15 %        0.107 %   0.112 %   0.765 %   0.471 %
+                ============================  ========  ========  ========  ========
 
             Under c1 neither the particles nor the FEM nodes ever receive the first correction
             (f^{C,1}, eq. 33), so in a lasting contact the pair keeps approaching at its
@@ -362,7 +362,7 @@ class LRStepper(ExplicitStepper):
         #: ``FIRST_CORRECTION_WINDOW`` steps with contact (``_watch_first_correction``)
         self._window = [0, 0.0, 0.0]
         self._warned_first_correction = False
-        #: over the run's steps with contact: sum |dp^a| of the first and of the second
+        #: over the run's steps with contact: sum ``|dp^a|`` of the first and of the second
         #: correction (kg m/s), and the windows given the ``LR_FIRST_CORRECTION`` note
         self.first_correction_impulse = 0.0
         self.second_correction_impulse = 0.0
@@ -902,7 +902,7 @@ class LRStepper(ExplicitStepper):
         nodes, so an approach velocity the particles carry into a lasting contact (a landing,
         an impact) is removed from the grid again every step and is never lost by the
         particles. Over each window of ``FIRST_CORRECTION_WINDOW`` steps with contact, the
-        note is given when sum |dp^a| of the first correction exceeds
+        note is given when sum ``|dp^a|`` of the first correction exceeds
         ``FIRST_CORRECTION_RATIO`` times that of the second. Measured under FLIP with c1
         (``benchmarks.lr_variants``, quick, ratio over the run): 0.011 on ``lr_compression``
         (stress within 0.13 % of the single material, never flagged), 7.3 while the slope box

@@ -155,7 +155,7 @@ class TwoStageOptions(ExplicitOptions):
         linear_solver: the linear solver of the contact solve (names of
             ``BarrierOptions.linear_solver``).
         cfl_safety_fem: safety factor on the FEM bound h_min / c_p, in (0, 1] (default 0.5).
-        cfl_safety_mpm: safety factor on the MPM bound dx / (c_p + |v_p|), in (0, 1]
+        cfl_safety_mpm: safety factor on the MPM bound ``dx / (c_p + |v_p|)``, in (0, 1]
             (default 0.4).
     """
 
