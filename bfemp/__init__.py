@@ -21,7 +21,7 @@ _os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 import logging
 
 from bfemp import levelset, motion, sample, scenefile, shapes
-from bfemp.errors import RunFolderError, SceneError, StepNoteWarning
+from bfemp.errors import PlausibilityWarning, RunFolderError, SceneError, StepNoteWarning
 from bfemp.integrators import BACKWARD_EULER, NEWMARK, Integrator
 from bfemp.materials import BulkShearHyperelastic, LinearElastic, NeoHookean
 from bfemp.model import FemBody, Model, MpmBody
@@ -56,6 +56,7 @@ __all__ = [
     "Model",
     "MpmBody",
     "NeoHookean",
+    "PlausibilityWarning",
     "RunFolderError",
     "Scene",
     "SceneError",

@@ -12,7 +12,13 @@ The command line prints that message after ``bfemp: error:`` without a traceback
 
 from __future__ import annotations
 
-__all__ = ["RunFolderError", "SceneError", "StepNoteWarning", "note_name"]
+__all__ = [
+    "PlausibilityWarning",
+    "RunFolderError",
+    "SceneError",
+    "StepNoteWarning",
+    "note_name",
+]
 
 
 class SceneError(ValueError):
@@ -78,6 +84,17 @@ class StepNoteWarning(UserWarning):
     ``LR_UNCONVERGED``, ...), an energy growth, a pair of bodies the strategy does not couple.
 
     The message starts with the note's name in capitals followed by a colon.
+    """
+
+
+class PlausibilityWarning(StepNoteWarning):
+    """A discretisation or a run outside the ranges where its results are plausible: particles
+    per grid cell, grid cells across an MPM body, dt against a body's wave period
+    (``IMPLAUSIBLE_GRID``, ``IMPLAUSIBLE_DT``, at construction) or a closed scene that loses most
+    of its energy (``ENERGY_LOSS``, once per run). Thresholds: :mod:`bfemp.plausibility`.
+
+    A ``StepNoteWarning``, so that filters on that category (and the command line, which logs
+    these once) treat it the same; filter this class alone to silence only these notes.
     """
 
 

@@ -25,7 +25,7 @@ from bfemp import diagnostics, scenefile
 from bfemp._run_arguments import check_t_end
 from bfemp.checkpoint import InterruptGuard, restore_checkpoint, write_checkpoint
 from bfemp.contact.penetration import PenetrationCheck
-from bfemp.errors import SceneError, StepNoteWarning, note_name
+from bfemp.errors import PlausibilityWarning, SceneError, StepNoteWarning, note_name
 from bfemp.integrators import Integrator, integrator_from_name
 from bfemp.io import outputs
 from bfemp.io.metrics import MetricsLog
@@ -34,6 +34,7 @@ from bfemp.io.vtk import Block, FrameWriter
 from bfemp.manifest import RunManifest
 from bfemp.model import Model
 from bfemp.mpm.transfer import SCHEMES
+from bfemp.plausibility import EnergyLossCheck, damps_by_design, discretisation_notes
 from bfemp.plotting import plot_metrics
 from bfemp.scene import Scene
 from bfemp.state import State
@@ -161,8 +162,11 @@ class Simulation:
             options=options,
         )
         self.state: State = self.stepper.initialize(initial)
+        for note in discretisation_notes(self.model, self.dt, self.integrator):
+            self._warn(note, category=PlausibilityWarning)
         self.metrics = MetricsLog()
         self._closed = _is_closed(self.model)
+        self._energy_loss = EnergyLossCheck(_dissipation(self))
         self._fem_groups = fem_elastic_groups(self.model)
         self._contact_columns = self.model.contact is not None
         self._penetration = PenetrationCheck.for_model(self.model)
@@ -245,13 +249,19 @@ class Simulation:
                     "bfemp info)",
                 )
 
-    def _warn(self, message: str, *, already_logged: bool = False) -> None:
+    def _warn(
+        self,
+        message: str,
+        *,
+        already_logged: bool = False,
+        category: type[StepNoteWarning] = StepNoteWarning,
+    ) -> None:
         """A warning the user sees: ``diagnostics``, the log and Python's ``warnings`` (the
-        command line shows it once, as its log line)."""
+        command line shows it once, as its log line); ``category`` a ``StepNoteWarning``."""
         self.diagnostics.append(message)
         if not already_logged:
             log.warning(message)
-        warnings.warn(message, StepNoteWarning, stacklevel=3)
+        warnings.warn(message, category, stacklevel=3)
 
     def run(
         self,
@@ -471,6 +481,7 @@ class Simulation:
         row.update(self.energies())
         if report is not None and self._closed:
             self._check_energy(row["energy_total"])
+            self._check_energy_loss(row)
         axes = "xyz"
         for k, p in enumerate(diagnostics.linear_momentum(self.model, self.state)):
             row[f"momentum_{axes[k]}"] = float(p)
@@ -531,6 +542,22 @@ class Simulation:
             )
             self._warn(message)
 
+    def _check_energy_loss(self, row: dict[str, float]) -> None:
+        """Note once when a closed scene loses most of its energy (``ENERGY_LOSS``; thresholds
+        and how friction and damping are kept from false alarms: ``EnergyLossCheck``)."""
+        parts = ("energy_kinetic", "energy_elastic", "energy_contact")
+        check = self._energy_loss
+        if check.rows != len(self.metrics):  # the first step, or a run resumed from a checkpoint
+            stored = sum(
+                (np.nan_to_num(self.metrics.column(c)) for c in parts if c in self.metrics.columns),
+                np.zeros(len(self.metrics)),
+            )
+            check.start(np.asarray(self.metrics.column("energy_total")), stored)
+        stored = sum(float(np.nan_to_num(row.get(c, 0.0))) for c in parts)
+        note = check.check(row["energy_total"], stored, self.state.t)
+        if note is not None:
+            self._warn(note, category=PlausibilityWarning)
+
     def frame_blocks(self) -> list[Block]:
         """One VTK block per FEM body with velocity, J and von Mises stress."""
         blocks = []
@@ -573,6 +600,22 @@ class Simulation:
         """Seconds spent in steps so far (sum of the per-step timings)."""
         col = "time_step"
         return float(np.nansum(self.metrics.column(col))) if col in self.metrics.columns else 0.0
+
+
+def _dissipation(sim: Simulation) -> str:
+    """What dissipates energy in ``sim`` by design ("" for nothing; ``ENERGY_LOSS`` is checked
+    only then): a damping integrator (backward Euler, damped Newmark), friction, PIC."""
+    parts = []
+    if damps_by_design(sim.integrator):
+        parts.append(f"the {sim.integrator.name} integrator damps")
+    contact = sim.model.contact
+    mus = [getattr(contact, "mu", 0.0) or 0.0, getattr(sim.options, "mu", 0.0) or 0.0]
+    mus += [mu for *_, mu in (getattr(contact, "pair_mu", None) or ())]
+    if max(mus) > 0.0:
+        parts.append(f"friction, mu up to {max(mus):g}")
+    if sim.transfer == "pic" and sim.model.n_particles:
+        parts.append("the PIC transfer damps")
+    return "; ".join(parts)
 
 
 def _is_closed(model: Model) -> bool:
