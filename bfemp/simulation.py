@@ -318,6 +318,11 @@ class Simulation:
         ``out/metrics.png``).
         """
         _check_run_args(t_end, every, checkpoint_every, resume, out)
+        if resume and overwrite:
+            raise ValueError(
+                "Simulation.run: resume=True continues the run in out and overwrite=True deletes "
+                "it; give one of them"
+            )
         if not resume:
             check_t_end(t_end, self.state.t, self.dt)
         if animation is not None:
