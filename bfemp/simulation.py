@@ -40,6 +40,7 @@ from bfemp.scene import Scene
 from bfemp.state import State
 from bfemp.steppers import (
     STRATEGIES,
+    StepError,
     StepperOptions,
     StepReport,
     options_for,
@@ -128,6 +129,8 @@ class Simulation:
             self._warn(message, already_logged=True)
         #: how many steps reported each named note (``StepReport.notes``), by name
         self.note_counts: dict[str, int] = {}
+        #: the report of the step that failed last (None after a step that succeeded)
+        self.failed_report: StepReport | None = None
         #: the scene this simulation was built from (written to ``out/scene.toml`` by runs)
         self.scene = scene if isinstance(scene, Scene) else None
         #: the text of the scene file this simulation was read from (``from_file``), or None
@@ -231,8 +234,14 @@ class Simulation:
 
     # ------------------------------------------------------------------ stepping
     def step(self) -> StepReport:
-        """Advance one time step; returns its report (raises ``StepError`` on failure)."""
-        self.state, report = self.stepper.step(self.state)
+        """Advance one time step; returns its report (raises ``StepError`` on failure, whose
+        report is also kept as ``failed_report``: its iterations go to the run's manifest)."""
+        try:
+            self.state, report = self.stepper.step(self.state)
+        except StepError as err:
+            self.failed_report = err.report
+            raise
+        self.failed_report = None
         self._count_notes(report)
         self.metrics.append(self._metrics_row(report))
         return report

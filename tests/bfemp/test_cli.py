@@ -426,3 +426,33 @@ def test_a_fem_body_prints_in_one_short_line():
     assert "\n" not in text and len(text) < 200, text
     assert text.startswith("FemBody(name='p', index=0, nodes=0:") and "NeoHookean" in text
     assert f"boundary={body.boundary.shape[0]} edges" in text
+
+
+def test_info_counts_the_newton_iterations_of_the_failed_step(
+    scene_file, tmp_path, capsys, no_plots
+):
+    # issue 42: the failed step (at its iteration cap) is not in metrics.csv, so `bfemp info`
+    # showed the largest count of the steps that converged as the run's maximum
+    from dataclasses import replace
+
+    sim = bfemp.Simulation.from_file(scene_file)
+    step = sim.stepper.step
+
+    def failing_third(state):
+        new, report = step(state)
+        if report.step < 3:
+            return new, report
+        raise bfemp.StepError(replace(report, success=False, iterations={"newton": 99}))
+
+    sim.stepper.step = failing_third
+    out = tmp_path / "out"
+    with pytest.raises(bfemp.StepError):
+        sim.run(0.06, out=out, progress=False)
+    converged = sim.metrics.column("iterations_newton")[1:]
+    assert converged.size == 2 and converged.max() < 99
+    assert main(["info", str(out), "--json"]) == 0
+    newton = json.loads(capsys.readouterr().out)["metrics"]["newton"]
+    assert newton["max"] == 99 and newton["total"] == converged.sum() + 99
+    assert newton["failed_step"] == {"step": 3, "iterations": 99}
+    assert main(["info", str(out)]) == 0
+    assert "max 99); the failed step 3: 99" in capsys.readouterr().out
