@@ -289,6 +289,13 @@ class Simulation:
     ) -> MetricsLog:
         """Step until ``t_end`` s; with ``out``, write a frame every ``every`` steps.
 
+        The run takes whole steps of ``dt``: it ends at the first ``t = t0 + n dt >= t_end`` (within
+        ``1e-9 dt``), past ``t_end`` by less than one step when ``dt`` does not divide the time
+        to go (``dt="auto"``: 0.300539 s for 0.3 s; logged). The last step is not shortened to
+        land on ``t_end``: a run continued from its checkpoint (``resume``) must equal an
+        uninterrupted one bit for bit, which a short step in its middle would break, and the
+        explicit strategies derive settings from ``dt`` once (augury's ``tau``, the CFL checks).
+
         ``callback(sim)`` is called after every step (to record custom quantities).
 
         With an output folder ``out`` the run also writes ``metrics.csv``, ``metrics.png``, a
@@ -415,7 +422,16 @@ class Simulation:
         return self.metrics
 
     def _n_steps(self, t_end: float) -> int:
-        return max(0, math.ceil((t_end - self.state.t) / self.dt - 1e-9))
+        """Whole steps of ``dt`` to reach ``t_end`` (the end time past it is logged)."""
+        n = max(0, math.ceil((t_end - self.state.t) / self.dt - 1e-9))
+        end = self.state.t + n * self.dt
+        if end > t_end + 1e-9 * self.dt:
+            log.info(
+                "the run ends at t = %.9g s, %.3g s after t_end = %.9g s: %d whole steps of "
+                "dt = %.9g s (the last step is not shortened; Simulation.run says why)",
+                end, end - t_end, t_end, n, self.dt,
+            )  # fmt: skip
+        return n
 
     def _loop(
         self,

@@ -456,3 +456,16 @@ def test_info_counts_the_newton_iterations_of_the_failed_step(
     assert newton["failed_step"] == {"step": 3, "iterations": 99}
     assert main(["info", str(out)]) == 0
     assert "max 99); the failed step 3: 99" in capsys.readouterr().out
+
+
+def test_a_run_past_t_end_says_where_it_ended_and_why(scene_file, caplog):
+    # issue 42: runs end on whole steps (0.300539 s for 0.3 s with dt = "auto"), silently
+    sim = bfemp.Simulation.from_file(scene_file, dt=0.025)
+    with caplog.at_level(logging.INFO, logger="bfemp.simulation"):
+        sim.run(0.06, progress=False)
+    assert sim.state.step == 3 and sim.state.t == pytest.approx(0.075)
+    assert "the run ends at t = 0.075 s" in caplog.text and "t_end = 0.06 s" in caplog.text
+    caplog.clear()
+    with caplog.at_level(logging.INFO, logger="bfemp.simulation"):
+        sim.run(0.1, progress=False)  # 0.075 + 0.025: lands on t_end, nothing to say
+    assert sim.state.t == pytest.approx(0.1) and "the run ends at" not in caplog.text
