@@ -634,8 +634,14 @@ class Simulation:
 
 def _dissipation(sim: Simulation) -> str:
     """What dissipates energy in ``sim`` by design ("" for nothing; ``ENERGY_LOSS`` is checked
-    only then): a damping integrator (backward Euler, damped Newmark), friction, PIC."""
+    only then): a damping integrator (backward Euler, damped Newmark), friction, PIC, a contact
+    that takes the approach velocity out (every strategy but ``barrier``, whose barrier stores
+    the contact energy; MPM bodies meeting through the shared grid)."""
     parts = []
+    if sim.strategy != "barrier":
+        parts.append(f"the {sim.strategy} strategy's contact is inelastic")
+    elif len(sim.model.mpm_bodies) > 1:
+        parts.append("MPM bodies meet inelastically through the shared grid")
     if damps_by_design(sim.integrator):
         parts.append(f"the {sim.integrator.name} integrator damps")
     contact = sim.model.contact
