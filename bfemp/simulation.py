@@ -584,7 +584,9 @@ class Simulation:
             )
             check.start(np.asarray(self.metrics.column("energy_total")), stored)
         stored = sum(float(np.nan_to_num(row.get(c, 0.0))) for c in parts)
-        note = check.check(row["energy_total"], stored, self.state.t)
+        terms = ("energy_kinetic", "energy_elastic", "energy_gravity", "energy_load", *parts[2:])
+        magnitude = sum(abs(float(np.nan_to_num(row.get(c, 0.0)))) for c in terms)
+        note = check.check(row["energy_total"], stored, self.state.t, magnitude)
         if note is not None:
             self._warn(note, category=PlausibilityWarning)
 
