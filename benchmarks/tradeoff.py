@@ -597,6 +597,7 @@ def sweep(
     warmup: bool = True,
     resume: bool = False,
     points: str | Path | None = None,
+    progress: bool = False,
 ) -> dict:
     """Run the trade study and write ``tradeoff.json``, ``tradeoff.md``, ``tradeoff_<scene>.png``.
 
@@ -619,6 +620,9 @@ def sweep(
             measured them).
         points: the folder where each point is kept as it finishes (default
             ``out/tradeoff_points/``); a committed folder lets a sweep go on in a later session.
+        progress: show a progress bar (points done of all, the last point's id) on stderr, for
+            the warm-up and for the points (``bfemp sweep`` and ``python -m benchmarks
+            tradeoff`` do; a ``quiet`` option, where given, turns it off).
 
     Returns:
         ``{"json": path, "markdown": path, "png": {scene: path}, **payload}``.
@@ -640,10 +644,23 @@ def sweep(
     jobs = [_job(r, timeout_s) for r in records]
     log.info("tradeoff (%s): %d points of %s", mode, len(jobs), ", ".join(scene_names))
 
-    def execute(ids: list[str], batch: list[dict], on_done=None) -> list[dict]:  # noqa: ANN001
-        if scheduler is not None:
-            return execute_dask(ids, batch, scheduler, CONNECT_TIMEOUT_S, on_done)
-        return execute_local(ids, batch, workers, on_done)
+    def execute(ids: list[str], batch: list[dict], on_done=None, what="points") -> list[dict]:  # noqa: ANN001
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=len(ids), desc=f"tradeoff {what}", unit="point", disable=not progress)
+
+        def done(j: int, measurement: dict) -> None:
+            if on_done is not None:
+                on_done(j, measurement)
+            bar.update(1)
+            bar.set_postfix_str(ids[j], refresh=False)
+
+        try:
+            if scheduler is not None:
+                return execute_dask(ids, batch, scheduler, CONNECT_TIMEOUT_S, done)
+            return execute_local(ids, batch, workers, done)
+        finally:
+            bar.close()
 
     cache = PointCache(out / CACHE_FOLDER if points is None else Path(points), env["commit"])
     entries = [cache.entry(job) if resume else None for job in jobs]
@@ -672,6 +689,7 @@ def sweep(
     warmed = execute(
         [f"{scene}/{strategy}/warmup" for scene, strategy in warm],
         [_warmup_job(scene, strategy, threads) for scene, strategy in warm],
+        what="warm-up",
     )
     warmup_s = time.perf_counter() - started
     started = time.perf_counter()
@@ -1012,6 +1030,7 @@ def main_from_args(args: argparse.Namespace) -> int:
         cost=args.cost,
         resume=args.resume,
         points=args.points,
+        progress=not getattr(args, "quiet", False),
     )
     print(f"tradeoff: wrote {summary['json']}, {summary['markdown']}")
     for scene in summary["scenes"]:

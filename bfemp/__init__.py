@@ -21,7 +21,13 @@ _os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 import logging
 
 from bfemp import levelset, motion, sample, scenefile, shapes
-from bfemp.errors import BfempWarning, RunFolderError, SceneError, StepNoteWarning
+from bfemp.errors import (
+    BfempWarning,
+    PlausibilityWarning,
+    RunFolderError,
+    SceneError,
+    StepNoteWarning,
+)
 from bfemp.integrators import BACKWARD_EULER, NEWMARK, Integrator
 from bfemp.materials import BulkShearHyperelastic, LinearElastic, NeoHookean
 from bfemp.model import FemBody, Model, MpmBody
@@ -59,6 +65,7 @@ __all__ = [
     "Model",
     "MpmBody",
     "NeoHookean",
+    "PlausibilityWarning",
     "RunFolderError",
     "Scene",
     "SceneError",

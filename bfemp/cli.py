@@ -90,8 +90,10 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("scene", help="the scene file (TOML, format: bfemp.scenefile)")
     run.add_argument("--out", help="output folder (default: [run] out, else results/SCENE_NAME)")
     run.add_argument("--t-end", type=float, help="end time in s (default: [run] t_end)")
-    run.add_argument("--resume", action="store_true", help="continue from the checkpoint in OUT")
-    run.add_argument(
+    # one or the other: --resume continues the run in OUT, --overwrite deletes it
+    folder = run.add_mutually_exclusive_group()
+    folder.add_argument("--resume", action="store_true", help="continue from the checkpoint in OUT")
+    folder.add_argument(
         "--overwrite",
         action="store_true",
         help="replace the outputs of an earlier run in OUT (without it such a folder is refused)",
@@ -124,7 +126,10 @@ def _parser() -> argparse.ArgumentParser:
     )
     regress.add_argument("names", nargs="*", help="reference names (default: all in DIR)")
     regress.add_argument(
-        "--dir", default="references", help="folder of the references (default references)"
+        "--dir",
+        default=None,
+        help="folder of the references (default the checkout's references/, wherever bfemp "
+        "regress is run from)",
     )
     regress.add_argument(
         "--update", action="store_true", help="rewrite the stored trajectories and say what changed"
@@ -225,6 +230,10 @@ def _run(args: argparse.Namespace, argv: list[str]) -> int:
     from bfemp.simulation import Simulation
 
     scene_path = Path(args.scene)
+    if args.animate is not None:  # before the scene is built: mp4 without ffmpeg is refused
+        from bfemp.io.snapshots import check_animation_format
+
+        check_animation_format(args.animate)
     sf = scenefile.load(scene_path)
     settings = sf.run_settings(quick=args.quick, t_end=args.t_end)
     every = _positive_int(args.every, "--every", 1)
@@ -349,9 +358,10 @@ def _strategies(args: argparse.Namespace) -> int:
 def _regress(args: argparse.Namespace) -> int:
     from bfemp import regress
 
-    refs = regress.find_references(args.dir, args.names)
+    directory = args.dir if args.dir is not None else regress.default_reference_dir()
+    refs = regress.find_references(directory, args.names)
     if not refs:
-        raise SceneError(f"no reference (a scene file with [regress]) in {args.dir}")
+        raise SceneError(f"no reference (a scene file with [regress]) in {directory}")
     failed = []
     for ref in refs:
         if args.update:

@@ -20,6 +20,7 @@ from contextvars import ContextVar
 
 __all__ = [
     "BfempWarning",
+    "PlausibilityWarning",
     "RunFolderError",
     "SceneError",
     "StepNoteWarning",
@@ -103,6 +104,17 @@ class StepNoteWarning(BfempWarning):
     ``LR_UNCONVERGED``, ...), an energy growth, a pair of bodies the strategy does not couple.
 
     The message starts with the note's name in capitals followed by a colon.
+    """
+
+
+class PlausibilityWarning(StepNoteWarning):
+    """A discretisation or a run outside the ranges where its results are plausible: particles
+    per grid cell, grid cells across an MPM body, dt against a body's wave period
+    (``IMPLAUSIBLE_GRID``, ``IMPLAUSIBLE_DT``, at construction) or a closed scene that loses most
+    of its energy (``ENERGY_LOSS``, once per run). Thresholds: :mod:`bfemp.plausibility`.
+
+    A ``StepNoteWarning``, so that filters on that category (and the command line, which logs
+    these once) treat it the same; filter this class alone to silence only these notes.
     """
 
 

@@ -288,6 +288,15 @@ class RunManifest:
         result = {"t": sim.state.t, "step": sim.state.step, "frames": frames}
         if "iterations_newton" in metrics.columns:
             result["newton_iterations_total"] = int(np.nansum(metrics.column("iterations_newton")))
+        failed = getattr(sim, "failed_report", None)
+        if status == "failed" and failed is not None:
+            # the failed step is not in the metrics (it has no end state): its iterations here
+            result["failed_step"] = {
+                "step": int(failed.step),
+                "t": float(failed.t),
+                "status": str(failed.status),
+                "iterations": {k: int(v) for k, v in failed.iterations.items()},
+            }
         if "energy_total" in metrics.columns:
             e = metrics.column("energy_total")
             result["energy_total_first"] = _finite(e[0])
@@ -324,6 +333,8 @@ def run_info(out: str | Path) -> dict:
         summary: dict = {"rows": len(metrics)}
         if len(metrics):
             summary["t_last"] = float(metrics.column("t")[-1])
+        failed = (manifest or {}).get("result", {}).get("failed_step")
+        failed_its = (failed or {}).get("iterations", {}).get("newton")
         if "iterations_newton" in metrics.columns and len(metrics) > 1:
             it = metrics.column("iterations_newton")[1:]
             summary["newton"] = {
@@ -331,6 +342,13 @@ def run_info(out: str | Path) -> dict:
                 "mean": float(np.nanmean(it)),
                 "max": int(np.nanmax(it)),
             }
+        if failed_its is not None:  # the failed step is not in metrics.csv: count it too
+            steps = int(np.count_nonzero(np.isfinite(it))) if "newton" in summary else 0
+            newton = summary.setdefault("newton", {"total": 0, "max": 0})
+            newton["total"] += int(failed_its)
+            newton["mean"] = newton["total"] / (steps + 1)
+            newton["max"] = max(newton["max"], int(failed_its))
+            newton["failed_step"] = {"step": failed["step"], "iterations": int(failed_its)}
         if "energy_total" in metrics.columns:
             e = metrics.column("energy_total")
             summary["energy_total"] = [_finite(e[0]), _finite(e[-1])]
@@ -411,8 +429,10 @@ def format_info(info: dict) -> str:
         lines.append(f"progress:      t = {_fmt(met.get('t_last'), ' s')}, {met['rows'] - 1} steps")
         if "newton" in met:
             n = met["newton"]
+            failed = n.get("failed_step")
             lines.append(
                 f"newton:        {n['total']} iterations (mean {n['mean']:.2f}, max {n['max']})"
+                + (f"; the failed step {failed['step']}: {failed['iterations']}" if failed else "")
             )
         if "energy_total" in met:
             e0, e1 = met["energy_total"]

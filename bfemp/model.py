@@ -40,6 +40,18 @@ class FemBody:
         """The body's index, so a handle works wherever an index is expected."""
         return self.index
 
+    def __repr__(self) -> str:
+        """One line: name, index, node and cell ranges, material, motion, boundary size (not
+        the boundary array itself)."""
+        motion = type(self.prescribed_motion).__name__ if self.prescribed_motion else None
+        facets = "edges" if self.boundary.ndim == 2 and self.boundary.shape[1] == 2 else "faces"
+        return (
+            f"FemBody(name={self.name!r}, index={self.index}, nodes={self.nodes.start}:"
+            f"{self.nodes.stop}, cells={self.cells.start}:{self.cells.stop}, "
+            f"material={type(self.material).__name__}, prescribed_motion={motion}, "
+            f"boundary={self.boundary.shape[0]} {facets})"
+        )
+
     @property
     def n_nodes(self) -> int:
         """Number of nodes of this body."""

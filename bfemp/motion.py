@@ -46,9 +46,10 @@ class Fixed(Motion):
         return np.zeros_like(np.asarray(x0, dtype=np.float64))
 
 
-@dataclass(frozen=True, kw_only=True)
+@dataclass(frozen=True)
 class Linear(Motion):
-    """Translation at a constant ``velocity (d,)`` in m/s."""
+    """Translation at a constant ``velocity (d,)`` in m/s: ``Linear((0.0, -0.1))`` or
+    ``Linear(velocity=(0.0, -0.1))``."""
 
     velocity: tuple[float, ...]
 
@@ -89,9 +90,10 @@ def _rotation_matrix(axis: np.ndarray, angle: float, dim: int) -> np.ndarray:
     return np.eye(3) + s * kx + (1.0 - c) * (kx @ kx)
 
 
-@dataclass(frozen=True, kw_only=True)
+@dataclass(frozen=True)
 class Rotation(Motion):
-    """Rigid rotation about ``center`` at ``angular_velocity`` rad/s (counter-clockwise positive).
+    """Rigid rotation about ``center`` at ``angular_velocity`` rad/s (counter-clockwise positive):
+    ``Rotation(center, angular_velocity, axis)``, positional or by keyword.
 
     In 3D the rotation is about the line through ``center`` along ``axis`` (normalised here);
     in 2D (a 2-component ``center``) ``axis`` is ignored (rotation in the plane): it is not
@@ -147,9 +149,10 @@ class Rotation(Motion):
         return w * np.cross(axis, r)
 
 
-@dataclass(frozen=True, kw_only=True)
+@dataclass(frozen=True)
 class Sequence(Motion):
-    """Piecewise motion: ``segments`` is a list of ``(duration_s, motion)``.
+    """Piecewise motion: ``segments`` is a list of ``(duration_s, motion)``, positional or by
+    keyword.
 
     Segment k starts from the positions reached at the end of segment k - 1. After the last finite
     segment ends the last motion continues (give it ``math.inf`` to make that explicit).

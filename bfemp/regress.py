@@ -226,6 +226,12 @@ def load_reference(path: str | os.PathLike) -> Reference:
     )
 
 
+def default_reference_dir() -> Path:
+    """The checkout's ``references/`` folder (beside the ``bfemp`` package), the default of
+    ``bfemp regress`` from whatever folder it is run."""
+    return Path(__file__).resolve().parents[1] / "references"
+
+
 def find_references(
     directory: str | os.PathLike, names: list[str] | None = None
 ) -> list[Reference]:

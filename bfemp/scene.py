@@ -341,18 +341,21 @@ class Scene:
 
     def add_load(
         self,
-        body: int | FemBody,
+        body: str | int | FemBody,
         force: tuple[float, ...] | np.ndarray,
         nodes: np.ndarray | None = None,
     ) -> None:
         """Apply constant nodal forces to a FEM body (dead load).
 
         Args:
-            body: the handle (or index) returned by ``add_fem``; loads act on FEM bodies only.
+            body: the body's name (as ``set_friction`` and scene files take it), or the handle
+                (or index) returned by ``add_fem``; loads act on FEM bodies only.
             force: force per selected node in N (N/m in 2D), ``(d,)`` or ``(k, d)``.
             nodes: bool mask ``(n,)`` or indices ``(k,)`` of the body's nodes (in the mesh
                 file's numbering, as for ``add_fem``'s ``prescribed_nodes``); default all.
         """
+        if isinstance(body, str):
+            body = self._fem_by_name(body, "add_load")
         if isinstance(body, MpmBody):
             raise ValueError(
                 f"add_load: loads act on FEM bodies only, and '{body.name}' is an MPM body; "
@@ -391,6 +394,18 @@ class Scene:
                 f"got {f.shape}"
             )
         self._loads.append((body, idx, np.array(f)))
+
+    def _fem_by_name(self, name: str, where: str) -> int | MpmBody:
+        """The index of the FEM body called ``name`` (an MPM body's handle, for the caller's
+        message); ``ValueError`` naming the bodies there are when no body has that name."""
+        for index, spec in enumerate(self._fem):
+            if spec.name == name:
+                return index
+        for index, spec in enumerate(self._mpm):
+            if spec.name == name:
+                return MpmBody(spec.name, index, spec.material, slice(0, 0))
+        known = ", ".join(repr(spec.name) for spec in self._fem) or "none"
+        raise ValueError(f"{where}: no FEM body named {name!r} (FEM bodies: {known})")
 
     def _as_mesh(self, points: object, cells: np.ndarray | None, where: str) -> TriMesh | TetMesh:
         if isinstance(points, TriMesh | TetMesh):

@@ -25,7 +25,14 @@ from bfemp import diagnostics, scenefile
 from bfemp._run_arguments import check_t_end
 from bfemp.checkpoint import InterruptGuard, restore_checkpoint, write_checkpoint
 from bfemp.contact.penetration import PenetrationCheck
-from bfemp.errors import SceneError, StepNoteWarning, collect_warnings, note_name, warn_user
+from bfemp.errors import (
+    PlausibilityWarning,
+    SceneError,
+    StepNoteWarning,
+    collect_warnings,
+    note_name,
+    warn_user,
+)
 from bfemp.integrators import Integrator, integrator_from_name
 from bfemp.io import outputs
 from bfemp.io.metrics import MetricsLog
@@ -34,11 +41,13 @@ from bfemp.io.vtk import Block, FrameWriter
 from bfemp.manifest import RunManifest
 from bfemp.model import Model
 from bfemp.mpm.transfer import SCHEMES
+from bfemp.plausibility import EnergyLossCheck, damps_by_design, discretisation_notes
 from bfemp.plotting import plot_metrics
 from bfemp.scene import Scene
 from bfemp.state import State
 from bfemp.steppers import (
     STRATEGIES,
+    StepError,
     StepperOptions,
     StepReport,
     options_for,
@@ -148,6 +157,8 @@ class Simulation:
             self.model, strategy, STRATEGIES, allow_uncoupled=allow_uncoupled
         ):
             warn_user(message, category=StepNoteWarning, logger=log)
+        #: the report of the step that failed last (None after a step that succeeded)
+        self.failed_report: StepReport | None = None
         #: the scene this simulation was built from (written to ``out/scene.toml`` by runs)
         self.scene = scene if isinstance(scene, Scene) else None
         #: the text of the scene file this simulation was read from (``from_file``), or None
@@ -182,8 +193,11 @@ class Simulation:
             options=options,
         )
         self.state: State = self.stepper.initialize(initial)
+        for note in discretisation_notes(self.model, self.dt, self.integrator):
+            self._notice(note, PlausibilityWarning, log)
         self.metrics = MetricsLog()
         self._closed = _is_closed(self.model)
+        self._energy_loss = EnergyLossCheck(_dissipation(self))
         self._fem_groups = fem_elastic_groups(self.model)
         self._contact_columns = self.model.contact is not None
         self._penetration = PenetrationCheck.for_model(self.model)
@@ -254,9 +268,15 @@ class Simulation:
 
     # ------------------------------------------------------------------ stepping
     def step(self) -> StepReport:
-        """Advance one time step; returns its report (raises ``StepError`` on failure)."""
+        """Advance one time step; returns its report (raises ``StepError`` on failure, whose
+        report is also kept as ``failed_report``: its iterations go to the run's manifest)."""
         with collect_warnings(self._notice):
-            self.state, report = self.stepper.step(self.state)
+            try:
+                self.state, report = self.stepper.step(self.state)
+            except StepError as err:
+                self.failed_report = err.report
+                raise
+            self.failed_report = None
             self._count_notes(report)
             self.metrics.append(self._metrics_row(report))
         return report
@@ -307,6 +327,13 @@ class Simulation:
     ) -> MetricsLog:
         """Step until ``t_end`` s; with ``out``, write a frame every ``every`` steps.
 
+        The run takes whole steps of ``dt``: it ends at the first ``t = t0 + n dt >= t_end`` (within
+        ``1e-9 dt``), past ``t_end`` by less than one step when ``dt`` does not divide the time
+        to go (``dt="auto"``: 0.300539 s for 0.3 s; logged). The last step is not shortened to
+        land on ``t_end``: a run continued from its checkpoint (``resume``) must equal an
+        uninterrupted one bit for bit, which a short step in its middle would break, and the
+        explicit strategies derive settings from ``dt`` once (augury's ``tau``, the CFL checks).
+
         ``callback(sim)`` is called after every step (to record custom quantities).
 
         With an output folder ``out`` the run also writes ``metrics.csv``, ``metrics.png``, a
@@ -347,6 +374,11 @@ class Simulation:
         ``out/metrics.png``).
         """
         _check_run_args(t_end, every, checkpoint_every, resume, out)
+        if resume and overwrite:
+            raise ValueError(
+                "Simulation.run: resume=True continues the run in out and overwrite=True deletes "
+                "it; give one of them"
+            )
         if not resume:
             check_t_end(t_end, self.state.t, self.dt)
         if animation is not None:
@@ -438,7 +470,16 @@ class Simulation:
         return self.metrics
 
     def _n_steps(self, t_end: float) -> int:
-        return max(0, math.ceil((t_end - self.state.t) / self.dt - 1e-9))
+        """Whole steps of ``dt`` to reach ``t_end`` (the end time past it is logged)."""
+        n = max(0, math.ceil((t_end - self.state.t) / self.dt - 1e-9))
+        end = self.state.t + n * self.dt
+        if end > t_end + 1e-9 * self.dt:
+            log.info(
+                "the run ends at t = %.9g s, %.3g s after t_end = %.9g s: %d whole steps of "
+                "dt = %.9g s (the last step is not shortened; Simulation.run says why)",
+                end, end - t_end, t_end, n, self.dt,
+            )  # fmt: skip
+        return n
 
     def _loop(
         self,
@@ -519,6 +560,8 @@ class Simulation:
         row.update(self.energies())
         if self._closed:
             self._check_energy(row, report is not None)
+        if report is not None and self._closed:
+            self._check_energy_loss(row)
         axes = "xyz"
         for k, p in enumerate(diagnostics.linear_momentum(self.model, self.state)):
             row[f"momentum_{axes[k]}"] = float(p)
@@ -615,6 +658,24 @@ class Simulation:
         )
         return max((v for v in values if math.isfinite(v)), default=0.0)
 
+    def _check_energy_loss(self, row: dict[str, float]) -> None:
+        """Note once when a closed scene loses most of its energy (``ENERGY_LOSS``; thresholds
+        and how friction and damping are kept from false alarms: ``EnergyLossCheck``)."""
+        parts = ("energy_kinetic", "energy_elastic", "energy_contact")
+        check = self._energy_loss
+        if check.rows != len(self.metrics):  # the first step, or a run resumed from a checkpoint
+            stored = sum(
+                (np.nan_to_num(self.metrics.column(c)) for c in parts if c in self.metrics.columns),
+                np.zeros(len(self.metrics)),
+            )
+            check.start(np.asarray(self.metrics.column("energy_total")), stored)
+        stored = sum(float(np.nan_to_num(row.get(c, 0.0))) for c in parts)
+        terms = ("energy_kinetic", "energy_elastic", "energy_gravity", "energy_load", *parts[2:])
+        magnitude = sum(abs(float(np.nan_to_num(row.get(c, 0.0)))) for c in terms)
+        note = check.check(row["energy_total"], stored, self.state.t, magnitude)
+        if note is not None:
+            self._notice(note, PlausibilityWarning, log)
+
     def frame_blocks(self) -> list[Block]:
         """One VTK block per FEM body with velocity, J and von Mises stress."""
         blocks = []
@@ -657,6 +718,28 @@ class Simulation:
         """Seconds spent in steps so far (sum of the per-step timings)."""
         col = "time_step"
         return float(np.nansum(self.metrics.column(col))) if col in self.metrics.columns else 0.0
+
+
+def _dissipation(sim: Simulation) -> str:
+    """What dissipates energy in ``sim`` by design ("" for nothing; ``ENERGY_LOSS`` is checked
+    only then): a damping integrator (backward Euler, damped Newmark), friction, PIC, a contact
+    that takes the approach velocity out (every strategy but ``barrier``, whose barrier stores
+    the contact energy; MPM bodies meeting through the shared grid)."""
+    parts = []
+    if sim.strategy != "barrier":
+        parts.append(f"the {sim.strategy} strategy's contact is inelastic")
+    elif len(sim.model.mpm_bodies) > 1:
+        parts.append("MPM bodies meet inelastically through the shared grid")
+    if damps_by_design(sim.integrator):
+        parts.append(f"the {sim.integrator.name} integrator damps")
+    contact = sim.model.contact
+    mus = [getattr(contact, "mu", 0.0) or 0.0, getattr(sim.options, "mu", 0.0) or 0.0]
+    mus += [mu for *_, mu in (getattr(contact, "pair_mu", None) or ())]
+    if max(mus) > 0.0:
+        parts.append(f"friction, mu up to {max(mus):g}")
+    if sim.transfer == "pic" and sim.model.n_particles:
+        parts.append("the PIC transfer damps")
+    return "; ".join(parts)
 
 
 def _is_closed(model: Model) -> bool:

@@ -21,7 +21,9 @@ Choices made here (DESIGN.md leaves them open):
   step does (``bfemp.mpm.step``). Without them they are transferred as PIC transfers the
   velocity: P2G a_i = sum_p w_ip m_p a_p / m_i, G2P a_p = sum_i w_ip a_i, for every scheme.
 - A grid node whose mass is below ``MASS_FLOOR_REL`` x the largest node mass (only possible when
-  all its weights vanish) keeps its mass but gets zero velocity and acceleration, with a warning.
+  all its weights vanish: round-off weights of particles a hair off a cell-centre line) keeps
+  its mass but gets zero velocity and acceleration; ``GridFields.zero_mass_nodes`` counts them
+  (logged at DEBUG: a step's report names them, and a run warns once, ``P2G_ZERO_MASS``).
 """
 
 from __future__ import annotations
@@ -32,7 +34,6 @@ from typing import NamedTuple
 
 import numpy as np
 
-from bfemp.errors import warn_user
 from bfemp.mpm._transfer_kernels import _apic_inertia, _g2p, _p2g
 
 __all__ = [
@@ -62,11 +63,13 @@ class GridFields:
         mass: node masses m_i ``(G,)`` in kg (kg/m in 2D plane strain).
         velocity: node velocities v_i ``(G, d)`` in m/s.
         acceleration: node accelerations a_i ``(G, d)`` in m/s^2, or None when none was transferred.
+        zero_mass_nodes: nodes below ``MASS_FLOOR_REL`` x the largest mass (zero velocity).
     """
 
     mass: np.ndarray
     velocity: np.ndarray
     acceleration: np.ndarray | None = None
+    zero_mass_nodes: int = 0
 
     def __post_init__(self) -> None:
         n = self.mass.shape[0]
@@ -227,16 +230,18 @@ def particles_to_grid(
     heavy = grid_mass > floor
     inv_mass = np.zeros(n_grid)
     inv_mass[heavy] = 1.0 / grid_mass[heavy]
-    if not heavy.all():
-        warn_user(
-            f"P2G_ZERO_MASS: {int((~heavy).sum())} grid nodes with (near) zero mass get zero "
-            f"velocity (the first: {np.flatnonzero(~heavy)[:10].tolist()}): a particle whose "
-            "B-spline weights nearly vanish there, e.g. on a half-integer grid coordinate",
-            logger=logger,
+    light = int(n_grid - np.count_nonzero(heavy))
+    if light:  # every step of such a scene: the caller's step report names them (once a run)
+        logger.debug(
+            "P2G: %d grid nodes with (near) zero mass get zero velocity: %s",
+            light,
+            np.flatnonzero(~heavy)[:10],
         )
     velocity = grid_mom * inv_mass[:, None]
     acceleration = grid_ma * inv_mass[:, None] if with_a else None
-    return GridFields(mass=grid_mass, velocity=velocity, acceleration=acceleration)
+    return GridFields(
+        mass=grid_mass, velocity=velocity, acceleration=acceleration, zero_mass_nodes=light
+    )
 
 
 def grid_to_particles(

@@ -139,6 +139,8 @@ class AuguryOptions(ExplicitOptions):
         mode: ``"friction"`` (eqs. 40-46, Coulomb with ``mu``; mu = 0 is frictionless) or
             ``"separate"`` (eq. 38: only tensile corrections removed).
         mu: Coulomb coefficient; None takes ``scene.set_contact(mu=...)`` (0 without contact).
+            Both given and different (a ``set_contact`` mu other than 0, its default) is
+            refused: one scene, one friction coefficient.
         grid_dx: contact-grid spacing in m; None: 2 x the mean FEM boundary edge at rest, not
             below the MPM particle spacing (AUG: about twice the element edge).
         kernel: contact-grid kernel, ``"quadratic"`` (bfemp's B-spline, 3 nodes per axis),
@@ -262,10 +264,7 @@ class AuguryStepper(ExplicitStepper):
                 "(the augury correction is unstable there); take tau >= dt / 2 or tau=None"
             )
         refuse_pair_friction(model.contact, "augury")
-        if opts.mu is not None:
-            self.mu = opts.mu
-        else:
-            self.mu = float(getattr(model.contact, "mu", 0.0) or 0.0)
+        self.mu = _friction_coefficient(opts.mu, model.contact)
         self.apic = opts.contact_transfer == "apic"
         self._tau_predict = self.tau + (0.5 * self.dt if opts.predictor == "paper" else 0.0)
         self._setup_foreground()
@@ -737,6 +736,26 @@ class AuguryStepper(ExplicitStepper):
 
 
 # ---------------------------------------------------------------------- helpers
+def _friction_coefficient(option: float | None, contact: object) -> float:
+    """The Coulomb coefficient augury uses: ``AuguryOptions.mu``, else the scene's
+    ``set_contact(mu=...)`` (0 without contact settings).
+
+    Raises:
+        ValueError: both are given and differ (a contact mu of 0, ``set_contact``'s default, is
+            taken as not given, so ``AuguryOptions(mu=...)`` alone sets friction).
+    """
+    scene_mu = float(getattr(contact, "mu", 0.0) or 0.0)
+    if option is None:
+        return scene_mu
+    if scene_mu != 0.0 and float(option) != scene_mu:
+        raise ValueError(
+            f"augury: AuguryOptions.mu = {option:g} and scene.set_contact(mu={scene_mu:g}) give "
+            "two friction coefficients; give mu in one place (AuguryOptions.mu=None takes the "
+            "scene's)"
+        )
+    return float(option)
+
+
 def _normalize(v: np.ndarray) -> np.ndarray:
     norm = np.sqrt(np.einsum("pd,pd->p", v, v))
     out = np.zeros_like(v)

@@ -303,8 +303,11 @@ class BarrierStepper:
             message=result.message,
             iterations=self._iterations(int(result.nit), friction_its),
             residual=float(result.step_inf_norm) / dt,
-            notes=tuple(self._solver.rounding_notes() if layout.n_dof else ())
-            + (() if friction_ok else (FRICTION_LOOP_NOTE,)),
+            notes=(
+                *(self._solver.rounding_notes() if layout.n_dof else ()),
+                *_zero_mass_notes(nodes),
+                *(() if friction_ok else (FRICTION_LOOP_NOTE,)),
+            ),
         )
         if not result.success:
             raise StepError(StepReport(**report_args, timings=dict(result.timings)))
@@ -450,3 +453,20 @@ class BarrierStepper:
             raise ValueError(f"barrier stepper: unknown checkpoint data {unknown}")
         if "adaptive" in data:
             self.adaptive = AdaptiveKappa(**json.loads(str(data["adaptive"])))
+
+
+def _zero_mass_notes(nodes: object) -> tuple[str, ...]:
+    """``P2G_ZERO_MASS`` when the step's P2G left grid nodes of (near) zero mass (round-off
+    weights of particles a hair off a cell-centre line; ``bfemp.mpm.transfer``): they start the
+    step at zero velocity (the lightest are pinned, ``bfemp.mpm.step``), which the particles do
+    not feel. A named note, so that a run warns once and counts the steps (it was a log warning
+    in every step)."""
+    mpm = getattr(nodes, "mpm", None)
+    light = 0 if mpm is None else int(mpm.fields.zero_mass_nodes)
+    if not light:
+        return ()
+    return (
+        f"P2G_ZERO_MASS: {light} grid nodes with (near) zero mass (only round-off B-spline "
+        "weights reach them: particles a hair off a cell-centre line) start the step at zero "
+        "velocity; the particles do not feel them",
+    )

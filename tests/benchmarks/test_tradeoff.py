@@ -655,3 +655,33 @@ def test_the_code_version_follows_the_point_modules_imports_and_nothing_else(tmp
     project = imported_modules(ROOT, POINT_MODULES)
     assert {"benchmarks.rings", "benchmarks.sine_boundary", "benchmarks.common"} <= set(project)
     assert not {"benchmarks.tradeoff", "benchmarks._tradeoff_report"} & set(project)
+
+
+def test_a_sweep_shows_its_progress_point_by_point(monkeypatch, tmp_path, capsys):
+    # issue 42: `bfemp sweep` was silent for minutes without --verbose
+    from benchmarks import _tradeoff_point
+
+    def fake_local(ids, jobs, workers, on_done=None):  # noqa: ANN001, ANN202
+        results = []
+        for k in range(len(ids)):
+            results.append(_tradeoff_point._failed("not run (test)", 0.0))
+            if on_done is not None:
+                on_done(k, results[-1])
+        return results
+
+    monkeypatch.setattr(tradeoff, "execute_local", fake_local)
+    summary = tradeoff.sweep(
+        "quick", tmp_path, scenes="slope", strategies=MINIMAL_STRATEGIES, knobs=MINIMAL_KNOBS,
+        workers=1, sweeps=MINIMAL, progress=True,
+    )  # fmt: skip
+    err = capsys.readouterr().err
+    n = len(summary["points"])
+    assert n >= 2 and "tradeoff points: 100%" in err and f"{n}/{n}" in err
+    assert "tradeoff warm-up: 100%" in err
+    assert any(p["id"] in err for p in summary["points"])  # the last point done is named
+    seen = {}
+    monkeypatch.setattr(tradeoff, "sweep", lambda mode, out, **kw: seen.update(kw) or summary)
+    parser = bench_main._parser()
+    tradeoff.add_arguments(parser)
+    tradeoff.main_from_args(parser.parse_args(["tradeoff", "--quick", "--scenes", "slope"]))
+    assert seen["progress"] is True  # the command line shows it

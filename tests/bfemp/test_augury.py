@@ -574,3 +574,26 @@ def test_kinematic_particles_have_infinite_inertia_in_H():
     assert np.linalg.norm(free[1:], axis=1).min() > 0.5  # negative control: outweighed
     with pytest.raises(ValueError, match="kinematic must have shape"):
         ContactOperator(st, x, m, kinematic=np.array([True, False]))
+
+
+def test_two_friction_coefficients_are_refused_one_is_taken():
+    # issue 42: AuguryOptions(mu=0.8) beside set_contact(mu=0.3) ran with 0.8, silently
+    def scene(mu):
+        s = bfemp.Scene(dim=2)
+        s.add_fem(bfemp.shapes.rectangle((-0.5, -0.1), (1.0, 0.0), h=0.1), material=MAT,
+                  prescribed=bfemp.motion.Fixed(), name="plate")  # fmt: skip
+        x, vol = bfemp.sample.box((0.0, 0.05), (0.2, 0.25), dx=0.05, ppc=4)
+        s.add_mpm(x, vol, material=MAT, name="block")
+        s.set_grid(dx=0.05)
+        s.set_contact(dhat=1e-3, mu=mu)
+        return s
+
+    def sim(mu_scene, mu_option):
+        opts = AuguryOptions(mu=mu_option, grid_dx=0.1)
+        return bfemp.Simulation(scene(mu_scene), strategy="augury", dt=1e-4, options=opts)
+
+    with pytest.raises(ValueError, match=r"AuguryOptions.mu = 0.8 and scene.set_contact\(mu=0.3"):
+        sim(0.3, 0.8)
+    assert sim(0.3, None).stepper.mu == 0.3  # the scene's
+    assert sim(0.3, 0.3).stepper.mu == 0.3  # the same value twice is no conflict
+    assert sim(0.0, 0.8).stepper.mu == 0.8  # set_contact's default 0 is no value

@@ -406,3 +406,84 @@ def test_damaged_run_folders_and_a_file_as_out_exit_2_naming_the_file(
         err.startswith(f"bfemp: error: {a_file}: the output folder is a file")
         and "Errno" not in err
     )
+
+
+# --------------------------------------------------------------------------- issue 42 (minor)
+def test_resume_and_overwrite_together_are_refused(scene_file, tmp_path, capsys):
+    out = tmp_path / "out"
+    with pytest.raises(SystemExit) as info:  # argparse: one or the other
+        main(["run", str(scene_file), "--out", str(out), "--resume", "--overwrite"])
+    assert info.value.code == 2
+    assert "--overwrite: not allowed with argument --resume" in capsys.readouterr().err
+    assert not out.exists()
+    sim = bfemp.Simulation.from_file(scene_file)
+    with pytest.raises(ValueError, match=r"resume=True continues .* overwrite=True deletes"):
+        sim.run(0.02, out=out, resume=True, overwrite=True, progress=False)
+
+
+def test_mp4_without_ffmpeg_is_an_input_error_exit_2(scene_file, tmp_path, capsys, monkeypatch):
+    from matplotlib import animation
+
+    monkeypatch.setattr(animation.FFMpegWriter, "isAvailable", classmethod(lambda cls: False))
+    err = _error(capsys, ["run", str(scene_file), "--out", str(tmp_path / "o"), "--animate", "mp4"])
+    assert "needs ffmpeg" in err and "'gif'" in err
+    assert not (tmp_path / "o").exists()  # refused before the run
+
+
+def test_regress_finds_the_checkout_references_from_any_folder(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)  # no references/ here
+    assert main(["regress", "single_field_2d", "--quiet"]) == 0
+    assert "single_field_2d" in capsys.readouterr().out
+
+
+def test_a_fem_body_prints_in_one_short_line():
+    scene = bfemp.Scene(dim=2)
+    mesh = bfemp.shapes.rectangle((0.0, 0.0), (4.0, 0.5), h=0.05)
+    body = scene.add_fem(mesh, material=bfemp.NeoHookean(E=1e6, nu=0.3, density=1e3), name="p")
+    text = repr(body)
+    assert "\n" not in text and len(text) < 200, text
+    assert text.startswith("FemBody(name='p', index=0, nodes=0:") and "NeoHookean" in text
+    assert f"boundary={body.boundary.shape[0]} edges" in text
+
+
+def test_info_counts_the_newton_iterations_of_the_failed_step(
+    scene_file, tmp_path, capsys, no_plots
+):
+    # issue 42: the failed step (at its iteration cap) is not in metrics.csv, so `bfemp info`
+    # showed the largest count of the steps that converged as the run's maximum
+    from dataclasses import replace
+
+    sim = bfemp.Simulation.from_file(scene_file)
+    step = sim.stepper.step
+
+    def failing_third(state):
+        new, report = step(state)
+        if report.step < 3:
+            return new, report
+        raise bfemp.StepError(replace(report, success=False, iterations={"newton": 99}))
+
+    sim.stepper.step = failing_third
+    out = tmp_path / "out"
+    with pytest.raises(bfemp.StepError):
+        sim.run(0.06, out=out, progress=False)
+    converged = sim.metrics.column("iterations_newton")[1:]
+    assert converged.size == 2 and converged.max() < 99
+    assert main(["info", str(out), "--json"]) == 0
+    newton = json.loads(capsys.readouterr().out)["metrics"]["newton"]
+    assert newton["max"] == 99 and newton["total"] == converged.sum() + 99
+    assert newton["failed_step"] == {"step": 3, "iterations": 99}
+    assert main(["info", str(out)]) == 0
+    assert "max 99); the failed step 3: 99" in capsys.readouterr().out
+
+
+def test_a_run_past_t_end_says_where_it_ended_and_why(scene_file, caplog):
+    # issue 42: runs end on whole steps (0.300539 s for 0.3 s with dt = "auto"), silently
+    sim = bfemp.Simulation.from_file(scene_file, dt=0.025)
+    with caplog.at_level(logging.INFO, logger="bfemp.simulation"):
+        sim.run(0.06, progress=False)
+    assert sim.state.step == 3 and sim.state.t == pytest.approx(0.075)
+    assert "the run ends at t = 0.075 s" in caplog.text and "t_end = 0.06 s" in caplog.text
+    caplog.clear()
+    with caplog.at_level(logging.INFO, logger="bfemp.simulation"):
+        sim.run(0.1, progress=False)  # 0.075 + 0.025: lands on t_end, nothing to say
+    assert sim.state.t == pytest.approx(0.1) and "the run ends at" not in caplog.text

@@ -357,3 +357,37 @@ def test_run_refuses_an_end_time_before_the_current_time():
     assert sim.state.step == 3
     sim.run(t_end=sim.state.t, progress=False)  # nothing to do, not an error
     assert sim.state.step == 3
+
+
+# --------------------------------------------------------------------------- issue 42 (API)
+def test_motions_take_their_fields_positionally_as_the_readme_writes_them():
+    # issue 42: Linear(v) raised a bare TypeError (keyword-only dataclasses)
+    x0 = np.array([[0.0, 0.0], [1.0, 2.0]])
+    linear = bfemp.motion.Linear((0.0, -0.1))
+    assert linear == bfemp.motion.Linear(velocity=(0.0, -0.1))
+    assert np.allclose(linear.positions(x0, 2.0), x0 + [0.0, -0.2])
+    rotation = bfemp.motion.Rotation((0.0, 0.0), math.pi / 2)
+    assert rotation == bfemp.motion.Rotation(center=(0.0, 0.0), angular_velocity=math.pi / 2)
+    assert np.allclose(rotation.positions(x0, 1.0), [[0.0, 0.0], [-2.0, 1.0]])
+    sequence = bfemp.motion.Sequence(((1.0, linear), (math.inf, bfemp.motion.Fixed())))
+    assert np.allclose(sequence.positions(x0, 5.0), x0 + [0.0, -0.1])
+
+
+def test_add_load_takes_a_body_name_like_set_friction():
+    def scene_with(load_body):
+        scene = Scene(dim=2)
+        scene.add_fem(TRI_POINTS, TRI_CELLS, material=NH, name="a")
+        b = scene.add_fem(TRI_POINTS + [3.0, 0.0], TRI_CELLS, material=NH, name="plate")
+        x, vol = bfemp.sample.box((0.0, 2.0), (0.5, 2.5), dx=0.25, ppc=4)
+        scene.add_mpm(x, vol, material=NH, name="blob")
+        scene.set_grid(dx=0.25)
+        scene.add_load(b if load_body is None else load_body, (0.0, -1.0), nodes=[1, 3])
+        return scene.build()
+
+    by_name, by_handle = scene_with("plate"), scene_with(None)
+    assert np.array_equal(by_name.fem_load, by_handle.fem_load)
+    assert by_name.fem_load[4 + 1, 1] == -1.0 and by_name.fem_load[:4].sum() == 0.0
+    with pytest.raises(ValueError, match=r"add_load: no FEM body named 'plat' .*'a', 'plate'"):
+        scene_with("plat")
+    with pytest.raises(ValueError, match=r"loads act on FEM bodies only.*'blob' is an MPM body"):
+        scene_with("blob")
