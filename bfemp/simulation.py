@@ -428,7 +428,7 @@ class Simulation:
         run = {"t_end": float(t_end), "every": every, "checkpoint_every": checkpoint_every}
         writer = FrameWriter(out, resume=resume)
         manifest = RunManifest.start(out, self, run=run, resume=resume, extra=metadata)
-        if not resume and self.state.step % every == 0:
+        if not resume:  # the start state, whatever its step (a run after sim.step() too)
             writer.write_frame(self.state.t, self.frame_blocks())
         status, message, guard = "failed", "", InterruptGuard()
         try:

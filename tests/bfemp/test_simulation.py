@@ -217,3 +217,20 @@ def test_contact_forces_are_attributed_to_the_pair_of_bodies_that_touch():
     for body in sim.model.mpm_bodies:
         total = mpm[body.particles].sum(axis=0)
         assert np.allclose(total, force(body.name, "floor")[-1], rtol=1e-10, atol=1e-12)
+
+
+def test_a_run_after_a_step_writes_its_start_state_as_the_first_frame(tmp_path):
+    """Issue 42 (minor): the README's first snippet steps once, then runs with every=5; the run's
+    frames began at step 5, so the state the run started from was never seen."""
+    from bfemp.io import read_pvd
+
+    scene = bfemp.Scene(dim=2, gravity=(0.0, -9.81))
+    mesh = bfemp.shapes.rectangle((0.0, 0.0), (1.0, 0.25), h=0.25)
+    scene.add_fem(mesh, material=bfemp.NeoHookean(E=1e6, nu=0.3, density=1000.0), name="b")
+    sim = bfemp.Simulation(scene, integrator="backward_euler", dt=1e-2)
+    sim.step()
+    start = sim.state.t
+    sim.run(t_end=start + 0.1, out=tmp_path / "run", every=5)
+    times = [t for t, _ in read_pvd(tmp_path / "run" / "b.pvd")]
+    assert times[0] == pytest.approx(start)
+    assert times[1:] == pytest.approx([start + 0.04, start + 0.09])  # steps 5 and 10
