@@ -4,10 +4,28 @@ Both are drawn from the frames of a run folder (the ``BODY.pvd`` collections and
 files, read with meshio) or from a list of :class:`Snapshot` (made from ``Simulation.
 frame_blocks()`` with :func:`snapshot_from_blocks`). FEM meshes are drawn as their cells (2D) or
 boundary triangles (3D, mplot3d), coloured by the cells' von Mises stress; MPM particles as dots
-coloured by theirs. One colour scale (0 to the largest stress of the frames drawn, in Pa) and one
-set of axis limits serve every panel, so that panels compare at a glance.
+coloured by theirs. One colour scale (0 to the largest stress of the frames drawn, in Pa, but at
+least :data:`STRESS_FLOOR_PA`) and one set of axis limits serve every panel, so that panels
+compare at a glance.
 
 Choices:
+
+- Round-off is not drawn as stress: the top of the colour scale is at least ``stress_floor``
+  (default :data:`STRESS_FLOOR_PA` = 1 Pa), so a run whose every stress is round-off (a fixed
+  plate that nothing touches, a scene at rest) is drawn in the colour of zero stress, and the
+  colour bar's label says that the scale was floored and what the largest value was. No paper
+  fixes this; the rule and its numbers are a choice, made from what the frames carry. The frames
+  hold von Mises stress, J, velocities and contact forces, but no material data, so a noise floor
+  tied to each body's modulus is not available here; an absolute floor is. Its size: round-off
+  in the stress of an unstrained body is about ``E * eps`` with a strain noise ``eps`` of a few
+  machine epsilons (measured: 4e-8 Pa and 4e-7 Pa for fixed 200 MPa plates, eps ~ 2e-16 to
+  2e-15), so even the stiffest solids (E ~ 1e12 Pa) give at most ~2e-3 Pa, below 1/256 of a
+  1 Pa scale: the lowest colour of the 256-level map. A relative floor needs no code: on the
+  linear scale anything below ``top / 512`` already gets the lowest colour, so round-off next to
+  real stress (a fixed plate beside a loaded body) is drawn as zero. The price: a run whose real
+  stresses all stay below 1 Pa (strains below ~1e-9 for E ~ 1 GPa, ~1e-3 for a 1 kPa gel) is
+  drawn pale on a 0 to 1 Pa scale, in proportion and with the label saying so;
+  ``stress_floor=0`` restores the bare 0-to-largest scale.
 
 - The sheet shows up to :data:`SHEET_PANELS` frames evenly spaced over the run (first and last
   frame included); only those VTU files are read, so it costs a fraction of a second. The last
@@ -40,6 +58,7 @@ from bfemp.io.vtk import atomic_path, read_pvd
 
 __all__ = [
     "SHEET_PANELS",
+    "STRESS_FLOOR_PA",
     "BodyView",
     "Snapshot",
     "check_animation_format",
@@ -54,6 +73,8 @@ log = logging.getLogger(__name__)
 
 #: number of frames on the snapshot sheet (at most)
 SHEET_PANELS = 6
+#: least top of the von Mises colour scale in Pa: stresses below it are round-off (module notes)
+STRESS_FLOOR_PA = 1.0
 _CMAP = "viridis"
 _FACES = np.array([[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]])
 
@@ -166,10 +187,28 @@ def _limits(snapshots: Sequence[Snapshot], dim: int) -> np.ndarray:
     return np.stack([lo - pad, hi + pad], axis=1)
 
 
-def _norm(snapshots: Sequence[Snapshot]) -> Normalize:
+def _check_floor(stress_floor: float) -> float:
+    if not (isinstance(stress_floor, int | float) and math.isfinite(stress_floor)):
+        raise ValueError(f"stress_floor must be a finite stress in Pa, got {stress_floor!r}")
+    if stress_floor < 0.0:
+        raise ValueError(f"stress_floor must be >= 0 Pa, got {stress_floor!r}")
+    return float(stress_floor)
+
+
+def _norm(
+    snapshots: Sequence[Snapshot], stress_floor: float = STRESS_FLOOR_PA
+) -> tuple[Normalize, str]:
+    """The von Mises colour scale, 0 to max(largest stress drawn, ``stress_floor``) in Pa, and
+    the colour bar's label (which says when the floor set the top: round-off, module notes)."""
+    floor = _check_floor(stress_floor)
     values = [b.von_mises[np.isfinite(b.von_mises)] for s in snapshots for b in s.bodies]
-    vmax = max((float(v.max()) for v in values if v.size), default=0.0)
-    return Normalize(vmin=0.0, vmax=vmax if vmax > 0.0 else 1.0)
+    vmax = max((float(np.abs(v).max()) for v in values if v.size), default=0.0)
+    label = "von Mises stress [Pa]"
+    if vmax >= floor and vmax > 0.0:
+        return Normalize(vmin=0.0, vmax=vmax), label
+    top = floor if floor > 0.0 else 1.0
+    label += f"\n(scale floored at {top:g} Pa; max {vmax:.2g} Pa)"
+    return Normalize(vmin=0.0, vmax=top), label
 
 
 def _dot_size(n_points: int) -> float:
@@ -235,8 +274,19 @@ def _draw(ax: object, snap: Snapshot, norm: Normalize, limits: np.ndarray) -> No
     ax.set_title(f"t = {snap.t:.4g} s", fontsize="medium")
 
 
-def snapshot_figure(snapshots: Sequence[Snapshot], *, title: str | None = None) -> Figure:
+def snapshot_figure(
+    snapshots: Sequence[Snapshot],
+    *,
+    title: str | None = None,
+    stress_floor: float = STRESS_FLOOR_PA,
+) -> Figure:
     """A sheet with one panel per snapshot (3 per row) and one von Mises colour bar.
+
+    Args:
+        snapshots: the states drawn, one panel each.
+        title: sheet title (default: the body names).
+        stress_floor: least top of the colour scale in Pa (round-off is not drawn as stress,
+            module notes); 0 for the bare 0-to-largest scale.
 
     Returns:
         the figure (Agg canvas); its panels are the axes titled ``t = ... s``.
@@ -252,14 +302,12 @@ def snapshot_figure(snapshots: Sequence[Snapshot], *, title: str | None = None) 
     aspect = float(np.clip(span[1] / span[0], 0.3, 1.5)) if dim == 2 else 0.9
     fig = Figure(figsize=(4.0 * ncols + 1.0, 4.0 * aspect * nrows + 0.8), layout="constrained")
     FigureCanvasAgg(fig)
-    norm = _norm(snapshots)
+    norm, label = _norm(snapshots, stress_floor)
     kw = {"projection": "3d"} if dim == 3 else {}
     axes = [fig.add_subplot(nrows, ncols, i + 1, **kw) for i in range(n)]
     for ax, snap in zip(axes, snapshots, strict=True):
         _draw(ax, snap, norm, limits)
-    fig.colorbar(
-        ScalarMappable(norm=norm, cmap=_CMAP), ax=axes, label="von Mises stress [Pa]", shrink=0.9
-    )
+    fig.colorbar(ScalarMappable(norm=norm, cmap=_CMAP), ax=axes, label=label, shrink=0.9)
     names = sorted({b.name for s in snapshots for b in s.bodies})
     fig.suptitle(title or f"bodies: {', '.join(names)}")
     return fig
@@ -272,6 +320,7 @@ def write_snapshot_sheet(
     snapshots: Sequence[Snapshot] | None = None,
     count: int = SHEET_PANELS,
     title: str | None = None,
+    stress_floor: float = STRESS_FLOOR_PA,
 ) -> Path:
     """Write the snapshot sheet PNG (default ``{out}/snapshots.png``) of run folder ``out``.
 
@@ -281,10 +330,12 @@ def write_snapshot_sheet(
         snapshots: draw these instead of the folder's frames.
         count: number of frames drawn (evenly spaced over the run).
         title: sheet title (default: the body names).
+        stress_floor: least top of the colour scale in Pa (module notes).
     """
     path = Path(out) / "snapshots.png" if path is None else Path(path)
+    _check_floor(stress_floor)
     snaps = read_snapshots(out, count) if snapshots is None else list(snapshots)
-    fig = snapshot_figure(snaps, title=title)
+    fig = snapshot_figure(snaps, title=title, stress_floor=stress_floor)
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png", dpi=100)
     log.info("snapshot sheet of %d frames written to %s", len(snaps), path)
@@ -314,6 +365,7 @@ def write_animation(
     *,
     fps: float = 10.0,
     max_frames: int = 200,
+    stress_floor: float = STRESS_FLOOR_PA,
 ) -> Path:
     """Write an animation of the frames of run folder ``out`` (default ``{out}/animation.FMT``).
 
@@ -323,17 +375,19 @@ def write_animation(
         path: the file (its suffix should be ``.FMT``).
         fps: frames per second.
         max_frames: at most this many frames (evenly subsampled).
+        stress_floor: least top of the colour scale in Pa (module notes).
     """
     check_animation_format(fmt)
+    _check_floor(stress_floor)
     path = Path(out) / f"animation.{fmt}" if path is None else Path(path)
     snaps = read_snapshots(out, None)
     snaps = [snaps[i] for i in _evenly(len(snaps), max_frames)]
     dim = max(s.dim for s in snaps)
-    limits, norm = _limits(snaps, dim), _norm(snaps)
+    limits, (norm, label) = _limits(snaps, dim), _norm(snaps, stress_floor)
     fig = Figure(figsize=(6.4, 5.0), layout="constrained")
     FigureCanvasAgg(fig)
     ax = fig.add_subplot(projection="3d") if dim == 3 else fig.add_subplot()
-    fig.colorbar(ScalarMappable(norm=norm, cmap=_CMAP), ax=ax, label="von Mises stress [Pa]")
+    fig.colorbar(ScalarMappable(norm=norm, cmap=_CMAP), ax=ax, label=label)
 
     def update(i: int) -> list:
         ax.clear()
