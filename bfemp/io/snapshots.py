@@ -274,13 +274,56 @@ def _draw(ax: object, snap: Snapshot, norm: Normalize, limits: np.ndarray) -> No
     ax.set_title(f"t = {snap.t:.4g} s", fontsize="medium")
 
 
+#: inches of a panel's longer plot side; room for its title and x labels, for its y labels
+_PANEL_IN, _DECOR_H_IN, _DECOR_W_IN = 4.0, 0.95, 0.95
+#: inches the colour bar and the sheet title take; the sheet's preferred width / height
+_COLORBAR_IN, _SUPTITLE_IN, _SHEET_RATIO = 1.4, 0.5, 1.6
+
+
+def _sheet_grid(n: int, aspect: float) -> tuple[int, int, tuple[float, float]]:
+    """Rows, columns and figure size (width, height) in inches of a sheet of ``n`` panels.
+
+    Args:
+        n: number of panels (>= 1).
+        aspect: height / width of a panel's plot (the scene's, 2D; 0.9 for mplot3d).
+
+    Every panel gets its plot (longer side :data:`_PANEL_IN`, the shorter one at least 0.3 in,
+    the narrower one at least 1.2 in for its tick labels) plus a fixed allowance for its title
+    and x labels above and below and its y labels at the side, so constrained layout never runs
+    out of room (it stops laying out, and titles land on the x labels above, when a figure is
+    too small: the cantilever sheet, 4.4 x 1.2 m). The column count is the one whose sheet is
+    closest to :data:`_SHEET_RATIO` wide per high (log distance, 0.25 per empty slot): wide
+    scenes stack in few columns, tall ones stand side by side. A layout choice, no paper's.
+    """
+    a = float(np.clip(aspect, 1e-3, 1e3))
+    plot_w, plot_h = (_PANEL_IN, _PANEL_IN * a) if a <= 1.0 else (_PANEL_IN / a, _PANEL_IN)
+    cell_w = max(plot_w, 1.2) + _DECOR_W_IN
+    cell_h = max(plot_h, 0.3) + _DECOR_H_IN
+
+    def size(ncols: int) -> tuple[int, float, float]:
+        nrows = math.ceil(n / ncols)
+        return nrows, ncols * cell_w + _COLORBAR_IN, nrows * cell_h + _SUPTITLE_IN
+
+    def cost(ncols: int) -> float:
+        nrows, w, h = size(ncols)
+        return abs(math.log(w / h / _SHEET_RATIO)) + 0.25 * (nrows * ncols - n)
+
+    ncols = min(range(1, n + 1), key=cost)
+    nrows, w, h = size(ncols)
+    return nrows, ncols, (w, h)
+
+
 def snapshot_figure(
     snapshots: Sequence[Snapshot],
     *,
     title: str | None = None,
     stress_floor: float = STRESS_FLOOR_PA,
 ) -> Figure:
-    """A sheet with one panel per snapshot (3 per row) and one von Mises colour bar.
+    """A sheet with one panel per snapshot and one von Mises colour bar.
+
+    The grid (rows x columns) and the figure size follow the scene's aspect ratio
+    (:func:`_sheet_grid`), so that titles, tick labels and axis labels of neighbouring panels
+    never overlap, for wide scenes (a cantilever, 20:1) as for tall ones.
 
     Args:
         snapshots: the states drawn, one panel each.
@@ -295,12 +338,10 @@ def snapshot_figure(
         raise ValueError("snapshot_figure: no snapshot to draw")
     dim = max(s.dim for s in snapshots)
     n = len(snapshots)
-    ncols = min(3, n)
-    nrows = math.ceil(n / ncols)
     limits = _limits(snapshots, dim)
     span = np.maximum(limits[:, 1] - limits[:, 0], 1e-12)
-    aspect = float(np.clip(span[1] / span[0], 0.3, 1.5)) if dim == 2 else 0.9
-    fig = Figure(figsize=(4.0 * ncols + 1.0, 4.0 * aspect * nrows + 0.8), layout="constrained")
+    nrows, ncols, figsize = _sheet_grid(n, float(span[1] / span[0]) if dim == 2 else 0.9)
+    fig = Figure(figsize=figsize, layout="constrained")
     FigureCanvasAgg(fig)
     norm, label = _norm(snapshots, stress_floor)
     kw = {"projection": "3d"} if dim == 3 else {}

@@ -1,5 +1,7 @@
 """Snapshot pictures: round-off is not coloured as stress; panel titles never overlap."""
 
+import warnings
+
 import numpy as np
 import pytest
 from matplotlib import colormaps
@@ -85,3 +87,46 @@ def test_the_floor_can_be_switched_off_and_bad_floors_are_refused(tmp_path):
             snapshot_figure([snap], stress_floor=bad)
         with pytest.raises(ValueError, match="stress_floor"):
             write_snapshot_sheet(tmp_path, snapshots=[snap], stress_floor=bad)
+
+
+def _title_clashes(fig):
+    """(panel title, what it overlaps) for every panel title whose box, as drawn by the Agg
+    renderer, overlaps another axes (its plot, ticks, labels or title), or the sheet title."""
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    panels = [ax for ax in fig.axes if ax.get_title().startswith("t = ")]
+    clashes = []
+    for ax in panels:
+        box = ax.title.get_window_extent(renderer)
+        for other in fig.axes:
+            if other is not ax and box.overlaps(other.get_tightbbox(renderer)):
+                clashes.append((ax.get_title(), other.get_title() or other.get_ylabel()))
+        if box.overlaps(fig.get_suptitle() and fig._suptitle.get_window_extent(renderer)):
+            clashes.append((ax.get_title(), "sheet title"))
+    return panels, clashes
+
+
+@pytest.mark.parametrize(
+    ("n", "width", "height"),
+    [
+        (4, 4.0, 1.1),  # the cantilever sheet of `bfemp run examples/cantilever.toml --quick`
+        (6, 4.0, 1.1),
+        (6, 20.0, 1.0),  # wide
+        (6, 1.0, 20.0),  # tall
+        (5, 1.0, 1.0),
+    ],
+)
+def test_panel_titles_overlap_no_other_panel_nor_each_other(n, width, height):
+    points, cells = _strip(width, height, *((21, 3) if width >= height else (3, 21)))
+    snaps = [
+        Snapshot(
+            0.0123456 * k,
+            (BodyView("beam", points, cells, np.linspace(0.0, 1e5 * (k + 1), len(cells))),),
+        )
+        for k in range(n)
+    ]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # e.g. constrained layout giving up: "axes sizes collapsed"
+        panels, clashes = _title_clashes(snapshot_figure(snaps))
+    assert len(panels) == n
+    assert clashes == []
