@@ -325,7 +325,8 @@ class Simulation:
         animation: str | None = None,
         scene_toml: str | None = None,
     ) -> MetricsLog:
-        """Step until ``t_end`` s; with ``out``, write a frame every ``every`` steps.
+        """Step until ``t_end`` s; with ``out``, write a frame of the start state (not on resume)
+        and one every ``every`` steps.
 
         The run takes whole steps of ``dt``: it ends at the first ``t = t0 + n dt >= t_end`` (within
         ``1e-9 dt``), past ``t_end`` by less than one step when ``dt`` does not divide the time
