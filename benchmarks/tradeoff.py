@@ -812,7 +812,7 @@ def rerender(path: str | Path) -> dict:
     return payload
 
 
-def merge(record: str | Path, rerun: str | Path) -> dict:
+def merge(record: str | Path, rerun: str | Path, keep_other_strategies: bool = False) -> dict:
     """Merge a later run of some scenes (``rerun``, a ``tradeoff.json``) into ``record`` (a
     ``tradeoff.json``, rewritten), then write its report and plots again (``rerender``).
 
@@ -821,14 +821,27 @@ def merge(record: str | Path, rerun: str | Path) -> dict:
     the rerun scenes' strategy notes as ``SCENES`` declares them now. ``record["merged"]`` lists
     each merged run (scenes, commit, points, workers, elapsed s, environment; the first merge also
     the first run's point count); every point keeps its own ``commit``.
+
+    ``keep_other_strategies``: a rerun of some strategies of a scene (``--strategies augury,lr``)
+    replaces only their points; the record's points of the scene's other strategies stay (not
+    its old reference run: the rerun's replaces it), their errors taken again against the rerun's
+    reference (``point_error`` on their kept metrics; ``error_against`` names that reference's
+    commit), so that every error of a scene is against one reference run.
     """
     record, rerun = Path(record), Path(rerun)
     old, new = json.loads(record.read_text()), json.loads(rerun.read_text())
     scenes = new["scenes"]
+    kept = _kept_points(old, new) if keep_other_strategies else []
     order = [s for s in SCENES if s in old["scenes"] or s in scenes]
     for key in ("strategies", "strategy_notes", "not_run", "knobs", "errors", "references"):
         merged = {s: (new if s in scenes else old)[key].get(s) for s in order}
         old[key] = {s: v for s, v in merged.items() if v is not None}
+    for p in kept:  # the kept strategies are run strategies of their scene again
+        scene, strategy = p["scene"], p["strategy"]
+        if strategy not in old["strategies"][scene]:
+            old["strategies"][scene].append(strategy)
+        old["strategy_notes"][scene].setdefault(strategy, None)  # SCENES' note, below
+        old["not_run"].get(scene, {}).pop(strategy, None)
     for s in order:
         if s in scenes:
             notes = old["strategy_notes"][s]
@@ -838,7 +851,7 @@ def merge(record: str | Path, rerun: str | Path) -> dict:
             old["not_run"][s] = {st: why.get(st, "not declared") for st in old["not_run"][s]}
     before = len(old["points"])
     points = [p for p in old["points"] if p["scene"] not in scenes]
-    points += new["points"]
+    points += kept + new["points"]
     for p in points:  # replay from the merged record, wherever each run was written
         p["replay"] = (
             f"python -m benchmarks tradeoff --replay {shlex.quote(str(record))} "
@@ -862,6 +875,28 @@ def merge(record: str | Path, rerun: str | Path) -> dict:
     old.setdefault("merged", []).append(part)
     record.write_text(json.dumps(old, indent=2, default=float))
     return rerender(record)
+
+
+def _kept_points(old: dict, new: dict) -> list[dict]:
+    """The record's points that a partial rerun keeps (``merge(keep_other_strategies=True)``):
+    in the rerun's scenes, those of strategies the rerun has no point of (its reference aside),
+    not the old reference; errors again against the rerun's reference."""
+    kept = []
+    commit = new["environment"]["commit"]
+    for scene in new["scenes"]:
+        rerun = {
+            p["strategy"] for p in new["points"] if p["scene"] == scene and not p["is_reference"]
+        }
+        reference = new["references"].get(scene)
+        for p in old["points"]:
+            if p["scene"] != scene or p["strategy"] in rerun or p["is_reference"]:
+                continue
+            error, parts = point_error(scene, p, reference)
+            kept.append(
+                {**p, "error": error, "error_parts": parts, "reference": reference,
+                 "error_against": f"reference run at {commit}" if reference else None}
+            )  # fmt: skip
+    return kept
 
 
 def run(mode: str = "full", out: str | Path = "results") -> dict:

@@ -148,3 +148,50 @@ def test_merging_a_rerun_replaces_its_scenes_and_keeps_the_others(tmp_path):
     assert f"sum of the point wall times {wall:.1f} s)" in line, line
     # every point, merged or kept, replays from the merged record
     assert all(f"--replay {record} --id {p['id']}" in p["replay"] for p in out["points"])
+
+
+def test_merging_a_rerun_of_some_strategies_keeps_the_others_against_the_new_reference(tmp_path):
+    """A rerun of augury and lr on rings (with its own reference run) replaces their rows and
+    the reference; barrier's and two_stage's rows stay, their errors taken again against the
+    rerun's reference, so that one scene's errors share one reference."""
+    record = tmp_path / "tradeoff_full.json"
+    shutil.copy(RECORD, record)
+    data = json.loads(RECORD.read_text())
+    rings = [p for p in data["points"] if p["scene"] == "rings"]
+    old_ref = data["references"]["rings"]
+    new_ref = dict(old_ref, metrics={k: 1.05 * v for k, v in old_ref["metrics"].items()})
+    rerun = dict(data, scenes=["rings"], merged=None)
+    rerun["references"] = {"rings": new_ref}
+    ran = ("barrier", "augury", "lr")  # barrier: the reference run only
+    rerun["strategies"] = {"rings": list(ran)}
+    rerun["strategy_notes"] = {"rings": {s: data["strategy_notes"]["rings"][s] for s in ran}}
+    rerun["points"] = [
+        dict(p, reference=new_ref)
+        for p in rings
+        if p["strategy"] in ("augury", "lr") or p["is_reference"]
+    ]
+    rerun["environment"] = dict(data["environment"], commit="e" * 40)
+    (tmp_path / "rerun.json").write_text(json.dumps(rerun))
+    plain = tradeoff.merge(record, tmp_path / "rerun.json")  # the default drops the others
+    assert {p["strategy"] for p in plain["points"] if p["scene"] == "rings"} == {
+        "augury",
+        "lr",
+        "barrier",
+    }
+    shutil.copy(RECORD, record)
+    out = tradeoff.merge(record, tmp_path / "rerun.json", keep_other_strategies=True)
+    merged = [p for p in out["points"] if p["scene"] == "rings"]
+    assert sorted(p["id"] for p in merged) == sorted(p["id"] for p in rings)
+    assert "two_stage" in out["strategies"]["rings"]
+    for p in merged:
+        if p["strategy"] in ("barrier", "two_stage") and not p["is_reference"] and p["error"]:
+            keys = tradeoff.SCENES["rings"]["reference_keys"]
+            expected = max(
+                abs(p["metrics"][k] - new_ref["metrics"][k]) / abs(new_ref["metrics"][k])
+                for k in keys
+            )
+            assert p["error"] == pytest.approx(expected, rel=1e-12)
+            assert p["error_against"] == "reference run at " + "e" * 40
+    # the other scenes are untouched
+    sine = {p["id"]: p["error"] for p in data["points"] if p["scene"] == "sine_boundary"}
+    assert {p["id"]: p["error"] for p in out["points"] if p["id"] in sine} == sine
