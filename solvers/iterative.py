@@ -31,7 +31,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from solvers.linear import LinearSolveError, _check_system
+from solvers._linear_base import LinearSolveError, _check_system
 
 __all__ = ["AMG_INSTALL_HINT", "CgAmgSolver", "amg_available"]
 

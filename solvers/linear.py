@@ -31,6 +31,8 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from solvers._linear_base import LinearSolveError, _check_system
+from solvers.blas import report_cholmod_blas_once
 from solvers.openmp import bounded_openmp
 
 __all__ = [
@@ -57,10 +59,6 @@ CHOLMOD_INSTALL_HINT = (
 
 # One fallback warning per process (see default_linear_solver).
 _fallback_warned = False
-
-
-class LinearSolveError(RuntimeError):
-    """The linear system could not be solved (not positive definite, singular, non-finite)."""
 
 
 @runtime_checkable
@@ -93,23 +91,6 @@ def _import_cholmod() -> ModuleType | None:
 def cholmod_available() -> bool:
     """Whether ``sksparse.cholmod`` can be imported."""
     return _import_cholmod() is not None
-
-
-def _check_system(A: sp.spmatrix, b: np.ndarray) -> tuple[sp.csc_matrix, np.ndarray]:
-    if not sp.issparse(A):
-        raise ValueError(f"A must be a scipy sparse matrix, got {type(A).__name__}")
-    if A.ndim != 2 or A.shape[0] != A.shape[1]:
-        raise ValueError(f"A must be square, got shape {A.shape}")
-    if not isinstance(A, sp.csc_matrix):
-        A = sp.csc_matrix(A)
-    b = np.ascontiguousarray(b, dtype=np.float64)
-    if b.shape != (A.shape[0],):
-        raise ValueError(f"b must have shape ({A.shape[0]},), got {b.shape}")
-    if not np.all(np.isfinite(A.data)):
-        raise LinearSolveError("matrix has non-finite entries")
-    if not np.all(np.isfinite(b)):
-        raise LinearSolveError("right-hand side has non-finite entries")
-    return A, b
 
 
 #: Machine epsilons of a row's absolute sum that :func:`rounding_shift` adds to its diagonal.
@@ -218,8 +199,6 @@ class CholmodSolver:
             raise ValueError(
                 f"CholmodSolver mode must be 'auto', 'simplicial' or 'supernodal', got {mode!r}"
             )
-        from solvers.blas import report_cholmod_blas_once
-
         report_cholmod_blas_once()  # says once per process which BLAS CHOLMOD runs on
         self._cholmod = cholmod
         self.mode = mode

@@ -20,7 +20,7 @@ from types import ModuleType
 import numpy as np
 import scipy.sparse as sp
 
-from solvers.linear import LinearSolveError, _check_system
+from solvers._linear_base import LinearSolveError, _check_system
 
 __all__ = ["PARDISO_INSTALL_HINT", "PardisoSolver", "pardiso_available"]
 

@@ -1,0 +1,37 @@
+"""What every linear solver shares: the error it raises and the check of ``A x = b``'s inputs.
+
+A module of its own so that the concrete solvers (:mod:`solvers.linear`,
+:mod:`solvers.iterative`, :mod:`solvers.pardiso`) import it without importing each other.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+__all__ = ["LinearSolveError"]
+
+
+class LinearSolveError(RuntimeError):
+    """The linear system could not be solved (not positive definite, singular, non-finite)."""
+
+
+def _check_system(A: sp.spmatrix, b: np.ndarray) -> tuple[sp.csc_matrix, np.ndarray]:
+    """A (n, n) as CSC and b (n,) as contiguous float64.
+
+    Raises ValueError on a bad type or shape, LinearSolveError on non-finite entries.
+    """
+    if not sp.issparse(A):
+        raise ValueError(f"A must be a scipy sparse matrix, got {type(A).__name__}")
+    if A.ndim != 2 or A.shape[0] != A.shape[1]:
+        raise ValueError(f"A must be square, got shape {A.shape}")
+    if not isinstance(A, sp.csc_matrix):
+        A = sp.csc_matrix(A)
+    b = np.ascontiguousarray(b, dtype=np.float64)
+    if b.shape != (A.shape[0],):
+        raise ValueError(f"b must have shape ({A.shape[0]},), got {b.shape}")
+    if not np.all(np.isfinite(A.data)):
+        raise LinearSolveError("matrix has non-finite entries")
+    if not np.all(np.isfinite(b)):
+        raise LinearSolveError("right-hand side has non-finite entries")
+    return A, b
