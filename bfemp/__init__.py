@@ -28,7 +28,16 @@ from bfemp.errors import (
     SceneError,
     StepNoteWarning,
 )
-from bfemp.integrators import BACKWARD_EULER, NEWMARK, Integrator
+from bfemp.integrators import (
+    BACKWARD_EULER,
+    INTEGRATOR_NAMES,
+    NEWMARK,
+    NEWMARK_DAMPED,
+    NEWMARK_IMPLICIT_CONTACT,
+    SYMPLECTIC_EULER,
+    ExplicitIntegrator,
+    Integrator,
+)
 from bfemp.materials import BulkShearHyperelastic, LinearElastic, NeoHookean
 from bfemp.model import FemBody, Model, MpmBody
 from bfemp.runs import load_run
@@ -37,11 +46,15 @@ from bfemp.simulation import Simulation
 from bfemp.state import State
 from bfemp.steppers import (
     STRATEGIES,
+    AuguryOptions,
     BarrierOptions,
     ContactView,
+    LROptions,
+    SingleFieldOptions,
     StepError,
     StepperOptions,
     StepReport,
+    TwoStageOptions,
     strategy_table,
 )
 
@@ -53,14 +66,21 @@ __version__ = "0.1.0"
 
 __all__ = [
     "BACKWARD_EULER",
+    "INTEGRATOR_NAMES",
     "NEWMARK",
+    "NEWMARK_DAMPED",
+    "NEWMARK_IMPLICIT_CONTACT",
     "STRATEGIES",
+    "SYMPLECTIC_EULER",
+    "AuguryOptions",
     "BarrierOptions",
     "BfempWarning",
     "BulkShearHyperelastic",
     "ContactView",
+    "ExplicitIntegrator",
     "FemBody",
     "Integrator",
+    "LROptions",
     "LinearElastic",
     "Model",
     "MpmBody",
@@ -70,11 +90,13 @@ __all__ = [
     "Scene",
     "SceneError",
     "Simulation",
+    "SingleFieldOptions",
     "State",
     "StepError",
     "StepNoteWarning",
     "StepReport",
     "StepperOptions",
+    "TwoStageOptions",
     "levelset",
     "load_run",
     "motion",

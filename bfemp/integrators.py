@@ -69,14 +69,14 @@ from typing import ClassVar
 import numpy as np
 
 __all__ = [
-    "ExplicitIntegrator",
-    "Integrator",
     "BACKWARD_EULER",
-    "SYMPLECTIC_EULER",
+    "INTEGRATOR_NAMES",
     "NEWMARK",
     "NEWMARK_DAMPED",
     "NEWMARK_IMPLICIT_CONTACT",
-    "INTEGRATOR_NAMES",
+    "SYMPLECTIC_EULER",
+    "ExplicitIntegrator",
+    "Integrator",
     "integrator_from_name",
 ]
 

@@ -36,29 +36,25 @@ __all__ = [
     "AuguryOptions",
     "AuguryStepper",
     "BarrierOptions",
-    "SingleFieldOptions",
-    "SingleFieldStepper",
     "BarrierStepper",
     "Capabilities",
     "ContactView",
-    "ImplicitStepper",
     "LROptions",
     "LRStepper",
+    "SingleFieldOptions",
+    "SingleFieldStepper",
     "StepError",
     "StepReport",
     "Stepper",
     "StepperOptions",
+    "TwoStageOptions",
+    "TwoStageStepper",
     "options_for",
     "options_from_mapping",
     "options_to_dict",
     "stepper_class",
     "strategy_table",
-    "TwoStageOptions",
-    "TwoStageStepper",
 ]
-
-#: the old name of the barrier stepper
-ImplicitStepper = BarrierStepper
 
 #: strategy name -> stepper class. "barrier" is BFEMP (implicit incremental potential);
 #: "single_field" the explicit MPM baseline without a contact algorithm.
