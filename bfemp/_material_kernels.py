@@ -50,18 +50,6 @@ def _n_ranges(n: int) -> int:
 
 
 @njit(cache=True)
-def _det(F: np.ndarray, s: int) -> float:
-    """det F[s] for d = 2 or 3 (cofactor expansion along the first row)."""
-    if F.shape[1] == 2:
-        return F[s, 0, 0] * F[s, 1, 1] - F[s, 0, 1] * F[s, 1, 0]
-    return (
-        F[s, 0, 0] * (F[s, 1, 1] * F[s, 2, 2] - F[s, 1, 2] * F[s, 2, 1])
-        + F[s, 0, 1] * (F[s, 1, 2] * F[s, 2, 0] - F[s, 1, 0] * F[s, 2, 2])
-        + F[s, 0, 2] * (F[s, 1, 0] * F[s, 2, 1] - F[s, 1, 1] * F[s, 2, 0])
-    )
-
-
-@njit(cache=True)
 def _det_inv_t(F: np.ndarray, s: int, G: np.ndarray) -> float:
     """J = det F[s]; G (d, d) <- F[s]^{-T} = cof(F) / J when J != 0 (else G is untouched)."""
     d = F.shape[1]

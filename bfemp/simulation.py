@@ -715,12 +715,6 @@ class Simulation:
             )
         return blocks
 
-    def wall_clock(self) -> float:
-        """Seconds spent in steps so far (sum of the per-step timings)."""
-        col = "time_step"
-        return float(np.nansum(self.metrics.column(col))) if col in self.metrics.columns else 0.0
-
-
 def _dissipation(sim: Simulation) -> str:
     """What dissipates energy in ``sim`` by design ("" for nothing; ``ENERGY_LOSS`` is checked
     only then): a damping integrator (backward Euler, damped Newmark), friction, PIC, a contact

@@ -227,9 +227,6 @@ def forcing_term(
 
 #: Energy changes below this many machine epsilons of |E| are round-off (terms cancel).
 _ROUND_OFF_ULPS = 1e4
-#: Within this factor of the tolerance a Newton step is judged by the gradient, not the energy
-#: (the default of ``NewtonOptions.near_solution_factor``).
-_NEAR_SOLUTION_FACTOR = 1e3
 
 
 def _accept_near_solution(

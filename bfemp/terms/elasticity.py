@@ -151,11 +151,6 @@ class ElasticityTerm:
         st = self.stencils
         self._F = _deformation_gradients(y, st.nodes, st.grads, st.const)
 
-    # ---------------------------------------------------------------- energy
-    def energy_at(self, node_positions: np.ndarray) -> float:
-        """Elastic energy in J (J/m in 2D) at all-node positions ``(n_all, d)`` (for metrics)."""
-        return stencil_energy(self.law, self.stencils, node_positions)
-
     def value(self, x: np.ndarray) -> float:
         """``sum_s V_s psi(F_s)`` in J; +inf where some det F <= 0 (Neo-Hookean)."""
         st = self.stencils
