@@ -715,6 +715,7 @@ class Simulation:
             )
         return blocks
 
+
 def _dissipation(sim: Simulation) -> str:
     """What dissipates energy in ``sim`` by design ("" for nothing; ``ENERGY_LOSS`` is checked
     only then): a damping integrator (backward Euler, damped Newmark), friction, PIC, a contact
