@@ -64,6 +64,7 @@ from bfemp.state import State
 from geometry.broadphase import point_simplex_candidates
 from geometry.ccd import edge_edge_ccd, point_edge_ccd, point_triangle_ccd
 from geometry.distance import edge_edge_distance, point_edge_distance, point_triangle_distance
+from geometry.inside import simplex_depth
 
 __all__ = [
     "FLOOR_REL",
@@ -99,7 +100,7 @@ _CCD = {
     "ee": (edge_edge_ccd, edge_edge_distance),
 }
 
-#: Strict inside test: every barycentric coordinate above this (dimensionless).
+#: Strict inside test (geometry.inside's convention): every barycentric coordinate above this.
 _BARY_EPS = 1e-12
 
 
@@ -144,49 +145,6 @@ class Intersection:
 # ---------------------------------------------------------------------------- kernels
 
 
-@njit(cache=True)
-def _barycentric_min(y: np.ndarray, v: np.ndarray) -> float:
-    """Smallest barycentric coordinate of point y (d,) in the simplex v (d + 1, d)."""
-    d = y.shape[0]
-    if d == 2:
-        a0, a1 = v[1, 0] - v[0, 0], v[1, 1] - v[0, 1]
-        b0, b1 = v[2, 0] - v[0, 0], v[2, 1] - v[0, 1]
-        r0, r1 = y[0] - v[0, 0], y[1] - v[0, 1]
-        det = a0 * b1 - a1 * b0
-        if det == 0.0:
-            return -1.0
-        l1 = (r0 * b1 - r1 * b0) / det
-        l2 = (a0 * r1 - a1 * r0) / det
-        return min(1.0 - l1 - l2, l1, l2)
-    m = np.empty((3, 3))
-    for c in range(3):
-        for k in range(3):
-            m[k, c] = v[c + 1, k] - v[0, k]
-    r = y - v[0]
-    det = (
-        m[0, 0] * (m[1, 1] * m[2, 2] - m[1, 2] * m[2, 1])
-        - m[0, 1] * (m[1, 0] * m[2, 2] - m[1, 2] * m[2, 0])
-        + m[0, 2] * (m[1, 0] * m[2, 1] - m[1, 1] * m[2, 0])
-    )
-    if det == 0.0:
-        return -1.0
-    lam_min = 1.0
-    total = 0.0
-    for c in range(3):  # Cramer's rule: column c replaced by r
-        mc = m.copy()
-        for k in range(3):
-            mc[k, c] = r[k]
-        dc = (
-            mc[0, 0] * (mc[1, 1] * mc[2, 2] - mc[1, 2] * mc[2, 1])
-            - mc[0, 1] * (mc[1, 0] * mc[2, 2] - mc[1, 2] * mc[2, 0])
-            + mc[0, 2] * (mc[1, 0] * mc[2, 1] - mc[1, 1] * mc[2, 0])
-        )
-        lam = dc / det
-        total += lam
-        lam_min = min(lam_min, lam)
-    return min(lam_min, 1.0 - total)
-
-
 @njit(cache=True, parallel=True)
 def _inside_pairs(
     y0: np.ndarray,
@@ -210,7 +168,7 @@ def _inside_pairs(
         v = np.empty((d + 1, d))
         for a in range(d + 1):
             v[a] = (1.0 - s) * v0[cells[c, a]] + s * v1[cells[c, a]]
-        out[i] = _barycentric_min(y, v) > _BARY_EPS
+        out[i] = simplex_depth(y, v) > _BARY_EPS
     return out
 
 
