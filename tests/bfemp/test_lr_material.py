@@ -343,7 +343,7 @@ def test_scene_file_reads_units_and_names_wrong_keys():
 
 
 def test_von_mises_output_uses_the_law_cauchy_stress():
-    from bfemp.simulation import _von_mises
+    from bfemp.io.fields import _von_mises
 
     F, _, _ = _cases(3, seed=51)
     sigma = LR_BLOCKS.cauchy_stress(F)
