@@ -9,7 +9,7 @@ Lame parameters ``mu (S,)``, ``lam (S,)`` (Pa) to
 
 Laws:
 
-- Compressible Neo-Hookean, paper eq. (7):
+- Compressible Neo-Hookean, BFEMP eq. 7:
   ``psi = mu/2 (tr(F^T F) - d) - mu log J + lam/2 (log J)^2`` with ``J = det F``,
   ``P = mu (F - F^{-T}) + lam log J F^{-T}``.
   It is defined for ``J > 0`` only: for ``J <= 0`` the energy is ``+inf`` and the stress and its
@@ -365,7 +365,7 @@ class MaterialLaw:
 
 
 class NeoHookeanLaw(MaterialLaw):
-    """Compressible Neo-Hookean law of paper eq. (7); psi = +inf (P, dP/dF NaN) where J <= 0."""
+    """Compressible Neo-Hookean law of BFEMP eq. 7; psi = +inf (P, dP/dF NaN) where J <= 0."""
 
     __slots__ = ()
     name = "neo_hookean"

@@ -1,12 +1,12 @@
 """Stateless evaluation of the barrier potential on (pairs, positions, parameters).
 
-B = sum over active pairs of omega_q c b(d) (eqs. 28-32): b the clamped log barrier of eq. 27 with
-``dhat`` and ``kappa``, c the pair's duplicate-removal coefficient, omega_q the integration weight
-of its point (section 4.2); edge-edge terms (3D) carry IPC's mollifier. These functions know
-nothing of unknowns, layouts or steps: they take the collision-point positions ``(C, d)``, the
-active pairs (``bfemp.contact.pairs.find_pairs``) and the point weights, and return the energy or
-per-pair derivatives with respect to each pair's own points. ``BarrierTerm`` (the implicit
-strategies' energy term) chains them to nodes; any other strategy that needs the barrier
+B = sum over active pairs of omega_q c b(d) (BFEMP eqs. 28-32): b the clamped log barrier of
+BFEMP eq. 27 with ``dhat`` and ``kappa``, c the pair's duplicate-removal coefficient, omega_q the
+integration weight of its point (section 4.2); edge-edge terms (3D) carry IPC's mollifier. These
+functions know nothing of unknowns, layouts or steps: they take the collision-point positions
+``(C, d)``, the active pairs (``bfemp.contact.pairs.find_pairs``) and the point weights, and return
+the energy or per-pair derivatives with respect to each pair's own points. ``BarrierTerm`` (the
+implicit strategies' energy term) chains them to nodes; any other strategy that needs the barrier
 (``two_stage``) calls the same code. Pairs of a kind without a fused kernel (edge-edge) go through
 the batched distance functions of :mod:`geometry.distance`.
 """

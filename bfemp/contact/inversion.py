@@ -41,7 +41,7 @@ class Inversion:
 
 def fem_cell_J(model: Model, fem_x: np.ndarray) -> np.ndarray:
     """J = det F ``(M,)`` of every FEM cell at node positions ``fem_x (N, d)``: the cell's signed
-    volume over its rest volume (linear simplices, paper eq. 24: F = Ds Dm^-1)."""
+    volume over its rest volume (linear simplices, BFEMP eq. 24: F = Ds Dm^-1)."""
     v = fem_x[model.fem_cells]
     e = v[:, 1:] - v[:, :1]  # (M, d, d): rows x_a - x_0
     if model.dim == 2:
