@@ -6,10 +6,13 @@ A module of its own so that the concrete solvers (:mod:`solvers.linear`,
 
 from __future__ import annotations
 
+import importlib
+from types import ModuleType
+
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["LinearSolveError"]
+__all__ = ["LinearSolveError", "optional_import"]
 
 
 class LinearSolveError(RuntimeError):
@@ -35,3 +38,12 @@ def _check_system(A: sp.spmatrix, b: np.ndarray) -> tuple[sp.csc_matrix, np.ndar
     if not np.all(np.isfinite(b)):
         raise LinearSolveError("right-hand side has non-finite entries")
     return A, b
+
+
+def optional_import(name: str) -> ModuleType | None:
+    """The module ``name`` (dotted) of an optional solver package, None where it cannot be
+    imported (not installed, or a library it loads is missing)."""
+    try:
+        return importlib.import_module(name)
+    except ImportError:
+        return None

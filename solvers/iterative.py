@@ -31,7 +31,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from solvers._linear_base import LinearSolveError, _check_system
+from solvers._linear_base import LinearSolveError, _check_system, optional_import
 
 __all__ = ["AMG_INSTALL_HINT", "CgAmgSolver", "amg_available"]
 
@@ -45,11 +45,7 @@ AMG_INSTALL_HINT = (
 
 def _import_pyamg() -> ModuleType | None:
     """Import hook for ``pyamg`` (tests monkeypatch it); None if unavailable."""
-    try:
-        import pyamg
-    except ImportError:
-        return None
-    return pyamg
+    return optional_import("pyamg")
 
 
 def amg_available() -> bool:

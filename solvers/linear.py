@@ -31,7 +31,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from solvers._linear_base import LinearSolveError, _check_system
+from solvers._linear_base import LinearSolveError, _check_system, optional_import
 from solvers.blas import report_cholmod_blas_once
 from solvers.openmp import bounded_openmp
 
@@ -81,11 +81,7 @@ class LinearSolver(Protocol):
 
 def _import_cholmod() -> ModuleType | None:
     """Import hook for ``sksparse.cholmod`` (tests monkeypatch it); None if unavailable."""
-    try:
-        from sksparse import cholmod
-    except ImportError:
-        return None
-    return cholmod
+    return optional_import("sksparse.cholmod")
 
 
 def cholmod_available() -> bool:

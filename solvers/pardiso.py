@@ -20,7 +20,7 @@ from types import ModuleType
 import numpy as np
 import scipy.sparse as sp
 
-from solvers._linear_base import LinearSolveError, _check_system
+from solvers._linear_base import LinearSolveError, _check_system, optional_import
 
 __all__ = ["PARDISO_INSTALL_HINT", "PardisoSolver", "pardiso_available"]
 
@@ -41,11 +41,7 @@ _NOT_POSITIVE_DEFINITE = -4
 
 def _import_pypardiso() -> ModuleType | None:
     """Import hook for ``pypardiso`` (tests monkeypatch it); None if unavailable."""
-    try:
-        import pypardiso
-    except ImportError:
-        return None
-    return pypardiso
+    return optional_import("pypardiso")
 
 
 def pardiso_available() -> bool:

@@ -1,4 +1,5 @@
-"""The import direction of DESIGN.md: geometry and solvers never import each other or bfemp."""
+"""The import direction of ARCHITECTURE.md: geometry and solvers import neither each other nor
+bfemp; no import circle anywhere; the size limits of the library."""
 
 import ast
 from pathlib import Path
@@ -14,7 +15,7 @@ FORBIDDEN = {
 }
 
 
-#: modules that must not import ``solvers.newton`` (DESIGN.md: the explicit grid strategies
+#: modules that must not import ``solvers.newton`` (ARCHITECTURE.md: the explicit grid strategies
 #: need no Newton; ``two_stage`` may call the physics-free ``minimize``)
 NO_NEWTON = (
     "bfemp/steppers/augury.py",
