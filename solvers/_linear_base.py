@@ -12,7 +12,7 @@ from types import ModuleType
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["LinearSolveError", "optional_import"]
+__all__ = ["LinearSolveError", "SparsityPattern", "optional_import"]
 
 
 class LinearSolveError(RuntimeError):
@@ -47,3 +47,37 @@ def optional_import(name: str) -> ModuleType | None:
         return importlib.import_module(name)
     except ImportError:
         return None
+
+
+class SparsityPattern:
+    """The sparsity pattern of the matrix a solver last analysed, to reuse the analysis.
+
+    A matrix has it when its ``pattern_version`` (from :class:`solvers.assembly.TripletAssembler`)
+    equals the remembered one, or else when its shape and index arrays are equal.
+    """
+
+    def __init__(self) -> None:
+        self.version: int | None = None
+        self.shape: tuple[int, int] | None = None
+        self._indptr: np.ndarray | None = None
+        self._indices: np.ndarray | None = None
+
+    def matches(self, A: sp.csc_matrix, pattern_version: int | None) -> bool:
+        """Whether the CSC matrix A (n, n) has the remembered pattern."""
+        if self._indptr is None or A.shape != self.shape:
+            return False
+        if pattern_version is not None and pattern_version == self.version:
+            return True
+        return bool(
+            np.array_equal(A.indptr, self._indptr) and np.array_equal(A.indices, self._indices)
+        )
+
+    def remember(self, A: sp.csc_matrix) -> None:
+        """Keep the pattern of A (copies of its index arrays)."""
+        self.shape = A.shape
+        self._indptr = A.indptr.copy()
+        self._indices = A.indices.copy()
+
+    def forget(self) -> None:
+        """Match no matrix until the next :meth:`remember` (analyse afresh)."""
+        self._indptr = None

@@ -31,7 +31,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from solvers._linear_base import LinearSolveError, _check_system, optional_import
+from solvers._linear_base import LinearSolveError, SparsityPattern, _check_system, optional_import
 from solvers.blas import report_cholmod_blas_once
 from solvers.openmp import bounded_openmp
 
@@ -203,19 +203,7 @@ class CholmodSolver:
         self.n_numeric = 0
         self.last_timings = {"analyze": 0.0, "factorize": 0.0, "solve": 0.0}
         self._factor = None
-        self._version: int | None = None
-        self._shape: tuple[int, int] | None = None
-        self._indptr: np.ndarray | None = None
-        self._indices: np.ndarray | None = None
-
-    def _same_pattern(self, A: sp.csc_matrix, pattern_version: int | None) -> bool:
-        if self._factor is None or A.shape != self._shape:
-            return False
-        if pattern_version is not None and pattern_version == self._version:
-            return True
-        return bool(
-            np.array_equal(A.indptr, self._indptr) and np.array_equal(A.indices, self._indices)
-        )
+        self._pattern = SparsityPattern()
 
     def solve(
         self, A: sp.csc_matrix, b: np.ndarray, *, pattern_version: int | None = None
@@ -248,16 +236,14 @@ class CholmodSolver:
         timings = {"analyze": 0.0, "factorize": 0.0, "solve": 0.0}
         self.last_timings = timings
         t0 = time.perf_counter()
-        if not self._same_pattern(A, pattern_version):
+        if self._factor is None or not self._pattern.matches(A, pattern_version):
             self._factor = self._cholmod.analyze(
                 A, mode=self.mode, ordering_method=self.ordering_method
             )
-            self._shape = A.shape
-            self._indptr = A.indptr.copy()
-            self._indices = A.indices.copy()
+            self._pattern.remember(A)
             self.n_symbolic += 1
             logger.debug("CHOLMOD symbolic analysis of a %d x %d matrix", *A.shape)
-        self._version = pattern_version
+        self._pattern.version = pattern_version
         t1 = time.perf_counter()
         timings["analyze"] = t1 - t0
         try:
@@ -289,7 +275,11 @@ class CholmodSolver:
             x ``(n,)``, or None when no factorisation is kept, b has another size or x is not
             finite.
         """
-        if self._factor is None or self._shape is None or b.shape != (self._shape[0],):
+        if (
+            self._factor is None
+            or self._pattern.shape is None
+            or b.shape != (self._pattern.shape[0],)
+        ):
             return None
         with bounded_openmp():
             x = self._factor.solve_A(np.asarray(b, dtype=np.float64))
