@@ -10,16 +10,10 @@ User code imports this package only::
     sim.run(t_end=1.0, out="out/beam")
 """
 
-import os as _os
-
-# numba's OpenMP threading layer spin-waits between parallel regions by default; on small
-# machines that costs milliseconds per kernel call (measured: 8 ms vs 13 us for a 200-particle
-# kernel on 2 cores). Passive waiting must be set before the OpenMP runtime starts.
-_os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
-
-
 import logging
 
+# OMP_WAIT_POLICY=PASSIVE (unless set) is set by geometry and solvers (see their __init__),
+# which the imports below load before any numba kernel runs
 from bfemp import levelset, motion, sample, scenefile, shapes
 from bfemp.errors import (
     BfempWarning,
