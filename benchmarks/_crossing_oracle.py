@@ -17,7 +17,7 @@ tell a silent crossing the library missed:
 A point inside another body somewhere along its chord but outside at both ends is one of two
 things. A sliding point's chord cuts a convex corner of the boundary it slides on (the solver's
 iterates move around the corner, the chord between them does not): BFEMP's straight-line check
-allows that cut (``intersection._corner_cuts``, a rule the paper leaves open). Or the point
+allows that cut (``contact._tunneling._corner_cuts``, a rule the paper leaves open). Or the point
 passed through the body. The oracle tells them apart with its own rule, stated here and in the
 record:
 

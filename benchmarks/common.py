@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from solvers.allocator import allocator_report
-from solvers.blas import linear_algebra
+from solvers.choice import linear_algebra
 from solvers.openmp import openmp_report
 
 

@@ -10,16 +10,10 @@ User code imports this package only::
     sim.run(t_end=1.0, out="out/beam")
 """
 
-import os as _os
-
-# numba's OpenMP threading layer spin-waits between parallel regions by default; on small
-# machines that costs milliseconds per kernel call (measured: 8 ms vs 13 us for a 200-particle
-# kernel on 2 cores). Passive waiting must be set before the OpenMP runtime starts.
-_os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
-
-
 import logging
 
+# OMP_WAIT_POLICY=PASSIVE (unless set) is set by geometry and solvers (see their __init__),
+# which the imports below load before any numba kernel runs
 from bfemp import levelset, motion, sample, scenefile, shapes
 from bfemp.errors import (
     BfempWarning,
@@ -28,7 +22,16 @@ from bfemp.errors import (
     SceneError,
     StepNoteWarning,
 )
-from bfemp.integrators import BACKWARD_EULER, NEWMARK, Integrator
+from bfemp.integrators import (
+    BACKWARD_EULER,
+    INTEGRATOR_NAMES,
+    NEWMARK,
+    NEWMARK_DAMPED,
+    NEWMARK_IMPLICIT_CONTACT,
+    SYMPLECTIC_EULER,
+    ExplicitIntegrator,
+    Integrator,
+)
 from bfemp.materials import BulkShearHyperelastic, LinearElastic, NeoHookean
 from bfemp.model import FemBody, Model, MpmBody
 from bfemp.runs import load_run
@@ -37,11 +40,15 @@ from bfemp.simulation import Simulation
 from bfemp.state import State
 from bfemp.steppers import (
     STRATEGIES,
+    AuguryOptions,
     BarrierOptions,
     ContactView,
+    LROptions,
+    SingleFieldOptions,
     StepError,
     StepperOptions,
     StepReport,
+    TwoStageOptions,
     strategy_table,
 )
 
@@ -53,14 +60,21 @@ __version__ = "0.1.0"
 
 __all__ = [
     "BACKWARD_EULER",
+    "INTEGRATOR_NAMES",
     "NEWMARK",
+    "NEWMARK_DAMPED",
+    "NEWMARK_IMPLICIT_CONTACT",
     "STRATEGIES",
+    "SYMPLECTIC_EULER",
+    "AuguryOptions",
     "BarrierOptions",
     "BfempWarning",
     "BulkShearHyperelastic",
     "ContactView",
+    "ExplicitIntegrator",
     "FemBody",
     "Integrator",
+    "LROptions",
     "LinearElastic",
     "Model",
     "MpmBody",
@@ -70,11 +84,13 @@ __all__ = [
     "Scene",
     "SceneError",
     "Simulation",
+    "SingleFieldOptions",
     "State",
     "StepError",
     "StepNoteWarning",
     "StepReport",
     "StepperOptions",
+    "TwoStageOptions",
     "levelset",
     "load_run",
     "motion",

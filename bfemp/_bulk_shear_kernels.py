@@ -1,7 +1,6 @@
-"""The bulk/shear hyperelastic law of LR eq. (18) (private kernels).
+"""The bulk/shear hyperelastic law of LR eq. 18 (private kernels).
 
-The strain energy density of the multimaterial-contact paper (LR,
-/work/shared/papers/lr_multimaterial_mpm_contact.txt, eq. 18), in J/m^3:
+The strain energy density of the multimaterial-contact paper (LR eq. 18), in J/m^3:
 
     W = G/2 (I1 J^{-2/3} - 3) + K/2 (1/2 (J^2 - 1) - ln J),
 
@@ -194,7 +193,7 @@ def _bs_cauchy(F: np.ndarray, mu: np.ndarray, lam: np.ndarray, out: np.ndarray) 
 
 
 class BulkShearLaw(MaterialLaw):
-    """LR eq. (18): W = G/2 (I1 J^{-2/3} - 3) + K/2 (1/2 (J^2 - 1) - ln J), G = mu,
+    """LR eq. 18: W = G/2 (I1 J^{-2/3} - 3) + K/2 (1/2 (J^2 - 1) - ln J), G = mu,
     K = lam + 2 mu / 3; plane strain in 2D; psi = +inf (stresses NaN) where J <= 0."""
 
     __slots__ = ()

@@ -9,7 +9,7 @@ Lame parameters ``mu (S,)``, ``lam (S,)`` (Pa) to
 
 Laws:
 
-- Compressible Neo-Hookean, paper eq. (7):
+- Compressible Neo-Hookean, BFEMP eq. 7:
   ``psi = mu/2 (tr(F^T F) - d) - mu log J + lam/2 (log J)^2`` with ``J = det F``,
   ``P = mu (F - F^{-T}) + lam log J F^{-T}``.
   It is defined for ``J > 0`` only: for ``J <= 0`` the energy is ``+inf`` and the stress and its
@@ -47,18 +47,6 @@ def _n_ranges(n: int) -> int:
     """Point ranges for a parallel loop over ``n`` points: up to 64 (the threads share them
     out), >= 512 points each, so a range's scratch allocation is negligible."""
     return max(1, min(64, n // 512))
-
-
-@njit(cache=True)
-def _det(F: np.ndarray, s: int) -> float:
-    """det F[s] for d = 2 or 3 (cofactor expansion along the first row)."""
-    if F.shape[1] == 2:
-        return F[s, 0, 0] * F[s, 1, 1] - F[s, 0, 1] * F[s, 1, 0]
-    return (
-        F[s, 0, 0] * (F[s, 1, 1] * F[s, 2, 2] - F[s, 1, 2] * F[s, 2, 1])
-        + F[s, 0, 1] * (F[s, 1, 2] * F[s, 2, 0] - F[s, 1, 0] * F[s, 2, 2])
-        + F[s, 0, 2] * (F[s, 1, 0] * F[s, 2, 1] - F[s, 1, 1] * F[s, 2, 0])
-    )
 
 
 @njit(cache=True)
@@ -377,7 +365,7 @@ class MaterialLaw:
 
 
 class NeoHookeanLaw(MaterialLaw):
-    """Compressible Neo-Hookean law of paper eq. (7); psi = +inf (P, dP/dF NaN) where J <= 0."""
+    """Compressible Neo-Hookean law of BFEMP eq. 7; psi = +inf (P, dP/dF NaN) where J <= 0."""
 
     __slots__ = ()
     name = "neo_hookean"

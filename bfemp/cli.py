@@ -54,7 +54,7 @@ class _VersionAction(argparse.Action):
     def __call__(self, parser, namespace, values, option_string=None) -> None:  # noqa: ANN001
         import bfemp
         from solvers.allocator import format_allocator
-        from solvers.blas import format_linear_algebra, linear_algebra
+        from solvers.choice import format_linear_algebra, linear_algebra
         from solvers.openmp import format_openmp
 
         print(

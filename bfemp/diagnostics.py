@@ -29,9 +29,11 @@ __all__ = [
     "kinetic_energy",
     "linear_momentum",
     "load_energy",
+    "momentum_columns",
     "mpm_elastic_energy",
     "per_body_energies",
     "per_body_momenta",
+    "report_columns",
 ]
 
 
@@ -238,4 +240,28 @@ def body_metrics(
             if a != b and (a < nf or b < nf):
                 for k, c in enumerate(axes):
                     row[f"contact_force.{name_a}.{name_b}_{c}"] = float(forces[a, b, k])
+    return row
+
+
+def momentum_columns(model: Model, state: State, transfer: str = "apic") -> dict[str, float]:
+    """Metrics columns ``momentum_x``... (kg m/s) and ``angular_momentum_z`` (2D) or
+    ``angular_momentum_x``... (3D) in kg m^2/s, of the whole scene."""
+    axes = "xyz"
+    row = {f"momentum_{axes[k]}": float(p) for k, p in enumerate(linear_momentum(model, state))}
+    angular = angular_momentum(model, state, transfer)
+    for k, value in enumerate(angular):
+        row[f"angular_momentum_{'z' if angular.size == 1 else axes[k]}"] = float(value)
+    return row
+
+
+def report_columns(report: object, contact: object | None) -> dict[str, float]:
+    """Metrics columns of a step's ``StepReport``: iterations, residual, phase seconds, and
+    with ``contact`` (the stepper's ``ContactView``, None without contact) the contact ones."""
+    row = {f"iterations_{name}": count for name, count in report.iterations.items()}
+    row["residual"] = report.residual
+    if contact is not None:
+        row["min_distance"] = report.min_distance
+        row["contact_pairs"] = report.contact_pairs
+        row.update(contact.parameters)
+    row.update({f"time_{phase}": seconds for phase, seconds in report.timings.items()})
     return row

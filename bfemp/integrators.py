@@ -1,4 +1,4 @@
-"""Time integrators as parameters of one incremental potential (BFEMP paper eqs. 10-12, 21-22).
+"""Time integrators as parameters of one incremental potential (BFEMP eqs. 10-12, 21-22).
 
 The Newmark family with the paper's extra alpha::
 
@@ -26,7 +26,7 @@ Newmark with implicit contact stayed below its start energy in every case measur
 Newmark with implicit contact (``"newmark_implicit_contact"``, not in the paper): mid-point
 Newmark for everything but contact; the barrier and friction forces enter as Newmark's
 beta = 1/2, gamma = 1 member, i.e. with no memory: they are left out of a^n (so out of x_hat and
-of the (1 - gamma) a^n velocity term) and weighted alpha dt^2 in eq. 22 instead of
+of the (1 - gamma) a^n velocity term) and weighted alpha dt^2 in BFEMP eq. 22 instead of
 2 alpha beta dt^2. The step is still one minimisation,
 
     E(x) = 1/2 ||x - x_hat||_M^2 + 2 alpha beta dt^2 Psi(x) + alpha dt^2 (B(x) + D(x)),
@@ -55,8 +55,8 @@ beta = 0, gamma = 1/2 (central differences, AUG eq. 32) written with half-step v
 
 the usual explicit USL step of MPM. The state's velocity is the half-step one (the positions
 are those of central differences; kinetic energy from it is off by O(dt)). It is not an
-``Integrator``: beta = 0 gives eq. 22 a zero potential weight, so an implicit stepper handed it
-would minimise inertia alone. It is an ``ExplicitIntegrator`` whose ``explicit`` is True;
+``Integrator``: beta = 0 gives BFEMP eq. 22 a zero potential weight, so an implicit stepper handed
+it would minimise inertia alone. It is an ``ExplicitIntegrator`` whose ``explicit`` is True;
 implicit steppers refuse every integrator whose ``explicit`` is True, explicit ones refuse the
 rest.
 """
@@ -69,27 +69,27 @@ from typing import ClassVar
 import numpy as np
 
 __all__ = [
-    "ExplicitIntegrator",
-    "Integrator",
     "BACKWARD_EULER",
-    "SYMPLECTIC_EULER",
+    "INTEGRATOR_NAMES",
     "NEWMARK",
     "NEWMARK_DAMPED",
     "NEWMARK_IMPLICIT_CONTACT",
-    "INTEGRATOR_NAMES",
+    "SYMPLECTIC_EULER",
+    "ExplicitIntegrator",
+    "Integrator",
     "integrator_from_name",
 ]
 
 
 @dataclass(frozen=True, kw_only=True)
 class Integrator:
-    """Parameters ``alpha``, ``beta``, ``gamma`` of eqs. 21-22.
+    """Parameters ``alpha``, ``beta``, ``gamma`` of BFEMP eqs. 21-22.
 
     ``implicit_contact``: barrier and friction forces enter with beta = 1/2, gamma = 1 (no
     memory, weight ``alpha dt^2``; see the module docstring); needs gamma = 2 beta.
     """
 
-    #: implicit (the solve of eq. 22); see ``ExplicitIntegrator``
+    #: implicit (the solve of BFEMP eq. 22); see ``ExplicitIntegrator``
     explicit: ClassVar[bool] = False
 
     name: str
@@ -107,7 +107,7 @@ class Integrator:
             )
 
     def weight(self, dt: float) -> float:
-        """The potential weight 2 alpha beta dt^2 in s^2 (eq. 22)."""
+        """The potential weight 2 alpha beta dt^2 in s^2 (BFEMP eq. 22)."""
         return 2.0 * self.alpha * self.beta * dt * dt
 
     def contact_weight(self, dt: float) -> float:
@@ -127,15 +127,16 @@ class Integrator:
     def velocity(
         self, v: np.ndarray, a_old: np.ndarray, a_new: np.ndarray, dt: float
     ) -> np.ndarray:
-        """v^{n+1} = v^n + dt ((1 - gamma) a^n + gamma a^{n+1}) in m/s (eq. 21)."""
+        """v^{n+1} = v^n + dt ((1 - gamma) a^n + gamma a^{n+1}) in m/s (BFEMP eq. 21)."""
         return v + dt * ((1.0 - self.gamma) * a_old + self.gamma * a_new)
 
     def acceleration(self, x_new: np.ndarray, x_hat: np.ndarray, dt: float) -> np.ndarray:
-        """a^{n+1} = (x^{n+1} - x_hat) / (2 alpha beta dt^2) in m/s^2: eq. 21 solved for a^{n+1}.
+        """a^{n+1} = (x^{n+1} - x_hat) / (2 alpha beta dt^2) in m/s^2: BFEMP eq. 21 solved for
+        a^{n+1}.
 
         The step's acceleration from its solved positions, not from the forces there: the two
-        agree at the exact minimiser of eq. 22, but Newton stops on a small increment, and where
-        the Hessian is stiff (static friction: mu lambda / (eps_v dt) per contact) a small
+        agree at the exact minimiser of BFEMP eq. 22, but Newton stops on a small increment, and
+        where the Hessian is stiff (static friction: mu lambda / (eps_v dt) per contact) a small
         increment leaves a force residual r, which -M^-1 dPsi/dx would turn into a velocity
         error dt r / m with no motion behind it (a block resting on a floor with mu = 0.3,
         dt = 5e-3 s: corner particles reported 1e-3 m/s while moving at 5e-6 m/s). From the

@@ -87,7 +87,7 @@ class _IsotropicElastic:
 
 @dataclass(frozen=True, kw_only=True)
 class NeoHookean(_IsotropicElastic):
-    """Compressible Neo-Hookean material (paper eq. 7).
+    """Compressible Neo-Hookean material (BFEMP eq. 7).
 
     psi(F) = mu/2 (tr(F^T F) - d) - mu log J + lam/2 (log J)^2, J = det F, in J/m^3.
 

@@ -3,7 +3,7 @@
 A ``Model`` is built by ``Scene.build()``. FEM bodies are concatenated into global node and cell
 arrays; each body keeps its slices so that a ``FemBody`` handle can read its part of a ``State``.
 
-FEM discretisation (BFEMP paper section 3.1): linear simplices, F = Ds Dm^-1 (eq. 24), so
+FEM discretisation (BFEMP paper section 3.1): linear simplices, F = Ds Dm^-1 (BFEMP eq. 24), so
 F = sum_a x_a grad(N_a)^T with constant shape-function gradients; lumped masses rho V / (d + 1)
 per vertex of every cell.
 """
@@ -125,7 +125,7 @@ def simplex_shape_gradients(points: np.ndarray, cells: np.ndarray) -> tuple[np.n
     det = np.linalg.det(dm)
     dim = points.shape[1]
     volume = det / (2.0 if dim == 2 else 6.0)
-    dm_inv = np.linalg.inv(dm)  # rows are grad N_a, a = 1..d (eq. 24: F = Ds Dm^-1)
+    dm_inv = np.linalg.inv(dm)  # rows are grad N_a, a = 1..d (BFEMP eq. 24: F = Ds Dm^-1)
     grad = np.empty((cells.shape[0], dim + 1, dim))
     grad[:, 1:, :] = dm_inv
     grad[:, 0, :] = -dm_inv.sum(axis=1)

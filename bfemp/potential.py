@@ -1,4 +1,4 @@
-"""The incremental potential of one implicit step (BFEMP paper eq. 22, with contact eq. 38):
+"""The incremental potential of one implicit step (BFEMP eq. 22, with contact BFEMP eq. 38):
 
     E(x) = 1/2 ||x - x_hat||_M^2 + 2 alpha beta dt^2 (Psi(x) + gravity + contact + friction).
 
@@ -60,8 +60,8 @@ class IncrementalPotential:
         frames: NodeFrames | None = None,
         contact_weight: float | None = None,
     ) -> None:
-        """Start a step; ``weight`` = 2 alpha beta dt^2 in s^2 (eq. 22), ``contact_weight`` that
-        of the contact terms (default: ``weight``); optional slip frames."""
+        """Start a step; ``weight`` = 2 alpha beta dt^2 in s^2 (BFEMP eq. 22), ``contact_weight``
+        that of the contact terms (default: ``weight``); optional slip frames."""
         self.weight = float(weight)
         self.contact_weight = self.weight if contact_weight is None else float(contact_weight)
         self._weights = [

@@ -14,13 +14,21 @@ from dataclasses import dataclass
 import meshio
 import numpy as np
 
+from bfemp._scene_inputs import (
+    as_mesh,
+    check_fem_mesh,
+    check_material,
+    check_translation,
+    initial_velocity,
+    prescribed_mask,
+)
 from bfemp.contact.pair_friction import body_code
 from bfemp.contact.parameters import ContactParameters
 from bfemp.materials import Material
 from bfemp.model import BOUNDARY_KINDS, Boundary, FemBody, Model, MpmBody, simplex_shape_gradients
 from bfemp.motion import Motion
 from geometry.grid import Grid, particles_per_cell
-from geometry.mesh import SourceNumbering, TetMesh, TriMesh, from_meshio, mesh_from_arrays
+from geometry.mesh import SourceNumbering, TetMesh, TriMesh
 
 __all__ = ["Scene", "check_fem_mesh"]
 
@@ -46,51 +54,6 @@ class _FemSpec:
     motion: Motion | None
     prescribed: np.ndarray  # (n,) bool
     numbering: SourceNumbering | None  # the mesh file's numbering (node indices of the user)
-
-
-def _check_material(material: object, where: str) -> None:
-    """``ValueError`` naming ``where`` unless ``material`` is one of bfemp's materials."""
-    if not isinstance(material, Material):
-        raise ValueError(
-            f"{where}: material must be bfemp.NeoHookean, bfemp.LinearElastic or "
-            f"bfemp.BulkShearHyperelastic, got {type(material).__name__}"
-        )
-
-
-def check_fem_mesh(mesh: TriMesh | TetMesh, where: str, *, rigid: bool) -> TriMesh | TetMesh:
-    """The mesh of a FEM body, oriented and checked; ``ValueError`` naming ``where`` if bad.
-
-    A mesh whose cells are all clockwise (2D) / left-handed (3D), as some generators write
-    them, is flipped (logged at INFO); one with both orientations is refused (its negative
-    cells may be folded over). Cells of (near) zero area/volume are refused. Slivers (aspect
-    ratio above 1e3) are refused for deformable bodies only: a ``rigid`` body (every node
-    prescribed) never deforms, so the shape of its cells does not matter.
-    """
-    volumes = mesh.signed_volumes()
-    if np.all(volumes < 0.0):
-        log.info(
-            "%s: all %d cells are %s; flipped to the positive orientation",
-            where,
-            mesh.n_cells,
-            "clockwise" if mesh.dim == 2 else "left-handed",
-        )
-        mesh = mesh.oriented()
-    mesh.check_quality(name=where, quality_tol=0.0 if rigid else 1e-3)
-    return mesh
-
-
-def _check_translation(motion: object) -> None:
-    """Moving level sets translate: Linear, Fixed, or Sequences of them."""
-    from bfemp.motion import Fixed, Linear, Sequence
-
-    if isinstance(motion, Sequence):
-        for _, part in motion.segments:
-            _check_translation(part)
-    elif not isinstance(motion, Linear | Fixed):
-        raise ValueError(
-            "add_boundary: motion must translate the level set (bfemp.motion.Linear, Fixed or a "
-            f"Sequence of them), got {type(motion).__name__}"
-        )
 
 
 class Scene:
@@ -162,14 +125,14 @@ class Scene:
         if any(spec.name == name for spec in self._fem):
             raise ValueError(f"fem body '{name}': name is already used by another body")
         where = f"fem body '{name}'"
-        mesh = self._as_mesh(points, cells, where)
+        mesh = as_mesh(points, cells, self.dim, where)
         numbering = mesh.source if mesh.source is not None and mesh.source.pruned else None
         n = mesh.points.shape[0]
-        prescribed_mask = self._prescribed_mask(prescribed, prescribed_nodes, n, where, numbering)
-        mesh = check_fem_mesh(mesh, where, rigid=bool(prescribed_mask.all()))
-        _check_material(material, where)
-        vel = self._velocity(velocity, n, where, numbering)
-        spec = _FemSpec(name, mesh, material, vel, prescribed, prescribed_mask, numbering)
+        mask = prescribed_mask(prescribed, prescribed_nodes, n, where, numbering)
+        mesh = check_fem_mesh(mesh, where, rigid=bool(mask.all()))
+        check_material(material, where)
+        vel = initial_velocity(velocity, self.dim, n, where, numbering)
+        spec = _FemSpec(name, mesh, material, vel, prescribed, mask, numbering)
         self._fem.append(spec)
         nodes = sum(spec.mesh.points.shape[0] for spec in self._fem[:-1])
         cells = sum(spec.mesh.cells.shape[0] for spec in self._fem[:-1])
@@ -225,8 +188,8 @@ class Scene:
             raise ValueError(
                 f"{where}: volumes must be positive and finite; bad at rows {bad[:10].tolist()}"
             )
-        _check_material(material, where)
-        vel = self._velocity(velocity, x.shape[0], where)
+        check_material(material, where)
+        vel = initial_velocity(velocity, self.dim, x.shape[0], where)
         self._mpm.append(_MpmSpec(name, np.ascontiguousarray(x), vol.copy(), material, vel))
         start = sum(spec.x.shape[0] for spec in self._mpm[:-1])
         return MpmBody(name, index, material, slice(start, start + x.shape[0]))
@@ -336,7 +299,7 @@ class Scene:
         if ls_dim is not None and ls_dim != self.dim:
             raise ValueError(f"add_boundary: levelset is {ls_dim}D but the scene is {self.dim}D")
         if motion is not None:
-            _check_translation(motion)
+            check_translation(motion)
         self._boundaries.append(Boundary(levelset=levelset, kind=kind, motion=motion))
 
     def add_load(
@@ -406,97 +369,6 @@ class Scene:
                 return MpmBody(spec.name, index, spec.material, slice(0, 0))
         known = ", ".join(repr(spec.name) for spec in self._fem) or "none"
         raise ValueError(f"{where}: no FEM body named {name!r} (FEM bodies: {known})")
-
-    def _as_mesh(self, points: object, cells: np.ndarray | None, where: str) -> TriMesh | TetMesh:
-        if isinstance(points, TriMesh | TetMesh):
-            mesh = points
-        elif isinstance(points, meshio.Mesh):
-            try:
-                mesh = from_meshio(points, name="the meshio mesh")
-            except ValueError as err:
-                raise ValueError(f"{where}: {err}") from None
-        else:
-            if cells is None:
-                raise ValueError(f"{where}: cells are required when points is an array")
-            shape = np.shape(cells)
-            if len(shape) == 2 and shape[1] in (3, 4) and shape[1] != self.dim + 1:
-                given = "tetrahedra" if shape[1] == 4 else "triangles"
-                kind = "triangles" if self.dim == 2 else "tetrahedra"
-                raise ValueError(
-                    f"{where}: cells of shape {shape} are {given}, a {shape[1] - 1}D mesh, but "
-                    f"the scene is {self.dim}D: cells must have shape (m, {self.dim + 1}) ({kind})"
-                )
-            try:
-                mesh = mesh_from_arrays(np.asarray(points), np.asarray(cells))
-            except ValueError as err:
-                raise ValueError(f"{where}: {err}") from None
-        if mesh.dim != self.dim:
-            raise ValueError(f"{where}: points are {mesh.dim}D but the scene is {self.dim}D")
-        return mesh
-
-    def _velocity(
-        self, velocity: object, n: int, where: str, numbering: SourceNumbering | None = None
-    ) -> np.ndarray:
-        d = self.dim
-        if velocity is None:
-            return np.zeros((n, d))
-        v = np.asarray(velocity, dtype=np.float64)
-        if v.shape == (d,):
-            v = np.broadcast_to(v, (n, d))
-        elif numbering is not None and v.shape == (numbering.n_source, d):
-            v = v[numbering.index]  # one row per point of the file
-        if v.shape != (n, d):
-            raise ValueError(
-                f"{where}: velocity must have shape ({d},) or ({n}, {d}), got {v.shape}"
-            )
-        if not np.all(np.isfinite(v)):
-            raise ValueError(f"{where}: velocity holds NaN or inf")
-        return np.ascontiguousarray(v, dtype=np.float64).copy()
-
-    @staticmethod
-    def _prescribed_mask(
-        motion: Motion | None,
-        nodes: np.ndarray | None,
-        n: int,
-        where: str,
-        numbering: SourceNumbering | None = None,
-    ) -> np.ndarray:
-        if motion is None:
-            if nodes is not None:
-                raise ValueError(f"{where}: prescribed_nodes given without a prescribed motion")
-            return np.zeros(n, dtype=bool)
-        if not isinstance(motion, Motion):
-            raise ValueError(
-                f"{where}: prescribed must be a bfemp.motion Motion, got {type(motion).__name__}"
-            )
-        if nodes is None:
-            return np.ones(n, dtype=bool)
-        nodes = np.asarray(nodes)
-        field = f"{where}: prescribed_nodes"
-        if nodes.dtype == bool:
-            if numbering is not None and nodes.shape == (numbering.n_source,):
-                mask = numbering.mask(nodes, f"{field} mask")
-            elif nodes.shape != (n,):
-                raise ValueError(f"{field} mask must have {n} entries, got {nodes.shape}")
-            else:
-                mask = nodes.copy()
-        elif nodes.size == 0:
-            mask = np.zeros(n, dtype=bool)
-        else:
-            if nodes.ndim != 1 or not np.issubdtype(nodes.dtype, np.integer):
-                raise ValueError(f"{field} must be a bool mask or integer indices")
-            if numbering is not None:
-                nodes = numbering.nodes(nodes, f"{field} indices")
-            elif nodes.min() < 0 or nodes.max() >= n:
-                raise ValueError(f"{field} indices must lie in [0, {n})")
-            mask = np.zeros(n, dtype=bool)
-            mask[nodes] = True
-        if not mask.any():
-            raise ValueError(
-                f"{field} selects no node (a mask with no True entry or no indices): "
-                "select at least one node, or leave out prescribed for a free body"
-            )
-        return mask
 
     def _record_source(self, name: str, field: str, value: object) -> None:
         """Remember how a scene file described ``field`` of body ``name`` (None: nothing)."""

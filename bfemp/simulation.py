@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import logging
 import math
-import numbers
 import warnings
 from collections.abc import Callable
 from pathlib import Path
@@ -22,7 +21,15 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from bfemp import diagnostics, scenefile
-from bfemp._run_arguments import check_t_end
+from bfemp._energy_watch import EnergyWatch, dissipation
+from bfemp._run_arguments import (
+    check_run_args,
+    check_t_end,
+    merge_flat_options,
+    n_steps,
+    resolve_dt,
+)
+from bfemp._run_folder import run_to_folder
 from bfemp.checkpoint import InterruptGuard, restore_checkpoint, write_checkpoint
 from bfemp.contact.penetration import PenetrationCheck
 from bfemp.errors import (
@@ -35,14 +42,13 @@ from bfemp.errors import (
 )
 from bfemp.integrators import Integrator, integrator_from_name
 from bfemp.io import outputs
+from bfemp.io.fields import frame_blocks
 from bfemp.io.metrics import MetricsLog
-from bfemp.io.snapshots import check_animation_format, write_animation, write_snapshot_sheet
+from bfemp.io.snapshots import check_animation_format
 from bfemp.io.vtk import Block, FrameWriter
-from bfemp.manifest import RunManifest
 from bfemp.model import Model
 from bfemp.mpm.transfer import SCHEMES
-from bfemp.plausibility import EnergyLossCheck, damps_by_design, discretisation_notes
-from bfemp.plotting import plot_metrics
+from bfemp.plausibility import discretisation_notes
 from bfemp.scene import Scene
 from bfemp.state import State
 from bfemp.steppers import (
@@ -50,7 +56,6 @@ from bfemp.steppers import (
     StepError,
     StepperOptions,
     StepReport,
-    options_for,
     options_to_dict,
     stepper_class,
 )
@@ -129,7 +134,7 @@ class Simulation:
             "linear_solver": linear_solver,
             "warm_start": warm_start,
         }
-        options = _merge_flat_options(strategy, options, flat)
+        options = merge_flat_options(strategy, options, flat)
         #: the first warning of each name (e.g. "ENERGY_GROWTH: ..."), as issued and logged
         self.diagnostics: list[str] = []
         #: how many times each named note (``StepReport.notes``) or warning was reported
@@ -167,7 +172,7 @@ class Simulation:
             integrator = getattr(stepper_cls, "default_integrator", "backward_euler")
         self.integrator = integrator_from_name(integrator)
         initial = self.model.initial_state()
-        dt = _resolve_dt(dt, stepper_cls, self.model, initial, options)
+        dt = resolve_dt(dt, stepper_cls, self.model, initial, options)
         if self.model.contact is not None:
             # the barrier is finite only for bodies that start apart (and beyond d-hat)
             validate_initial(self.model)
@@ -196,13 +201,10 @@ class Simulation:
         for note in discretisation_notes(self.model, self.dt, self.integrator):
             self._notice(note, PlausibilityWarning, log)
         self.metrics = MetricsLog()
-        self._closed = _is_closed(self.model)
-        self._energy_loss = EnergyLossCheck(_dissipation(self))
+        self._energy = EnergyWatch(self.model, self.integrator, dissipation(self), self._notice)
         self._fem_groups = fem_elastic_groups(self.model)
         self._contact_columns = self.model.contact is not None
         self._penetration = PenetrationCheck.for_model(self.model)
-        self._energy_floor = self.ENERGY_FLOOR_STRAIN**2 * _shear_volume(self.model)
-        self._energy_log: MetricsLog | None = None
         self.metrics.append(self._metrics_row(None))
 
     @classmethod
@@ -374,7 +376,7 @@ class Simulation:
         Returns the metrics log (also written to ``out/metrics.csv`` and plotted to
         ``out/metrics.png``).
         """
-        _check_run_args(t_end, every, checkpoint_every, resume, out)
+        check_run_args(t_end, every, checkpoint_every, resume, out)
         if resume and overwrite:
             raise ValueError(
                 "Simulation.run: resume=True continues the run in out and overwrite=True deletes "
@@ -385,102 +387,14 @@ class Simulation:
         if animation is not None:
             check_animation_format(animation)
         if out is None:
-            self._loop(self._n_steps(t_end), progress, callback)
+            self._loop(n_steps(self.state.t, t_end, self.dt), progress, callback)
             return self.metrics
         # one writer per folder: RunFolderError if in use
         with collect_warnings(self._notice), outputs.lock_run_folder(out):
-            return self._run_to_folder(
-                Path(out), t_end, every, progress, callback, checkpoint_every, resume,
+            return run_to_folder(
+                self, Path(out), t_end, every, progress, callback, checkpoint_every, resume,
                 metadata, overwrite, animation, scene_toml,
             )  # fmt: skip
-
-    def _run_to_folder(
-        self,
-        out: Path,
-        t_end: float,
-        every: int,
-        progress: bool,
-        callback: Callable[[Simulation], None] | None,
-        checkpoint_every: int | None,
-        resume: bool,
-        metadata: dict | None,
-        overwrite: bool,
-        animation: str | None,
-        scene_toml: str | None,
-    ) -> MetricsLog:
-        """:meth:`run` with the output folder ``out``, whose lock the caller holds."""
-        if resume:
-            # a corrupt manifest is refused before anything changes
-            earlier = RunManifest.read(out) or {}
-            ckpt = restore_checkpoint(out, self, every=every)
-            check_t_end(t_end, self.state.t, self.dt, f"the checkpoint in {out}")
-            if every is None:  # the continued run's frame interval
-                every = ckpt.meta.get("every")
-            if checkpoint_every is None:
-                checkpoint_every = (
-                    earlier.get("parameters", {}).get("run", {}).get("checkpoint_every")
-                )
-        else:
-            outputs.prepare_run_folder(out, overwrite=overwrite)
-            text = scene_toml if scene_toml is not None else self.scene_file_text()
-            if text is not None:
-                outputs.write_scene_file(out, text)
-        every, checkpoint_every = int(every or 1), int(checkpoint_every or 0)
-        run = {"t_end": float(t_end), "every": every, "checkpoint_every": checkpoint_every}
-        writer = FrameWriter(out, resume=resume)
-        manifest = RunManifest.start(out, self, run=run, resume=resume, extra=metadata)
-        if not resume:  # the start state, whatever its step (a run after sim.step() too)
-            writer.write_frame(self.state.t, self.frame_blocks())
-        status, message, guard = "failed", "", InterruptGuard()
-        try:
-            with guard:
-                self._loop(
-                    self._n_steps(t_end),
-                    progress,
-                    callback,
-                    writer=writer,
-                    every=every,
-                    checkpoint_every=checkpoint_every,
-                    guard=guard,
-                )
-            status = "completed"
-        except KeyboardInterrupt:
-            status = "interrupted"
-            message = f"interrupted at step {self.state.step} (t = {self.state.t:.6g} s)"
-            raise
-        except Exception as err:
-            message = f"{type(err).__name__}: {err}"
-            raise
-        finally:
-            writer.close()
-            if guard.hard:  # stopped anywhere, maybe mid-update: keep the last checkpoint
-                message += "; aborted without a checkpoint (the last periodic one remains)"
-            plots = [
-                (
-                    "metrics.png",
-                    lambda: plot_metrics(self.metrics, out / "metrics.png", title="bfemp run"),
-                ),
-                ("snapshots.png", lambda: write_snapshot_sheet(out)),
-            ]
-            if animation is not None:
-                plots.append((f"animation.{animation}", lambda: write_animation(out, animation)))
-            outputs.finish_outputs(
-                out, self, manifest, status, message, hard=guard.hard, every=every,
-                frames=writer.frame_index, writes=plots,
-            )  # fmt: skip
-        return self.metrics
-
-    def _n_steps(self, t_end: float) -> int:
-        """Whole steps of ``dt`` to reach ``t_end`` (the end time past it is logged)."""
-        n = max(0, math.ceil((t_end - self.state.t) / self.dt - 1e-9))
-        end = self.state.t + n * self.dt
-        if end > t_end + 1e-9 * self.dt:
-            log.info(
-                "the run ends at t = %.9g s, %.3g s after t_end = %.9g s: %d whole steps of "
-                "dt = %.9g s (the last step is not shortened; Simulation.run says why)",
-                end, end - t_end, t_end, n, self.dt,
-            )  # fmt: skip
-        return n
 
     def _loop(
         self,
@@ -559,31 +473,15 @@ class Simulation:
     def _metrics_row(self, report: StepReport | None) -> dict[str, float]:
         row: dict[str, float] = {"t": self.state.t, "step": self.state.step}
         row.update(self.energies())
-        if self._closed:
-            self._check_energy(row, report is not None)
-        if report is not None and self._closed:
-            self._check_energy_loss(row)
-        axes = "xyz"
-        for k, p in enumerate(diagnostics.linear_momentum(self.model, self.state)):
-            row[f"momentum_{axes[k]}"] = float(p)
-        angular = diagnostics.angular_momentum(self.model, self.state, self.transfer)
-        for k, value in enumerate(angular):
-            row[f"angular_momentum_{'z' if angular.size == 1 else axes[k]}"] = float(value)
+        self._energy.check(row, report is not None, self.metrics, self.state.t)
+        row.update(diagnostics.momentum_columns(self.model, self.state, self.transfer))
         if self._penetration is not None:
             row["penetration_depth"] = self._penetration.depth(self.state)
         forces = self.stepper.contact().body_forces if report is not None else None
         row.update(diagnostics.body_metrics(self.model, self.state, self.transfer, forces))
         if report is not None:
-            for name, count in report.iterations.items():
-                row[f"iterations_{name}"] = count
-            row["residual"] = report.residual
-            if self._contact_columns:
-                row["min_distance"] = report.min_distance
-                row["contact_pairs"] = report.contact_pairs
-                for name, value in self.stepper.contact().parameters.items():
-                    row[name] = value
-            for phase, seconds in report.timings.items():
-                row[f"time_{phase}"] = seconds
+            contact = self.stepper.contact() if self._contact_columns else None
+            row.update(diagnostics.report_columns(report, contact))
         return row
 
     def contact_forces(self) -> tuple[np.ndarray, np.ndarray]:
@@ -595,262 +493,6 @@ class Simulation:
         view = self.stepper.contact()
         return view.fem_forces, view.particle_forces
 
-    #: relative growth of the total energy of a closed scene that triggers ENERGY_GROWTH
-    ENERGY_GROWTH_TOL = 1e-2
-    #: the strain whose elastic energy mu V strain^2 floors the ENERGY_GROWTH scale
-    ENERGY_FLOOR_STRAIN = 1e-6
-
-    def _check_energy(self, row: dict[str, float], stepped: bool) -> None:
-        """Warn (once, counted) when a scene on which nothing external works gains energy.
-
-        The growth E(t) - E(0) of the total energy is judged against the run's energy scale:
-        the largest of |E(0)|, the kinetic and the elastic energy at any row so far, the change
-        of the gravitational energy from t = 0 at any row so far, and a floor, the elastic
-        energy of every body at a uniform strain of ``ENERGY_FLOOR_STRAIN`` (sum mu V e^2, J;
-        J/m in 2D). The floor is this module's choice (no paper sets one): it keeps round-off
-        of a scene at rest (measured 1.8e-19 J in a block at rest far from the origin, E(0) =
-        0) from reading as growth, and lies far below any energy a run resolves.
-
-        Backward Euler only dissipates; Newmark's trapezoidal rule conserves energy for linear
-        problems but can gain it when a stiff barrier switches on and off within steps (known for
-        the trapezoidal rule with contact; measured +62 % for a 40 m/s impact at dt = 1e-4 s and
-        h = 0.05 m, none at h = 0.025 m). The remedies are ``"newmark_implicit_contact"``
-        (contact forces without the trapezoidal rule's memory), a smaller dt (resolving the
-        approach through dhat in a few steps), ``"newmark_damped"`` or backward Euler.
-
-        Args:
-            row: this row's energies (``energy_total``, ``energy_kinetic``, ...; J).
-            stepped: a row after a step (False: the initial row, which only sets the scale).
-        """
-        if self._energy_log is not self.metrics:  # a new run or a restored checkpoint
-            self._energy_log, self._energy_peak = self.metrics, self._energy_floor
-            self._energy_first = None
-            if len(self.metrics):
-                first = self.metrics.rows[0]
-                self._energy_first = (first["energy_total"], first["energy_gravity"])
-                for r in self.metrics.rows:
-                    self._energy_peak = max(self._energy_peak, self._energy_magnitude(r))
-        if self._energy_first is None:
-            self._energy_first = (row["energy_total"], row["energy_gravity"])
-        self._energy_peak = max(self._energy_peak, self._energy_magnitude(row))
-        if not stepped:
-            return
-        change = row["energy_total"] - self._energy_first[0]
-        growth = change / self._energy_peak if self._energy_peak > 0.0 else 0.0
-        if growth > self.ENERGY_GROWTH_TOL:
-            warn_user(
-                f"ENERGY_GROWTH: the total energy grew by {100 * growth:.3g} % of the run's "
-                f"energy scale {self._energy_peak:.3g} J (J/m in 2D) since t = 0, at t = "
-                f"{self.state.t:.6g} s, although nothing external works on the scene "
-                f"({self.integrator.name}); with contact, Newmark can gain energy: use "
-                "integrator='newmark_implicit_contact', a smaller dt or "
-                "integrator='backward_euler'",
-                category=StepNoteWarning,
-                logger=log,
-            )
-
-    def _energy_magnitude(self, row: dict[str, float]) -> float:
-        """The energy scale a row adds (:meth:`_check_energy`), in J."""
-        values = (
-            abs(self._energy_first[0]),
-            abs(row["energy_kinetic"]),
-            abs(row["energy_elastic"]),
-            abs(row["energy_gravity"] - self._energy_first[1]),
-        )
-        return max((v for v in values if math.isfinite(v)), default=0.0)
-
-    def _check_energy_loss(self, row: dict[str, float]) -> None:
-        """Note once when a closed scene loses most of its energy (``ENERGY_LOSS``; thresholds
-        and how friction and damping are kept from false alarms: ``EnergyLossCheck``)."""
-        parts = ("energy_kinetic", "energy_elastic", "energy_contact")
-        check = self._energy_loss
-        if check.rows != len(self.metrics):  # the first step, or a run resumed from a checkpoint
-            stored = sum(
-                (np.nan_to_num(self.metrics.column(c)) for c in parts if c in self.metrics.columns),
-                np.zeros(len(self.metrics)),
-            )
-            check.start(np.asarray(self.metrics.column("energy_total")), stored)
-        stored = sum(float(np.nan_to_num(row.get(c, 0.0))) for c in parts)
-        terms = ("energy_kinetic", "energy_elastic", "energy_gravity", "energy_load", *parts[2:])
-        magnitude = sum(abs(float(np.nan_to_num(row.get(c, 0.0)))) for c in terms)
-        note = check.check(row["energy_total"], stored, self.state.t, magnitude)
-        if note is not None:
-            self._notice(note, PlausibilityWarning, log)
-
     def frame_blocks(self) -> list[Block]:
-        """One VTK block per FEM body with velocity, J and von Mises stress."""
-        blocks = []
-        model, state = self.model, self.state
-        j_cells, von_mises = _cell_stress_fields(model, state)
-        fem_force, mpm_force = self.contact_forces()
-        for body in model.fem_bodies:
-            cells = model.fem_cells[body.cells] - body.nodes.start
-            blocks.append(
-                Block(
-                    name=body.name,
-                    points=state.fem_x[body.nodes],
-                    cells=cells,
-                    point_data={
-                        "velocity": state.fem_v[body.nodes],
-                        "contact_force": fem_force[body.nodes],
-                    },
-                    cell_data={"J": j_cells[body.cells], "von_mises": von_mises[body.cells]},
-                )
-            )
-        for body in model.mpm_bodies:
-            sl = body.particles
-            blocks.append(
-                Block(
-                    name=body.name,
-                    points=state.mpm_x[sl],
-                    cells=None,
-                    point_data={
-                        "velocity": state.mpm_v[sl],
-                        "J": np.linalg.det(state.mpm_F[sl]),
-                        "von_mises": _von_mises(body.material, state.mpm_F[sl]),
-                        "volume": model.mpm_volume[sl],
-                        "contact_force": mpm_force[sl],
-                    },
-                )
-            )
-        return blocks
-
-    def wall_clock(self) -> float:
-        """Seconds spent in steps so far (sum of the per-step timings)."""
-        col = "time_step"
-        return float(np.nansum(self.metrics.column(col))) if col in self.metrics.columns else 0.0
-
-
-def _dissipation(sim: Simulation) -> str:
-    """What dissipates energy in ``sim`` by design ("" for nothing; ``ENERGY_LOSS`` is checked
-    only then): a damping integrator (backward Euler, damped Newmark), friction, PIC, a contact
-    that takes the approach velocity out (every strategy but ``barrier``, whose barrier stores
-    the contact energy; MPM bodies meeting through the shared grid)."""
-    parts = []
-    if sim.strategy != "barrier":
-        parts.append(f"the {sim.strategy} strategy's contact is inelastic")
-    elif len(sim.model.mpm_bodies) > 1:
-        parts.append("MPM bodies meet inelastically through the shared grid")
-    if damps_by_design(sim.integrator):
-        parts.append(f"the {sim.integrator.name} integrator damps")
-    contact = sim.model.contact
-    mus = [getattr(contact, "mu", 0.0) or 0.0, getattr(sim.options, "mu", 0.0) or 0.0]
-    mus += [mu for *_, mu in (getattr(contact, "pair_mu", None) or ())]
-    if max(mus) > 0.0:
-        parts.append(f"friction, mu up to {max(mus):g}")
-    if sim.transfer == "pic" and sim.model.n_particles:
-        parts.append("the PIC transfer damps")
-    return "; ".join(parts)
-
-
-def _is_closed(model: Model) -> bool:
-    """Nothing external works on the scene: no moving scripted nodes, loads or moving boundaries."""
-    from bfemp.motion import Fixed
-
-    moving = any(
-        b.prescribed_motion is not None and not isinstance(b.prescribed_motion, Fixed)
-        for b in model.fem_bodies
-    )
-    moving_boundary = any(b.motion is not None for b in model.boundaries)
-    return not (moving or moving_boundary or model.has_load)
-
-
-def _shear_volume(model: Model) -> float:
-    """sum mu V over the FEM cells and particles, in J (J/m in 2D): the bodies' elastic energy
-    per unit squared strain (the scale of :meth:`Simulation._check_energy`'s floor)."""
-    total = 0.0
-    for body in model.fem_bodies:  # a few bodies; vectorised over cells
-        total += body.material.mu * float(model.fem_cell_volume[body.cells].sum())
-    for body in model.mpm_bodies:
-        total += body.material.mu * float(model.mpm_volume[body.particles].sum())
-    return total
-
-
-def _von_mises(material: object, F: np.ndarray) -> np.ndarray:
-    """Von Mises Cauchy stress ``(n,)`` in Pa of deformation gradients ``(n, d, d)``.
-
-    In 2D (plane strain) the in-plane sqrt(sxx^2 - sxx syy + syy^2 + 3 sxy^2) is reported.
-    """
-    sigma = material.law.cauchy_stress(F, material.mu, material.lam)
-    if F.shape[1] == 2:
-        sxx, syy, sxy = sigma[:, 0, 0], sigma[:, 1, 1], sigma[:, 0, 1]
-        return np.sqrt(np.maximum(sxx**2 - sxx * syy + syy**2 + 3 * sxy**2, 0.0))
-    dev = sigma - np.trace(sigma, axis1=1, axis2=2)[:, None, None] * np.eye(3) / 3.0
-    return np.sqrt(1.5 * np.einsum("mij,mij->m", dev, dev))
-
-
-def _cell_stress_fields(model: Model, state: State) -> tuple[np.ndarray, np.ndarray]:
-    """Per-cell J ``(M,)`` and von Mises Cauchy stress ``(M,)`` in Pa."""
-    x = state.fem_x[model.fem_cells]  # (M, d+1, d)
-    F = np.einsum("mai,maj->mij", x, model.fem_cell_grad)
-    vm = np.zeros(F.shape[0])
-    for body in model.fem_bodies:  # a few bodies; vectorised over cells
-        vm[body.cells] = _von_mises(body.material, F[body.cells])
-    return np.linalg.det(F), vm
-
-
-def _check_run_args(
-    t_end: object, every: object, checkpoint_every: object, resume: bool, out: object
-) -> None:
-    """Validate the arguments of ``Simulation.run`` (errors name the argument)."""
-    if every is not None and (
-        isinstance(every, bool) or not isinstance(every, numbers.Integral) or every < 1
-    ):
-        raise ValueError(f"Simulation.run: every must be an integer >= 1, got {every!r}")
-    if checkpoint_every is not None and (
-        isinstance(checkpoint_every, bool)
-        or not isinstance(checkpoint_every, numbers.Integral)
-        or checkpoint_every < 0
-    ):
-        raise ValueError(
-            f"Simulation.run: checkpoint_every must be an integer >= 0, got {checkpoint_every!r}"
-        )
-    if not (isinstance(t_end, numbers.Real) and math.isfinite(t_end)):
-        raise ValueError(f"Simulation.run: t_end must be a finite time in s, got {t_end!r}")
-    if resume and out is None:
-        raise ValueError("Simulation.run: resume=True needs out, the folder of the run")
-
-
-def _merge_flat_options(
-    strategy: str, options: StepperOptions | None, flat: dict[str, object]
-) -> StepperOptions:
-    """The strategy's options, from ``options`` or from the flat barrier keywords."""
-    given = {k: v for k, v in flat.items() if v is not None}
-    if given and strategy != "barrier":
-        raise ValueError(
-            f"Simulation: {', '.join(sorted(given))} belong to strategy 'barrier'; strategy "
-            f"{strategy!r} takes its settings as options={stepper_class(strategy).Options.__name__}"
-            "(...)"
-        )
-    if given and options is not None:
-        raise ValueError(
-            f"Simulation: give either options=BarrierOptions(...) or the flat keywords "
-            f"{', '.join(sorted(given))}, not both"
-        )
-    if given:
-        from bfemp.steppers import BarrierOptions
-
-        try:
-            return BarrierOptions(**given)
-        except ValueError as err:
-            raise ValueError(f"Simulation.{err}") from None
-    return options_for(strategy, options)
-
-
-def _resolve_dt(
-    dt: object, stepper_cls: type, model: Model, state: State, options: StepperOptions
-) -> float:
-    """dt in s: a positive number, or ``"auto"``: an explicit strategy's stable step."""
-    if isinstance(dt, str):
-        auto = getattr(stepper_cls, "auto_dt", None)
-        if dt != "auto":
-            raise ValueError(f"Simulation.dt must be a time in s or 'auto', got {dt!r}")
-        if auto is None:
-            raise ValueError(
-                f"Simulation.dt='auto' needs an explicit strategy with a stable step; strategy "
-                f"{stepper_cls.name!r} is implicit: give dt in s"
-            )
-        return float(auto(model, state, options))
-    if isinstance(dt, bool) or not (isinstance(dt, int | float) and math.isfinite(dt) and dt > 0):
-        raise ValueError(f"Simulation.dt must be a positive number of seconds, got {dt!r}")
-    return float(dt)
+        """One VTK block per body at the current state (:func:`bfemp.io.fields.frame_blocks`)."""
+        return frame_blocks(self.model, self.state, *self.contact_forces())

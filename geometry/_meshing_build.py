@@ -27,6 +27,9 @@ import numpy as np
 
 from geometry._meshing_metrics import oriented_cells, signed_measures
 
+#: (i, j, k) offsets of a hexahedron's 8 corners in VTK vertex order (:func:`split_hexes`)
+HEX_CORNERS = tuple(tuple(map(int, c)) for c in "000 100 110 010 001 101 111 011".split())
+
 # Quad faces of a hexahedron in VTK order (0:000, 1:100, 2:110, 3:010, 4:001, 5:101, 6:111,
 # 7:011), each listed as a cycle around the face.
 HEX_FACES = np.array(

@@ -43,12 +43,6 @@ def signed_measures(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
     return np.einsum("ij,ij->i", e[:, 0], np.cross(e[:, 1], e[:, 2])) / 6.0
 
 
-def all_cell_edges(cells: np.ndarray) -> np.ndarray:
-    """Vertex pairs of every edge of every cell (with repetitions), shape (m * n_edges, 2)."""
-    local = TRI_FACETS if cells.shape[1] == 3 else TET_EDGES
-    return cells[:, local].reshape(-1, 2)
-
-
 def edge_lengths(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
     """Lengths of the edges of every cell, shape (m, 3) in 2D or (m, 6) in 3D, metres."""
     local = TRI_FACETS if cells.shape[1] == 3 else TET_EDGES

@@ -10,6 +10,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from geometry.inside import simplex_depth
+
 
 @njit(cache=True)
 def _linear_bin(b: np.ndarray, n_bins: np.ndarray) -> int:
@@ -80,8 +82,7 @@ def _locate(
     n_bins: np.ndarray,
     start: np.ndarray,
     items: np.ndarray,
-    v0: np.ndarray,
-    inv_dm: np.ndarray,
+    verts: np.ndarray,
     valid: np.ndarray,
     tol: float,
     out: np.ndarray,
@@ -92,9 +93,10 @@ def _locate(
         x: (P, d) points in m.
         bin_lo: (d,) lower corner of the bucketing grid in m; inv_bin: 1 / bin size in 1/m.
         n_bins, start, items: the bucketing grid and its compressed rows (see _bin_cells).
-        v0: (m, d) first vertex of each cell; inv_dm: (m, d, d) inverse of the edge matrix
-            ``[v1 - v0, ..., vd - v0]``; valid: (m,) False for degenerate cells (skipped).
-        tol: barycentric tolerance: inside when every barycentric coordinate is >= -tol.
+        verts: (m, d + 1, d) vertices of each cell in m; valid: (m,) False for degenerate
+            cells (skipped).
+        tol: barycentric tolerance: inside when every barycentric coordinate is >= -tol
+            (:func:`geometry.inside.simplex_depth`, inclusive convention).
         out: (P,) int64 output. Each point writes only its own entry (race-free).
     """
     n_points, dim = x.shape
@@ -114,17 +116,6 @@ def _locate(
             c = items[j]
             if not valid[c]:
                 continue
-            # Barycentric coordinates lambda_1..d = Dm^-1 (x - v0), lambda_0 = 1 - sum.
-            ok = True
-            lam0 = 1.0
-            for r in range(dim):
-                lam = 0.0
-                for s in range(dim):
-                    lam += inv_dm[c, r, s] * (x[p, s] - v0[c, s])
-                lam0 -= lam
-                if lam < -tol:
-                    ok = False
-                    break
-            if ok and lam0 >= -tol:
+            if simplex_depth(x[p], verts[c]) >= -tol:
                 out[p] = c
                 break

@@ -88,17 +88,24 @@ _DIMS = {KIND_PP: (2, 3), KIND_PE: (2, 3), KIND_PT: (3,), KIND_EE: (3,)}
 
 
 def _stack_pairs(kind: int, arrays: tuple[np.ndarray, ...], names: tuple[str, ...]) -> np.ndarray:
+    """The ``(n, d)`` vertex arrays of a batch of ``kind`` stacked (:func:`_stack`; d = 2 or 3 for
+    point-point/point-edge, 3 otherwise)."""
+    return _stack(arrays, names, _DIMS[kind])
+
+
+def _stack(
+    arrays: tuple[np.ndarray, ...], names: tuple[str, ...], dims: tuple[int, ...]
+) -> np.ndarray:
     """Validate the ``(n, d)`` vertex arrays of a batch and stack them to ``(n, k, d)`` float64.
 
     Raises ValueError naming the argument that is not 2D, has another shape than the first one,
-    a dimension not allowed for ``kind`` (2 or 3 for point-point/point-edge, 3 otherwise), or
-    non-finite entries (with the first offending row).
+    a dimension ``d`` not in ``dims``, or non-finite entries (with the first offending row).
     """
     arrs = [np.asarray(a, dtype=np.float64) for a in arrays]
     ref = arrs[0]
-    if ref.ndim != 2 or ref.shape[1] not in _DIMS[kind]:
-        dims = " or ".join(str(d) for d in _DIMS[kind])
-        raise ValueError(f"{names[0]} must have shape (n, {dims}), got {ref.shape}")
+    if ref.ndim != 2 or ref.shape[1] not in dims:
+        allowed = " or ".join(str(d) for d in dims)
+        raise ValueError(f"{names[0]} must have shape (n, {allowed}), got {ref.shape}")
     for name, a in zip(names, arrs, strict=True):
         if a.shape != ref.shape:
             raise ValueError(f"{name} must have shape {ref.shape} like {names[0]}, got {a.shape}")

@@ -40,6 +40,7 @@ from __future__ import annotations
 import numpy as np
 
 from geometry._distance_kernels import KIND_EE, KIND_PT, _types
+from geometry.distance import _stack
 
 __all__ = [
     "edge_edge_closest_parameters",
@@ -53,24 +54,6 @@ __all__ = [
 
 # Relative size below which a normal (or tangent) candidate counts as zero.
 _REL_TOL = 1e-12
-
-
-def _stack(
-    arrays: tuple[np.ndarray, ...], names: tuple[str, ...], dims: tuple[int, ...]
-) -> np.ndarray:
-    """Validate ``(n, d)`` vertex arrays (same shape, allowed d, finite) and stack to (n, k, d)."""
-    arrs = [np.asarray(a, dtype=np.float64) for a in arrays]
-    ref = arrs[0]
-    if ref.ndim != 2 or ref.shape[1] not in dims:
-        allowed = " or ".join(str(d) for d in dims)
-        raise ValueError(f"{names[0]} must have shape (n, {allowed}), got {ref.shape}")
-    for name, a in zip(names, arrs, strict=True):
-        if a.shape != ref.shape:
-            raise ValueError(f"{name} must have shape {ref.shape} like {names[0]}, got {a.shape}")
-        bad = ~np.isfinite(a).all(axis=1)
-        if bad.any():
-            raise ValueError(f"{name} has non-finite entries in rows {np.flatnonzero(bad)[:10]}")
-    return np.ascontiguousarray(np.stack(arrs, axis=1))
 
 
 def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:

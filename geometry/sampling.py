@@ -15,8 +15,9 @@ per axis *before* the inside test, so jittered particles are still inside the sh
 their own sub-cell for ``jitter <= 1``. The default generator is ``np.random.default_rng(0)``:
 sampling is reproducible unless a generator (or seed) is passed.
 
-Point location in meshes (:func:`locate_points`) is a numba barycentric test with a uniform
-bucketing of the cells (see :mod:`geometry._sampling_kernels`), O(points + cells).
+Point location in meshes (:func:`locate_points`) is the barycentric test of
+:func:`geometry.inside.simplex_depth` with a uniform bucketing of the cells (see
+:mod:`geometry._sampling_kernels`), O(points + cells).
 """
 
 from __future__ import annotations
@@ -224,14 +225,11 @@ def locate_points(mesh: TriMesh | TetMesh, x: np.ndarray) -> np.ndarray:
     pts = np.ascontiguousarray(x, dtype=np.float64)
     if pts.ndim != 2 or pts.shape[1] != dim:
         raise ValueError(f"x must have shape (P, {dim}) for a {dim}D mesh, got {pts.shape}")
-    verts = mesh.points[mesh.cells]  # (m, d+1, d)
-    v0 = np.ascontiguousarray(verts[:, 0])
-    dm = np.transpose(verts[:, 1:] - v0[:, None, :], (0, 2, 1))  # columns are edges
+    verts = np.ascontiguousarray(mesh.points[mesh.cells])  # (m, d+1, d)
+    dm = verts[:, 1:] - verts[:, :1]  # rows are edges
     cell_lo, cell_hi = verts.min(axis=1), verts.max(axis=1)
     size = float((cell_hi - cell_lo).max(axis=1).mean())
     valid = np.abs(np.linalg.det(dm)) > 1e-12 * size**dim
-    dm[~valid] = np.eye(dim)
-    inv_dm = np.ascontiguousarray(np.linalg.inv(dm))
 
     # Bucketing grid over the mesh's bounding box: bins about one cell wide, at most ~4 m bins.
     lo, hi = mesh.points.min(axis=0), mesh.points.max(axis=0)
@@ -245,12 +243,16 @@ def locate_points(mesh: TriMesh | TetMesh, x: np.ndarray) -> np.ndarray:
         np.clip(lo_bin, 0, n_bins - 1), np.clip(hi_bin, 0, n_bins - 1), n_bins
     )
     out = np.empty(pts.shape[0], dtype=np.int64)
-    _locate(pts, lo, 1.0 / bin_size, n_bins, start, items, v0, inv_dm, valid, _BARY_TOL, out)
+    _locate(pts, lo, 1.0 / bin_size, n_bins, start, items, verts, valid, _BARY_TOL, out)
     return out
 
 
 def points_in_mesh(mesh: TriMesh | TetMesh, x: np.ndarray) -> np.ndarray:
-    """(P,) bool: whether each point of x (P, d) in m lies in a cell of the mesh."""
+    """(P,) bool: whether each point of x (P, d) in m lies in a cell of the mesh.
+
+    Inclusive: a point on the mesh's boundary (within a barycentric 1e-12) is inside
+    (:mod:`geometry.inside`'s convention).
+    """
     return locate_points(mesh, x) >= 0
 
 

@@ -144,17 +144,7 @@ def box(lower: tuple[float, float, float], upper: tuple[float, float, float], h:
     def node(di: int, dj: int, dk: int) -> np.ndarray:
         return ((k + dk) * (n[1] + 1) + (j + dj)) * (n[0] + 1) + (i + di)
 
-    corners = [
-        (0, 0, 0),
-        (1, 0, 0),
-        (1, 1, 0),
-        (0, 1, 0),
-        (0, 0, 1),
-        (1, 0, 1),
-        (1, 1, 1),
-        (0, 1, 1),
-    ]
-    hexes = np.stack([node(*c) for c in corners], axis=1)
+    hexes = np.stack([node(*c) for c in mb.HEX_CORNERS], axis=1)
     return TetMesh(points, mb.split_hexes(points, hexes))
 
 

@@ -24,8 +24,6 @@ __all__ = [
     "REFERENCE_BLAS_HINT",
     "cholmod_blas",
     "classify_blas",
-    "format_linear_algebra",
-    "linear_algebra",
     "report_cholmod_blas_once",
     "serial_wheel_blas",
     "set_blas_threads",
@@ -232,38 +230,3 @@ def serial_wheel_blas() -> Iterator[None]:
         return
     with controller.limit(limits=1):
         yield
-
-
-def linear_algebra() -> dict:
-    """The linear-algebra stack of this process, for ``bfemp --version`` and benchmark records.
-
-    Returns:
-        ``{"cholmod_blas": name, "cholmod_blas_path": path, "blas_threads": int | None,
-        "solvers": {name: installed}}`` for the solvers of ``solvers.choice``.
-    """
-    from solvers.iterative import amg_available
-    from solvers.linear import cholmod_available
-    from solvers.pardiso import pardiso_available
-
-    info = cholmod_blas()
-    return {
-        "cholmod_blas": info.name,
-        "cholmod_blas_path": info.path,
-        "blas_threads": info.threads,
-        "solvers": {
-            "cholmod": cholmod_available(),
-            "scipy": True,
-            "pardiso": pardiso_available(),
-            "cg_amg": amg_available(),
-        },
-    }
-
-
-def format_linear_algebra(report: dict) -> str:
-    """Two lines of :func:`linear_algebra`'s report for a console."""
-    blas = report["cholmod_blas"]
-    threads = "" if report["blas_threads"] is None else f", {report['blas_threads']} threads"
-    have = ", ".join(k for k, v in report["solvers"].items() if v)
-    missing = ", ".join(k for k, v in report["solvers"].items() if not v)
-    line2 = f"linear solvers: {have}" + (f" (not installed: {missing})" if missing else "")
-    return f"CHOLMOD BLAS: {blas}{threads} {report['cholmod_blas_path']}\n{line2}"

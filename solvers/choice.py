@@ -36,9 +36,24 @@ import logging
 import numpy as np
 import scipy.sparse as sp
 
-from solvers.linear import CholmodSolver, LinearSolver, ScipySolver, default_linear_solver
+from solvers.blas import cholmod_blas
+from solvers.iterative import CgAmgSolver, amg_available
+from solvers.linear import (
+    CholmodSolver,
+    LinearSolver,
+    ScipySolver,
+    cholmod_available,
+    default_linear_solver,
+)
+from solvers.pardiso import PardisoSolver, pardiso_available
 
-__all__ = ["LINEAR_SOLVER_NAMES", "AutoSolver", "make_linear_solver"]
+__all__ = [
+    "LINEAR_SOLVER_NAMES",
+    "AutoSolver",
+    "format_linear_algebra",
+    "linear_algebra",
+    "make_linear_solver",
+]
 
 logger = logging.getLogger(__name__)
 
@@ -68,12 +83,8 @@ def make_linear_solver(name: str, *, block_size: int = 1) -> LinearSolver:
     if name == "scipy":
         return ScipySolver()
     if name == "pardiso":
-        from solvers.pardiso import PardisoSolver
-
         return PardisoSolver()
     if name == "cg_amg":
-        from solvers.iterative import CgAmgSolver
-
         return CgAmgSolver(block_size=block_size)
     if name == "auto":
         return AutoSolver(block_size=block_size)
@@ -99,10 +110,6 @@ class AutoSolver:
 
     def choose(self, A: sp.spmatrix) -> str:
         """The solver name for a matrix like A (n, n)."""
-        from solvers.iterative import amg_available
-        from solvers.linear import cholmod_available
-        from solvers.pardiso import pardiso_available
-
         n = A.shape[0]
         dense = A.nnz > DENSE_ROW_NNZ * max(n, 1)
         if dense and n >= self.cg_min_dofs and amg_available():
@@ -146,3 +153,34 @@ class AutoSolver:
         """Back-solve with the chosen solver's last factorisation, or None."""
         again = getattr(self._inner, "solve_again", None)
         return None if again is None else again(b)
+
+
+def linear_algebra() -> dict:
+    """The linear-algebra stack of this process, for ``bfemp --version`` and benchmark records.
+
+    Returns:
+        ``{"cholmod_blas": name, "cholmod_blas_path": path, "blas_threads": int | None,
+        "solvers": {name: installed}}`` for the solvers of ``solvers.choice``.
+    """
+    info = cholmod_blas()
+    return {
+        "cholmod_blas": info.name,
+        "cholmod_blas_path": info.path,
+        "blas_threads": info.threads,
+        "solvers": {
+            "cholmod": cholmod_available(),
+            "scipy": True,
+            "pardiso": pardiso_available(),
+            "cg_amg": amg_available(),
+        },
+    }
+
+
+def format_linear_algebra(report: dict) -> str:
+    """Two lines of :func:`linear_algebra`'s report for a console."""
+    blas = report["cholmod_blas"]
+    threads = "" if report["blas_threads"] is None else f", {report['blas_threads']} threads"
+    have = ", ".join(k for k, v in report["solvers"].items() if v)
+    missing = ", ".join(k for k, v in report["solvers"].items() if not v)
+    line2 = f"linear solvers: {have}" + (f" (not installed: {missing})" if missing else "")
+    return f"CHOLMOD BLAS: {blas}{threads} {report['cholmod_blas_path']}\n{line2}"

@@ -31,7 +31,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from solvers.linear import LinearSolveError, _check_system
+from solvers._linear_base import LinearSolveError, SparsityPattern, _check_system, optional_import
 
 __all__ = ["AMG_INSTALL_HINT", "CgAmgSolver", "amg_available"]
 
@@ -45,11 +45,7 @@ AMG_INSTALL_HINT = (
 
 def _import_pyamg() -> ModuleType | None:
     """Import hook for ``pyamg`` (tests monkeypatch it); None if unavailable."""
-    try:
-        import pyamg
-    except ImportError:
-        return None
-    return pyamg
+    return optional_import("pyamg")
 
 
 def amg_available() -> bool:
@@ -109,20 +105,8 @@ class CgAmgSolver:
         self.last_timings = {"analyze": 0.0, "factorize": 0.0, "solve": 0.0}
         self._M: spla.LinearOperator | None = None
         self._fresh_iterations = 0
-        self._version: int | None = None
-        self._shape: tuple[int, int] | None = None
-        self._indptr: np.ndarray | None = None
-        self._indices: np.ndarray | None = None
+        self._pattern = SparsityPattern()
         self._A: sp.csr_matrix | None = None
-
-    def _same_pattern(self, A: sp.csc_matrix, pattern_version: int | None) -> bool:
-        if self._M is None or A.shape != self._shape:
-            return False
-        if pattern_version is not None and pattern_version == self._version:
-            return True
-        return bool(
-            np.array_equal(A.indptr, self._indptr) and np.array_equal(A.indices, self._indices)
-        )
 
     def _build(self, A: sp.csr_matrix) -> None:
         n = A.shape[0]
@@ -167,13 +151,11 @@ class CgAmgSolver:
         self.last_timings = timings
         csr = A.tocsr()  # A symmetric: the CSR of A is its CSC transposed, as cheap
         t0 = time.perf_counter()
-        fresh = not self._same_pattern(A, pattern_version)
+        fresh = self._M is None or not self._pattern.matches(A, pattern_version)
         if fresh:
             self._build(csr)
-            self._shape = A.shape
-            self._indptr = A.indptr.copy()
-            self._indices = A.indices.copy()
-        self._version = pattern_version
+            self._pattern.remember(A)
+        self._pattern.version = pattern_version
         t1 = time.perf_counter()
         timings["analyze"] = t1 - t0
         x, info, its = self._cg(csr, b, rtol)

@@ -31,6 +31,8 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from solvers._linear_base import LinearSolveError, SparsityPattern, _check_system, optional_import
+from solvers.blas import report_cholmod_blas_once
 from solvers.openmp import bounded_openmp
 
 __all__ = [
@@ -59,10 +61,6 @@ CHOLMOD_INSTALL_HINT = (
 _fallback_warned = False
 
 
-class LinearSolveError(RuntimeError):
-    """The linear system could not be solved (not positive definite, singular, non-finite)."""
-
-
 @runtime_checkable
 class LinearSolver(Protocol):
     """Solves ``A x = b`` for a sparse symmetric positive definite ``A``.
@@ -83,33 +81,12 @@ class LinearSolver(Protocol):
 
 def _import_cholmod() -> ModuleType | None:
     """Import hook for ``sksparse.cholmod`` (tests monkeypatch it); None if unavailable."""
-    try:
-        from sksparse import cholmod
-    except ImportError:
-        return None
-    return cholmod
+    return optional_import("sksparse.cholmod")
 
 
 def cholmod_available() -> bool:
     """Whether ``sksparse.cholmod`` can be imported."""
     return _import_cholmod() is not None
-
-
-def _check_system(A: sp.spmatrix, b: np.ndarray) -> tuple[sp.csc_matrix, np.ndarray]:
-    if not sp.issparse(A):
-        raise ValueError(f"A must be a scipy sparse matrix, got {type(A).__name__}")
-    if A.ndim != 2 or A.shape[0] != A.shape[1]:
-        raise ValueError(f"A must be square, got shape {A.shape}")
-    if not isinstance(A, sp.csc_matrix):
-        A = sp.csc_matrix(A)
-    b = np.ascontiguousarray(b, dtype=np.float64)
-    if b.shape != (A.shape[0],):
-        raise ValueError(f"b must have shape ({A.shape[0]},), got {b.shape}")
-    if not np.all(np.isfinite(A.data)):
-        raise LinearSolveError("matrix has non-finite entries")
-    if not np.all(np.isfinite(b)):
-        raise LinearSolveError("right-hand side has non-finite entries")
-    return A, b
 
 
 #: Machine epsilons of a row's absolute sum that :func:`rounding_shift` adds to its diagonal.
@@ -218,8 +195,6 @@ class CholmodSolver:
             raise ValueError(
                 f"CholmodSolver mode must be 'auto', 'simplicial' or 'supernodal', got {mode!r}"
             )
-        from solvers.blas import report_cholmod_blas_once
-
         report_cholmod_blas_once()  # says once per process which BLAS CHOLMOD runs on
         self._cholmod = cholmod
         self.mode = mode
@@ -228,19 +203,7 @@ class CholmodSolver:
         self.n_numeric = 0
         self.last_timings = {"analyze": 0.0, "factorize": 0.0, "solve": 0.0}
         self._factor = None
-        self._version: int | None = None
-        self._shape: tuple[int, int] | None = None
-        self._indptr: np.ndarray | None = None
-        self._indices: np.ndarray | None = None
-
-    def _same_pattern(self, A: sp.csc_matrix, pattern_version: int | None) -> bool:
-        if self._factor is None or A.shape != self._shape:
-            return False
-        if pattern_version is not None and pattern_version == self._version:
-            return True
-        return bool(
-            np.array_equal(A.indptr, self._indptr) and np.array_equal(A.indices, self._indices)
-        )
+        self._pattern = SparsityPattern()
 
     def solve(
         self, A: sp.csc_matrix, b: np.ndarray, *, pattern_version: int | None = None
@@ -273,16 +236,14 @@ class CholmodSolver:
         timings = {"analyze": 0.0, "factorize": 0.0, "solve": 0.0}
         self.last_timings = timings
         t0 = time.perf_counter()
-        if not self._same_pattern(A, pattern_version):
+        if self._factor is None or not self._pattern.matches(A, pattern_version):
             self._factor = self._cholmod.analyze(
                 A, mode=self.mode, ordering_method=self.ordering_method
             )
-            self._shape = A.shape
-            self._indptr = A.indptr.copy()
-            self._indices = A.indices.copy()
+            self._pattern.remember(A)
             self.n_symbolic += 1
             logger.debug("CHOLMOD symbolic analysis of a %d x %d matrix", *A.shape)
-        self._version = pattern_version
+        self._pattern.version = pattern_version
         t1 = time.perf_counter()
         timings["analyze"] = t1 - t0
         try:
@@ -314,7 +275,11 @@ class CholmodSolver:
             x ``(n,)``, or None when no factorisation is kept, b has another size or x is not
             finite.
         """
-        if self._factor is None or self._shape is None or b.shape != (self._shape[0],):
+        if (
+            self._factor is None
+            or self._pattern.shape is None
+            or b.shape != (self._pattern.shape[0],)
+        ):
             return None
         with bounded_openmp():
             x = self._factor.solve_A(np.asarray(b, dtype=np.float64))

@@ -32,70 +32,31 @@ from __future__ import annotations
 import logging
 import math
 import time
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
-from typing import Protocol
+from collections.abc import Callable
 
 import numpy as np
-import scipy.sparse as sp
 
-from solvers.assembly import TripletAssembler, Triplets
+from solvers._linear_base import LinearSolveError
+from solvers._newton_direction import (
+    _chord_increment,
+    _chord_step_predicted_to_converge,
+    _increment_norm,
+    _newton_direction,
+    _NonFiniteHessian,
+    _timed,
+    forcing_term,
+)
+from solvers.assembly import TripletAssembler
 from solvers.blas import serial_wheel_blas
 from solvers.line_search import LineSearchResult, backtracking_line_search
-from solvers.linear import (
-    ROUNDING_SHIFT_ULPS,
-    LinearSolveError,
-    LinearSolver,
-    default_linear_solver,
-    rounding_shift,
-    shift_diagonal,
-)
+from solvers.linear import LinearSolver, default_linear_solver
+from solvers.objective import Objective
 from solvers.options import NewtonOptions
 from solvers.result import NewtonIteration, NewtonResult, NewtonStatus
 
-__all__ = ["Objective", "minimize"]
+__all__ = ["Objective", "forcing_term", "minimize"]
 
 logger = logging.getLogger(__name__)
-
-
-class Objective(Protocol):
-    """The energy contract :func:`minimize` relies on (units: J for E, x in m typically).
-
-    An optional attribute ``fixed_dofs: np.ndarray | None`` (bool mask (n,)) marks DOFs held at
-    their ``x0`` value; it is read with ``getattr(objective, "fixed_dofs", None)``. An optional
-    method ``increment_norm(p) -> float`` (p (n,), zero on fixed DOFs) replaces ``||p||_inf`` in
-    the stopping rule (e.g. measured on what the unknowns move, not on the unknowns).
-    """
-
-    def solution_changed(self, x: np.ndarray) -> None:
-        """Called once per new iterate x (n,) (line-search trials too), before value/gradient/
-        hessian at that x: refresh x-dependent caches."""
-        ...
-
-    def value(self, x: np.ndarray) -> float:
-        """Energy E(x); may be inf outside the feasible set."""
-        ...
-
-    def gradient(self, x: np.ndarray) -> np.ndarray:
-        """dE/dx (n,)."""
-        ...
-
-    def hessian(self, x: np.ndarray, psd: bool) -> Triplets:
-        """d2E/dx2 as COO triplets (full symmetric), per-stencil PSD-projected when ``psd``."""
-        ...
-
-    def max_step_size(self, x: np.ndarray, p: np.ndarray) -> float:
-        """Largest feasible step along p (n,) from x: a value in (0, 1], or larger."""
-        ...
-
-
-@contextmanager
-def _timed(timings: dict[str, float], key: str) -> Iterator[None]:
-    start = time.perf_counter()
-    try:
-        yield
-    finally:
-        timings[key] += time.perf_counter() - start
 
 
 def _check_x0(x0: np.ndarray) -> np.ndarray:
@@ -121,115 +82,8 @@ def _free_mask(objective: Objective, n: int) -> np.ndarray | None:
     return None if not fixed.any() else ~fixed
 
 
-def _solve(
-    solver: LinearSolver,
-    assembler: TripletAssembler,
-    triplets: Triplets,
-    rhs: np.ndarray,
-    timings: dict[str, float],
-    rtol: float | None = None,
-    res: NewtonResult | None = None,
-) -> np.ndarray:
-    """Assemble and solve ``H p = rhs`` on the free DOFs.
-
-    ``res`` given: H is PSD-projected, positive definite by construction (BFEMP sec. 5), and a
-    failed factorisation is retried once with the rounding-level diagonal shift of
-    :func:`solvers.linear.rounding_shift` (its floating-point sum can be indefinite by the
-    rounding of a barrier block near ``d = 0``); a success counts in ``res.shifted_solves``, a
-    second failure raises :class:`LinearSolveError` with both messages. ``res`` None: no retry
-    (the exact Hessian may be indefinite for real).
-    """
-    with _timed(timings, "assemble"):
-        matrix = assembler.assemble(triplets)
-    if rhs.size == 0:
-        return np.zeros(0)
-    kwargs = {"rtol": rtol} if rtol is not None else {}
-    try:
-        return _timed_solve(solver, matrix, rhs, assembler.pattern_version, timings, kwargs)
-    except LinearSolveError as err:
-        if res is None:
-            raise
-        with _timed(timings, "assemble"):
-            shift = rounding_shift(matrix)
-            shifted, same = shift_diagonal(matrix, shift)
-        version = assembler.pattern_version if same else None
-        try:
-            p = _timed_solve(solver, shifted, rhs, version, timings, kwargs)
-        except LinearSolveError as err2:
-            raise LinearSolveError(
-                f"{err}; again with the rounding shift ({ROUNDING_SHIFT_ULPS:g} eps x the row's "
-                f"absolute sum on the diagonal, at most {shift.max():.3e}): {err2}"
-            ) from err2
-        res.shifted_solves += 1
-        res.max_shift = max(res.max_shift, float(shift.max()))
-        logger.info(
-            "newton: the projected Hessian's factorisation failed (%s); solved with the "
-            "rounding-level diagonal shift (at most %.3e, %g eps x the row's absolute sum)",
-            err,
-            shift.max(),
-            ROUNDING_SHIFT_ULPS,
-        )
-        return p
-
-
-def _timed_solve(
-    solver: LinearSolver,
-    matrix: sp.csc_matrix,
-    rhs: np.ndarray,
-    pattern_version: int | None,
-    timings: dict[str, float],
-    kwargs: dict[str, float],
-) -> np.ndarray:
-    """``solver.solve`` with its phase seconds added to ``timings``."""
-    start = time.perf_counter()
-    try:
-        return np.asarray(
-            solver.solve(matrix, rhs, pattern_version=pattern_version, **kwargs),
-            dtype=np.float64,
-        )
-    finally:
-        phases = getattr(solver, "last_timings", None)
-        if isinstance(phases, dict):
-            for key in ("analyze", "factorize", "solve"):
-                timings[key] += float(phases.get(key, 0.0))
-        else:
-            timings["solve"] += time.perf_counter() - start
-
-
-class _NonFiniteHessian(Exception):
-    pass
-
-
-#: Eisenstat-Walker "choice 2" constants (gamma, alpha), SIAM J. Sci. Comput. 17 (1996) 16-32.
-_EW_GAMMA = 0.9
-_EW_ALPHA = 2.0
-
-
-def forcing_term(
-    g_norm: float, g_norm_prev: float | None, eta_prev: float | None, eta_max: float
-) -> float:
-    """The relative residual an inexact linear solve of Newton iteration k may stop at.
-
-    Eisenstat-Walker choice 2: ``eta_k = gamma (||g_k|| / ||g_{k-1}||)^alpha``, with the
-    safeguard ``eta_k >= gamma eta_{k-1}^alpha`` when that is above 0.1 (it keeps eta from
-    dropping while the gradient stalls), capped at ``eta_max``; the first iteration gets
-    ``eta_max``. Loose solves far from the solution, tight ones as the gradient falls: the
-    linear tolerance follows Newton's progress instead of being fixed. Dimensionless.
-    """
-    if g_norm_prev is None or eta_prev is None or not g_norm_prev > 0.0:
-        return eta_max
-    eta = _EW_GAMMA * (g_norm / g_norm_prev) ** _EW_ALPHA
-    safeguard = _EW_GAMMA * eta_prev**_EW_ALPHA
-    if safeguard > 0.1:
-        eta = max(eta, safeguard)
-    return min(eta, eta_max)
-
-
 #: Energy changes below this many machine epsilons of |E| are round-off (terms cancel).
 _ROUND_OFF_ULPS = 1e4
-#: Within this factor of the tolerance a Newton step is judged by the gradient, not the energy
-#: (the default of ``NewtonOptions.near_solution_factor``).
-_NEAR_SOLUTION_FACTOR = 1e3
 
 
 def _accept_near_solution(
@@ -273,97 +127,6 @@ def _accept_near_solution(
         return None
     logger.debug("newton: near the solution, full step accepted on the gradient norm")
     return LineSearchResult(success=True, alpha=alpha0, x=trial, fun=fun, nfev=1, n_nonfinite=0)
-
-
-def _chord_increment(
-    solver: LinearSolver, g_free: np.ndarray, timings: dict[str, float]
-) -> np.ndarray | None:
-    """The increment ``-H_old^{-1} g`` (free DOFs) with the last factorisation, or None.
-
-    After a full Newton step the Hessian has changed by O(||p||); the back-solve costs a
-    fraction of a factorisation and decides most convergence tests (a step that ends in one
-    iteration otherwise pays two factorisations, measured on perf_3d: 2.9x the factorisation
-    per Newton iteration).
-    """
-    again = getattr(solver, "solve_again", None)
-    if again is None or g_free.size == 0:
-        return None
-    with _timed(timings, "solve"):
-        p = again(-g_free)
-    return None if p is None or not np.all(np.isfinite(p)) else np.asarray(p, dtype=np.float64)
-
-
-#: The largest ratio of the chord increment to the last step for a chord step
-#: (:func:`_chord_step_predicted_to_converge`).
-_CHORD_STEP_MAX_RATIO = 0.05
-
-
-def _chord_step_predicted_to_converge(p_chord: float, p_last: float, chord_tol: float) -> bool:
-    """Whether a step along the chord increment is expected to end Newton at the next test.
-
-    After a Newton step of size ``p_last`` from the point of the last factorisation, the chord
-    iteration ``x+ = x - H_old^{-1} g(x)`` contracts at ``theta ~ ||H_old^{-1} (H - H_old)|| ~
-    2 ||p_chord|| / p_last`` (Newton's error squares, e+ ~ (1/2) H^{-1} H' e^2, while the stale
-    Hessian is off by H' p_last), so the chord increment after the step is about ``2 ||p_chord||^2
-    / p_last``. The step is taken when twice that, ``4 ||p_chord||^2 / p_last``, is below the
-    chord test's tolerance: then one back-solve and one line search replace a factorisation.
-    Measured on perf_fem 2D (chord tolerance 2.5e-7 m): after a step of 4.50e-4 m the chord
-    increment was 3.34e-6 m and the one after the chord step 1.29e-7 m (the estimate 5.0e-8).
-
-    It is also asked that the stale factorisation shrank the increment at least 20-fold
-    (``p_chord <= 0.05 p_last``): the estimate holds in Newton's quadratic regime, not where
-    the iterates creep at a linear rate. In the head-on disks of ``tests/bfemp/
-    test_intersection.py`` (dt = 0.5 s) increments fell 0.07-fold per iteration; a chord step
-    there at ratio 0.21 sent the solve along another path to an end state the step's
-    straight-line motion reaches only through the other disk (TUNNELED). All norms in the
-    units of x.
-    """
-    if not (p_last > 0.0 and math.isfinite(p_last)):
-        return False
-    return (
-        p_chord <= _CHORD_STEP_MAX_RATIO * p_last and 4.0 * p_chord * p_chord < chord_tol * p_last
-    )
-
-
-def _increment_norm(
-    objective: Objective, p_free: np.ndarray, free: np.ndarray | None, n: int
-) -> float:
-    """The stopping rule's size of the increment: ``objective.increment_norm`` or ||p||_inf."""
-    norm = getattr(objective, "increment_norm", None)
-    if norm is None:
-        return float(np.abs(p_free).max()) if p_free.size else 0.0
-    if free is None:
-        return float(norm(p_free))
-    p = np.zeros(n)
-    p[free] = p_free
-    return float(norm(p))
-
-
-def _newton_direction(
-    objective: Objective,
-    x: np.ndarray,
-    exact: bool,
-    solver: LinearSolver,
-    assembler: TripletAssembler,
-    g_free: np.ndarray,
-    timings: dict[str, float],
-    res: NewtonResult,
-    rtol: float | None = None,
-) -> np.ndarray:
-    """Solve ``H p = -g`` on the free DOFs with the exact (or per-stencil projected) Hessian;
-    ``rtol``: the relative residual an inexact solver may stop at (None: its own). A projected
-    Hessian that fails to factorise is retried with the rounding shift (:func:`_solve`)."""
-    with _timed(timings, "hessian"):
-        triplets = objective.hessian(x, psd=not exact)
-    res.nhev += 1
-    if not isinstance(triplets, Triplets):
-        raise ValueError(f"objective.hessian must return Triplets, got {type(triplets)}")
-    if not np.all(np.isfinite(triplets.vals)):
-        raise _NonFiniteHessian
-    try:
-        return _solve(solver, assembler, triplets, -g_free, timings, rtol, None if exact else res)
-    finally:
-        res.linear_iterations += int(getattr(solver, "last_iterations", 0) or 0)
 
 
 def minimize(
@@ -426,151 +189,225 @@ def _minimize(
     elif not isinstance(options, NewtonOptions):
         raise ValueError(f"options must be NewtonOptions, got {type(options).__name__}")
     x = _check_x0(x0)
-    n = x.size
-    free = _free_mask(objective, n)
+    free = _free_mask(objective, x.size)
     solver = default_linear_solver() if linear_solver is None else linear_solver
-    if assembler is None or not assembler.fits(n, free):
-        assembler = TripletAssembler(n, free=free)
+    if assembler is None or not assembler.fits(x.size, free):
+        assembler = TripletAssembler(x.size, free=free)
     res = NewtonResult(x=x, success=False, status=NewtonStatus.MAX_ITERATIONS, message="")
-    timings = res.timings
-
-    def finish(status: NewtonStatus, detail: str) -> NewtonResult:
-        res.status = status
-        res.success = status == NewtonStatus.CONVERGED
-        res.message = f"{status.description}: {detail}"
-        timings["total"] = time.perf_counter() - t_start
+    run = _Run(objective, options, solver, assembler, free, res)
+    try:
+        with _timed(res.timings, "line_search"):
+            objective.solution_changed(x)
+            energy = float(objective.value(x))
+        res.nfev += 1
+        res.fun = energy
+        if not math.isfinite(energy):
+            raise _Finish(NewtonStatus.NON_FINITE, f"energy at x0 is {energy}")
+        while True:
+            g_free = run.gradient(x)
+            p_free, p_inf = run.chord_step(g_free, energy) or run.newton_step(x, g_free, energy)
+            if res.nit >= options.max_iter:
+                raise _Finish(
+                    NewtonStatus.MAX_ITERATIONS,
+                    f"max_iter = {options.max_iter}, ||p||_inf / step_scale = "
+                    f"{p_inf / options.step_scale:.3e} >= tol = {options.tol:.3e}",
+                )
+            search, alpha0 = run.line_search(x, energy, g_free, p_free, p_inf)
+            x, energy = search.x, search.fun
+            run.accept(search, p_inf, alpha0)
+            if callback is not None and _callback_stops(
+                callback, NewtonIteration(x.copy(), energy, res.nit, p_inf, search.alpha)
+            ):
+                raise _Finish(NewtonStatus.CALLBACK_STOP, f"at iteration {res.nit}")
+    except _Finish as end:
+        res.status = end.status
+        res.success = end.status == NewtonStatus.CONVERGED
+        res.message = f"{end.status.description}: {end.detail}"
+        res.timings["total"] = time.perf_counter() - t_start
         log = logger.debug if res.success else logger.info
-        log("newton %s after %d iterations (%s)", status.name, res.nit, detail)
+        log("newton %s after %d iterations (%s)", end.status.name, res.nit, end.detail)
         return res
 
-    with _timed(timings, "line_search"):
-        objective.solution_changed(x)
-        energy = float(objective.value(x))
-    res.nfev += 1
-    res.fun = energy
-    if not math.isfinite(energy):
-        return finish(NewtonStatus.NON_FINITE, f"energy at x0 is {energy}")
 
-    try_exact = exact_failed = False
-    # An inexact solver (CG) stops at the forcing term eta_k, tied to Newton's progress.
-    inexact = bool(getattr(solver, "accepts_rtol", False))
-    g_norm_prev = eta = None
-    g_best = math.inf  # the least gradient norm of the iterates so far (_accept_near_solution)
-    chord_ready = False  # the last factorisation is this solve's, and its step was full
-    factor_stepped = False  # the last factorisation has already made a chord step
-    last_p_inf = math.inf  # the increment of the last accepted step
-    while True:
-        with _timed(timings, "gradient"):
-            grad = np.asarray(objective.gradient(x), dtype=np.float64)
+def _callback_stops(
+    callback: Callable[[NewtonIteration], bool | None], info: NewtonIteration
+) -> bool:
+    """Whether the user's callback asks to stop (returns True or raises StopIteration)."""
+    try:
+        return bool(callback(info))
+    except StopIteration:
+        return True
+
+
+class _Finish(Exception):
+    """Ends :func:`minimize` with ``status``; ``detail`` completes the message."""
+
+    def __init__(self, status: NewtonStatus, detail: str) -> None:
+        super().__init__(detail)
+        self.status = status
+        self.detail = detail
+
+
+class _Run:
+    """One call of :func:`minimize`: its inputs and what the iterations carry.
+
+    Each phase of an iteration is a method: :meth:`gradient`, then :meth:`chord_step` (a step
+    with the last factorisation) or :meth:`newton_step` (a new one), :meth:`line_search` and
+    :meth:`accept`. A phase that ends the run raises :class:`_Finish`.
+    """
+
+    def __init__(
+        self,
+        objective: Objective,
+        options: NewtonOptions,
+        solver: LinearSolver,
+        assembler: TripletAssembler,
+        free: np.ndarray | None,
+        res: NewtonResult,
+    ) -> None:
+        self.objective, self.options, self.solver = objective, options, solver
+        self.assembler, self.free, self.res = assembler, free, res
+        self.n = res.x.size
+        self.timings = res.timings
+        self.try_exact = self.exact_failed = False
+        # An inexact solver (CG) stops at the forcing term eta_k, tied to Newton's progress.
+        self.inexact = bool(getattr(solver, "accepts_rtol", False))
+        self.g_norm_prev: float | None = None
+        self.eta: float | None = None
+        self.g_best = math.inf  # the least gradient norm of the iterates so far
+        self.chord_ready = False  # the last factorisation is this solve's, its step was full
+        self.factor_stepped = False  # the last factorisation has already made a chord step
+        self.last_p_inf = math.inf  # the increment of the last accepted step
+
+    def gradient(self, x: np.ndarray) -> np.ndarray:
+        """The gradient on the free DOFs at x (checked finite)."""
+        res = self.res
+        with _timed(self.timings, "gradient"):
+            grad = np.asarray(self.objective.gradient(x), dtype=np.float64)
         res.njev += 1
-        if grad.shape != (n,):
-            raise ValueError(f"objective.gradient returned shape {grad.shape}, expected ({n},)")
-        res.jac = grad
-        g_free = grad if free is None else grad[free]
-        if not np.all(np.isfinite(g_free)):
-            return finish(NewtonStatus.NON_FINITE, f"non-finite gradient at iteration {res.nit}")
-        g_best = min(g_best, float(np.linalg.norm(g_free)))
-        chord_step = False
-        if chord_ready and options.chord_stop_factor > 0.0:
-            p_chord = _chord_increment(solver, g_free, timings)
-            if p_chord is not None:
-                p_inf = _increment_norm(objective, p_chord, free, n)
-                if p_inf / options.step_scale < options.chord_stop_factor * options.tol:
-                    res.step_inf_norm = p_inf
-                    return finish(
-                        NewtonStatus.CONVERGED,
-                        f"chord test: ||p||_inf / step_scale = {p_inf / options.step_scale:.3e}"
-                        f" < {options.chord_stop_factor:g} tol = {options.tol:.3e} with the last"
-                        f" factorisation, E = {energy:.10e}",
-                    )
-                chord_step = (
-                    options.chord_steps
-                    and not factor_stepped
-                    and _chord_step_predicted_to_converge(
-                        p_inf,
-                        last_p_inf,
-                        options.chord_stop_factor * options.tol * options.step_scale,
-                    )
-                )
-                if chord_step:
-                    # one back-solve instead of a factorisation; the chord test decides next
-                    p_free, factor_stepped = p_chord, True
-                    res.step_inf_norm = p_inf
-                    res.chord_steps += 1
-                    logger.debug("newton it %d: chord step, ||p||_inf = %.3e", res.nit, p_inf)
-        if not chord_step:
-            factor_stepped = False  # a new factorisation: it may make one chord step
-            rtol = None
-            if inexact:
-                g_norm = float(np.linalg.norm(g_free))
-                eta = forcing_term(g_norm, g_norm_prev, eta, options.linear_rtol_max)
-                g_norm_prev, rtol = g_norm, eta
-            exact = try_exact and not exact_failed
-            try:
-                p_free = _newton_direction(
-                    objective,
-                    x,
-                    exact or not options.project_psd,
-                    solver,
-                    assembler,
-                    g_free,
-                    timings,
-                    res,
-                    rtol,
-                )
-                if exact and not float(g_free @ p_free) < 0.0:
-                    raise LinearSolveError("exact Hessian gives no descent direction")
-            except LinearSolveError as err:
-                if not exact:
-                    return finish(NewtonStatus.LINEAR_SOLVE_FAILED, f"{err} (iteration {res.nit})")
-                # The exact Hessian is indefinite here: projected Newton for the rest of the solve.
-                logger.debug("newton it %d: exact Hessian rejected (%s), projecting", res.nit, err)
-                exact_failed = True
-                try:
-                    p_free = _newton_direction(
-                        objective, x, False, solver, assembler, g_free, timings, res, rtol
-                    )
-                except LinearSolveError as err2:
-                    return finish(NewtonStatus.LINEAR_SOLVE_FAILED, f"{err2} (iteration {res.nit})")
-            except _NonFiniteHessian:
-                return finish(NewtonStatus.NON_FINITE, f"non-finite Hessian at iteration {res.nit}")
-            if not np.all(np.isfinite(p_free)):
-                return finish(
-                    NewtonStatus.LINEAR_SOLVE_FAILED,
-                    f"non-finite Newton step at iteration {res.nit}",
-                )
-            p_inf = _increment_norm(objective, p_free, free, n)
-            if rtol is not None and p_inf / options.step_scale < options.tol:
-                # The increment that decides convergence is solved to the solver's own tolerance,
-                # so that an inexact solve never stops Newton early.
-                try:
-                    p_free = _newton_direction(
-                        objective,
-                        x,
-                        (exact and not exact_failed) or not options.project_psd,
-                        solver,
-                        assembler,
-                        g_free,
-                        timings,
-                        res,
-                    )
-                except LinearSolveError as err:
-                    return finish(NewtonStatus.LINEAR_SOLVE_FAILED, f"{err} (iteration {res.nit})")
-                p_inf = _increment_norm(objective, p_free, free, n)
-            res.step_inf_norm = p_inf
-            if p_inf / options.step_scale < options.tol:
-                return finish(
-                    NewtonStatus.CONVERGED,
-                    f"||p||_inf / step_scale = {p_inf / options.step_scale:.3e} < tol = "
-                    f"{options.tol:.3e}, E = {energy:.10e}",
-                )
-        if res.nit >= options.max_iter:
-            return finish(
-                NewtonStatus.MAX_ITERATIONS,
-                f"max_iter = {options.max_iter}, ||p||_inf / step_scale = "
-                f"{p_inf / options.step_scale:.3e} >= tol = {options.tol:.3e}",
+        if grad.shape != (self.n,):
+            raise ValueError(
+                f"objective.gradient returned shape {grad.shape}, expected ({self.n},)"
             )
+        res.jac = grad
+        g_free = grad if self.free is None else grad[self.free]
+        if not np.all(np.isfinite(g_free)):
+            raise _Finish(NewtonStatus.NON_FINITE, f"non-finite gradient at iteration {res.nit}")
+        self.g_best = min(self.g_best, float(np.linalg.norm(g_free)))
+        return g_free
 
+    def chord_step(self, g_free: np.ndarray, energy: float) -> tuple[np.ndarray, float] | None:
+        """The chord test with the last factorisation, and ``(p_free, p_inf)`` of a chord step
+        where one is predicted to converge; None: a new factorisation is needed."""
+        o, res = self.options, self.res
+        if not (self.chord_ready and o.chord_stop_factor > 0.0):
+            return None
+        p_chord = _chord_increment(self.solver, g_free, self.timings)
+        if p_chord is None:
+            return None
+        p_inf = _increment_norm(self.objective, p_chord, self.free, self.n)
+        if p_inf / o.step_scale < o.chord_stop_factor * o.tol:
+            res.step_inf_norm = p_inf
+            raise _Finish(
+                NewtonStatus.CONVERGED,
+                f"chord test: ||p||_inf / step_scale = {p_inf / o.step_scale:.3e}"
+                f" < {o.chord_stop_factor:g} tol = {o.tol:.3e} with the last"
+                f" factorisation, E = {energy:.10e}",
+            )
+        chord_tol = o.chord_stop_factor * o.tol * o.step_scale
+        if not (
+            o.chord_steps
+            and not self.factor_stepped
+            and _chord_step_predicted_to_converge(p_inf, self.last_p_inf, chord_tol)
+        ):
+            return None
+        # one back-solve instead of a factorisation; the chord test decides next
+        self.factor_stepped = True
+        res.step_inf_norm = p_inf
+        res.chord_steps += 1
+        logger.debug("newton it %d: chord step, ||p||_inf = %.3e", res.nit, p_inf)
+        return p_chord, p_inf
+
+    def _direction(
+        self, x: np.ndarray, exact: bool, g_free: np.ndarray, rtol: float | None = None
+    ) -> np.ndarray:
+        try:
+            return _newton_direction(
+                self.objective,
+                x,
+                exact,
+                self.solver,
+                self.assembler,
+                g_free,
+                self.timings,
+                self.res,
+                rtol,
+            )
+        except _NonFiniteHessian:
+            raise _Finish(
+                NewtonStatus.NON_FINITE, f"non-finite Hessian at iteration {self.res.nit}"
+            ) from None
+
+    def _direction_or_finish(
+        self, x: np.ndarray, exact: bool, g_free: np.ndarray, rtol: float | None = None
+    ) -> np.ndarray:
+        try:
+            return self._direction(x, exact, g_free, rtol)
+        except LinearSolveError as err:
+            raise _Finish(
+                NewtonStatus.LINEAR_SOLVE_FAILED, f"{err} (iteration {self.res.nit})"
+            ) from err
+
+    def newton_step(self, x: np.ndarray, g_free: np.ndarray, energy: float) -> tuple:
+        """``(p_free, p_inf)`` of a new factorisation (exact Hessian after a full step while it
+        gives descent, else projected); ends the run when the increment meets the tolerance."""
+        o, res = self.options, self.res
+        self.factor_stepped = False  # a new factorisation: it may make one chord step
+        rtol = None
+        if self.inexact:
+            g_norm = float(np.linalg.norm(g_free))
+            self.eta = forcing_term(g_norm, self.g_norm_prev, self.eta, o.linear_rtol_max)
+            self.g_norm_prev, rtol = g_norm, self.eta
+        exact = self.try_exact and not self.exact_failed
+        try:
+            p_free = self._direction(x, exact or not o.project_psd, g_free, rtol)
+            if exact and not float(g_free @ p_free) < 0.0:
+                raise LinearSolveError("exact Hessian gives no descent direction")
+        except LinearSolveError as err:
+            if not exact:
+                raise _Finish(
+                    NewtonStatus.LINEAR_SOLVE_FAILED, f"{err} (iteration {res.nit})"
+                ) from err
+            # The exact Hessian is indefinite here: projected Newton for the rest of the solve.
+            logger.debug("newton it %d: exact Hessian rejected (%s), projecting", res.nit, err)
+            self.exact_failed = True
+            p_free = self._direction_or_finish(x, False, g_free, rtol)
+        if not np.all(np.isfinite(p_free)):
+            raise _Finish(
+                NewtonStatus.LINEAR_SOLVE_FAILED, f"non-finite Newton step at iteration {res.nit}"
+            )
+        p_inf = _increment_norm(self.objective, p_free, self.free, self.n)
+        if rtol is not None and p_inf / o.step_scale < o.tol:
+            # The increment that decides convergence is solved to the solver's own tolerance,
+            # so that an inexact solve never stops Newton early.
+            exact = (exact and not self.exact_failed) or not o.project_psd
+            p_free = self._direction_or_finish(x, exact, g_free)
+            p_inf = _increment_norm(self.objective, p_free, self.free, self.n)
+        res.step_inf_norm = p_inf
+        if p_inf / o.step_scale < o.tol:
+            raise _Finish(
+                NewtonStatus.CONVERGED,
+                f"||p||_inf / step_scale = {p_inf / o.step_scale:.3e} < tol = "
+                f"{o.tol:.3e}, E = {energy:.10e}",
+            )
+        return p_free, p_inf
+
+    def line_search(
+        self, x: np.ndarray, energy: float, g_free: np.ndarray, p_free: np.ndarray, p_inf: float
+    ) -> tuple[LineSearchResult, float]:
+        """The accepted trial along p (steepest descent where p is no descent direction) and
+        the first step length ``alpha0`` (BFEMP Algorithm 2: the objective's feasible bound)."""
+        o, res, objective, free = self.options, self.res, self.objective, self.free
         slope = float(g_free @ p_free)
         if not slope < 0.0:
             # H not positive definite (no projection): fall back to steepest descent.
@@ -578,27 +415,27 @@ def _minimize(
             p_free = -g_free
             slope = -float(g_free @ g_free)
             if not slope < 0.0:
-                return finish(
+                raise _Finish(
                     NewtonStatus.LINE_SEARCH_STALLED,
                     f"no descent direction: zero gradient but ||p||_inf = {p_inf:.3e}",
                 )
         if free is None:
             p = p_free
         else:
-            p = np.zeros(n)
+            p = np.zeros(self.n)
             p[free] = p_free
-        with _timed(timings, "step_bound"):
+        with _timed(self.timings, "step_bound"):
             bound = float(objective.max_step_size(x, p))
         if not bound > 0.0:
-            return finish(
+            raise _Finish(
                 NewtonStatus.LINE_SEARCH_STALLED,
                 f"max_step_size returned {bound} at iteration {res.nit} (no feasible step)",
             )
         alpha0 = min(1.0, bound)
-        with _timed(timings, "line_search"):
-            near = p_inf <= options.near_solution_factor * options.tol * options.step_scale
+        with _timed(self.timings, "line_search"):
+            near = p_inf <= o.near_solution_factor * o.tol * o.step_scale
             search = _accept_near_solution(
-                objective, x, p, alpha0, energy, slope, near, g_free, free, res, g_best
+                objective, x, p, alpha0, energy, slope, near, g_free, free, res, self.g_best
             )
             if search is None:
                 search = backtracking_line_search(
@@ -608,9 +445,9 @@ def _minimize(
                     energy,
                     slope,
                     alpha0,
-                    armijo_c=options.armijo_c,
-                    backtrack_factor=options.backtrack_factor,
-                    min_step=options.min_step,
+                    armijo_c=o.armijo_c,
+                    backtrack_factor=o.backtrack_factor,
+                    min_step=o.min_step,
                 )
         res.nfev += search.nfev
         if not search.success:
@@ -623,36 +460,31 @@ def _minimize(
                 search = rescue
         if not search.success:
             objective.solution_changed(x)
-            return finish(
+            raise _Finish(
                 NewtonStatus.LINE_SEARCH_STALLED,
-                f"alpha = {search.alpha:.3e} < min_step = {options.min_step:.3e} at iteration "
+                f"alpha = {search.alpha:.3e} < min_step = {o.min_step:.3e} at iteration "
                 f"{res.nit} with ||p||_inf = {p_inf:.3e}, alpha0 = {alpha0:.3e}, "
                 f"E = {energy:.10e}, g.p = {slope:.3e}, {search.n_nonfinite} non-finite trial(s)",
             )
-        x = search.x
-        energy = search.fun
-        last_p_inf = p_inf * search.alpha
+        return search, alpha0
+
+    def accept(self, search: LineSearchResult, p_inf: float, alpha0: float) -> None:
+        """Take the line search's trial as the next iterate."""
+        o, res = self.options, self.res
+        self.last_p_inf = p_inf * search.alpha
         res.nit += 1
-        try_exact = options.project_psd and options.exact_near_solution and search.alpha == 1.0
-        chord_ready = search.alpha == 1.0
+        self.try_exact = o.project_psd and o.exact_near_solution and search.alpha == 1.0
+        self.chord_ready = search.alpha == 1.0
         res.alphas.append(search.alpha)
-        res.x = x
-        res.fun = energy
+        res.x = search.x
+        res.fun = search.fun
         res.jac = None
         logger.debug(
             "newton it %d: E = %.12e, ||p||_inf = %.3e, alpha = %.3e (alpha0 = %.3e, %d trials)",
             res.nit,
-            energy,
+            search.fun,
             p_inf,
             search.alpha,
             alpha0,
             search.nfev,
         )
-        if callback is not None:
-            info = NewtonIteration(x.copy(), energy, res.nit, p_inf, search.alpha)
-            try:
-                stop = bool(callback(info))
-            except StopIteration:
-                stop = True
-            if stop:
-                return finish(NewtonStatus.CALLBACK_STOP, f"at iteration {res.nit}")

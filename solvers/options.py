@@ -57,9 +57,10 @@ class NewtonOptions:
             chord says no, the exact test runs as before.
         chord_steps: where the chord test fails but predicts that one more chord iteration
             would pass it (``4 ||p_chord||^2 / ||p_last|| < chord_stop_factor tol step_scale``,
-            ``p_last`` the step just taken; ``newton._chord_step_predicted_to_converge``), step
-            along the chord increment (line search and step bound as for a Newton step) instead
-            of factorising again; at most one chord step per factorisation. False: always
+            ``p_last`` the step just taken;
+            ``solvers._newton_direction._chord_step_predicted_to_converge``), step along the
+            chord increment (line search and step bound as for a Newton step) instead of
+            factorising again; at most one chord step per factorisation. False: always
             factorise.
         near_solution_factor: within this factor of the tolerance (``||p||_inf <= factor tol
             step_scale``) a step the energy cannot judge is taken when the gradient norm falls

@@ -20,7 +20,7 @@ from types import ModuleType
 import numpy as np
 import scipy.sparse as sp
 
-from solvers.linear import LinearSolveError, _check_system
+from solvers._linear_base import LinearSolveError, SparsityPattern, _check_system, optional_import
 
 __all__ = ["PARDISO_INSTALL_HINT", "PardisoSolver", "pardiso_available"]
 
@@ -41,11 +41,7 @@ _NOT_POSITIVE_DEFINITE = -4
 
 def _import_pypardiso() -> ModuleType | None:
     """Import hook for ``pypardiso`` (tests monkeypatch it); None if unavailable."""
-    try:
-        import pypardiso
-    except ImportError:
-        return None
-    return pypardiso
+    return optional_import("pypardiso")
 
 
 def pardiso_available() -> bool:
@@ -73,10 +69,7 @@ class PardisoSolver:
         self.n_numeric = 0
         self.last_timings = {"analyze": 0.0, "factorize": 0.0, "solve": 0.0}
         self._upper: sp.csr_matrix | None = None
-        self._version: int | None = None
-        self._shape: tuple[int, int] | None = None
-        self._indptr: np.ndarray | None = None
-        self._indices: np.ndarray | None = None
+        self._pattern = SparsityPattern()
         self._factorised = False
 
     def _call(self, phase: int, b: np.ndarray) -> np.ndarray:
@@ -91,15 +84,6 @@ class PardisoSolver:
                     "matrix is not positive definite (PARDISO: zero or negative pivot)"
                 ) from err
             raise LinearSolveError(f"PARDISO phase {phase} failed: {err}") from err
-
-    def _same_pattern(self, A: sp.csc_matrix, pattern_version: int | None) -> bool:
-        if self._indptr is None or A.shape != self._shape:
-            return False
-        if pattern_version is not None and pattern_version == self._version:
-            return True
-        return bool(
-            np.array_equal(A.indptr, self._indptr) and np.array_equal(A.indices, self._indices)
-        )
 
     def solve(
         self, A: sp.csc_matrix, b: np.ndarray, *, pattern_version: int | None = None
@@ -120,20 +104,18 @@ class PardisoSolver:
         if np.any(np.diff(lower.indptr) == 0):
             raise LinearSolveError("matrix is singular: a row has no diagonal or upper entries")
         zero = np.zeros(A.shape[0])
-        if not self._same_pattern(A, pattern_version):
+        if not self._pattern.matches(A, pattern_version):
             self._call(_ANALYSIS, zero)
-            self._shape = A.shape
-            self._indptr = A.indptr.copy()
-            self._indices = A.indices.copy()
+            self._pattern.remember(A)
             self.n_symbolic += 1
             logger.debug("PARDISO analysis of a %d x %d matrix", *A.shape)
-        self._version = pattern_version
+        self._pattern.version = pattern_version
         t1 = time.perf_counter()
         timings["analyze"] = t1 - t0
         try:
             self._call(_NUMERIC, zero)
         except LinearSolveError:
-            self._indptr = None  # analyse afresh after a failed factorisation
+            self._pattern.forget()  # analyse afresh after a failed factorisation
             timings["factorize"] = time.perf_counter() - t1
             raise
         self.n_numeric += 1
@@ -149,7 +131,11 @@ class PardisoSolver:
     def solve_again(self, b: np.ndarray) -> np.ndarray | None:
         """Solve with the last numeric factorisation; see
         :meth:`solvers.linear.CholmodSolver.solve_again`."""
-        if not self._factorised or self._shape is None or b.shape != (self._shape[0],):
+        if (
+            not self._factorised
+            or self._pattern.shape is None
+            or b.shape != (self._pattern.shape[0],)
+        ):
             return None
         try:
             x = self._call(_SOLVE, np.asarray(b, dtype=np.float64)).reshape(-1)

@@ -1,7 +1,7 @@
 """numba kernels: chain rule from collision points (affine images of nodes) to node DOFs.
 
 A pair has m collision points; point c sits at sum_k w[c, k] y[nodes[c, k]]. Local derivatives with
-respect to the m points (m d entries) map to nodes by the weights (paper eq. 29): gradient rows
+respect to the m points (m d entries) map to nodes by the weights (BFEMP eq. 29): gradient rows
 scale by w, Hessian blocks (a, b) by w_a w_b. Zero weights (padding, redirected B-spline entries)
 and prescribed nodes are skipped, and the blocks of all pairs that land on one (node, node) pair
 are summed here, so the triplets hold each coupled node pair once.

@@ -1,4 +1,4 @@
-"""The pointwise log-barrier of eq. 27 and the contact integration weights of section 4.2.
+"""The pointwise log-barrier of BFEMP eq. 27 and the contact integration weights of section 4.2.
 
 Barrier (BFEMP eq. 27, after IPC). With ``r = d / dhat``::
 
@@ -12,7 +12,7 @@ line search never lets happen) the limits are returned: ``b = +inf``, ``b' = -in
 ``b'' = +inf``. NaN distances propagate as NaN so that the Newton solver reports a non-finite
 energy rather than this kernel raising mid-iteration.
 
-``kappa`` is in Pa: ``b`` is an energy density per unit boundary measure (eq. 26), the weight
+``kappa`` is in Pa: ``b`` is an energy density per unit boundary measure (BFEMP eq. 26), the weight
 ``omega`` of each collision point carries the measure (m in 2D per unit thickness, m^2 in 3D).
 
 Weights (section 4.2): an MPM particle of volume ``V`` gets the largest cross-section of a disk
@@ -59,7 +59,7 @@ def _split(d: np.ndarray, dhat: float) -> tuple[np.ndarray, np.ndarray, np.ndarr
 
 
 def barrier(d: np.ndarray, dhat: float, kappa: float) -> np.ndarray:
-    """Barrier energy density b(d) (n,) in Pa of distances ``d`` (n,) in m (eq. 27).
+    """Barrier energy density b(d) (n,) in Pa of distances ``d`` (n,) in m (BFEMP eq. 27).
 
     ``dhat`` is the activation distance in m and ``kappa`` the stiffness in Pa. Zero for
     ``d >= dhat``, positive and decreasing on ``(0, dhat)``, ``+inf`` for ``d <= 0``.

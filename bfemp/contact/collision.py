@@ -1,13 +1,13 @@
 """Collision points and FEM boundary facets of one step, as an affine image of the unknowns.
 
-Collision points (DESIGN.md): FEM boundary nodes (identity rows) and MPM particles (B-spline
-images of the grid nodes, x_q = sum_i w_iq x_i, paper eq. 29). Each point c has a stencil of
+Collision points (ARCHITECTURE.md): FEM boundary nodes (identity rows) and MPM particles (B-spline
+images of the grid nodes, x_q = sum_i w_iq x_i, BFEMP eq. 29). Each point c has a stencil of
 all-node indices ``nodes (C, K)`` with weights ``weights (C, K)`` (K = 3^d with particles, 1
 otherwise; padding has weight 0), so its position is ``sum_k weights[c, k] Y[nodes[c, k]]`` and
 every path x + alpha p stays linear, as CCD needs.
 
 Facets are the FEM boundary edges (2D) or triangles (3D) in collision-point indices. For the
-duplicate-removal of eqs. 31-32 every boundary vertex v and (3D) boundary edge e carries a
+duplicate-removal of BFEMP eqs. 31-32 every boundary vertex v and (3D) boundary edge e carries a
 coefficient: the potential of a point q is
 
     sum_facets b(d) + sum_edges c_e b(d_PE) + sum_vertices c_v b(d_PP),
@@ -114,7 +114,7 @@ def _gather(y, nodes, weights):  # noqa: ANN001, ANN202
 
 
 def _facet_topology(facets: np.ndarray, n_vertices: int, dim: int):  # noqa: ANN202
-    """Edge and vertex coefficients of eqs. 31-32 for boundary facets ``(F, d)``."""
+    """Edge and vertex coefficients of BFEMP eqs. 31-32 for boundary facets ``(F, d)``."""
     if dim == 2:
         eta = np.bincount(facets.ravel(), minlength=n_vertices)
         return np.zeros((0, 2), dtype=np.int64), np.zeros(0), -(eta - 1.0) * (eta > 0)

@@ -1,17 +1,19 @@
 """Stateless evaluation of the barrier potential on (pairs, positions, parameters).
 
-B = sum over active pairs of omega_q c b(d) (eqs. 28-32): b the clamped log barrier of eq. 27 with
-``dhat`` and ``kappa``, c the pair's duplicate-removal coefficient, omega_q the integration weight
-of its point (section 4.2); edge-edge terms (3D) carry IPC's mollifier. These functions know
-nothing of unknowns, layouts or steps: they take the collision-point positions ``(C, d)``, the
-active pairs (``bfemp.contact.pairs.find_pairs``) and the point weights, and return the energy or
-per-pair derivatives with respect to each pair's own points. ``BarrierTerm`` (the implicit
-strategies' energy term) chains them to nodes; any other strategy that needs the barrier
+B = sum over active pairs of omega_q c b(d) (BFEMP eqs. 28-32): b the clamped log barrier of
+BFEMP eq. 27 with ``dhat`` and ``kappa``, c the pair's duplicate-removal coefficient, omega_q the
+integration weight of its point (section 4.2); edge-edge terms (3D) carry IPC's mollifier. These
+functions know nothing of unknowns, layouts or steps: they take the collision-point positions
+``(C, d)``, the active pairs (``bfemp.contact.pairs.find_pairs``) and the point weights, and return
+the energy or per-pair derivatives with respect to each pair's own points. ``BarrierTerm`` (the
+implicit strategies' energy term) chains them to nodes; any other strategy that needs the barrier
 (``two_stage``) calls the same code. Pairs of a kind without a fused kernel (edge-edge) go through
 the batched distance functions of :mod:`geometry.distance`.
 """
 
 from __future__ import annotations
+
+from collections.abc import Iterator
 
 import numpy as np
 
@@ -45,6 +47,13 @@ def _corners(pairs: ContactPairs, positions: np.ndarray, kind: str) -> list[np.n
     return [positions[pts[:, a]] for a in range(pts.shape[1])]
 
 
+def _active_kinds(pairs: ContactPairs, omega: np.ndarray) -> Iterator[tuple]:
+    """``(kind, distances (n,), points (n, m), scale (n,))`` of every kind with active pairs."""
+    for kind, d in pairs.distance.items():
+        if d.size:
+            yield kind, d, pairs.points[kind], _scale(pairs, omega, kind)
+
+
 def barrier_energy(
     pairs: ContactPairs, positions: np.ndarray, omega: np.ndarray, dhat: float, kappa: float
 ) -> float:
@@ -58,12 +67,11 @@ def barrier_energy(
         kappa: barrier stiffness in Pa.
     """
     total = 0.0
-    for kind, d in pairs.distance.items():
-        if d.size:
-            b = barrier(d, dhat, kappa)
-            if kind == "ee":  # mollified where the edges turn parallel (IPC)
-                b = b * edge_edge_mollifier(*_corners(pairs, positions, kind), pairs.eps_x)
-            total += float(np.dot(_scale(pairs, omega, kind), b))
+    for kind, d, _, scale in _active_kinds(pairs, omega):
+        b = barrier(d, dhat, kappa)
+        if kind == "ee":  # mollified where the edges turn parallel (IPC)
+            b = b * edge_edge_mollifier(*_corners(pairs, positions, kind), pairs.eps_x)
+        total += float(np.dot(scale, b))
     return total
 
 
@@ -73,11 +81,7 @@ def barrier_pair_gradients(
     """Per-pair gradients: kind -> ``(points (n, m), grad (n, m d))`` in N, the derivative of
     omega c [m] b(d) with respect to the pair's ``m`` points (arguments as ``barrier_energy``)."""
     out = {}
-    for kind, d in pairs.distance.items():
-        if not d.size:
-            continue
-        pts = pairs.points[kind]
-        scale = _scale(pairs, omega, kind)
+    for kind, d, pts, scale in _active_kinds(pairs, omega):
         b1 = barrier_derivative(d, dhat, kappa)
         if kind in KERNEL_KIND:
             out[kind] = (pts, _barrier_gradients(positions, pts, KERNEL_KIND[kind], scale * b1))
@@ -106,11 +110,7 @@ def barrier_pair_hessians(
     PSD per pair when ``psd`` (in the closest feature's difference coordinates for the fused
     kinds; arguments as ``barrier_energy``)."""
     out = {}
-    for kind, d in pairs.distance.items():
-        if not d.size:
-            continue
-        pts = pairs.points[kind]
-        scale = _scale(pairs, omega, kind)
+    for kind, d, pts, scale in _active_kinds(pairs, omega):
         b1 = barrier_derivative(d, dhat, kappa)
         b2 = barrier_second_derivative(d, dhat, kappa)
         if kind in KERNEL_KIND:

@@ -1,4 +1,4 @@
-"""Lagged friction (BFEMP paper section 4.3, eqs. 34-37): the pseudo-potential D(x).
+"""Lagged friction (BFEMP paper section 4.3, BFEMP eqs. 34-37): the pseudo-potential D(x).
 
 For every active contact, lagged at the iterate x^j of the outer friction loop (Algorithm 1):
 the normal force magnitude lambda_k = -omega_q b'(d_k), an orthonormal tangent basis T_k and the
@@ -6,14 +6,14 @@ closest-point weights c_k (so that the relative sliding of the pair is sum_a c_k
 
     D(x) = sum_k mu lambda_k f0(|u_k|) / s,   u_k = T_k^T sum_a c_ka U_a(x),
 
-with f0' = f1 the mollifier of eq. 36 (width eps_v dt). U_a is the point's sliding over the
-step, Delta t v^{n+1} = Delta t v^n + Delta t^2 ((1 - gamma) a^n + gamma a^{n+1}) (eq. 37), affine
-in the unknowns: U = s x + c with s = gamma / (2 alpha beta) (backward Euler: U = x - x^n). The
-1 / s makes -dD/dx the friction force of eq. 37, mu lambda_k T_k f1(|u_k|) u_k / |u_k|, whatever
-the integrator: without it the chain rule through U scales the force by s (2 under mid-point
-Newmark, which then doubled mu: a box on a slope with mu = 0.1 and tan theta = 0.2 stuck). For MPM
-it is the interpolated grid motion at the particle, not the particle velocity (section 4.3), which
-makes friction independent of the transfer scheme.
+with f0' = f1 the mollifier of BFEMP eq. 36 (width eps_v dt). U_a is the point's sliding over the
+step, Delta t v^{n+1} = Delta t v^n + Delta t^2 ((1 - gamma) a^n + gamma a^{n+1}) (BFEMP eq. 37),
+affine in the unknowns: U = s x + c with s = gamma / (2 alpha beta) (backward Euler: U = x - x^n).
+The 1 / s makes -dD/dx the friction force of BFEMP eq. 37, mu lambda_k T_k f1(|u_k|) u_k / |u_k|,
+whatever the integrator: without it the chain rule through U scales the force by s (2 under
+mid-point Newmark, which then doubled mu: a box on a slope with mu = 0.1 and tan theta = 0.2 stuck).
+For MPM it is the interpolated grid motion at the particle, not the particle velocity (section 4.3),
+which makes friction independent of the transfer scheme.
 
 Contacts for friction are the barrier's facet pairs classified by their closest feature
 (vertex, edge or facet interior) and de-duplicated, so a point nearest to a vertex has one contact.
@@ -106,7 +106,7 @@ class FrictionGroup:
 
 @dataclass(frozen=True)
 class FrictionContacts:
-    """The lagged friction contacts of one outer-loop iterate (eqs. 34-35)."""
+    """The lagged friction contacts of one outer-loop iterate (BFEMP eqs. 34-35)."""
 
     groups: tuple[FrictionGroup, ...] = ()
 
@@ -126,7 +126,7 @@ def lag_contacts(
 ) -> FrictionContacts:
     """Contacts, normal forces and tangent bases at ``positions`` (Algorithm 1, lines 5/9).
 
-    Every barrier term (facet pairs and the signed duplicate-removal terms of eqs. 31-32) is
+    Every barrier term (facet pairs and the signed duplicate-removal terms of BFEMP eqs. 31-32) is
     mapped to its closest feature (vertex, edge or face) and the signed coefficients are summed
     per (point, feature): a point over a shared vertex gets one vertex contact (2 - 1), a point
     over an edge interior next to a vertex gets none from that vertex (1 - 1), so friction sees
@@ -207,7 +207,7 @@ def _sliding(group: FrictionGroup, U: np.ndarray) -> np.ndarray:
 
 def friction_energy(contacts: FrictionContacts, U: np.ndarray, eps: float) -> float:
     """sum_k mu lambda_k f0(|u_k|) in J (J/m in 2D), for point slidings ``U (C, d)`` in m and the
-    mollifier width ``eps`` = eps_v dt in m (eq. 36)."""
+    mollifier width ``eps`` = eps_v dt in m (BFEMP eq. 36)."""
     total = 0.0
     for g in contacts.groups:
         if g.points.size:
@@ -298,7 +298,7 @@ class FrictionTerm:
         self._U = self.barrier.collisions.positions(self._s * y + self._c)
 
     def value(self, x: np.ndarray) -> float:
-        """D(x) in J (eq. 37, divided by s: see the module docstring)."""
+        """D(x) in J (BFEMP eq. 37, divided by s: see the module docstring)."""
         if not self.n_contacts:
             return 0.0
         return friction_energy(self.contacts, self._U, self._eps) / self._s

@@ -1,12 +1,12 @@
-"""Pointwise lagged-friction kernels: the mollifier f1 of eq. 36, its antiderivative f0 and the
-local friction pseudo-potential ``D = mu lambda f0(|u|)`` of eq. 37 with derivatives.
+"""Pointwise lagged-friction kernels: the mollifier f1 of BFEMP eq. 36, its antiderivative f0 and
+the local friction pseudo-potential ``D = mu lambda f0(|u|)`` of BFEMP eq. 37 with derivatives.
 
 Notation: ``u (k,)`` is the tangential relative displacement of a contact pair over the step in
 its lagged tangent frame (m, ``k = d - 1``), ``y = |u|``, ``eps = eps_v dt`` (m) the sliding
 displacement below which the pair is treated as static, and ``mu_lambda = mu lambda`` (N) the
 lagged Coulomb bound of the pair (its weighted normal force times the friction coefficient).
 
-Mollifier (eq. 36) and its antiderivative (the constant is chosen so that f0 is continuous at
+Mollifier (BFEMP eq. 36) and its antiderivative (the constant is chosen so that f0 is continuous at
 ``eps``; it is the one of IPC, so ``f0(0) = eps / 3`` rather than 0 - a constant offset of the
 pseudo-potential that no force or Hessian sees)::
 
@@ -73,7 +73,7 @@ def _f0(y: np.ndarray, eps: float) -> np.ndarray:
 
 
 def f1(y: np.ndarray, eps: float) -> np.ndarray:
-    """Friction mollifier f1 (n,) in [0, 1] (eq. 36) at sliding norms ``y (n,) >= 0`` in m.
+    """Friction mollifier f1 (n,) in [0, 1] (BFEMP eq. 36) at sliding norms ``y (n,) >= 0`` in m.
 
     ``-y^2 / eps^2 + 2 y / eps`` for ``y < eps`` (static zone), 1 beyond (sliding).
     """
@@ -139,7 +139,7 @@ def _local(
 def friction_local(
     u: np.ndarray, mu_lambda: np.ndarray, eps: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Local friction pseudo-potential ``D = mu_lambda f0(|u|)`` with exact derivatives (eq. 37).
+    """Local friction pseudo-potential ``D = mu_lambda f0(|u|)``, exact derivatives (BFEMP eq. 37).
 
     Args:
         u: tangential relative displacements (n, k) in m, k = d - 1 (1 in 2D, 2 in 3D).

@@ -1,4 +1,4 @@
-"""Active contact pairs of a configuration: every term of eqs. 31-32 with d < d-hat.
+"""Active contact pairs of a configuration: every term of BFEMP eqs. 31-32 with d < d-hat.
 
 Point side: every particle and (for FEM-FEM contact) every FEM boundary node; facet side: FEM
 boundary facets of another body. Never particle-particle, never a body against itself. The broad
@@ -90,7 +90,7 @@ def candidate_pairs(
 
 
 def find_pairs(cs: CollisionSet, pos: np.ndarray, dhat: float) -> ContactPairs:
-    """All terms of eqs. 31-32 with distance below ``dhat`` at positions ``pos (C, d)``."""
+    """All terms of BFEMP eqs. 31-32 with distance below ``dhat`` at positions ``pos (C, d)``."""
     dim = pos.shape[1]
     bad = ~np.isfinite(pos).all(axis=1)
     if bad.any():

@@ -28,11 +28,11 @@ class ContactParameters:
     """Barrier and friction settings (paper section 5: all have a physical meaning).
 
     Attributes:
-        dhat: contact activation distance d-hat in m (eq. 27).
+        dhat: contact activation distance d-hat in m (BFEMP eq. 27).
         kappa: barrier stiffness in Pa, or ``"auto"`` for an adaptive stiffness chosen from the
             elasticity and the masses (in the manner of IPC's adaptive kappa).
         mu: friction coefficient (0: no friction term is built).
-        eps_v: static/sliding velocity threshold in m/s (eq. 36).
+        eps_v: static/sliding velocity threshold in m/s (BFEMP eq. 36).
         friction_iterations: cap of the outer lagged-friction loop (Algorithm 1); reaching it is
             reported, not silent.
         pair_mu: friction coefficients of pairs of bodies that differ from ``mu``,

@@ -1,10 +1,11 @@
-"""The barrier contact potential B(x) of eqs. 28-32 as an energy term, with the CCD step bound.
+"""The barrier contact potential B(x) of BFEMP eqs. 28-32 as an energy term, with the CCD step
+bound.
 
-B(x) = sum over active pairs of omega_q c b(d), with b the clamped log barrier of eq. 27, c the
-duplicate-removal coefficient (1 for facets) and omega_q the point's integration weight (section
+B(x) = sum over active pairs of omega_q c b(d), with b the clamped log barrier of BFEMP eq. 27, c
+the duplicate-removal coefficient (1 for facets) and omega_q the point's integration weight (section
 4.2). Derivatives chain from the unsigned distance to the pair's collision points, then to nodes
-through the affine collision map (eq. 29). Local Hessians are projected to PSD per pair before the
-chain rule (in the closest feature's difference coordinates, :mod:`._barrier_kernels`), and the
+through the affine collision map (BFEMP eq. 29). Local Hessians are projected to PSD per pair before
+the chain rule (in the closest feature's difference coordinates, :mod:`._barrier_kernels`), and the
 chain rule sums all pairs' blocks per (node, node) pair (:mod:`._assembly_kernels`).
 ``max_step_size`` returns 0.9 x the earliest time of impact of any point against any facet along
 the linear path x -> x + p (section 5), so no iterate ever crosses a boundary.

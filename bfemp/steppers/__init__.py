@@ -4,7 +4,7 @@ Strategies are looked up by name in one registry (``STRATEGIES``) so that the sa
 run with each; every class implements the ``Stepper`` protocol of :mod:`bfemp.steppers.base`
 and names its options class (``cls.Options``).
 
-Layering inside the strategies (DESIGN.md's rule, made precise here and enforced by
+Layering inside the strategies (ARCHITECTURE.md's rule, made precise here and enforced by
 ``tests/test_layering.py``): the explicit grid strategies (``single_field``, ``augury``, ``lr``
 and the explicit engine) never import ``solvers.newton``; ``two_stage``, whose second stage is a
 minimisation, may call the physics-free ``solvers.newton.minimize`` on the same contact terms
@@ -36,29 +36,25 @@ __all__ = [
     "AuguryOptions",
     "AuguryStepper",
     "BarrierOptions",
-    "SingleFieldOptions",
-    "SingleFieldStepper",
     "BarrierStepper",
     "Capabilities",
     "ContactView",
-    "ImplicitStepper",
     "LROptions",
     "LRStepper",
+    "SingleFieldOptions",
+    "SingleFieldStepper",
     "StepError",
     "StepReport",
     "Stepper",
     "StepperOptions",
+    "TwoStageOptions",
+    "TwoStageStepper",
     "options_for",
     "options_from_mapping",
     "options_to_dict",
     "stepper_class",
     "strategy_table",
-    "TwoStageOptions",
-    "TwoStageStepper",
 ]
-
-#: the old name of the barrier stepper
-ImplicitStepper = BarrierStepper
 
 #: strategy name -> stepper class. "barrier" is BFEMP (implicit incremental potential);
 #: "single_field" the explicit MPM baseline without a contact algorithm.

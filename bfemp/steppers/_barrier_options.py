@@ -36,7 +36,7 @@ class BarrierOptions(StepperOptions):
             extra), ``"cg_amg"`` (CG + AMG, pyamg), ``"auto"`` (the fastest of these measured
             for the matrix: ``solvers.choice.AutoSolver``), or a ``solvers.linear.LinearSolver``
             object.
-        velocity_update: where a^{n+1} (and so v^{n+1}, eq. 21) comes from. ``"positions"``
+        velocity_update: where a^{n+1} (and so v^{n+1}, BFEMP eq. 21) comes from. ``"positions"``
             (default): from the solved x^{n+1}, so that x^{n+1} - x^n = dt v^{n+1} holds
             exactly under backward Euler (``Integrator.acceleration``); ``"forces"``: the
             paper's Algorithm 2 line 14, a^{n+1} = -M^-1 dPsi/dx(x^{n+1}), which adds M^-1 times

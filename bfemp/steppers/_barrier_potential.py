@@ -1,7 +1,7 @@
 """The incremental potential of the ``barrier`` strategy: the terms a model needs, and no more.
 
-A scene pays only for what it has (DESIGN.md): no elasticity term for cells whose every node is
-scripted, no gravity or load term without gravity or loads, no barrier without a possible contact
+A scene pays only for what it has (ARCHITECTURE.md): no elasticity term for cells whose every node
+is scripted, no gravity or load term without gravity or loads, no barrier without a possible contact
 pair (FEM facets against particles or another FEM body), no friction term when mu = 0.
 """
 

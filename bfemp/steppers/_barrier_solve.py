@@ -114,7 +114,7 @@ class ScriptedSolve:
             nodes: the step's node fields; ``nodes.fixed`` is the array the terms read for
                 scripted positions: it is set to each part-way position and left at the target.
             x_start: Newton's start ``(n_dof,)`` in m.
-            x_hat: the inertial prediction ``(n_dof,)`` in m (eq. 22).
+            x_hat: the inertial prediction ``(n_dof,)`` in m (BFEMP eq. 22).
             predicted: the predicted x^{n+1} ``(n_dof,)`` for a warm start, or None.
             lag_at: positions ``(n_dof,)`` in m where the last solve lags friction first (its
                 start when None); ``two_stage`` lags at x^n.
@@ -191,7 +191,7 @@ class ScriptedSolve:
 
     def _carry(self, x_hat: np.ndarray, x_start: np.ndarray) -> np.ndarray:
         """The move ``(n_dof,)`` in m of the unknowns while the scripted nodes go to their
-        targets: x_hat - x^n (eq. 22's inertial prediction: dt v^n under backward Euler), slip
+        targets: x_hat - x^n (BFEMP eq. 22's inertial prediction: dt v^n under backward Euler), slip
         normal coordinates held. A predictor only: the solve ends where it ends."""
         pot = self.potential
         p = pot.to_unknowns(x_hat - x_start)
@@ -216,8 +216,8 @@ class ScriptedSolve:
     def _warm_started(self, x_n: np.ndarray, predicted: np.ndarray | None) -> np.ndarray:
         """Newton's start: x^n moved toward a predicted x^{n+1} ``(n_dof,)`` in m.
 
-        The prediction (eq. 21 with a^{n+1} = a^n; slip-normal coordinates stay fixed) is taken
-        only when no contact pair is active at x^n, the whole move passes the line search's
+        The prediction (BFEMP eq. 21 with a^{n+1} = a^n; slip-normal coordinates stay fixed) is
+        taken only when no contact pair is active at x^n, the whole move passes the line search's
         feasibility filter (no contact or det F = 0 before 1 / 0.9 of it, section 5) and it
         lowers E; otherwise Newton starts at x^n. Measured (hence off by default): rings demo to
         t = 0.1 s, 390 Newton iterations against 386 from x^n (free-flight steps far from

@@ -6,11 +6,11 @@ One step:
    (``bfemp.steppers._scaffold.gather_nodes``).
 2. Unknowns: free FEM nodes and unconstrained grid nodes, prescribed FEM nodes follow their motion,
    sticky grid nodes stay, slip grid nodes move tangentially only (rotated frames).
-3. Predict x_hat (eqs. 21-22), minimise the incremental potential with projected Newton from x^n
-   (Algorithm 2; scripted nodes brought to their targets without crossing, the outer friction
-   loop of Algorithm 1: ``bfemp.steppers._barrier_solve``), then a^{n+1} from eq. 21 and the
+3. Predict x_hat (BFEMP eqs. 21-22), minimise the incremental potential with projected Newton from
+   x^n (Algorithm 2; scripted nodes brought to their targets without crossing, the outer friction
+   loop of Algorithm 1: ``bfemp.steppers._barrier_solve``), then a^{n+1} from BFEMP eq. 21 and the
    solved x^{n+1} (equal to Algorithm 2 line 14's -M^-1 dPsi/dx at the exact minimiser;
-   ``Integrator.acceleration`` says why) and the velocity update of eq. 21; constrained
+   ``Integrator.acceleration`` says why) and the velocity update of BFEMP eq. 21; constrained
    components get zero
    velocity and acceleration. Under an integrator with ``implicit_contact`` the contact forces
    are kept out of a^{n+1} and added to the velocity as an impulse (``bfemp.integrators``).
@@ -74,8 +74,9 @@ class BarrierStepper:
     name: ClassVar[str] = "barrier"
     Options: ClassVar[type] = BarrierOptions
     explicit: ClassVar[bool] = False
-    #: BFEMP couples particles and FEM nodes with FEM boundaries through the barrier (BFEMP
-    #: eq. 27) and MPM bodies through their shared grid (never particle-particle, BFEMP section 4)
+    #: BFEMP couples particles and FEM nodes with FEM boundaries through the barrier
+    #: (BFEMP eq. 27) and MPM bodies through their shared grid (never particle-particle,
+    #: BFEMP section 4)
     capabilities: ClassVar[Capabilities] = Capabilities(
         pairs=BARRIER_PAIRS,
         friction=True,
@@ -164,7 +165,7 @@ class BarrierStepper:
         )
 
     def _context(self, state: State, nodes: StepNodes, x_hat_all: np.ndarray) -> StepContext:
-        """The terms' view of the step; with friction, the sliding map of eq. 37."""
+        """The terms' view of the step; with friction, the sliding map of BFEMP eq. 37."""
         layout, d = nodes.layout, self.model.dim
         ctx = StepContext(
             model=self.model,
@@ -184,7 +185,7 @@ class BarrierStepper:
         """U = s y + c: each node's sliding dt v^{n+1} over the step, affine in its position y.
 
         Free nodes: dt v^n + dt^2 ((1 - gamma) a^n + gamma a^{n+1}) with a^{n+1} = (y - x_hat) /
-        (2 alpha beta dt^2) (eq. 21), so s = gamma / (2 alpha beta); scripted nodes: dt times
+        (2 alpha beta dt^2) (BFEMP eq. 21), so s = gamma / (2 alpha beta); scripted nodes: dt times
         their scripted velocity (sticky grid nodes: 0).
         """
         integ, dt = self.integrator, self.dt
@@ -198,7 +199,7 @@ class BarrierStepper:
         return s, c
 
     def _begin_potential(self, ctx: StepContext, frames: NodeFrames | None) -> None:
-        """Start the step's potential with the integrator's weights (eq. 22)."""
+        """Start the step's potential with the integrator's weights (BFEMP eq. 22)."""
         integ = self.integrator
         self.potential.begin_step(
             ctx, integ.weight(self.dt), frames, contact_weight=integ.contact_weight(self.dt)
@@ -289,7 +290,7 @@ class BarrierStepper:
             )
             friction_its, friction_ok = 0, True
         else:
-            # a^{n+1} ~ a^n in eq. 21: x^{n+1} ~ x_hat + 2 alpha beta dt^2 a^n (warm start)
+            # a^{n+1} ~ a^n in BFEMP eq. 21: x^{n+1} ~ x_hat + 2 alpha beta dt^2 a^n (warm start)
             predicted = ctx.x_hat + integ.weight(dt) * a_n if self.warm_start else None
             result, friction_its, friction_ok = self._solver.solve(
                 state, nodes, nodes.start(), ctx.x_hat, predicted
@@ -366,10 +367,10 @@ class BarrierStepper:
     ) -> tuple[np.ndarray, np.ndarray, tuple | None]:
         """v^{n+1}, a^{n+1} ``(n_dof,)`` and the level-set reactions of a converged step.
 
-        a^{n+1} from the solved positions (eq. 21; Algorithm 2 line 14's -M^-1 dPsi/dx agrees
+        a^{n+1} from the solved positions (BFEMP eq. 21; Algorithm 2 line 14's -M^-1 dPsi/dx agrees
         at the exact minimiser, ``Integrator.acceleration`` says why the positions are taken;
         ``BarrierOptions.velocity_update = "forces"`` takes the forces, as the paper does),
-        then eq. 21 for v, so that v^{n+1} matches x^{n+1} - x^n; with implicit contact the
+        then BFEMP eq. 21 for v, so that v^{n+1} matches x^{n+1} - x^n; with implicit contact the
         elastic a^{n+1} comes from the forces and the contact part (the rest of the motion)
         acts as an impulse. Along slip normals the node moves with the boundary: its velocity,
         no acceleration.

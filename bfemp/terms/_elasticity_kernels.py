@@ -2,7 +2,8 @@
 
 A stencil s has k nodes; its deformation gradient is affine in their positions y (m):
     F_s = C_s + sum_a y_{n(s,a)} g_{s,a}^T,
-with g (1/m) the shape-function gradients (FEM, eq. 24) or F^n-weighted B-spline gradients (MPM).
+with g (1/m) the shape-function gradients (FEM, BFEMP eq. 24) or F^n-weighted B-spline gradients
+(MPM).
 
 Each kernel is compiled once per dimension with d a constant (a generic body marked
 ``inline="always"`` and thin 2D / 3D wrappers), so numba unrolls the d-loops; the public names

@@ -1,4 +1,4 @@
-"""The energy contract (DESIGN.md) and the per-step context every term reads.
+"""The energy contract (ARCHITECTURE.md) and the per-step context every term reads.
 
 | member | contract |
 |---|---|
@@ -8,7 +8,8 @@
 | ``hessian(x, psd)`` | local blocks, projected to PSD per stencil when ``psd``, as COO triplets |
 | ``max_step_size(x, p)`` | 1.0 unless the term guards feasibility |
 
-Only ``IncrementalPotential`` sums terms and applies the weight ``2 alpha beta dt^2`` (eq. 22).
+Only ``IncrementalPotential`` sums terms and applies the weight ``2 alpha beta dt^2``
+(BFEMP eq. 22).
 """
 
 from __future__ import annotations
@@ -41,8 +42,8 @@ class StepContext:
         dof_mass: lumped mass of each unknown ``(n_dof,)`` in kg.
         mpm: the MPM part of the step (stencils, grid fields, constraints), None without
             particles.
-        sliding: ``(s, c)``: every node's sliding over the step is ``s y + c`` (friction, eq. 37),
-            with ``c (n_all, d)`` in m; None without friction.
+        sliding: ``(s, c)``: every node's sliding over the step is ``s y + c`` (friction,
+            BFEMP eq. 37), with ``c (n_all, d)`` in m; None without friction.
     """
 
     model: Model

@@ -1,8 +1,9 @@
-"""Elasticity: Psi(x) = sum_q V_q psi(F_q(x)) over FEM cells and (later) MPM particles (eq. 22).
+"""Elasticity: Psi(x) = sum_q V_q psi(F_q(x)) over FEM cells and (later) MPM particles
+(BFEMP eq. 22).
 
 One term serves every stencil whose deformation gradient is affine in the node positions
-(DESIGN.md): FEM cells (F = Ds Dm^-1, eq. 24) and MPM particles (F_p = (I + sum_i (x_i - X_i)
-grad w_ip^T) F_p^n); only the stencil builders differ. The Hessian projects dP/dF to PSD at the
+(ARCHITECTURE.md): FEM cells (F = Ds Dm^-1, BFEMP eq. 24) and MPM particles (F_p = (I + sum_i (x_i -
+X_i) grad w_ip^T) F_p^n); only the stencil builders differ. The Hessian projects dP/dF to PSD at the
 F-level (d^2 x d^2) before the chain rule, which keeps each local block PSD at a fraction of the
 cost of projecting the (k d)^2 block.
 
@@ -150,11 +151,6 @@ class ElasticityTerm:
         y = self._layout.positions(x, self._fixed)
         st = self.stencils
         self._F = _deformation_gradients(y, st.nodes, st.grads, st.const)
-
-    # ---------------------------------------------------------------- energy
-    def energy_at(self, node_positions: np.ndarray) -> float:
-        """Elastic energy in J (J/m in 2D) at all-node positions ``(n_all, d)`` (for metrics)."""
-        return stencil_energy(self.law, self.stencils, node_positions)
 
     def value(self, x: np.ndarray) -> float:
         """``sum_s V_s psi(F_s)`` in J; +inf where some det F <= 0 (Neo-Hookean)."""

@@ -1,4 +1,4 @@
-"""Constant forces on the unknowns: the linear potential -f . x (the B-bar terms of eq. 10).
+"""Constant forces on the unknowns: the linear potential -f . x (the B-bar terms of BFEMP eq. 10).
 
 ``ConstantForceTerm`` is the shared mechanism; gravity (m_i g per node) and dead loads (given
 nodal forces) only differ in how they build f at the start of a step.

@@ -1,4 +1,4 @@
-"""Gravity: the potential -sum_i m_i g . x_i of the unknown nodes (part of B-bar in eq. 10)."""
+"""Gravity: the potential -sum_i m_i g . x_i of the unknown nodes (in B-bar of BFEMP eq. 10)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Inertia: 1/2 ||x - x_hat||^2_M with lumped masses (first term of eq. 22)."""
+"""Inertia: 1/2 ||x - x_hat||^2_M with lumped masses (first term of BFEMP eq. 22)."""
 
 from __future__ import annotations
 

@@ -69,3 +69,33 @@ def pressed_block_scene(friction_iterations):
         dhat=1e-3, kappa=1e4, mu=0.5, eps_v=1e-3, friction_iterations=friction_iterations
     )
     return scene
+
+
+def fd_wrt_F(fn, F, h=1e-6):
+    """Central differences of ``fn(F)`` (n, ...) with respect to each entry of F (n, d, d):
+    an array (n, ..., d, d) (the first Piola stress of an energy density, or dP/dF of P)."""
+    d = F.shape[1]
+    out = None
+    for k in range(d):
+        for m in range(d):
+            E = np.zeros((d, d))
+            E[k, m] = h
+            diff = (fn(F + E) - fn(F - E)) / (2 * h)
+            if out is None:
+                out = np.empty((*diff.shape, d, d))
+            out[..., k, m] = diff
+    return out
+
+
+def block_on_fem_floor(mu=0.2):
+    """A 2D MPM block (E = 1 MPa) resting just above a fixed FEM floor, with barrier contact
+    (d-hat 5 mm) and friction coefficient ``mu``."""
+    mat = bfemp.NeoHookean(E=1e6, nu=0.3, density=1000.0)
+    scene = bfemp.Scene(dim=2, gravity=(0.0, -9.81))
+    floor = bfemp.shapes.rectangle((-1.0, -0.2), (1.0, 0.0), h=0.1)
+    scene.add_fem(floor, material=mat, prescribed=bfemp.motion.Fixed(), name="floor")
+    x, vol = bfemp.sample.box((-0.2, 0.0), (0.2, 0.2), dx=0.05, ppc=4)
+    scene.add_mpm(x, vol, material=mat, name="block")
+    scene.set_grid(dx=0.05)
+    scene.set_contact(dhat=5e-3, kappa=1e5, mu=mu)
+    return scene

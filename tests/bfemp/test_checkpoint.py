@@ -58,8 +58,8 @@ def no_plots():
     """The metrics and snapshot PNGs (0.6 s per run with matplotlib) are not what these tests
     check."""
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(bfemp.simulation, "plot_metrics", lambda *args, **kwargs: None)
-        mp.setattr(bfemp.simulation, "write_snapshot_sheet", lambda *args, **kwargs: None)
+        mp.setattr(bfemp._run_folder, "plot_metrics", lambda *args, **kwargs: None)
+        mp.setattr(bfemp._run_folder, "write_snapshot_sheet", lambda *args, **kwargs: None)
         yield
 
 
@@ -244,7 +244,7 @@ def test_an_interrupt_in_the_final_writes_leaves_the_manifest_interrupted(tmp_pa
     def interrupted_plot(*args, **kwargs):
         raise KeyboardInterrupt  # Ctrl-C (twice) while the metrics PNG is drawn
 
-    monkeypatch.setattr(bfemp.simulation, "plot_metrics", interrupted_plot)
+    monkeypatch.setattr(bfemp._run_folder, "plot_metrics", interrupted_plot)
     with pytest.raises(KeyboardInterrupt):
         _run(_sim(), tmp_path, t_end=2 * DT)
     manifest = json.loads((tmp_path / "manifest.json").read_text())
@@ -262,9 +262,9 @@ def test_a_first_ctrl_c_in_the_final_writes_lets_them_finish(tmp_path, monkeypat
         os.kill(os.getpid(), signal.SIGINT)
         written.append("metrics.png")
 
-    monkeypatch.setattr(bfemp.simulation, "plot_metrics", plot_then_ctrl_c)
+    monkeypatch.setattr(bfemp._run_folder, "plot_metrics", plot_then_ctrl_c)
     monkeypatch.setattr(
-        bfemp.simulation, "write_snapshot_sheet", lambda out: written.append("snapshots.png")
+        bfemp._run_folder, "write_snapshot_sheet", lambda out: written.append("snapshots.png")
     )
     with pytest.raises(KeyboardInterrupt):
         _run(_sim(), tmp_path, t_end=2 * DT)

@@ -64,8 +64,8 @@ def scene_file(tmp_path):
 @pytest.fixture
 def no_plots(monkeypatch):
     """Skip the metrics and snapshot PNGs (0.6 s per run) where a test does not look at them."""
-    monkeypatch.setattr(bfemp.simulation, "plot_metrics", lambda *args, **kwargs: None)
-    monkeypatch.setattr(bfemp.simulation, "write_snapshot_sheet", lambda *args, **kwargs: None)
+    monkeypatch.setattr(bfemp._run_folder, "plot_metrics", lambda *args, **kwargs: None)
+    monkeypatch.setattr(bfemp._run_folder, "write_snapshot_sheet", lambda *args, **kwargs: None)
 
 
 def _run(*args):

@@ -24,6 +24,7 @@ from solvers.linear import CholmodSolver, LinearSolveError, ScipySolver
 from solvers.newton import minimize
 from solvers.options import NewtonOptions
 from solvers.result import NewtonStatus
+from tests.bfemp.conftest import block_on_fem_floor
 
 DHAT = 1.5e-5  # m, as in the scene
 N_NODES = 12  # 9 grid nodes of the particle's stencil, 2 edge nodes, 1 node apart
@@ -151,15 +152,7 @@ class _FailsFirst:
 
 @pytest.mark.parametrize("strategy", ["barrier", "two_stage"])
 def test_a_shifted_solve_is_a_named_note_of_the_step(strategy):
-    mat = bfemp.NeoHookean(E=1e6, nu=0.3, density=1000.0)
-    scene = bfemp.Scene(dim=2, gravity=(0.0, -9.81))
-    floor = bfemp.shapes.rectangle((-1.0, -0.2), (1.0, 0.0), h=0.1)
-    scene.add_fem(floor, material=mat, prescribed=bfemp.motion.Fixed(), name="floor")
-    x, vol = bfemp.sample.box((-0.2, 0.0), (0.2, 0.2), dx=0.05, ppc=4)
-    scene.add_mpm(x, vol, material=mat, name="block")
-    scene.set_grid(dx=0.05)
-    scene.set_contact(dhat=5e-3, kappa=1e5)
-    sim = bfemp.Simulation(scene, strategy=strategy, dt=5e-4)
+    sim = bfemp.Simulation(block_on_fem_floor(mu=0.0), strategy=strategy, dt=5e-4)
     solve = sim.stepper._solver
     solve.linear_solver = _FailsFirst(solve.linear_solver)
     with pytest.warns(StepNoteWarning, match="PSD_ROUNDING_SHIFT"):

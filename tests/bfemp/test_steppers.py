@@ -19,20 +19,9 @@ from bfemp.steppers import (
     options_from_mapping,
     options_to_dict,
 )
+from tests.bfemp.conftest import block_on_fem_floor
 
 MAT = bfemp.NeoHookean(E=1e6, nu=0.3, density=1000.0)
-
-
-def _block_on_floor(mu=0.2):
-    """An MPM block resting just above a fixed FEM floor (contact and friction)."""
-    scene = bfemp.Scene(dim=2, gravity=(0.0, -9.81))
-    floor = bfemp.shapes.rectangle((-1.0, -0.2), (1.0, 0.0), h=0.1)
-    scene.add_fem(floor, material=MAT, prescribed=bfemp.motion.Fixed(), name="floor")
-    x, vol = bfemp.sample.box((-0.2, 0.0), (0.2, 0.2), dx=0.05, ppc=4)
-    scene.add_mpm(x, vol, material=MAT, name="block")
-    scene.set_grid(dx=0.05)
-    scene.set_contact(dhat=5e-3, kappa=1e5, mu=mu)
-    return scene
 
 
 def test_every_registered_stepper_implements_the_protocol():
@@ -43,7 +32,7 @@ def test_every_registered_stepper_implements_the_protocol():
             assert hasattr(cls, member), (name, member)
         for member in ("checkpoint_data", "restore_checkpoint_data"):
             assert callable(getattr(cls, member)), (name, member)
-    sim = bfemp.Simulation(_block_on_floor(), dt=1e-3)
+    sim = bfemp.Simulation(block_on_fem_floor(), dt=1e-3)
     assert isinstance(sim.stepper, Stepper)
     assert sim.stepper.stable_dt(sim.state) == math.inf
 
@@ -83,7 +72,7 @@ def test_options_from_a_mapping_refuse_unknown_fields_and_wrong_types():
 
 
 def test_simulation_takes_options_or_the_flat_keywords_not_both():
-    scene = _block_on_floor()
+    scene = block_on_fem_floor()
     a = bfemp.Simulation(scene, dt=1e-3, options=BarrierOptions(tol=1e-7))
     b = bfemp.Simulation(scene, dt=1e-3, tol=1e-7)
     assert a.settings == b.settings and a.settings["tol"] == 1e-7
@@ -104,11 +93,11 @@ def test_options_of_another_strategy_are_refused():
         strategy = "other"
 
     with pytest.raises(ValueError, match=r"strategy 'barrier' takes BarrierOptions, got Other"):
-        bfemp.Simulation(_block_on_floor(), dt=1e-3, options=OtherOptions())
+        bfemp.Simulation(block_on_fem_floor(), dt=1e-3, options=OtherOptions())
 
 
 def test_report_iterations_become_metrics_columns_and_contact_view_balances():
-    sim = bfemp.Simulation(_block_on_floor(mu=0.2), dt=2e-3)
+    sim = bfemp.Simulation(block_on_fem_floor(mu=0.2), dt=2e-3)
     for _ in range(60):
         report = sim.step()
     assert isinstance(report, StepReport)
@@ -146,7 +135,7 @@ def test_energies_and_columns_without_contact_have_no_contact_entries():
 
 
 def test_scene_file_options_table_is_read_checked_and_written(tmp_path):
-    scene = _block_on_floor()
+    scene = block_on_fem_floor()
     text = scenefile.save(
         scene,
         simulation={"dt": 1e-3, "options": BarrierOptions(tol=2e-6, max_newton_iterations=40)},
@@ -170,7 +159,7 @@ def test_scene_file_options_table_is_read_checked_and_written(tmp_path):
 
 
 def test_checkpoint_hooks_are_declared_and_round_trip():
-    scene = _block_on_floor()
+    scene = block_on_fem_floor()
     scene.set_contact(dhat=5e-3, kappa="auto", mu=0.0)
     sim = bfemp.Simulation(scene, dt=2e-3)
     assert sim.stepper.checkpoint_data() == {}

@@ -265,18 +265,8 @@ def test_hex_split_conforms_under_any_numbering():
     points = np.empty_like(grid, dtype=float)
     points[perm] = grid
     index = perm.reshape(n + 1, n + 1, n + 1)
-    corners = [
-        (0, 0, 0),
-        (1, 0, 0),
-        (1, 1, 0),
-        (0, 1, 0),
-        (0, 0, 1),
-        (1, 0, 1),
-        (1, 1, 1),
-        (0, 1, 1),
-    ]
     i, j, k = (a.ravel() for a in np.meshgrid(*[np.arange(n)] * 3, indexing="ij"))
-    hexes = np.stack([index[i + a, j + b, k + c] for a, b, c in corners], axis=1)
+    hexes = np.stack([index[i + a, j + b, k + c] for a, b, c in mb.HEX_CORNERS], axis=1)
     mesh = TetMesh(points, mb.split_hexes(points, hexes))
     assert np.all(mesh.signed_volumes() > 0)
     assert mesh.total_volume() == pytest.approx(27.0)

@@ -533,6 +533,7 @@ def test_a_direct_solver_gets_no_rtol():
     assert res.success and calls and all(k == {} for k in calls)
 
 
+@pytest.mark.skipif(not linear.cholmod_available(), reason="needs scikit-sparse")
 def test_chord_test_stops_only_below_the_tolerance_and_agrees_with_the_exact_one():
     rng = np.random.default_rng(2)
     n = 50
@@ -618,6 +619,7 @@ def test_near_solution_steps_cannot_take_turns_with_armijo_steps():
     assert 0.3 < res.x[0] < 0.5  # the minimiser, x = 0.38 (E = -0.41 < E(A))
 
 
+@pytest.mark.skipif(not linear.cholmod_available(), reason="needs scikit-sparse")
 def test_chord_steps_save_factorisations_and_reach_the_same_tolerance():
     """Where the failed chord test predicts convergence after one more chord iteration, a step
     along it replaces a factorisation; the returned point passes the exact test all the same.

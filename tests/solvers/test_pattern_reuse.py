@@ -5,6 +5,7 @@ import pytest
 
 from bfemp.frames import NodeFrames
 from solvers.assembly import TripletAssembler, Triplets, TripletStacker
+from solvers.linear import CholmodSolver
 
 
 def _random_triplets(rng, n, m):
@@ -92,7 +93,8 @@ def test_barrier_stepper_keeps_the_hessian_pattern_across_steps():
     assert total >= 3  # Newton ran every step
     # FEM only: the Hessian's pattern never changes, so it was built once for all steps
     assert stepper._solver._assembler.n_rebuilds == 1
-    assert getattr(stepper.linear_solver, "n_symbolic", 1) == 1
+    if isinstance(stepper.linear_solver, CholmodSolver):  # SuperLU analyses at every solve
+        assert stepper.linear_solver.n_symbolic == 1
 
 
 @pytest.mark.parametrize("kind", ["fem", "mpm_on_slip_floor"])
