@@ -450,21 +450,8 @@ class ExplicitStepper:
             return grid_v, ()
         cons = grid_constraints(model.boundaries, step.grid_x, grid_v, step.t_next, step.dt)
         step.constraints = cons
-        if not cons.any:
-            return grid_v, tuple((0.0,) * model.dim for _ in model.boundaries)
-        v_star = grid_v
-        v = grid_v.copy()
-        v_b = cons.shift / step.dt  # the boundary's velocity at its nodes
-        v[cons.sticky] = v_b[cons.sticky]
-        slip = cons.slip
-        n = cons.normals[slip]
-        rel = np.einsum("ij,ij->i", v[slip] - v_b[slip], n)
-        v[slip] -= rel[:, None] * n
-        reaction = np.zeros((len(model.boundaries), model.dim))
-        touched = cons.owner >= 0
-        impulse = step.grid_mass[touched, None] * (v[touched] - v_star[touched]) / step.dt
-        np.add.at(reaction, cons.owner[touched], impulse)
-        return v, tuple(tuple(float(c) for c in row) for row in reaction)
+        v = cons.apply(grid_v, step.dt)
+        return v, cons.reactions(step.grid_mass, grid_v, v, step.dt, len(model.boundaries))
 
     def _g2p(
         self, step: ExplicitStep, state: State, grid_v: np.ndarray

@@ -75,7 +75,7 @@ import numpy as np
 from bfemp.errors import warn_user
 from bfemp.integrators import ExplicitIntegrator
 from bfemp.model import Model
-from bfemp.mpm.boundaries import GridConstraints, grid_constraints
+from bfemp.mpm.boundaries import material_constraints
 from bfemp.mpm.xpic import XPIC_VARIANTS, xpic_grid_velocity
 from bfemp.state import State
 from bfemp.steppers._multimaterial_kernels import (
@@ -106,7 +106,6 @@ LR_PENETRATION_NOTE = (
 )
 
 #: per material, the level-set constraints of its field (None: no boundaries)
-_Constraints = list[GridConstraints] | None
 
 LAWS = ("coulomb", "frictionless")
 INTERFACES = ("contact", "perfect")
@@ -672,81 +671,6 @@ class LRStepper(ExplicitStepper):
             delta = np.where(kinematic[..., None], 0.0, delta)
         return delta, int(touching.sum()), drift, absorbed
 
-    # ------------------------------------------------------------------ boundaries
-    def _constraints(self, grid_x: np.ndarray, v: np.ndarray, t_next: float) -> _Constraints:
-        """Level-set constraints of every material's field (``None`` without boundaries)."""
-        if not self.model.boundaries:
-            return None
-        if all(b.kind != "separate" for b in self.model.boundaries):
-            # sticky and slip nodes do not depend on the velocity: one set serves every field
-            shared = grid_constraints(self.model.boundaries, grid_x, v[0], t_next, self.dt)
-            return [shared] * self.n_materials
-        return [grid_constraints(self.model.boundaries, grid_x, v[m], t_next, self.dt)
-                for m in range(self.n_materials)]  # fmt: skip
-
-    def _apply_constraints(self, cons: _Constraints, v: np.ndarray) -> np.ndarray:
-        """v ``(M, G, d)`` with each material's sticky and slip nodes constrained."""
-        if cons is None:
-            return v
-        v = v.copy()
-        if all(c is cons[0] for c in cons):  # one set for every material: vectorised
-            c = cons[0]
-            if c.any:
-                v_b = c.shift / self.dt
-                v[:, c.sticky] = v_b[c.sticky]
-                n = c.normals[c.slip]
-                rel = np.einsum("mij,ij->mi", v[:, c.slip] - v_b[c.slip], n)
-                v[:, c.slip] -= rel[..., None] * n
-            return v
-        for m, c in enumerate(cons):
-            if not c.any:
-                continue
-            v_b = c.shift / self.dt
-            v[m, c.sticky] = v_b[c.sticky]
-            n = c.normals[c.slip]
-            rel = np.einsum("ij,ij->i", v[m, c.slip] - v_b[c.slip], n)
-            v[m, c.slip] -= rel[:, None] * n
-        return v
-
-    def _project_increment(self, cons: _Constraints, u: np.ndarray) -> np.ndarray:
-        """An XPIC increment ``(M, G, d)`` with the prescribed components removed."""
-        if cons is None:
-            return u
-        if all(c is cons[0] for c in cons):
-            c = cons[0]
-            if c.any:
-                u[:, c.sticky] = 0.0
-                n = c.normals[c.slip]
-                u[:, c.slip] -= np.einsum("mij,ij->mi", u[:, c.slip], n)[..., None] * n
-            return u
-        for m, c in enumerate(cons):
-            if not c.any:
-                continue
-            u[m, c.sticky] = 0.0
-            n = c.normals[c.slip]
-            u[m, c.slip] -= np.einsum("ij,ij->i", u[m, c.slip], n)[:, None] * n
-        return u
-
-    @staticmethod
-    def _reactions(
-        cons: _Constraints,
-        mass: np.ndarray,
-        v_before: np.ndarray,
-        v_after: np.ndarray,
-        dt: float,
-        n_boundaries: int,
-        d: int,
-    ) -> tuple:
-        """Per boundary, the reaction (d,) in N of its nodes over every material."""
-        if cons is None:
-            return ()
-        reaction = np.zeros((n_boundaries, d))
-        for m, c in enumerate(cons):
-            touched = c.owner >= 0
-            impulse = mass[m, touched, None] * (v_after[m, touched] - v_before[m, touched]) / dt
-            np.add.at(reaction, c.owner[touched], impulse)
-        return tuple(tuple(float(x) for x in row) for row in reaction)
-
     # ------------------------------------------------------------------ the step
     def step(self, state: State) -> tuple[State, StepReport]:
         """Advance ``state`` by dt (module docstring); ``StepError`` on a CFL violation."""
@@ -783,8 +707,8 @@ class LRStepper(ExplicitStepper):
         inv_mass = np.zeros_like(mass)
         np.divide(1.0, mass, out=inv_mass, where=mass > 0.0)
         v0 = mom0 * inv_mass[..., None]
-        cons = self._constraints(grid_x, v0, t_next)
-        v0 = self._apply_constraints(cons, v0)
+        cons = material_constraints(model.boundaries, grid_x, v0, t_next, dt)
+        v0 = cons.apply(v0, dt)
         mom0 = v0 * mass[..., None]
         timings["p2g"] = time.perf_counter() - t0
 
@@ -808,7 +732,7 @@ class LRStepper(ExplicitStepper):
         dp2, touching, drift, absorbed2 = self._correct(planes, mass, mom_plus0, kinematic)
         absorbed += absorbed2
         v_plus_free = (mom_plus0 + dp2) * inv_mass[..., None]
-        v_plus = self._apply_constraints(cons, v_plus_free)
+        v_plus = cons.apply(v_plus_free, dt)
         accel = (v_plus - v) / dt
         # the contact momentum particles and FEM nodes receive (eq. 33): f^{C,1} dt or f^{C,0} dt
         dp_kick = dp2 + dp1 if self.contact_force == "c0" else dp2
@@ -832,7 +756,7 @@ class LRStepper(ExplicitStepper):
             t1 = time.perf_counter()
             v_star = xpic_grid_velocity(
                 self.xpic_order, opts.xpic_variant, v, v0, dv, apply_A,
-                lambda u: self._project_increment(cons, u),
+                cons.project,
             )  # fmt: skip
             timings["xpic"] = time.perf_counter() - t1
             new_v = g2p_field(nodes, weights, self.material, v_star + dt * accel)
@@ -860,9 +784,7 @@ class LRStepper(ExplicitStepper):
                     "is used; counted in StepReport.extra['lr_unconverged'] from now on)",
                     unconverged, opts.lr_max_iterations, new.step,
                 )  # fmt: skip
-        reactions = self._reactions(
-            cons, mass, v_plus_free, v_plus, dt, len(model.boundaries), model.dim
-        )
+        reactions = cons.reactions(mass, v_plus_free, v_plus, dt, len(model.boundaries))
         self._store_contact(planes, dp_kick + absorbed, pts, inv_mass, dt)
         timings["step"] = time.perf_counter() - started
         extra = {
