@@ -3,9 +3,9 @@
 Foreground particles are the FEM boundary nodes (AUG) and, as bfemp's extension, the MPM
 particles (section 1.4); they are transferred to their own Cartesian contact grid (spacing
 ``grid_dx``, origin 0) by the contact operator H (``bfemp.contact.augury.ContactOperator``: one
-APIC or PIC P2G and one G2P at fixed positions). One step, after the engine's free-flight step
-(``ExplicitStepper.step``: symplectic Euler, forces at x^n; MPM: the engine's USL step on the
-MPM grid, which gives v_p^free and x_p^free):
+APIC or PIC P2G and one G2P at fixed positions). One step, after the engine's free flight
+(``ExplicitStepper``: symplectic Euler, forces at x^n; MPM: the engine's USL step on the MPM
+grid, which gives v_p^free and x_p^free):
 
 1. a_p = (v_p^free - v_p^n) / dt (FEM: the mechanical acceleration of the node; MPM: the
    particle's); prediction (eq. 27) v-bar = v^n + tau a (``predictor="symplectic"``) or
@@ -18,11 +18,11 @@ MPM grid, which gives v_p^free and x_p^free):
 
 With tau = dt and N = 0 this gives v^{n+1} = H(v^n + dt a) on the foreground exactly (T9).
 
-The engine is used as is: the augury pass runs after ``ExplicitStepper.step`` returns (the hooks
-``after_p2g``/``resolve`` come before G2P, where MPM foreground velocities do not exist yet).
-The FEM result is the same as a correction inside ``resolve`` (v and x are linear in the
-correction), and the MPM particles get theirs after G2P as section 1.4 prescribes; F_p takes the
-correction's gradient (``contact_strain``, below).
+The augury pass is the engine's ``after_g2p`` phase: it corrects the free-flight end values
+(after G2P, where the MPM foreground velocities exist) before the engine commits them, so a step
+writes positions once. The FEM result is the same as a correction inside ``resolve`` (v and x
+are linear in the correction), and the MPM particles get theirs after G2P as section 1.4
+prescribes; F_p takes the correction's gradient (``contact_strain``, below).
 
 Conservation: every H - I term has zero net linear momentum and, with APIC and B, zero net
 angular momentum, so the correction conserves both for FEM-only scenes (angular momentum about
@@ -94,9 +94,9 @@ from bfemp.errors import warn_user
 from bfemp.integrators import ExplicitIntegrator
 from bfemp.model import Model
 from bfemp.state import State
-from bfemp.steppers.base import ContactView, StepperOptions, StepReport
+from bfemp.steppers.base import ContactView, StepperOptions
 from bfemp.steppers.capabilities import Capabilities
-from bfemp.steppers.explicit import ExplicitOptions, ExplicitStepper
+from bfemp.steppers.explicit import ExplicitOptions, ExplicitStepper, GridStep, Motion
 from geometry.grid import particle_stencils
 
 __all__ = ["AuguryOptions", "AuguryStepper"]
@@ -491,169 +491,174 @@ class AuguryStepper(ExplicitStepper):
         return out
 
     # ------------------------------------------------------------------ the step
-    def step(self, state: State) -> tuple[State, StepReport]:
-        """The engine's free-flight step, then the augury correction (module docstring)."""
-        d = self.model.dim
-        if state.aug_B.shape != (self.model.n_fem_nodes, d, d) or state.aug_Bp.shape != (
-            self.model.n_particles,
-            d,
-            d,
-        ):
-            state = self.initialize(state)
-        new, report = super().step(state)
+    def after_g2p(self, step: GridStep, motion: Motion) -> None:
+        """The augury correction of the engine's free-flight end values (module docstring)."""
         started = time.perf_counter()
-        model, dt, tau, d = self.model, self.dt, self.tau, self.model.dim
-        timings = dict(report.timings)
+        model, d, state = self.model, self.model.dim, step.state
+        B_fem, B_mpm = state.aug_B, state.aug_Bp
+        if B_fem.shape != (model.n_fem_nodes, d, d) or B_mpm.shape != (model.n_particles, d, d):
+            start = self.initialize(state)
+            B_fem, B_mpm = start.aug_B, start.aug_Bp
+        motion.carried.update(aug_B=B_fem, aug_Bp=B_mpm)
+        if self._coarse_note is not None:
+            step.notes.append(self._coarse_note)
         fg = self._fem_fg
         n_fem = fg.size
-        parts_x, parts_m, parts_vn, parts_free, parts_B, parts_n, parts_body = (
-            [],
-            [],
-            [],
-            [],
-            [],
-            [],
-            [],
-        )
-        if n_fem:
-            parts_x.append(state.fem_x[fg])
-            parts_m.append(model.fem_mass[fg])
-            parts_vn.append(state.fem_v[fg])
-            parts_free.append(new.fem_v[fg])
-            parts_B.append(state.aug_B[fg])
-            parts_n.append(self.fem_normals(state.fem_x)[fg])
-            parts_body.append(self._fem_node_body[fg])
         n_mpm = model.n_particles if self._mpm_fg else 0
-        if n_mpm:
-            parts_x.append(state.mpm_x)
-            parts_m.append(model.mpm_mass)
-            parts_vn.append(state.mpm_v)
-            parts_free.append(new.mpm_v)
-            parts_B.append(state.aug_Bp)
-            parts_body.append(self._mpm_body)
-        notes = list(report.notes)
-        if self._coarse_note is not None:
-            notes.append(self._coarse_note)
-        n_all = n_fem + n_mpm
-        a_hat = np.zeros((n_all, d))
-        shared_count = 0
-        h_applications = 0
+        a_hat = np.zeros((n_fem + n_mpm, d))
+        shared_count, h_applications, kinematic_impulse = 0, 0, None
         stats = {"iterations": 0}
-        kinematic_impulse = None
-        if n_all:
-            x = np.concatenate(parts_x)
-            m = np.concatenate(parts_m)
-            v_n = np.concatenate(parts_vn)
-            v_free = np.concatenate(parts_free)
-            B_bar = np.concatenate(parts_B)
-            body = np.concatenate(parts_body)
-            movable = np.ones(n_all, dtype=bool)
-            movable[:n_fem] = self._fem_fg_movable
-            accel = (v_free - v_n) / dt
-            v_bar = v_n + self._tau_predict * accel
-            # kinematic nodes move with their scripted velocity
-            v_bar[~movable] = v_free[~movable]
-            t0 = time.perf_counter()
-            st = contact_stencils(x, self.grid_dx, self.options.kernel)
-            normals = np.zeros((n_all, d))
-            if n_fem:
-                normals[:n_fem] = parts_n[0]
-                if self.options.normals == "facing":
-                    normals[:n_fem] = self._facing_normals(state.fem_x, st, m, body, normals)
-            if n_mpm:
-                normals[n_fem:] = self._mpm_normals(st, n_fem, m[n_fem:], body[n_fem:])
-            node_shared, v_lo, v_hi = node_body_ranges(
-                st.nodes, st.weights, body, v_bar, st.n_nodes
+        if n_fem + n_mpm:
+            points = self._foreground(state, motion, B_fem, B_mpm, n_mpm)
+            a_hat, B_new, shared_count, h_applications, kinematic_impulse = self._correction(
+                step, points, stats
             )
-            shared = (node_shared[st.nodes] & (st.weights > 0.0)).any(axis=1)
-            shared_count = int(shared.sum())
-            timings["augury_stencils"] = time.perf_counter() - t0
-            notes.extend(self._reach_notes(node_shared, v_lo, v_hi, v_bar))
-            sel = np.arange(n_all) if self.options.region == "all" else np.flatnonzero(shared)
-            if not self.apic:
-                B_bar = np.zeros_like(B_bar)
-            v_hat = v_bar.copy()
-            B_hat = B_bar.copy()
-            if sel.size:
-                t0 = time.perf_counter()
-                sub = st if sel.size == n_all else _subset(st, sel)
-                op = ContactOperator(sub, x[sel], m[sel], apic=self.apic, kinematic=~movable[sel])
-                v_s, B_s = augury_correction(
-                    op,
-                    v_bar[sel],
-                    B_bar[sel],
-                    normals[sel],
-                    self.options.iterations,
-                    self.options.mode,
-                    self.mu,
-                    movable[sel],
-                    energy_guard=self.options.energy_guard,
-                    stats=stats,
-                )
-                v_hat[sel], B_hat[sel] = v_s, B_s
-                h_applications = op.applications
-                timings["augury_H"] = time.perf_counter() - t0
-            a_hat = (v_hat - v_bar) / tau
-            Bdot = (B_hat - B_bar) / tau
-            # impulse (N s; N s/m in 2D) the kinematic nodes deliver to the free foreground this
-            # step: H conserves momentum among the free particles, so it is the free particles'
-            # whole correction
-            kinematic_impulse = dt * (m[movable] @ a_hat[movable]) if (~movable).any() else None
-            a_hat[~movable] = 0.0
-            Bdot[~movable] = 0.0
-            B_new = B_bar + dt * Bdot
-            if n_fem:
-                mov = self._fem_fg_movable
-                idx = fg[mov]
-                new.fem_v[idx] += dt * a_hat[:n_fem][mov]
-                new.fem_x[idx] += dt * dt * a_hat[:n_fem][mov]
-                new.fem_a = (new.fem_v - state.fem_v) / dt
-                new.aug_B = state.aug_B.copy()
-                new.aug_B[fg] = B_new[:n_fem]
-            if n_mpm:
-                new.mpm_v = new.mpm_v + dt * a_hat[n_fem:]
-                new.mpm_x = new.mpm_x + dt * dt * a_hat[n_fem:]
-                new.aug_Bp = B_new[n_fem:]
-                if self.options.contact_strain:
-                    new.mpm_F = new.mpm_F + dt * np.einsum(
-                        "pab,pbc->pac",
-                        self._correction_gradient(state.mpm_x, dt * a_hat[n_fem:]),
-                        state.mpm_F,
-                    )
+            self._correct_motion(step, motion, a_hat, B_new, n_fem, n_mpm)
             if kinematic_impulse is not None:
-                notes.append(
+                step.notes.append(
                     f"SCRIPTED_FOREGROUND: {self._n_kinematic} scripted nodes in H delivered an "
                     f"impulse of {np.linalg.norm(kinematic_impulse):.6g} N s to the free bodies "
                     "(their dropped correction: momentum not conserved)"
                 )
-        extra = {}
         if self._n_kinematic:
             impulse = np.zeros(d) if kinematic_impulse is None else kinematic_impulse
-            extra = {f"kinematic_impulse_{'xyz'[a]}": float(impulse[a]) for a in range(d)}
+            step.extra.update(
+                {f"kinematic_impulse_{'xyz'[a]}": float(impulse[a]) for a in range(d)}
+            )
         self._steps += 1
         self.steps_with_contact += shared_count > 0
         every = self.options.penetration_check_every
         if every and self._steps % every == 0:
             t0 = time.perf_counter()
-            notes.extend(self._penetration_notes(new))
-            timings["augury_penetration"] = time.perf_counter() - t0
+            step.notes.extend(self._penetration_notes(motion))
+            step.timings["augury_penetration"] = time.perf_counter() - t0
         self._store_contact(a_hat, shared_count, n_fem)
-        timings["augury"] = time.perf_counter() - started
-        timings["step"] = report.timings.get("step", 0.0) + timings["augury"]
-        report = replace(
-            report,
-            message="explicit step with augury contact",
-            iterations={
-                "augury": self.options.iterations,
-                "augury_taken": stats["iterations"],
-                "h_applications": h_applications,
-            },
-            timings=timings,
-            contact_pairs=shared_count,
-            notes=tuple(notes),
-            extra={**report.extra, **extra},
+        step.timings["augury"] = time.perf_counter() - started
+        step.message = "explicit step with augury contact"
+        step.iterations.update(
+            augury=self.options.iterations,
+            augury_taken=stats["iterations"],
+            h_applications=h_applications,
         )
-        return new, report
+        step.outcome["contact_pairs"] = shared_count
+
+    def _foreground(
+        self, state: State, motion: Motion, B_fem: np.ndarray, B_mpm: np.ndarray, n_mpm: int
+    ) -> dict[str, np.ndarray]:
+        """The foreground's start positions x ``(n, d)`` m, masses m ``(n,)`` kg, velocities
+        v_n and v_free ``(n, d)`` m/s, matrices B ``(n, d, d)``, bodies ``(n,)`` and FEM normals,
+        FEM boundary nodes first, then the particles."""
+        model, fg = self.model, self._fem_fg
+        keys = ("x", "m", "v_n", "v_free", "B", "body")
+        parts: list[tuple[np.ndarray, ...]] = []
+        fem_normals = None
+        if fg.size:
+            fem = (state.fem_x, model.fem_mass, state.fem_v, motion.fem_v, B_fem)
+            parts.append((*(value[fg] for value in fem), self._fem_node_body[fg]))
+            fem_normals = self.fem_normals(state.fem_x)[fg]
+        if n_mpm:
+            parts.append(
+                (state.mpm_x, model.mpm_mass, state.mpm_v, motion.mpm_v, B_mpm, self._mpm_body)
+            )
+        points = {k: np.concatenate(v) for k, v in zip(keys, zip(*parts, strict=True), strict=True)}
+        points["fem_normals"] = fem_normals
+        points["fem_x"] = state.fem_x
+        return points
+
+    def _correction(
+        self, step: GridStep, points: dict[str, np.ndarray], stats: dict[str, int]
+    ) -> tuple[np.ndarray, np.ndarray, int, int, np.ndarray | None]:
+        """The augury pass on the foreground ``points`` (module docstring, steps 1-2): the
+        accelerations a^ ``(n, d)`` m/s^2, B^{n+1} ``(n, d, d)``, the number of particles sharing
+        a contact node with another body, H applications, the kinematic impulse (or None)."""
+        dt, tau, timings = self.dt, self.tau, step.timings
+        x, m, body = points["x"], points["m"], points["body"]
+        v_n, v_free, B_bar = points["v_n"], points["v_free"], points["B"]
+        n_fem = self._fem_fg.size
+        n_all = x.shape[0]
+        movable = np.ones(n_all, dtype=bool)
+        movable[:n_fem] = self._fem_fg_movable
+        accel = (v_free - v_n) / dt
+        v_bar = v_n + self._tau_predict * accel  # AUG eq. 27
+        # kinematic nodes move with their scripted velocity
+        v_bar[~movable] = v_free[~movable]
+        t0 = time.perf_counter()
+        st = contact_stencils(x, self.grid_dx, self.options.kernel)
+        normals = np.zeros((n_all, x.shape[1]))
+        if n_fem:
+            normals[:n_fem] = points["fem_normals"]
+            if self.options.normals == "facing":
+                normals[:n_fem] = self._facing_normals(points["fem_x"], st, m, body, normals)
+        if n_all > n_fem:
+            normals[n_fem:] = self._mpm_normals(st, n_fem, m[n_fem:], body[n_fem:])
+        node_shared, v_lo, v_hi = node_body_ranges(st.nodes, st.weights, body, v_bar, st.n_nodes)
+        shared = (node_shared[st.nodes] & (st.weights > 0.0)).any(axis=1)
+        timings["augury_stencils"] = time.perf_counter() - t0
+        step.notes.extend(self._reach_notes(node_shared, v_lo, v_hi, v_bar))
+        sel = np.arange(n_all) if self.options.region == "all" else np.flatnonzero(shared)
+        if not self.apic:
+            B_bar = np.zeros_like(B_bar)
+        v_hat = v_bar.copy()
+        B_hat = B_bar.copy()
+        h_applications = 0
+        if sel.size:
+            t0 = time.perf_counter()
+            sub = st if sel.size == n_all else _subset(st, sel)
+            op = ContactOperator(sub, x[sel], m[sel], apic=self.apic, kinematic=~movable[sel])
+            v_hat[sel], B_hat[sel] = augury_correction(
+                op,
+                v_bar[sel],
+                B_bar[sel],
+                normals[sel],
+                self.options.iterations,
+                self.options.mode,
+                self.mu,
+                movable[sel],
+                energy_guard=self.options.energy_guard,
+                stats=stats,
+            )
+            h_applications = op.applications
+            timings["augury_H"] = time.perf_counter() - t0
+        a_hat = (v_hat - v_bar) / tau
+        Bdot = (B_hat - B_bar) / tau
+        # impulse (N s; N s/m in 2D) the kinematic nodes deliver to the free foreground this
+        # step: H conserves momentum among the free particles, so it is the free particles'
+        # whole correction
+        kinematic_impulse = dt * (m[movable] @ a_hat[movable]) if (~movable).any() else None
+        a_hat[~movable] = 0.0
+        Bdot[~movable] = 0.0
+        return a_hat, B_bar + dt * Bdot, int(shared.sum()), h_applications, kinematic_impulse
+
+    def _correct_motion(
+        self,
+        step: GridStep,
+        motion: Motion,
+        a_hat: np.ndarray,
+        B_new: np.ndarray,
+        n_fem: int,
+        n_mpm: int,
+    ) -> None:
+        """v^{n+1} = v^free + dt a^, x^{n+1} = x^free + dt^2 a^, B^{n+1} (module docstring step
+        3) on the end values, before the engine commits them."""
+        dt, state = self.dt, step.state
+        if n_fem:
+            fg, mov = self._fem_fg, self._fem_fg_movable
+            idx = fg[mov]
+            motion.fem_v[idx] += dt * a_hat[:n_fem][mov]
+            motion.fem_x[idx] += dt * dt * a_hat[:n_fem][mov]
+            B_fem = motion.carried["aug_B"].copy()
+            B_fem[fg] = B_new[:n_fem]
+            motion.carried["aug_B"] = B_fem
+        if n_mpm:
+            motion.mpm_v = motion.mpm_v + dt * a_hat[n_fem:]
+            motion.mpm_x = motion.mpm_x + dt * dt * a_hat[n_fem:]
+            motion.carried["aug_Bp"] = B_new[n_fem:]
+            if self.options.contact_strain:
+                motion.mpm_F = motion.mpm_F + dt * np.einsum(
+                    "pab,pbc->pac",
+                    self._correction_gradient(state.mpm_x, dt * a_hat[n_fem:]),
+                    state.mpm_F,
+                )
 
     def _reach_notes(
         self, node_shared: np.ndarray, v_lo: np.ndarray, v_hi: np.ndarray, v_bar: np.ndarray
@@ -678,7 +683,7 @@ class AuguryStepper(ExplicitStepper):
                 )
         return notes
 
-    def _penetration_notes(self, new: State) -> list[str]:
+    def _penetration_notes(self, new: Motion) -> list[str]:
         """INTERPENETRATION (pitfall A9): foreground points strictly inside another FEM body."""
         model = self.model
         if len(model.fem_bodies) + (len(model.mpm_bodies) if self._mpm_fg else 0) < 2:

@@ -7,25 +7,32 @@ One step (symplectic Euler, ``bfemp.integrators.SYMPLECTIC_EULER``; USL for MPM)
    ``-MpmElasticityTerm.gradient`` at the grid nodes' start positions (F_p(x^n) = F_p^n by
    linear completeness, MPM eq. 25). FEM: f_n = ``-ElasticityTerm.gradient`` of the cells at
    x^n over an all-free ``DofLayout`` (built once). Gravity m g and dead loads are added.
-2. Hook ``after_p2g(step)`` (default: nothing): a strategy may correct the grid momenta there.
-3. v* = v + dt M^-1 f on the grid nodes and the free FEM nodes (eq. 21 with beta = 0; the stored
-   velocity is the half-step one); scripted FEM nodes take their scripted velocity at t^{n+1}.
-4. Hook ``resolve(step, grid_v, fem_v) -> (grid_v, fem_v)`` (default: unchanged): where a
+2. v* = v + dt M^-1 f on the grid nodes and the free FEM nodes (BFEMP eq. 21 with beta = 0; the
+   stored velocity is the half-step one); scripted FEM nodes take their scripted velocity at
+   t^{n+1}.
+3. Phase ``resolve(step, grid_v, fem_v) -> (grid_v, fem_v)`` (default: unchanged): where a
    contact algorithm corrects v*.
-5. Level-set boundaries on the grid nodes inside them (``bfemp.mpm.boundaries``, evaluated at
+4. Level-set boundaries on the grid nodes inside them (``bfemp.mpm.boundaries``, evaluated at
    x_i^n, the boundary where it is at t^{n+1}): sticky v = v_b; slip: the normal component of
    v - v_b removed; separate: as slip while (v* - v_b) . n < 0, free otherwise (decided on v*,
    the velocity the node would move with). The reaction m_i (v - v*) / dt of each boundary's
    nodes is reported in ``StepReport.boundary_forces`` (sticky nodes included).
-6. FEM: x += dt v (scripted nodes: their scripted positions); MPM: G2P, the transfer of
-   ``bfemp.mpm.transfer.grid_to_particles`` with x~_i = x_i + dt v_i (which gives x_p += dt v_p
-   and F_p <- (I + dt grad v) F_p by linear completeness) in an allocation-free kernel
-   (``_explicit_kernels.g2p_explicit``, the same arithmetic; ``grid_to_particles``' kernel
-   allocates four d x d matrices per particle).
+5. FEM: x += dt v (scripted nodes: their scripted positions); MPM: phase ``g2p`` (default: the
+   transfer of ``bfemp.mpm.transfer.grid_to_particles`` with x~_i = x_i + dt v_i, which gives
+   x_p += dt v_p and F_p <- (I + dt grad v) F_p by linear completeness, in an allocation-free
+   kernel: ``_explicit_kernels.g2p_explicit``, the same arithmetic; ``grid_to_particles``'
+   kernel allocates four d x d matrices per particle).
+6. Phase ``after_g2p(step, motion)`` (default: nothing): a strategy corrects the end values
+   (augury's contact correction); then ``Motion.commit`` writes the new state, the one place a
+   step writes positions.
+
+The phases exchange one value, ``GridStep`` (start state, grid fields with a field axis M,
+constraints, and the report's iterations, notes, timings and extra), from which the engine
+builds the ``StepReport``.
 
 Two kernel paths, one result (tested to round-off): in 2D the dense-box kernels of
 ``_dense2d_kernels`` recompute each particle's weights from x_p and index a dense node box, as
-Taichi does, so no (P, 9) stencil arrays are written or read (``ExplicitStep.stencils()``
+Taichi does, so no (P, 9) stencil arrays are written or read (``GridStep.stencils()``
 builds them on demand for a strategy that needs them); in 3D (or when the box would be too
 sparse) the stencils of ``geometry.grid.particle_stencils`` feed the general kernels of
 ``_explicit_kernels``. (Compacting the stencils in numba instead of numpy was tried and
@@ -50,7 +57,7 @@ The slack between the two lets ``dt="auto"`` run while bodies speed up.
 
 MPM bodies all share one grid velocity field here (the P2G over all particles): bodies stick
 tangentially where their stencils overlap (``single_field``). Strategies that keep fields apart
-override ``after_p2g``/``resolve`` or the P2G.
+plug in phases (``lr`` keeps one field per body).
 """
 
 from __future__ import annotations
@@ -77,7 +84,7 @@ from bfemp.steppers.stable_dt import StableStep, stable_time_step
 from bfemp.terms import ElasticityTerm, StepContext, fem_elastic_groups
 from geometry.grid import Grid, ParticleStencils, particle_stencils
 
-__all__ = ["ExplicitOptions", "ExplicitStep", "ExplicitStepper"]
+__all__ = ["ExplicitOptions", "ExplicitStepper", "GridStep", "Motion"]
 
 log = logging.getLogger(__name__)
 
@@ -117,40 +124,97 @@ class ExplicitOptions(StepperOptions):
 
 
 @dataclass
-class ExplicitStep:
-    """What one explicit step knows, handed to the hooks (arrays may be changed in place).
+class GridStep:
+    """One explicit step's data, handed from phase to phase (arrays may be changed in place).
 
     Attributes:
-        t: start time t^n in s; ``t_next`` = t^{n+1}; ``dt`` in s.
+        state: the start state at t^n (read only).
+        t_next: end time t^{n+1} in s; ``dt`` in s.
         grid_x: positions x_i^n of the active grid nodes ``(G, d)`` in m (the active nodes and
             their order are those of ``particle_stencils``; ``stencils()`` gives the stencils).
-        grid_mass: node masses ``(G,)`` in kg (kg/m in 2D).
-        grid_v: P2G node velocities v_i^n ``(G, d)`` in m/s.
-        grid_force: internal + gravity forces on the nodes ``(G, d)`` in N (N/m in 2D).
+        mass: node masses ``(M, G)`` in kg (kg/m in 2D), one row per velocity field (M = 1: the
+            engine's one shared field).
+        velocity: P2G node velocities v_i^n ``(M, G, d)`` in m/s.
+        force: internal + gravity forces on the nodes ``(M, G, d)`` in N (N/m in 2D).
         fem_force: internal + gravity + load forces on the FEM nodes ``(N, d)`` in N.
         constraints: the level-set constraints applied to the grid (after ``resolve``).
+        iterations, notes, timings, extra, status, message, boundary_forces: the step's
+            report (``StepReport``'s fields of those names); ``outcome``: any other
+            ``StepReport`` field by name (``residual``, ``min_distance``, ``contact_pairs``,
+            ``friction_converged``).
     """
 
-    t: float
+    state: State
     t_next: float
     dt: float
     grid_x: np.ndarray
-    grid_mass: np.ndarray
-    grid_v: np.ndarray
-    grid_force: np.ndarray
+    mass: np.ndarray
+    velocity: np.ndarray
+    force: np.ndarray
     fem_force: np.ndarray
     constraints: GridConstraints | None = None
+    iterations: dict[str, int] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+    timings: dict[str, float] = field(default_factory=dict)
+    extra: dict[str, float] = field(default_factory=dict)
+    status: str = "EXPLICIT"
+    message: str = "explicit step"
+    boundary_forces: tuple = ()
+    outcome: dict[str, object] = field(default_factory=dict)
     _stencils: ParticleStencils | None = None
     _box: DenseBox | None = None
     _grid: Grid | None = None
-    _mpm_x: np.ndarray | None = None
 
     def stencils(self) -> ParticleStencils | None:
         """Particle stencils at x_p^n on the active nodes (built on first call in 2D, where the
         engine itself never stores them); None without particles."""
-        if self._stencils is None and self._mpm_x is not None:
-            self._stencils = particle_stencils(self._grid, self._mpm_x)
+        if self._stencils is None and self.state.mpm_x.shape[0]:
+            self._stencils = particle_stencils(self._grid, self.state.mpm_x)
         return self._stencils
+
+    def report(self, new: State) -> StepReport:
+        """The ``StepReport`` of the step that ended in ``new``."""
+        return StepReport(
+            step=new.step,
+            t=new.t,
+            success=True,
+            status=self.status,
+            message=self.message,
+            iterations=self.iterations,
+            timings=self.timings,
+            boundary_forces=self.boundary_forces,
+            notes=tuple(self.notes),
+            extra=self.extra,
+            **self.outcome,
+        )
+
+
+@dataclass
+class Motion:
+    """The end-of-step values of the moving points before they become the new ``State`` (the
+    particle update's result; ``after_g2p`` may correct them): FEM node positions and
+    velocities ``(N, d)`` in m, m/s; particle positions, velocities ``(P, d)``, deformation
+    gradients and APIC matrices ``(P, d, d)``; ``carried``: other ``State`` fields by name."""
+
+    fem_x: np.ndarray
+    fem_v: np.ndarray
+    mpm_x: np.ndarray
+    mpm_v: np.ndarray
+    mpm_F: np.ndarray
+    mpm_C: np.ndarray
+    carried: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def commit(self, step: GridStep) -> State:
+        """The state at t^{n+1}: the one place a step writes positions."""
+        start = step.state
+        values = dict(self.carried)
+        if start.fem_x.shape[0]:
+            values.update(
+                fem_x=self.fem_x, fem_v=self.fem_v, fem_a=(self.fem_v - start.fem_v) / step.dt
+            )
+        if start.mpm_x.shape[0]:
+            values.update(mpm_x=self.mpm_x, mpm_v=self.mpm_v, mpm_F=self.mpm_F, mpm_C=self.mpm_C)
+        return replace(start, t=step.t_next, step=start.step + 1, **values)
 
 
 class ExplicitStepper:
@@ -320,15 +384,51 @@ class ExplicitStepper:
     def restore_checkpoint_data(self, data: object) -> None:
         """Nothing to restore."""
 
-    # ------------------------------------------------------------------ hooks
-    def after_p2g(self, step: ExplicitStep) -> None:
-        """Correct the grid momenta after P2G (default: nothing)."""
-
+    # ------------------------------------------------------------------ phases
     def resolve(
-        self, step: ExplicitStep, grid_v: np.ndarray, fem_v: np.ndarray
+        self, step: GridStep, grid_v: np.ndarray, fem_v: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Contact correction of the updated velocities v* (default: none)."""
+        """Contact correction of the updated velocities v* ``(G, d)``, ``(N, d)`` in m/s
+        (default: none)."""
         return grid_v, fem_v
+
+    def g2p(self, step: GridStep, grid_v: np.ndarray) -> tuple[np.ndarray, ...]:
+        """The particle update from the end velocities ``grid_v (G, d)`` m/s: ``(mpm_x, mpm_v,
+        mpm_F, mpm_C)`` (default: the engine's G2P, module docstring step 6)."""
+        state = step.state
+        if step._box is not None:
+            return dense_g2p(
+                step._box,
+                self.model.grid.dx,
+                self.transfer,
+                step.velocity[0],
+                grid_v,
+                self.dt,
+                state.mpm_x,
+                state.mpm_v,
+                state.mpm_F,
+                self._pool.empty,
+            )
+        st = step.stencils()
+        return g2p_explicit(
+            self.transfer,
+            st.nodes,
+            st.weights,
+            st.grads,
+            st.active_x,
+            step.velocity[0],
+            grid_v,
+            self.dt,
+            state.mpm_x,
+            state.mpm_v,
+            state.mpm_F,
+            self._n_chunks,
+            self._pool.empty,
+        )
+
+    def after_g2p(self, step: GridStep, motion: Motion) -> None:
+        """Correct the end-of-step values in place before they are committed (default:
+        nothing)."""
 
     # ------------------------------------------------------------------ the step
     def _check_cfl(self, state: State) -> tuple[str, ...]:
@@ -374,10 +474,12 @@ class ExplicitStepper:
             force += model.fem_load
         return force
 
-    def particles_to_grid(self, state: State, timings: dict[str, float]) -> ExplicitStep:
-        """Stencils, P2G of mass, momentum and forces; FEM forces (steps 1 of the docstring)."""
+    def particles_to_grid(self, state: State) -> GridStep:
+        """CFL check, stencils, P2G of mass, momentum and forces; FEM forces (step 1)."""
         model, d = self.model, self.model.dim
-        t_next = state.t + self.dt
+        started = time.perf_counter()
+        notes = list(self._check_cfl(state))
+        timings: dict[str, float] = {"cfl": time.perf_counter() - started}
         stencils = box = None
         grid_mass = np.zeros(0)
         grid_x = grid_v = grid_force = np.zeros((0, d))
@@ -428,110 +530,82 @@ class ExplicitStepper:
         started = time.perf_counter()
         fem_force = self._fem_forces(state) if model.n_fem_nodes else np.zeros((0, d))
         timings["fem_forces"] = time.perf_counter() - started
-        return ExplicitStep(
-            t=state.t,
-            t_next=t_next,
+        return GridStep(
+            state=state,
+            t_next=state.t + self.dt,
             dt=self.dt,
             grid_x=grid_x,
-            grid_mass=grid_mass,
-            grid_v=grid_v,
-            grid_force=grid_force,
+            mass=grid_mass[None],
+            velocity=grid_v[None],
+            force=grid_force[None],
             fem_force=fem_force,
+            notes=notes,
+            timings=timings,
             _stencils=stencils,
             _box=box,
             _grid=model.grid,
-            _mpm_x=state.mpm_x if model.n_particles else None,
         )
 
-    def _constrain(self, step: ExplicitStep, grid_v: np.ndarray) -> tuple[np.ndarray, tuple]:
-        """Level-set constraints on v* (step 5); returns v and the boundary reactions."""
+    def _constrain(self, step: GridStep, grid_v: np.ndarray) -> np.ndarray:
+        """Level-set constraints on v* (step 5); the reactions go to ``step.boundary_forces``."""
         model = self.model
         if not model.boundaries or step.grid_x.shape[0] == 0:
-            return grid_v, ()
+            return grid_v
         cons = grid_constraints(model.boundaries, step.grid_x, grid_v, step.t_next, step.dt)
         step.constraints = cons
         v = cons.apply(grid_v, step.dt)
-        return v, cons.reactions(step.grid_mass, grid_v, v, step.dt, len(model.boundaries))
-
-    def _g2p(
-        self, step: ExplicitStep, state: State, grid_v: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """G2P of the end velocities ``grid_v (G, d)``: ``(mpm_x, mpm_v, mpm_F, mpm_C)``."""
-        if step._box is not None:
-            return dense_g2p(
-                step._box,
-                self.model.grid.dx,
-                self.transfer,
-                step.grid_v,
-                grid_v,
-                self.dt,
-                state.mpm_x,
-                state.mpm_v,
-                state.mpm_F,
-                self._pool.empty,
-            )
-        st = step.stencils()
-        return g2p_explicit(
-            self.transfer,
-            st.nodes,
-            st.weights,
-            st.grads,
-            st.active_x,
-            step.grid_v,
-            grid_v,
-            self.dt,
-            state.mpm_x,
-            state.mpm_v,
-            state.mpm_F,
-            self._n_chunks,
-            self._pool.empty,
+        step.boundary_forces = cons.reactions(
+            step.mass[0], grid_v, v, step.dt, len(model.boundaries)
         )
+        return v
+
+    def _free_motion(self, step: GridStep) -> tuple[np.ndarray, np.ndarray]:
+        """v* = v + dt M^-1 f of the grid ``(G, d)`` and FEM nodes ``(N, d)`` in m/s (step 3)."""
+        model, dt, integ = self.model, self.dt, self.integrator
+        grid_a = step.force[0] * _inverse(step.mass[0])[:, None]
+        grid_v = integ.velocity(step.velocity[0], grid_a, dt)
+        fem_v = np.zeros((0, model.dim))
+        if model.n_fem_nodes:
+            fem_a = step.fem_force * self._fem_inv_mass[:, None]
+            fem_v = integ.velocity(step.state.fem_v, fem_a, dt)
+            self._script_velocities(step, fem_v)
+        return grid_v, fem_v
+
+    def _script_velocities(self, step: GridStep, fem_v: np.ndarray) -> None:
+        scripted = ~self._fem_free
+        fem_v[scripted] = self.model.prescribed_velocities(step.t_next)[scripted]
+
+    def _motion(self, step: GridStep, grid_v: np.ndarray, fem_v: np.ndarray) -> Motion:
+        """FEM x += dt v (scripted nodes: their script) and the particle update (step 6)."""
+        model, state = self.model, step.state
+        t0 = time.perf_counter()
+        fem_x = state.fem_x
+        if model.n_fem_nodes:
+            self._script_velocities(step, fem_v)
+            fem_x = self.integrator.position(state.fem_x, fem_v, self.dt)
+            scripted = ~self._fem_free
+            fem_x[scripted] = model.prescribed_positions(step.t_next)[scripted]
+        step.timings["update"] += time.perf_counter() - t0
+        mpm = (state.mpm_x, state.mpm_v, state.mpm_F, state.mpm_C)
+        if model.n_particles:
+            t0 = time.perf_counter()
+            mpm = self.g2p(step, grid_v)
+            step.timings["g2p"] = time.perf_counter() - t0
+        return Motion(fem_x, fem_v, *mpm)
 
     def step(self, state: State) -> tuple[State, StepReport]:
         """Advance ``state`` by dt (module docstring); ``StepError`` on a CFL violation."""
         started = time.perf_counter()
-        model, dt = self.model, self.dt
-        notes = self._check_cfl(state)
-        timings: dict[str, float] = {"cfl": time.perf_counter() - started}
-        step = self.particles_to_grid(state, timings)
-        self.after_p2g(step)
+        step = self.particles_to_grid(state)
         t0 = time.perf_counter()
-        integ = self.integrator
-        grid_a = step.grid_force * _inverse(step.grid_mass)[:, None]
-        grid_v = integ.velocity(step.grid_v, grid_a, dt)
-        fem_v = np.zeros((0, model.dim))
-        if model.n_fem_nodes:
-            fem_a = step.fem_force * self._fem_inv_mass[:, None]
-            fem_v = integ.velocity(state.fem_v, fem_a, dt)
-            scripted_v = model.prescribed_velocities(step.t_next)
-            fem_v[~self._fem_free] = scripted_v[~self._fem_free]
-        grid_v, fem_v = self.resolve(step, grid_v, fem_v)
-        grid_v, reactions = self._constrain(step, grid_v)
-        new = replace(state, t=step.t_next, step=state.step + 1)
-        if model.n_fem_nodes:
-            fem_v[~self._fem_free] = scripted_v[~self._fem_free]
-            fem_x = integ.position(state.fem_x, fem_v, dt)
-            scripted_x = model.prescribed_positions(step.t_next)
-            fem_x[~self._fem_free] = scripted_x[~self._fem_free]
-            new.fem_x, new.fem_v = fem_x, fem_v
-            new.fem_a = (fem_v - state.fem_v) / dt
-        timings["update"] = time.perf_counter() - t0
-        if model.n_particles:
-            t0 = time.perf_counter()
-            new.mpm_x, new.mpm_v, new.mpm_F, new.mpm_C = self._g2p(step, state, grid_v)
-            timings["g2p"] = time.perf_counter() - t0
-        timings["step"] = time.perf_counter() - started
-        report = StepReport(
-            step=new.step,
-            t=new.t,
-            success=True,
-            status="EXPLICIT",
-            message="explicit step",
-            timings=timings,
-            boundary_forces=reactions,
-            notes=notes,
-        )
-        return new, report
+        grid_v, fem_v = self.resolve(step, *self._free_motion(step))
+        grid_v = self._constrain(step, grid_v)
+        step.timings["update"] = time.perf_counter() - t0
+        motion = self._motion(step, grid_v, fem_v)
+        self.after_g2p(step, motion)
+        new = motion.commit(step)
+        step.timings["step"] = time.perf_counter() - started
+        return new, step.report(new)
 
 
 def _inverse(mass: np.ndarray) -> np.ndarray:

@@ -119,7 +119,7 @@ from bfemp.steppers._barrier_solve import ScriptedSolve
 from bfemp.steppers._scaffold import StepNodes, gather_nodes, nodes_of_step
 from bfemp.steppers.base import ContactView, StepError, StepperOptions, StepReport, finite_or_nan
 from bfemp.steppers.capabilities import BARRIER_PAIRS, Capabilities
-from bfemp.steppers.explicit import ExplicitOptions, ExplicitStep, ExplicitStepper
+from bfemp.steppers.explicit import ExplicitOptions, ExplicitStepper, GridStep, Motion
 from bfemp.terms import InertiaTerm, StepContext
 from solvers.choice import LINEAR_SOLVER_NAMES, make_linear_solver
 from solvers.options import NewtonOptions
@@ -237,8 +237,8 @@ class TwoStageStepper(ExplicitStepper):
         self.barrier: BarrierTerm | None = None
         self.friction: FrictionTerm | None = None
         self.potential: IncrementalPotential | None = None
-        self._solved: _Solved | None = None
-        self._state: State | None = None
+        #: the last step's contact solve (``stationarity``)
+        self._last_solve: _Solved | None = None
         self._contact: ContactView | None = None
         if not has_contact(model):
             return
@@ -284,56 +284,43 @@ class TwoStageStepper(ExplicitStepper):
         return [*super().terms, *stage2]
 
     # ------------------------------------------------------------------ the step
-    def step(self, state: State) -> tuple[State, StepReport]:
-        """Free motion, contact solve, G2P (module docstring); ``StepError`` when the contact
-        solve fails or the independent crossing check finds a crossing."""
-        self._state, self._solved, self._contact = state, None, None
-        solver = getattr(self, "_solver", None)  # None: no contact term in this scene
-        if solver is not None:  # the note of this step's solve only
-            solver.shifted_solves, solver.max_shift = 0, 0.0
-        new, report = super().step(state)
-        self._state = None
-        solved = self._solved
-        if solved is None:  # no contact term in this scene
-            return new, replace(report, iterations={"newton": 0, "friction": 0})
-        timings = {**report.timings, **solved.timings}
+    def after_g2p(self, step: GridStep, motion: Motion) -> None:
+        """The independent crossing check of the end positions (``StepError`` on an inverted
+        cell or particle or a crossing: stage 2 has no elasticity, nor its det F filter, so
+        nothing in the solve keeps J > 0), then the contact solve's report."""
+        if self.potential is None:
+            return
         t0 = time.perf_counter()
-        # stage 2 has no elasticity (nor its det F filter): nothing in the solve keeps J > 0
-        crossing = step_inversion(self.model, new) or step_intersection(self.model, state, new)
-        timings["intersection"] = time.perf_counter() - t0
-        iterations = {"newton": solved.nit, "friction": solved.friction_its}
+        # the checks read the end positions and F, which ``motion`` carries under State's names
+        model, state = self.model, step.state
+        crossing = step_inversion(model, motion) or step_intersection(model, state, motion)
+        step.timings["intersection"] = time.perf_counter() - t0
         if crossing is not None:
             raise StepError(
-                replace(
-                    report,
+                StepReport(
+                    step=state.step + 1,
+                    t=step.t_next,
                     success=False,
                     status=crossing.status,
                     message=crossing.message,
-                    iterations=iterations,
-                    timings=timings,
+                    iterations=step.iterations,
+                    timings=step.timings,
+                    notes=tuple(step.notes),
                 )
             )
         abs_r, scale = self.stationarity()
-        notes = list(report.notes) + self._solver.rounding_notes()
-        if not solved.friction_ok:
-            notes.append("FRICTION_LOOP: the friction loop did not converge within its cap")
-        report = replace(
-            report,
-            status=solved.status,
-            message="explicit free motion, implicit contact solve"
-            + (" (Newton from x*)" if solved.started_free else " (Newton from x^n)"),
-            iterations=iterations,
+        step.notes.extend(self._solver.rounding_notes())
+        if not self._last_solve.friction_ok:
+            step.notes.append("FRICTION_LOOP: the friction loop did not converge within its cap")
+        step.outcome.update(
             residual=abs_r / scale if scale > 0.0 else 0.0,
-            timings=timings,
             min_distance=finite_or_nan(self.barrier.min_distance()),
             contact_pairs=int(self.barrier.pairs.n_pairs),
-            friction_converged=solved.friction_ok,
-            notes=tuple(notes),
+            friction_converged=self._last_solve.friction_ok,
         )
-        return new, report
 
     def resolve(
-        self, step: ExplicitStep, grid_v: np.ndarray, fem_v: np.ndarray
+        self, step: GridStep, grid_v: np.ndarray, fem_v: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
         """Stage 2: the contact minimisation about the free motion v* (module docstring).
 
@@ -345,10 +332,13 @@ class TwoStageStepper(ExplicitStepper):
         Returns:
             The end-of-step velocities ``(G, d)`` and ``(N, d)`` in m/s.
         """
+        self._last_solve, self._contact = None, None
         if self.potential is None:
+            step.iterations.update(newton=0, friction=0)
             return grid_v, fem_v
+        self._solver.shifted_solves, self._solver.max_shift = 0, 0.0  # this step's note only
         started = time.perf_counter()
-        model, h, d, state = self.model, self.dt, self.model.dim, self._state
+        model, h, d, state = self.model, self.dt, self.model.dim, step.state
         n_fem = model.n_fem_nodes
         nodes = self._nodes(step, state, grid_v)
         layout, pot = nodes.layout, self.potential
@@ -400,16 +390,22 @@ class TwoStageStepper(ExplicitStepper):
             timings = dict(result.timings)
         x_all = layout.positions(pot.to_positions(y), nodes.fixed)
         v_all = (x_all - nodes.x) / h
-        self._solved = _Solved(
+        self._last_solve = _Solved(
             nit, f_its, f_ok, status, free, y, layout.restrict(v_star_all), ctx.dof_mass, timings
         )
         timings["contact_setup"] = setup
         timings["contact"] = time.perf_counter() - started
+        step.timings.update(timings)
+        step.iterations.update(newton=nit, friction=f_its)
+        step.status = status
+        step.message = "explicit free motion, implicit contact solve" + (
+            " (Newton from x*)" if free else " (Newton from x^n)"
+        )
         fem_out = v_all[:n_fem].copy()
         grid_out = v_all[n_fem:].copy() if nodes.mpm is not None else grid_v
         return grid_out, fem_out
 
-    def _nodes(self, step: ExplicitStep, state: State, grid_v: np.ndarray) -> StepNodes:
+    def _nodes(self, step: GridStep, state: State, grid_v: np.ndarray) -> StepNodes:
         """All-node fields of the step from the engine's P2G (``nodes_of_step``); level-set
         constraints decided on v* as the engine does next; round-off-light nodes pinned as in
         ``prepare_mpm_step``."""
@@ -425,12 +421,13 @@ class TwoStageStepper(ExplicitStepper):
         ):
             raise RuntimeError("two_stage: the engine's grid nodes differ from the stencils'")
         cons = grid_constraints(model.boundaries, step.grid_x, grid_v, step.t_next, self.dt)
-        light = step.grid_mass < LIGHT_NODE_REL * step.grid_mass.max()
+        mass = step.mass[0]
+        light = mass < LIGHT_NODE_REL * mass.max()
         if light.any():
             cons = replace(cons, sticky=cons.sticky | light)
         mpm = MpmStep(
             stencils,
-            GridFields(mass=step.grid_mass, velocity=step.grid_v),
+            GridFields(mass=mass, velocity=step.velocity[0]),
             cons,
             model.n_fem_nodes,
             None,
@@ -484,7 +481,7 @@ class TwoStageStepper(ExplicitStepper):
             ``(||r||_inf, scale)`` in N s (N s/m in 2D), scale = max(||M v*||_inf,
             ||h J^T gamma||_inf); ``(0, 0)`` before a contact solve.
         """
-        solved, pot = self._solved, self.potential
+        solved, pot = self._last_solve, self.potential
         if solved is None or pot is None or solved.y.size == 0:
             return 0.0, 0.0
         h = self.dt
