@@ -7,6 +7,7 @@ One step (symplectic Euler, ``bfemp.integrators.SYMPLECTIC_EULER``; USL for MPM)
    ``-MpmElasticityTerm.gradient`` at the grid nodes' start positions (F_p(x^n) = F_p^n by
    linear completeness, MPM eq. 25). FEM: f_n = ``-ElasticityTerm.gradient`` of the cells at
    x^n over an all-free ``DofLayout`` (built once). Gravity m g and dead loads are added.
+   (The phase ``particles_to_grid``; then phase ``after_p2g(step)``, default nothing.)
 2. v* = v + dt M^-1 f on the grid nodes and the free FEM nodes (BFEMP eq. 21 with beta = 0; the
    stored velocity is the half-step one); scripted FEM nodes take their scripted velocity at
    t^{n+1}.
@@ -15,8 +16,9 @@ One step (symplectic Euler, ``bfemp.integrators.SYMPLECTIC_EULER``; USL for MPM)
 4. Level-set boundaries on the grid nodes inside them (``bfemp.mpm.boundaries``, evaluated at
    x_i^n, the boundary where it is at t^{n+1}): sticky v = v_b; slip: the normal component of
    v - v_b removed; separate: as slip while (v* - v_b) . n < 0, free otherwise (decided on v*,
-   the velocity the node would move with). The reaction m_i (v - v*) / dt of each boundary's
-   nodes is reported in ``StepReport.boundary_forces`` (sticky nodes included).
+   the velocity the node would move with, unless a phase decided earlier: lr on v^n). The
+   reaction m_i (v - v*) / dt of each boundary's nodes is reported in
+   ``StepReport.boundary_forces`` (sticky nodes included).
 5. FEM: x += dt v (scripted nodes: their scripted positions); MPM: phase ``g2p`` (default: the
    transfer of ``bfemp.mpm.transfer.grid_to_particles`` with x~_i = x_i + dt v_i, which gives
    x_p += dt v_p and F_p <- (I + dt grad v) F_p by linear completeness, in an allocation-free
@@ -73,7 +75,7 @@ import numpy as np
 from bfemp.dofs import DofLayout
 from bfemp.integrators import SYMPLECTIC_EULER, ExplicitIntegrator, integrator_from_name
 from bfemp.model import Model
-from bfemp.mpm.boundaries import GridConstraints, grid_constraints
+from bfemp.mpm.boundaries import GridConstraints, material_constraints
 from bfemp.mpm.transfer import SCHEMES
 from bfemp.state import State
 from bfemp.steppers._buffers import BufferPool
@@ -141,7 +143,8 @@ class GridStep:
         iterations, notes, timings, extra, status, message, boundary_forces: the step's
             report (``StepReport``'s fields of those names); ``outcome``: any other
             ``StepReport`` field by name (``residual``, ``min_distance``, ``contact_pairs``,
-            ``friction_converged``).
+            ``friction_converged``); ``work``: a strategy's own arrays of the step, passed
+            between its phases.
     """
 
     state: State
@@ -161,6 +164,7 @@ class GridStep:
     message: str = "explicit step"
     boundary_forces: tuple = ()
     outcome: dict[str, object] = field(default_factory=dict)
+    work: dict[str, object] = field(default_factory=dict)
     _stencils: ParticleStencils | None = None
     _box: DenseBox | None = None
     _grid: Grid | None = None
@@ -385,17 +389,22 @@ class ExplicitStepper:
         """Nothing to restore."""
 
     # ------------------------------------------------------------------ phases
+    def after_p2g(self, step: GridStep) -> None:
+        """Correct the transferred grid fields in place (default: nothing; lr: its contact
+        detection and first correction)."""
+
     def resolve(
         self, step: GridStep, grid_v: np.ndarray, fem_v: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Contact correction of the updated velocities v* ``(G, d)``, ``(N, d)`` in m/s
+        """Contact correction of the updated velocities v* ``(M, G, d)``, ``(N, d)`` in m/s
         (default: none)."""
         return grid_v, fem_v
 
     def g2p(self, step: GridStep, grid_v: np.ndarray) -> tuple[np.ndarray, ...]:
-        """The particle update from the end velocities ``grid_v (G, d)`` m/s: ``(mpm_x, mpm_v,
-        mpm_F, mpm_C)`` (default: the engine's G2P, module docstring step 6)."""
-        state = step.state
+        """The particle update from the end velocities ``grid_v (M, G, d)`` m/s: ``(mpm_x,
+        mpm_v, mpm_F, mpm_C)`` (default: the engine's G2P of its one field, module docstring
+        step 5)."""
+        state, grid_v = step.state, grid_v[0]
         if step._box is not None:
             return dense_g2p(
                 step._box,
@@ -451,8 +460,8 @@ class ExplicitStepper:
             )
         return (f"CFL_ABOVE_SAFETY: dt = {self.dt:.6g} s above the stable step {bound.describe()}",)
 
-    def _mpm_piola(self, state: State) -> np.ndarray:
-        """First Piola stresses P(F_p^n) ``(P, d, d)`` in Pa, law by law."""
+    def mpm_stresses(self, state: State) -> np.ndarray:
+        """First Piola stresses P(F_p^n) ``(P, d, d)`` in Pa, law by law (for a P2G phase)."""
         F = state.mpm_F
         if len(self._mpm_laws) == 1 and self._mpm_laws[0][1] is None:
             out = self._pool.empty(F.shape)
@@ -462,8 +471,9 @@ class ExplicitStepper:
             out[idx] = law.first_piola(F[idx], self._mpm_mu[idx], self._mpm_lam[idx])
         return out
 
-    def _fem_forces(self, state: State) -> np.ndarray:
-        """Internal + gravity + load forces on the FEM nodes ``(N, d)`` in N at x^n."""
+    def fem_forces(self, state: State) -> np.ndarray:
+        """Internal + gravity + load forces on the FEM nodes ``(N, d)`` in N at x^n (for a P2G
+        phase)."""
         model = self.model
         x = state.fem_x.reshape(-1)
         force = np.multiply.outer(model.fem_mass, model.gravity)
@@ -475,17 +485,15 @@ class ExplicitStepper:
         return force
 
     def particles_to_grid(self, state: State) -> GridStep:
-        """CFL check, stencils, P2G of mass, momentum and forces; FEM forces (step 1)."""
+        """Phase P2G: stencils, P2G of mass, momentum and forces; FEM forces (step 1)."""
         model, d = self.model, self.model.dim
-        started = time.perf_counter()
-        notes = list(self._check_cfl(state))
-        timings: dict[str, float] = {"cfl": time.perf_counter() - started}
+        timings: dict[str, float] = {}
         stencils = box = None
         grid_mass = np.zeros(0)
         grid_x = grid_v = grid_force = np.zeros((0, d))
         if model.n_particles:
             started = time.perf_counter()
-            piola = self._mpm_piola(state)
+            piola = self.mpm_stresses(state)
             timings["stress"] = time.perf_counter() - started
             started = time.perf_counter()
             apic_C = state.mpm_C if self.transfer == "apic" else None
@@ -528,7 +536,7 @@ class ExplicitStepper:
             grid_force += np.multiply.outer(grid_mass, model.gravity)
             timings["p2g"] = time.perf_counter() - started
         started = time.perf_counter()
-        fem_force = self._fem_forces(state) if model.n_fem_nodes else np.zeros((0, d))
+        fem_force = self.fem_forces(state) if model.n_fem_nodes else np.zeros((0, d))
         timings["fem_forces"] = time.perf_counter() - started
         return GridStep(
             state=state,
@@ -539,7 +547,6 @@ class ExplicitStepper:
             velocity=grid_v[None],
             force=grid_force[None],
             fem_force=fem_force,
-            notes=notes,
             timings=timings,
             _stencils=stencils,
             _box=box,
@@ -547,23 +554,26 @@ class ExplicitStepper:
         )
 
     def _constrain(self, step: GridStep, grid_v: np.ndarray) -> np.ndarray:
-        """Level-set constraints on v* (step 5); the reactions go to ``step.boundary_forces``."""
+        """Level-set constraints on v* ``(M, G, d)`` (step 4; decided here on v* unless a phase
+        decided them already); the reactions go to ``step.boundary_forces``."""
         model = self.model
         if not model.boundaries or step.grid_x.shape[0] == 0:
             return grid_v
-        cons = grid_constraints(model.boundaries, step.grid_x, grid_v, step.t_next, step.dt)
-        step.constraints = cons
+        if step.constraints is None:
+            step.constraints = material_constraints(
+                model.boundaries, step.grid_x, grid_v, step.t_next, step.dt
+            )
+        cons = step.constraints
         v = cons.apply(grid_v, step.dt)
-        step.boundary_forces = cons.reactions(
-            step.mass[0], grid_v, v, step.dt, len(model.boundaries)
-        )
+        step.boundary_forces = cons.reactions(step.mass, grid_v, v, step.dt, len(model.boundaries))
         return v
 
     def _free_motion(self, step: GridStep) -> tuple[np.ndarray, np.ndarray]:
-        """v* = v + dt M^-1 f of the grid ``(G, d)`` and FEM nodes ``(N, d)`` in m/s (step 3)."""
+        """v* = v + dt M^-1 f of the grid ``(M, G, d)`` and FEM nodes ``(N, d)`` in m/s (step
+        2)."""
         model, dt, integ = self.model, self.dt, self.integrator
-        grid_a = step.force[0] * _inverse(step.mass[0])[:, None]
-        grid_v = integ.velocity(step.velocity[0], grid_a, dt)
+        grid_a = step.force * _inverse(step.mass)[..., None]
+        grid_v = integ.velocity(step.velocity, grid_a, dt)
         fem_v = np.zeros((0, model.dim))
         if model.n_fem_nodes:
             fem_a = step.fem_force * self._fem_inv_mass[:, None]
@@ -596,7 +606,11 @@ class ExplicitStepper:
     def step(self, state: State) -> tuple[State, StepReport]:
         """Advance ``state`` by dt (module docstring); ``StepError`` on a CFL violation."""
         started = time.perf_counter()
+        notes = self._check_cfl(state)
+        cfl = time.perf_counter() - started
         step = self.particles_to_grid(state)
+        step.notes[:0], step.timings["cfl"] = notes, cfl
+        self.after_p2g(step)
         t0 = time.perf_counter()
         grid_v, fem_v = self.resolve(step, *self._free_motion(step))
         grid_v = self._constrain(step, grid_v)

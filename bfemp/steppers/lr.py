@@ -2,7 +2,9 @@
 
 Paper: Nairn et al., logistic-regression multimaterial MPM contact ("LR"); the step read
 from it: EXPLICIT_STRATEGIES.md section 2. Every MPM body is one material with its own
-velocity field on the shared grid (``_multimaterial_kernels``). One USL step:
+velocity field on the shared grid (``_multimaterial_kernels``). One USL step, the explicit
+engine's step (``bfemp.steppers.explicit``) with M fields and these phases: P2G (steps 1),
+``after_p2g`` (2-3), ``resolve`` (4), the engine's constraints (5), ``g2p`` (6):
 
 1. Stencils at X_p^n; P2G per material (eq. 5): m^a, p^a0, f^a0 (eq. 29, gravity included).
    Level-set boundaries act on every field (``bfemp.mpm.boundaries``).
@@ -67,7 +69,7 @@ from __future__ import annotations
 import logging
 import math
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
@@ -85,9 +87,9 @@ from bfemp.steppers._multimaterial_kernels import (
     p2g_materials,
     p2g_nodal,
 )
-from bfemp.steppers.base import ContactView, StepperOptions, StepReport
+from bfemp.steppers.base import ContactView, StepperOptions
 from bfemp.steppers.capabilities import Capabilities
-from bfemp.steppers.explicit import ExplicitOptions, ExplicitStepper
+from bfemp.steppers.explicit import ExplicitOptions, ExplicitStepper, GridStep, Motion
 from geometry.grid import ParticleStencils, particle_stencils
 
 __all__ = ["LROptions", "LRStepper"]
@@ -671,30 +673,26 @@ class LRStepper(ExplicitStepper):
             delta = np.where(kinematic[..., None], 0.0, delta)
         return delta, int(touching.sum()), drift, absorbed
 
-    # ------------------------------------------------------------------ the step
-    def step(self, state: State) -> tuple[State, StepReport]:
-        """Advance ``state`` by dt (module docstring); ``StepError`` on a CFL violation."""
-        started = time.perf_counter()
-        model, dt, opts = self.model, self.dt, self.options
-        notes = list(self._check_cfl(state))
-        timings: dict[str, float] = {"cfl": time.perf_counter() - started}
-        t_next = state.t + dt
+    # ------------------------------------------------------------------ the step's phases
+    def particles_to_grid(self, state: State) -> GridStep:
+        """Phase P2G (docstring step 1): per material (LR eq. 5) m^a, p^a0, f^a0 with gravity,
+        FEM boundary nodes as points; the constraints decided and applied on v^a0."""
+        model, dt = self.model, self.dt
         t0 = time.perf_counter()
-        piola = self._mpm_piola(state)
+        piola = self.mpm_stresses(state)
         pts = self._points(state)
         st = pts.stencils
         n_p = model.n_particles
         nodes, weights, grads = st.nodes[:n_p], st.weights[:n_p], st.grads[:n_p]
         grid_x = st.active_x
-        M, G = self.n_materials, grid_x.shape[0]
         mass, mom0, force = p2g_materials(
             nodes, weights, grads, self.material, model.mpm_mass, state.mpm_v,
-            piola, state.mpm_F, model.mpm_volume, M, G,
+            piola, state.mpm_F, model.mpm_volume, self.n_materials, grid_x.shape[0],
         )  # fmt: skip
         force += mass[..., None] * model.gravity
         fem_force = np.zeros((0, model.dim))
         if self._n_fem_points:
-            fem_force = self._fem_forces(state)  # internal + gravity + loads, on the mesh
+            fem_force = self.fem_forces(state)  # internal + gravity + loads, on the mesh
             rows = slice(n_p, n_p + self._n_fem_points)
             b = self._fem_points
             p2g_nodal(
@@ -702,50 +700,78 @@ class LRStepper(ExplicitStepper):
                 model.fem_mass[b], state.fem_v[b], self._scripted_force(state, fem_force),
                 mass, mom0, force,
             )  # fmt: skip
-        kinematic = self._kinematic_fields(st, mass)
-        timings["fem_forces"] = 0.0
         inv_mass = np.zeros_like(mass)
         np.divide(1.0, mass, out=inv_mass, where=mass > 0.0)
         v0 = mom0 * inv_mass[..., None]
+        t_next = state.t + dt
         cons = material_constraints(model.boundaries, grid_x, v0, t_next, dt)
         v0 = cons.apply(v0, dt)
-        mom0 = v0 * mass[..., None]
-        timings["p2g"] = time.perf_counter() - t0
+        work = {"pts": pts, "inv_mass": inv_mass, "kinematic": self._kinematic_fields(st, mass)}
+        return GridStep(
+            state=state, t_next=t_next, dt=dt, grid_x=grid_x, mass=mass, velocity=v0,
+            force=force, fem_force=fem_force, constraints=cons, message="explicit step (lr)",
+            timings={"fem_forces": 0.0, "p2g": time.perf_counter() - t0}, work=work,
+            _grid=model.grid,
+        )  # fmt: skip
 
+    def after_p2g(self, step: GridStep) -> None:
+        """The pairs and their planes (docstring step 2), the first correction (step 3)."""
+        work, mass = step.work, step.mass
         t0 = time.perf_counter()
-        planes = self._pairs(pts, grid_x, mass)
-        timings["lr_fits"] = time.perf_counter() - t0
-
+        work["planes"] = planes = self._pairs(work["pts"], step.grid_x, mass)
+        step.timings["lr_fits"] = time.perf_counter() - t0
         t0 = time.perf_counter()
-        absorbed = np.zeros_like(mom0)  # momentum the scripted fields take (not applied)
-        if opts.corrections == 2:
-            dp1, _, _, absorbed1 = self._correct(planes, mass, mom0, kinematic)
+        mom0 = step.velocity * mass[..., None]
+        work["absorbed"] = np.zeros_like(mom0)  # momentum the scripted fields take (not applied)
+        dp1 = np.zeros_like(mom0)
+        if self.options.corrections == 2:
+            dp1, _, _, absorbed1 = self._correct(planes, mass, mom0, work["kinematic"])
             if self.contact_force == "c0":
-                absorbed += absorbed1
-        else:
-            dp1 = np.zeros_like(mom0)
-        mom = mom0 + dp1
-        v = mom * inv_mass[..., None]
-        dv = dp1 * inv_mass[..., None]
-        mom_plus0 = mom + dt * force
-        # only the second correction reaches the particles' momentum (f^{C,1}, eq. 34)
-        dp2, touching, drift, absorbed2 = self._correct(planes, mass, mom_plus0, kinematic)
-        absorbed += absorbed2
-        v_plus_free = (mom_plus0 + dp2) * inv_mass[..., None]
-        v_plus = cons.apply(v_plus_free, dt)
-        accel = (v_plus - v) / dt
-        # the contact momentum particles and FEM nodes receive (eq. 33): f^{C,1} dt or f^{C,0} dt
-        dp_kick = dp2 + dp1 if self.contact_force == "c0" else dp2
-        timings["corrections"] = time.perf_counter() - t0
+                work["absorbed"] += absorbed1
+        work["dp1"], work["mom"] = dp1, mom0 + dp1
+        step.timings["corrections"] = time.perf_counter() - t0
 
+    def resolve(
+        self, step: GridStep, grid_v: np.ndarray, fem_v: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The second correction (docstring step 4): p^a0+ = p^a + dt f^a0 (LR eq. 30), v^a+ =
+        (p^a0+ + dp^a) / m^a (eq. 31); the FEM velocities with the boundary nodes' kick.
+
+        LR's update is in momenta, so the engine's v* = v + dt f / m (equal in exact arithmetic,
+        rounded otherwise) is not used; nor its FEM v* (the kick is added to LR's own)."""
+        work, dt = step.work, self.dt
         t0 = time.perf_counter()
+        inv_mass = work["inv_mass"]
+        mom_plus0 = work["mom"] + dt * step.force
+        dp2, touching, drift, absorbed2 = self._correct(
+            work["planes"], step.mass, mom_plus0, work["kinematic"]
+        )
+        work["absorbed"] += absorbed2
+        # the contact momentum particles and FEM nodes receive (eq. 33): f^{C,1} dt or f^{C,0} dt
+        work["dp_kick"] = dp2 + work["dp1"] if self.contact_force == "c0" else dp2
+        work.update(dp2=dp2, touching=touching, drift=drift)
+        step.timings["corrections"] += time.perf_counter() - t0
+        if self.model.n_fem_nodes:
+            fem_v = self._fem_velocities(step, work["dp_kick"], inv_mass)
+        return (mom_plus0 + dp2) * inv_mass[..., None], fem_v
+
+    def g2p(self, step: GridStep, grid_v: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Particles (docstring step 6): FLIP (LR eq. 32) or XPIC(m) (eqs. 35, 37) from the end
+        velocities v^a+ ``(M, G, d)``, USL F; no APIC matrices."""
+        model, dt, work, state = self.model, self.dt, step.work, step.state
+        n_p = model.n_particles
+        st = work["pts"].stencils
+        nodes, weights, grads = st.nodes[:n_p], st.weights[:n_p], st.grads[:n_p]
+        inv_mass = work["inv_mass"]
+        v = work["mom"] * inv_mass[..., None]
+        accel = (grid_v - v) / dt  # f^{C,1} of eq. 34 (boundaries included)
         sv, sv_plus, new_F = g2p_update(
-            nodes, weights, grads, self.material, v, v_plus, dt, state.mpm_F
+            nodes, weights, grads, self.material, v, grid_v, dt, state.mpm_F
         )
         if self.xpic_order is None:  # FLIP (eq. 32)
             new_v = state.mpm_v + (sv_plus - sv)
             if self.contact_force == "c0":  # the first correction reaches the particles
-                new_v += g2p_field(nodes, weights, self.material, dv)
+                new_v += g2p_field(nodes, weights, self.material, work["dp1"] * inv_mass[..., None])
             new_x = state.mpm_x + dt * 0.5 * (sv + sv_plus)
         else:  # XPIC(m) (eqs. 35, 37)
 
@@ -754,65 +780,52 @@ class LRStepper(ExplicitStepper):
                 return p2g_field(nodes, weights, self.material, model.mpm_mass, values, inv_mass)
 
             t1 = time.perf_counter()
+            dv = work["dp1"] * inv_mass[..., None]
             v_star = xpic_grid_velocity(
-                self.xpic_order, opts.xpic_variant, v, v0, dv, apply_A,
-                cons.project,
+                self.xpic_order, self.options.xpic_variant, v, step.velocity, dv, apply_A,
+                step.constraints.project,
             )  # fmt: skip
-            timings["xpic"] = time.perf_counter() - t1
+            step.timings["xpic"] = time.perf_counter() - t1
             new_v = g2p_field(nodes, weights, self.material, v_star + dt * accel)
             new_x = state.mpm_x + dt * (sv + 0.5 * (new_v - state.mpm_v))
-        timings["g2p"] = time.perf_counter() - t0 - timings.get("xpic", 0.0)
+        return new_x, new_v, new_F, np.zeros_like(state.mpm_C)
 
-        new = replace(state, t=t_next, step=state.step + 1)
-        new.mpm_x, new.mpm_v, new.mpm_F = new_x, new_v, new_F
-        new.mpm_C = np.zeros_like(state.mpm_C)
-        if model.n_fem_nodes:
-            new.fem_x, new.fem_v = self._fem_update(state, st, fem_force, dp_kick, inv_mass)
-            new.fem_a = (new.fem_v - state.fem_v) / dt
+    def after_g2p(self, step: GridStep, motion: Motion) -> None:
+        """The step's notes, counters, report values and contact view (no correction)."""
+        work, opts = step.work, self.options
+        planes, touching = work["planes"], work["touching"]
+        dp1, dp2, absorbed = work["dp1"], work["dp2"], work["absorbed"]
         if touching:
             self.steps_with_contact += 1
         impulse_1, impulse_2 = float(np.abs(dp1).sum()), float(np.abs(dp2).sum())
-        notes += self._watch_first_correction(touching > 0, impulse_1, impulse_2, new.step)
+        new_step = step.state.step + 1
+        step.notes += self._watch_first_correction(touching > 0, impulse_1, impulse_2, new_step)
         unconverged = int((~planes.converged).sum())
         self.unconverged_fits += unconverged
         if unconverged:
-            notes.append(f"LR_UNCONVERGED: {unconverged} LR fits hit the iteration cap")
+            step.notes.append(f"LR_UNCONVERGED: {unconverged} LR fits hit the iteration cap")
             if not self._warned_unconverged:  # once per run (spec L7); counted in every report
                 self._warned_unconverged = True
                 log.warning(
                     "lr: %d LR fits hit the cap of %d iterations at step %d (the last iterate "
                     "is used; counted in StepReport.extra['lr_unconverged'] from now on)",
-                    unconverged, opts.lr_max_iterations, new.step,
+                    unconverged, opts.lr_max_iterations, new_step,
                 )  # fmt: skip
-        reactions = cons.reactions(mass, v_plus_free, v_plus, dt, len(model.boundaries))
-        self._store_contact(planes, dp_kick + absorbed, pts, inv_mass, dt)
-        timings["step"] = time.perf_counter() - started
-        extra = {
-            "contact_nodes": float(np.unique(planes.node).size),
-            "nodes_3plus": float(np.unique(planes.node[planes.b < 0]).size),
-            "pairs_in_contact": float(touching),
-            "lr_iterations_max": float(planes.iterations.max()) if planes.node.size else 0.0,
-            "lr_unconverged": float(unconverged),
-            "lr_fallbacks": float(planes.fallback.sum()),
-            "lump_momentum_drift": float(np.linalg.norm(drift)),
-            "scripted_impulse": float(np.linalg.norm(absorbed.sum(axis=(0, 1)))),
-            "first_correction_impulse": impulse_1,
-            "second_correction_impulse": impulse_2,
-        }
-        report = StepReport(
-            step=new.step,
-            t=new.t,
-            success=True,
-            status="EXPLICIT",
-            message="explicit step (lr)",
-            iterations={"lr": int(planes.iterations.max()) if planes.node.size else 0},
-            timings=timings,
-            contact_pairs=int(touching),
-            boundary_forces=reactions,
-            notes=tuple(notes),
-            extra=extra,
+        self._store_contact(planes, work["dp_kick"] + absorbed, work["pts"], work["inv_mass"])
+        step.extra.update(
+            contact_nodes=float(np.unique(planes.node).size),
+            nodes_3plus=float(np.unique(planes.node[planes.b < 0]).size),
+            pairs_in_contact=float(touching),
+            lr_iterations_max=float(planes.iterations.max()) if planes.node.size else 0.0,
+            lr_unconverged=float(unconverged),
+            lr_fallbacks=float(planes.fallback.sum()),
+            lump_momentum_drift=float(np.linalg.norm(work["drift"])),
+            scripted_impulse=float(np.linalg.norm(absorbed.sum(axis=(0, 1)))),
+            first_correction_impulse=impulse_1,
+            second_correction_impulse=impulse_2,
         )
-        return new, report
+        step.iterations["lr"] = int(planes.iterations.max()) if planes.node.size else 0
+        step.outcome["contact_pairs"] = int(touching)
 
     def _watch_first_correction(
         self, touching: bool, impulse_1: float, impulse_2: float, step: int
@@ -863,38 +876,30 @@ class LRStepper(ExplicitStepper):
             )  # fmt: skip
         return [f"LR_FIRST_CORRECTION: first/second correction impulse ratio {ratio:.3g}"]
 
-    def _fem_update(
-        self,
-        state: State,
-        st: ParticleStencils,
-        fem_force: np.ndarray,
-        dp2: np.ndarray,
-        inv_mass: np.ndarray,
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """FEM positions and velocities at t^{n+1} ``(N, d)`` (section 2.6 of the spec): the
-        mechanical update, plus on the boundary nodes the G2P of the contact velocity change."""
-        model, dt = self.model, self.dt
-        fem_v = state.fem_v + dt * fem_force * self._fem_inv_mass[:, None]
+    def _fem_velocities(self, step: GridStep, dp: np.ndarray, inv_mass: np.ndarray) -> np.ndarray:
+        """FEM velocities at t^{n+1} ``(N, d)`` m/s (section 2.6 of the spec): the mechanical
+        update, plus on the boundary nodes the G2P of the contact velocity change ``dp / m``
+        ``(M, G, d)``; scripted nodes their script (the engine moves the nodes)."""
+        model, dt, state = self.model, self.dt, step.state
+        fem_v = state.fem_v + dt * step.fem_force * self._fem_inv_mass[:, None]
         if self._n_fem_points:
+            st = step.work["pts"].stencils
             rows = slice(model.n_particles, model.n_particles + self._n_fem_points)
             kick = g2p_field(
-                st.nodes[rows], st.weights[rows], self._fem_point_material,
-                dp2 * inv_mass[..., None],
-            )  # fmt: skip
+                st.nodes[rows], st.weights[rows], self._fem_point_material, dp * inv_mass[..., None]
+            )
             free = self._fem_point_free
             fem_v[self._fem_points[free]] += kick[free]
         scripted = ~self._fem_free
-        fem_v[scripted] = model.prescribed_velocities(state.t + dt)[scripted]
-        fem_x = state.fem_x + dt * fem_v
-        fem_x[scripted] = model.prescribed_positions(state.t + dt)[scripted]
-        return fem_x, fem_v
+        fem_v[scripted] = model.prescribed_velocities(step.t_next)[scripted]
+        return fem_v
 
     def _store_contact(
-        self, planes: _Pairs, dp2: np.ndarray, pts: _Points, inv_mass: np.ndarray, dt: float
+        self, planes: _Pairs, dp2: np.ndarray, pts: _Points, inv_mass: np.ndarray
     ) -> None:
         """The contact view: the f^{C,1} grid forces dp^+/dt shared out to the particles and FEM
         boundary nodes in proportion to their mass weight at each node (sums to the grid's)."""
-        model, st = self.model, pts.stencils
+        model, st, dt = self.model, pts.stencils, self.dt
         share = g2p_field(st.nodes, st.weights, pts.material, dp2 * inv_mass[..., None])
         force = share * (pts.mass / dt)[:, None]
         n_p = model.n_particles

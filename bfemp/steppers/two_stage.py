@@ -326,11 +326,11 @@ class TwoStageStepper(ExplicitStepper):
 
         Args:
             step: the engine's step (P2G fields at x^n).
-            grid_v: free-motion grid velocities v* ``(G, d)`` in m/s.
+            grid_v: free-motion grid velocities v* ``(1, G, d)`` in m/s (the one field).
             fem_v: free-motion FEM node velocities v* ``(N, d)`` in m/s (scripted: scripted).
 
         Returns:
-            The end-of-step velocities ``(G, d)`` and ``(N, d)`` in m/s.
+            The end-of-step velocities ``(1, G, d)`` and ``(N, d)`` in m/s.
         """
         self._last_solve, self._contact = None, None
         if self.potential is None:
@@ -340,6 +340,7 @@ class TwoStageStepper(ExplicitStepper):
         started = time.perf_counter()
         model, h, d, state = self.model, self.dt, self.model.dim, step.state
         n_fem = model.n_fem_nodes
+        grid_v = grid_v[0]
         nodes = self._nodes(step, state, grid_v)
         layout, pot = nodes.layout, self.potential
         v_star_all = np.concatenate([fem_v, grid_v]) if nodes.mpm is not None else fem_v
@@ -403,7 +404,7 @@ class TwoStageStepper(ExplicitStepper):
         )
         fem_out = v_all[:n_fem].copy()
         grid_out = v_all[n_fem:].copy() if nodes.mpm is not None else grid_v
-        return grid_out, fem_out
+        return grid_out[None], fem_out
 
     def _nodes(self, step: GridStep, state: State, grid_v: np.ndarray) -> StepNodes:
         """All-node fields of the step from the engine's P2G (``nodes_of_step``); level-set
