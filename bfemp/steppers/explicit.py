@@ -22,7 +22,7 @@ One step (symplectic Euler, ``bfemp.integrators.SYMPLECTIC_EULER``; USL for MPM)
 5. FEM: x += dt v (scripted nodes: their scripted positions); MPM: phase ``g2p`` (default: the
    transfer of ``bfemp.mpm.transfer.grid_to_particles`` with x~_i = x_i + dt v_i, which gives
    x_p += dt v_p and F_p <- (I + dt grad v) F_p by linear completeness, in an allocation-free
-   kernel: ``_explicit_kernels.g2p_explicit``, the same arithmetic; ``grid_to_particles``'
+   kernel: ``bfemp.mpm.transfer.g2p_explicit``, the same arithmetic; ``grid_to_particles``'
    kernel allocates four d x d matrices per particle).
 6. Phase ``after_g2p(step, motion)`` (default: nothing): a strategy corrects the end values
    (augury's contact correction); then ``Motion.commit`` writes the new state, the one place a
@@ -32,12 +32,12 @@ The phases exchange one value, ``GridStep`` (start state, grid fields with a fie
 constraints, and the report's iterations, notes, timings and extra), from which the engine
 builds the ``StepReport``.
 
-Two kernel paths, one result (tested to round-off): in 2D the dense-box kernels of
-``_dense2d_kernels`` recompute each particle's weights from x_p and index a dense node box, as
-Taichi does, so no (P, 9) stencil arrays are written or read (``GridStep.stencils()``
+Two kernel paths, one result (tested to round-off): in 2D the dense-box kernels
+(``bfemp.mpm._dense2d_kernels``) recompute each particle's weights from x_p and index a dense
+node box, as Taichi does, so no (P, 9) stencil arrays are written or read (``GridStep.stencils()``
 builds them on demand for a strategy that needs them); in 3D (or when the box would be too
 sparse) the stencils of ``geometry.grid.particle_stencils`` feed the general kernels of
-``_explicit_kernels``. (Compacting the stencils in numba instead of numpy was tried and
+``bfemp.mpm._explicit_kernels``. (Compacting the stencils in numba instead of numpy was tried and
 dropped: 23 ms either way at 131k particles, the cost is that of writing the fresh (P, 9)
 weight and gradient arrays.)
 
@@ -76,11 +76,16 @@ from bfemp.dofs import DofLayout
 from bfemp.integrators import SYMPLECTIC_EULER, ExplicitIntegrator, integrator_from_name
 from bfemp.model import Model
 from bfemp.mpm.boundaries import GridConstraints, material_constraints
-from bfemp.mpm.transfer import SCHEMES
+from bfemp.mpm.transfer import (
+    SCHEMES,
+    DenseBox,
+    dense_g2p,
+    dense_p2g,
+    g2p_explicit,
+    p2g_with_forces,
+)
 from bfemp.state import State
 from bfemp.steppers._buffers import BufferPool
-from bfemp.steppers._dense2d_kernels import DenseBox, dense_g2p, dense_p2g
-from bfemp.steppers._explicit_kernels import g2p_explicit, p2g_with_forces
 from bfemp.steppers.base import ContactView, StepError, StepperOptions, StepReport
 from bfemp.steppers.stable_dt import StableStep, stable_time_step
 from bfemp.terms import ElasticityTerm, StepContext, fem_elastic_groups

@@ -1,10 +1,10 @@
 """``"lr"``: multimaterial MPM with logistic-regression contact and multimaterial XPIC(m).
 
-Paper: Nairn et al., logistic-regression multimaterial MPM contact ("LR"); the step read
-from it: EXPLICIT_STRATEGIES.md section 2. Every MPM body is one material with its own
-velocity field on the shared grid (``_multimaterial_kernels``). One USL step, the explicit
-engine's step (``bfemp.steppers.explicit``) with M fields and these phases: P2G (steps 1),
-``after_p2g`` (2-3), ``resolve`` (4), the engine's constraints (5), ``g2p`` (6):
+Paper: Nairn et al., logistic-regression multimaterial MPM contact ("LR"). Every MPM body is one
+material with its own velocity field on the shared grid (``bfemp.mpm.transfer``'s
+multimaterial kernels). One USL step, the explicit engine's step (``bfemp.steppers.explicit``)
+with M fields and these phases: P2G (step 1), ``after_p2g`` (2-3), ``resolve`` (4), the
+engine's constraints (5), ``g2p`` (6):
 
 1. Stencils at X_p^n; P2G per material (eq. 5): m^a, p^a0, f^a0 (eq. 29, gravity included).
    Level-set boundaries act on every field (``bfemp.mpm.boundaries``).
@@ -78,15 +78,15 @@ from bfemp.errors import warn_user
 from bfemp.integrators import ExplicitIntegrator
 from bfemp.model import Model
 from bfemp.mpm.boundaries import material_constraints
-from bfemp.mpm.xpic import XPIC_VARIANTS, xpic_grid_velocity
-from bfemp.state import State
-from bfemp.steppers._multimaterial_kernels import (
+from bfemp.mpm.transfer import (
     g2p_field,
     g2p_update,
     p2g_field,
     p2g_materials,
     p2g_nodal,
 )
+from bfemp.mpm.xpic import XPIC_VARIANTS, xpic_grid_velocity
+from bfemp.state import State
 from bfemp.steppers.base import ContactView, StepperOptions
 from bfemp.steppers.capabilities import Capabilities
 from bfemp.steppers.explicit import ExplicitOptions, ExplicitStepper, GridStep, Motion
