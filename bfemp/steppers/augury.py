@@ -91,10 +91,9 @@ from bfemp.contact.augury import (
 )
 from bfemp.contact.parameters import refuse_pair_friction
 from bfemp.errors import warn_user
-from bfemp.integrators import ExplicitIntegrator
 from bfemp.model import Model
 from bfemp.state import State
-from bfemp.steppers.base import ContactView, StepperOptions
+from bfemp.steppers.base import ContactView
 from bfemp.steppers.capabilities import Capabilities
 from bfemp.steppers.explicit import ExplicitOptions, ExplicitStepper, GridStep, Motion
 from geometry.grid import particle_stencils
@@ -246,16 +245,9 @@ class AuguryStepper(ExplicitStepper):
         penetration_note=AUGURY_PENETRATION_NOTE,
     )  # fmt: skip
 
-    def __init__(
-        self,
-        model: Model,
-        *,
-        integrator: str | ExplicitIntegrator = "symplectic_euler",
-        dt: float | str,
-        transfer: str = "apic",
-        options: StepperOptions | None = None,
-    ) -> None:
-        super().__init__(model, integrator=integrator, dt=dt, transfer=transfer, options=options)
+    def _setup(self) -> None:
+        """The strategy's own construction, after the engine's (module docstring)."""
+        model = self.model
         opts = self.options
         self.tau = self.dt if opts.tau is None else opts.tau
         if self.tau < 0.5 * self.dt:

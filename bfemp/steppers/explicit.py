@@ -233,7 +233,7 @@ class ExplicitStepper:
         model: the static model.
         integrator: ``"symplectic_euler"`` (the only explicit integrator) or its object.
         dt: time step in s, or ``"auto"`` for the stable bound of the initial state.
-        transfer: ``"apic"``, ``"pic"`` or ``"flip"``.
+        transfer: ``"apic"``, ``"pic"`` or ``"flip"`` (``transfers``; None: ``default_transfer``).
         options: the strategy's options (``Options()`` when None).
     """
 
@@ -242,6 +242,10 @@ class ExplicitStepper:
     explicit: ClassVar[bool] = True
     #: the integrator ``Simulation`` takes when none is given
     default_integrator: ClassVar[str] = "symplectic_euler"
+    #: the transfers the strategy takes, the one taken when none is given, and why others are not
+    transfers: ClassVar[tuple[str, ...]] = SCHEMES
+    default_transfer: ClassVar[str] = "apic"
+    transfer_note: ClassVar[str] = ""
     #: 2D scenes take the dense-box kernels (``_dense2d_kernels``); False forces the general path
     dense_2d: ClassVar[bool] = True
 
@@ -251,13 +255,17 @@ class ExplicitStepper:
         *,
         integrator: str | ExplicitIntegrator = "symplectic_euler",
         dt: float | str,
-        transfer: str = "apic",
+        transfer: str | None = None,
         options: StepperOptions | None = None,
     ) -> None:
         self.model = model
         self.integrator = self._explicit_integrator(integrator)
-        if transfer not in SCHEMES:
-            raise ValueError(f"{self.name}: transfer must be one of {SCHEMES}, got {transfer!r}")
+        transfer = self.default_transfer if transfer is None else transfer
+        if transfer not in self.transfers:
+            raise ValueError(
+                f"{self.name}: transfer must be one of {self.transfers}, got {transfer!r}"
+                + self.transfer_note
+            )
         self.transfer = transfer
         options = self.Options() if options is None else options
         if not isinstance(options, self.Options):
@@ -289,6 +297,10 @@ class ExplicitStepper:
         self.dt = float(dt)
         self._build_forces()
         self._last_contact: ContactView | None = None
+        self._setup()
+
+    def _setup(self) -> None:
+        """A strategy's own construction, after the engine's (default: nothing)."""
 
     # ------------------------------------------------------------------ construction
     def _explicit_integrator(self, integrator: object) -> ExplicitIntegrator:

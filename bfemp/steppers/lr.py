@@ -75,7 +75,6 @@ from typing import ClassVar
 import numpy as np
 
 from bfemp.errors import warn_user
-from bfemp.integrators import ExplicitIntegrator
 from bfemp.model import Model
 from bfemp.mpm.boundaries import material_constraints
 from bfemp.mpm.transfer import (
@@ -87,7 +86,7 @@ from bfemp.mpm.transfer import (
 )
 from bfemp.mpm.xpic import XPIC_VARIANTS, xpic_grid_velocity
 from bfemp.state import State
-from bfemp.steppers.base import ContactView, StepperOptions
+from bfemp.steppers.base import ContactView
 from bfemp.steppers.capabilities import Capabilities
 from bfemp.steppers.explicit import ExplicitOptions, ExplicitStepper, GridStep, Motion
 from geometry.grid import ParticleStencils, particle_stencils
@@ -320,24 +319,16 @@ class LRStepper(ExplicitStepper):
     default_transfer: ClassVar[str] = "flip"
     transfers: ClassVar[tuple[str, ...]] = TRANSFERS
 
-    def __init__(
-        self,
-        model: Model,
-        *,
-        integrator: str | ExplicitIntegrator = "symplectic_euler",
-        dt: float | str,
-        transfer: str = "flip",
-        options: StepperOptions | None = None,
-    ) -> None:
-        if transfer not in TRANSFERS:
-            raise ValueError(
-                f"lr: transfer must be one of {TRANSFERS} (XPIC(m) by LROptions.xpic_order), "
-                f"got {transfer!r}; APIC is not part of LR's multimaterial method"
-            )
+    #: why the other transfers are refused
+    transfer_note: ClassVar[str] = (
+        " (XPIC(m) by LROptions.xpic_order); APIC is not part of LR's multimaterial method"
+    )
+
+    def _setup(self) -> None:
+        """The strategy's own construction, after the engine's (module docstring)."""
+        model, opts, transfer = self.model, self.options, self.transfer
         if model.n_particles == 0:
             raise ValueError("lr: the scene has no MPM body (LR couples MPM materials)")
-        super().__init__(model, integrator=integrator, dt=dt, transfer=transfer, options=options)
-        opts = self.options
         if opts.mu is not None:
             self.mu = opts.mu
         else:

@@ -107,8 +107,6 @@ from bfemp.contact.intersection import step_intersection, step_inversion
 from bfemp.contact.pairs import find_pairs
 from bfemp.contact.parameters import warn_mpm_pairs
 from bfemp.contact.term import BarrierTerm
-from bfemp.integrators import ExplicitIntegrator
-from bfemp.model import Model
 from bfemp.mpm.boundaries import grid_constraints
 from bfemp.mpm.step import LIGHT_NODE_REL, MpmStep
 from bfemp.mpm.transfer import GridFields
@@ -117,7 +115,7 @@ from bfemp.state import State
 from bfemp.steppers._barrier_potential import contact_view, has_contact
 from bfemp.steppers._barrier_solve import ScriptedSolve
 from bfemp.steppers._scaffold import StepNodes, gather_nodes, nodes_of_step
-from bfemp.steppers.base import ContactView, StepError, StepperOptions, StepReport, finite_or_nan
+from bfemp.steppers.base import ContactView, StepError, StepReport, finite_or_nan
 from bfemp.steppers.capabilities import BARRIER_PAIRS, Capabilities
 from bfemp.steppers.explicit import ExplicitOptions, ExplicitStepper, GridStep, Motion
 from bfemp.terms import InertiaTerm, StepContext
@@ -193,17 +191,12 @@ class TwoStageOptions(ExplicitOptions):
 
 @dataclass
 class _Solved:
-    """What the contact solve of the last step left (for the report and the residual check)."""
+    """What the contact solve of the last step left (for the residual check, ``stationarity``)."""
 
-    nit: int
-    friction_its: int
     friction_ok: bool
-    status: str
-    started_free: bool
     y: np.ndarray  # the solver's unknowns at the solution
     v_star: np.ndarray  # (n_dof,) free-motion velocities of the unknowns, m/s
     mass: np.ndarray  # (n_dof,) lumped masses of the unknowns, kg (kg/m in 2D)
-    timings: dict[str, float]
 
 
 class TwoStageStepper(ExplicitStepper):
@@ -223,16 +216,9 @@ class TwoStageStepper(ExplicitStepper):
         "that would cross is a named failure (TUNNELED, INTERSECTION)",
     )  # fmt: skip
 
-    def __init__(
-        self,
-        model: Model,
-        *,
-        integrator: str | ExplicitIntegrator = "symplectic_euler",
-        dt: float | str,
-        transfer: str = "apic",
-        options: StepperOptions | None = None,
-    ) -> None:
-        super().__init__(model, integrator=integrator, dt=dt, transfer=transfer, options=options)
+    def _setup(self) -> None:
+        """The strategy's own construction, after the engine's (module docstring)."""
+        model = self.model
         opts = self.options
         self.barrier: BarrierTerm | None = None
         self.friction: FrictionTerm | None = None
@@ -391,9 +377,7 @@ class TwoStageStepper(ExplicitStepper):
             timings = dict(result.timings)
         x_all = layout.positions(pot.to_positions(y), nodes.fixed)
         v_all = (x_all - nodes.x) / h
-        self._last_solve = _Solved(
-            nit, f_its, f_ok, status, free, y, layout.restrict(v_star_all), ctx.dof_mass, timings
-        )
+        self._last_solve = _Solved(f_ok, y, layout.restrict(v_star_all), ctx.dof_mass)
         timings["contact_setup"] = setup
         timings["contact"] = time.perf_counter() - started
         step.timings.update(timings)
