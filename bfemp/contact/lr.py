@@ -1,17 +1,17 @@
 """Contact normals, separations and the contact law of logistic-regression (LR) multimaterial MPM
-(Nairn et al., "LR"; EXPLICIT_STRATEGIES.md section 2), physics only: the ``"lr"`` stepper
+(Nairn et al., "LR"), physics only: the ``"lr"`` stepper
 builds the per-material grid and the point clouds and calls these.
 
 - ``contact_point_clouds``: the CSR point clouds that ``lr_planes`` takes, from the stencils.
 - ``lr_planes``: at each contact node, the most probable plane between the point cloud's two
-  classes by logistic regression (eqs. 19-21, App. eqs. 53-57), its unit normal from alpha to
-  beta, and the separation d_LR (eqs. 22-24) with the deformed particle radius (eq. 25).
-- ``deformed_radius``: eq. 25 alone.
-- ``mass_gradient_normals`` and ``ag_normals``: the grid "average gradient" normal (eqs. 11, 13)
+  classes by logistic regression (LR eqs. 19-21, LR App. eqs. 53-57), its unit normal from alpha to
+  beta, and the separation d_LR (LR eqs. 22-24) with the deformed particle radius (LR eq. 25).
+- ``deformed_radius``: LR eq. 25 alone.
+- ``mass_gradient_normals`` and ``ag_normals``: the grid "average gradient" normal (LR eqs. 11, 13)
   that LR compares against.
 - ``material_mass_moments`` and ``cp_separation``: the grid "contact position" separation with a
-  constant offset (eq. 16), "CP = 0.8".
-- ``contact_momentum``: the two-material contact law (eqs. 7-10, 14-15, 24) with the detection
+  constant offset (LR eq. 16), "CP = 0.8".
+- ``contact_momentum``: the two-material contact law (LR eqs. 7-10, 14-15, 24) with the detection
   "approaching and touching".
 
 Units: SI throughout (m, kg, kg m/s).
@@ -62,13 +62,13 @@ class LRPlanes:
 
     Attributes:
         normal: unit normals ``(C, d)`` from material alpha (side -1) to beta (side +1).
-        separation: d_LR ``(C,)`` in m (eq. 24); negative = overlapping, 0 = touching.
+        separation: d_LR ``(C,)`` in m (LR eq. 24); negative = overlapping, 0 = touching.
         iterations: Gauss-Newton (logistic) iterations taken ``(C,)`` int, after the
             linear-regression start.
         converged: ``(C,)`` bool, 1 - n^(k+1) . n^(k) < tol met within ``max_iterations``.
         fallback: ``(C,)`` bool, a Gauss-Newton iterate was NaN, singular or had a zero normal,
             and the linear-regression normal was used.
-        phi: the final model parameters ``(C, d + 1)`` (eq. 19), positions relative to the node:
+        phi: the final model parameters ``(C, d + 1)`` (LR eq. 19), positions relative to the node:
             (X - x_i, 1) . phi = 0 on the plane; the normal part in 1/m, the offset
             dimensionless. In a fallback, the linear start.
     """
@@ -131,7 +131,7 @@ def _check_F_R0(points_F: np.ndarray, points_R0: np.ndarray, what: str) -> None:
 
 def deformed_radius(F: np.ndarray, R0: np.ndarray, normal: np.ndarray) -> np.ndarray:
     """Distance R_p ``(Q,)`` in m from each particle's centre to its deformed edge along the unit
-    ``normal (Q, d)`` (eq. 25): n0 = F_p^-1 n, 1/R_p = sqrt(sum_k n0_k^2 / R0_k^2), i.e. along n
+    ``normal (Q, d)`` (LR eq. 25): n0 = F_p^-1 n, 1/R_p = sqrt(sum_k n0_k^2 / R0_k^2), i.e. along n
     to the boundary of the ellipse (ellipsoid) of semi-axes R0 inscribed in the undeformed
     particle and mapped by F_p (NairnMPM ``GetDeformedRadius``).
 
@@ -174,20 +174,20 @@ def lr_planes(
 
     At node c the cloud is ``cloud_idx[cloud_ptr[c]:cloud_ptr[c+1]]`` (indices into the points)
     with classes ``cloud_side`` (-1 alpha, +1 beta). With x~_p = (X_p - x_i, 1) (relative to the
-    node, as NairnMPM) and c_p the class, minimise (eq. 20)
+    node, as NairnMPM) and c_p the class, minimise (LR eq. 20)
 
         Omega = sum_p (f(x~_p . phi) - c_p)^2 + sum_j lambda_j phi_j^2,  f(s) = 2/(1+e^-s) - 1,
 
     with lambda = penalty dx^2 (1, .., 1, 0) (normal penalised, offset not; LR App.) by
-    Gauss-Newton (eq. 21, App. eqs. 53-56, w_p = 1). Start: phi(0) = 0, whose first step is the
+    Gauss-Newton (LR eq. 21, App. eqs. 53-56, w_p = 1). Start: phi(0) = 0, whose first step is the
     linear-regression fit; as NairnMPM, phi(1) = linear_scale * phi_lin with
     (X~^T X~ + Lambda) phi_lin = X~^T c (the exact Gauss-Newton step from 0 is
     2 (X~^T X~ + 4 Lambda)^-1 X~^T c, the same up to the tiny penalty). Then logistic steps until
-    1 - n^(k+1) . n^(k) < tol (eq. 57) or ``max_iterations`` steps (the last iterate is kept).
+    1 - n^(k+1) . n^(k) < tol (LR eq. 57) or ``max_iterations`` steps (the last iterate is kept).
     A NaN, singular or zero-normal iterate falls back to the linear normal (``fallback``).
 
-    The separation (eqs. 22-24): d_LR = min_beta((X_p - x_i).n - R_p) - max_alpha((X_p - x_i).n
-    + R_p), with R_p of eq. 25 (``deformed_radius``); independent of x_i.
+    The separation (LR eqs. 22-24): d_LR = min_beta((X_p - x_i).n - R_p) - max_alpha((X_p - x_i).n
+    + R_p), with R_p of LR eq. 25 (``deformed_radius``); independent of x_i.
 
     Args:
         node_x: contact node positions ``(C, d)`` in m, d = 2 or 3.
@@ -325,7 +325,7 @@ def contact_point_clouds(
 
     Row r (grid node ``node[r]``) holds the points of material ``alpha[r]`` as side -1 and of
     ``beta[r]`` as side +1; ``beta[r] = -1`` takes every material other than alpha as +1 (the
-    lumped partner of eq. 50, NairnMPM's b < 0). Points of other materials are left out. Within a
+    lumped partner of LR eq. 50, NairnMPM's b < 0). Points of other materials are left out. Within a
     cloud the points are in index order. FEM surface samples take part as points with their own
     stencils (spec 2.6).
 
@@ -370,9 +370,9 @@ def mass_gradient_normals(
     n_materials: int,
 ) -> np.ndarray:
     """Per-material grid mass gradients grad m_i^alpha = sum_{p in alpha} m_p grad w_ip
-    ``(n_materials, n_nodes, d)`` in kg/m (eq. 11 with m_p for V_p: pass particle volumes as
+    ``(n_materials, n_nodes, d)`` in kg/m (LR eq. 11 with m_p for V_p: pass particle volumes as
     ``mass`` for the paper's volume gradient, areas for its 2D area gradient). For one material
-    it points out of the material (LR after eq. 12: ||g|| n^alpha = g, n^alpha outward).
+    it points out of the material (LR after LR eq. 12: ||g|| n^alpha = g, n^alpha outward).
 
     Args:
         nodes: stencil node indices ``(P, S)`` int, -1 = none.
@@ -400,7 +400,7 @@ def material_mass_moments(
 ) -> np.ndarray:
     """Per-material first mass moments sum_{p in alpha} w_ip m_p x_p ``(n_materials, n_nodes,
     d)`` in kg m; divided by m_i^alpha they are the extrapolated positions x^alpha = S^+alpha X
-    of eq. 11 that ``cp_separation`` uses.
+    of LR eq. 11 that ``cp_separation`` uses.
 
     Args:
         nodes: stencil node indices ``(P, S)`` int, -1 = none.
@@ -446,7 +446,7 @@ def _pair_args(
 def ag_normals(
     mass_gradients: np.ndarray, node: np.ndarray, alpha: np.ndarray, beta: np.ndarray
 ) -> np.ndarray:
-    """The "average gradient" (AG) normals ``(C, d)`` from alpha to beta (eq. 13):
+    """The "average gradient" (AG) normals ``(C, d)`` from alpha to beta (LR eq. 13):
     n = (g^alpha - g^beta) / ||g^alpha - g^beta|| at the contact nodes ``node (C,)``, g from
     ``mass_gradient_normals`` ``(M, G, d)`` (each g points out of its material, so -g^beta
     points into beta). A node where the difference vanishes gets a zero row (``contact_momentum``
@@ -474,14 +474,14 @@ def cp_separation(
     offset_cells: float,
     dx: float,
 ) -> np.ndarray:
-    """The "contact position" separation ``(C,)`` in m with a constant offset (eq. 16):
+    """The "contact position" separation ``(C,)`` in m with a constant offset (LR eq. 16):
     ((x^beta - x_i) - (x^alpha - x_i)) . n - offset_cells dx, x^alpha = moments / m^alpha the
-    extrapolated centre of mass of alpha's particles at the node (eq. 11, S^+alpha X). Contact
-    by eq. 16 is ``cp_separation < 0`` (``contact_momentum(..., detector="cp")``); LR's "CP = 0.8"
-    is ``offset_cells = CP_OFFSET_CELLS`` (0.8, calibrated for GIMP with 2 PPC: L-P3).
+    extrapolated centre of mass of alpha's particles at the node (LR eq. 11, S^+alpha X). Contact
+    by LR eq. 16 is ``cp_separation < 0`` (``contact_momentum(..., detector="cp")``); LR's
+    "CP = 0.8" is ``offset_cells = CP_OFFSET_CELLS`` (0.8, calibrated for GIMP with 2 PPC: L-P3).
 
-    Why centre-of-mass positions: eq. 16 is stated in the extrapolated particle positions
-    x^alpha = S^+alpha X (eq. 11); these need the first mass moments, which the grid momenta
+    Why centre-of-mass positions: LR eq. 16 is stated in the extrapolated particle positions
+    x^alpha = S^+alpha X (LR eq. 11); these need the first mass moments, which the grid momenta
     and masses alone do not give (``material_mass_moments``).
 
     Args:
@@ -537,12 +537,12 @@ def contact_momentum(
 
     Delta p(0) = m_a (v_cm - v_a) = m_red (v_b - v_a), m_red = m_a m_b / (m_a + m_b) (the change
     that moves both with the centre of mass), d_n = Delta p(0) . n. Contact iff d_n < 0
-    (approaching, eq. 14) and separation < 0 (touching, eqs. 15/24) for the detectors ``"lr"``
+    (approaching, LR eq. 14) and separation < 0 (touching, LR eqs. 15/24) for the detectors ``"lr"``
     and ``"cp"``; ``"velocity"`` uses d_n < 0 alone (``separation`` may be None). Laws:
 
     - ``"frictionless"``: Delta p = d_n n.
     - ``"coulomb"``: t = Delta p(0) - d_n n; stick Delta p = Delta p(0) if ||t|| <= mu |d_n|,
-      else slip Delta p = d_n n + mu |d_n| t / ||t|| (eqs. 8-10 with S_slide = mu N_c and
+      else slip Delta p = d_n n + mu |d_n| t / ||t|| (LR eqs. 8-10 with S_slide = mu N_c and
       N_c A_c dt = -d_n, so the area cancels; t/||t|| is the paper's t-hat with
       Delta p(0) . t-hat > 0 after its sign correction). The slip keeps the relative tangential
       velocity's direction and reduces its size by mu |d_n| / m_red: sliding loses relative
@@ -550,7 +550,7 @@ def contact_momentum(
     - ``"perfect"``: Delta p = Delta p(0) at every node (a bonded interface, NairnMPM
       ``IgnoreContact``); ``in_contact`` is then all True.
 
-    Out of contact Delta p = 0. The caller adds Delta p to a and -Delta p to b (eq. 7). Every law
+    Out of contact Delta p = 0. The caller adds Delta p to a and -Delta p to b (LR eq. 7). Every law
     removes kinetic energy of the pair or keeps it: Delta KE = (|Delta p|^2 -
     2 Delta p . Delta p(0)) / (2 m_red) <= 0.
 
@@ -622,9 +622,9 @@ def contact_momentum(
     if law == "perfect":
         return dp0, ~(ra & rb)
     d_n = np.einsum("cd,cd->c", dp0, normal)
-    in_contact = d_n < 0.0  # approaching (eq. 14); never where both sides are rigid
+    in_contact = d_n < 0.0  # approaching (LR eq. 14); never where both sides are rigid
     if detector != "velocity":
-        in_contact &= separation < 0.0  # touching (eqs. 15, 24)
+        in_contact &= separation < 0.0  # touching (LR eqs. 15, 24)
     dp = d_n[:, None] * normal
     if law == "coulomb":
         t = dp0 - dp

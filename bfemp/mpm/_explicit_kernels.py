@@ -4,7 +4,7 @@ Per particle p with stencil nodes i (weights w_ip, gradients grad w_ip at x_p^n)
 
     m_i   += w_ip m_p
     m_i v_i += w_ip m_p (v_p + C_p (x_i - x_p))           (APIC; PIC and FLIP without C_p)
-    f_i   -= V_p^0 P(F_p^n) (F_p^n)^T grad w_ip            (= -dPsi/dx_i at x^n, MPM eq. 25)
+    f_i   -= V_p^0 P(F_p^n) (F_p^n)^T grad w_ip            (= -dPsi/dx_i at x^n, BFEMP eq. 25)
 
 Race-freedom without atomics: the particles are cut into ``n_chunks`` contiguous ranges; chunk c
 writes only into its own slab of a scratch buffer, which covers the node-index range

@@ -4,7 +4,7 @@ Strategies are looked up by name in one registry (``STRATEGIES``) so that the sa
 run with each; every class implements the ``Stepper`` protocol of :mod:`bfemp.steppers.base`
 and names its options class (``cls.Options``).
 
-Layering inside the strategies (DESIGN.md's rule, made precise here and enforced by
+Layering inside the strategies (made precise here and enforced by
 ``tests/test_layering.py``): the explicit grid strategies (``single_field``, ``augury``, ``lr``
 and the explicit engine) never import ``solvers.newton``; ``two_stage``, whose second stage is a
 minimisation, may call the physics-free ``solvers.newton.minimize`` on the same contact terms

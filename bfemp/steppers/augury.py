@@ -1,4 +1,4 @@
-"""``"augury"``: APIC augury contact (AUG; EXPLICIT_STRATEGIES.md section 1) on the explicit engine.
+"""``"augury"``: APIC augury contact (AUG) on the explicit engine.
 
 Foreground particles are the FEM boundary nodes (AUG) and, as bfemp's extension, the MPM
 particles (section 1.4); they are transferred to their own Cartesian contact grid (spacing
@@ -8,11 +8,11 @@ APIC or PIC P2G and one G2P at fixed positions). One step, after the engine's fr
 grid, which gives v_p^free and x_p^free):
 
 1. a_p = (v_p^free - v_p^n) / dt (FEM: the mechanical acceleration of the node; MPM: the
-   particle's); prediction (eq. 27) v-bar = v^n + tau a (``predictor="symplectic"``) or
-   v^n + (dt/2 + tau) a (``"paper"``, the velocity-Verlet reading of eq. 32, pitfall A2);
+   particle's); prediction (AUG eq. 27) v-bar = v^n + tau a (``predictor="symplectic"``) or
+   v^n + (dt/2 + tau) a (``"paper"``, the velocity-Verlet reading of AUG eq. 32, pitfall A2);
    B-bar = B^n.
 2. Stencils at x_p^n; V^_0 = H V-bar; N augury iterations remove the undesirable part
-   (``bfemp.contact.augury.augury_correction``: eq. 38 or eqs. 40-46 with mu).
+   (``bfemp.contact.augury.augury_correction``: AUG eq. 38 or AUG eqs. 40-46 with mu).
 3. A^ = (V^_N - V-bar) / tau; v^{n+1} = v^free + dt a^, x^{n+1} = x^free + dt^2 a^,
    B^{n+1} = B^n + dt B-dot^ (so x^{n+1} = x^n + dt v^{n+1} for FEM nodes).
 
@@ -124,7 +124,7 @@ NORMALS = ("own", "facing")
 
 @dataclass(frozen=True, kw_only=True)
 class AuguryOptions(ExplicitOptions):
-    """Options of ``"augury"`` (EXPLICIT_STRATEGIES.md section 1.5).
+    """Options of ``"augury"``.
 
     Attributes:
         tau: augury time scale tau in s; None: tau = dt (AUG's choice). tau < dt / 2 is refused
@@ -135,8 +135,8 @@ class AuguryOptions(ExplicitOptions):
             ``normals="facing"`` and N of about 30 (2D ramp at t = 0.05 s, error 5.1 / 4.8 /
             3.8 % at h = 1 / 0.5 / 0.25 m; 3D ramp at 0.1 s: 9 / 15.5 % at h = 1 / 0.5),
             which then lets a block at mu = 0.7 creep (no setting tried does both).
-        mode: ``"friction"`` (eqs. 40-46, Coulomb with ``mu``; mu = 0 is frictionless) or
-            ``"separate"`` (eq. 38: only tensile corrections removed).
+        mode: ``"friction"`` (AUG eqs. 40-46, Coulomb with ``mu``; mu = 0 is frictionless) or
+            ``"separate"`` (AUG eq. 38: only tensile corrections removed).
         mu: Coulomb coefficient; None takes ``scene.set_contact(mu=...)`` (0 without contact).
             Both given and different (a ``set_contact`` mu other than 0, its default) is
             refused: one scene, one friction coefficient.
@@ -433,7 +433,7 @@ class AuguryStepper(ExplicitStepper):
         self, stencils: ContactStencils, first: int, mass: np.ndarray, body: np.ndarray
     ) -> np.ndarray:
         """Outward unit normals ``(P, d)`` of the MPM foreground: n_p = normalize(sum_i N_ip
-        g_i), g_i = sum_{q in body} m_q grad N_iq (EXPLICIT_STRATEGIES.md section 1.4 item 4).
+        g_i), g_i = sum_{q in body} m_q grad N_iq (bfemp's MPM foreground).
 
         grad N_iq is the gradient of node i's kernel at x_q (``contact_stencils``), which points
         from x_q toward node i, so g_i points away from the body's mass: outward. Section 1.4

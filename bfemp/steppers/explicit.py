@@ -5,7 +5,7 @@ One step (symplectic Euler, ``bfemp.integrators.SYMPLECTIC_EULER``; USL for MPM)
 1. MPM: quadratic B-spline weights at x_p^n; one fused parallel P2G of mass, momentum (APIC,
    PIC, FLIP) and internal force f_i = -sum_p V_p^0 P(F_p^n) (F_p^n)^T grad w_ip, which is
    ``-MpmElasticityTerm.gradient`` at the grid nodes' start positions (F_p(x^n) = F_p^n by
-   linear completeness, MPM eq. 25). FEM: f_n = ``-ElasticityTerm.gradient`` of the cells at
+   linear completeness, BFEMP eq. 25). FEM: f_n = ``-ElasticityTerm.gradient`` of the cells at
    x^n over an all-free ``DofLayout`` (built once). Gravity m g and dead loads are added.
    (The phase ``particles_to_grid``; then phase ``after_p2g(step)``, default nothing.)
 2. v* = v + dt M^-1 f on the grid nodes and the free FEM nodes (BFEMP eq. 21 with beta = 0; the

@@ -6,7 +6,7 @@ multimaterial kernels). One USL step, the explicit engine's step (``bfemp.steppe
 with M fields and these phases: P2G (step 1), ``after_p2g`` (2-3), ``resolve`` (4), the
 engine's constraints (5), ``g2p`` (6):
 
-1. Stencils at X_p^n; P2G per material (eq. 5): m^a, p^a0, f^a0 (eq. 29, gravity included).
+1. Stencils at X_p^n; P2G per material (LR eq. 5): m^a, p^a0, f^a0 (LR eq. 29, gravity included).
    Level-set boundaries act on every field (``bfemp.mpm.boundaries``).
 2. Contact nodes: nodes where two or more materials have mass, however little (LR section 3.1:
    nodes that "see" two or more materials; NairnMPM activates a material's field wherever one
@@ -14,40 +14,40 @@ engine's constraints (5), ``g2p`` (6):
    whose mass there is below that fraction of the node's total: an option, not LR's rule.
    At a node with two materials one pair (a, b), a the lower
    index; at a node with three or more, one pair per material a against the lumped others
-   (eq. 50). Each pair's point cloud is every particle whose stencil weight at the node is
+   (LR eq. 50). Each pair's point cloud is every particle whose stencil weight at the node is
    positive; one logistic-regression fit per pair and step gives the normal n (from a to b)
-   and the separation d_LR with the deformed particle radius (eqs. 19-25,
+   and the separation d_LR with the deformed particle radius (LR eqs. 19-25,
    ``bfemp.contact.lr.lr_planes``).
-3. First correction (eqs. 7-10), with ``corrections=2`` (the paper's; the default is 1, "LR
+3. First correction (LR eqs. 7-10), with ``corrections=2`` (the paper's; the default is 1, "LR
    once", chosen by measurement: ``LROptions.corrections``): the contact law
    (``bfemp.contact.lr.contact_momentum``: contact iff approaching and touching) on p^a0
    gives dp^a; v^a = (p^a0 + dp^a) / m^a; dv^a = dp^a / m^a is kept for XPIC.
-4. Provisional momenta p^a0+ = p^a + f^a0 dt (eq. 30); second correction with the same planes
-   (eq. 31) gives p^a+, v^a+ = p^a+ / m^a, then the boundaries.
-5. a^a = (v^a+ - v^a) / dt: the force f^{C,1} of eq. 34 (Uintah's form, boundaries included).
+4. Provisional momenta p^a0+ = p^a + f^a0 dt (LR eq. 30); second correction with the same planes
+   (LR eq. 31) gives p^a+, v^a+ = p^a+ / m^a, then the boundaries.
+5. a^a = (v^a+ - v^a) / dt: the force f^{C,1} of LR eq. 34 (Uintah's form, boundaries included).
    ``contact_force="c0"`` (FLIP only) gives the particles and FEM boundary nodes f^{C,0} of
-   eq. 33 instead: the first correction's dv^a as well.
-6. Particles: FLIP (eq. 32) V^{n+1} = V^n + dt S a, X^{n+1} = X^n + dt S (v + dt a / 2);
-   XPIC(m) (eqs. 35, 37; ``bfemp.mpm.xpic``) V^{n+1} = S v* + dt S a,
+   LR eq. 33 instead: the first correction's dv^a as well.
+6. Particles: FLIP (LR eq. 32) V^{n+1} = V^n + dt S a, X^{n+1} = X^n + dt S (v + dt a / 2);
+   XPIC(m) (LR eqs. 35, 37; ``bfemp.mpm.xpic``) V^{n+1} = S v* + dt S a,
    X^{n+1} = X^n + dt (S v + (V^{n+1} - V^n) / 2); USL F^{n+1} = (I + dt S grad v+) F^n.
 
 Two-material corrections conserve momentum (a gets dp, b gets -dp). Lumping at nodes with three
 or more materials does not (the paper says so): its momentum change per step is reported in
 ``StepReport.extra["lump_momentum_drift"]`` (kg m/s); ``lump="conservative"`` (bfemp's) gives
 -dp to the others in proportion to their masses. ``interface="perfect"`` takes dp = dp(0) at every
-contact node: the multimaterial step then equals the single-material one (eq. 34, L1).
+contact node: the multimaterial step then equals the single-material one (LR eq. 34, L1).
 
 Penetration (measured for issue 40, defaults, an MPM disk, box or cube dropped at (1, -1) m/s
 onto a fixed FEM plate, mu 0 and 0.3, dx 0.02 and 0.05 m, 2D and 3D, to 0.3 s): no particle
 centre went below the plate's top (the lowest stayed 0.19-0.23 cells above, about one particle
-radius: d_LR counts the deformed radius, eq. 25); a particle's undeformed extent (centre minus
+radius: d_LR counts the deformed radius, LR eq. 25); a particle's undeformed extent (centre minus
 half its spacing) went at most 0.057 cells (1.14 mm at dx = 0.02 m, mu 0, 3D) below the top,
 about one step's travel at the impact speed (1.4 m/s x 0.6 ms). Against deformable FEM bodies
 contact is met through their boundary nodes only and nothing is guaranteed.
 
 Transfers: ``"flip"`` (the default) and ``"pic"`` (= XPIC(1)); ``xpic_order`` m >= 1 selects
 XPIC(m). APIC is refused: LR's corrections and XPIC are written for FLIP-type updates.
-FEM bodies take part as one material each (bfemp's design, EXPLICIT_STRATEGIES.md section 2.6;
+FEM bodies take part as one material each (bfemp's design;
 LR has no FEM): their boundary nodes are the material's points in P2G (mass m_n, velocity v_n^n,
 force m_n a_n^mech; the internal force stays on the mesh), and the point cloud holds the boundary
 nodes plus facet samples at spacing <= dx / 2, all of radius 0 (they lie on the surface). The
@@ -122,22 +122,22 @@ FIRST_CORRECTION_RATIO = 1.0
 
 @dataclass(frozen=True, kw_only=True)
 class LROptions(ExplicitOptions):
-    """Options of ``"lr"`` (EXPLICIT_STRATEGIES.md section 2.7).
+    """Options of ``"lr"``.
 
     Attributes:
         mu: Coulomb coefficient; None takes ``scene.set_contact(mu=...)`` (0 without contact).
         law: ``"coulomb"`` (stick or slip at mu; mu = 0 is frictionless) or ``"frictionless"``.
         interface: ``"contact"`` (the contact law) or ``"perfect"`` (dp = dp(0) at every
-            contact node: the bodies stick as one, the single-material limit of eq. 34).
-        detector: ``"lr"`` (LR normal and separation, eqs. 19-25), ``"velocity"`` (mass-gradient
+            contact node: the bodies stick as one, the single-material limit of LR eq. 34).
+        detector: ``"lr"`` (LR normal and separation, LR eqs. 19-25), ``"velocity"`` (mass-gradient
             normals, contact when approaching alone) or ``"cp"`` (mass-gradient normals and the
-            constant-offset separation of eq. 16, ``cp_offset`` cells), the paper's comparison.
+            constant-offset separation of LR eq. 16, ``cp_offset`` cells), the paper's comparison.
         cp_offset: the constant offset of the ``"cp"`` detector in cells (LR: 0.8, calibrated
             for GIMP, pitfall L-P3).
         corrections: 1 ("LR once", LR Fig. 5: one correction, after the momentum update; the
             default) or 2 (the paper's: after P2G and after the momentum update). Set 2 for
             ``interface="perfect"`` (only then is the run exactly the single-material one, eq.
-            34) and for the paper's multimaterial XPIC(m) (eq. 37's dv term is the first
+            34) and for the paper's multimaterial XPIC(m) (LR eq. 37's dv term is the first
             correction's; with 1 it is zero). Why 1 by default (measured for issue 40 under
             FLIP, mass_fraction 0, fixed FEM bodies rigid; "c1" is 2 with f^{C,1})::
 
@@ -155,23 +155,23 @@ class LROptions(ExplicitOptions):
                 ============================  ========  ========  ========  ========
 
             Under c1 neither the particles nor the FEM nodes ever receive the first correction
-            (f^{C,1}, eq. 33), so in a lasting contact the pair keeps approaching at its
+            (f^{C,1}, LR eq. 33), so in a lasting contact the pair keeps approaching at its
             centre-of-mass velocity: the disk sank through the deformable plate and ring
             particles ended inside the FEM ring. Once is as good as c1 where c1 is at its best
             (compression, the paper's Fig. 5 setting; LR reports its errors larger, which this
             grid does not reproduce) and the best or tied elsewhere; c0 loses the compression
             and PIC damps (the disk on a fixed plate stops rolling). XPIC(5) (with 2) sank
             1.1 cells into the deformable plate and left 91 particles inside the ring.
-        contact_force: ``"c1"`` (the paper's f^{C,1}, eq. 33: only the second correction reaches
-            the particles; exact for perfect interfaces, eq. 34) or ``"c0"`` (f^{C,0}: both
+        contact_force: ``"c1"`` (the paper's f^{C,1}, LR eq. 33: only the second correction reaches
+            the particles; exact for perfect interfaces, LR eq. 34) or ``"c0"`` (f^{C,0}: both
             corrections do; FLIP only). With one correction the two are the same. The
             ``LR_FIRST_CORRECTION`` note flags a run with two corrections and c1 under FLIP
             whose first correction keeps removing more than the second.
-        lump: ``"lumped"`` (eq. 50: each material against the lumped others, dp to it alone;
+        lump: ``"lumped"`` (LR eq. 50: each material against the lumped others, dp to it alone;
             not momentum-conserving) or ``"conservative"`` (bfemp's: -dp spread over the
             others by mass) at nodes with three or more materials.
         xpic_order: None (the transfer alone) or the XPIC order m >= 1 (m = 1 is PIC).
-        xpic_variant: ``"paper"`` (eq. 37), ``"uncorrected"`` or ``"corrected_velocity"``.
+        xpic_variant: ``"paper"`` (LR eq. 37), ``"uncorrected"`` or ``"corrected_velocity"``.
         mass_fraction: a material takes part at a node when its mass there exceeds this
             fraction of the node's total mass. 0 (the default) is LR's contact node (section
             3.1: a node that sees two or more materials) and NairnMPM's (a material's field
@@ -365,7 +365,7 @@ class LRStepper(ExplicitStepper):
         if opts.contact_force == "c0" and self.xpic_order is not None:
             raise ValueError(
                 "lr: contact_force='c0' is a FLIP rule; XPIC(m) (xpic_order or transfer='pic') "
-                "takes the first correction through v* (eq. 37): use contact_force='c1'"
+                "takes the first correction through v* (LR eq. 37): use contact_force='c1'"
             )
         return opts.contact_force
 
@@ -595,7 +595,7 @@ class LRStepper(ExplicitStepper):
         fields. A pair against one takes it as infinitely heavy (``contact_momentum``'s
         ``rigid_a``/``rigid_b``, NairnMPM's rigid-material contact); the scripted field's
         reaction -dp is returned in the last array, never applied (its velocity is the
-        script). A lumped pair (eq. 50) whose others include a scripted field meets that field
+        script). A lumped pair (LR eq. 50) whose others include a scripted field meets that field
         alone (the heaviest there, as NairnMPM picks one rigid material per node); a scripted
         a of a lumped pair is not corrected.
         """
@@ -643,7 +643,7 @@ class LRStepper(ExplicitStepper):
                 rigid_a=rigid_a, rigid_b=rigid_b,
             )  # fmt: skip
         if rigid_a is not None:
-            stays = lumped & rigid_a  # a scripted a keeps its script (eq. 50 corrects a alone)
+            stays = lumped & rigid_a  # a scripted a keeps its script (LR eq. 50 corrects a alone)
             dp[stays] = 0.0
             touching = touching & ~stays
         lumped = partner < 0
@@ -726,7 +726,7 @@ class LRStepper(ExplicitStepper):
         self, step: GridStep, grid_v: np.ndarray, fem_v: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
         """The second correction (docstring step 4): p^a0+ = p^a + dt f^a0 (LR eq. 30), v^a+ =
-        (p^a0+ + dp^a) / m^a (eq. 31); the FEM velocities with the boundary nodes' kick.
+        (p^a0+ + dp^a) / m^a (LR eq. 31); the FEM velocities with the boundary nodes' kick.
 
         LR's update is in momenta, so the engine's v* = v + dt f / m (equal in exact arithmetic,
         rounded otherwise) is not used; nor its FEM v* (the kick is added to LR's own)."""
@@ -738,7 +738,7 @@ class LRStepper(ExplicitStepper):
             work["planes"], step.mass, mom_plus0, work["kinematic"]
         )
         work["absorbed"] += absorbed2
-        # the contact momentum particles and FEM nodes receive (eq. 33): f^{C,1} dt or f^{C,0} dt
+        # the contact momentum particles and FEM nodes receive (LR eq. 33): f^{C,1} dt or f^{C,0} dt
         work["dp_kick"] = dp2 + work["dp1"] if self.contact_force == "c0" else dp2
         work.update(dp2=dp2, touching=touching, drift=drift)
         step.timings["corrections"] += time.perf_counter() - t0
@@ -747,7 +747,7 @@ class LRStepper(ExplicitStepper):
         return (mom_plus0 + dp2) * inv_mass[..., None], fem_v
 
     def g2p(self, step: GridStep, grid_v: np.ndarray) -> tuple[np.ndarray, ...]:
-        """Particles (docstring step 6): FLIP (LR eq. 32) or XPIC(m) (eqs. 35, 37) from the end
+        """Particles (docstring step 6): FLIP (LR eq. 32) or XPIC(m) (LR eqs. 35, 37) from the end
         velocities v^a+ ``(M, G, d)``, USL F; no APIC matrices."""
         model, dt, work, state = self.model, self.dt, step.work, step.state
         n_p = model.n_particles
@@ -755,16 +755,16 @@ class LRStepper(ExplicitStepper):
         nodes, weights, grads = st.nodes[:n_p], st.weights[:n_p], st.grads[:n_p]
         inv_mass = work["inv_mass"]
         v = work["mom"] * inv_mass[..., None]
-        accel = (grid_v - v) / dt  # f^{C,1} of eq. 34 (boundaries included)
+        accel = (grid_v - v) / dt  # f^{C,1} of LR eq. 34 (boundaries included)
         sv, sv_plus, new_F = g2p_update(
             nodes, weights, grads, self.material, v, grid_v, dt, state.mpm_F
         )
-        if self.xpic_order is None:  # FLIP (eq. 32)
+        if self.xpic_order is None:  # FLIP (LR eq. 32)
             new_v = state.mpm_v + (sv_plus - sv)
             if self.contact_force == "c0":  # the first correction reaches the particles
                 new_v += g2p_field(nodes, weights, self.material, work["dp1"] * inv_mass[..., None])
             new_x = state.mpm_x + dt * 0.5 * (sv + sv_plus)
-        else:  # XPIC(m) (eqs. 35, 37)
+        else:  # XPIC(m) (LR eqs. 35, 37)
 
             def apply_A(u: np.ndarray) -> np.ndarray:
                 values = g2p_field(nodes, weights, self.material, u)
@@ -824,7 +824,7 @@ class LRStepper(ExplicitStepper):
         """The ``LR_FIRST_CORRECTION`` note (and one warning per run) when, under FLIP with
         f^{C,1}, the first correction keeps removing momentum the particles never lose.
 
-        Under f^{C,1} (eq. 33) the first correction's dp^a reaches neither V_p nor the FEM
+        Under f^{C,1} (LR eq. 33) the first correction's dp^a reaches neither V_p nor the FEM
         nodes, so an approach velocity the particles carry into a lasting contact (a landing,
         an impact) is removed from the grid again every step and is never lost by the
         particles. Over each window of ``FIRST_CORRECTION_WINDOW`` steps with contact, the
@@ -859,7 +859,7 @@ class LRStepper(ExplicitStepper):
             log.warning(
                 "lr: over the last %d contact steps (to step %d) the first correction removed "
                 "%.3g times the momentum of the second: under FLIP with contact_force='c1' "
-                "(eq. 33) the particles keep an approach velocity that contact removes from the "
+                "(LR eq. 33) the particles keep an approach velocity that contact removes from the "
                 "grid every step (measured on a landing box: friction lost; on impacting rings: "
                 "particles inside the FEM ring); corrections=1, transfer='pic' or "
                 "contact_force='c0' remove it (benchmarks.lr_variants)",

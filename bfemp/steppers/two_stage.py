@@ -1,5 +1,4 @@
-"""``"two_stage"``: explicit free motion, then frictional contact as a minimisation (TS notes;
-EXPLICIT_STRATEGIES.md section 3).
+"""``"two_stage"``: explicit free motion, then frictional contact as a minimisation (TS notes).
 
 One step (h = dt):
 
@@ -41,7 +40,7 @@ Choices (not in the notes):
   contact within d-hat at x^n. From x* the inertia gradient sums to zero and every barrier
   and friction block has translations in its kernel (also after PSD projection), so each
   Newton iterate keeps sum M (x - x*) = 0: linear momentum of free bodies is exact
-  (EXPLICIT_STRATEGIES.md S3). From x^n it is so only to the Newton tolerance (measured: a
+  (TS). From x^n it is so only to the Newton tolerance (measured: a
   frictional MPM disk-FEM slab impact, 0.1 s, drifted 9e-13 kg m/s of 31.2; 2e-12 from x*).
   Why x^n under friction (issue 40): x* is the frictionless free motion, so every contact
   starts sliding a full step v* dt (6e-4 m on the drop below), thousands of times the
@@ -83,7 +82,7 @@ Choices (not in the notes):
 
 Measured (``benchmarks/records/two_stage_*.json``; 2 shared cores; Newton from x*, before issue
 40): Newton takes 4-6 iterations per contact step on a block landing on a plate, 8.1 on the
-coarse rings and 5-17 at static friction (EXPLICIT_STRATEGIES.md's guess of 1-3 is no target:
+coarse rings and 5-17 at static friction (a guess of 1-3 is no target:
 TS states no count; the stick stiffness mu N / (eps_v dt) sets it: per step against eps_v and
 start in ``benchmarks/records/two_stage_slope_sticking.md``); rings quick: momentum drift
 2.3e-14, closest distance 8.8e-3 m; a block at rest on a plate sits 0.999e-3 m above it (dhat =
