@@ -32,22 +32,10 @@ The phases exchange one value, ``GridStep`` (start state, grid fields with a fie
 constraints, and the report's iterations, notes, timings and extra), from which the engine
 builds the ``StepReport``.
 
-Two kernel paths, one result (tested to round-off): in 2D the dense-box kernels
-(``bfemp.mpm._dense2d_kernels``) recompute each particle's weights from x_p and index a dense
-node box, as Taichi does, so no (P, 9) stencil arrays are written or read (``GridStep.stencils()``
-builds them on demand for a strategy that needs them); in 3D (or when the box would be too
-sparse) the stencils of ``geometry.grid.particle_stencils`` feed the general kernels of
-``bfemp.mpm._explicit_kernels``. (Compacting the stencils in numba instead of numpy was tried and
-dropped: 23 ms either way at 131k particles, the cost is that of writing the fresh (P, 9)
-weight and gradient arrays.)
-
-Why a fused P2G kernel rather than the terms for MPM: ``MpmElasticityTerm.begin_step`` builds the
-node-pair pattern of the Hessian (a serial neighbour table and (G 5^d d^2) row/column arrays)
-that an explicit step never uses, and the base ``ElasticityTerm`` route would build the
-(3^d d)^2-per-particle block pattern; the fused kernel reads every stencil once for mass,
-momentum and force. Measured (``benchmarks/records/perf_explicit.json``, 33k particles): the
-term route takes 0.104 s per step (0.090 s of it ``begin_step``), the fused stresses + P2G
-3.9 ms. FEM cells keep the term (fixed stencils, pattern built once).
+Two kernel paths, one result (tested to round-off; ``bfemp.mpm._explicit_kernels`` says why a
+fused P2G): the 2D dense-box kernels (``bfemp.mpm._dense2d_kernels``, no stored stencils;
+``GridStep.stencils()`` builds them for a strategy that needs them) and, in 3D or for a sparse
+box, the general kernels on ``geometry.grid.particle_stencils``.
 
 Stable step: ``bfemp.steppers.stable_dt``. The constructor refuses a dt above the bound (with
 the safety factors of the options) with a ``ValueError`` naming the bound, body and cell or
@@ -67,7 +55,7 @@ from __future__ import annotations
 import logging
 import math
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
@@ -75,10 +63,9 @@ import numpy as np
 from bfemp.dofs import DofLayout
 from bfemp.integrators import SYMPLECTIC_EULER, ExplicitIntegrator, integrator_from_name
 from bfemp.model import Model
-from bfemp.mpm.boundaries import GridConstraints, material_constraints
+from bfemp.mpm.boundaries import material_constraints
 from bfemp.mpm.transfer import (
     SCHEMES,
-    DenseBox,
     dense_g2p,
     dense_p2g,
     g2p_explicit,
@@ -87,9 +74,10 @@ from bfemp.mpm.transfer import (
 from bfemp.state import State
 from bfemp.steppers._buffers import BufferPool
 from bfemp.steppers.base import ContactView, StepError, StepperOptions, StepReport
+from bfemp.steppers.grid_step import GridStep, Motion
 from bfemp.steppers.stable_dt import StableStep, stable_time_step
 from bfemp.terms import ElasticityTerm, StepContext, fem_elastic_groups
-from geometry.grid import Grid, ParticleStencils, particle_stencils
+from geometry.grid import particle_stencils
 
 __all__ = ["ExplicitOptions", "ExplicitStepper", "GridStep", "Motion"]
 
@@ -128,102 +116,6 @@ class ExplicitOptions(StepperOptions):
             if not (math.isfinite(value) and 0.0 < value <= 1.0):
                 raise ValueError(f"{type(self).__name__}.{name} must lie in (0, 1], got {value!r}")
             object.__setattr__(self, name, float(value))
-
-
-@dataclass
-class GridStep:
-    """One explicit step's data, handed from phase to phase (arrays may be changed in place).
-
-    Attributes:
-        state: the start state at t^n (read only).
-        t_next: end time t^{n+1} in s; ``dt`` in s.
-        grid_x: positions x_i^n of the active grid nodes ``(G, d)`` in m (the active nodes and
-            their order are those of ``particle_stencils``; ``stencils()`` gives the stencils).
-        mass: node masses ``(M, G)`` in kg (kg/m in 2D), one row per velocity field (M = 1: the
-            engine's one shared field).
-        velocity: P2G node velocities v_i^n ``(M, G, d)`` in m/s.
-        force: internal + gravity forces on the nodes ``(M, G, d)`` in N (N/m in 2D).
-        fem_force: internal + gravity + load forces on the FEM nodes ``(N, d)`` in N.
-        constraints: the level-set constraints applied to the grid (after ``resolve``).
-        iterations, notes, timings, extra, status, message, boundary_forces: the step's
-            report (``StepReport``'s fields of those names); ``outcome``: any other
-            ``StepReport`` field by name (``residual``, ``min_distance``, ``contact_pairs``,
-            ``friction_converged``); ``work``: a strategy's own arrays of the step, passed
-            between its phases.
-    """
-
-    state: State
-    t_next: float
-    dt: float
-    grid_x: np.ndarray
-    mass: np.ndarray
-    velocity: np.ndarray
-    force: np.ndarray
-    fem_force: np.ndarray
-    constraints: GridConstraints | None = None
-    iterations: dict[str, int] = field(default_factory=dict)
-    notes: list[str] = field(default_factory=list)
-    timings: dict[str, float] = field(default_factory=dict)
-    extra: dict[str, float] = field(default_factory=dict)
-    status: str = "EXPLICIT"
-    message: str = "explicit step"
-    boundary_forces: tuple = ()
-    outcome: dict[str, object] = field(default_factory=dict)
-    work: dict[str, object] = field(default_factory=dict)
-    _stencils: ParticleStencils | None = None
-    _box: DenseBox | None = None
-    _grid: Grid | None = None
-
-    def stencils(self) -> ParticleStencils | None:
-        """Particle stencils at x_p^n on the active nodes (built on first call in 2D, where the
-        engine itself never stores them); None without particles."""
-        if self._stencils is None and self.state.mpm_x.shape[0]:
-            self._stencils = particle_stencils(self._grid, self.state.mpm_x)
-        return self._stencils
-
-    def report(self, new: State) -> StepReport:
-        """The ``StepReport`` of the step that ended in ``new``."""
-        return StepReport(
-            step=new.step,
-            t=new.t,
-            success=True,
-            status=self.status,
-            message=self.message,
-            iterations=self.iterations,
-            timings=self.timings,
-            boundary_forces=self.boundary_forces,
-            notes=tuple(self.notes),
-            extra=self.extra,
-            **self.outcome,
-        )
-
-
-@dataclass
-class Motion:
-    """The end-of-step values of the moving points before they become the new ``State`` (the
-    particle update's result; ``after_g2p`` may correct them): FEM node positions and
-    velocities ``(N, d)`` in m, m/s; particle positions, velocities ``(P, d)``, deformation
-    gradients and APIC matrices ``(P, d, d)``; ``carried``: other ``State`` fields by name."""
-
-    fem_x: np.ndarray
-    fem_v: np.ndarray
-    mpm_x: np.ndarray
-    mpm_v: np.ndarray
-    mpm_F: np.ndarray
-    mpm_C: np.ndarray
-    carried: dict[str, np.ndarray] = field(default_factory=dict)
-
-    def commit(self, step: GridStep) -> State:
-        """The state at t^{n+1}: the one place a step writes positions."""
-        start = step.state
-        values = dict(self.carried)
-        if start.fem_x.shape[0]:
-            values.update(
-                fem_x=self.fem_x, fem_v=self.fem_v, fem_a=(self.fem_v - start.fem_v) / step.dt
-            )
-        if start.mpm_x.shape[0]:
-            values.update(mpm_x=self.mpm_x, mpm_v=self.mpm_v, mpm_F=self.mpm_F, mpm_C=self.mpm_C)
-        return replace(start, t=step.t_next, step=start.step + 1, **values)
 
 
 class ExplicitStepper:
@@ -421,36 +313,14 @@ class ExplicitStepper:
         """The particle update from the end velocities ``grid_v (M, G, d)`` m/s: ``(mpm_x,
         mpm_v, mpm_F, mpm_C)`` (default: the engine's G2P of its one field, module docstring
         step 5)."""
-        state, grid_v = step.state, grid_v[0]
+        state = step.state
+        moving = (step.velocity[0], grid_v[0], self.dt, state.mpm_x, state.mpm_v, state.mpm_F)
         if step._box is not None:
-            return dense_g2p(
-                step._box,
-                self.model.grid.dx,
-                self.transfer,
-                step.velocity[0],
-                grid_v,
-                self.dt,
-                state.mpm_x,
-                state.mpm_v,
-                state.mpm_F,
-                self._pool.empty,
-            )
+            box = step._box
+            return dense_g2p(box, self.model.grid.dx, self.transfer, *moving, self._pool.empty)
         st = step.stencils()
-        return g2p_explicit(
-            self.transfer,
-            st.nodes,
-            st.weights,
-            st.grads,
-            st.active_x,
-            step.velocity[0],
-            grid_v,
-            self.dt,
-            state.mpm_x,
-            state.mpm_v,
-            state.mpm_F,
-            self._n_chunks,
-            self._pool.empty,
-        )
+        stencil = (st.nodes, st.weights, st.grads, st.active_x)
+        return g2p_explicit(self.transfer, *stencil, *moving, self._n_chunks, self._pool.empty)
 
     def after_g2p(self, step: GridStep, motion: Motion) -> None:
         """Correct the end-of-step values in place before they are committed (default:
@@ -514,21 +384,12 @@ class ExplicitStepper:
             timings["stress"] = time.perf_counter() - started
             started = time.perf_counter()
             apic_C = state.mpm_C if self.transfer == "apic" else None
+            particles = (state.mpm_x, model.mpm_mass, state.mpm_v, apic_C, piola, state.mpm_F)
+            particles += (model.mpm_volume, self._n_chunks)
             dense = None
             if d == 2 and self.dense_2d:
-                dense = dense_p2g(
-                    np.asarray(model.grid.origin),
-                    model.grid.dx,
-                    state.mpm_x,
-                    model.mpm_mass,
-                    state.mpm_v,
-                    apic_C,
-                    piola,
-                    state.mpm_F,
-                    model.mpm_volume,
-                    self._n_chunks,
-                    self._pool.empty,
-                )
+                origin = np.asarray(model.grid.origin)
+                dense = dense_p2g(origin, model.grid.dx, *particles, self._pool.empty)
             if dense is not None:
                 box, grid_mass, momentum, grid_force = dense
                 grid_x = model.grid.node_positions(box.active_ijk())
@@ -536,18 +397,7 @@ class ExplicitStepper:
                 stencils = particle_stencils(model.grid, state.mpm_x)
                 grid_x = stencils.active_x
                 grid_mass, momentum, grid_force = p2g_with_forces(
-                    stencils.nodes,
-                    stencils.weights,
-                    stencils.grads,
-                    stencils.active_x,
-                    state.mpm_x,
-                    model.mpm_mass,
-                    state.mpm_v,
-                    apic_C,
-                    piola,
-                    state.mpm_F,
-                    model.mpm_volume,
-                    self._n_chunks,
+                    stencils.nodes, stencils.weights, stencils.grads, grid_x, *particles
                 )
             grid_v = momentum * _inverse(grid_mass)[:, None]
             grid_force += np.multiply.outer(grid_mass, model.gravity)

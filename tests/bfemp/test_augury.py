@@ -5,6 +5,7 @@ import pytest
 
 import bfemp
 from bfemp import diagnostics
+from bfemp.contact._augury_geometry import mpm_normals
 from bfemp.contact.augury import (
     ContactOperator,
     augury_correction,
@@ -232,7 +233,7 @@ def test_interpenetration_is_reported_by_name():
 
 
 def test_penetration_depth_is_the_distance_to_the_cells_nearest_face():
-    from bfemp.steppers.augury import _depth_in_cell
+    from bfemp.contact._augury_geometry import depth_in_cell as _depth_in_cell
 
     tri = np.array([[[0.0, 0.0], [2.0, 0.0], [0.0, 2.0]]])
     # centroid: 2/3 from both legs, (2 - 4/3) / sqrt 2 from the hypotenuse
@@ -505,7 +506,7 @@ def test_mpm_foreground_normals_point_out_of_the_body():
     x = state.mpm_x
     st = contact_stencils(x, stepper.grid_dx)
     body = np.zeros(x.shape[0], dtype=np.int64)
-    n = stepper._mpm_normals(st, 0, sim.model.mpm_mass, body)
+    n = mpm_normals(st, 0, sim.model.mpm_mass, body)
     r = x - x.mean(axis=0)
     rim = np.linalg.norm(r, axis=1) > 0.08
     cos = np.einsum("pd,pd->p", n[rim], r[rim]) / np.linalg.norm(r[rim], axis=1)
