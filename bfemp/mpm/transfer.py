@@ -354,32 +354,10 @@ def grid_to_particles(
     affine_a = a_like_v and scheme == "apic"
     out_Ca = np.zeros((n_p, d, d) if affine_a else (0, d, d))
     singular = np.zeros(n_p, dtype=np.bool_)
-    _g2p(
-        nodes,
-        weights,
-        grads,
-        grid_x,
-        grid_x_new,
-        grid_v_old,
-        grid_v_new,
-        grid_a_new,
-        mpm_x,
-        mpm_v,
-        mpm_F,
-        flip,
-        scheme == "apic",
-        with_a,
-        grid_a_old,
-        mpm_a,
-        a_like_v,
-        out_x,
-        out_v,
-        out_F,
-        out_C,
-        out_a,
-        out_Ca,
-        singular,
-    )
+    grid = (grid_x, grid_x_new, grid_v_old, grid_v_new, grid_a_new)
+    flags = (flip, scheme == "apic", with_a, grid_a_old, mpm_a, a_like_v)
+    out = (out_x, out_v, out_F, out_C, out_a, out_Ca, singular)
+    _g2p(nodes, weights, grads, *grid, mpm_x, mpm_v, mpm_F, *flags, *out)
     if singular.any():
         raise ValueError(
             "APIC inertia D_p = sum_i w_ip (x_i - x_p)(x_i - x_p)^T is singular at particles "
