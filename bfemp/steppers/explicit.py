@@ -486,7 +486,7 @@ class ExplicitStepper:
         self.after_g2p(step, motion)
         new = motion.commit(step)
         step.timings["step"] = time.perf_counter() - started
-        return new, step.report(new)
+        return new, step.report()
 
 
 def _inverse(mass: np.ndarray) -> np.ndarray:

@@ -68,21 +68,13 @@ class GridStep:
             self._stencils = particle_stencils(self._grid, self.state.mpm_x)
         return self._stencils
 
-    def report(self, new: State) -> StepReport:
-        """The ``StepReport`` of the step that ended in ``new``."""
-        return StepReport(
-            step=new.step,
-            t=new.t,
-            success=True,
-            status=self.status,
-            message=self.message,
-            iterations=self.iterations,
-            timings=self.timings,
-            boundary_forces=self.boundary_forces,
-            notes=tuple(self.notes),
-            extra=self.extra,
-            **self.outcome,
-        )
+    def report(self, **changes: object) -> StepReport:
+        """The ``StepReport`` of the step (``changes``: fields to override, e.g. a failure's
+        ``success``, ``status`` and ``message``)."""
+        fields = dict(step=self.state.step + 1, t=self.t_next, success=True, status=self.status)
+        fields.update(message=self.message, iterations=self.iterations, timings=self.timings)
+        fields.update(boundary_forces=self.boundary_forces, notes=tuple(self.notes))
+        return StepReport(**{**fields, "extra": self.extra, **self.outcome, **changes})
 
 
 @dataclass

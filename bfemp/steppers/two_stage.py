@@ -282,16 +282,7 @@ class TwoStageStepper(ExplicitStepper):
         step.timings["intersection"] = time.perf_counter() - t0
         if crossing is not None:
             raise StepError(
-                StepReport(
-                    step=state.step + 1,
-                    t=step.t_next,
-                    success=False,
-                    status=crossing.status,
-                    message=crossing.message,
-                    iterations=step.iterations,
-                    timings=step.timings,
-                    notes=tuple(step.notes),
-                )
+                step.report(success=False, status=crossing.status, message=crossing.message)
             )
         abs_r, scale = self.stationarity()
         step.notes.extend(self._solver.rounding_notes())
