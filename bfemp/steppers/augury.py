@@ -120,7 +120,6 @@ class AuguryStepper(ExplicitStepper):
 
     name: ClassVar[str] = "augury"
     Options: ClassVar[type[AuguryOptions]] = AuguryOptions
-    explicit: ClassVar[bool] = True
     #: FEM boundary nodes and particles meet on the contact grid (AUG; particles: bfemp's
     #: extension, section 1.4); MPM bodies also share the engine's MPM grid velocity field
     capabilities: ClassVar[Capabilities] = Capabilities(

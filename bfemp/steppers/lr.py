@@ -107,7 +107,6 @@ class LRStepper(ExplicitStepper):
 
     name: ClassVar[str] = "lr"
     Options: ClassVar[type[LROptions]] = LROptions
-    explicit: ClassVar[bool] = True
     #: one velocity field per body (LR sec. 2); FEM bodies take part through their surface
     #: nodes (bfemp's design, module docstring), against MPM bodies only: in the conformance
     #: catalogue's stack a free FEM block on a fixed FEM plate sank 2.2 cells into it

@@ -203,7 +203,6 @@ class TwoStageStepper(ExplicitStepper):
 
     name: ClassVar[str] = "two_stage"
     Options: ClassVar[type[TwoStageOptions]] = TwoStageOptions
-    explicit: ClassVar[bool] = True
     #: stage 2 is the barrier's contact solve at the particles (TS notes): the barrier's pairs,
     #: particles and FEM nodes against FEM boundaries; MPM bodies share the engine's grid
     capabilities: ClassVar[Capabilities] = Capabilities(
