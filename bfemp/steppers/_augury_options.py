@@ -117,17 +117,14 @@ class AuguryOptions(ExplicitOptions):
             value = getattr(self, field_name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 0:
                 raise ValueError(f"{name}.{field_name} must be an integer >= 0, got {value!r}")
-        for field_name, allowed in (
-            ("mode", MODES),
-            ("kernel", tuple(KERNELS)),
-            ("predictor", PREDICTORS),
-            ("contact_transfer", TRANSFERS),
-            ("region", REGIONS),
-            ("normals", NORMALS),
-        ):
-            value = getattr(self, field_name)
-            if value not in allowed:
-                raise ValueError(f"{name}.{field_name} must be one of {allowed}, got {value!r}")
+        self.check_choices(
+            mode=MODES,
+            kernel=tuple(KERNELS),
+            predictor=PREDICTORS,
+            contact_transfer=TRANSFERS,
+            region=REGIONS,
+            normals=NORMALS,
+        )
         for field_name in (
             "kinematic_foreground",
             "mpm_foreground",

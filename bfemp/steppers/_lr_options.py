@@ -135,16 +135,13 @@ class LROptions(ExplicitOptions):
     def __post_init__(self) -> None:
         super().__post_init__()
         name = type(self).__name__
-        for field_name, allowed in (
-            ("law", LAWS),
-            ("interface", INTERFACES),
-            ("detector", DETECTORS),
-            ("lump", LUMPS),
-            ("xpic_variant", XPIC_VARIANTS),
-        ):
-            value = getattr(self, field_name)
-            if value not in allowed:
-                raise ValueError(f"{name}.{field_name} must be one of {allowed}, got {value!r}")
+        self.check_choices(
+            law=LAWS,
+            interface=INTERFACES,
+            detector=DETECTORS,
+            lump=LUMPS,
+            xpic_variant=XPIC_VARIANTS,
+        )
         if self.contact_force not in CONTACT_FORCES:
             raise ValueError(
                 f"{name}.contact_force must be one of {CONTACT_FORCES}, got {self.contact_force!r}"

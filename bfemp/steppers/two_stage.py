@@ -178,14 +178,11 @@ class TwoStageOptions(ExplicitOptions):
         n = self.max_newton_iterations
         if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
             raise ValueError(f"{name}.max_newton_iterations must be an integer >= 1, got {n!r}")
-        for field_name, allowed in (
-            ("friction", FRICTION_LAGGING),
-            ("start", STARTS),
-            ("linear_solver", LINEAR_SOLVER_NAMES),
-        ):
-            value = getattr(self, field_name)
-            if value not in allowed:
-                raise ValueError(f"{name}.{field_name} must be one of {allowed}, got {value!r}")
+        self.check_choices(
+            friction=FRICTION_LAGGING,
+            start=STARTS,
+            linear_solver=LINEAR_SOLVER_NAMES,
+        )
 
 
 @dataclass
