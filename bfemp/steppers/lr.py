@@ -174,6 +174,14 @@ class LRStepper(ExplicitStepper):
         return opts.contact_force
 
     # ------------------------------------------------------------------ FEM as a material
+    def _pairs(self, pts: Points, grid_x: np.ndarray, mass: np.ndarray) -> Pairs:
+        """This step's contact pairs and planes (``PairContact.pairs``; a subclass may watch)."""
+        return self._law.pairs(pts, grid_x, mass)
+
+    def _correct(self, planes: Pairs, *args: np.ndarray | None) -> tuple:
+        """One contact correction (``PairContact.correct``; a subclass may watch)."""
+        return self._law.correct(planes, *args)
+
     # ------------------------------------------------------------------ the step's phases
     def particles_to_grid(self, state: State) -> GridStep:
         """Phase P2G (docstring step 1): per material (LR eq. 5) m^a, p^a0, f^a0 with gravity,
@@ -219,14 +227,14 @@ class LRStepper(ExplicitStepper):
         """The pairs and their planes (docstring step 2), the first correction (step 3)."""
         work, mass = step.work, step.mass
         t0 = time.perf_counter()
-        work["planes"] = planes = self._law.pairs(work["pts"], step.grid_x, mass)
+        work["planes"] = planes = self._pairs(work["pts"], step.grid_x, mass)
         step.timings["lr_fits"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         mom0 = step.velocity * mass[..., None]
         work["absorbed"] = np.zeros_like(mom0)  # momentum the scripted fields take (not applied)
         dp1 = np.zeros_like(mom0)
         if self.options.corrections == 2:
-            dp1, _, _, absorbed1 = self._law.correct(planes, mass, mom0, work["kinematic"])
+            dp1, _, _, absorbed1 = self._correct(planes, mass, mom0, work["kinematic"])
             if self.contact_force == "c0":
                 work["absorbed"] += absorbed1
         work["dp1"], work["mom"] = dp1, mom0 + dp1
@@ -244,7 +252,7 @@ class LRStepper(ExplicitStepper):
         t0 = time.perf_counter()
         inv_mass = work["inv_mass"]
         mom_plus0 = work["mom"] + dt * step.force
-        dp2, touching, drift, absorbed2 = self._law.correct(
+        dp2, touching, drift, absorbed2 = self._correct(
             work["planes"], step.mass, mom_plus0, work["kinematic"]
         )
         work["absorbed"] += absorbed2
