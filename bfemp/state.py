@@ -25,7 +25,7 @@ class State:
         step: number of completed time steps.
         fem_x: FEM node positions ``(N, d)`` in m.
         fem_v: FEM node velocities ``(N, d)`` in m/s.
-        fem_a: FEM node accelerations ``(N, d)`` in m/s^2 (Newmark needs a^n; paper eq. 21).
+        fem_a: FEM node accelerations ``(N, d)`` in m/s^2 (Newmark needs a^n; BFEMP eq. 21).
         mpm_x: particle positions ``(P, d)`` in m.
         mpm_v: particle velocities ``(P, d)`` in m/s.
         mpm_F: particle deformation gradients ``(P, d, d)``.

@@ -3,12 +3,12 @@
 H is one P2G followed by one G2P at fixed particle positions x_p and masses m_p on the contact
 grid (stencils: node indices ``nodes (P, K)`` and weights ``weights (P, K)``, any K):
 
-    m_i     = sum_p N_ip m_p                                    (eq. 10)
-    m_i v_i = sum_p N_ip m_p (v_p + C_p (x_i - x_p))            (eq. 17, C_p = B_p D_p^-1)
-    v~_p    = sum_i N_ip v_i                                    (eq. 19)
-    B~_p    = sum_i N_ip v_i (x_i - x_p)^T                      (eq. 20)
+    m_i     = sum_p N_ip m_p                                    (AUG eq. 10)
+    m_i v_i = sum_p N_ip m_p (v_p + C_p (x_i - x_p))            (AUG eq. 17, C_p = B_p D_p^-1)
+    v~_p    = sum_i N_ip v_i                                    (AUG eq. 19)
+    B~_p    = sum_i N_ip v_i (x_i - x_p)^T                      (AUG eq. 20)
 
-PIC is the same with C_p = 0 (eqs. 10-12). Race-freedom: the scatter is one serial loop over
+PIC is the same with C_p = 0 (AUG eqs. 10-12). Race-freedom: the scatter is one serial loop over
 the particles (the foreground set is a few thousand particles, the loop a few microseconds per
 thousand); the gather is parallel over particles (from ``PARALLEL_MIN`` on), each writing only
 its own rows. The sums depend on the particle order only (bit-for-bit reproducible whatever
@@ -121,7 +121,7 @@ def g2p(
     x: np.ndarray,
     grid_v: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Particle velocities ``(P, d)`` in m/s and B ``(P, d, d)`` in m^2/s (eqs. 19-20)."""
+    """Particle velocities ``(P, d)`` in m/s and B ``(P, d, d)`` in m^2/s (AUG eqs. 19-20)."""
     kernel = _g2p_parallel if nodes.shape[0] >= PARALLEL_MIN else _g2p_serial
     return kernel(nodes, weights, node_x, x, grid_v)
 

@@ -1,11 +1,10 @@
 """numba kernels of the logistic-regression (LR) multimaterial contact (Nairn et al., "LR"),
-2D and 3D: the LR plane and separation at contact nodes (LR section 3.1, eqs. 19-25, Appendix
-eqs. 53-57), the deformed particle radius (eq. 25) and the per-material grid moments that the
-AG normal (eqs. 11, 13) and the CP separation (eq. 16) need.
+2D and 3D: the LR plane and separation at contact nodes (LR section 3.1, LR eqs. 19-25, Appendix
+LR eqs. 53-57) and the deformed particle radius (LR eq. 25); the per-material grid moments are
+in ``_lr_grid_kernels``.
 
 Race-freedom: the LR solve writes only row c of its outputs (parallel over contact nodes from
-``PARALLEL_MIN`` nodes on, else serial, with identical results); the grid moments are one serial
-scatter over the particles (bit-for-bit reproducible whatever the thread count).
+``PARALLEL_MIN`` nodes on, else serial, with identical results).
 
 Error codes of the LR solve (``code (C,)``): 0 ok, 1 the cloud lacks one class (or is empty),
 2 the linear-regression start is degenerate (singular system or zero normal).
@@ -63,7 +62,7 @@ def _solve_small(A: np.ndarray, b: np.ndarray, n: int) -> bool:
 
 @njit(cache=True)
 def radius_along(F: np.ndarray, R0: np.ndarray, n: np.ndarray) -> float:
-    """Deformed radius R_p of one particle along the unit normal ``n (d,)`` in m (eq. 25):
+    """Deformed radius R_p of one particle along the unit normal ``n (d,)`` in m (LR eq. 25):
     n0 = F^-1 n, 1/R_p = sqrt(sum_k n0_k^2 / R0_k^2): the distance from the centre to the
     boundary of the inscribed ellipse (ellipsoid) of semi-axes ``R0 (d,)`` mapped by
     ``F (d, d)``, along n. R0 = 0 (a surface sample) gives 0."""
@@ -98,7 +97,7 @@ def radius_along(F: np.ndarray, R0: np.ndarray, n: np.ndarray) -> float:
 
 @njit(cache=True)
 def deformed_radii(F: np.ndarray, R0: np.ndarray, normal: np.ndarray) -> np.ndarray:
-    """R_p ``(Q,)`` in m of ``F (Q, d, d)``, ``R0 (Q, d)`` m along ``normal (Q, d)`` (eq. 25)."""
+    """R_p ``(Q,)`` in m of ``F (Q, d, d)``, ``R0 (Q, d)`` m along ``normal (Q, d)`` (LR eq. 25)."""
     q = F.shape[0]
     out = np.empty(q)
     for p in range(q):
@@ -108,8 +107,8 @@ def deformed_radii(F: np.ndarray, R0: np.ndarray, normal: np.ndarray) -> np.ndar
 
 @njit(cache=True)
 def _logistic(s: float) -> tuple[float, float]:
-    """The scaled logistic f(s) = 2 / (1 + e^-s) - 1 = tanh(s/2) (eq. 20) and its derivative
-    psi(s) = 2 e^-s / (1 + e^-s)^2 (eq. 53), both without overflow."""
+    """The scaled logistic f(s) = 2 / (1 + e^-s) - 1 = tanh(s/2) (LR eq. 20) and its derivative
+    psi(s) = 2 e^-s / (1 + e^-s)^2 (LR eq. 53), both without overflow."""
     e = math.exp(-abs(s))
     return math.tanh(0.5 * s), 2.0 * e / ((1.0 + e) * (1.0 + e))
 
@@ -275,7 +274,7 @@ def _lr_node(
         for a in range(d):
             prev[a] = n_lin[a]
 
-    # Gauss-Newton on the logistic model (eqs. 20-21, 53-56), w_p = 1:
+    # Gauss-Newton on the logistic model (LR eqs. 20-21, 53-56), w_p = 1:
     # phi += (J^T J + Lambda)^-1 (J^T (c - f) - Lambda phi), J_pj = psi_p x~_pj.
     it = 0
     converged = False
@@ -322,7 +321,7 @@ def _lr_node(
             n_new[a] = phi[a] / nrm
             cosine += n_new[a] * prev[a]
             prev[a] = n_new[a]
-        if 1.0 - cosine < tol:  # eq. 57: 1 - cos(dtheta) ~ dtheta^2 / 2
+        if 1.0 - cosine < tol:  # LR eq. 57: 1 - cos(dtheta) ~ dtheta^2 / 2
             converged = True
             break
 
@@ -341,8 +340,8 @@ def _lr_node(
     out_conv[c] = converged
     out_fb[c] = fallback
 
-    # Separation (eqs. 22-24), relative to the node (x_i drops out of the difference):
-    # d_LR = min_beta((X_p - x_i).n - R_p) - max_alpha((X_p - x_i).n + R_p), R_p of eq. 25.
+    # Separation (LR eqs. 22-24), relative to the node (x_i drops out of the difference):
+    # d_LR = min_beta((X_p - x_i).n - R_p) - max_alpha((X_p - x_i).n + R_p), R_p of LR eq. 25.
     top_alpha = -np.inf
     bottom_beta = np.inf
     for j in range(lo, hi):
@@ -449,113 +448,3 @@ def lr_planes_kernel(
         normal_start, has_start, out_normal, out_phi, out_sep, out_iter, out_conv, out_fb, out_code,
     )  # fmt: skip
     return out_normal, out_phi, out_sep, out_iter, out_conv, out_fb, out_code
-
-
-@njit(cache=True)
-def mass_gradients(
-    nodes: np.ndarray,
-    grads: np.ndarray,
-    mass: np.ndarray,
-    material: np.ndarray,
-    n_nodes: int,
-    n_materials: int,
-) -> np.ndarray:
-    """grad m_i^alpha = sum_{p in alpha} m_p grad w_ip ``(n_materials, n_nodes, d)`` (eq. 11
-    with the weight m_p; V_p or A_p gives the paper's volume or area gradient)."""
-    n_p, n_s = nodes.shape
-    d = grads.shape[2]
-    out = np.zeros((n_materials, n_nodes, d))
-    for p in range(n_p):
-        mat = material[p]
-        for s in range(n_s):
-            i = nodes[p, s]
-            if i < 0:
-                continue
-            for a in range(d):
-                out[mat, i, a] += mass[p] * grads[p, s, a]
-    return out
-
-
-@njit(cache=True)
-def mass_moments(
-    nodes: np.ndarray,
-    weights: np.ndarray,
-    mass: np.ndarray,
-    x: np.ndarray,
-    material: np.ndarray,
-    n_nodes: int,
-    n_materials: int,
-) -> np.ndarray:
-    """sum_{p in alpha} w_ip m_p x_p ``(n_materials, n_nodes, d)`` in kg m (the numerator of
-    x^alpha = S^+alpha X, eq. 11)."""
-    n_p, n_s = nodes.shape
-    d = x.shape[1]
-    out = np.zeros((n_materials, n_nodes, d))
-    for p in range(n_p):
-        mat = material[p]
-        for s in range(n_s):
-            i = nodes[p, s]
-            if i < 0:
-                continue
-            wm = weights[p, s] * mass[p]
-            for a in range(d):
-                out[mat, i, a] += wm * x[p, a]
-    return out
-
-
-@njit(cache=True)
-def point_clouds(
-    nodes: np.ndarray,
-    weights: np.ndarray,
-    material: np.ndarray,
-    row_node: np.ndarray,
-    alpha: np.ndarray,
-    beta: np.ndarray,
-    n_nodes: int,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """CSR point clouds of C contact rows: ``(cloud_ptr (C+1,), cloud_idx (K,), cloud_side
-    (K,) int8)``. Row r at grid node ``row_node[r]`` holds every particle p with w_ip > 0 of
-    material ``alpha[r]`` (side -1) or ``beta[r]`` (+1; beta < 0: every other material, the
-    lumping of eq. 50). Serial, two passes (count, fill); particles in index order."""
-    n_p, n_s = nodes.shape
-    n_c = row_node.shape[0]
-    # rows of each grid node (CSR over the nodes)
-    node_ptr = np.zeros(n_nodes + 1, dtype=np.int64)
-    for r in range(n_c):
-        node_ptr[row_node[r] + 1] += 1
-    for i in range(n_nodes):
-        node_ptr[i + 1] += node_ptr[i]
-    node_rows = np.empty(n_c, dtype=np.int64)
-    fill = node_ptr[:-1].copy()
-    for r in range(n_c):
-        node_rows[fill[row_node[r]]] = r
-        fill[row_node[r]] += 1
-    cloud_ptr = np.zeros(n_c + 1, dtype=np.int64)
-    for sweep in range(2):
-        if sweep == 1:
-            for r in range(n_c):
-                cloud_ptr[r + 1] += cloud_ptr[r]
-            cursor = cloud_ptr[:-1].copy()
-            cloud_idx = np.empty(cloud_ptr[n_c], dtype=np.int64)
-            cloud_side = np.empty(cloud_ptr[n_c], dtype=np.int8)
-        for p in range(n_p):
-            mat = material[p]
-            for s in range(n_s):
-                i = nodes[p, s]
-                if i < 0 or not weights[p, s] > 0.0:
-                    continue
-                for k in range(node_ptr[i], node_ptr[i + 1]):
-                    r = node_rows[k]
-                    if mat == alpha[r]:
-                        side = -1
-                    elif beta[r] < 0 or mat == beta[r]:
-                        side = 1
-                    else:
-                        continue
-                    if sweep == 0:
-                        cloud_ptr[r + 1] += 1
-                    else:
-                        cloud_idx[cursor[r]] = p
-                        cloud_side[cursor[r]] = side
-                        cursor[r] += 1
-    return cloud_ptr, cloud_idx, cloud_side

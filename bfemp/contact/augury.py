@@ -2,17 +2,17 @@
 
 Foreground particles p (positions x_p, masses m_p, velocities v_p, APIC matrices B_p) are
 transferred to a background contact grid of spacing ``dx`` (origin 0) and back:
-H = one P2G (eqs. 10, 17) and one G2P (eqs. 19-20) at fixed positions, ``ContactOperator``.
-With the generalised velocity V_p = {v_p, B_p} (eq. 21) and the prediction V-bar (eq. 27), the
-augury correction (eqs. 29, 36-46) is
+H = one P2G (AUG eqs. 10, 17) and one G2P (AUG eqs. 19-20) at fixed positions, ``ContactOperator``.
+With the generalised velocity V_p = {v_p, B_p} (AUG eq. 21) and the prediction V-bar (AUG eq.
+27), the augury correction (AUG eqs. 29, 36-46) is
 
     V^_0 = H V-bar;   for m = 0..N-1:  W_{m+1} = undesirable part of (V^_m - V-bar),
                                        V^_{m+1} = V^_m + H W_{m+1} - W_{m+1}
     A^ = (V^_N - V-bar) / tau.
 
-The undesirable part (``undesirable``): mode ``"separate"`` (eq. 38): W = {dv, dB} where
+The undesirable part (``undesirable``): mode ``"separate"`` (AUG eq. 38): W = {dv, dB} where
 dv . n > 0 (a tensile correction, pulling the particle toward the other body), else 0; mode
-``"friction"`` (eqs. 42-46 with the misprints of EXPLICIT_STRATEGIES.md A3 fixed):
+``"friction"`` (AUG eqs. 42-46 with their misprints fixed):
 dv^t = (I - n n^T) dv, s = min(|dv^t|, -mu dv.n), dv^u = dv^t - s dv^t/|dv^t| where
 dv . n <= 0, dv^u = dv otherwise; dB^u = dB always.
 
@@ -46,18 +46,18 @@ energy 1/2 sum m (|v|^2 + B D^-1 : B) exceeds that of V-bar is not taken, the it
 V^_m. Measured (2D block on a plate under gravity tilted 30 degrees, h = 0.5 m, mu = 0.7, N =
 10, "facing" normals): without it the correction added 6.9e6 J of kinetic energy over 4,000
 steps (1,255 steps gaining, up to 0.9 % of the predicted energy in one step) and the block left
-the plate (its centre rose 0.24 m in 0.1 s; N = 30: 0.35 m). Not explained; eq. 44 keeps the
+the plate (its centre rose 0.24 m in 0.1 s; N = 30: 0.35 m). Not explained; AUG eq. 44 keeps the
 normal part of a change outside the cone, so H W can add normal pushes that widen the cone (the
 orthogonal projection onto the cone instead gained more: 2.1e7 J). mu = 0 with N = 10 gained
 16 J (round-off level) and N = 1 never gained. Every partial sum V^_m conserves momentum,
 so the guard keeps the conservation.
 
 Every G = H - I term carries no net linear momentum (both transfers) and, with APIC and the B
-term, no net angular momentum (eq. 36), so A^ carries none whatever N and the mode.
+term, no net angular momentum (AUG eq. 36), so A^ carries none whatever N and the mode.
 
 Kernels per axis (tensor products in d dimensions): ``"quadratic"`` (bfemp's quadratic
 B-spline, 3 nodes, D = dx^2/4 I), ``"aug_b2avg"`` (AUG App. B: the quadratic B-spline averaged
-over copies shifted by +-dx/2, 4 nodes, D = dx^2/2 I; eq. 62's /8 is a misprint for /4) and
+over copies shifted by +-dx/2, 4 nodes, D = dx^2/2 I; AUG eq. 62's /8 is a misprint for /4) and
 ``"linear"`` (hats, 2 nodes, D_p depends on x_p; the 1D gap test of AUG section 3.1).
 """
 
@@ -91,7 +91,7 @@ __all__ = [
 
 #: contact-grid kernels and their nodes per axis
 KERNELS = {"quadratic": 3, "aug_b2avg": 4, "linear": 2}
-#: augury modes (eq. 38 and eqs. 42-46)
+#: augury modes (AUG eq. 38 and AUG eqs. 42-46)
 MODES = ("friction", "separate")
 
 
@@ -105,7 +105,7 @@ class ContactStencils:
         grads: grad N_ip ``(P, K^d, d)`` in 1/m.
         node_x: positions of the touched nodes ``(G, d)`` in m.
         D: the APIC inertia D_p = sum_i N_ip (x_i - x_p)(x_i - x_p)^T ``(P, d, d)`` in m^2
-            (eq. 18).
+            (AUG eq. 18).
         dx: grid spacing in m.
     """
 
@@ -294,10 +294,10 @@ def facet_normals(x: np.ndarray, facets: np.ndarray, opposite: np.ndarray) -> np
 def undesirable(
     dv: np.ndarray, dB: np.ndarray, normals: np.ndarray, mode: str, mu: float
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The undesirable part W = {dv^u, dB^u} of a change {dv, dB} (eq. 38 or eqs. 42-46).
+    """The undesirable part W = {dv^u, dB^u} of a change {dv, dB} (AUG eq. 38 or AUG eqs. 42-46).
 
     Args:
-        dv: velocity changes ``(P, d)`` in m/s (measured from V-bar, eq. 37).
+        dv: velocity changes ``(P, d)`` in m/s (measured from V-bar, AUG eq. 37).
         dB: B changes ``(P, d, d)`` in m^2/s.
         normals: outward unit normals of each particle's own body ``(P, d)``; a zero normal
             gives dv . n = 0 (compressive), so ``"separate"`` keeps the whole change and
@@ -333,7 +333,7 @@ def augury_correction(
     energy_guard: bool = False,
     stats: dict | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """V^_N from the prediction V-bar (eqs. 29, 36-46): ``(v^ (P, d), B^ (P, d, d))``.
+    """V^_N from the prediction V-bar (AUG eqs. 29, 36-46): ``(v^ (P, d), B^ (P, d, d))``.
 
     ``movable (P,)`` bool: particles that take a correction (kinematic foreground has False:
     its undesirable part is zero, its V^ is discarded by the caller). ``energy_guard``: stop

@@ -1,17 +1,17 @@
 """Contact normals, separations and the contact law of logistic-regression (LR) multimaterial MPM
-(Nairn et al., "LR"; EXPLICIT_STRATEGIES.md section 2), physics only: the ``"lr"`` stepper
+(Nairn et al., "LR"), physics only: the ``"lr"`` stepper
 builds the per-material grid and the point clouds and calls these.
 
 - ``contact_point_clouds``: the CSR point clouds that ``lr_planes`` takes, from the stencils.
 - ``lr_planes``: at each contact node, the most probable plane between the point cloud's two
-  classes by logistic regression (eqs. 19-21, App. eqs. 53-57), its unit normal from alpha to
-  beta, and the separation d_LR (eqs. 22-24) with the deformed particle radius (eq. 25).
-- ``deformed_radius``: eq. 25 alone.
-- ``mass_gradient_normals`` and ``ag_normals``: the grid "average gradient" normal (eqs. 11, 13)
+  classes by logistic regression (LR eqs. 19-21, LR App. eqs. 53-57), its unit normal from alpha to
+  beta, and the separation d_LR (LR eqs. 22-24) with the deformed particle radius (LR eq. 25).
+- ``deformed_radius``: LR eq. 25 alone.
+- ``mass_gradient_normals`` and ``ag_normals``: the grid "average gradient" normal (LR eqs. 11, 13)
   that LR compares against.
 - ``material_mass_moments`` and ``cp_separation``: the grid "contact position" separation with a
-  constant offset (eq. 16), "CP = 0.8".
-- ``contact_momentum``: the two-material contact law (eqs. 7-10, 14-15, 24) with the detection
+  constant offset (LR eq. 16), "CP = 0.8".
+- ``contact_momentum``: the two-material contact law (LR eqs. 7-10, 14-15, 24) with the detection
   "approaching and touching".
 
 Units: SI throughout (m, kg, kg m/s).
@@ -24,15 +24,23 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bfemp.contact._lr_kernels import (
-    DEGENERATE,
-    ONE_CLASS,
-    deformed_radii,
-    lr_planes_kernel,
-    mass_gradients,
-    mass_moments,
-    point_clouds,
+from bfemp.contact._lr_args import (
+    check_clouds,
+    check_F_R0,
+    dimension,
+    float_array,
+    grid_args,
+    int_array,
 )
+from bfemp.contact._lr_detectors import (
+    CP_OFFSET_CELLS,
+    ag_normals,
+    cp_separation,
+    mass_gradient_normals,
+    material_mass_moments,
+)
+from bfemp.contact._lr_grid_kernels import point_clouds
+from bfemp.contact._lr_kernels import DEGENERATE, ONE_CLASS, deformed_radii, lr_planes_kernel
 
 __all__ = [
     "CP_OFFSET_CELLS",
@@ -53,7 +61,6 @@ log = logging.getLogger(__name__)
 
 LAWS = ("frictionless", "coulomb", "perfect")
 DETECTORS = ("lr", "cp", "velocity")
-CP_OFFSET_CELLS = 0.8  # LR section 2.3: delta_c = 0.8 cells (calibrated for GIMP, L-P3)
 
 
 @dataclass(frozen=True)
@@ -62,13 +69,13 @@ class LRPlanes:
 
     Attributes:
         normal: unit normals ``(C, d)`` from material alpha (side -1) to beta (side +1).
-        separation: d_LR ``(C,)`` in m (eq. 24); negative = overlapping, 0 = touching.
+        separation: d_LR ``(C,)`` in m (LR eq. 24); negative = overlapping, 0 = touching.
         iterations: Gauss-Newton (logistic) iterations taken ``(C,)`` int, after the
             linear-regression start.
         converged: ``(C,)`` bool, 1 - n^(k+1) . n^(k) < tol met within ``max_iterations``.
         fallback: ``(C,)`` bool, a Gauss-Newton iterate was NaN, singular or had a zero normal,
             and the linear-regression normal was used.
-        phi: the final model parameters ``(C, d + 1)`` (eq. 19), positions relative to the node:
+        phi: the final model parameters ``(C, d + 1)`` (LR eq. 19), positions relative to the node:
             (X - x_i, 1) . phi = 0 on the plane; the normal part in 1/m, the offset
             dimensionless. In a fallback, the linear start.
     """
@@ -81,57 +88,9 @@ class LRPlanes:
     phi: np.ndarray
 
 
-def _float_array(name: str, a: object, shape: tuple) -> np.ndarray:
-    """``a`` as a C-contiguous float64 array of ``shape`` (None = any), finite, or ValueError."""
-    arr = np.asarray(a)
-    if arr.dtype.kind not in "fiu":
-        raise ValueError(f"{name} must be a real array, got dtype {arr.dtype}")
-    arr = np.ascontiguousarray(arr, dtype=np.float64)
-    if arr.ndim != len(shape) or any(
-        s is not None and s != t for s, t in zip(shape, arr.shape, strict=True)
-    ):
-        want = "(" + ", ".join("*" if s is None else str(s) for s in shape) + ")"
-        raise ValueError(f"{name} must have shape {want}, got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(
-            f"{name} has non-finite entries (first at {np.argwhere(~np.isfinite(arr))[0].tolist()})"
-        )
-    return arr
-
-
-def _int_array(name: str, a: object, ndim: int) -> np.ndarray:
-    arr = np.asarray(a)
-    if arr.dtype.kind not in "iu":
-        raise ValueError(f"{name} must be an integer array, got dtype {arr.dtype}")
-    if arr.ndim != ndim:
-        raise ValueError(f"{name} must have {ndim} dimension(s), got shape {arr.shape}")
-    return np.ascontiguousarray(arr, dtype=np.int64)
-
-
-def _dimension(name: str, a: np.ndarray) -> int:
-    d = a.shape[-1]
-    if d not in (2, 3):
-        raise ValueError(f"{name}: d must be 2 or 3, got shape {a.shape}")
-    return d
-
-
-def _check_F_R0(points_F: np.ndarray, points_R0: np.ndarray, what: str) -> None:
-    det = np.linalg.det(points_F) if points_F.shape[0] else np.zeros(0)
-    if np.any(det <= 0.0):
-        bad = np.flatnonzero(det <= 0.0)
-        raise ValueError(f"{what}: det F <= 0 at points {bad[:10].tolist()}")
-    zero = points_R0 == 0.0
-    if np.any(points_R0 < 0.0) or np.any(zero.any(axis=1) & ~zero.all(axis=1)):
-        bad = np.flatnonzero((points_R0 < 0.0).any(axis=1) | (zero.any(axis=1) & ~zero.all(axis=1)))
-        raise ValueError(
-            f"{what}: R0 rows must be all positive (particles) or all zero (surface samples); "
-            f"bad rows {bad[:10].tolist()}"
-        )
-
-
 def deformed_radius(F: np.ndarray, R0: np.ndarray, normal: np.ndarray) -> np.ndarray:
     """Distance R_p ``(Q,)`` in m from each particle's centre to its deformed edge along the unit
-    ``normal (Q, d)`` (eq. 25): n0 = F_p^-1 n, 1/R_p = sqrt(sum_k n0_k^2 / R0_k^2), i.e. along n
+    ``normal (Q, d)`` (LR eq. 25): n0 = F_p^-1 n, 1/R_p = sqrt(sum_k n0_k^2 / R0_k^2), i.e. along n
     to the boundary of the ellipse (ellipsoid) of semi-axes R0 inscribed in the undeformed
     particle and mapped by F_p (NairnMPM ``GetDeformedRadius``).
 
@@ -141,12 +100,12 @@ def deformed_radius(F: np.ndarray, R0: np.ndarray, normal: np.ndarray) -> np.nda
             sample (FEM boundary) with R_p = 0.
         normal: unit directions ``(Q, d)``.
     """
-    normal = _float_array("normal", normal, (None, None))
+    normal = float_array("normal", normal, (None, None))
     q, d = normal.shape
-    _dimension("normal", normal)
-    F = _float_array("F", F, (q, d, d))
-    R0 = _float_array("R0", R0, (q, d))
-    _check_F_R0(F, R0, "deformed_radius")
+    dimension("normal", normal)
+    F = float_array("F", F, (q, d, d))
+    R0 = float_array("R0", R0, (q, d))
+    check_F_R0(F, R0, "deformed_radius")
     length = np.linalg.norm(normal, axis=1)
     if np.any(np.abs(length - 1.0) > 1e-8):
         raise ValueError("deformed_radius: normal rows must be unit vectors")
@@ -174,20 +133,20 @@ def lr_planes(
 
     At node c the cloud is ``cloud_idx[cloud_ptr[c]:cloud_ptr[c+1]]`` (indices into the points)
     with classes ``cloud_side`` (-1 alpha, +1 beta). With x~_p = (X_p - x_i, 1) (relative to the
-    node, as NairnMPM) and c_p the class, minimise (eq. 20)
+    node, as NairnMPM) and c_p the class, minimise (LR eq. 20)
 
         Omega = sum_p (f(x~_p . phi) - c_p)^2 + sum_j lambda_j phi_j^2,  f(s) = 2/(1+e^-s) - 1,
 
     with lambda = penalty dx^2 (1, .., 1, 0) (normal penalised, offset not; LR App.) by
-    Gauss-Newton (eq. 21, App. eqs. 53-56, w_p = 1). Start: phi(0) = 0, whose first step is the
+    Gauss-Newton (LR eq. 21, App. eqs. 53-56, w_p = 1). Start: phi(0) = 0, whose first step is the
     linear-regression fit; as NairnMPM, phi(1) = linear_scale * phi_lin with
     (X~^T X~ + Lambda) phi_lin = X~^T c (the exact Gauss-Newton step from 0 is
     2 (X~^T X~ + 4 Lambda)^-1 X~^T c, the same up to the tiny penalty). Then logistic steps until
-    1 - n^(k+1) . n^(k) < tol (eq. 57) or ``max_iterations`` steps (the last iterate is kept).
+    1 - n^(k+1) . n^(k) < tol (LR eq. 57) or ``max_iterations`` steps (the last iterate is kept).
     A NaN, singular or zero-normal iterate falls back to the linear normal (``fallback``).
 
-    The separation (eqs. 22-24): d_LR = min_beta((X_p - x_i).n - R_p) - max_alpha((X_p - x_i).n
-    + R_p), with R_p of eq. 25 (``deformed_radius``); independent of x_i.
+    The separation (LR eqs. 22-24): d_LR = min_beta((X_p - x_i).n - R_p) - max_alpha((X_p - x_i).n
+    + R_p), with R_p of LR eq. 25 (``deformed_radius``); independent of x_i.
 
     Args:
         node_x: contact node positions ``(C, d)`` in m, d = 2 or 3.
@@ -214,35 +173,20 @@ def lr_planes(
         ValueError: bad shapes or values (naming the argument), a cloud with one class only or
             a degenerate cloud (naming the node).
     """
-    node_x = _float_array("node_x", node_x, (None, None))
+    node_x = float_array("node_x", node_x, (None, None))
     n_c, d = node_x.shape
-    _dimension("node_x", node_x)
-    cloud_ptr = _int_array("cloud_ptr", cloud_ptr, 1)
-    cloud_idx = _int_array("cloud_idx", cloud_idx, 1)
-    cloud_side = _int_array("cloud_side", cloud_side, 1)
-    if cloud_ptr.shape != (n_c + 1,):
-        raise ValueError(f"cloud_ptr must have shape ({n_c + 1},), got {cloud_ptr.shape}")
-    if cloud_ptr[0] != 0 or np.any(np.diff(cloud_ptr) < 0) or cloud_ptr[-1] != cloud_idx.size:
-        raise ValueError(
-            "cloud_ptr must start at 0, never decrease and end at len(cloud_idx) "
-            f"= {cloud_idx.size}, got ends {cloud_ptr[0]}, {cloud_ptr[-1]}"
-        )
-    if cloud_side.shape != cloud_idx.shape:
-        raise ValueError(
-            f"cloud_side must have the shape of cloud_idx {cloud_idx.shape}, got {cloud_side.shape}"
-        )
-    if np.any((cloud_side != -1) & (cloud_side != 1)):
-        raise ValueError("cloud_side must hold -1 (alpha) or +1 (beta) only")
-    points_x = _float_array("points_x", points_x, (None, d))
+    dimension("node_x", node_x)
+    cloud_ptr, cloud_idx, cloud_side = check_clouds(n_c, cloud_ptr, cloud_idx, cloud_side)
+    points_x = float_array("points_x", points_x, (None, d))
     n_q = points_x.shape[0]
-    points_F = _float_array("points_F", points_F, (n_q, d, d))
-    points_R0 = _float_array("points_R0", points_R0, (n_q, d))
+    points_F = float_array("points_F", points_F, (n_q, d, d))
+    points_R0 = float_array("points_R0", points_R0, (n_q, d))
     if cloud_idx.size and (cloud_idx.min() < 0 or cloud_idx.max() >= n_q):
         raise ValueError(
             f"cloud_idx must index the {n_q} points, got range "
             f"[{cloud_idx.min()}, {cloud_idx.max()}]"
         )
-    _check_F_R0(points_F, points_R0, "lr_planes")
+    check_F_R0(points_F, points_R0, "lr_planes")
     if not (np.isfinite(dx) and dx > 0.0):
         raise ValueError(f"dx must be a positive grid spacing in m, got {dx}")
     for name, val in (("penalty", penalty), ("tol", tol), ("linear_scale", linear_scale)):
@@ -258,7 +202,7 @@ def lr_planes(
         start = np.zeros((n_c, d))
         has_start = np.zeros(n_c, dtype=np.bool_)
     else:
-        start = _float_array("normal_start", normal_start, (n_c, d))
+        start = float_array("normal_start", normal_start, (n_c, d))
         has_start = np.linalg.norm(start, axis=1) > 0.0
 
     normal, phi, sep, iters, conv, fb, code = lr_planes_kernel(
@@ -290,27 +234,6 @@ def lr_planes(
     return LRPlanes(normal, sep, iters, conv, fb, phi)
 
 
-def _grid_args(
-    nodes: object, n_nodes: int, material: object, n_materials: int, n_p: int
-) -> tuple[np.ndarray, np.ndarray]:
-    nodes = _int_array("nodes", nodes, 2)
-    if nodes.shape[0] != n_p:
-        raise ValueError(f"nodes must have {n_p} rows (one per particle), got {nodes.shape}")
-    if nodes.size and (nodes.min() < -1 or nodes.max() >= n_nodes):
-        raise ValueError(
-            f"nodes must be -1 or in [0, {n_nodes}), got range [{nodes.min()}, {nodes.max()}]"
-        )
-    material = _int_array("material", material, 1)
-    if material.shape != (n_p,):
-        raise ValueError(f"material must have shape ({n_p},), got {material.shape}")
-    if material.size and (material.min() < 0 or material.max() >= n_materials):
-        raise ValueError(
-            f"material must be in [0, {n_materials}), got range "
-            f"[{material.min()}, {material.max()}]"
-        )
-    return nodes, material
-
-
 def contact_point_clouds(
     nodes: np.ndarray,
     weights: np.ndarray,
@@ -325,7 +248,7 @@ def contact_point_clouds(
 
     Row r (grid node ``node[r]``) holds the points of material ``alpha[r]`` as side -1 and of
     ``beta[r]`` as side +1; ``beta[r] = -1`` takes every material other than alpha as +1 (the
-    lumped partner of eq. 50, NairnMPM's b < 0). Points of other materials are left out. Within a
+    lumped partner of LR eq. 50, NairnMPM's b < 0). Points of other materials are left out. Within a
     cloud the points are in index order. FEM surface samples take part as points with their own
     stencils (spec 2.6).
 
@@ -340,15 +263,15 @@ def contact_point_clouds(
     Returns:
         ``(cloud_ptr (C + 1,) int64, cloud_idx (K,) int64, cloud_side (K,) int8)``.
     """
-    material = _int_array("material", material, 1)
+    material = int_array("material", material, 1)
     n_p = material.shape[0]
-    nodes, material = _grid_args(
+    nodes, material = grid_args(
         nodes, n_nodes, material, max(1, int(material.max(initial=0)) + 1), n_p
     )
-    weights = _float_array("weights", weights, nodes.shape)
-    node = _int_array("node", node, 1)
-    alpha = _int_array("alpha", alpha, 1)
-    beta = _int_array("beta", beta, 1)
+    weights = float_array("weights", weights, nodes.shape)
+    node = int_array("node", node, 1)
+    alpha = int_array("alpha", alpha, 1)
+    beta = int_array("beta", beta, 1)
     if alpha.shape != node.shape or beta.shape != node.shape:
         raise ValueError(
             f"contact_point_clouds: node, alpha and beta must have one shape, got "
@@ -359,164 +282,6 @@ def contact_point_clouds(
     if np.any(alpha < 0) or np.any(beta < -1) or np.any(alpha == beta):
         raise ValueError("contact_point_clouds: alpha must be >= 0, beta >= 0 (or -1) and != alpha")
     return point_clouds(nodes, weights, material, node, alpha, beta, int(n_nodes))
-
-
-def mass_gradient_normals(
-    nodes: np.ndarray,
-    grads: np.ndarray,
-    mass: np.ndarray,
-    material: np.ndarray,
-    n_nodes: int,
-    n_materials: int,
-) -> np.ndarray:
-    """Per-material grid mass gradients grad m_i^alpha = sum_{p in alpha} m_p grad w_ip
-    ``(n_materials, n_nodes, d)`` in kg/m (eq. 11 with m_p for V_p: pass particle volumes as
-    ``mass`` for the paper's volume gradient, areas for its 2D area gradient). For one material
-    it points out of the material (LR after eq. 12: ||g|| n^alpha = g, n^alpha outward).
-
-    Args:
-        nodes: stencil node indices ``(P, S)`` int, -1 = none.
-        grads: weight gradients grad w_ip ``(P, S, d)`` in 1/m.
-        mass: particle masses ``(P,)`` in kg (or volumes, areas).
-        material: material of each particle ``(P,)`` int in [0, n_materials).
-        n_nodes, n_materials: sizes of the output.
-    """
-    mass = _float_array("mass", mass, (None,))
-    n_p = mass.shape[0]
-    nodes, material = _grid_args(nodes, n_nodes, material, n_materials, n_p)
-    grads = _float_array("grads", grads, (n_p, nodes.shape[1], None))
-    _dimension("grads", grads)
-    return mass_gradients(nodes, grads, mass, material, int(n_nodes), int(n_materials))
-
-
-def material_mass_moments(
-    nodes: np.ndarray,
-    weights: np.ndarray,
-    mass: np.ndarray,
-    x: np.ndarray,
-    material: np.ndarray,
-    n_nodes: int,
-    n_materials: int,
-) -> np.ndarray:
-    """Per-material first mass moments sum_{p in alpha} w_ip m_p x_p ``(n_materials, n_nodes,
-    d)`` in kg m; divided by m_i^alpha they are the extrapolated positions x^alpha = S^+alpha X
-    of eq. 11 that ``cp_separation`` uses.
-
-    Args:
-        nodes: stencil node indices ``(P, S)`` int, -1 = none.
-        weights: w_ip ``(P, S)``.
-        mass: particle masses ``(P,)`` in kg.
-        x: particle positions ``(P, d)`` in m.
-        material: ``(P,)`` int in [0, n_materials).
-        n_nodes, n_materials: sizes of the output.
-    """
-    mass = _float_array("mass", mass, (None,))
-    n_p = mass.shape[0]
-    nodes, material = _grid_args(nodes, n_nodes, material, n_materials, n_p)
-    weights = _float_array("weights", weights, nodes.shape)
-    x = _float_array("x", x, (n_p, None))
-    _dimension("x", x)
-    return mass_moments(nodes, weights, mass, x, material, int(n_nodes), int(n_materials))
-
-
-def _pair_args(
-    name: str, node: object, alpha: object, beta: object, n_materials: int, n_nodes: int
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    node = _int_array("node", node, 1)
-    alpha = _int_array("alpha", alpha, 1)
-    beta = _int_array("beta", beta, 1)
-    if alpha.shape != node.shape or beta.shape != node.shape:
-        raise ValueError(
-            f"{name}: node, alpha and beta must have one shape, got "
-            f"{node.shape}, {alpha.shape}, {beta.shape}"
-        )
-    if node.size:
-        if node.min() < 0 or node.max() >= n_nodes:
-            raise ValueError(f"{name}: node must be in [0, {n_nodes})")
-        for label, a in (("alpha", alpha), ("beta", beta)):
-            if a.min() < 0 or a.max() >= n_materials:
-                raise ValueError(f"{name}: {label} must be in [0, {n_materials})")
-        if np.any(alpha == beta):
-            raise ValueError(
-                f"{name}: alpha and beta must differ (row {int(np.argmax(alpha == beta))})"
-            )
-    return node, alpha, beta
-
-
-def ag_normals(
-    mass_gradients: np.ndarray, node: np.ndarray, alpha: np.ndarray, beta: np.ndarray
-) -> np.ndarray:
-    """The "average gradient" (AG) normals ``(C, d)`` from alpha to beta (eq. 13):
-    n = (g^alpha - g^beta) / ||g^alpha - g^beta|| at the contact nodes ``node (C,)``, g from
-    ``mass_gradient_normals`` ``(M, G, d)`` (each g points out of its material, so -g^beta
-    points into beta). A node where the difference vanishes gets a zero row (``contact_momentum``
-    then finds no approach, d_n = 0, and applies no correction).
-    """
-    g = _float_array("mass_gradients", mass_gradients, (None, None, None))
-    _dimension("mass_gradients", g)
-    node, alpha, beta = _pair_args("ag_normals", node, alpha, beta, g.shape[0], g.shape[1])
-    n = g[alpha, node] - g[beta, node]
-    length = np.linalg.norm(n, axis=1)
-    out = np.zeros_like(n)
-    ok = length > 0.0
-    out[ok] = n[ok] / length[ok, None]
-    return out
-
-
-def cp_separation(
-    node_x: np.ndarray,
-    node: np.ndarray,
-    alpha: np.ndarray,
-    beta: np.ndarray,
-    mass: np.ndarray,
-    moments: np.ndarray,
-    normal: np.ndarray,
-    offset_cells: float,
-    dx: float,
-) -> np.ndarray:
-    """The "contact position" separation ``(C,)`` in m with a constant offset (eq. 16):
-    ((x^beta - x_i) - (x^alpha - x_i)) . n - offset_cells dx, x^alpha = moments / m^alpha the
-    extrapolated centre of mass of alpha's particles at the node (eq. 11, S^+alpha X). Contact
-    by eq. 16 is ``cp_separation < 0`` (``contact_momentum(..., detector="cp")``); LR's "CP = 0.8"
-    is ``offset_cells = CP_OFFSET_CELLS`` (0.8, calibrated for GIMP with 2 PPC: L-P3).
-
-    Why centre-of-mass positions: eq. 16 is stated in the extrapolated particle positions
-    x^alpha = S^+alpha X (eq. 11); these need the first mass moments, which the grid momenta
-    and masses alone do not give (``material_mass_moments``).
-
-    Args:
-        node_x: positions of the C contact nodes ``(C, d)`` in m.
-        node: their grid indices ``(C,)`` int into the G grid nodes.
-        alpha, beta: the two materials at each node ``(C,)`` int.
-        mass: per-material grid masses m_i^alpha ``(M, G)`` in kg (> 0 at the pairs).
-        moments: ``material_mass_moments`` ``(M, G, d)`` in kg m.
-        normal: unit normals ``(C, d)`` from alpha to beta.
-        offset_cells: delta_c in cells.
-        dx: grid spacing in m.
-    """
-    node_x = _float_array("node_x", node_x, (None, None))
-    n_c, d = node_x.shape
-    _dimension("node_x", node_x)
-    mass = _float_array("mass", mass, (None, None))
-    moments = _float_array("moments", moments, (mass.shape[0], mass.shape[1], d))
-    normal = _float_array("normal", normal, (n_c, d))
-    node, alpha, beta = _pair_args("cp_separation", node, alpha, beta, *mass.shape)
-    if node.shape != (n_c,):
-        raise ValueError(f"cp_separation: node must have shape ({n_c},), got {node.shape}")
-    if not (np.isfinite(dx) and dx > 0.0):
-        raise ValueError(f"cp_separation: dx must be > 0, got {dx}")
-    if not np.isfinite(offset_cells):
-        raise ValueError(f"cp_separation: offset_cells must be finite, got {offset_cells}")
-    m_a = mass[alpha, node]
-    m_b = mass[beta, node]
-    if np.any(m_a <= 0.0) or np.any(m_b <= 0.0):
-        bad = np.flatnonzero((m_a <= 0.0) | (m_b <= 0.0))
-        raise ValueError(
-            f"cp_separation: a material has no mass at contact rows {bad[:10].tolist()}"
-        )
-    x_a = moments[alpha, node] / m_a[:, None] - node_x
-    x_b = moments[beta, node] / m_b[:, None] - node_x
-    return np.einsum("cd,cd->c", x_b - x_a, normal) - float(offset_cells) * float(dx)
 
 
 def contact_momentum(
@@ -537,12 +302,12 @@ def contact_momentum(
 
     Delta p(0) = m_a (v_cm - v_a) = m_red (v_b - v_a), m_red = m_a m_b / (m_a + m_b) (the change
     that moves both with the centre of mass), d_n = Delta p(0) . n. Contact iff d_n < 0
-    (approaching, eq. 14) and separation < 0 (touching, eqs. 15/24) for the detectors ``"lr"``
+    (approaching, LR eq. 14) and separation < 0 (touching, LR eqs. 15/24) for the detectors ``"lr"``
     and ``"cp"``; ``"velocity"`` uses d_n < 0 alone (``separation`` may be None). Laws:
 
     - ``"frictionless"``: Delta p = d_n n.
     - ``"coulomb"``: t = Delta p(0) - d_n n; stick Delta p = Delta p(0) if ||t|| <= mu |d_n|,
-      else slip Delta p = d_n n + mu |d_n| t / ||t|| (eqs. 8-10 with S_slide = mu N_c and
+      else slip Delta p = d_n n + mu |d_n| t / ||t|| (LR eqs. 8-10 with S_slide = mu N_c and
       N_c A_c dt = -d_n, so the area cancels; t/||t|| is the paper's t-hat with
       Delta p(0) . t-hat > 0 after its sign correction). The slip keeps the relative tangential
       velocity's direction and reduces its size by mu |d_n| / m_red: sliding loses relative
@@ -550,7 +315,7 @@ def contact_momentum(
     - ``"perfect"``: Delta p = Delta p(0) at every node (a bonded interface, NairnMPM
       ``IgnoreContact``); ``in_contact`` is then all True.
 
-    Out of contact Delta p = 0. The caller adds Delta p to a and -Delta p to b (eq. 7). Every law
+    Out of contact Delta p = 0. The caller adds Delta p to a and -Delta p to b (LR eq. 7). Every law
     removes kinetic energy of the pair or keeps it: Delta KE = (|Delta p|^2 -
     2 Delta p . Delta p(0)) / (2 m_red) <= 0.
 
@@ -579,13 +344,13 @@ def contact_momentum(
         raise ValueError(f"contact_momentum: law must be one of {LAWS}, got {law!r}")
     if detector not in DETECTORS:
         raise ValueError(f"contact_momentum: detector must be one of {DETECTORS}, got {detector!r}")
-    m_a = _float_array("m_a", m_a, (None,))
+    m_a = float_array("m_a", m_a, (None,))
     n_c = m_a.shape[0]
-    m_b = _float_array("m_b", m_b, (n_c,))
-    p_a = _float_array("p_a", p_a, (n_c, None))
+    m_b = float_array("m_b", m_b, (n_c,))
+    p_a = float_array("p_a", p_a, (n_c, None))
     d = p_a.shape[1]
-    p_b = _float_array("p_b", p_b, (n_c, d))
-    normal = _float_array("normal", normal, (n_c, d))
+    p_b = float_array("p_b", p_b, (n_c, d))
+    normal = float_array("normal", normal, (n_c, d))
     if np.any(m_a <= 0.0) or np.any(m_b <= 0.0):
         raise ValueError("contact_momentum: m_a and m_b must be > 0 at every contact node")
     length = np.linalg.norm(normal, axis=1)
@@ -599,7 +364,7 @@ def contact_momentum(
     if detector != "velocity" or separation is not None:
         if separation is None:
             raise ValueError(f"contact_momentum: detector {detector!r} needs a separation")
-        separation = _float_array("separation", separation, (n_c,))
+        separation = float_array("separation", separation, (n_c,))
 
     rigid = []
     for name, flag in (("rigid_a", rigid_a), ("rigid_b", rigid_b)):
@@ -622,9 +387,9 @@ def contact_momentum(
     if law == "perfect":
         return dp0, ~(ra & rb)
     d_n = np.einsum("cd,cd->c", dp0, normal)
-    in_contact = d_n < 0.0  # approaching (eq. 14); never where both sides are rigid
+    in_contact = d_n < 0.0  # approaching (LR eq. 14); never where both sides are rigid
     if detector != "velocity":
-        in_contact &= separation < 0.0  # touching (eqs. 15, 24)
+        in_contact &= separation < 0.0  # touching (LR eqs. 15, 24)
     dp = d_n[:, None] * normal
     if law == "coulomb":
         t = dp0 - dp

@@ -10,7 +10,11 @@ smallest value) acts.
   grid velocity), free when it moves away; decided once per step.
 
 Slip is imposed exactly by rotating the node's unknowns into the frame (n, t1[, t2]) and fixing
-the normal coordinate (``NodeFrames``).
+the normal coordinate (``NodeFrames``); explicit steps apply the constraints to velocities
+(``GridConstraints.apply``), to velocity increments (``project``) and report the boundaries'
+reactions (``reactions``). One grid may carry several velocity fields (one per material, the
+``lr`` strategy): ``material_constraints`` gives one set for all of them, or one per field where a
+separate boundary makes the sets differ.
 """
 
 from __future__ import annotations
@@ -19,14 +23,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["GridConstraints", "grid_constraints", "normal_frames"]
+__all__ = ["GridConstraints", "grid_constraints", "material_constraints", "normal_frames"]
 
 
 @dataclass(frozen=True)
 class GridConstraints:
     """Per active grid node: ``sticky (G,)``, ``slip (G,)`` bool, unit ``normals (G, d)``, the
     boundary's displacement over the step at the node ``shift (G, d)`` in m (zero for static
-    boundaries) and the index of the acting boundary ``owner (G,)`` (-1: none)."""
+    boundaries) and the index of the acting boundary ``owner (G,)`` (-1: none).
+
+    With a material axis (``material_constraints``) every array has a leading axis M, one set
+    per velocity field; without one, the set serves every field.
+    """
 
     sticky: np.ndarray
     slip: np.ndarray
@@ -38,6 +46,74 @@ class GridConstraints:
     def any(self) -> bool:
         """Whether any node is constrained."""
         return bool(self.sticky.any() or self.slip.any())
+
+    @property
+    def per_material(self) -> bool:
+        """Whether the sets differ by field (a leading material axis)."""
+        return self.sticky.ndim == 2
+
+    def _sets(self, n_fields: int) -> list[tuple[object, GridConstraints]]:
+        """(index of the fields, set) pairs: ``...`` and self when one set serves them all."""
+        if not self.per_material:
+            return [(..., self)]
+        return [(m, GridConstraints(*(a[m] for a in self._arrays()))) for m in range(n_fields)]
+
+    def _arrays(self) -> tuple[np.ndarray, ...]:
+        return (self.sticky, self.slip, self.normals, self.shift, self.owner)
+
+    def apply(self, v: np.ndarray, dt: float) -> np.ndarray:
+        """Velocities ``(G, d)`` or ``(M, G, d)`` in m/s with the constraints imposed (a copy;
+        ``v`` itself when nothing is constrained): sticky nodes take the boundary's velocity
+        v_b = shift / dt, slip nodes lose the normal component of v - v_b."""
+        if not self.any:
+            return v
+        v = v.copy()
+        for m, c in self._sets(v.shape[0]):
+            if not c.any:
+                continue
+            v_b = c.shift / dt
+            field = v[m]
+            field[..., c.sticky, :] = v_b[c.sticky]
+            n = c.normals[c.slip]
+            rel = np.einsum("...ij,ij->...i", field[..., c.slip, :] - v_b[c.slip], n)
+            field[..., c.slip, :] -= rel[..., None] * n
+        return v
+
+    def project(self, u: np.ndarray) -> np.ndarray:
+        """A velocity increment ``(G, d)`` or ``(M, G, d)`` in m/s with the prescribed
+        components removed (in place; sticky: all, slip: the normal one)."""
+        for m, c in self._sets(u.shape[0] if u.ndim == 3 else 1):
+            if not c.any:
+                continue
+            field = u[m]
+            field[..., c.sticky, :] = 0.0
+            n = c.normals[c.slip]
+            field[..., c.slip, :] -= (
+                np.einsum("...ij,ij->...i", field[..., c.slip, :], n)[..., None] * n
+            )
+        return u
+
+    def reactions(
+        self,
+        mass: np.ndarray,
+        v_before: np.ndarray,
+        v_after: np.ndarray,
+        dt: float,
+        n_boundaries: int,
+    ) -> tuple[tuple[float, ...], ...]:
+        """Per boundary, the reaction force (d,) in N (N/m in 2D) of its nodes: the sum of
+        m_i (v_after - v_before) / dt over every field; masses ``(G,)`` or ``(M, G)`` in kg,
+        velocities ``(G, d)`` or ``(M, G, d)`` in m/s (the before/after of ``apply``)."""
+        d = v_after.shape[-1]
+        reaction = np.zeros((n_boundaries, d))
+        if mass.ndim == 1:
+            mass, v_before, v_after = mass[None], v_before[None], v_after[None]
+        for m in range(mass.shape[0]):
+            owner = self.owner[m] if self.per_material else self.owner
+            touched = owner >= 0
+            impulse = mass[m, touched, None] * (v_after[m, touched] - v_before[m, touched]) / dt
+            np.add.at(reaction, owner[touched], impulse)
+        return tuple(tuple(float(c) for c in row) for row in reaction)
 
 
 def _translation(boundary: object, t: float, d: int) -> tuple[np.ndarray, np.ndarray]:
@@ -98,6 +174,20 @@ def grid_constraints(
         slip[idx[active]] = True
         normals[idx[active]] = nrm[active]
     return GridConstraints(sticky, slip, normals, shift, owner)
+
+
+def material_constraints(
+    boundaries: tuple, grid_x: np.ndarray, v: np.ndarray, t_next: float, dt: float
+) -> GridConstraints:
+    """The constraints of M velocity fields ``v (M, G, d)`` m/s on one grid ``(G, d)`` m: one set
+    when no boundary is ``separate`` (sticky and slip nodes do not depend on the velocity), else
+    one per field (a leading material axis)."""
+    if all(b.kind != "separate" for b in boundaries):
+        return grid_constraints(boundaries, grid_x, v[0], t_next, dt)
+    sets = [grid_constraints(boundaries, grid_x, v_m, t_next, dt) for v_m in v]
+    return GridConstraints(
+        *(np.stack(arrays) for arrays in zip(*(c._arrays() for c in sets), strict=True))
+    )
 
 
 def normal_frames(normals: np.ndarray) -> np.ndarray:

@@ -6,7 +6,14 @@ use the particle stencils of the step start: ``nodes (P, K)`` into the active gr
 ``weights (P, K)`` = w_ip^n (a partition of unity that reproduces linear functions, as the
 quadratic B-spline does) and ``grads (P, K, d)`` = grad w_ip^n in 1/m.
 
-Choices made here (DESIGN.md leaves them open):
+The explicit strategies take variants of the same transfers, in this family (numba, each
+kernel's module says why it exists, with its measurement): ``p2g_with_forces``/``g2p_explicit``
+(``_explicit_kernels``: P2G fused with the internal forces, allocation-free G2P, general
+stencils), ``dense_p2g``/``dense_g2p`` (``_dense2d_kernels``: 2D, weights recomputed on a dense
+node box) and the multimaterial transfers of ``lr``, one field per body (``p2g_materials``,
+``p2g_nodal``, ``p2g_field``, ``g2p_field``, ``g2p_update``: ``_multimaterial_kernels``).
+
+Choices made here (choices the paper leaves open):
 
 - The APIC state is C_p = B_p D_p^-1 (``mpm_C``), not B_p. D_p = sum_i w_ip (x_i - x_p)(x_i - x_p)^T
   is computed from the given weights (it equals dx^2/4 I for quadratic B-splines, so the D_p^n used
@@ -34,9 +41,28 @@ from typing import NamedTuple
 
 import numpy as np
 
+from bfemp.mpm._dense2d_kernels import DenseBox, dense_g2p, dense_p2g
+from bfemp.mpm._explicit_kernels import g2p_explicit, p2g_with_forces
+from bfemp.mpm._multimaterial_kernels import (
+    g2p_field,
+    g2p_update,
+    p2g_field,
+    p2g_materials,
+    p2g_nodal,
+)
 from bfemp.mpm._transfer_kernels import _apic_inertia, _g2p, _p2g
 
 __all__ = [
+    "DenseBox",
+    "dense_g2p",
+    "dense_p2g",
+    "g2p_explicit",
+    "g2p_field",
+    "g2p_update",
+    "p2g_field",
+    "p2g_materials",
+    "p2g_nodal",
+    "p2g_with_forces",
     "SCHEMES",
     "MASS_FLOOR_REL",
     "GridFields",
@@ -328,32 +354,10 @@ def grid_to_particles(
     affine_a = a_like_v and scheme == "apic"
     out_Ca = np.zeros((n_p, d, d) if affine_a else (0, d, d))
     singular = np.zeros(n_p, dtype=np.bool_)
-    _g2p(
-        nodes,
-        weights,
-        grads,
-        grid_x,
-        grid_x_new,
-        grid_v_old,
-        grid_v_new,
-        grid_a_new,
-        mpm_x,
-        mpm_v,
-        mpm_F,
-        flip,
-        scheme == "apic",
-        with_a,
-        grid_a_old,
-        mpm_a,
-        a_like_v,
-        out_x,
-        out_v,
-        out_F,
-        out_C,
-        out_a,
-        out_Ca,
-        singular,
-    )
+    grid = (grid_x, grid_x_new, grid_v_old, grid_v_new, grid_a_new)
+    flags = (flip, scheme == "apic", with_a, grid_a_old, mpm_a, a_like_v)
+    out = (out_x, out_v, out_F, out_C, out_a, out_Ca, singular)
+    _g2p(nodes, weights, grads, *grid, mpm_x, mpm_v, mpm_F, *flags, *out)
     if singular.any():
         raise ValueError(
             "APIC inertia D_p = sum_i w_ip (x_i - x_p)(x_i - x_p)^T is singular at particles "

@@ -1,15 +1,16 @@
-"""Multimaterial XPIC(m) (LR section 3.3, eqs. 35-47; EXPLICIT_STRATEGIES.md section 2.5).
+"""Multimaterial XPIC(m) (LR section 3.3, LR eqs. 35-47).
 
 With A_a = S+^a S (G2P to the particles of material a, then P2G with the masses m^a), the
-projected particle velocity of eq. 37, rewritten by push-through, is P V^n = S v*^a with
+projected particle velocity of LR eq. 37, rewritten by push-through, is P V^n = S v*^a with
 
     v*^a = sum_{k=0}^{m-1} (I - A_a)^k v^a  -  sum_{k=0}^{m-2} (I - A_a)^k dv^a
 
 where v^a are the grid velocities after the first contact correction and dv^a that correction
-(``"paper"``, eqs. 41-44). m = 1 gives S v^a, PIC (eq. 38); m = 2 gives eq. 46. The variants of
+(``"paper"``, LR eqs. 41-44). m = 1 gives S v^a, PIC (LR eq. 38); m = 2 gives LR eq. 46. The
+variants of
 the paper's comparison: ``"uncorrected"`` starts from the P2G velocities v^{a0} and has no dv term
 (Fig. 7); ``"corrected_velocity"`` starts from v^a without the dv term (Uintah's XPIC2; its
-perfect-interface error is eq. 48).
+perfect-interface error is LR eq. 48).
 
 The loop costs 2m - 3 applications of A (m >= 2; m - 1 without the dv term), each one G2P and
 one P2G over every material at once (each particle transfers only to its own material's field).
@@ -37,7 +38,7 @@ def xpic_grid_velocity(
     apply_A: Callable[[np.ndarray], np.ndarray],
     project: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> np.ndarray:
-    """The field v*^a ``(M, G, d)`` whose G2P is the projected velocity P V^n (eq. 37).
+    """The field v*^a ``(M, G, d)`` whose G2P is the projected velocity P V^n (LR eq. 37).
 
     Args:
         order: XPIC order m >= 1.

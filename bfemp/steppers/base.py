@@ -58,6 +58,15 @@ class StepperOptions:
     #: the strategy these options belong to (set by each subclass)
     strategy: ClassVar[str] = ""
 
+    def check_choices(self, **allowed: tuple) -> None:
+        """``ValueError`` naming the field when a field's value is not one of its ``allowed``."""
+        for name, choices in allowed.items():
+            value = getattr(self, name)
+            if value not in choices:
+                raise ValueError(
+                    f"{type(self).__name__}.{name} must be one of {choices}, got {value!r}"
+                )
+
 
 def options_to_dict(options: StepperOptions) -> dict[str, Any]:
     """The options as plain JSON-able values (recorded in manifests and checkpoints).

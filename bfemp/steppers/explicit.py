@@ -5,40 +5,37 @@ One step (symplectic Euler, ``bfemp.integrators.SYMPLECTIC_EULER``; USL for MPM)
 1. MPM: quadratic B-spline weights at x_p^n; one fused parallel P2G of mass, momentum (APIC,
    PIC, FLIP) and internal force f_i = -sum_p V_p^0 P(F_p^n) (F_p^n)^T grad w_ip, which is
    ``-MpmElasticityTerm.gradient`` at the grid nodes' start positions (F_p(x^n) = F_p^n by
-   linear completeness, MPM eq. 25). FEM: f_n = ``-ElasticityTerm.gradient`` of the cells at
+   linear completeness, BFEMP eq. 25). FEM: f_n = ``-ElasticityTerm.gradient`` of the cells at
    x^n over an all-free ``DofLayout`` (built once). Gravity m g and dead loads are added.
-2. Hook ``after_p2g(step)`` (default: nothing): a strategy may correct the grid momenta there.
-3. v* = v + dt M^-1 f on the grid nodes and the free FEM nodes (eq. 21 with beta = 0; the stored
-   velocity is the half-step one); scripted FEM nodes take their scripted velocity at t^{n+1}.
-4. Hook ``resolve(step, grid_v, fem_v) -> (grid_v, fem_v)`` (default: unchanged): where a
+   (The phase ``particles_to_grid``; then phase ``after_p2g(step)``, default nothing.)
+2. v* = v + dt M^-1 f on the grid nodes and the free FEM nodes (BFEMP eq. 21 with beta = 0; the
+   stored velocity is the half-step one); scripted FEM nodes take their scripted velocity at
+   t^{n+1}.
+3. Phase ``resolve(step, grid_v, fem_v) -> (grid_v, fem_v)`` (default: unchanged): where a
    contact algorithm corrects v*.
-5. Level-set boundaries on the grid nodes inside them (``bfemp.mpm.boundaries``, evaluated at
+4. Level-set boundaries on the grid nodes inside them (``bfemp.mpm.boundaries``, evaluated at
    x_i^n, the boundary where it is at t^{n+1}): sticky v = v_b; slip: the normal component of
    v - v_b removed; separate: as slip while (v* - v_b) . n < 0, free otherwise (decided on v*,
-   the velocity the node would move with). The reaction m_i (v - v*) / dt of each boundary's
-   nodes is reported in ``StepReport.boundary_forces`` (sticky nodes included).
-6. FEM: x += dt v (scripted nodes: their scripted positions); MPM: G2P, the transfer of
-   ``bfemp.mpm.transfer.grid_to_particles`` with x~_i = x_i + dt v_i (which gives x_p += dt v_p
-   and F_p <- (I + dt grad v) F_p by linear completeness) in an allocation-free kernel
-   (``_explicit_kernels.g2p_explicit``, the same arithmetic; ``grid_to_particles``' kernel
-   allocates four d x d matrices per particle).
+   the velocity the node would move with, unless a phase decided earlier: lr on v^n). The
+   reaction m_i (v - v*) / dt of each boundary's nodes is reported in
+   ``StepReport.boundary_forces`` (sticky nodes included).
+5. FEM: x += dt v (scripted nodes: their scripted positions); MPM: phase ``g2p`` (default: the
+   transfer of ``bfemp.mpm.transfer.grid_to_particles`` with x~_i = x_i + dt v_i, which gives
+   x_p += dt v_p and F_p <- (I + dt grad v) F_p by linear completeness, in an allocation-free
+   kernel: ``bfemp.mpm.transfer.g2p_explicit``, the same arithmetic; ``grid_to_particles``'
+   kernel allocates four d x d matrices per particle).
+6. Phase ``after_g2p(step, motion)`` (default: nothing): a strategy corrects the end values
+   (augury's contact correction); then ``Motion.commit`` writes the new state, the one place a
+   step writes positions.
 
-Two kernel paths, one result (tested to round-off): in 2D the dense-box kernels of
-``_dense2d_kernels`` recompute each particle's weights from x_p and index a dense node box, as
-Taichi does, so no (P, 9) stencil arrays are written or read (``ExplicitStep.stencils()``
-builds them on demand for a strategy that needs them); in 3D (or when the box would be too
-sparse) the stencils of ``geometry.grid.particle_stencils`` feed the general kernels of
-``_explicit_kernels``. (Compacting the stencils in numba instead of numpy was tried and
-dropped: 23 ms either way at 131k particles, the cost is that of writing the fresh (P, 9)
-weight and gradient arrays.)
+The phases exchange one value, ``GridStep`` (start state, grid fields with a field axis M,
+constraints, and the report's iterations, notes, timings and extra), from which the engine
+builds the ``StepReport``.
 
-Why a fused P2G kernel rather than the terms for MPM: ``MpmElasticityTerm.begin_step`` builds the
-node-pair pattern of the Hessian (a serial neighbour table and (G 5^d d^2) row/column arrays)
-that an explicit step never uses, and the base ``ElasticityTerm`` route would build the
-(3^d d)^2-per-particle block pattern; the fused kernel reads every stencil once for mass,
-momentum and force. Measured (``benchmarks/records/perf_explicit.json``, 33k particles): the
-term route takes 0.104 s per step (0.090 s of it ``begin_step``), the fused stresses + P2G
-3.9 ms. FEM cells keep the term (fixed stencils, pattern built once).
+Two kernel paths, one result (tested to round-off; ``bfemp.mpm._explicit_kernels`` says why a
+fused P2G): the 2D dense-box kernels (``bfemp.mpm._dense2d_kernels``, no stored stencils;
+``GridStep.stencils()`` builds them for a strategy that needs them) and, in 3D or for a sparse
+box, the general kernels on ``geometry.grid.particle_stencils``.
 
 Stable step: ``bfemp.steppers.stable_dt``. The constructor refuses a dt above the bound (with
 the safety factors of the options) with a ``ValueError`` naming the bound, body and cell or
@@ -50,7 +47,7 @@ The slack between the two lets ``dt="auto"`` run while bodies speed up.
 
 MPM bodies all share one grid velocity field here (the P2G over all particles): bodies stick
 tangentially where their stencils overlap (``single_field``). Strategies that keep fields apart
-override ``after_p2g``/``resolve`` or the P2G.
+plug in phases (``lr`` keeps one field per body).
 """
 
 from __future__ import annotations
@@ -58,7 +55,7 @@ from __future__ import annotations
 import logging
 import math
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
@@ -66,18 +63,23 @@ import numpy as np
 from bfemp.dofs import DofLayout
 from bfemp.integrators import SYMPLECTIC_EULER, ExplicitIntegrator, integrator_from_name
 from bfemp.model import Model
-from bfemp.mpm.boundaries import GridConstraints, grid_constraints
-from bfemp.mpm.transfer import SCHEMES
+from bfemp.mpm.boundaries import material_constraints
+from bfemp.mpm.transfer import (
+    SCHEMES,
+    dense_g2p,
+    dense_p2g,
+    g2p_explicit,
+    p2g_with_forces,
+)
 from bfemp.state import State
 from bfemp.steppers._buffers import BufferPool
-from bfemp.steppers._dense2d_kernels import DenseBox, dense_g2p, dense_p2g
-from bfemp.steppers._explicit_kernels import g2p_explicit, p2g_with_forces
 from bfemp.steppers.base import ContactView, StepError, StepperOptions, StepReport
+from bfemp.steppers.grid_step import GridStep, Motion
 from bfemp.steppers.stable_dt import StableStep, stable_time_step
 from bfemp.terms import ElasticityTerm, StepContext, fem_elastic_groups
-from geometry.grid import Grid, ParticleStencils, particle_stencils
+from geometry.grid import particle_stencils
 
-__all__ = ["ExplicitOptions", "ExplicitStep", "ExplicitStepper"]
+__all__ = ["ExplicitOptions", "ExplicitStepper", "GridStep", "Motion"]
 
 log = logging.getLogger(__name__)
 
@@ -116,43 +118,6 @@ class ExplicitOptions(StepperOptions):
             object.__setattr__(self, name, float(value))
 
 
-@dataclass
-class ExplicitStep:
-    """What one explicit step knows, handed to the hooks (arrays may be changed in place).
-
-    Attributes:
-        t: start time t^n in s; ``t_next`` = t^{n+1}; ``dt`` in s.
-        grid_x: positions x_i^n of the active grid nodes ``(G, d)`` in m (the active nodes and
-            their order are those of ``particle_stencils``; ``stencils()`` gives the stencils).
-        grid_mass: node masses ``(G,)`` in kg (kg/m in 2D).
-        grid_v: P2G node velocities v_i^n ``(G, d)`` in m/s.
-        grid_force: internal + gravity forces on the nodes ``(G, d)`` in N (N/m in 2D).
-        fem_force: internal + gravity + load forces on the FEM nodes ``(N, d)`` in N.
-        constraints: the level-set constraints applied to the grid (after ``resolve``).
-    """
-
-    t: float
-    t_next: float
-    dt: float
-    grid_x: np.ndarray
-    grid_mass: np.ndarray
-    grid_v: np.ndarray
-    grid_force: np.ndarray
-    fem_force: np.ndarray
-    constraints: GridConstraints | None = None
-    _stencils: ParticleStencils | None = None
-    _box: DenseBox | None = None
-    _grid: Grid | None = None
-    _mpm_x: np.ndarray | None = None
-
-    def stencils(self) -> ParticleStencils | None:
-        """Particle stencils at x_p^n on the active nodes (built on first call in 2D, where the
-        engine itself never stores them); None without particles."""
-        if self._stencils is None and self._mpm_x is not None:
-            self._stencils = particle_stencils(self._grid, self._mpm_x)
-        return self._stencils
-
-
 class ExplicitStepper:
     """The explicit engine (see the module docstring); strategies subclass it.
 
@@ -160,7 +125,7 @@ class ExplicitStepper:
         model: the static model.
         integrator: ``"symplectic_euler"`` (the only explicit integrator) or its object.
         dt: time step in s, or ``"auto"`` for the stable bound of the initial state.
-        transfer: ``"apic"``, ``"pic"`` or ``"flip"``.
+        transfer: ``"apic"``, ``"pic"`` or ``"flip"`` (``transfers``; None: ``default_transfer``).
         options: the strategy's options (``Options()`` when None).
     """
 
@@ -169,6 +134,10 @@ class ExplicitStepper:
     explicit: ClassVar[bool] = True
     #: the integrator ``Simulation`` takes when none is given
     default_integrator: ClassVar[str] = "symplectic_euler"
+    #: the transfers the strategy takes, the one taken when none is given, and why others are not
+    transfers: ClassVar[tuple[str, ...]] = SCHEMES
+    default_transfer: ClassVar[str] = "apic"
+    transfer_note: ClassVar[str] = ""
     #: 2D scenes take the dense-box kernels (``_dense2d_kernels``); False forces the general path
     dense_2d: ClassVar[bool] = True
 
@@ -178,13 +147,17 @@ class ExplicitStepper:
         *,
         integrator: str | ExplicitIntegrator = "symplectic_euler",
         dt: float | str,
-        transfer: str = "apic",
+        transfer: str | None = None,
         options: StepperOptions | None = None,
     ) -> None:
         self.model = model
         self.integrator = self._explicit_integrator(integrator)
-        if transfer not in SCHEMES:
-            raise ValueError(f"{self.name}: transfer must be one of {SCHEMES}, got {transfer!r}")
+        transfer = self.default_transfer if transfer is None else transfer
+        if transfer not in self.transfers:
+            raise ValueError(
+                f"{self.name}: transfer must be one of {self.transfers}, got {transfer!r}"
+                + self.transfer_note
+            )
         self.transfer = transfer
         options = self.Options() if options is None else options
         if not isinstance(options, self.Options):
@@ -216,6 +189,10 @@ class ExplicitStepper:
         self.dt = float(dt)
         self._build_forces()
         self._last_contact: ContactView | None = None
+        self._setup()
+
+    def _setup(self) -> None:
+        """A strategy's own construction, after the engine's (default: nothing)."""
 
     # ------------------------------------------------------------------ construction
     def _explicit_integrator(self, integrator: object) -> ExplicitIntegrator:
@@ -320,15 +297,34 @@ class ExplicitStepper:
     def restore_checkpoint_data(self, data: object) -> None:
         """Nothing to restore."""
 
-    # ------------------------------------------------------------------ hooks
-    def after_p2g(self, step: ExplicitStep) -> None:
-        """Correct the grid momenta after P2G (default: nothing)."""
+    # ------------------------------------------------------------------ phases
+    def after_p2g(self, step: GridStep) -> None:
+        """Correct the transferred grid fields in place (default: nothing; lr: its contact
+        detection and first correction)."""
 
     def resolve(
-        self, step: ExplicitStep, grid_v: np.ndarray, fem_v: np.ndarray
+        self, step: GridStep, grid_v: np.ndarray, fem_v: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Contact correction of the updated velocities v* (default: none)."""
+        """Contact correction of the updated velocities v* ``(M, G, d)``, ``(N, d)`` in m/s
+        (default: none)."""
         return grid_v, fem_v
+
+    def g2p(self, step: GridStep, grid_v: np.ndarray) -> tuple[np.ndarray, ...]:
+        """The particle update from the end velocities ``grid_v (M, G, d)`` m/s: ``(mpm_x,
+        mpm_v, mpm_F, mpm_C)`` (default: the engine's G2P of its one field, module docstring
+        step 5)."""
+        state = step.state
+        moving = (step.velocity[0], grid_v[0], self.dt, state.mpm_x, state.mpm_v, state.mpm_F)
+        if step._box is not None:
+            box = step._box
+            return dense_g2p(box, self.model.grid.dx, self.transfer, *moving, self._pool.empty)
+        st = step.stencils()
+        stencil = (st.nodes, st.weights, st.grads, st.active_x)
+        return g2p_explicit(self.transfer, *stencil, *moving, self._n_chunks, self._pool.empty)
+
+    def after_g2p(self, step: GridStep, motion: Motion) -> None:
+        """Correct the end-of-step values in place before they are committed (default:
+        nothing)."""
 
     # ------------------------------------------------------------------ the step
     def _check_cfl(self, state: State) -> tuple[str, ...]:
@@ -351,8 +347,8 @@ class ExplicitStepper:
             )
         return (f"CFL_ABOVE_SAFETY: dt = {self.dt:.6g} s above the stable step {bound.describe()}",)
 
-    def _mpm_piola(self, state: State) -> np.ndarray:
-        """First Piola stresses P(F_p^n) ``(P, d, d)`` in Pa, law by law."""
+    def mpm_stresses(self, state: State) -> np.ndarray:
+        """First Piola stresses P(F_p^n) ``(P, d, d)`` in Pa, law by law (for a P2G phase)."""
         F = state.mpm_F
         if len(self._mpm_laws) == 1 and self._mpm_laws[0][1] is None:
             out = self._pool.empty(F.shape)
@@ -362,8 +358,9 @@ class ExplicitStepper:
             out[idx] = law.first_piola(F[idx], self._mpm_mu[idx], self._mpm_lam[idx])
         return out
 
-    def _fem_forces(self, state: State) -> np.ndarray:
-        """Internal + gravity + load forces on the FEM nodes ``(N, d)`` in N at x^n."""
+    def fem_forces(self, state: State) -> np.ndarray:
+        """Internal + gravity + load forces on the FEM nodes ``(N, d)`` in N at x^n (for a P2G
+        phase)."""
         model = self.model
         x = state.fem_x.reshape(-1)
         force = np.multiply.outer(model.fem_mass, model.gravity)
@@ -374,34 +371,25 @@ class ExplicitStepper:
             force += model.fem_load
         return force
 
-    def particles_to_grid(self, state: State, timings: dict[str, float]) -> ExplicitStep:
-        """Stencils, P2G of mass, momentum and forces; FEM forces (steps 1 of the docstring)."""
+    def particles_to_grid(self, state: State) -> GridStep:
+        """Phase P2G: stencils, P2G of mass, momentum and forces; FEM forces (step 1)."""
         model, d = self.model, self.model.dim
-        t_next = state.t + self.dt
+        timings: dict[str, float] = {}
         stencils = box = None
         grid_mass = np.zeros(0)
         grid_x = grid_v = grid_force = np.zeros((0, d))
         if model.n_particles:
             started = time.perf_counter()
-            piola = self._mpm_piola(state)
+            piola = self.mpm_stresses(state)
             timings["stress"] = time.perf_counter() - started
             started = time.perf_counter()
             apic_C = state.mpm_C if self.transfer == "apic" else None
+            particles = (state.mpm_x, model.mpm_mass, state.mpm_v, apic_C, piola, state.mpm_F)
+            particles += (model.mpm_volume, self._n_chunks)
             dense = None
             if d == 2 and self.dense_2d:
-                dense = dense_p2g(
-                    np.asarray(model.grid.origin),
-                    model.grid.dx,
-                    state.mpm_x,
-                    model.mpm_mass,
-                    state.mpm_v,
-                    apic_C,
-                    piola,
-                    state.mpm_F,
-                    model.mpm_volume,
-                    self._n_chunks,
-                    self._pool.empty,
-                )
+                origin = np.asarray(model.grid.origin)
+                dense = dense_p2g(origin, model.grid.dx, *particles, self._pool.empty)
             if dense is not None:
                 box, grid_mass, momentum, grid_force = dense
                 grid_x = model.grid.node_positions(box.active_ijk())
@@ -409,142 +397,96 @@ class ExplicitStepper:
                 stencils = particle_stencils(model.grid, state.mpm_x)
                 grid_x = stencils.active_x
                 grid_mass, momentum, grid_force = p2g_with_forces(
-                    stencils.nodes,
-                    stencils.weights,
-                    stencils.grads,
-                    stencils.active_x,
-                    state.mpm_x,
-                    model.mpm_mass,
-                    state.mpm_v,
-                    apic_C,
-                    piola,
-                    state.mpm_F,
-                    model.mpm_volume,
-                    self._n_chunks,
+                    stencils.nodes, stencils.weights, stencils.grads, grid_x, *particles
                 )
             grid_v = momentum * _inverse(grid_mass)[:, None]
             grid_force += np.multiply.outer(grid_mass, model.gravity)
             timings["p2g"] = time.perf_counter() - started
         started = time.perf_counter()
-        fem_force = self._fem_forces(state) if model.n_fem_nodes else np.zeros((0, d))
+        fem_force = self.fem_forces(state) if model.n_fem_nodes else np.zeros((0, d))
         timings["fem_forces"] = time.perf_counter() - started
-        return ExplicitStep(
-            t=state.t,
-            t_next=t_next,
+        return GridStep(
+            state=state,
+            t_next=state.t + self.dt,
             dt=self.dt,
             grid_x=grid_x,
-            grid_mass=grid_mass,
-            grid_v=grid_v,
-            grid_force=grid_force,
+            mass=grid_mass[None],
+            velocity=grid_v[None],
+            force=grid_force[None],
             fem_force=fem_force,
+            timings=timings,
             _stencils=stencils,
             _box=box,
             _grid=model.grid,
-            _mpm_x=state.mpm_x if model.n_particles else None,
         )
 
-    def _constrain(self, step: ExplicitStep, grid_v: np.ndarray) -> tuple[np.ndarray, tuple]:
-        """Level-set constraints on v* (step 5); returns v and the boundary reactions."""
+    def _constrain(self, step: GridStep, grid_v: np.ndarray) -> np.ndarray:
+        """Level-set constraints on v* ``(M, G, d)`` (step 4; decided here on v* unless a phase
+        decided them already); the reactions go to ``step.boundary_forces``."""
         model = self.model
         if not model.boundaries or step.grid_x.shape[0] == 0:
-            return grid_v, ()
-        cons = grid_constraints(model.boundaries, step.grid_x, grid_v, step.t_next, step.dt)
-        step.constraints = cons
-        if not cons.any:
-            return grid_v, tuple((0.0,) * model.dim for _ in model.boundaries)
-        v_star = grid_v
-        v = grid_v.copy()
-        v_b = cons.shift / step.dt  # the boundary's velocity at its nodes
-        v[cons.sticky] = v_b[cons.sticky]
-        slip = cons.slip
-        n = cons.normals[slip]
-        rel = np.einsum("ij,ij->i", v[slip] - v_b[slip], n)
-        v[slip] -= rel[:, None] * n
-        reaction = np.zeros((len(model.boundaries), model.dim))
-        touched = cons.owner >= 0
-        impulse = step.grid_mass[touched, None] * (v[touched] - v_star[touched]) / step.dt
-        np.add.at(reaction, cons.owner[touched], impulse)
-        return v, tuple(tuple(float(c) for c in row) for row in reaction)
-
-    def _g2p(
-        self, step: ExplicitStep, state: State, grid_v: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """G2P of the end velocities ``grid_v (G, d)``: ``(mpm_x, mpm_v, mpm_F, mpm_C)``."""
-        if step._box is not None:
-            return dense_g2p(
-                step._box,
-                self.model.grid.dx,
-                self.transfer,
-                step.grid_v,
-                grid_v,
-                self.dt,
-                state.mpm_x,
-                state.mpm_v,
-                state.mpm_F,
-                self._pool.empty,
+            return grid_v
+        if step.constraints is None:
+            step.constraints = material_constraints(
+                model.boundaries, step.grid_x, grid_v, step.t_next, step.dt
             )
-        st = step.stencils()
-        return g2p_explicit(
-            self.transfer,
-            st.nodes,
-            st.weights,
-            st.grads,
-            st.active_x,
-            step.grid_v,
-            grid_v,
-            self.dt,
-            state.mpm_x,
-            state.mpm_v,
-            state.mpm_F,
-            self._n_chunks,
-            self._pool.empty,
-        )
+        cons = step.constraints
+        v = cons.apply(grid_v, step.dt)
+        step.boundary_forces = cons.reactions(step.mass, grid_v, v, step.dt, len(model.boundaries))
+        return v
+
+    def _free_motion(self, step: GridStep) -> tuple[np.ndarray, np.ndarray]:
+        """v* = v + dt M^-1 f of the grid ``(M, G, d)`` and FEM nodes ``(N, d)`` in m/s (step
+        2)."""
+        model, dt, integ = self.model, self.dt, self.integrator
+        grid_a = step.force * _inverse(step.mass)[..., None]
+        grid_v = integ.velocity(step.velocity, grid_a, dt)
+        fem_v = np.zeros((0, model.dim))
+        if model.n_fem_nodes:
+            fem_a = step.fem_force * self._fem_inv_mass[:, None]
+            fem_v = integ.velocity(step.state.fem_v, fem_a, dt)
+            self._script_velocities(step, fem_v)
+        return grid_v, fem_v
+
+    def _script_velocities(self, step: GridStep, fem_v: np.ndarray) -> None:
+        scripted = ~self._fem_free
+        fem_v[scripted] = self.model.prescribed_velocities(step.t_next)[scripted]
+
+    def _motion(self, step: GridStep, grid_v: np.ndarray, fem_v: np.ndarray) -> Motion:
+        """FEM x += dt v (scripted nodes: their script) and the particle update (step 6)."""
+        model, state = self.model, step.state
+        t0 = time.perf_counter()
+        fem_x = state.fem_x
+        if model.n_fem_nodes:
+            self._script_velocities(step, fem_v)
+            fem_x = self.integrator.position(state.fem_x, fem_v, self.dt)
+            scripted = ~self._fem_free
+            fem_x[scripted] = model.prescribed_positions(step.t_next)[scripted]
+        step.timings["update"] += time.perf_counter() - t0
+        mpm = (state.mpm_x, state.mpm_v, state.mpm_F, state.mpm_C)
+        if model.n_particles:
+            t0 = time.perf_counter()
+            mpm = self.g2p(step, grid_v)
+            step.timings["g2p"] = time.perf_counter() - t0
+        return Motion(fem_x, fem_v, *mpm)
 
     def step(self, state: State) -> tuple[State, StepReport]:
         """Advance ``state`` by dt (module docstring); ``StepError`` on a CFL violation."""
         started = time.perf_counter()
-        model, dt = self.model, self.dt
         notes = self._check_cfl(state)
-        timings: dict[str, float] = {"cfl": time.perf_counter() - started}
-        step = self.particles_to_grid(state, timings)
+        cfl = time.perf_counter() - started
+        step = self.particles_to_grid(state)
+        step.notes[:0], step.timings["cfl"] = notes, cfl
         self.after_p2g(step)
         t0 = time.perf_counter()
-        integ = self.integrator
-        grid_a = step.grid_force * _inverse(step.grid_mass)[:, None]
-        grid_v = integ.velocity(step.grid_v, grid_a, dt)
-        fem_v = np.zeros((0, model.dim))
-        if model.n_fem_nodes:
-            fem_a = step.fem_force * self._fem_inv_mass[:, None]
-            fem_v = integ.velocity(state.fem_v, fem_a, dt)
-            scripted_v = model.prescribed_velocities(step.t_next)
-            fem_v[~self._fem_free] = scripted_v[~self._fem_free]
-        grid_v, fem_v = self.resolve(step, grid_v, fem_v)
-        grid_v, reactions = self._constrain(step, grid_v)
-        new = replace(state, t=step.t_next, step=state.step + 1)
-        if model.n_fem_nodes:
-            fem_v[~self._fem_free] = scripted_v[~self._fem_free]
-            fem_x = integ.position(state.fem_x, fem_v, dt)
-            scripted_x = model.prescribed_positions(step.t_next)
-            fem_x[~self._fem_free] = scripted_x[~self._fem_free]
-            new.fem_x, new.fem_v = fem_x, fem_v
-            new.fem_a = (fem_v - state.fem_v) / dt
-        timings["update"] = time.perf_counter() - t0
-        if model.n_particles:
-            t0 = time.perf_counter()
-            new.mpm_x, new.mpm_v, new.mpm_F, new.mpm_C = self._g2p(step, state, grid_v)
-            timings["g2p"] = time.perf_counter() - t0
-        timings["step"] = time.perf_counter() - started
-        report = StepReport(
-            step=new.step,
-            t=new.t,
-            success=True,
-            status="EXPLICIT",
-            message="explicit step",
-            timings=timings,
-            boundary_forces=reactions,
-            notes=notes,
-        )
-        return new, report
+        grid_v, fem_v = self.resolve(step, *self._free_motion(step))
+        grid_v = self._constrain(step, grid_v)
+        step.timings["update"] = time.perf_counter() - t0
+        motion = self._motion(step, grid_v, fem_v)
+        self.after_g2p(step, motion)
+        new = motion.commit(step)
+        step.timings["step"] = time.perf_counter() - started
+        return new, step.report()
 
 
 def _inverse(mass: np.ndarray) -> np.ndarray:

@@ -51,7 +51,6 @@ class SingleFieldStepper(ExplicitStepper):
 
     name: ClassVar[str] = "single_field"
     Options: ClassVar[type[SingleFieldOptions]] = SingleFieldOptions
-    explicit: ClassVar[bool] = True
     #: no contact algorithm: MPM bodies share the grid field, FEM bodies meet only level sets
     capabilities: ClassVar[Capabilities] = Capabilities(
         pairs={"mpm-mpm": "grid"},

@@ -1,5 +1,4 @@
-"""``"two_stage"``: explicit free motion, then frictional contact as a minimisation (TS notes;
-EXPLICIT_STRATEGIES.md section 3).
+"""``"two_stage"``: explicit free motion, then frictional contact as a minimisation (TS notes).
 
 One step (h = dt):
 
@@ -41,7 +40,7 @@ Choices (not in the notes):
   contact within d-hat at x^n. From x* the inertia gradient sums to zero and every barrier
   and friction block has translations in its kernel (also after PSD projection), so each
   Newton iterate keeps sum M (x - x*) = 0: linear momentum of free bodies is exact
-  (EXPLICIT_STRATEGIES.md S3). From x^n it is so only to the Newton tolerance (measured: a
+  (TS). From x^n it is so only to the Newton tolerance (measured: a
   frictional MPM disk-FEM slab impact, 0.1 s, drifted 9e-13 kg m/s of 31.2; 2e-12 from x*).
   Why x^n under friction (issue 40): x* is the frictionless free motion, so every contact
   starts sliding a full step v* dt (6e-4 m on the drop below), thousands of times the
@@ -83,7 +82,7 @@ Choices (not in the notes):
 
 Measured (``benchmarks/records/two_stage_*.json``; 2 shared cores; Newton from x*, before issue
 40): Newton takes 4-6 iterations per contact step on a block landing on a plate, 8.1 on the
-coarse rings and 5-17 at static friction (EXPLICIT_STRATEGIES.md's guess of 1-3 is no target:
+coarse rings and 5-17 at static friction (a guess of 1-3 is no target:
 TS states no count; the stick stiffness mu N / (eps_v dt) sets it: per step against eps_v and
 start in ``benchmarks/records/two_stage_slope_sticking.md``); rings quick: momentum drift
 2.3e-14, closest distance 8.8e-3 m; a block at rest on a plate sits 0.999e-3 m above it (dhat =
@@ -107,8 +106,6 @@ from bfemp.contact.intersection import step_intersection, step_inversion
 from bfemp.contact.pairs import find_pairs
 from bfemp.contact.parameters import warn_mpm_pairs
 from bfemp.contact.term import BarrierTerm
-from bfemp.integrators import ExplicitIntegrator
-from bfemp.model import Model
 from bfemp.mpm.boundaries import grid_constraints
 from bfemp.mpm.step import LIGHT_NODE_REL, MpmStep
 from bfemp.mpm.transfer import GridFields
@@ -117,9 +114,9 @@ from bfemp.state import State
 from bfemp.steppers._barrier_potential import contact_view, has_contact
 from bfemp.steppers._barrier_solve import ScriptedSolve
 from bfemp.steppers._scaffold import StepNodes, gather_nodes, nodes_of_step
-from bfemp.steppers.base import ContactView, StepError, StepperOptions, StepReport, finite_or_nan
+from bfemp.steppers.base import ContactView, StepError, StepReport, finite_or_nan
 from bfemp.steppers.capabilities import BARRIER_PAIRS, Capabilities
-from bfemp.steppers.explicit import ExplicitOptions, ExplicitStep, ExplicitStepper
+from bfemp.steppers.explicit import ExplicitOptions, ExplicitStepper, GridStep, Motion
 from bfemp.terms import InertiaTerm, StepContext
 from solvers.choice import LINEAR_SOLVER_NAMES, make_linear_solver
 from solvers.options import NewtonOptions
@@ -181,29 +178,21 @@ class TwoStageOptions(ExplicitOptions):
         n = self.max_newton_iterations
         if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
             raise ValueError(f"{name}.max_newton_iterations must be an integer >= 1, got {n!r}")
-        for field_name, allowed in (
-            ("friction", FRICTION_LAGGING),
-            ("start", STARTS),
-            ("linear_solver", LINEAR_SOLVER_NAMES),
-        ):
-            value = getattr(self, field_name)
-            if value not in allowed:
-                raise ValueError(f"{name}.{field_name} must be one of {allowed}, got {value!r}")
+        self.check_choices(
+            friction=FRICTION_LAGGING,
+            start=STARTS,
+            linear_solver=LINEAR_SOLVER_NAMES,
+        )
 
 
 @dataclass
 class _Solved:
-    """What the contact solve of the last step left (for the report and the residual check)."""
+    """What the contact solve of the last step left (for the residual check, ``stationarity``)."""
 
-    nit: int
-    friction_its: int
     friction_ok: bool
-    status: str
-    started_free: bool
     y: np.ndarray  # the solver's unknowns at the solution
     v_star: np.ndarray  # (n_dof,) free-motion velocities of the unknowns, m/s
     mass: np.ndarray  # (n_dof,) lumped masses of the unknowns, kg (kg/m in 2D)
-    timings: dict[str, float]
 
 
 class TwoStageStepper(ExplicitStepper):
@@ -211,7 +200,6 @@ class TwoStageStepper(ExplicitStepper):
 
     name: ClassVar[str] = "two_stage"
     Options: ClassVar[type[TwoStageOptions]] = TwoStageOptions
-    explicit: ClassVar[bool] = True
     #: stage 2 is the barrier's contact solve at the particles (TS notes): the barrier's pairs,
     #: particles and FEM nodes against FEM boundaries; MPM bodies share the engine's grid
     capabilities: ClassVar[Capabilities] = Capabilities(
@@ -223,22 +211,15 @@ class TwoStageStepper(ExplicitStepper):
         "that would cross is a named failure (TUNNELED, INTERSECTION)",
     )  # fmt: skip
 
-    def __init__(
-        self,
-        model: Model,
-        *,
-        integrator: str | ExplicitIntegrator = "symplectic_euler",
-        dt: float | str,
-        transfer: str = "apic",
-        options: StepperOptions | None = None,
-    ) -> None:
-        super().__init__(model, integrator=integrator, dt=dt, transfer=transfer, options=options)
+    def _setup(self) -> None:
+        """The strategy's own construction, after the engine's (module docstring)."""
+        model = self.model
         opts = self.options
         self.barrier: BarrierTerm | None = None
         self.friction: FrictionTerm | None = None
         self.potential: IncrementalPotential | None = None
-        self._solved: _Solved | None = None
-        self._state: State | None = None
+        #: the last step's contact solve (``stationarity``)
+        self._last_solve: _Solved | None = None
         self._contact: ContactView | None = None
         if not has_contact(model):
             return
@@ -284,72 +265,54 @@ class TwoStageStepper(ExplicitStepper):
         return [*super().terms, *stage2]
 
     # ------------------------------------------------------------------ the step
-    def step(self, state: State) -> tuple[State, StepReport]:
-        """Free motion, contact solve, G2P (module docstring); ``StepError`` when the contact
-        solve fails or the independent crossing check finds a crossing."""
-        self._state, self._solved, self._contact = state, None, None
-        solver = getattr(self, "_solver", None)  # None: no contact term in this scene
-        if solver is not None:  # the note of this step's solve only
-            solver.shifted_solves, solver.max_shift = 0, 0.0
-        new, report = super().step(state)
-        self._state = None
-        solved = self._solved
-        if solved is None:  # no contact term in this scene
-            return new, replace(report, iterations={"newton": 0, "friction": 0})
-        timings = {**report.timings, **solved.timings}
+    def after_g2p(self, step: GridStep, motion: Motion) -> None:
+        """The independent crossing check of the end positions (``StepError`` on an inverted
+        cell or particle or a crossing: stage 2 has no elasticity, nor its det F filter, so
+        nothing in the solve keeps J > 0), then the contact solve's report."""
+        if self.potential is None:
+            return
         t0 = time.perf_counter()
-        # stage 2 has no elasticity (nor its det F filter): nothing in the solve keeps J > 0
-        crossing = step_inversion(self.model, new) or step_intersection(self.model, state, new)
-        timings["intersection"] = time.perf_counter() - t0
-        iterations = {"newton": solved.nit, "friction": solved.friction_its}
+        # the checks read the end positions and F, which ``motion`` carries under State's names
+        model, state = self.model, step.state
+        crossing = step_inversion(model, motion) or step_intersection(model, state, motion)
+        step.timings["intersection"] = time.perf_counter() - t0
         if crossing is not None:
             raise StepError(
-                replace(
-                    report,
-                    success=False,
-                    status=crossing.status,
-                    message=crossing.message,
-                    iterations=iterations,
-                    timings=timings,
-                )
+                step.report(success=False, status=crossing.status, message=crossing.message)
             )
         abs_r, scale = self.stationarity()
-        notes = list(report.notes) + self._solver.rounding_notes()
-        if not solved.friction_ok:
-            notes.append("FRICTION_LOOP: the friction loop did not converge within its cap")
-        report = replace(
-            report,
-            status=solved.status,
-            message="explicit free motion, implicit contact solve"
-            + (" (Newton from x*)" if solved.started_free else " (Newton from x^n)"),
-            iterations=iterations,
+        step.notes.extend(self._solver.rounding_notes())
+        if not self._last_solve.friction_ok:
+            step.notes.append("FRICTION_LOOP: the friction loop did not converge within its cap")
+        step.outcome.update(
             residual=abs_r / scale if scale > 0.0 else 0.0,
-            timings=timings,
             min_distance=finite_or_nan(self.barrier.min_distance()),
             contact_pairs=int(self.barrier.pairs.n_pairs),
-            friction_converged=solved.friction_ok,
-            notes=tuple(notes),
+            friction_converged=self._last_solve.friction_ok,
         )
-        return new, report
 
     def resolve(
-        self, step: ExplicitStep, grid_v: np.ndarray, fem_v: np.ndarray
+        self, step: GridStep, grid_v: np.ndarray, fem_v: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
         """Stage 2: the contact minimisation about the free motion v* (module docstring).
 
         Args:
             step: the engine's step (P2G fields at x^n).
-            grid_v: free-motion grid velocities v* ``(G, d)`` in m/s.
+            grid_v: free-motion grid velocities v* ``(1, G, d)`` in m/s (the one field).
             fem_v: free-motion FEM node velocities v* ``(N, d)`` in m/s (scripted: scripted).
 
         Returns:
-            The end-of-step velocities ``(G, d)`` and ``(N, d)`` in m/s.
+            The end-of-step velocities ``(1, G, d)`` and ``(N, d)`` in m/s.
         """
+        self._last_solve, self._contact = None, None
         if self.potential is None:
+            step.iterations.update(newton=0, friction=0)
             return grid_v, fem_v
+        self._solver.shifted_solves, self._solver.max_shift = 0, 0.0  # this step's note only
         started = time.perf_counter()
-        model, h, d, state = self.model, self.dt, self.model.dim, self._state
+        model, h, d, state = self.model, self.dt, self.model.dim, step.state
         n_fem = model.n_fem_nodes
+        grid_v = grid_v[0]
         nodes = self._nodes(step, state, grid_v)
         layout, pot = nodes.layout, self.potential
         v_star_all = np.concatenate([fem_v, grid_v]) if nodes.mpm is not None else fem_v
@@ -400,16 +363,20 @@ class TwoStageStepper(ExplicitStepper):
             timings = dict(result.timings)
         x_all = layout.positions(pot.to_positions(y), nodes.fixed)
         v_all = (x_all - nodes.x) / h
-        self._solved = _Solved(
-            nit, f_its, f_ok, status, free, y, layout.restrict(v_star_all), ctx.dof_mass, timings
-        )
+        self._last_solve = _Solved(f_ok, y, layout.restrict(v_star_all), ctx.dof_mass)
         timings["contact_setup"] = setup
         timings["contact"] = time.perf_counter() - started
+        step.timings.update(timings)
+        step.iterations.update(newton=nit, friction=f_its)
+        step.status = status
+        step.message = "explicit free motion, implicit contact solve" + (
+            " (Newton from x*)" if free else " (Newton from x^n)"
+        )
         fem_out = v_all[:n_fem].copy()
         grid_out = v_all[n_fem:].copy() if nodes.mpm is not None else grid_v
-        return grid_out, fem_out
+        return grid_out[None], fem_out
 
-    def _nodes(self, step: ExplicitStep, state: State, grid_v: np.ndarray) -> StepNodes:
+    def _nodes(self, step: GridStep, state: State, grid_v: np.ndarray) -> StepNodes:
         """All-node fields of the step from the engine's P2G (``nodes_of_step``); level-set
         constraints decided on v* as the engine does next; round-off-light nodes pinned as in
         ``prepare_mpm_step``."""
@@ -425,12 +392,13 @@ class TwoStageStepper(ExplicitStepper):
         ):
             raise RuntimeError("two_stage: the engine's grid nodes differ from the stencils'")
         cons = grid_constraints(model.boundaries, step.grid_x, grid_v, step.t_next, self.dt)
-        light = step.grid_mass < LIGHT_NODE_REL * step.grid_mass.max()
+        mass = step.mass[0]
+        light = mass < LIGHT_NODE_REL * mass.max()
         if light.any():
             cons = replace(cons, sticky=cons.sticky | light)
         mpm = MpmStep(
             stencils,
-            GridFields(mass=step.grid_mass, velocity=step.grid_v),
+            GridFields(mass=mass, velocity=step.velocity[0]),
             cons,
             model.n_fem_nodes,
             None,
@@ -484,7 +452,7 @@ class TwoStageStepper(ExplicitStepper):
             ``(||r||_inf, scale)`` in N s (N s/m in 2D), scale = max(||M v*||_inf,
             ||h J^T gamma||_inf); ``(0, 0)`` before a contact solve.
         """
-        solved, pot = self._solved, self.potential
+        solved, pot = self._last_solve, self.potential
         if solved is None or pot is None or solved.y.size == 0:
             return 0.0, 0.0
         h = self.dt

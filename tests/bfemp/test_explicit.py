@@ -5,9 +5,8 @@ import pytest
 
 import bfemp
 from bfemp.integrators import SYMPLECTIC_EULER, integrator_from_name
-from bfemp.mpm.transfer import grid_to_particles, particles_to_grid
+from bfemp.mpm.transfer import g2p_explicit, grid_to_particles, p2g_with_forces, particles_to_grid
 from bfemp.steppers import STRATEGIES, StepError, stepper_class
-from bfemp.steppers._explicit_kernels import g2p_explicit, p2g_with_forces
 from bfemp.steppers.base import Stepper, options_from_mapping
 from bfemp.steppers.single_field import SingleFieldOptions, SingleFieldStepper
 from bfemp.steppers.stable_dt import cell_altitudes

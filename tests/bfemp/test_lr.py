@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 import bfemp
+from bfemp.mpm.transfer import g2p_field, p2g_field, p2g_materials
 from bfemp.steppers import STRATEGIES
-from bfemp.steppers._multimaterial_kernels import g2p_field, p2g_field, p2g_materials
 from bfemp.steppers.lr import LROptions, LRStepper
 from geometry.grid import particle_stencils
 

@@ -221,7 +221,7 @@ def test_stage_two_potential_gradient_matches_its_energy():
         report = sim.step()
         if report.contact_pairs and stepper.friction.n_contacts:
             break
-    pot, y_sol = stepper.potential, stepper._solved.y.copy()
+    pot, y_sol = stepper.potential, stepper._last_solve.y.copy()
     rng = np.random.default_rng(3)
     y = y_sol + 1e-8 * rng.standard_normal(y_sol.size)  # off the stationary point
     for _ in range(3):

@@ -88,7 +88,7 @@ def p2g_nodal(
     grid_momentum: np.ndarray,
     grid_force: np.ndarray,
 ) -> None:
-    """Add FEM boundary nodes to the per-material grid in place (EXPLICIT_STRATEGIES.md 2.6):
+    """Add FEM boundary nodes to the per-material grid in place (bfemp's FEM in LR):
     m_i^F += w_in m_n, p_i^F += w_in m_n v_n, f_i^F += w_in f_n (f_n the node's mechanical
     force, N, so that the grid acceleration is the node's own where one node dominates).
 

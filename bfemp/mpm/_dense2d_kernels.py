@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit, prange
 
-from bfemp.steppers._explicit_kernels import SLAB_BUDGET, _reduce_slabs
+from bfemp.mpm._explicit_kernels import SLAB_BUDGET, _reduce_slabs
 
 
 @njit(cache=True)
