@@ -216,25 +216,6 @@ LIBRARY = ("bfemp", "geometry", "solvers")
 MAX_FILE_LINES = 500
 MAX_FUNCTION_LINES = 120
 
-#: TEMPORARY allow-list while issue 41 is merged: the explicit-stepper files another branch
-#: is splitting (the lead removes this list after merging it)
-SIZE_ALLOWED = {
-    "bfemp/steppers/augury.py",
-    "bfemp/steppers/explicit.py",
-    "bfemp/steppers/lr.py",
-    "bfemp/steppers/two_stage.py",
-    "bfemp/steppers/single_field.py",
-    "bfemp/steppers/_explicit_kernels.py",
-    "bfemp/steppers/_dense2d_kernels.py",
-    "bfemp/steppers/_multimaterial_kernels.py",
-    "bfemp/contact/augury.py",
-    "bfemp/contact/_augury_kernels.py",
-    "bfemp/contact/lr.py",
-    "bfemp/contact/_lr_kernels.py",
-    "bfemp/mpm/transfer.py",
-    "bfemp/state.py",
-}
-
 
 def _is_numba_kernel(node: ast.FunctionDef) -> bool:
     """Decorated with numba's ``njit``/``jit`` (bare, called, or as ``numba.njit``)."""
@@ -275,7 +256,6 @@ def test_no_library_file_over_the_line_limit():
         for p in library_files()
         if (n := len(p.read_text().splitlines())) > MAX_FILE_LINES
     }
-    over = {k: v for k, v in over.items() if k not in SIZE_ALLOWED}
     assert not over, f"library files over {MAX_FILE_LINES} lines: {over}"
 
 
@@ -283,7 +263,6 @@ def test_no_library_function_over_the_line_limit():
     over = {
         f"{p.relative_to(ROOT)}:{line} {name}": n
         for p in library_files()
-        if str(p.relative_to(ROOT)) not in SIZE_ALLOWED
         for name, line, n in long_functions(p)
     }
     assert not over, f"functions over {MAX_FUNCTION_LINES} lines: {over}"
