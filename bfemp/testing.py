@@ -1,4 +1,4 @@
-"""The finite-difference harness every energy term must pass (STYLE.md habit 7).
+"""The finite-difference harness every energy term must pass (ARCHITECTURE.md, implicit step).
 
 For a term (or any object with the energy contract) already started with ``begin_step``:
 

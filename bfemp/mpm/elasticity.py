@@ -1,6 +1,6 @@
-"""Elasticity of MPM particles: the same term as FEM cells, other stencils (DESIGN.md).
+"""Elasticity of MPM particles: the same term as FEM cells, other stencils (ARCHITECTURE.md).
 
-F_p(x) = sum_i x_i (grad w_ip)^T F_p^n (paper eq. 25) is affine in the grid-node end positions
+F_p(x) = sum_i x_i (grad w_ip)^T F_p^n (BFEMP eq. 25) is affine in the grid-node end positions
 x_i, so F_p = C_p + sum_i x_i g_ip^T with g_ip = (F_p^n)^T grad w_ip and C_p = F_p^n - sum_i x_i^n
 g_ip^T (zero up to round-off by linear completeness). The energy is sum_p V_p^0 psi(F_p).
 

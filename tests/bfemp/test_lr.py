@@ -1,6 +1,6 @@
 """The ``"lr"`` strategy: multimaterial MPM with logistic-regression contact and XPIC(m).
 
-Invariants of EXPLICIT_STRATEGIES.md section 2.8 at the stepper level (the LR fit, the
+Invariants of docs/design/explicit_strategies.md section 2.8 at the stepper level (the LR fit, the
 deformed radius and the contact law alone are tested in ``test_lr_kernels.py``).
 """
 

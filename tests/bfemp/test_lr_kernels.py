@@ -1,5 +1,5 @@
 """The logistic-regression (LR) contact kernels: planes, separations, radii and the contact law
-(EXPLICIT_STRATEGIES.md section 2.8, L5-L8; Nairn et al. LR eqs. 7-25, 53-57)."""
+(docs/design/explicit_strategies.md section 2.8, L5-L8; Nairn et al. LR eqs. 7-25, 53-57)."""
 
 import numpy as np
 import pytest
