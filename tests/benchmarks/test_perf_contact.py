@@ -107,3 +107,37 @@ def test_runs_without_ipctk(monkeypatch):
     assert case["ipctk"] is None and case["agreement"] is None
     assert case["ccd"]["ipctk_step"] is None and case["ccd"]["conservative"]
     assert case["pairs"] == 200 and case["bfemp"]["dofs_s"] > 0.0
+
+
+def test_a_linear_solver_swapped_into_the_stepper_does_the_next_steps_factorisations():
+    """perf_contact times each repeat of the rings step with a fresh linear solver so that the
+    analysis is redone; the stepper's Newton loop must then factorise with that solver, not
+    with the one the stepper was built with."""
+    import bfemp
+    from bfemp.integrators import BACKWARD_EULER, integrator_from_name
+    from bfemp.steppers.barrier import BarrierOptions, BarrierStepper
+    from solvers.linear import default_linear_solver
+
+    scene = bfemp.Scene(dim=2, gravity=(0.0, -9.81))
+    scene.add_fem(
+        bfemp.shapes.rectangle((0.0, 0.0), (1.0, 0.5), h=0.25),
+        name="block",
+        material=bfemp.NeoHookean(E=1e5, nu=0.3, density=1000.0),
+    )
+    model = scene.build()
+    stepper = BarrierStepper(
+        model,
+        integrator=integrator_from_name(BACKWARD_EULER),
+        dt=1e-2,
+        options=BarrierOptions(tol=1e-8),
+    )
+    old = stepper.linear_solver
+    stepper.step(model.initial_state())
+    used_by_old = old.n_numeric
+    assert used_by_old > 0
+    fresh = default_linear_solver()
+    stepper.linear_solver = fresh
+    _, report = stepper.step(model.initial_state())
+    assert report.newton_iterations > 0
+    assert fresh.n_numeric > 0  # the swapped-in solver factorised ...
+    assert old.n_numeric == used_by_old  # ... and the old one no more
