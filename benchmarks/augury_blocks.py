@@ -47,6 +47,7 @@ from matplotlib.figure import Figure
 
 import bfemp
 from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks.runner import Benchmark, register
 from bfemp import diagnostics
 from bfemp.steppers.augury import AuguryOptions, AuguryStepper
 from bfemp.terms import fem_elastic_groups
@@ -408,3 +409,6 @@ def run_long(
     png = out / f"{name}.png"
     _plot(runs, png)
     return {"json": str(path), "png": str(png), **payload}
+
+
+BENCHMARK = register(Benchmark(NAME, __doc__, MODES, None, own_run=run))

@@ -35,6 +35,7 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
 from benchmarks.common import environment, write_json
+from benchmarks.runner import Benchmark, register
 from bfemp.contact.augury import ContactOperator, augury_correction, contact_stencils
 
 log = logging.getLogger(__name__)
@@ -190,3 +191,6 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
     png = out / f"{NAME}.png"
     _plot(rows, png)
     return {"json": str(path), "png": str(png), **payload}
+
+
+BENCHMARK = register(Benchmark(NAME, __doc__, MODES, None, own_run=run))

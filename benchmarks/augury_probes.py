@@ -30,6 +30,7 @@ import numpy as np
 import bfemp
 import bfemp.steppers.augury as augury_module
 from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks.runner import Benchmark, register
 from bfemp.steppers.augury import AuguryOptions, AuguryStepper
 
 log = logging.getLogger(__name__)
@@ -224,3 +225,6 @@ def run(mode: str = "quick", out: str | Path = "results") -> dict:
     }
     path = write_json(out, NAME, payload)
     return {"json": str(path), **payload}
+
+
+BENCHMARK = register(Benchmark(NAME, __doc__, MODES, None, own_run=run))

@@ -48,6 +48,7 @@ from matplotlib.figure import Figure
 
 import bfemp
 from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks.runner import Benchmark, register
 from bfemp.steppers.augury import AuguryOptions, AuguryStepper
 
 log = logging.getLogger(__name__)
@@ -545,3 +546,6 @@ def _plot_conforming(cases: list[dict], path: Path) -> None:
         ax.legend(fontsize="xx-small")
     fig.suptitle("augury_ramp, paper settings (N = 1): dotted = 1/2 g (sin - mu cos) t^2")
     fig.savefig(path, dpi=110)
+
+
+BENCHMARK = register(Benchmark(NAME, __doc__, MODES, None, own_run=run))

@@ -32,6 +32,7 @@ from pathlib import Path
 
 from benchmarks import rings, two_stage_rings, two_stage_slope
 from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks.runner import Benchmark, register
 from bfemp.steppers.augury import AuguryOptions
 
 log = logging.getLogger(__name__)
@@ -136,3 +137,6 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
     name = NAME if mode == "full" else f"{NAME}_{mode}"
     path = write_json(out, name, payload)
     return {"json": str(path), **payload}
+
+
+BENCHMARK = register(Benchmark(NAME, __doc__, MODES, None, own_run=run))

@@ -42,6 +42,7 @@ from pathlib import Path
 
 from benchmarks._blas_switch import reference_blas_env
 from benchmarks.common import environment, write_json
+from benchmarks.runner import Benchmark, register
 
 log = logging.getLogger(__name__)
 
@@ -202,3 +203,6 @@ def run(
         }
     path = write_json(out, "blas_wall", payload)
     return {"json": str(path), **payload}
+
+
+BENCHMARK = register(Benchmark("blas_wall", __doc__, MODES, None, own_run=run))

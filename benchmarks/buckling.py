@@ -142,6 +142,7 @@ from matplotlib.figure import Figure
 import bfemp
 from benchmarks._case_checkpoint import CaseCheckpoint
 from benchmarks.common import cases_by_mu, environment, note_merge, peak_memory_mb, write_json
+from benchmarks.runner import Benchmark, register
 
 log = logging.getLogger(__name__)
 
@@ -611,3 +612,6 @@ def main_from_args(args: argparse.Namespace) -> int:
     )
     print(f"buckling: wrote {summary['json']}")
     return 0
+
+
+BENCHMARK = register(Benchmark(NAME, __doc__, MODES, None, own_run=run))

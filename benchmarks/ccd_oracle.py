@@ -46,6 +46,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.common import environment, write_json
+from benchmarks.runner import Benchmark, register
 from geometry import ccd
 from geometry._ccd_kernels import _accd
 from geometry._distance_kernels import KIND_EE, KIND_PE, KIND_PT
@@ -590,3 +591,6 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
     }
     path = write_json(out, "ccd_oracle", payload)
     return {"json": str(path), **payload}
+
+
+BENCHMARK = register(Benchmark("ccd_oracle", __doc__, {}, None, own_run=run))

@@ -30,6 +30,7 @@ import numpy as np
 
 import bfemp
 from benchmarks.common import environment, write_json
+from benchmarks.runner import Benchmark, register
 from bfemp import diagnostics
 from bfemp.steppers.augury import AuguryOptions
 
@@ -171,3 +172,6 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
     }
     path = write_json(out, NAME, payload)
     return {"json": str(path), **payload}
+
+
+BENCHMARK = register(Benchmark(NAME, __doc__, MODES, None, own_run=run))

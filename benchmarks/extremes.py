@@ -92,6 +92,7 @@ from benchmarks._extreme_strategies import (
     strategy_options,
 )
 from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks.runner import Benchmark, register
 from geometry.mesh import TriMesh
 from geometry.sampling import points_in_mesh
 
@@ -610,3 +611,6 @@ def main_from_args(args) -> int:
     summary = run(args.mode or "full", args.out, resolve_strategies(args.strategy))
     print(f"extremes: wrote {summary['json']}")
     return 0
+
+
+BENCHMARK = register(Benchmark(NAME, __doc__, {}, None, own_run=run))

@@ -53,6 +53,7 @@ from benchmarks import _fuzz_scenes as scenes
 from benchmarks._crossing_oracle import MAX_SAMPLES, Bodies, judge_step
 from benchmarks._tradeoff_cache import code_version
 from benchmarks.common import environment, git_commit, write_json
+from benchmarks.runner import Benchmark, register
 
 log = logging.getLogger(__name__)
 
@@ -382,3 +383,6 @@ def main_from_args(args: argparse.Namespace) -> int:
     total = summary["summary"]["total"]["outcomes"]
     print(f"fuzz: wrote {summary['json']}: " + ", ".join(f"{k} {v}" for k, v in total.items()))
     return 0
+
+
+BENCHMARK = register(Benchmark("fuzz", __doc__, {}, None, own_run=run))

@@ -82,6 +82,7 @@ from matplotlib.figure import Figure
 import bfemp
 from benchmarks._penetration import penetration_summary
 from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks.runner import Benchmark, register
 
 log = logging.getLogger(__name__)
 
@@ -670,3 +671,6 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
         {k: round(r["C_fit_over_C_hertz"], 4) for k, r in runs.items()},
     )
     return {"json": str(path), "png": str(png), **payload}
+
+
+BENCHMARK = register(Benchmark(NAME, __doc__, MODES, None, own_run=run))

@@ -25,6 +25,7 @@ from matplotlib.figure import Figure
 
 from benchmarks.common import environment, peak_memory_mb, write_json
 from benchmarks.lr_compression import C_K, DX, MODES, column_scene, run_case
+from benchmarks.runner import Benchmark, register
 
 log = logging.getLogger(__name__)
 
@@ -100,3 +101,6 @@ def run(mode: str, out: Path) -> dict:
     path = write_json(out, name, record)
     plot(record, Path(out) / f"{name}.png")
     return {"json": str(path), **record}
+
+
+BENCHMARK = register(Benchmark(NAME, __doc__, {}, None, own_run=run))

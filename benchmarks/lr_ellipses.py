@@ -38,6 +38,7 @@ from matplotlib.figure import Figure
 import bfemp
 from benchmarks._ellipse_bodies import add_ellipse_classes
 from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks.runner import Benchmark, register
 from bfemp.materials import BulkShearHyperelastic
 from bfemp.motion import Linear
 from bfemp.steppers.lr import LROptions, LRStepper
@@ -204,3 +205,6 @@ def run(mode: str, out: Path) -> dict:
     path = write_json(out, name, record)
     plot(record, Path(out) / f"{name}.png")
     return {"json": str(path), **record}
+
+
+BENCHMARK = register(Benchmark(NAME, __doc__, MODES, None, own_run=run))

@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks.runner import Benchmark, register
 from bfemp.plotting import plot_bars
 from geometry.broadphase import point_simplex_candidates
 
@@ -180,3 +181,6 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
         logy=True,
     )
     return {"json": str(path), **payload}
+
+
+BENCHMARK = register(Benchmark("perf_broadphase", __doc__, {}, None, own_run=run))

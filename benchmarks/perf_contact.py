@@ -101,6 +101,7 @@ from matplotlib.figure import Figure
 import bfemp
 from benchmarks._phases import newton_phases
 from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks.runner import Benchmark, register
 from bfemp.contact._barrier_kernels import _barrier_gradients, _barrier_hessians
 from bfemp.contact.barrier import barrier, barrier_derivative, barrier_second_derivative
 from bfemp.contact.evaluation import KERNEL_KIND
@@ -732,3 +733,6 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
     _plot(payload, png)
     log.info("perf_contact: pairs/s %s; CCD s %s", pairs_per_s, ccd_s)
     return {"json": str(path), "png": str(png), **payload}
+
+
+BENCHMARK = register(Benchmark(NAME, __doc__, MODES, None, own_run=run))

@@ -37,6 +37,7 @@ import numpy as np
 
 import bfemp
 from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks.runner import Benchmark, register
 from bfemp.integrators import BACKWARD_EULER
 from bfemp.steppers import BarrierOptions, stepper_class
 from bfemp.steppers.single_field import SingleFieldStepper
@@ -346,3 +347,6 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
     }
     path = write_json(out, "perf_explicit", payload)
     return {"json": str(path), **payload}
+
+
+BENCHMARK = register(Benchmark("perf_explicit", __doc__, {}, None, own_run=run))

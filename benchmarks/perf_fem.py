@@ -21,6 +21,7 @@ import bfemp
 from benchmarks._blas_switch import factorisation_by_blas
 from benchmarks._phases import newton_phases
 from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks.runner import Benchmark, register
 from bfemp.integrators import BACKWARD_EULER
 from bfemp.plotting import plot_bars
 from bfemp.steppers.barrier import BarrierOptions, BarrierStepper
@@ -98,3 +99,6 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
         title="Per Newton iteration: assembly vs CHOLMOD",
     )
     return {"json": str(path), **payload}
+
+
+BENCHMARK = register(Benchmark("perf_fem", __doc__, {}, None, own_run=run))

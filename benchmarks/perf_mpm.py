@@ -20,6 +20,7 @@ import bfemp
 from benchmarks._blas_switch import factorisation_by_blas
 from benchmarks._phases import median_time, newton_phases
 from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks.runner import Benchmark, register
 from bfemp.integrators import BACKWARD_EULER
 from bfemp.mpm.step import prepare_mpm_step
 from bfemp.mpm.transfer import grid_to_particles
@@ -114,3 +115,6 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
         title="MPM: transfers, assembly and CHOLMOD per Newton iteration",
     )
     return {"json": str(path), **payload}
+
+
+BENCHMARK = register(Benchmark("perf_mpm", __doc__, {}, None, own_run=run))

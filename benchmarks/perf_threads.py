@@ -21,6 +21,7 @@ import sys
 from pathlib import Path
 
 from benchmarks.common import environment, write_json
+from benchmarks.runner import Benchmark, register
 
 log = logging.getLogger(__name__)
 
@@ -120,3 +121,6 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
             rows["default"]["step_s"][s],
         )
     return {**record, "json": str(path)}
+
+
+BENCHMARK = register(Benchmark(NAME, __doc__, MODES, None, own_run=run))

@@ -66,6 +66,7 @@ from matplotlib.figure import Figure
 
 import bfemp
 from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks.runner import Benchmark, register
 
 log = logging.getLogger(__name__)
 
@@ -303,3 +304,6 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
     for ppc, s in series.items():
         log.info("refinement PPC %d: errors %s, order %.3f", ppc, s["errors"], s["order"])
     return {"json": str(path), "png": str(png), **payload}
+
+
+BENCHMARK = register(Benchmark(NAME, __doc__, MODES, None, own_run=run))

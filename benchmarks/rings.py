@@ -81,6 +81,7 @@ from matplotlib.figure import Figure
 
 import bfemp
 from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks.runner import Benchmark, register
 
 log = logging.getLogger(__name__)
 
@@ -480,3 +481,6 @@ def run(mode: str = "full", out: str | Path = "results", compare: bool = True) -
         payload["energy_loss_pct"],
     )
     return {"json": str(path), "png": str(png), **payload}
+
+
+BENCHMARK = register(Benchmark(NAME, __doc__, MODES, None, own_run=run))

@@ -78,6 +78,7 @@ from matplotlib.figure import Figure
 import bfemp
 from benchmarks._penetration import penetration_summary
 from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks.runner import Benchmark, register
 
 log = logging.getLogger(__name__)
 
@@ -554,3 +555,6 @@ def report(runs: dict, mode: str, out: str | Path) -> dict:
         ls["max_tensile_force"],
     )
     return {"json": str(path_json), "png": str(png), **payload}
+
+
+BENCHMARK = register(Benchmark(NAME, __doc__, MODES, None, own_run=run))

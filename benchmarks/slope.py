@@ -59,6 +59,7 @@ from matplotlib.figure import Figure
 
 import bfemp
 from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks.runner import Benchmark, register
 
 log = logging.getLogger(__name__)
 
@@ -536,3 +537,6 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
     png = out / f"{NAME}.png"
     _plot(results, png, f"MPM box on a FEM slope, tan theta = 0.2 ({mode} mode, dt = 1e-3 s)")
     return {"json": str(path), "png": str(png), **payload}
+
+
+BENCHMARK = register(Benchmark(NAME, __doc__, MODES, None, own_run=run))

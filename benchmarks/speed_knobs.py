@@ -36,6 +36,7 @@ import numpy as np
 
 import bfemp
 from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks.runner import Benchmark, register
 from bfemp.demo import cantilever_scene, colliding_rings_scene
 from bfemp.steppers._barrier_solve import ScriptedSolve
 
@@ -162,3 +163,6 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
     path = write_json(out, NAME, payload)
     log.info("speed knobs: %s", path)
     return {"json": str(path), **payload}
+
+
+BENCHMARK = register(Benchmark(NAME, __doc__, MODES, None, own_run=run))

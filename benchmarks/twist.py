@@ -122,6 +122,7 @@ from matplotlib.figure import Figure
 
 import bfemp
 from benchmarks.common import cases_by_mu, environment, note_merge, peak_memory_mb, write_json
+from benchmarks.runner import Benchmark, register
 from geometry.mesh import TetMesh
 from solvers.choice import make_linear_solver
 
@@ -674,3 +675,6 @@ def merge(records: list[str | Path], out: str | Path = "results") -> dict:
     png = out / f"{NAME}.png"
     _plot(runs, png, f"Shell pressed and twisted on an MPM cube ({mode} mode)")
     return {"json": str(path), "png": str(png), **payload}
+
+
+BENCHMARK = register(Benchmark(NAME, __doc__, MODES, None, own_run=run))

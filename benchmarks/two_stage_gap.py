@@ -38,6 +38,7 @@ from matplotlib.figure import Figure
 
 import bfemp
 from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks.runner import Benchmark, register
 from bfemp.steppers.augury import AuguryOptions
 
 log = logging.getLogger(__name__)
@@ -159,3 +160,6 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
     fig.tight_layout()
     fig.savefig(png, dpi=110)
     return {"json": str(path), "png": str(png), **payload}
+
+
+BENCHMARK = register(Benchmark(NAME, __doc__, MODES, None, own_run=run))

@@ -31,6 +31,7 @@ import numpy as np
 import bfemp
 from benchmarks import rings
 from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks.runner import Benchmark, register
 
 log = logging.getLogger(__name__)
 
@@ -154,3 +155,6 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
     fig.tight_layout()
     fig.savefig(png, dpi=110)
     return {"json": str(path), "png": str(png), **payload}
+
+
+BENCHMARK = register(Benchmark(NAME, __doc__, MODES, None, own_run=run))

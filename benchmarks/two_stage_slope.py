@@ -41,6 +41,7 @@ import numpy as np
 
 from benchmarks import slope
 from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks.runner import Benchmark, register
 from bfemp.steppers.two_stage import TwoStageOptions, TwoStageStepper
 
 log = logging.getLogger(__name__)
@@ -427,3 +428,6 @@ def _plot_sticking(cases: list[dict], path: Path) -> None:
         ax.legend(fontsize="xx-small")
     fig.suptitle("two_stage_slope sticking (dotted: start='free')")
     fig.savefig(path, dpi=110)
+
+
+BENCHMARK = register(Benchmark(NAME, __doc__, MODES, None, own_run=run))
