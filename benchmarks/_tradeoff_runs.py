@@ -26,6 +26,7 @@ from collections.abc import Callable
 import numpy as np
 
 import bfemp
+from benchmarks import catalogue
 from benchmarks._penetration import KEYS as PENETRATION_KEYS
 from benchmarks._penetration import penetration_bound, penetration_summary
 from bfemp.steppers import stepper_class
@@ -61,14 +62,14 @@ def _rings(s: dict, on_done: Callable[[bfemp.Simulation], None] | None = None) -
         cfg["fem_h"] = 0.5 * s["dx"]
     implicit = strategy == "barrier"
     sim = bfemp.Simulation(
-        rings._scene(cfg),
+        catalogue.rings_scene(cfg),
         strategy=strategy,
         integrator=rings.INTEGRATOR if implicit else EXPLICIT_INTEGRATOR,
         transfer=s["transfer"],
         dt=s["dt"],
         options=_options(strategy, s["options"]),
     )
-    check = rings._PenetrationCheck(sim)
+    check = catalogue.RingsPenetration(sim)
     failure = None
     try:
         sim.run(t_end=s["t_end"], progress=False, callback=check)
@@ -79,7 +80,7 @@ def _rings(s: dict, on_done: Callable[[bfemp.Simulation], None] | None = None) -
     m = sim.metrics
     t = m.column("t")
     energy = m.column("energy_kinetic") + m.column("energy_elastic")
-    e0, e1 = rings._window_energies(t, energy)
+    e0, e1 = catalogue.window_energies(t, energy)
     pairs = m.column("contact_pairs")[1:]
     touching = t[1:][pairs > 0]
     iters = m.column("iterations_newton")[1:] if "iterations_newton" in m.columns else [0]
@@ -105,7 +106,7 @@ SLOPE_KEYS += ("settle_s", "release_s", "fit_start_s")
 def slope_physics(s: dict) -> tuple[dict, str]:
     """The ``slope`` physics dict and ``slope.VARIANTS`` name of a slope point's settings (the
     keys of ``SLOPE_KEYS``, plus ``transfer`` for lr)."""
-    from benchmarks import lr_scenes, slope, two_stage_slope
+    from benchmarks import scenes, slope
 
     strategy = s["strategy"]
     keys = SLOPE_KEYS + (("transfer",) if strategy == "lr" else ())
@@ -119,16 +120,15 @@ def slope_physics(s: dict) -> tuple[dict, str]:
         if set(options) - {"tol"}:
             raise ValueError(f"slope: barrier takes only the option tol, got {sorted(options)}")
     else:  # the softened box at the explicit step (two_stage_slope), the paper's kappa
-        p.update(E_Pa=two_stage_slope.E_SOFT, integrator=EXPLICIT_INTEGRATOR)
+        p.update(E_Pa=scenes.E_SOFT, integrator=EXPLICIT_INTEGRATOR)
         p["options"] = _options(strategy, options)
         if strategy == "lr":
-            p.update(transfer=s["transfer"], slope_lower_upper_m=lr_scenes.LR_SLOPE)
+            p.update(transfer=s["transfer"], slope_lower_upper_m=catalogue.LR_SLOPE)
             variant = "dense_slope"
     return p, variant
 
 
 def _slope(s: dict) -> dict:
-    from benchmarks import slope
 
     p, variant = slope_physics(s)
     dt = s["dt"]
@@ -139,11 +139,13 @@ def _slope(s: dict) -> dict:
             sims.append(sim)
 
     try:
-        settled, settle = slope._settle(variant, round(s["settle_s"] / dt), p, on_step=keep)
+        settled, settle = catalogue.settle_slope(
+            variant, round(s["settle_s"] / dt), p, on_step=keep
+        )
     except bfemp.StepError as err:  # no release without a settled box
         out = {"accel_rel_error": None, "steps": None, "failure": str(err)}
         return out | (penetration_summary(*sims) if sims else {"max_penetration_m": None})
-    case = slope._release(
+    case = catalogue.release_slope(
         variant, s["mu"], settled, round(s["release_s"] / dt), s["fit_start_s"], p, on_step=keep
     )
     out = {k: v for k, v in case.items() if k not in ("series", "error")}

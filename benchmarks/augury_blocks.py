@@ -19,20 +19,7 @@ full: h in {1, 0.5, 0.25} (longer than 5 minutes here: the record is the quick m
 ``"long"`` (``run_long``, issue 40): APIC N = 1 to 0.2 s at h in {1, 0.5, 0.25}, with the time
 the blocks leave each other's stencils (``benchmarks/records/augury_blocks_long.md``).
 
-Measured (quick, ``benchmarks/records/augury_blocks.json``): angular-momentum drift 2e-15 to
-4e-15 (APIC) and 0.77-0.81 (PIC), linear-momentum drift < 4e-15 for all. The energy lost in the
-first ms (the blocks share contact nodes from t = 0, AUG's "initial energies differ") falls with
-h: APIC 0.31 -> 0.11, PIC 0.63 -> 0.32 (h = 1 -> 0.5). The loss at t_end does NOT fall with h
-(APIC N = 0: 0.34 -> 0.54, N = 1: 0.60 -> 0.66; APIC N = 1 at h = 0.25: 0.66), unlike AUG's
-Fig. 9: not explained. Measured (issue 14, APIC, h = 1 -> 0.5, loss at t_end): N = 1 with
-``region="shared"`` 0.596 -> 0.606 (the smoothing of every boundary node, A6, costs 0.055 at
-h = 0.5 only); truly frictionless contact (mode ``"friction"``, mu = 0) 0.476 -> 0.603 with N =
-1 and 0.231 -> 0.469 with N = 30 and ``normals="facing"``: lower, but in every variant the loss
-grows with h. The bodies share contact nodes at every step of the 0.06 s (``contact_steps`` =
-``steps`` in every run) and the energy keeps falling long after the impact (APIC N = 1, h = 0.5:
-E / E0 0.90 at 1 ms, 0.72 at 31 ms, 0.41 at 56 ms), consistent with the ramp's finding: every
-step re-mixes the relative velocity at the shared nodes and N iterations undo a fixed fraction of
-it (``bfemp.contact.augury``). The energy guard does not change any recorded number.
+Measured results, with the commits they ran on: ``benchmarks/records/augury_blocks.md``.
 """
 
 from __future__ import annotations

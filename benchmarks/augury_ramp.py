@@ -21,14 +21,7 @@ steps), the control at h = 1; full: h in {1, 0.5, 0.25}, mu in {0, 0.2, 0.4}, t_
 Beside the paper's settings (N = 1, averaged normals) every mode records bfemp's variant
 ``normals="facing"``, N = 30 (APIC, with mu = 0.7) in ``variant_cases`` and its own targets in
 ``variant_targets``; the energy guard (``AuguryOptions.energy_guard``) is on in both.
-Measured (quick, ``benchmarks/records/augury_ramp.json``, t = 0.1 s): the paper's settings slide
-0.024 / 0.0088 m of the analytic 0.25 m (APIC, mu = 0, h = 1 / 0.5; relative error 0.905 /
-0.965, it grows under refinement), PIC 0.0045 / 0.0046 m; mu = 0.7 slips 2.5e-3 m (target
-1e-3). The variant slides 0.2275 / 0.2112 m at mu = 0 (error 0.09 / 0.155), overshoots at
-mu = 0.2 (0.216 / 0.198 m for 0.163, error 0.32 / 0.21) and slips 0.054 / 0.092 m at mu = 0.7.
-No target that needs both sliding and sticking is met: one iteration leaves a fixed fraction
-of the tangential drag every step (at fixed N the error does not fall with h), more iterations
-free the sliding and the sticking alike (``bfemp.contact.augury``: measurements and reason).
+Measured results, with the commits they ran on: ``benchmarks/records/augury_ramp.md``.
 Placement ``"spec"`` above (these records); ``"conforming"`` (issue 40, ``PLACEMENTS``, mode
 ``"conforming"``: ``run_conforming``) puts the block's nodes on the ramp's at every h
 (``benchmarks/records/augury_ramp_conforming.md``).

@@ -24,17 +24,8 @@ What limits the accuracy (measured): the grid, not the particles. a(F) is a stai
 width creeps, then jumps when an edge passes a B-spline knot, a cell centre) and the contact is
 narrower than Hertz's at equal force, by an amount close to first order in dx. Full mode adds
 a grid sweep (``grid_convergence``: linear disk, dx in ``SWEEP_DX``, quick settings with
-dt = ``SWEEP_DT``) and extrapolates C_fit / C_hertz to dx = 0 along a straight line. Recorded
-(``benchmarks/records/hertz.json``): C_fit / C_hertz = 1.148 (linear) and 1.155 (Neo-Hookean)
-at the paper's dx = 0.025; sweep 1.37, 1.28, 1.24, 1.16 at dx = 0.05, 0.04, 0.033, 0.025, i.e.
-0.95 extrapolated to dx = 0. The 15 % target is thus at the edge at the paper's grid (the
-Neo-Hookean disk misses it by 0.5 points); one grid step finer it holds with margin:
-``refined`` mode (dx = 0.02 m, 70,636 particles, ``hertz_refined.json``) gives 1.116 (linear)
-and 1.119 (Neo-Hookean), 1.100 / 1.106 with the interpolated a, as the sweep's trend predicted.
-Quick mode keeps that grid (dx = 0.02 m) with coarse steps and particles (spacing 0.01 m,
-33,926 particles, 10 steps of 6e-2 s, Newton tolerance 1e-4 m/s; about 1.5 min per material on
-2 cores) and meets the 15 % target too: 1.132 (linear) and 1.138 (Neo-Hookean), measured at
-f31e3e9; at dx = 0.04 m it gave ~1.3.
+dt = ``SWEEP_DT``) and extrapolates C_fit / C_hertz to dx = 0 along a straight line. Measured
+results: ``benchmarks/records/hertz.md``.
 
 Choices where the paper is silent or the library forces a change (recorded in the JSON):
 

@@ -27,7 +27,7 @@ Scenes:
   dx / 2 as a material, frictionless, dt = "auto", to 0.3 s); error = the trade study's
   max(|L - L_ref| / L_ref, |T - T_ref| / T_ref) of the energy loss L and contact duration T
   against the barrier reference run of that discretisation (run here); also the particles found
-  inside the FEM ring at any step (``rings._PenetrationCheck``).
+  inside the FEM ring at any step (``catalogue.RingsPenetration``).
 - ``compression``: ``lr_compression``'s column (mu = 0.2, v0 = 0.5 % of c_K quick, 0.05 % full);
   error = the largest |stress error| in % past 1 % strain against the single-material run with
   the same particle update (FLIP for flip_c1, flip_c0 and once; PIC; XPIC(5)).
@@ -54,6 +54,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from benchmarks import catalogue
 from benchmarks.common import environment, peak_memory_mb, write_json
 from benchmarks.runner import Benchmark, register
 
@@ -92,7 +93,7 @@ def _totals(stepper: object) -> dict:
 
 def slope_case(mode: str, options: dict) -> dict:
     """The settle-and-slide slope case with lr ``options`` (module docstring)."""
-    from benchmarks import _tradeoff_runs, slope
+    from benchmarks import _tradeoff_runs
 
     settle_s, release_s, fit_start_s = _SLOPE[mode]
     s = dict(strategy="lr", dt=5e-5, options=options, transfer="flip", dx=5e-3, ppc=4)
@@ -105,14 +106,14 @@ def slope_case(mode: str, options: dict) -> dict:
         seen["stepper"] = sim.stepper
 
     started = time.perf_counter()
-    settled, _ = slope._settle(variant, round(settle_s / s["dt"]), p, on_step=keep)
+    settled, _ = catalogue.settle_slope(variant, round(settle_s / s["dt"]), p, on_step=keep)
     settle_totals = _totals(seen["stepper"])
     # tilted gravity: the slope is the plane y = 0, its normal +y; the bottom row of the lattice
     spacing = s["dx"] / math.sqrt(s["ppc"])
     y = settled.mpm_x[:, 1]
     bottom = y < y.min() + 0.5 * spacing
-    case = slope._release(variant, s["mu"], settled, round(release_s / s["dt"]), fit_start_s, p,
-                          on_step=keep)  # fmt: skip
+    steps = round(release_s / s["dt"])
+    case = catalogue.release_slope(variant, s["mu"], settled, steps, fit_start_s, p, on_step=keep)
     return {
         "error": case["accel_rel_error"],
         "accel_m_s2": case["accel"],

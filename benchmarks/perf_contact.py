@@ -99,6 +99,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 import bfemp
+from benchmarks import catalogue
 from benchmarks._phases import newton_phases
 from benchmarks.common import environment, peak_memory_mb, write_json
 from benchmarks.runner import Benchmark, register
@@ -486,7 +487,7 @@ def _rings_breakdown(resolution: str, repeats: int) -> dict:
     from benchmarks import rings
 
     cfg = dict(rings.MODES[resolution], dt=RINGS_DT)
-    model = rings._scene(cfg).build()
+    model = catalogue.rings_scene(cfg).build()
 
     def simulation(dt: float) -> bfemp.Simulation:
         return bfemp.Simulation(

@@ -13,18 +13,7 @@ error of a resolution N is ``|y(N) - y(N_ref)|`` at the same PPC (``errors`` and
 ``errors_mpm``). The convergence order is the slope of the least-squares line through
 ``(log dx, log error)`` over every N of the series (``order``, ``order_mpm``).
 
-Recorded, full mode (``benchmarks/records/refinement.json`` / ``.png``, at fdead73, 843 s on 2
-cores beside two buckling runs, 516 MB peak): fitted order 3.02 at PPC 16 (3.06 for the MPM box
-alone; paper 2.75, target >= 2), errors 3.7e-2 ... 2.6e-4 m over N = 4 ... 20, decreasing at
-every step. PPC 9: order 2.74, decreasing to N = 12 (3.9e-4 m), then rising to 7.6e-4 m at
-N = 20. PPC 4: order 1.22, not monotone (2.0e-4 m at N = 6, 5.5e-3 m at N = 10). The paper's
-figure 14 makes the same point: a higher PPC takes the noise out of the curve at the finer
-resolutions. N = 2 (dx = 0.5 m, dhat = 0.25 m) ends with a TUNNELED step error at step 9 at
-PPC 9 and 16 (particles whose straight path crosses the FEM box although the end state is
-clear) and is left out of those fits; at PPC 4 it comes to rest and is in the fit. The
-``ppc16`` record (``refinement_ppc16.json``, at 2f917dc) has the same PPC 16 errors to 6e-9 m.
-Quick mode (``refinement_quick.json``): 3.6e-2, 5.3e-3, 7.9e-4 m at N = 4, 8, 12 against
-N = 16, order 3.41.
+Measured results, with the commits they ran on: ``benchmarks/records/refinement.md``.
 
 Choices where the paper is silent (all recorded in the JSON ``parameters``):
 

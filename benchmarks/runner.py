@@ -111,7 +111,8 @@ class Benchmark:
         if self.plot is not None:
             png = out / f"{stem}.png"
             self.plot(payload, png)
-            summary["png"] = str(png)
+            if png.exists():  # a plot may have nothing to draw for some options
+                summary["png"] = str(png)
         return {**summary, **payload}
 
 

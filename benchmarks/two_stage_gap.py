@@ -18,12 +18,7 @@ Metric: the gap, the lowest particle's height above y = 0, averaged over the las
 run (and its min / max there). Targets (T): two_stage's gap at rest lies in (0, dhat] (tail min
 > 0) and below both grid treatments'.
 
-Measured (quick, dx = 0.01 m, 0.3 s): two_stage 0.9989e-3 m (0.10 dx; at rest, tail spread
-2e-7 m); level set 7.1e-3 m (0.71 dx) mean, still bouncing between 3.2e-3 and 10.9e-3 m;
-augury PIC 24.1e-3 m: the block is caught at once and never falls (0.24 of its 0.1 m contact
-cell). Full (dx = 0.005 m, 0.6 s, 222 s): two_stage 0.9989e-3 m (0.20 dx, spread 2e-10 m);
-level set 3.4e-3 m (0.68 dx; bouncing between 1.6e-3 and 5.3e-3 m): it halves with dx, the
-"dx gap"; augury PIC 24.1e-3 m again (its contact grid does not change with dx).
+Measured results, with the commits they ran on: ``benchmarks/records/two_stage_gap.md``.
 """
 
 from __future__ import annotations
