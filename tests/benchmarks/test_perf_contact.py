@@ -5,30 +5,27 @@ barriers), the CCD step sizes of both are conservative against the exact time of
 rings breakdown is taken in contact. Timings are recorded, never asserted (shared machine).
 """
 
-import json
 import math
 
 import numpy as np
 import pytest
 
 from benchmarks import perf_contact
+from tests.benchmarks._records import check_written, record_fixture
 
 needs_ipctk = pytest.mark.skipif(perf_contact.ipctk is None, reason="ipctk not installed")
 
 
-@pytest.fixture(scope="module")
-def result(tmp_path_factory):
-    out = tmp_path_factory.mktemp("perf_contact")
-    summary = perf_contact.run("quick", out)
-    return summary, json.loads((out / "perf_contact.json").read_text()), out
+result = record_fixture("perf_contact")
 
 
 def test_writes_json_and_plot(result):
-    summary, data, out = result
-    assert summary["json"] == str(out / "perf_contact.json")
-    assert (out / "perf_contact.png").stat().st_size > 10_000
-    for key in ("barrier_pairs_per_s", "ccd_s", "ccd_step", "rings_breakdown", "wall_s"):
-        assert key in data, key
+    check_written(
+        result,
+        "perf_contact",
+        keys=("barrier_pairs_per_s", "ccd_s", "ccd_step", "rings_breakdown", "wall_s"),
+    )
+    _, data, _ = result
     for key in ("steps", "newton_iterations", "peak_memory_mb", "parameters", "environment"):
         assert key in data, key
     for dim_key, rates in data["barrier_pairs_per_s"].items():
