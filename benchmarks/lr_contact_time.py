@@ -16,16 +16,14 @@ velocity-only detector detects before t_c - 0.5 dx / v0 in both cases. Runs to 1
 from __future__ import annotations
 
 import logging
-import time
 from pathlib import Path
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from benchmarks.common import environment, peak_memory_mb, write_json
 from benchmarks.lr_compression import C_K, DX, MODES, column_scene, run_case
-from benchmarks.runner import Benchmark, register
+from benchmarks.runner import Benchmark, name_unless, register
 
 log = logging.getLogger(__name__)
 
@@ -90,17 +88,8 @@ def plot(record: dict, path: Path) -> None:
     fig.savefig(path, dpi=110)
 
 
-def run(mode: str, out: Path) -> dict:
-    """Writes ``out/lr_contact_time[_quick].json`` and the PNG."""
-    started = time.perf_counter()
-    record = {"benchmark": NAME, "mode": mode, **contact_time(mode)}
-    record["wall_s"] = time.perf_counter() - started
-    record["peak_memory_mb"] = peak_memory_mb()
-    record["environment"] = environment()
-    name = NAME if mode == "full" else f"{NAME}_{mode}"
-    path = write_json(out, name, record)
-    plot(record, Path(out) / f"{name}.png")
-    return {"json": str(path), **record}
-
-
-BENCHMARK = register(Benchmark(NAME, __doc__, {}, None, own_run=run))
+BENCHMARK = register(
+    Benchmark(NAME, __doc__, MODES, lambda mode, cfg: contact_time(mode), plot=plot,
+              record=name_unless("full", NAME))
+)  # fmt: skip
+run = BENCHMARK.run

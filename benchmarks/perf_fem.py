@@ -20,8 +20,7 @@ from pathlib import Path
 import bfemp
 from benchmarks._blas_switch import factorisation_by_blas
 from benchmarks._phases import newton_phases
-from benchmarks.common import environment, peak_memory_mb, write_json
-from benchmarks.runner import Benchmark, register
+from benchmarks.runner import Benchmark, name_unless, register
 from bfemp.integrators import BACKWARD_EULER
 from bfemp.plotting import plot_bars
 from bfemp.steppers.barrier import BarrierOptions, BarrierStepper
@@ -68,37 +67,40 @@ def _measure(name: str, matrices: dict, dim: int, n: tuple[int, ...]) -> dict:
     return out
 
 
-def run(mode: str = "full", out: str | Path = "results") -> dict:
-    """Measure both cases and write ``perf_fem.json`` and ``perf_fem.png`` to ``out``."""
+def measure(mode: str, cases: dict) -> dict:
+    """Both cases of ``mode``, and CHOLMOD on each case's Hessian per BLAS."""
     matrices: dict = {}
     cases = {
         name: _measure(name, matrices, 2 if name == "2d" else 3, cfg["n"])
-        for name, cfg in CASES[mode].items()
+        for name, cfg in cases.items()
     }
-    payload = {
-        "benchmark": "perf_fem",
-        "mode": mode,
+    return {
         "cases": cases,
         # CHOLMOD factorisation of each case's Hessian, reference vs default BLAS (per process)
         "blas_side_by_side": factorisation_by_blas(matrices),
         "machine_note": "2 shared cores, loaded by other work: compare ratios within this run",
-        "peak_memory_mb": peak_memory_mb(),
-        "environment": environment(),
     }
-    path = write_json(out, "perf_fem", payload)
+
+
+def plot(payload: dict, png: Path) -> None:
+    """Seconds of assembly and CHOLMOD per Newton iteration, per case."""
     labels, groups = [], {"assembly": [], "factorize": [], "analyze": []}
-    for name, case in cases.items():
+    for name, case in payload["cases"].items():
         labels.append(f"{name} ({case['cells']} cells)")
         for key in groups:
             groups[key].append(case.get(f"{key}_s", float("nan")))
     plot_bars(
         labels,
         groups,
-        Path(out) / "perf_fem.png",
+        png,
         ylabel="seconds",
         title="Per Newton iteration: assembly vs CHOLMOD",
     )
-    return {"json": str(path), **payload}
 
 
-BENCHMARK = register(Benchmark("perf_fem", __doc__, {}, None, own_run=run))
+BENCHMARK = register(
+    Benchmark(
+        "perf_fem", __doc__, CASES, measure, plot=plot, record=name_unless("full", "perf_fem")
+    )
+)
+run = BENCHMARK.run

@@ -19,8 +19,7 @@ import numpy as np
 import bfemp
 from benchmarks._blas_switch import factorisation_by_blas
 from benchmarks._phases import median_time, newton_phases
-from benchmarks.common import environment, peak_memory_mb, write_json
-from benchmarks.runner import Benchmark, register
+from benchmarks.runner import Benchmark, name_unless, register
 from bfemp.integrators import BACKWARD_EULER
 from bfemp.mpm.step import prepare_mpm_step
 from bfemp.mpm.transfer import grid_to_particles
@@ -84,24 +83,24 @@ def _measure(name: str, matrices: dict, dim: int, cells: tuple[int, ...], ppc: i
     return out
 
 
-def run(mode: str = "full", out: str | Path = "results") -> dict:
-    """Measure both cases and write ``perf_mpm.json`` and ``perf_mpm.png`` to ``out``."""
+def measure(mode: str, cases: dict) -> dict:
+    """Both cases of ``mode``, and CHOLMOD on each case's Hessian per BLAS."""
     matrices: dict = {}
     cases = {
         name: _measure(name, matrices, 2 if name == "2d" else 3, cfg["cells"], cfg["ppc"])
-        for name, cfg in CASES[mode].items()
+        for name, cfg in cases.items()
     }
-    payload = {
-        "benchmark": "perf_mpm",
-        "mode": mode,
+    return {
         "cases": cases,
         # CHOLMOD factorisation of each case's Hessian, reference vs default BLAS (per process)
         "blas_side_by_side": factorisation_by_blas(matrices),
         "machine_note": "2 shared cores, loaded by other work: compare ratios within this run",
-        "peak_memory_mb": peak_memory_mb(),
-        "environment": environment(),
     }
-    path = write_json(out, "perf_mpm", payload)
+
+
+def plot(payload: dict, png: Path) -> None:
+    """Seconds of the transfers, assembly and CHOLMOD per Newton iteration, per case."""
+    cases = payload["cases"]
     labels = [f"{k} ({c['particles']} particles)" for k, c in cases.items()]
     groups = {
         key: [c.get(f"{key}_s", np.nan) for c in cases.values()]
@@ -110,11 +109,15 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
     plot_bars(
         labels,
         groups,
-        Path(out) / "perf_mpm.png",
+        png,
         ylabel="seconds",
         title="MPM: transfers, assembly and CHOLMOD per Newton iteration",
     )
-    return {"json": str(path), **payload}
 
 
-BENCHMARK = register(Benchmark("perf_mpm", __doc__, {}, None, own_run=run))
+BENCHMARK = register(
+    Benchmark(
+        "perf_mpm", __doc__, CASES, measure, plot=plot, record=name_unless("full", "perf_mpm")
+    )
+)
+run = BENCHMARK.run

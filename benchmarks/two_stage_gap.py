@@ -32,7 +32,6 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 import bfemp
-from benchmarks.common import environment, peak_memory_mb, write_json
 from benchmarks.runner import Benchmark, register
 from bfemp.steppers.augury import AuguryOptions
 
@@ -103,13 +102,8 @@ def _run_case(case: str, cfg: dict) -> dict:
     }
 
 
-def run(mode: str = "full", out: str | Path = "results") -> dict:
-    """Run ``mode``; write ``two_stage_gap.json`` and ``.png``."""
-    if mode not in MODES:
-        raise ValueError(f"mode must be one of {sorted(MODES)}, got {mode!r}")
-    cfg = MODES[mode]
-    out = Path(out)
-    started = time.perf_counter()
+def measure(mode: str, cfg: dict) -> dict:
+    """Run the three cases of ``mode``: the gaps at rest and the targets."""
     cases = {case: _run_case(case, cfg) for case in CASES}
     ts = cases["two_stage"]
     ok = ts["error"] is None and ts["gap_tail_min_m"] is not None
@@ -124,9 +118,7 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
             for c in ("levelset", "augury_pic")
         ),
     }
-    payload = {
-        "benchmark": NAME,
-        "mode": mode,
+    return {
         "dx_m": cfg["dx"],
         "dhat_m": DHAT,
         "gap_at_rest_m": {c: r["gap_at_rest_m"] for c, r in cases.items()},
@@ -134,27 +126,26 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
         "targets": targets,
         "target_met": all(targets.values()),
         "cases": {c: {k: v for k, v in r.items() if k != "series"} for c, r in cases.items()},
-        "wall_s": time.perf_counter() - started,
-        "peak_memory_mb": peak_memory_mb(),
         "parameters": {**cfg, "material": MATERIAL, "kappa_Pa": KAPPA, "start_gap_m": START_GAP},
-        "environment": environment(),
         "series": {c: r["series"] for c, r in cases.items()},
     }
-    path = write_json(out, NAME, payload)
-    png = out / f"{NAME}.png"
+
+
+def plot(payload: dict, png: Path) -> None:
+    """The lowest particle's height against time, per case, beside dhat and dx."""
     fig = Figure(figsize=(6.0, 4.0))
     FigureCanvasAgg(fig)
     ax = fig.subplots()
-    for c, r in cases.items():
-        ax.plot(r["series"]["t"], r["series"]["lowest_m"], label=c)
+    for c, series in payload["series"].items():
+        ax.plot(series["t"], series["lowest_m"], label=c)
     ax.axhline(DHAT, color="k", ls=":", lw=0.8, label="dhat")
-    ax.axhline(cfg["dx"], color="k", ls="--", lw=0.8, label="dx")
+    ax.axhline(payload["dx_m"], color="k", ls="--", lw=0.8, label="dx")
     ax.set(xlabel="t (s)", ylabel="lowest particle height (m)")
-    ax.set_title(f"block at rest on a floor ({mode})", fontsize=9)
+    ax.set_title(f"block at rest on a floor ({payload['mode']})", fontsize=9)
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(png, dpi=110)
-    return {"json": str(path), "png": str(png), **payload}
 
 
-BENCHMARK = register(Benchmark(NAME, __doc__, MODES, None, own_run=run))
+BENCHMARK = register(Benchmark(NAME, __doc__, MODES, measure, plot=plot))
+run = BENCHMARK.run
