@@ -268,16 +268,8 @@ def _plot(cases: list[dict], path: Path) -> None:
     fig.savefig(path, dpi=110)
 
 
-def run(mode: str = "full", out: str | Path = "results") -> dict:
-    """Every (h, mu, transfer) of ``mode`` and the sticking control; writes JSON and PNG."""
-    if mode == "conforming":  # issue 40's record: ``run_conforming``
-        return run_conforming(out)
-    if mode not in MODES:
-        raise ValueError(f"mode must be one of {sorted(MODES) + ['conforming']}, got {mode!r}")
-    cfg = MODES[mode]
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    started = time.perf_counter()
+def measure(mode: str, cfg) -> dict:
+    """Every (h, mu, transfer) of ``mode`` and the sticking control."""
     cases = []
     for h in cfg["hs"]:
         for mu in cfg["mus"]:
@@ -329,8 +321,6 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
         "mu_0.7_sticks": {str(c["h"]): bool(abs(c["slip_end"]) < 1e-3) for c in v_stick},
     }
     payload = {
-        "benchmark": NAME,
-        "mode": mode,
         "cases": cases,
         "control": control,
         "variant_cases": variant,
@@ -354,14 +344,8 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
             "ramp_bottom": "scripted Fixed",
             "energy_guard": True,
         },
-        "wall_s": time.perf_counter() - started,
-        "peak_memory_mb": peak_memory_mb(),
-        "environment": environment(),
     }
-    path = write_json(out, NAME, payload)
-    png = out / f"{NAME}.png"
-    _plot(cases, png)
-    return {"json": str(path), "png": str(png), **payload}
+    return payload
 
 
 #: ``run_conforming``'s record: what AUG reports and what the measurement shows of the method
@@ -541,4 +525,16 @@ def _plot_conforming(cases: list[dict], path: Path) -> None:
     fig.savefig(path, dpi=110)
 
 
-BENCHMARK = register(Benchmark(NAME, __doc__, MODES, None, own_run=run))
+BENCHMARK = register(
+    Benchmark(NAME, __doc__, MODES, measure, plot=lambda payload, png: _plot(payload["cases"], png))
+)
+run = BENCHMARK.run
+register(
+    Benchmark(
+        "augury_ramp_conforming",
+        "The ramp with the block's nodes on the ramp's (issue 40), AUG's settings",
+        {"full": {}},
+        None,
+        own_run=lambda mode, out: run_conforming(out),
+    )
+)

@@ -100,7 +100,13 @@ def plot(payload: dict, png: Path) -> None:
 
 BENCHMARK = register(
     Benchmark(
-        "perf_fem", __doc__, CASES, measure, plot=plot, record=name_unless("full", "perf_fem")
+        "perf_fem",
+        __doc__,
+        CASES,
+        measure,
+        plot=plot,
+        record=name_unless("full", "perf_fem"),
+        timings=r"_s$|over_factorisation|fraction_of_iteration",
     )
 )
 run = BENCHMARK.run

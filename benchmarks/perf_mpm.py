@@ -117,7 +117,13 @@ def plot(payload: dict, png: Path) -> None:
 
 BENCHMARK = register(
     Benchmark(
-        "perf_mpm", __doc__, CASES, measure, plot=plot, record=name_unless("full", "perf_mpm")
+        "perf_mpm",
+        __doc__,
+        CASES,
+        measure,
+        plot=plot,
+        record=name_unless("full", "perf_mpm"),
+        timings=r"_s$|over_factorisation|fraction_of_iteration",
     )
 )
 run = BENCHMARK.run

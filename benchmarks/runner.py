@@ -54,6 +54,9 @@ class Benchmark:
         plot: ``plot(payload, png_path)``, or None for a record without a figure.
         report: ``report(payload) -> str``: Markdown written beside the JSON, or None.
         record: ``record(mode, options) -> stem`` of the files written (default: the name).
+        timings: a regular expression of the record's keys that hold times or ratios of times
+            (beside ``TIMING_KEY``), left out by ``verify``: e.g. ``"_s$"`` for a timing
+            benchmark whose every ``*_s`` is a measured time.
         own_run: ``own_run(mode, out) -> summary`` of a benchmark not yet on the runner.
         aliases: other names that run this entry (old names of merged benchmarks), each with
             the options it implies: ``{alias: {option: value}}``.
@@ -66,6 +69,7 @@ class Benchmark:
     plot: Callable[[dict, Path], None] | None = None
     report: Callable[[dict], str] | None = None
     record: Callable[[str, Mapping], str] | None = None
+    timings: str = ""
     own_run: Callable[[str, str | Path], dict] | None = None
     aliases: Mapping[str, Mapping] = field(default_factory=dict)
 
@@ -155,24 +159,24 @@ TIMING_KEY = re.compile(
 )
 
 
-def differences(old: object, new: object, path: str = "") -> list[str]:
-    """Where two records differ outside timing fields (``TIMING_KEY``); floats compared
-    exactly (bit for bit, NaN equal to NaN)."""
+def differences(old: object, new: object, path: str = "", timings: str = "") -> list[str]:
+    """Where two records differ outside timing fields (``TIMING_KEY`` and the regular
+    expression ``timings``); floats compared exactly (bit for bit, NaN equal to NaN)."""
     if isinstance(old, dict) and isinstance(new, dict):
         out = []
         for key in sorted(set(old) | set(new), key=str):
-            if TIMING_KEY.search(str(key)):
+            if TIMING_KEY.search(str(key)) or (timings and re.search(timings, str(key))):
                 continue
             if key not in old or key not in new:
                 out.append(f"{path}/{key}: only in the {'new' if key in new else 'old'} record")
             else:
-                out += differences(old[key], new[key], f"{path}/{key}")
+                out += differences(old[key], new[key], f"{path}/{key}", timings)
         return out
     if isinstance(old, list) and isinstance(new, list):
         if len(old) != len(new):
             return [f"{path}: {len(old)} items, now {len(new)}"]
         return [d for k, (a, b) in enumerate(zip(old, new, strict=True)) for d in
-                differences(a, b, f"{path}[{k}]")]  # fmt: skip
+                differences(a, b, f"{path}[{k}]", timings)]  # fmt: skip
     both_nan = (
         isinstance(old, float) and isinstance(new, float) and math.isnan(old) and math.isnan(new)
     )
@@ -192,4 +196,4 @@ def verify(name: str, mode: str = "quick", records: Path = RECORDS) -> list[str]
     with tempfile.TemporaryDirectory() as tmp:
         summary = bench.run(mode, tmp, **options)
         new = json.loads(Path(summary["json"]).read_text())
-    return differences(json.loads(committed.read_text()), new)
+    return differences(json.loads(committed.read_text()), new, timings=bench.timings)
