@@ -25,7 +25,6 @@ Targets (T): APIC final gap < 1e-3 L; PIC final gap within 1e-3 L of the closed 
 from __future__ import annotations
 
 import logging
-import time
 from pathlib import Path
 
 import numpy as np
@@ -34,7 +33,6 @@ from matplotlib.figure import Figure
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
-from benchmarks.common import environment, write_json
 from benchmarks.runner import Benchmark, register
 from bfemp.contact.augury import ContactOperator, augury_correction, contact_stencils
 
@@ -128,13 +126,8 @@ def _plot(rows: list[dict], path: Path) -> None:
     fig.savefig(path, dpi=110)
 
 
-def run(mode: str = "full", out: str | Path = "results") -> dict:
-    """Run every tau in both transfers; write ``augury_gap.json`` and ``.png`` to ``out``."""
-    if mode not in MODES:
-        raise ValueError(f"mode must be one of {sorted(MODES)}, got {mode!r}")
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    started = time.perf_counter()
+def measure(mode: str, taus) -> dict:
+    """Every tau of ``mode`` in both transfers: the gaps and the targets."""
     rows = []
     for tau in MODES[mode]:
         t, pic = simulate_gap(tau, apic=False)
@@ -173,8 +166,6 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
             "augury_gap tau %g: PIC %.4g (closed %.4g), APIC %.3g", tau, pic[-1], closed, apic[-1]
         )
     payload = {
-        "benchmark": NAME,
-        "mode": mode,
         "x0": X0,
         "t_end": T_END,
         "dt": f"min(tau / {STEPS_PER_TAU}, {DT_MAX})",
@@ -184,13 +175,11 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
         "target": "APIC gap < 1e-3 L; PIC gap within 1e-3 L of the closed form and > 0.05 L; "
         "H simulation within 1e-2 L of the ODE",
         "target_met": all(all(r["targets"].values()) for r in rows),
-        "wall_s": time.perf_counter() - started,
-        "environment": environment(),
     }
-    path = write_json(out, NAME, payload)
-    png = out / f"{NAME}.png"
-    _plot(rows, png)
-    return {"json": str(path), "png": str(png), **payload}
+    return payload
 
 
-BENCHMARK = register(Benchmark(NAME, __doc__, MODES, None, own_run=run))
+BENCHMARK = register(
+    Benchmark(NAME, __doc__, MODES, measure, plot=lambda payload, png: _plot(payload["rows"], png))
+)
+run = BENCHMARK.run

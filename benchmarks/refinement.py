@@ -54,7 +54,6 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 import bfemp
-from benchmarks.common import environment, peak_memory_mb, write_json
 from benchmarks.runner import Benchmark, register
 
 log = logging.getLogger(__name__)
@@ -233,26 +232,10 @@ def _plot(series: dict, path: Path, title: str) -> None:
     fig.savefig(path, dpi=110)
 
 
-def run(mode: str = "full", out: str | Path = "results") -> dict:
-    """Settle every resolution and PPC of ``mode``; write ``refinement.json`` and ``.png``.
-
-    Args:
-        mode: ``"full"`` (N = 2..20 even against N = 30, PPC 4, 9, 16), ``"ppc16"`` (the
-            same at PPC 16 only) or ``"quick"``
-            (N = 4, 8, 12 against N = 16, PPC 16).
-        out: output folder.
-
-    Returns:
-        ``{"json": path, "png": path, **payload}``; ``payload["series"][ppc]`` holds the errors
-        and fitted orders.
-    """
-    if mode not in MODES:
-        raise ValueError(f"mode must be one of {sorted(MODES)}, got {mode!r}")
-    cfg = MODES[mode]
-    env = environment()
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    started = time.perf_counter()
+def measure(mode: str, cfg) -> dict:
+    """Settle every resolution and PPC of ``mode``: ``"full"`` (N = 2..20 even against N = 30,
+    PPC 4, 9, 16), ``"ppc16"`` (the same at PPC 16 only) or ``"quick"`` (N = 4, 8, 12 against
+    N = 16, PPC 16); ``series[ppc]`` holds the errors and fitted orders."""
     runs, series = {}, {}
     for ppc in cfg["ppcs"]:
         ref = settle(cfg["n_ref"], ppc)
@@ -260,11 +243,7 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
         runs[ppc] = {"reference": ref, "runs": tests}
         series[ppc] = {**_series(tests, ref), "reference_at_rest": ref["at_rest"]}
     payload = {
-        "benchmark": NAME,
-        "mode": mode,
         "series": {str(k): v for k, v in series.items()},
-        "wall_s": time.perf_counter() - started,
-        "peak_memory_mb": peak_memory_mb(),
         "paper": PAPER,
         "targets": {
             "full": "order >= 2 for PPC 16",
@@ -285,14 +264,16 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
             "initial_gap": "dx",
         },
         "runs": {str(k): v for k, v in runs.items()},
-        "environment": env,
     }
-    path = write_json(out, NAME, payload)
-    png = out / f"{NAME}.png"
+    return payload
+
+
+def plot(payload: dict, png: Path) -> None:
+    """The errors against dx per PPC (``_plot``)."""
+    series = {int(k): v for k, v in payload["series"].items()}
+    mode = payload["mode"]
     _plot(series, png, f"MPM box on FEM box: centre-of-mass height error ({mode} mode)")
-    for ppc, s in series.items():
-        log.info("refinement PPC %d: errors %s, order %.3f", ppc, s["errors"], s["order"])
-    return {"json": str(path), "png": str(png), **payload}
 
 
-BENCHMARK = register(Benchmark(NAME, __doc__, MODES, None, own_run=run))
+BENCHMARK = register(Benchmark(NAME, __doc__, MODES, measure, plot=plot))
+run = BENCHMARK.run

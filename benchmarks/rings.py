@@ -83,7 +83,6 @@ from benchmarks.catalogue import (
     rings_scene,
     window_energies,
 )
-from benchmarks.common import environment, peak_memory_mb, write_json
 from benchmarks.runner import Benchmark, register
 
 log = logging.getLogger(__name__)
@@ -299,25 +298,10 @@ def main_from_args(args: argparse.Namespace) -> int:
     return 0
 
 
-def run(mode: str = "full", out: str | Path = "results", compare: bool = True) -> dict:
-    """Run both transfers and write ``rings.json`` and ``rings.png`` to ``out``.
-
-    Args:
-        mode: ``"full"`` (paper resolution), ``"partial"`` (paper dt and FEM mesh, MPM grid
-            2x coarser) or ``"quick"`` (coarse, < 60 s).
-        out: output folder.
-        compare: in partial and full modes, also run ``COMPARED_INTEGRATORS`` (doubles the
-            time).
-
-    Returns:
-        ``{"json": path, "png": path, ...}`` with the top-level metrics.
-    """
-    if mode not in MODES:
-        raise ValueError(f"mode must be one of {sorted(MODES)}, got {mode!r}")
-    cfg = MODES[mode]
-    env = environment()  # before the runs: the commit that ran, not the one at the end
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+def measure(mode: str, cfg: dict, compare: bool = True) -> dict:
+    """Both transfers in ``mode``: ``"full"`` (paper resolution), ``"partial"`` (paper dt and
+    FEM mesh, MPM grid 2x coarser) or ``"quick"`` (coarse, < 60 s); with ``compare``, in
+    partial and full modes, also ``COMPARED_INTEGRATORS`` (doubles the time)."""
     runs = {transfer: run_transfer(cfg, transfer) for transfer in TRANSFERS}
     compared = {}
     if compare and mode != "quick":  # the paper's literal mid-point Newmark (see the docstring)
@@ -328,8 +312,6 @@ def run(mode: str = "full", out: str | Path = "results", compare: bool = True) -
     first = runs["apic"]
     min_distance = np.nanmin([r["min_distance"] for r in runs.values()])
     payload = {
-        "benchmark": NAME,
-        "mode": mode,
         "momentum_drift_rel": max(r["momentum_drift_rel"] for r in runs.values()),
         "min_distance": float(min_distance),
         "energy_loss_pct": {k: r["energy_loss_pct"] for k, r in runs.items()},
@@ -338,7 +320,6 @@ def run(mode: str = "full", out: str | Path = "results", compare: bool = True) -
         "wall_s": sum(r["wall_s"] for r in runs.values()),
         "newton_iterations": sum(r["newton_iterations"] for r in runs.values()),
         "penetrations": max(r["penetrations"] for r in runs.values()),
-        "peak_memory_mb": peak_memory_mb(),
         "paper": PAPER,
         "targets": {
             "momentum_drift_rel": "< 1e-9",
@@ -365,7 +346,6 @@ def run(mode: str = "full", out: str | Path = "results", compare: bool = True) -
             "fem_triangles": first["fem_triangles"],
         },
         "runs": {k: _for_json(r) for k, r in runs.items()},
-        "environment": env,
     }
     payload["energy_peak_over_start"] = {k: r["energy_peak_over_start"] for k, r in runs.items()}
     payload["compared_integrators"] = {}
@@ -384,16 +364,26 @@ def run(mode: str = "full", out: str | Path = "results", compare: bool = True) -
             "runs": {k: _for_json(r) for k, r in by_transfer.items()},
         }
         payload["wall_s"] += payload["compared_integrators"][name]["wall_s"]
-    path = write_json(out, NAME, payload)
-    png = out / f"{NAME}.png"
-    _plot(runs, png, f"Colliding rings, MPM (left) vs FEM (right), {mode} mode", compared)
     log.info(
         "rings: drift %.2e, min distance %.3e m, energy loss %s",
         payload["momentum_drift_rel"],
         payload["min_distance"],
         payload["energy_loss_pct"],
     )
-    return {"json": str(path), "png": str(png), **payload}
+    return payload
 
 
-BENCHMARK = register(Benchmark(NAME, __doc__, MODES, None, own_run=run))
+def plot(payload: dict, png: Path) -> None:
+    """``_plot`` of the recorded runs (their subsampled series)."""
+
+    def arrays(runs: dict) -> dict:
+        return {k: {**r, "series": {s: np.asarray(v, dtype=float) for s, v in r["series"].items()}}
+                for k, r in runs.items()}  # fmt: skip
+
+    compared = {k: arrays(c["runs"]) for k, c in payload["compared_integrators"].items()}
+    title = f"Colliding rings, MPM (left) vs FEM (right), {payload['mode']} mode"
+    _plot(arrays(payload["runs"]), png, title, compared)
+
+
+BENCHMARK = register(Benchmark(NAME, __doc__, MODES, measure, plot=plot))
+run = BENCHMARK.run
