@@ -51,7 +51,7 @@ def _check(settings: dict, keys: tuple[str, ...], scene: str) -> None:
 RINGS_KEYS = ("strategy", "dt", "options", "transfer", "dx", "ppc", "dhat", "fem_h", "t_end")
 
 
-def _rings(s: dict, on_done: Callable[[bfemp.Simulation], None] | None = None) -> dict:
+def rings_point(s: dict, on_done: Callable[[bfemp.Simulation], None] | None = None) -> dict:
     """One rings point; ``on_done(sim)`` is called after the run (``benchmarks.lr_variants``)."""
     from benchmarks import rings
 
@@ -197,7 +197,7 @@ def _hertz_soft(s: dict) -> dict:
             raise ValueError(f"hertz_soft: unsupported barrier options {sorted(options)}")
     else:
         cfg.update(integrator=EXPLICIT_INTEGRATOR, options=_options(strategy, options))
-    run = hertz._run_material(cfg, s["material"])
+    run = hertz.run_material(cfg, s["material"])
     out = {k: v for k, v in run.items() if k not in ("samples", "error")}
     samples = run["samples"]
     out.update(
@@ -233,7 +233,7 @@ def _sine_boundary(s: dict) -> dict:
     else:  # the explicit strategies on the same scene (the box's E sets the stable step)
         options = _options(s["strategy"], s["options"])
         cfg |= {"strategy": s["strategy"], "integrator": EXPLICIT_INTEGRATOR, "options": options}
-    run = sine_boundary._run_one(cfg, "bfemp")
+    run = sine_boundary.run_treatment(cfg, "bfemp")
     keys = ("steps", "t_end", "penetrations", "max_penetration_depth", "max_tensile_force")
     keys += ("dt_s", *PENETRATION_KEYS)
     out = {k: run[k] for k in keys + ("max_compressive_force", "particles", "min_distance")}
@@ -394,7 +394,7 @@ def _lr_compression(s: dict) -> dict:
 
 
 RUNNERS = {
-    "rings": _rings,
+    "rings": rings_point,
     "slope": _slope,
     "hertz": _hertz,
     "hertz_soft": _hertz_soft,

@@ -340,7 +340,7 @@ def stress_force(deformation: np.ndarray, geo: dict, t: float) -> float:
     return -float(np.dot(sigma[:, 1, 1], volume)) / gap
 
 
-def _run_material(cfg: dict, material: str, top_plate: str = "elastic") -> dict:
+def run_material(cfg: dict, material: str, top_plate: str = "elastic") -> dict:
     """Compress the disk of one material; F and a after every step, and the fits.
 
     ``cfg["options"]`` (an options object; with ``strategy`` and ``integrator``) runs any
@@ -493,7 +493,7 @@ def run_point(settings: dict) -> dict:
             (s), ``max_newton_iterations``, ``boundary_refine`` and ``grid_offset_cells``.
 
     Returns:
-        JSON-ready scalars of ``_run_material`` (no samples): ``rel_error`` =
+        JSON-ready scalars of ``run_material`` (no samples): ``rel_error`` =
         ``|C_fit / C_hertz - 1|`` (NaN with fewer than 3 samples in the fit range),
         ``C_fit_over_C_hertz``, ``fit_samples``, ``steps``, ``newton_iterations``,
         ``particles``, and the ``StepError`` message in ``failure``.
@@ -507,7 +507,7 @@ def run_point(settings: dict) -> dict:
             f"hertz: settings.material must be one of {sorted(MATERIALS)}, "
             f"got {settings['material']!r}"
         )
-    run = _run_material(dict(settings), settings["material"])
+    run = run_material(dict(settings), settings["material"])
     out = {k: v for k, v in run.items() if k not in ("samples", "error")}
     out["failure"] = run["error"]
     return out
@@ -522,7 +522,7 @@ def _grid_sweep() -> dict:
     """
     rows = []
     for dx in SWEEP_DX:
-        r = _run_material(dict(_FAST, dx=dx, spacing=0.5 * dx, dt=SWEEP_DT), "linear")
+        r = run_material(dict(_FAST, dx=dx, spacing=0.5 * dx, dt=SWEEP_DT), "linear")
         rows.append(
             {
                 "dx": dx,
@@ -612,7 +612,7 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
     cfg = MODES[mode]
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    runs = {name: _run_material(cfg, name) for name in MATERIALS}
+    runs = {name: run_material(cfg, name) for name in MATERIALS}
     sweep = _grid_sweep() if mode == "full" else None
     materials = {name: {k: v for k, v in r.items() if k != "samples"} for name, r in runs.items()}
     payload = {

@@ -50,8 +50,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 import bfemp
-from benchmarks.common import environment, peak_memory_mb, write_json
-from benchmarks.runner import Benchmark, register
+from benchmarks.runner import Benchmark, name_unless, register
 from bfemp.contact import lr as lr_contact
 from bfemp.materials import BulkShearHyperelastic
 from bfemp.motion import Linear
@@ -526,12 +525,9 @@ def plot(record: dict, path: Path) -> None:
     fig.savefig(path, dpi=110)
 
 
-def run(mode: str, out: Path) -> dict:
-    """Writes ``out/lr_compression[_quick].json`` and the PNG."""
-    started = time.perf_counter()
-    record = {
-        "benchmark": NAME,
-        "mode": mode,
+def measure(mode: str, cfg: tuple) -> dict:
+    """The column's setup and every run of ``mode`` (``compression``)."""
+    return {
         "setup": {
             "width": WIDTH,
             "height": HEIGHT,
@@ -546,13 +542,9 @@ def run(mode: str, out: Path) -> dict:
         },  # fmt: skip
         "compression": compression(mode),
     }
-    record["wall_s"] = time.perf_counter() - started
-    record["peak_memory_mb"] = peak_memory_mb()
-    record["environment"] = environment()
-    name = NAME if mode == "full" else f"{NAME}_{mode}"
-    path = write_json(out, name, record)
-    plot(record, Path(out) / f"{name}.png")
-    return {"json": str(path), **record}
 
 
-BENCHMARK = register(Benchmark(NAME, __doc__, MODES, None, own_run=run))
+BENCHMARK = register(
+    Benchmark(NAME, __doc__, MODES, measure, plot=plot, record=name_unless("full", NAME))
+)
+run = BENCHMARK.run

@@ -139,7 +139,7 @@ def rings_reference() -> dict:
     from benchmarks import _tradeoff_runs
 
     started = time.perf_counter()
-    out = _tradeoff_runs._rings(_rings_settings("barrier", "reference"))
+    out = _tradeoff_runs.rings_point(_rings_settings("barrier", "reference"))
     return {k: out[k] for k in ("energy_loss_pct", "contact_duration_s", "failure")} | {
         "wall_s": time.perf_counter() - started
     }
@@ -153,7 +153,7 @@ def rings_case(options: dict, reference: dict) -> dict:
     s["options"] = dict(s["options"]) | options
     seen: dict[str, object] = {}
     started = time.perf_counter()
-    out = _tradeoff_runs._rings(s, on_done=lambda sim: seen.update(stepper=sim.stepper))
+    out = _tradeoff_runs.rings_point(s, on_done=lambda sim: seen.update(stepper=sim.stepper))
     parts = [
         abs(out[k] - reference[k]) / reference[k]
         for k in ("energy_loss_pct", "contact_duration_s")

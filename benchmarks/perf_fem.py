@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import bfemp
+from benchmarks import catalogue
 from benchmarks._blas_switch import factorisation_by_blas
 from benchmarks._phases import newton_phases
 from benchmarks.runner import Benchmark, name_unless, register
@@ -31,29 +31,8 @@ CASES = {
 }
 
 
-def _scene(dim: int, n: tuple[int, ...]) -> bfemp.Scene:
-    h = 1.0 / n[-1]
-    upper = tuple(k * h for k in n)
-    lower = (0.0,) * dim
-    mesh = (
-        bfemp.shapes.rectangle(lower, upper, h=h)
-        if dim == 2
-        else bfemp.shapes.box(lower, upper, h=h)
-    )
-    g = (0.0,) * (dim - 1) + (-9.81,)
-    scene = bfemp.Scene(dim=dim, gravity=g)
-    scene.add_fem(
-        mesh,
-        material=bfemp.NeoHookean(E=1e5, nu=0.3, density=1000.0),
-        prescribed=bfemp.motion.Fixed(),
-        prescribed_nodes=mesh.points[:, 0] < 1e-9,
-        name="block",
-    )
-    return scene
-
-
 def _measure(name: str, matrices: dict, dim: int, n: tuple[int, ...]) -> dict:
-    model = _scene(dim, n).build()
+    model = catalogue.fem_block_scene(dim, n).build()
     stepper = BarrierStepper(
         model,
         integrator=BACKWARD_EULER,

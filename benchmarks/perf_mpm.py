@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-import bfemp
+from benchmarks import catalogue
 from benchmarks._blas_switch import factorisation_by_blas
 from benchmarks._phases import median_time, newton_phases
 from benchmarks.runner import Benchmark, name_unless, register
@@ -32,20 +32,8 @@ CASES = {
 }
 
 
-def _scene(dim: int, cells: tuple[int, ...], ppc: int) -> bfemp.Scene:
-    dx = 1.0 / cells[0]
-    upper = tuple(c * dx for c in cells)
-    x, vol = bfemp.sample.box((0.0,) * dim, upper, dx=dx, ppc=ppc)
-    scene = bfemp.Scene(dim=dim, gravity=(0.0,) * (dim - 1) + (-9.81,))
-    scene.add_mpm(x, vol, material=bfemp.NeoHookean(E=1e5, nu=0.3, density=1000.0))
-    scene.set_grid(dx=dx)
-    normal = (0.0,) * (dim - 1) + (1.0,)
-    scene.add_boundary(bfemp.levelset.HalfPlane(point=(0.0,) * dim, normal=normal), "slip")
-    return scene
-
-
 def _measure(name: str, matrices: dict, dim: int, cells: tuple[int, ...], ppc: int) -> dict:
-    model = _scene(dim, cells, ppc).build()
+    model = catalogue.mpm_block_scene(dim, cells, ppc).build()
     stepper = BarrierStepper(
         model,
         integrator=BACKWARD_EULER,

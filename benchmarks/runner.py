@@ -93,7 +93,9 @@ class Benchmark:
 
     def run(self, mode: str = "full", out: str | Path = "results", **options) -> dict:
         """Measure ``mode`` and write its record to ``out``; returns ``{"json": path, "png":
-        path (with a plot), "md": path (with a report), **payload}``."""
+        path (with a plot), "md": path (with a report), **record}``. Keys of the measured
+        payload that start with an underscore (per-step series, snapshots) reach the plot and
+        the report but not the record."""
         if self.measure is None:
             return self.own_run(mode, out, **options)
         cfg = self.check_mode(mode)
@@ -107,7 +109,8 @@ class Benchmark:
         payload.setdefault("environment", env)
         out = Path(out)
         stem = self.stem(mode, options)
-        summary = {"json": str(write_json(out, stem, payload))}
+        record = {k: v for k, v in payload.items() if not k.startswith("_")}
+        summary = {"json": str(write_json(out, stem, record))}
         if self.report is not None:
             md = out / f"{stem}.md"
             md.write_text(self.report(payload))
@@ -117,7 +120,7 @@ class Benchmark:
             self.plot(payload, png)
             if png.exists():  # a plot may have nothing to draw for some options
                 summary["png"] = str(png)
-        return {**summary, **payload}
+        return {**summary, **record}
 
 
 def register(benchmark: Benchmark) -> Benchmark:

@@ -280,7 +280,7 @@ def _snapshot(
     return {"t": t, "x": sim.state.mpm_x.copy(), "inside": inside.copy(), "curve": curve}
 
 
-def _run_one(cfg: dict, treatment: str) -> dict:
+def run_treatment(cfg: dict, treatment: str) -> dict:
     """One boundary treatment along the whole path; per-step series and snapshots."""
     geo = Geometry(scale=cfg["scale"])
     scene, lower = _scene(cfg, treatment)
@@ -459,12 +459,12 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
     """
     if mode not in MODES:
         raise ValueError(f"mode must be one of {sorted(MODES)}, got {mode!r}")
-    runs = {name: _run_one(MODES[mode], name) for name in ("bfemp", "levelset")}
+    runs = {name: run_treatment(MODES[mode], name) for name in ("bfemp", "levelset")}
     return report(runs, mode, out)
 
 
 def report(runs: dict, mode: str, out: str | Path) -> dict:
-    """Write the JSON and the figure of finished runs (``_run_one`` of both treatments)."""
+    """Write the JSON and the figure of finished runs (``run_treatment`` of both treatments)."""
     cfg = MODES[mode]
     geo = Geometry(scale=cfg["scale"])
     out = Path(out)
