@@ -384,7 +384,14 @@ def run_long(
 
 
 BENCHMARK = register(
-    Benchmark(NAME, __doc__, MODES, measure, plot=lambda payload, png: _plot(payload["runs"], png))
+    Benchmark(
+        NAME,
+        __doc__,
+        MODES,
+        measure,
+        plot=lambda payload, png: _plot(payload["runs"], png),
+        timings=r"_s_per_step$|^contact_below_mechanics$",
+    )
 )
 run = BENCHMARK.run
 register(

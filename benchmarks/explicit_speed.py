@@ -164,5 +164,9 @@ def measure(mode: str, cfg) -> dict:
     return payload
 
 
-BENCHMARK = register(Benchmark(NAME, __doc__, MODES, measure))
+BENCHMARK = register(
+    Benchmark(
+        NAME, __doc__, MODES, measure, timings=r"s_per_step|per_simulated_s|contact_below_mech"
+    )
+)
 run = BENCHMARK.run
