@@ -72,7 +72,6 @@ from matplotlib.figure import Figure
 
 import bfemp
 from benchmarks._penetration import penetration_summary
-from benchmarks.common import environment, peak_memory_mb, write_json
 from benchmarks.runner import Benchmark, register
 
 log = logging.getLogger(__name__)
@@ -595,29 +594,18 @@ def _plot(runs: dict, cfg: dict, path: Path, title: str, sweep: dict | None = No
     fig.savefig(path, dpi=110)
 
 
-def run(mode: str = "full", out: str | Path = "results") -> dict:
-    """Run both materials and write ``hertz.json`` and ``hertz.png`` to ``out``.
-
-    Args:
-        mode: ``"full"`` (paper resolution, with the grid sweep), ``"refined"`` (the full
-            settings at dx = 0.02 m, no sweep; written to ``hertz_refined.json``) or
-            ``"quick"`` (coarse steps on the refined grid, ~3 min).
-        out: output folder.
-
-    Returns:
-        ``{"json": path, "png": path, ...}`` with the top-level metrics.
-    """
-    if mode not in MODES:
-        raise ValueError(f"mode must be one of {sorted(MODES)}, got {mode!r}")
-    cfg = MODES[mode]
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+def measure(mode: str, cfg: dict) -> dict:
+    """Both materials: ``"full"`` (paper resolution, with the grid sweep), ``"refined"`` (the
+    full settings at dx = 0.02 m, no sweep; recorded as ``hertz_refined``) or ``"quick"``
+    (coarse steps on the refined grid, ~3 min)."""
     runs = {name: run_material(cfg, name) for name in MATERIALS}
     sweep = _grid_sweep() if mode == "full" else None
     materials = {name: {k: v for k, v in r.items() if k != "samples"} for name, r in runs.items()}
-    payload = {
-        "benchmark": NAME,
-        "mode": mode,
+    log.info(
+        "hertz: C_fit / C_hertz = %s",
+        {k: round(r["C_fit_over_C_hertz"], 4) for k, r in runs.items()},
+    )
+    return {
         "materials": materials,
         "samples": {name: r["samples"] for name, r in runs.items()},
         "fit_range_m": [FIT_MIN_CELLS * cfg["dx"], FIT_MAX_A_OVER_R * RADIUS],
@@ -628,7 +616,6 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
         "steps_total": sum(r["steps"] for r in runs.values()),
         "wall_s": sum(r["wall_s"] for r in runs.values()) + (sweep["wall_s"] if sweep else 0.0),
         "newton_iterations": sum(r["newton_iterations"] for r in runs.values()),
-        "peak_memory_mb": peak_memory_mb(),
         "paper": PAPER,
         "parameters": {
             **cfg,
@@ -651,17 +638,25 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
             "particles": next(iter(runs.values()))["particles"],
             "fit": "least squares F = C a^2 over fit_range_m",
         },
-        "environment": environment(),
+        "_runs": runs,
     }
-    name = f"{NAME}_refined" if mode == "refined" else NAME
-    path = write_json(out, name, payload)
-    png = out / f"{name}.png"
-    _plot(runs, cfg, png, f"Brazilian disk (MPM) between FEM plates, {mode} mode", sweep)
-    log.info(
-        "hertz: C_fit / C_hertz = %s",
-        {k: round(r["C_fit_over_C_hertz"], 4) for k, r in runs.items()},
+
+
+def plot(payload: dict, png: Path) -> None:
+    """``_plot`` of both materials (and the grid sweep in full mode)."""
+    mode = payload["mode"]
+    title = f"Brazilian disk (MPM) between FEM plates, {mode} mode"
+    _plot(payload["_runs"], MODES[mode], png, title, payload["grid_convergence"])
+
+
+BENCHMARK = register(
+    Benchmark(
+        NAME,
+        __doc__,
+        MODES,
+        measure,
+        plot=plot,
+        record=lambda mode, options: f"{NAME}_refined" if mode == "refined" else NAME,
     )
-    return {"json": str(path), "png": str(png), **payload}
-
-
-BENCHMARK = register(Benchmark(NAME, __doc__, MODES, None, own_run=run))
+)
+run = BENCHMARK.run

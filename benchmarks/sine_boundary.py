@@ -77,7 +77,6 @@ from matplotlib.figure import Figure
 
 import bfemp
 from benchmarks._penetration import penetration_summary
-from benchmarks.common import environment, peak_memory_mb, write_json
 from benchmarks.runner import Benchmark, register
 
 log = logging.getLogger(__name__)
@@ -445,30 +444,12 @@ def _plot(runs: dict, geo: Geometry, path_png: Path, title: str) -> None:
     fig.savefig(path_png, dpi=110)
 
 
-def run(mode: str = "full", out: str | Path = "results") -> dict:
-    """Run both boundary treatments and write ``sine_boundary.json`` and ``.png`` to ``out``.
-
-    Args:
-        mode: ``"full"`` (the paper's resolution), ``"partial"`` (the paper's scene and time
-            step on a coarser grid, dx = 0.04 m, ppc = 4) or ``"quick"`` (half-size scene,
-            coarse, < 60 s).
-        out: output folder.
-
-    Returns:
-        ``{"json": path, "png": path, ...}`` with the top-level metrics.
-    """
-    if mode not in MODES:
-        raise ValueError(f"mode must be one of {sorted(MODES)}, got {mode!r}")
-    runs = {name: run_treatment(MODES[mode], name) for name in ("bfemp", "levelset")}
-    return report(runs, mode, out)
-
-
-def report(runs: dict, mode: str, out: str | Path) -> dict:
-    """Write the JSON and the figure of finished runs (``run_treatment`` of both treatments)."""
-    cfg = MODES[mode]
+def measure(mode: str, cfg: dict) -> dict:
+    """Both boundary treatments (``run_treatment``): ``"full"`` (the paper's resolution),
+    ``"partial"`` (the paper's scene and time step on a coarser grid, dx = 0.04 m, ppc = 4) or
+    ``"quick"`` (half-size scene, coarse, < 60 s)."""
+    runs = {name: run_treatment(cfg, name) for name in ("bfemp", "levelset")}
     geo = Geometry(scale=cfg["scale"])
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     bf, ls = runs["bfemp"], runs["levelset"]
     cap = geo.t_up + MAX_UP * geo.scale - 0.5 * cfg["dt"]
 
@@ -481,8 +462,6 @@ def report(runs: dict, mode: str, out: str | Path) -> dict:
         return out
 
     payload = {
-        "benchmark": NAME,
-        "mode": mode,
         "penetrations": bf["penetrations"],
         "max_tensile_force": bf["max_tensile_force"],
         "levelset": {
@@ -495,7 +474,6 @@ def report(runs: dict, mode: str, out: str | Path) -> dict:
         "steps_total": bf["steps"] + ls["steps"],
         "wall_s": bf["wall_s"] + ls["wall_s"],
         "newton_iterations": bf["newton_iterations"] + ls["newton_iterations"],
-        "peak_memory_mb": peak_memory_mb(),
         "paper": PAPER,
         "targets": {
             "penetrations": "0 (BFEMP)",
@@ -536,16 +514,12 @@ def report(runs: dict, mode: str, out: str | Path) -> dict:
             "fem_vertices": bf.get("fem_vertices"),
             "fem_triangles": bf.get("fem_triangles"),
         },
-        "environment": environment(),
     }
     if mode == "partial":
         payload["note"] = (
             "partial run: the paper's scene, path and dt on a coarser grid (dx 0.04 m, ppc 4, "
             "2500 particles); full mode (dx 0.02 m, ppc 9, 22500 particles) takes hours on 2 cores"
         )
-    path_json = write_json(out, NAME, payload)
-    png = out / f"{NAME}.png"
-    _plot(runs, geo, png, f"Sine boundary on an MPM box: BFEMP vs level-set slip, {mode} mode")
     log.info(
         "%s: BFEMP penetrations %d, tensile %.3g N/m; level set penetrations %d, tensile %.3g N/m",
         NAME,
@@ -554,7 +528,15 @@ def report(runs: dict, mode: str, out: str | Path) -> dict:
         ls["penetrations"],
         ls["max_tensile_force"],
     )
-    return {"json": str(path_json), "png": str(png), **payload}
+    return {**payload, "_runs": runs}
 
 
-BENCHMARK = register(Benchmark(NAME, __doc__, MODES, None, own_run=run))
+def plot(payload: dict, png: Path) -> None:
+    """``_plot`` of both treatments."""
+    mode = payload["mode"]
+    title = f"Sine boundary on an MPM box: BFEMP vs level-set slip, {mode} mode"
+    _plot(payload["_runs"], Geometry(scale=MODES[mode]["scale"]), png, title)
+
+
+BENCHMARK = register(Benchmark(NAME, __doc__, MODES, measure, plot=plot))
+run = BENCHMARK.run

@@ -49,7 +49,6 @@ from __future__ import annotations
 
 import logging
 import math
-import time
 from pathlib import Path
 
 import numpy as np
@@ -60,7 +59,6 @@ import bfemp
 from benchmarks.catalogue import SLOPE_PHYSICS as PHYSICS
 from benchmarks.catalogue import SLOPE_VARIANTS as VARIANTS
 from benchmarks.catalogue import release_slope, settle_slope
-from benchmarks.common import environment, peak_memory_mb, write_json
 from benchmarks.runner import Benchmark, register
 
 log = logging.getLogger(__name__)
@@ -254,23 +252,11 @@ def run_point(settings: dict) -> dict:
     return out
 
 
-def run(mode: str = "full", out: str | Path = "results") -> dict:
-    """Settle, release at each mu, fit the accelerations; write ``slope.json`` and ``slope.png``.
-
-    Args:
-        mode: ``"full"`` (the paper's settling and release periods, every variant) or
-            ``"quick"`` (short periods; the ``fine_slope`` variant at mu = 0.1999 only).
-        out: output folder.
-
-    Returns:
-        ``{"json": path, "png": path, **payload}``; ``payload["cases"]`` are the
-        ``tilted_gravity`` results, ``payload["variants"]`` those of every variant.
-    """
-    if mode not in MODES:
-        raise ValueError(f"mode must be one of {sorted(MODES)}, got {mode!r}")
-    cfg = MODES[mode]
-    out = Path(out)
-    started = time.perf_counter()
+def measure(mode: str, cfg: dict) -> dict:
+    """Settle, release at each mu, fit the accelerations: ``"full"`` (the paper's settling and
+    release periods, every variant) or ``"quick"`` (short periods; the ``fine_slope`` variant at
+    mu = 0.1999 only). ``cases`` are the ``tilted_gravity`` results, ``variants`` those of every
+    variant."""
     results = {
         name: _run_variant(name, PHYSICS["mus"] if mus is None else mus, cfg)
         for name, mus in cfg["variants"].items()
@@ -279,9 +265,7 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
     everything = [c for r in results.values() for c in r["cases"]]
     steps = sum(r["settle"]["steps"] for r in results.values())
     newton = sum(r["settle"]["newton_iterations"] for r in results.values())
-    payload = {
-        "benchmark": NAME,
-        "mode": mode,
+    return {
         "frame": primary["frame"],
         "cases": _strip(primary["cases"]),
         "settle": primary["settle"],
@@ -295,19 +279,20 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
             for c in r["cases"]
             if c["error"] is not None
         ],
-        "wall_s": time.perf_counter() - started,
         "steps": steps + sum(c["steps"] for c in everything),
         "newton_iterations": newton + sum(c["newton_iterations"] for c in everything),
-        "peak_memory_mb": peak_memory_mb(),
         "parameters": {**PHYSICS, **cfg, "variant_specs": VARIANTS},
         "paper": {"accel_rel_error": 1e-4, "mu_0.2_speed": "around eps_v"},
-        "environment": environment(),
         "series": {str(c["mu"]): c["series"] for c in primary["cases"]},
+        "_results": results,
     }
-    path = write_json(out, NAME, payload)
-    png = out / f"{NAME}.png"
-    plot_cases(results, png, f"MPM box on a FEM slope, tan theta = 0.2 ({mode} mode, dt = 1e-3 s)")
-    return {"json": str(path), "png": str(png), **payload}
 
 
-BENCHMARK = register(Benchmark(NAME, __doc__, MODES, None, own_run=run))
+def plot(payload: dict, png: Path) -> None:
+    """``plot_cases`` of every variant."""
+    title = f"MPM box on a FEM slope, tan theta = 0.2 ({payload['mode']} mode, dt = 1e-3 s)"
+    plot_cases(payload["_results"], png, title)
+
+
+BENCHMARK = register(Benchmark(NAME, __doc__, MODES, measure, plot=plot))
+run = BENCHMARK.run
