@@ -55,8 +55,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from benchmarks import catalogue
-from benchmarks.common import environment, peak_memory_mb, write_json
-from benchmarks.runner import Benchmark, register
+from benchmarks.runner import Benchmark, name_unless, register
 
 log = logging.getLogger(__name__)
 
@@ -205,15 +204,10 @@ def _compression(mode: str, variants: tuple[str, ...]) -> dict:
     return {"mode": cmode, "v0_m_s": v0, "final_strain": strain, "runs": runs}
 
 
-def run(mode: str = "full", out: str | Path = "results") -> dict:
-    """Run ``mode``; write ``lr_variants[_MODE].json`` and its PNG."""
-    if mode not in MODES:
-        raise ValueError(f"lr_variants mode must be one of {sorted(MODES)}, got {mode!r}")
-    variants, scenes = MODES[mode]["variants"], MODES[mode]["scenes"]
-    started = time.perf_counter()
+def measure(mode: str, cfg: dict) -> dict:
+    """Every variant of ``mode`` on each of its scenes."""
+    variants, scenes = cfg["variants"], cfg["scenes"]
     payload: dict = {
-        "benchmark": NAME,
-        "mode": mode,
         "variants": {v: VARIANTS[v] for v in variants},
     }
     if "slope" in scenes:
@@ -229,13 +223,7 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
             payload["rings"]["runs"][name] = rings_case(VARIANTS[name], reference)
     if "compression" in scenes:
         payload["compression"] = _compression(mode, variants)
-    payload["wall_s"] = time.perf_counter() - started
-    payload["peak_memory_mb"] = peak_memory_mb()
-    payload["environment"] = environment()
-    name = NAME if mode == "full" else f"{NAME}_{mode}"
-    path = write_json(out, name, payload)
-    plot(payload, Path(out) / f"{name}.png")
-    return {"json": str(path), **payload}
+    return payload
 
 
 def _error(scene: str, run_: dict) -> float | None:
@@ -281,4 +269,7 @@ def plot(payload: dict, path: Path) -> None:
     fig.savefig(path, dpi=110)
 
 
-BENCHMARK = register(Benchmark(NAME, __doc__, MODES, None, own_run=run))
+BENCHMARK = register(
+    Benchmark(NAME, __doc__, MODES, measure, plot=plot, record=name_unless("full", NAME))
+)
+run = BENCHMARK.run
