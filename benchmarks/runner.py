@@ -158,6 +158,7 @@ def run_named(name: str, mode: str, out: str | Path, module: object = None, **op
 #: keys whose values are measured times, machine load or memory: not compared by ``verify``
 TIMING_KEY = re.compile(
     r"(^|_)(wall|timings?|elapsed|seconds|per_s|speedup|phases?)(_|$)|^time_|_time_s$|"
+    r"s_per_step|time_per_step|"
     r"^(environment|peak_memory_mb|merged_from|load_average_1min)$"
 )
 
