@@ -7,9 +7,28 @@ import time
 
 import numpy as np
 
+from benchmarks._blas_switch import factorisation_by_blas
 from solvers.assembly import TripletAssembler
 from solvers.choice import make_linear_solver
 from solvers.linear import cholmod_available
+
+MACHINE_NOTE = "2 shared cores, loaded by other work: compare ratios within this run"
+
+
+def cases_and_blas(cases: dict, measure_one) -> dict:
+    """Each case of ``cases`` (name -> its parameters) measured by ``measure_one(name,
+    matrices, dim, cfg)``, which adds the case's Hessian to ``matrices``; then CHOLMOD's
+    factorisation of each Hessian on the reference and the default BLAS (per process)."""
+    matrices: dict = {}
+    measured = {
+        name: measure_one(name, matrices, 2 if name == "2d" else 3, cfg)
+        for name, cfg in cases.items()
+    }
+    return {
+        "cases": measured,
+        "blas_side_by_side": factorisation_by_blas(matrices),
+        "machine_note": MACHINE_NOTE,
+    }
 
 
 def median_time(fn, repeats: int = 3) -> float:

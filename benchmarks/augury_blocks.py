@@ -33,8 +33,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 import bfemp
-from benchmarks.common import environment, peak_memory_mb, write_json
-from benchmarks.runner import Benchmark, register
+from benchmarks.runner import Benchmark, register, write_record
 from bfemp import diagnostics
 from bfemp.steppers.augury import AuguryOptions, AuguryStepper
 from bfemp.terms import fem_elastic_groups
@@ -374,13 +373,8 @@ def run_long(
             "mesh": "bfemp box, 6 tets per cube",
         },
         "wall_s": time.perf_counter() - started if ran else sum(r["wall_s"] for r in runs),
-        "peak_memory_mb": peak_memory_mb(),
-        "environment": environment(),
     }
-    path = write_json(out, name, payload)
-    png = out / f"{name}.png"
-    _plot(runs, png)
-    return {"json": str(path), "png": str(png), **payload}
+    return write_record(out, name, payload, lambda _, png: _plot(runs, png))
 
 
 BENCHMARK = register(

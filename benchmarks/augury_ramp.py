@@ -40,8 +40,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 import bfemp
-from benchmarks.common import environment, peak_memory_mb, write_json
-from benchmarks.runner import Benchmark, register
+from benchmarks.runner import Benchmark, register, write_record
 from bfemp.steppers.augury import AuguryOptions, AuguryStepper
 
 log = logging.getLogger(__name__)
@@ -465,13 +464,8 @@ def run_conforming(
             "energy_guard": True,
         },
         "wall_s": sum(c["wall_s"] for c in cases) if not ran else time.perf_counter() - started,
-        "peak_memory_mb": peak_memory_mb(),
-        "environment": environment(),
     }
-    path = write_json(out, name, payload)
-    png = out / f"{name}.png"
-    _plot_conforming(cases, png)
-    return {"json": str(path), "png": str(png), **payload}
+    return write_record(out, name, payload, lambda _, png: _plot_conforming(cases, png))
 
 
 def _plot_conforming(cases: list[dict], path: Path) -> None:

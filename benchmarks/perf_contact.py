@@ -101,8 +101,8 @@ from matplotlib.figure import Figure
 import bfemp
 from benchmarks import catalogue
 from benchmarks._phases import newton_phases
-from benchmarks.common import environment, peak_memory_mb, write_json
-from benchmarks.runner import Benchmark, register
+from benchmarks.common import environment, peak_memory_mb
+from benchmarks.runner import Benchmark, register, write_record
 from bfemp.contact._barrier_kernels import _barrier_gradients, _barrier_hessians
 from bfemp.contact.barrier import barrier, barrier_derivative, barrier_second_derivative
 from bfemp.contact.evaluation import KERNEL_KIND
@@ -729,11 +729,8 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
     record = out / f"{NAME}.json"
     previous = json.loads(record.read_text()) if record.exists() else None
     payload["before_after"] = _before_after(previous, payload)
-    path = write_json(out, NAME, payload)
-    png = out / f"{NAME}.png"
-    _plot(payload, png)
     log.info("perf_contact: pairs/s %s; CCD s %s", pairs_per_s, ccd_s)
-    return {"json": str(path), "png": str(png), **payload}
+    return write_record(out, NAME, payload, _plot)
 
 
 BENCHMARK = register(Benchmark(NAME, __doc__, MODES, None, own_run=run))

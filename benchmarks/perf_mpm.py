@@ -17,8 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks import catalogue
-from benchmarks._blas_switch import factorisation_by_blas
-from benchmarks._phases import median_time, newton_phases
+from benchmarks._phases import cases_and_blas, median_time, newton_phases
 from benchmarks.runner import Benchmark, name_unless, register
 from bfemp.integrators import BACKWARD_EULER
 from bfemp.mpm.step import prepare_mpm_step
@@ -73,17 +72,9 @@ def _measure(name: str, matrices: dict, dim: int, cells: tuple[int, ...], ppc: i
 
 def measure(mode: str, cases: dict) -> dict:
     """Both cases of ``mode``, and CHOLMOD on each case's Hessian per BLAS."""
-    matrices: dict = {}
-    cases = {
-        name: _measure(name, matrices, 2 if name == "2d" else 3, cfg["cells"], cfg["ppc"])
-        for name, cfg in cases.items()
-    }
-    return {
-        "cases": cases,
-        # CHOLMOD factorisation of each case's Hessian, reference vs default BLAS (per process)
-        "blas_side_by_side": factorisation_by_blas(matrices),
-        "machine_note": "2 shared cores, loaded by other work: compare ratios within this run",
-    }
+    return cases_and_blas(
+        cases, lambda name, m, dim, cfg: _measure(name, m, dim, cfg["cells"], cfg["ppc"])
+    )
 
 
 def plot(payload: dict, png: Path) -> None:

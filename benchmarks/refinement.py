@@ -54,7 +54,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 import bfemp
-from benchmarks.runner import Benchmark, register
+from benchmarks.runner import Benchmark, name_unless, register
 
 log = logging.getLogger(__name__)
 
@@ -275,5 +275,7 @@ def plot(payload: dict, png: Path) -> None:
     _plot(series, png, f"MPM box on FEM box: centre-of-mass height error ({mode} mode)")
 
 
-BENCHMARK = register(Benchmark(NAME, __doc__, MODES, measure, plot=plot))
+BENCHMARK = register(
+    Benchmark(NAME, __doc__, MODES, measure, plot=plot, record=name_unless("full", NAME))
+)
 run = BENCHMARK.run

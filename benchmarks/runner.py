@@ -107,20 +107,35 @@ class Benchmark:
         payload.setdefault("wall_s", wall)
         payload.setdefault("peak_memory_mb", peak_memory_mb())
         payload.setdefault("environment", env)
-        out = Path(out)
-        stem = self.stem(mode, options)
-        record = {k: v for k, v in payload.items() if not k.startswith("_")}
-        summary = {"json": str(write_json(out, stem, record))}
-        if self.report is not None:
-            md = out / f"{stem}.md"
-            md.write_text(self.report(payload))
-            summary["md"] = str(md)
-        if self.plot is not None:
-            png = out / f"{stem}.png"
-            self.plot(payload, png)
-            if png.exists():  # a plot may have nothing to draw for some options
-                summary["png"] = str(png)
-        return {**summary, **record}
+        return write_record(out, self.stem(mode, options), payload, self.plot, self.report)
+
+
+def write_record(
+    out: str | Path,
+    stem: str,
+    payload: dict,
+    plot: Callable[[dict, Path], None] | None = None,
+    report: Callable[[dict], str] | None = None,
+) -> dict:
+    """Write ``out/STEM.json`` (the payload without its underscored keys, with the peak memory
+    and the environment where it has none), ``STEM.md`` from ``report(payload)`` and
+    ``STEM.png`` from ``plot(payload, path)``; returns ``{"json": path, "png": path, "md":
+    path, **record}`` (the files written)."""
+    payload.setdefault("peak_memory_mb", peak_memory_mb())
+    payload.setdefault("environment", environment())
+    out = Path(out)
+    record = {k: v for k, v in payload.items() if not k.startswith("_")}
+    summary = {"json": str(write_json(out, stem, record))}
+    if report is not None:
+        md = out / f"{stem}.md"
+        md.write_text(report(payload))
+        summary["md"] = str(md)
+    if plot is not None:
+        png = out / f"{stem}.png"
+        plot(payload, png)
+        if png.exists():  # a plot may have nothing to draw for some options
+            summary["png"] = str(png)
+    return {**summary, **record}
 
 
 def register(benchmark: Benchmark) -> Benchmark:
@@ -158,7 +173,7 @@ def run_named(name: str, mode: str, out: str | Path, module: object = None, **op
 #: keys whose values are measured times, machine load or memory: not compared by ``verify``
 TIMING_KEY = re.compile(
     r"(^|_)(wall|timings?|elapsed|seconds|per_s|speedup|phases?)(_|$)|^time_|_time_s$|"
-    r"s_per_step|time_per_step|"
+    r"s_per_step|time_per_step|_per_query$|"
     r"^(environment|peak_memory_mb|merged_from|load_average_1min)$"
 )
 

@@ -44,8 +44,8 @@ from matplotlib.figure import Figure
 import bfemp
 from benchmarks import catalogue as cat
 from benchmarks import rings, slope
-from benchmarks.common import environment, peak_memory_mb, write_json
-from benchmarks.runner import Benchmark, register
+from benchmarks.common import environment, peak_memory_mb
+from benchmarks.runner import Benchmark, register, write_record
 from bfemp.steppers.augury import AuguryOptions
 from bfemp.steppers.lr import LROptions
 from bfemp.steppers.two_stage import TwoStageOptions, TwoStageStepper
@@ -551,10 +551,7 @@ def run_sticking(
             for c in cases
         },
     }
-    path = write_json(out, name, payload)
-    png = out / f"{name}.png"
-    _plot_sticking(cases, png)
-    return {"json": str(path), "png": str(png), **payload}
+    return write_record(out, name, payload, lambda _, png: _plot_sticking(cases, png))
 
 
 def sticking_metrics(case: dict, fit_start_s: float) -> None:

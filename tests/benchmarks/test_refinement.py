@@ -10,7 +10,9 @@ result = record_fixture("refinement")
 
 def test_writes_json_and_plot(result):
     check_written(
-        result, "refinement", keys=("series", "wall_s", "peak_memory_mb", "parameters", "runs")
+        result,
+        "refinement_quick",
+        keys=("series", "wall_s", "peak_memory_mb", "parameters", "runs"),
     )
 
 
