@@ -22,11 +22,12 @@ def record_fixture(name: str, mode: str = "quick", **options):
     return result
 
 
-def check_written(result, stem: str, png_bytes: int = 10_000, keys=()) -> None:
+def check_written(result, stem: str, keys: str = "", png_bytes: int = 10_000) -> dict:
     """The run wrote ``stem.json`` (the path it returned) and a plot of more than
-    ``png_bytes`` bytes, and its record holds ``keys``."""
+    ``png_bytes`` bytes, and its record holds ``keys`` (space-separated); returns the record."""
     summary, data, out = result
     assert summary["json"] == str(out / f"{stem}.json")
     assert (out / f"{stem}.png").stat().st_size > png_bytes
-    for key in keys:
+    for key in keys.split():
         assert key in data, key
+    return data

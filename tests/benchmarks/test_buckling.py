@@ -13,12 +13,9 @@ result = record_fixture("buckling")
 
 
 def test_writes_json_and_plot(result):
-    check_written(
-        result,
-        "buckling",
-        keys=("detachment_end_m", "u_buckle_m", "wall_s", "peak_memory_mb", "parameters"),
+    data = check_written(
+        result, "buckling", "detachment_end_m u_buckle_m wall_s peak_memory_mb parameters"
     )
-    _, data, _ = result
     assert [case["mu"] for case in data["cases"]] == list(buckling.MUS)
 
 

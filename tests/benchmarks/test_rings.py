@@ -12,12 +12,9 @@ result = record_fixture("rings")
 
 
 def test_writes_json_and_plot(result):
-    check_written(
-        result,
-        "rings",
-        keys=("momentum_drift_rel", "min_distance", "energy_loss_pct", "steps", "wall_s"),
+    data = check_written(
+        result, "rings", "momentum_drift_rel min_distance energy_loss_pct steps wall_s"
     )
-    _, data, _ = result
     assert all(run["error"] is None for run in data["runs"].values())
     for run in data["runs"].values():  # where each run's time went, summed over its steps
         phases = run["phase_s"]

@@ -14,13 +14,12 @@ result = record_fixture("sine_boundary")
 
 
 def test_writes_json_and_plot(result):
-    check_written(
+    data = check_written(
         result,
         "sine_boundary",
+        "penetrations max_tensile_force levelset wall_s steps",
         png_bytes=20_000,
-        keys=("penetrations", "max_tensile_force", "levelset", "wall_s", "steps"),
     )
-    _, data, _ = result
     for key in ("penetrations", "max_tensile_force"):
         assert key in data["levelset"], key
     assert data["bfemp"]["error"] is None and data["levelset"]["error"] is None
