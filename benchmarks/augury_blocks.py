@@ -29,10 +29,9 @@ import time
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 import bfemp
+from benchmarks.common import figure
 from benchmarks.runner import Benchmark, register, write_record
 from bfemp import diagnostics
 from bfemp.steppers.augury import AuguryOptions, AuguryStepper
@@ -168,9 +167,7 @@ def run_variant(h: float, transfer: str, iterations: int, t_end: float = T_END) 
 
 
 def _plot(runs: list[dict], path: Path) -> None:
-    fig = Figure(figsize=(13, 4))
-    FigureCanvasAgg(fig)
-    axes = fig.subplots(1, 3)
+    fig, axes = figure((13, 4), 1, 3)
     for k, r in enumerate(runs):
         lab = f"{r['transfer']} N={r['iterations']} h={r['h']:g}"
         ls = "-" if r["h"] == runs[-1]["h"] else ":"

@@ -28,11 +28,10 @@ import logging
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
+from benchmarks.common import figure
 from benchmarks.runner import Benchmark, register
 from bfemp.contact.augury import ContactOperator, augury_correction, contact_stencils
 
@@ -106,9 +105,7 @@ def simulate_gap(tau: float, apic: bool, samples: int = 200) -> tuple[np.ndarray
 
 
 def _plot(rows: list[dict], path: Path) -> None:
-    fig = Figure(figsize=(11, 4.2))
-    FigureCanvasAgg(fig)
-    axes = fig.subplots(1, 2)
+    fig, axes = figure((11, 4.2), 1, 2)
     for k, row in enumerate(rows):
         c = f"C{k}"
         t = np.array(row["t"])

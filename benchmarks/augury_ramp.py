@@ -36,10 +36,9 @@ import time
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 import bfemp
+from benchmarks.common import figure
 from benchmarks.runner import Benchmark, register, write_record
 from bfemp.steppers.augury import AuguryOptions, AuguryStepper
 
@@ -224,9 +223,7 @@ def run_case(
 
 
 def _plot(cases: list[dict], path: Path) -> None:
-    fig = Figure(figsize=(11, 4.2))
-    FigureCanvasAgg(fig)
-    axes = fig.subplots(1, 2)
+    fig, axes = figure((11, 4.2), 1, 2)
     mus = sorted({c["mu"] for c in cases})
     for c in cases:
         color = f"C{mus.index(c['mu'])}"
@@ -471,9 +468,7 @@ def run_conforming(
 def _plot_conforming(cases: list[dict], path: Path) -> None:
     """Slope displacement against time (APIC; solid: conforming, dashed: spec) and the
     relative error at t_end against h per (placement, transfer, mu)."""
-    fig = Figure(figsize=(11, 4.2))
-    FigureCanvasAgg(fig)
-    axes = fig.subplots(1, 2)
+    fig, axes = figure((11, 4.2), 1, 2)
     hs = sorted({c["h"] for c in cases}, reverse=True)
     mus = sorted({c["mu"] for c in cases})
     for c in cases:

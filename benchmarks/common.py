@@ -66,6 +66,17 @@ def peak_memory_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
+def figure(figsize: tuple[float, float], *grid, layout: str | None = None, **subplots):
+    """A matplotlib figure drawn without a display (Agg canvas) and its axes
+    ``fig.subplots(*grid, **subplots)``: ``(fig, axes)``; ``figsize`` in inches."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=figsize, layout=layout)
+    FigureCanvasAgg(fig)
+    return fig, fig.subplots(*grid, **subplots)
+
+
 def write_json(out: str | Path, name: str, payload: dict) -> Path:
     """Write ``out/name.json`` (indented) and return its path."""
     out = Path(out)

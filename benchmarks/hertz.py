@@ -67,11 +67,10 @@ import time
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 import bfemp
 from benchmarks._penetration import penetration_summary
+from benchmarks.common import figure
 from benchmarks.runner import Benchmark, register
 
 log = logging.getLogger(__name__)
@@ -551,9 +550,7 @@ def _grid_sweep() -> dict:
 def _plot(runs: dict, cfg: dict, path: Path, title: str, sweep: dict | None = None) -> None:
     """Figure 10 style: F against a (both materials, Hertz, fits); F against the plate travel;
     with a sweep, C_fit / C_hertz against the grid spacing."""
-    fig = Figure(figsize=(16.0 if sweep else 11.0, 4.8), layout="constrained")
-    FigureCanvasAgg(fig)
-    axes = fig.subplots(1, 3 if sweep else 2)
+    fig, axes = figure((16.0 if sweep else 11.0, 4.8), 1, 3 if sweep else 2, layout="constrained")
     c_h = hertz_constant()
     a_max = max(max(r["samples"]["a"], default=0.0) for r in runs.values())
     a_line = np.linspace(0.0, max(a_max, 1e-3) * 1.05, 200)

@@ -46,10 +46,9 @@ import time
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 import bfemp
+from benchmarks.common import figure
 from benchmarks.runner import Benchmark, name_unless, register
 from bfemp.contact import lr as lr_contact
 from bfemp.materials import BulkShearHyperelastic
@@ -481,9 +480,7 @@ def compression(mode: str) -> dict:
 def plot(record: dict, path: Path) -> None:
     """Fig. 5: the stress error against strain per detector (all; the LR runs zoomed, with
     LR-XPIC(5)'s d_LR releases marked, ``release_cause``), and the stresses themselves."""
-    fig = Figure(figsize=(15, 4.4))
-    FigureCanvasAgg(fig)
-    ax, zx, bx = fig.subplots(1, 3)
+    fig, (ax, zx, bx) = figure((15, 4.4), 1, 3)
     comp = record["compression"]
     names = ("lr_flip", "lr_xpic5", "lr_once", "velocity", "cp_0.8", "lr_once_xpic5", FORCED)
     color = {name: f"C{k}" for k, name in enumerate(names)}

@@ -19,9 +19,8 @@ import logging
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
+from benchmarks.common import figure
 from benchmarks.lr_compression import C_K, DX, MODES, column_scene, run_case
 from benchmarks.runner import Benchmark, name_unless, register
 
@@ -75,9 +74,7 @@ def contact_time(mode: str) -> dict:
 
 def plot(record: dict, path: Path) -> None:
     """Fig. 2B: the mean stress against time per case, t_c dashed."""
-    fig = Figure(figsize=(6, 4.2))
-    FigureCanvasAgg(fig)
-    ax = fig.subplots()
+    fig, ax = figure((6, 4.2))
     for key, case in record["cases"].items():
         ax.plot(1e3 * np.asarray(case["t"]), -1e-6 * np.asarray(case["stress"]), label=key)
     ax.axvline(1e3 * record["t_c"], color="k", lw=0.6, ls="--")

@@ -32,11 +32,10 @@ import time
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 import bfemp
 from benchmarks._ellipse_bodies import add_ellipse_classes
+from benchmarks.common import figure
 from benchmarks.runner import Benchmark, name_unless, register
 from bfemp.materials import BulkShearHyperelastic
 from bfemp.motion import Linear
@@ -152,9 +151,7 @@ def run_detector(cfg: dict, name: str, samples: int = 40) -> dict:
 
 def plot(record: dict, path: Path) -> None:
     """Stress and interpenetration against compression, per detector."""
-    fig = Figure(figsize=(10, 4))
-    FigureCanvasAgg(fig)
-    ax, bx = fig.subplots(1, 2)
+    fig, (ax, bx) = figure((10, 4), 1, 2)
     cfg = record["setup"]
     for name, run_ in record["runs"].items():
         comp = 100 * PISTON_SPEED * np.asarray(run_["history"]["t"]) / cfg["height"]

@@ -95,13 +95,11 @@ from pathlib import Path
 import numba
 import numpy as np
 import scipy.sparse as sp
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 import bfemp
 from benchmarks import catalogue
 from benchmarks._phases import newton_phases
-from benchmarks.common import environment, peak_memory_mb
+from benchmarks.common import environment, figure, peak_memory_mb
 from benchmarks.runner import Benchmark, register, write_record
 from bfemp.contact._barrier_kernels import _barrier_gradients, _barrier_hessians
 from bfemp.contact.barrier import barrier, barrier_derivative, barrier_second_derivative
@@ -583,9 +581,9 @@ def _per_s(pairs: int, seconds: float | None) -> float | None:
 
 def _plot(payload: dict, path: Path) -> None:
     """Pairs/s per level (2D, 3D), CCD times, and the rings step's phases per iteration."""
-    fig = Figure(figsize=(13.0, 4.6), layout="constrained")
-    FigureCanvasAgg(fig)
-    ax_b, ax_c, ax_r = fig.subplots(1, 3, width_ratios=(2.2, 1.0, 1.6))
+    fig, (ax_b, ax_c, ax_r) = figure(
+        (13.0, 4.6), 1, 3, width_ratios=(2.2, 1.0, 1.6), layout="constrained"
+    )
     labels, series = [], {"bfemp": [], "ipctk": []}
     for dim_key, case in payload["cases"].items():
         bf, ip = case["bfemp"], case["ipctk"] or {}

@@ -50,10 +50,9 @@ import time
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 import bfemp
+from benchmarks.common import figure
 from benchmarks.runner import Benchmark, name_unless, register
 
 log = logging.getLogger(__name__)
@@ -211,9 +210,7 @@ def _series(runs: list[dict], ref: dict) -> dict:
 
 def _plot(series: dict, path: Path, title: str) -> None:
     """Figure 14: error of the centre-of-mass height against dx, log-log, per PPC."""
-    fig = Figure(figsize=(6.4, 4.8), layout="constrained")
-    FigureCanvasAgg(fig)
-    ax = fig.subplots()
+    fig, ax = figure((6.4, 4.8), layout="constrained")
     for k, (ppc, s) in enumerate(series.items()):
         dx = 1.0 / np.array(s["ns"], dtype=float)
         ax.loglog(dx, s["errors"], "o-", color=f"C{k}", label=f"PPC {ppc}: order {s['order']:.2f}")

@@ -64,8 +64,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 import bfemp
 from benchmarks.catalogue import (
@@ -83,6 +81,7 @@ from benchmarks.catalogue import (
     rings_scene,
     window_energies,
 )
+from benchmarks.common import figure
 from benchmarks.runner import Benchmark, register
 
 log = logging.getLogger(__name__)
@@ -239,9 +238,7 @@ def _for_json(run: dict) -> dict:
 def _plot(runs: dict, path: Path, title: str, compared: dict | None = None) -> None:
     """Figure 7 style: energies of each transfer over time (with ``compared``, {integrator:
     {transfer: run}}, the total energy of those runs too), and the momentum drift."""
-    fig = Figure(figsize=(8.0, 9.0), layout="constrained")
-    FigureCanvasAgg(fig)
-    axes = fig.subplots(3, 1, sharex=True)
+    fig, axes = figure((8.0, 9.0), 3, 1, sharex=True, layout="constrained")
     for ax, (transfer, run) in zip(axes[:2], runs.items(), strict=True):
         s = run["series"]
         for key, style, label in (

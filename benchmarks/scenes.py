@@ -38,13 +38,11 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 import bfemp
 from benchmarks import catalogue as cat
 from benchmarks import rings, slope
-from benchmarks.common import environment, peak_memory_mb
+from benchmarks.common import environment, figure, peak_memory_mb
 from benchmarks.runner import Benchmark, register, write_record
 from bfemp.steppers.augury import AuguryOptions
 from bfemp.steppers.lr import LROptions
@@ -266,9 +264,7 @@ def _two_stage_rings(mode: str) -> dict:
 
 
 def _plot_two_stage_rings(payload: dict, png: Path) -> None:
-    fig = Figure(figsize=(6.0, 4.0))
-    FigureCanvasAgg(fig)
-    ax = fig.subplots()
+    fig, ax = figure((6.0, 4.0))
     for tr, series in payload["series"].items():
         ax.plot(series["t"], series["total"], label=f"two_stage {tr}")
     ax.set(xlabel="t (s)", ylabel="kinetic + elastic energy (J/m)")
@@ -588,9 +584,7 @@ def sticking_metrics(case: dict, fit_start_s: float) -> None:
 
 def _plot_sticking(cases: list[dict], path: Path) -> None:
     """Speed along the slope over eps_v against time since release, per case."""
-    fig = Figure(figsize=(11, 4.2))
-    FigureCanvasAgg(fig)
-    axes = fig.subplots(1, 2)
+    fig, axes = figure((11, 4.2), 1, 2)
     eps_vs = sorted({c["eps_v"] for c in cases})
     for c in cases:
         ax = axes[0 if c["mu_over_tan_theta"] < 1.2 else 1]

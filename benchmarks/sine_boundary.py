@@ -72,11 +72,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 import bfemp
 from benchmarks._penetration import penetration_summary
+from benchmarks.common import figure
 from benchmarks.runner import Benchmark, register
 
 log = logging.getLogger(__name__)
@@ -383,9 +382,7 @@ def run_treatment(cfg: dict, treatment: str) -> dict:
 def _plot(runs: dict, geo: Geometry, path_png: Path, title: str) -> None:
     """Side by side per treatment: force and penetrations over time, snapshots at the deepest
     point and during separation (when the level set pulls hardest)."""
-    fig = Figure(figsize=(11.0, 12.0), layout="constrained")
-    FigureCanvasAgg(fig)
-    axes = fig.subplots(3, 2)
+    fig, axes = figure((11.0, 12.0), 3, 2, layout="constrained")
     ls = runs["levelset"]["series"]
     up = ls["t"] > geo.t_up
     t_pull = float(ls["t"][up][np.argmax(ls["fy"][up])]) if up.any() else geo.t_up

@@ -52,13 +52,12 @@ import math
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 import bfemp
 from benchmarks.catalogue import SLOPE_PHYSICS as PHYSICS
 from benchmarks.catalogue import SLOPE_VARIANTS as VARIANTS
 from benchmarks.catalogue import release_slope, settle_slope
+from benchmarks.common import figure
 from benchmarks.runner import Benchmark, register
 
 log = logging.getLogger(__name__)
@@ -97,9 +96,7 @@ def plot_cases(results: dict, path: Path, title: str) -> None:
     theta = math.atan(p["tan_theta"])
     g_sin = p["g_m_s2"] * math.sin(theta)
     colors = {mu: f"C{k}" for k, mu in enumerate(p["mus"])}
-    fig = Figure(figsize=(12.0, 4.6))
-    FigureCanvasAgg(fig)
-    ax_v, ax_a = fig.subplots(1, 2)
+    fig, (ax_v, ax_a) = figure((12.0, 4.6), 1, 2)
     for variant, result in results.items():
         for case in result["cases"]:
             tau = np.array(case["series"]["tau_s"])

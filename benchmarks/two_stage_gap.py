@@ -28,10 +28,9 @@ import time
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 import bfemp
+from benchmarks.common import figure
 from benchmarks.runner import Benchmark, register
 from bfemp.steppers.augury import AuguryOptions
 
@@ -133,9 +132,7 @@ def measure(mode: str, cfg: dict) -> dict:
 
 def plot(payload: dict, png: Path) -> None:
     """The lowest particle's height against time, per case, beside dhat and dx."""
-    fig = Figure(figsize=(6.0, 4.0))
-    FigureCanvasAgg(fig)
-    ax = fig.subplots()
+    fig, ax = figure((6.0, 4.0))
     for c, series in payload["series"].items():
         ax.plot(series["t"], series["lowest_m"], label=c)
     ax.axhline(DHAT, color="k", ls=":", lw=0.8, label="dhat")

@@ -77,3 +77,14 @@ def test_verify_names_an_unknown_benchmark(capsys):
     with pytest.raises(SystemExit):
         main(["verify", "no_such_benchmark"])
     assert "invalid choice: 'no_such_benchmark'" in capsys.readouterr().err
+
+
+def test_figure_draws_without_a_display(tmp_path):
+    from benchmarks.common import figure
+
+    fig, (left, right) = figure((4.0, 3.0), 1, 2, layout="constrained")
+    left.plot([0.0, 1.0], [1.0, 0.0])
+    right.bar([0, 1], [2.0, 3.0])
+    fig.savefig(tmp_path / "f.png", dpi=50)
+    assert (tmp_path / "f.png").stat().st_size > 1_000
+    assert fig.get_size_inches().tolist() == [4.0, 3.0]
