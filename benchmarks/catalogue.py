@@ -26,6 +26,30 @@ import bfemp
 
 log = logging.getLogger(__name__)
 
+
+def simulation(scene: bfemp.Scene, cfg: dict, strategy: str, tol: float, max_newton: int):
+    """The paper's implicit solve, ``strategy`` (barrier) by backward Euler with Newton
+    tolerance ``tol`` (m/s) and cap ``max_newton``, when ``cfg`` has no ``options``; else
+    ``cfg``'s ``strategy``, ``integrator`` and ``options`` object (the trade study's explicit
+    points). The step is ``cfg["dt"]`` (s)."""
+    if cfg.get("options") is None:
+        return bfemp.Simulation(
+            scene,
+            strategy=strategy,
+            integrator="backward_euler",
+            dt=cfg["dt"],
+            tol=tol,
+            max_newton_iterations=max_newton,
+        )
+    return bfemp.Simulation(
+        scene,
+        strategy=cfg["strategy"],
+        integrator=cfg["integrator"],
+        dt=cfg["dt"],
+        options=cfg["options"],
+    )
+
+
 # ----------------------------------------------------------------------------- rings
 R_INNER, R_OUTER = 3.0, 4.0  # m
 

@@ -69,6 +69,7 @@ from pathlib import Path
 import numpy as np
 
 import bfemp
+from benchmarks import catalogue
 from benchmarks._penetration import penetration_summary
 from benchmarks.common import figure
 from benchmarks.runner import Benchmark, register
@@ -349,23 +350,10 @@ def run_material(cfg: dict, material: str, top_plate: str = "elastic") -> dict:
     lowest particle above the plate; < 0: inside it).
     """
     scene, geo = _scene(cfg, material, cfg.get("top_plate", top_plate))
-    if cfg.get("options") is None:  # barrier, backward Euler (the paper's)
-        sim = bfemp.Simulation(
-            scene,
-            strategy=cfg.get("strategy", "barrier"),
-            integrator="backward_euler",
-            dt=cfg["dt"],
-            tol=cfg["tol"],
-            max_newton_iterations=cfg["max_newton_iterations"],
-        )
-    else:  # any strategy with its options object (the trade study's explicit ones on SOFT)
-        sim = bfemp.Simulation(
-            scene,
-            strategy=cfg["strategy"],
-            integrator=cfg["integrator"],
-            dt=cfg["dt"],
-            options=cfg["options"],
-        )
+    strategy = cfg.get("strategy", "barrier")
+    sim = catalogue.simulation(
+        scene, cfg, strategy, cfg.get("tol"), cfg.get("max_newton_iterations")
+    )
     model = sim.model
     dhat = cfg.get("dhat", DHAT)
     bottom = model.fem_bodies[geo["bottom"]].nodes

@@ -74,6 +74,7 @@ from pathlib import Path
 import numpy as np
 
 import bfemp
+from benchmarks import catalogue
 from benchmarks._penetration import penetration_summary
 from benchmarks.common import figure
 from benchmarks.runner import Benchmark, register
@@ -282,23 +283,8 @@ def run_treatment(cfg: dict, treatment: str) -> dict:
     """One boundary treatment along the whole path; per-step series and snapshots."""
     geo = Geometry(scale=cfg["scale"])
     scene, lower = _scene(cfg, treatment)
-    if cfg.get("options") is None:  # barrier, backward Euler (the paper's)
-        sim = bfemp.Simulation(
-            scene,
-            strategy="barrier",
-            integrator="backward_euler",
-            dt=cfg["dt"],
-            tol=cfg.get("tol", TOL),
-            max_newton_iterations=cfg.get("max_newton_iterations", MAX_NEWTON),
-        )
-    else:  # another strategy with its options object (the trade study's explicit ones)
-        sim = bfemp.Simulation(
-            scene,
-            strategy=cfg["strategy"],
-            integrator=cfg["integrator"],
-            dt=cfg["dt"],
-            options=cfg["options"],
-        )
+    max_newton = cfg.get("max_newton_iterations", MAX_NEWTON)
+    sim = catalogue.simulation(scene, cfg, "barrier", cfg.get("tol", TOL), max_newton)
     n_particles = sim.model.n_particles
     strip = sim.model.fem_bodies[0].nodes if lower is not None else None
     margin = 2.0 * cfg["dx"] + DHAT
