@@ -609,4 +609,6 @@ def main_from_args(args) -> int:
     return 0
 
 
-BENCHMARK = register(Benchmark(NAME, __doc__, {}, None, own_run=run))
+BENCHMARK = register(
+    Benchmark(NAME, __doc__, {}, None, record=lambda mode, _: output_name(mode), own_run=run)
+)
