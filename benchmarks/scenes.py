@@ -43,7 +43,7 @@ import bfemp
 from benchmarks import catalogue as cat
 from benchmarks import rings, slope
 from benchmarks.common import environment, figure, peak_memory_mb
-from benchmarks.runner import Benchmark, register, write_record
+from benchmarks.runner import Benchmark, register, run_named, write_record
 from bfemp.steppers.augury import AuguryOptions
 from bfemp.steppers.lr import LROptions
 from bfemp.steppers.two_stage import TwoStageOptions, TwoStageStepper
@@ -705,3 +705,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """``--strategy`` and ``--scene`` (the old names imply them)."""
     parser.add_argument("--strategy", choices=("augury", "lr", "two_stage"), default=None)
     parser.add_argument("--scene", choices=("rings", "slope"), default=None)
+
+
+def main_from_args(args: argparse.Namespace) -> int:
+    """``python -m benchmarks scenes --strategy S [--scene rings|slope] [--quick | ...]``; an old
+    name (``augury_scenes``, ...) stands for its options."""
+    given = {k: getattr(args, k) for k in ("strategy", "scene") if getattr(args, k) is not None}
+    summary = run_named(args.name, args.mode or "full", args.out, **given)
+    print(f"{args.name}: wrote {summary['json']}")
+    return 0

@@ -88,3 +88,22 @@ def test_figure_draws_without_a_display(tmp_path):
     fig.savefig(tmp_path / "f.png", dpi=50)
     assert (tmp_path / "f.png").stat().st_size > 1_000
     assert fig.get_size_inches().tolist() == [4.0, 3.0]
+
+
+def test_scenes_takes_its_options_from_the_command_line_and_the_old_names(monkeypatch, tmp_path):
+    from benchmarks import scenes
+
+    seen = []
+
+    def fake_run(self, mode, out, **options):
+        seen.append((self.name, mode, options))
+        return {"json": str(tmp_path / "x.json")}
+
+    monkeypatch.setattr(Benchmark, "run", fake_run)
+    assert main(["scenes", "--quick", "--strategy", "lr", "--out", str(tmp_path)]) == 0
+    assert main(["two_stage_slope", "--mode", "partial", "--out", str(tmp_path)]) == 0
+    assert seen == [
+        ("scenes", "quick", {"strategy": "lr"}),
+        ("scenes", "partial", {"strategy": "two_stage", "scene": "slope"}),
+    ]
+    assert scenes.BENCHMARK.stem("partial", seen[1][2]) == "two_stage_slope"
