@@ -18,7 +18,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from benchmarks import catalogue
-from benchmarks._phases import cases_and_blas, newton_phases
+from benchmarks._phases import PERF_TIMINGS, cases_and_blas, newton_phases
 from benchmarks.runner import Benchmark, name_unless, register
 from bfemp.integrators import BACKWARD_EULER
 from bfemp.plotting import plot_bars
@@ -66,15 +66,10 @@ def plot(payload: dict, png: Path) -> None:
     )
 
 
+QUICK_RECORD = name_unless("full", "perf_fem")
 BENCHMARK = register(
     Benchmark(
-        "perf_fem",
-        __doc__,
-        CASES,
-        measure,
-        plot=plot,
-        record=name_unless("full", "perf_fem"),
-        timings=r"_s$|over_factorisation|fraction_of_iteration",
+        "perf_fem", __doc__, CASES, measure, plot=plot, record=QUICK_RECORD, timings=PERF_TIMINGS
     )
 )
 run = BENCHMARK.run
