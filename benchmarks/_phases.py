@@ -33,6 +33,17 @@ def cases_and_blas(cases: dict, measure_one) -> dict:
     }
 
 
+def plot_phases(payload: dict, png, phases: tuple[str, ...], size: str, title: str) -> None:
+    """Bars of the seconds per Newton iteration of ``phases`` (record keys ``PHASE_s``) per
+    case, each case labelled with its ``size`` key."""
+    from bfemp.plotting import plot_bars
+
+    cases = payload["cases"]
+    labels = [f"{k} ({c[size]} {size})" for k, c in cases.items()]
+    groups = {p: [c.get(f"{p}_s", np.nan) for c in cases.values()] for p in phases}
+    plot_bars(labels, groups, png, ylabel="seconds", title=title)
+
+
 def median_time(fn, repeats: int = 3) -> float:
     """Median wall time of ``fn()`` over ``repeats`` calls, in s."""
     times = []

@@ -31,7 +31,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
-from benchmarks.common import figure
+from benchmarks.common import figure, save
 from benchmarks.runner import Benchmark, register
 from bfemp.contact.augury import ContactOperator, augury_correction, contact_stencils
 
@@ -116,11 +116,13 @@ def _plot(rows: list[dict], path: Path) -> None:
         axes[1].semilogy(t, np.maximum(row["apic_ode_gap"], 1e-16), c + ":", lw=1)
     axes[0].set(xlabel="t v0 / L", ylabel="gap / L", title="PIC (Fig. 6a): stops at a gap")
     axes[1].set(xlabel="t v0 / L", ylabel="gap / L", title="APIC (Fig. 7a): gap closes")
-    for ax in axes:
-        ax.grid(True, alpha=0.3)
-        ax.legend(fontsize="x-small")
-    fig.suptitle("augury_gap: H on 1D hats (solid) against the ODE (dotted), closed form dashed")
-    fig.savefig(path, dpi=110)
+    save(
+        fig,
+        path,
+        axes,
+        "augury_gap: H on 1D hats (solid) against the ODE (dotted), closed form dashed",
+        legend="x-small",
+    )
 
 
 def measure(mode: str, taus) -> dict:

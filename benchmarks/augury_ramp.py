@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 import bfemp
-from benchmarks.common import figure
+from benchmarks.common import figure, save
 from benchmarks.runner import Benchmark, register, write_record
 from bfemp.steppers.augury import AuguryOptions, AuguryStepper
 
@@ -257,11 +257,13 @@ def _plot(cases: list[dict], path: Path) -> None:
                 )
     axes[0].set(xlabel="t (s)", ylabel="slope displacement s (m)", title="block on 30 deg ramp")
     axes[1].set(xlabel="h (m)", ylabel="relative error of s(t_end)", title="refinement")
-    for ax in axes:
-        ax.grid(True, alpha=0.3)
-        ax.legend(fontsize="xx-small")
-    fig.suptitle("augury_ramp (Fig. 11): dotted = 1/2 g (sin - mu cos) t^2")
-    fig.savefig(path, dpi=110)
+    save(
+        fig,
+        path,
+        axes,
+        "augury_ramp (Fig. 11): dotted = 1/2 g (sin - mu cos) t^2",
+        legend="xx-small",
+    )
 
 
 def measure(mode: str, cfg) -> dict:
@@ -507,11 +509,13 @@ def _plot_conforming(cases: list[dict], path: Path) -> None:
     axes[0].set(xlabel="t (s)", ylabel="slope displacement s (m)", title="block on 30 deg ramp")
     axes[1].set(xlabel="h (m)", ylabel="relative error of s(t_end)", title="refinement")
     axes[1].set_ylim(0.0, 1.05)
-    for ax in axes:
-        ax.grid(True, alpha=0.3)
-        ax.legend(fontsize="xx-small")
-    fig.suptitle("augury_ramp, paper settings (N = 1): dotted = 1/2 g (sin - mu cos) t^2")
-    fig.savefig(path, dpi=110)
+    save(
+        fig,
+        path,
+        axes,
+        "augury_ramp, paper settings (N = 1): dotted = 1/2 g (sin - mu cos) t^2",
+        legend="xx-small",
+    )
 
 
 BENCHMARK = register(

@@ -18,10 +18,9 @@ from __future__ import annotations
 from pathlib import Path
 
 from benchmarks import catalogue
-from benchmarks._phases import PERF_TIMINGS, cases_and_blas, newton_phases
+from benchmarks._phases import PERF_TIMINGS, cases_and_blas, newton_phases, plot_phases
 from benchmarks.runner import Benchmark, name_unless, register
 from bfemp.integrators import BACKWARD_EULER
-from bfemp.plotting import plot_bars
 from bfemp.steppers.barrier import BarrierOptions, BarrierStepper
 
 CASES = {
@@ -52,18 +51,8 @@ def measure(mode: str, cases: dict) -> dict:
 
 def plot(payload: dict, png: Path) -> None:
     """Seconds of assembly and CHOLMOD per Newton iteration, per case."""
-    labels, groups = [], {"assembly": [], "factorize": [], "analyze": []}
-    for name, case in payload["cases"].items():
-        labels.append(f"{name} ({case['cells']} cells)")
-        for key in groups:
-            groups[key].append(case.get(f"{key}_s", float("nan")))
-    plot_bars(
-        labels,
-        groups,
-        png,
-        ylabel="seconds",
-        title="Per Newton iteration: assembly vs CHOLMOD",
-    )
+    title = "Per Newton iteration: assembly vs CHOLMOD"
+    plot_phases(payload, png, ("assembly", "factorize", "analyze"), "cells", title)
 
 
 QUICK_RECORD = name_unless("full", "perf_fem")

@@ -14,15 +14,18 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-
 from benchmarks import catalogue
-from benchmarks._phases import PERF_TIMINGS, cases_and_blas, median_time, newton_phases
+from benchmarks._phases import (
+    PERF_TIMINGS,
+    cases_and_blas,
+    median_time,
+    newton_phases,
+    plot_phases,
+)
 from benchmarks.runner import Benchmark, name_unless, register
 from bfemp.integrators import BACKWARD_EULER
 from bfemp.mpm.step import prepare_mpm_step
 from bfemp.mpm.transfer import grid_to_particles
-from bfemp.plotting import plot_bars
 from bfemp.steppers.barrier import BarrierOptions, BarrierStepper
 
 CASES = {
@@ -79,19 +82,8 @@ def measure(mode: str, cases: dict) -> dict:
 
 def plot(payload: dict, png: Path) -> None:
     """Seconds of the transfers, assembly and CHOLMOD per Newton iteration, per case."""
-    cases = payload["cases"]
-    labels = [f"{k} ({c['particles']} particles)" for k, c in cases.items()]
-    groups = {
-        key: [c.get(f"{key}_s", np.nan) for c in cases.values()]
-        for key in ("p2g", "g2p", "assembly", "factorize")
-    }
-    plot_bars(
-        labels,
-        groups,
-        png,
-        ylabel="seconds",
-        title="MPM: transfers, assembly and CHOLMOD per Newton iteration",
-    )
+    title = "MPM: transfers, assembly and CHOLMOD per Newton iteration"
+    plot_phases(payload, png, ("p2g", "g2p", "assembly", "factorize"), "particles", title)
 
 
 QUICK_RECORD = name_unless("full", "perf_mpm")
