@@ -70,6 +70,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 import bfemp
+from benchmarks import catalogue
 from benchmarks._case_checkpoint import CaseCheckpoint
 from benchmarks.common import cases_by_mu, environment, note_merge, peak_memory_mb, write_json
 from benchmarks.runner import Benchmark, name_unless, register
@@ -235,14 +236,7 @@ def _run_one(
     every ``checkpoint_every`` steps, at the cut and at the end, and a checkpoint found there
     is resumed (``_case_checkpoint``): ``wall_s`` is then the sum of the ``segments_s`` of
     every process that ran the case, and ``budget_s`` bounds this process's segment."""
-    sim = bfemp.Simulation(
-        _scene(cfg, mu),
-        integrator="backward_euler",
-        transfer="apic",
-        dt=cfg["dt"],
-        tol=TOL,
-        max_newton_iterations=cfg["max_newton"],
-    )
+    sim = catalogue.paper_simulation(_scene(cfg, mu), cfg["dt"], TOL, cfg["max_newton"])
     measure = Detachment(sim.state.mpm_x, sim.state.fem_x, cfg["dx"])
     steps = round(cfg["u_end"] / (SPEED * cfg["dt"]))
     progress = {

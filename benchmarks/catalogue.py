@@ -50,6 +50,14 @@ def simulation(scene: bfemp.Scene, cfg: dict, strategy: str, tol: float, max_new
     )
 
 
+def paper_simulation(scene: bfemp.Scene, dt: float, tol: float, max_newton: int, **kwargs):
+    """The papers' implicit setting: barrier by backward Euler with APIC, step ``dt`` (s),
+    Newton tolerance ``tol`` (m/s) and cap ``max_newton``; ``kwargs`` go to
+    ``bfemp.Simulation`` (``linear_solver``)."""
+    return bfemp.Simulation(scene, integrator="backward_euler", transfer="apic", dt=dt, tol=tol,
+                            max_newton_iterations=max_newton, **kwargs)  # fmt: skip
+
+
 # ----------------------------------------------------------------------------- rings
 R_INNER, R_OUTER = 3.0, 4.0  # m
 

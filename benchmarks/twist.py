@@ -88,6 +88,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 import bfemp
+from benchmarks import catalogue
 from benchmarks.common import cases_by_mu, environment, note_merge, peak_memory_mb, write_json
 from benchmarks.runner import Benchmark, name_unless, register
 from geometry.mesh import TetMesh
@@ -258,14 +259,9 @@ def _run_one(
     ``budget_s``: stop after the step that ends past this wall time in s, ``max_steps``: after
     that many steps (timing probes); ``solver``: a ``solvers.choice`` linear-solver name.
     """
-    sim = bfemp.Simulation(
-        _scene(cfg, mu),
-        integrator="backward_euler",
-        transfer="apic",
-        dt=cfg["dt"],
-        tol=TOL,
-        max_newton_iterations=MAX_NEWTON,
-        linear_solver=make_linear_solver(solver, block_size=3),
+    linear_solver = make_linear_solver(solver, block_size=3)
+    sim = catalogue.paper_simulation(
+        _scene(cfg, mu), cfg["dt"], TOL, MAX_NEWTON, linear_solver=linear_solver
     )
     spacing = cfg["dx"] / round(cfg["ppc"] ** (1.0 / 3.0))
     measure = TopTwist(sim.state.mpm_x, spacing)
