@@ -44,6 +44,19 @@ def plot_phases(payload: dict, png, phases: tuple[str, ...], size: str, title: s
     plot_bars(labels, groups, png, ylabel="seconds", title=title)
 
 
+def warm_stepper(model, dt: float, tol: float):
+    """A barrier stepper (backward Euler, step ``dt`` s, Newton tolerance ``tol`` m/s) on
+    ``model`` and the state after one step (the warm-up that compiles the numba kernels):
+    ``(stepper, state)``."""
+    from bfemp.integrators import BACKWARD_EULER
+    from bfemp.steppers.barrier import BarrierOptions, BarrierStepper
+
+    options = BarrierOptions(tol=tol)
+    stepper = BarrierStepper(model, integrator=BACKWARD_EULER, dt=dt, options=options)
+    state, _ = stepper.step(stepper.initialize(model.initial_state()))
+    return stepper, state
+
+
 def median_time(fn, repeats: int = 3) -> float:
     """Median wall time of ``fn()`` over ``repeats`` calls, in s."""
     times = []

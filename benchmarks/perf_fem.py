@@ -18,10 +18,14 @@ from __future__ import annotations
 from pathlib import Path
 
 from benchmarks import catalogue
-from benchmarks._phases import PERF_TIMINGS, cases_and_blas, newton_phases, plot_phases
+from benchmarks._phases import (
+    PERF_TIMINGS,
+    cases_and_blas,
+    newton_phases,
+    plot_phases,
+    warm_stepper,
+)
 from benchmarks.runner import Benchmark, name_unless, register
-from bfemp.integrators import BACKWARD_EULER
-from bfemp.steppers.barrier import BarrierOptions, BarrierStepper
 
 CASES = {
     "full": {"3d": dict(n=(32, 16, 16)), "2d": dict(n=(448, 112))},
@@ -31,14 +35,7 @@ CASES = {
 
 def _measure(name: str, matrices: dict, dim: int, n: tuple[int, ...]) -> dict:
     model = catalogue.fem_block_scene(dim, n).build()
-    stepper = BarrierStepper(
-        model,
-        integrator=BACKWARD_EULER,
-        dt=0.05,
-        options=BarrierOptions(tol=1e-5),
-    )
-    state = stepper.initialize(model.initial_state())
-    state, _ = stepper.step(state)  # warm-up: compiles the numba kernels
+    stepper, state = warm_stepper(model, dt=0.05, tol=1e-5)
     out = {"dim": dim, "cells": int(model.fem_cells.shape[0]), "nodes": int(model.n_fem_nodes)}
     out.update(newton_phases(stepper, state, matrices=matrices, name=name, step_repeats=3))
     return out

@@ -21,12 +21,11 @@ from benchmarks._phases import (
     median_time,
     newton_phases,
     plot_phases,
+    warm_stepper,
 )
 from benchmarks.runner import Benchmark, name_unless, register
-from bfemp.integrators import BACKWARD_EULER
 from bfemp.mpm.step import prepare_mpm_step
 from bfemp.mpm.transfer import grid_to_particles
-from bfemp.steppers.barrier import BarrierOptions, BarrierStepper
 
 CASES = {
     "full": {"2d": dict(cells=(160, 160), ppc=4), "3d": dict(cells=(30, 30, 14), ppc=8)},
@@ -36,14 +35,7 @@ CASES = {
 
 def _measure(name: str, matrices: dict, dim: int, cells: tuple[int, ...], ppc: int) -> dict:
     model = catalogue.mpm_block_scene(dim, cells, ppc).build()
-    stepper = BarrierStepper(
-        model,
-        integrator=BACKWARD_EULER,
-        dt=0.01,
-        options=BarrierOptions(tol=1e-4),
-    )
-    state = stepper.initialize(model.initial_state())
-    state, _ = stepper.step(state)  # warm-up: compiles the numba kernels
+    stepper, state = warm_stepper(model, dt=0.01, tol=1e-4)
     out = {"dim": dim, "particles": int(model.n_particles)}
     out["p2g_s"] = median_time(lambda: prepare_mpm_step(model, state, "apic", False))
     mpm = prepare_mpm_step(model, state, "apic", False)
