@@ -275,11 +275,8 @@ def _run_one(
             )
 
     for k in range(sim.state.step, steps if error is None else 0):
-        try:
-            report = sim.step()
-        except bfemp.StepError as err:
-            error = str(err)
-            log.warning("buckling mu=%g: %s", mu, err)
+        report, error = catalogue.step(sim, f"buckling mu={mu:g}")
+        if error is not None:
             break
         newton += report.newton_iterations
         friction_max = max(friction_max, report.friction_iterations)

@@ -27,6 +27,16 @@ import bfemp
 log = logging.getLogger(__name__)
 
 
+def step(sim: bfemp.Simulation, label: str):
+    """One step of ``sim``: ``(report, None)``, or ``(None, message)`` of a ``StepError``,
+    logged as a warning under ``label`` (a failed step ends a benchmark's run, recorded)."""
+    try:
+        return sim.step(), None
+    except bfemp.StepError as err:
+        log.warning("%s: %s", label, err)
+        return None, str(err)
+
+
 def simulation(scene: bfemp.Scene, cfg: dict, strategy: str, tol: float, max_newton: int):
     """The paper's implicit solve, ``strategy`` (barrier) by backward Euler with Newton
     tolerance ``tol`` (m/s) and cap ``max_newton``, when ``cfg`` has no ``options``; else
@@ -371,11 +381,8 @@ def release_slope(
     newton, friction_max, friction_ok, min_d, error = 0, 0, True, math.inf, None
     started = time.perf_counter()
     for _ in range(steps):
-        try:
-            report = sim.step()
-        except bfemp.StepError as err:
-            error = str(err)
-            log.warning("%s mu=%g: %s", variant, mu, error)
+        report, error = step(sim, f"{variant} mu={mu:g}")
+        if error is not None:
             break
         newton += report.newton_iterations
         friction_max = max(friction_max, report.friction_iterations)

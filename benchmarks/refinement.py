@@ -52,6 +52,7 @@ from pathlib import Path
 import numpy as np
 
 import bfemp
+from benchmarks import catalogue
 from benchmarks.common import figure
 from benchmarks.runner import Benchmark, name_unless, register
 
@@ -142,11 +143,8 @@ def settle(n: int, ppc: int, settings: dict = SETTINGS) -> dict:
     history, calm, iterations, error, min_distance = [heights()[1]], 0, 0, None, float("nan")
     started = time.perf_counter()
     while len(history) <= settings["max_steps"] and calm < settings["rest_steps"]:
-        try:
-            report = sim.step()
-        except bfemp.StepError as err:
-            error = str(err)
-            log.warning("refinement N=%d PPC=%d: %s", n, ppc, err)
+        report, error = catalogue.step(sim, f"refinement N={n} PPC={ppc}")
+        if error is not None:
             break
         iterations += report.newton_iterations
         min_distance = float(report.min_distance)

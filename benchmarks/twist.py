@@ -277,11 +277,8 @@ def _run_one(
     started = time.perf_counter()
     for _ in range(steps):
         tick = time.perf_counter()
-        try:
-            report = sim.step()
-        except bfemp.StepError as err:
-            error = str(err)
-            log.warning("twist mu=%g: %s", mu, err)
+        report, error = catalogue.step(sim, f"twist mu={mu:g}")
+        if error is not None:
             break
         step_wall.append(time.perf_counter() - tick)
         step_newton.append(report.newton_iterations)
