@@ -36,7 +36,7 @@ MODES = {
 _CHILD = """
 import json, sys, time
 import numba
-from benchmarks import perf_fem, perf_mpm
+from benchmarks import catalogue
 from bfemp.integrators import BACKWARD_EULER
 from bfemp.steppers.barrier import BarrierOptions, BarrierStepper
 from solvers.blas import cholmod_blas
