@@ -1,9 +1,12 @@
-"""``python -m benchmarks NAME [--quick | --full] [--out DIR]``: run one benchmark.
+"""``python -m benchmarks NAME [--quick | --full | --mode M] [--out DIR]``: run one benchmark;
+``python -m benchmarks verify NAME [NAME ...] [--mode M]``: rerun a mode (quick by default) into
+a temporary folder and compare its non-timing fields with the committed record.
 
-A benchmark module may add options of its own: ``add_arguments(parser)`` extends the parser and
-``main_from_args(args) -> int`` then runs it instead of ``run`` (``tradeoff``: ``--scenes``,
-``--knobs``, ``--workers``, ``--scheduler``, ``--replay``, ...). Its ``ValueError`` is printed
-as a usage error (exit status 2).
+The names are those of the catalogue (``benchmarks.runner.catalogue``: every module registers
+its ``Benchmark``). A benchmark module may add options of its own: ``add_arguments(parser)``
+extends the parser and ``main_from_args(args) -> int`` then runs it instead of the runner
+(``tradeoff``: ``--scenes``, ``--knobs``, ``--workers``, ...). Its ``ValueError`` is printed as
+a usage error (exit status 2).
 """
 
 from __future__ import annotations
@@ -13,44 +16,10 @@ import importlib
 import logging
 import sys
 
-#: benchmark name -> module in this package exposing ``run(mode: str, out: Path) -> dict``.
-BENCHMARKS = {
-    "augury_blocks": "benchmarks.augury_blocks",
-    "augury_gap": "benchmarks.augury_gap",
-    "augury_probes": "benchmarks.augury_probes",
-    "augury_ramp": "benchmarks.augury_ramp",
-    "augury_scenes": "benchmarks.augury_scenes",
-    "blas_wall": "benchmarks.blas_wall",
-    "explicit_speed": "benchmarks.explicit_speed",
-    "buckling": "benchmarks.buckling",
-    "ccd_oracle": "benchmarks.ccd_oracle",
-    "conformance": "benchmarks.conformance",
-    "extremes": "benchmarks.extremes",
-    "fuzz": "benchmarks.fuzz",
-    "hertz": "benchmarks.hertz",
-    "lr_compression": "benchmarks.lr_compression",
-    "lr_contact_time": "benchmarks.lr_contact_time",
-    "lr_ellipses": "benchmarks.lr_ellipses",
-    "lr_scenes": "benchmarks.lr_scenes",
-    "lr_variants": "benchmarks.lr_variants",
-    "perf_broadphase": "benchmarks.perf_broadphase",
-    "perf_contact": "benchmarks.perf_contact",
-    "perf_explicit": "benchmarks.perf_explicit",
-    "perf_fem": "benchmarks.perf_fem",
-    "perf_mpm": "benchmarks.perf_mpm",
-    "perf_3d": "benchmarks.perf_3d",
-    "perf_threads": "benchmarks.perf_threads",
-    "refinement": "benchmarks.refinement",
-    "rings": "benchmarks.rings",
-    "sine_boundary": "benchmarks.sine_boundary",
-    "slope": "benchmarks.slope",
-    "speed_knobs": "benchmarks.speed_knobs",
-    "tradeoff": "benchmarks.tradeoff",
-    "twist": "benchmarks.twist",
-    "two_stage_gap": "benchmarks.two_stage_gap",
-    "two_stage_rings": "benchmarks.two_stage_rings",
-    "two_stage_slope": "benchmarks.two_stage_slope",
-}
+from benchmarks.runner import catalogue, run_named, verify
+
+#: benchmark name (aliases included) -> module exposing ``run(mode: str, out: Path) -> dict``
+BENCHMARKS = {name: bench.module for name, bench in catalogue().items()}
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -70,8 +39,29 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _verify(argv: list[str]) -> int:
+    parser = argparse.ArgumentParser(prog="python -m benchmarks verify")
+    parser.add_argument("names", nargs="+", choices=sorted(BENCHMARKS), metavar="NAME")
+    parser.add_argument("--mode", default="quick", help="the mode rerun (default quick)")
+    args = parser.parse_args(argv)
+    failed = 0
+    for name in args.names:
+        try:
+            diffs = verify(name, args.mode)
+        except ValueError as err:
+            parser.error(str(err))
+        failed += bool(diffs)
+        print(f"{name} ({args.mode}): " + ("reproduces" if not diffs else f"{len(diffs)} differ"))
+        for line in diffs:
+            print(f"  {line}")
+    return 1 if failed else 0
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
+    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    if argv[:1] == ["verify"]:
+        return _verify(argv[1:])
     parser = _parser()
     # first pass: only the name, to add the options of the chosen benchmark (--help included)
     first = argparse.ArgumentParser(add_help=False)
@@ -81,14 +71,13 @@ def main(argv: list[str] | None = None) -> int:
     if module is not None and hasattr(module, "add_arguments"):
         module.add_arguments(parser)
     args = parser.parse_args(argv)
-    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     if hasattr(module, "main_from_args"):
         try:
             return module.main_from_args(args)
         except ValueError as err:
             parser.error(str(err))
     try:
-        summary = module.run(args.mode or "full", args.out)
+        summary = run_named(args.name, args.mode or "full", args.out, module=module)
     except ValueError as err:  # a mode the benchmark does not have, named by it
         parser.error(f"{args.name}: {err}")
     print(f"{args.name}: wrote {summary['json']}")

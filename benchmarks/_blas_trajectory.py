@@ -14,7 +14,7 @@ import sys
 import numpy as np
 
 import bfemp
-from benchmarks import rings
+from benchmarks import catalogue, rings
 from solvers.blas import cholmod_blas
 from solvers.linear import CholmodSolver
 
@@ -23,7 +23,7 @@ def trajectory(t_end: float) -> dict:
     """Positions of every step: ``fem_x`` (steps, N, 2), ``mpm_x`` (steps, P, 2), ``blas``."""
     cfg = rings.MODES["quick"]
     sim = bfemp.Simulation(
-        rings._scene(cfg),
+        catalogue.rings_scene(cfg),
         integrator=rings.INTEGRATOR,
         transfer="apic",
         dt=cfg["dt"],

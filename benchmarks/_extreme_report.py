@@ -6,6 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks.common import figure
+
 __all__ = ["markdown_table", "plot_cases", "short_outcome"]
 
 #: colour per kind of outcome
@@ -142,16 +144,18 @@ def plot_cases(payload: dict, path: Path, title: str) -> None:
     """Left: the outcome grid (case x strategy; green pass, orange named failure, grey not
     applicable, red unexplained; a refused dt is coloured by its auto run). Right: min J and
     max energy growth per case, one marker per strategy."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
     from matplotlib.patches import Rectangle
 
     strategies = payload["strategies"]
     table = _by_case(payload)
     names = list(table)
-    fig = Figure(figsize=(16.0, 0.4 * len(names) + 2.5), layout="constrained")
-    FigureCanvasAgg(fig)
-    axes = fig.subplots(1, 3, gridspec_kw={"width_ratios": [2.2, 1.0, 1.0]})
+    fig, axes = figure(
+        (16.0, 0.4 * len(names) + 2.5),
+        1,
+        3,
+        gridspec_kw={"width_ratios": [2.2, 1.0, 1.0]},
+        layout="constrained",
+    )
     grid, y = axes[0], np.arange(len(names))
     for j, s in enumerate(strategies):
         for i, name in enumerate(names):

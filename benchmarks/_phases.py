@@ -7,9 +7,54 @@ import time
 
 import numpy as np
 
+from benchmarks._blas_switch import factorisation_by_blas
 from solvers.assembly import TripletAssembler
 from solvers.choice import make_linear_solver
 from solvers.linear import cholmod_available
+
+#: the keys of the perf records that hold times or ratios of times (``runner.verify``)
+PERF_TIMINGS = r"_s$|over_factorisation|fraction_of_iteration"
+MACHINE_NOTE = "2 shared cores, loaded by other work: compare ratios within this run"
+
+
+def cases_and_blas(cases: dict, measure_one) -> dict:
+    """Each case of ``cases`` (name -> its parameters) measured by ``measure_one(name,
+    matrices, dim, cfg)``, which adds the case's Hessian to ``matrices``; then CHOLMOD's
+    factorisation of each Hessian on the reference and the default BLAS (per process)."""
+    matrices: dict = {}
+    measured = {
+        name: measure_one(name, matrices, 2 if name == "2d" else 3, cfg)
+        for name, cfg in cases.items()
+    }
+    return {
+        "cases": measured,
+        "blas_side_by_side": factorisation_by_blas(matrices),
+        "machine_note": MACHINE_NOTE,
+    }
+
+
+def plot_phases(payload: dict, png, phases: tuple[str, ...], size: str, title: str) -> None:
+    """Bars of the seconds per Newton iteration of ``phases`` (record keys ``PHASE_s``) per
+    case, each case labelled with its ``size`` key."""
+    from bfemp.plotting import plot_bars
+
+    cases = payload["cases"]
+    labels = [f"{k} ({c[size]} {size})" for k, c in cases.items()]
+    groups = {p: [c.get(f"{p}_s", np.nan) for c in cases.values()] for p in phases}
+    plot_bars(labels, groups, png, ylabel="seconds", title=title)
+
+
+def warm_stepper(model, dt: float, tol: float):
+    """A barrier stepper (backward Euler, step ``dt`` s, Newton tolerance ``tol`` m/s) on
+    ``model`` and the state after one step (the warm-up that compiles the numba kernels):
+    ``(stepper, state)``."""
+    from bfemp.integrators import BACKWARD_EULER
+    from bfemp.steppers.barrier import BarrierOptions, BarrierStepper
+
+    options = BarrierOptions(tol=tol)
+    stepper = BarrierStepper(model, integrator=BACKWARD_EULER, dt=dt, options=options)
+    state, _ = stepper.step(stepper.initialize(model.initial_state()))
+    return stepper, state
 
 
 def median_time(fn, repeats: int = 3) -> float:

@@ -26,6 +26,7 @@ from collections.abc import Callable
 import numpy as np
 
 import bfemp
+from benchmarks import catalogue
 from benchmarks._penetration import KEYS as PENETRATION_KEYS
 from benchmarks._penetration import penetration_bound, penetration_summary
 from bfemp.steppers import stepper_class
@@ -50,7 +51,7 @@ def _check(settings: dict, keys: tuple[str, ...], scene: str) -> None:
 RINGS_KEYS = ("strategy", "dt", "options", "transfer", "dx", "ppc", "dhat", "fem_h", "t_end")
 
 
-def _rings(s: dict, on_done: Callable[[bfemp.Simulation], None] | None = None) -> dict:
+def rings_point(s: dict, on_done: Callable[[bfemp.Simulation], None] | None = None) -> dict:
     """One rings point; ``on_done(sim)`` is called after the run (``benchmarks.lr_variants``)."""
     from benchmarks import rings
 
@@ -61,14 +62,14 @@ def _rings(s: dict, on_done: Callable[[bfemp.Simulation], None] | None = None) -
         cfg["fem_h"] = 0.5 * s["dx"]
     implicit = strategy == "barrier"
     sim = bfemp.Simulation(
-        rings._scene(cfg),
+        catalogue.rings_scene(cfg),
         strategy=strategy,
         integrator=rings.INTEGRATOR if implicit else EXPLICIT_INTEGRATOR,
         transfer=s["transfer"],
         dt=s["dt"],
         options=_options(strategy, s["options"]),
     )
-    check = rings._PenetrationCheck(sim)
+    check = catalogue.RingsPenetration(sim)
     failure = None
     try:
         sim.run(t_end=s["t_end"], progress=False, callback=check)
@@ -79,7 +80,7 @@ def _rings(s: dict, on_done: Callable[[bfemp.Simulation], None] | None = None) -
     m = sim.metrics
     t = m.column("t")
     energy = m.column("energy_kinetic") + m.column("energy_elastic")
-    e0, e1 = rings._window_energies(t, energy)
+    e0, e1 = catalogue.window_energies(t, energy)
     pairs = m.column("contact_pairs")[1:]
     touching = t[1:][pairs > 0]
     iters = m.column("iterations_newton")[1:] if "iterations_newton" in m.columns else [0]
@@ -105,7 +106,7 @@ SLOPE_KEYS += ("settle_s", "release_s", "fit_start_s")
 def slope_physics(s: dict) -> tuple[dict, str]:
     """The ``slope`` physics dict and ``slope.VARIANTS`` name of a slope point's settings (the
     keys of ``SLOPE_KEYS``, plus ``transfer`` for lr)."""
-    from benchmarks import lr_scenes, slope, two_stage_slope
+    from benchmarks import scenes, slope
 
     strategy = s["strategy"]
     keys = SLOPE_KEYS + (("transfer",) if strategy == "lr" else ())
@@ -119,16 +120,15 @@ def slope_physics(s: dict) -> tuple[dict, str]:
         if set(options) - {"tol"}:
             raise ValueError(f"slope: barrier takes only the option tol, got {sorted(options)}")
     else:  # the softened box at the explicit step (two_stage_slope), the paper's kappa
-        p.update(E_Pa=two_stage_slope.E_SOFT, integrator=EXPLICIT_INTEGRATOR)
+        p.update(E_Pa=scenes.E_SOFT, integrator=EXPLICIT_INTEGRATOR)
         p["options"] = _options(strategy, options)
         if strategy == "lr":
-            p.update(transfer=s["transfer"], slope_lower_upper_m=lr_scenes.LR_SLOPE)
+            p.update(transfer=s["transfer"], slope_lower_upper_m=catalogue.LR_SLOPE)
             variant = "dense_slope"
     return p, variant
 
 
 def _slope(s: dict) -> dict:
-    from benchmarks import slope
 
     p, variant = slope_physics(s)
     dt = s["dt"]
@@ -139,11 +139,13 @@ def _slope(s: dict) -> dict:
             sims.append(sim)
 
     try:
-        settled, settle = slope._settle(variant, round(s["settle_s"] / dt), p, on_step=keep)
+        settled, settle = catalogue.settle_slope(
+            variant, round(s["settle_s"] / dt), p, on_step=keep
+        )
     except bfemp.StepError as err:  # no release without a settled box
         out = {"accel_rel_error": None, "steps": None, "failure": str(err)}
         return out | (penetration_summary(*sims) if sims else {"max_penetration_m": None})
-    case = slope._release(
+    case = catalogue.release_slope(
         variant, s["mu"], settled, round(s["release_s"] / dt), s["fit_start_s"], p, on_step=keep
     )
     out = {k: v for k, v in case.items() if k not in ("series", "error")}
@@ -195,7 +197,7 @@ def _hertz_soft(s: dict) -> dict:
             raise ValueError(f"hertz_soft: unsupported barrier options {sorted(options)}")
     else:
         cfg.update(integrator=EXPLICIT_INTEGRATOR, options=_options(strategy, options))
-    run = hertz._run_material(cfg, s["material"])
+    run = hertz.run_material(cfg, s["material"])
     out = {k: v for k, v in run.items() if k not in ("samples", "error")}
     samples = run["samples"]
     out.update(
@@ -231,7 +233,7 @@ def _sine_boundary(s: dict) -> dict:
     else:  # the explicit strategies on the same scene (the box's E sets the stable step)
         options = _options(s["strategy"], s["options"])
         cfg |= {"strategy": s["strategy"], "integrator": EXPLICIT_INTEGRATOR, "options": options}
-    run = sine_boundary._run_one(cfg, "bfemp")
+    run = sine_boundary.run_treatment(cfg, "bfemp")
     keys = ("steps", "t_end", "penetrations", "max_penetration_depth", "max_tensile_force")
     keys += ("dt_s", *PENETRATION_KEYS)
     out = {k: run[k] for k in keys + ("max_compressive_force", "particles", "min_distance")}
@@ -392,7 +394,7 @@ def _lr_compression(s: dict) -> dict:
 
 
 RUNNERS = {
-    "rings": _rings,
+    "rings": rings_point,
     "slope": _slope,
     "hertz": _hertz,
     "hertz_soft": _hertz_soft,

@@ -19,20 +19,7 @@ full: h in {1, 0.5, 0.25} (longer than 5 minutes here: the record is the quick m
 ``"long"`` (``run_long``, issue 40): APIC N = 1 to 0.2 s at h in {1, 0.5, 0.25}, with the time
 the blocks leave each other's stencils (``benchmarks/records/augury_blocks_long.md``).
 
-Measured (quick, ``benchmarks/records/augury_blocks.json``): angular-momentum drift 2e-15 to
-4e-15 (APIC) and 0.77-0.81 (PIC), linear-momentum drift < 4e-15 for all. The energy lost in the
-first ms (the blocks share contact nodes from t = 0, AUG's "initial energies differ") falls with
-h: APIC 0.31 -> 0.11, PIC 0.63 -> 0.32 (h = 1 -> 0.5). The loss at t_end does NOT fall with h
-(APIC N = 0: 0.34 -> 0.54, N = 1: 0.60 -> 0.66; APIC N = 1 at h = 0.25: 0.66), unlike AUG's
-Fig. 9: not explained. Measured (issue 14, APIC, h = 1 -> 0.5, loss at t_end): N = 1 with
-``region="shared"`` 0.596 -> 0.606 (the smoothing of every boundary node, A6, costs 0.055 at
-h = 0.5 only); truly frictionless contact (mode ``"friction"``, mu = 0) 0.476 -> 0.603 with N =
-1 and 0.231 -> 0.469 with N = 30 and ``normals="facing"``: lower, but in every variant the loss
-grows with h. The bodies share contact nodes at every step of the 0.06 s (``contact_steps`` =
-``steps`` in every run) and the energy keeps falling long after the impact (APIC N = 1, h = 0.5:
-E / E0 0.90 at 1 ms, 0.72 at 31 ms, 0.41 at 56 ms), consistent with the ramp's finding: every
-step re-mixes the relative velocity at the shared nodes and N iterations undo a fixed fraction of
-it (``bfemp.contact.augury``). The energy guard does not change any recorded number.
+Measured results, with the commits they ran on: ``benchmarks/records/augury_blocks.md``.
 """
 
 from __future__ import annotations
@@ -42,11 +29,10 @@ import time
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 import bfemp
-from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks.common import figure
+from benchmarks.runner import Benchmark, register, write_record
 from bfemp import diagnostics
 from bfemp.steppers.augury import AuguryOptions, AuguryStepper
 from bfemp.terms import fem_elastic_groups
@@ -181,9 +167,7 @@ def run_variant(h: float, transfer: str, iterations: int, t_end: float = T_END) 
 
 
 def _plot(runs: list[dict], path: Path) -> None:
-    fig = Figure(figsize=(13, 4))
-    FigureCanvasAgg(fig)
-    axes = fig.subplots(1, 3)
+    fig, axes = figure((13, 4), 1, 3)
     for k, r in enumerate(runs):
         lab = f"{r['transfer']} N={r['iterations']} h={r['h']:g}"
         ls = "-" if r["h"] == runs[-1]["h"] else ":"
@@ -201,15 +185,8 @@ def _plot(runs: list[dict], path: Path) -> None:
     fig.savefig(path, dpi=110)
 
 
-def run(mode: str = "full", out: str | Path = "results") -> dict:
-    """Every variant at every h of ``mode``; writes ``augury_blocks.json`` and ``.png``."""
-    if mode == "long":  # issue 40's record: ``run_long``
-        return run_long(out)
-    if mode not in MODES:
-        raise ValueError(f"mode must be one of {sorted(MODES) + ['long']}, got {mode!r}")
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    started = time.perf_counter()
+def measure(mode: str, cfg) -> dict:
+    """Every variant at every h of ``mode``."""
     runs = []
     for h in MODES[mode]:
         for transfer, iterations in VARIANTS:
@@ -265,8 +242,6 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
         if r["h"] in hs[-2:]
     ]
     payload = {
-        "benchmark": NAME,
-        "mode": mode,
         "runs": runs,
         "targets": targets,
         "target_met": all(v if isinstance(v, bool) else all(v.values()) for v in targets.values()),
@@ -292,14 +267,8 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
             "hs": list(hs),
             "mesh": "bfemp box, 6 tets per cube",
         },
-        "wall_s": time.perf_counter() - started,
-        "peak_memory_mb": peak_memory_mb(),
-        "environment": environment(),
     }
-    path = write_json(out, NAME, payload)
-    png = out / f"{NAME}.png"
-    _plot(runs, png)
-    return {"json": str(path), "png": str(png), **payload}
+    return payload
 
 
 #: ``run_long``'s record: what AUG reports, and what the measurement says about the method
@@ -401,10 +370,25 @@ def run_long(
             "mesh": "bfemp box, 6 tets per cube",
         },
         "wall_s": time.perf_counter() - started if ran else sum(r["wall_s"] for r in runs),
-        "peak_memory_mb": peak_memory_mb(),
-        "environment": environment(),
     }
-    path = write_json(out, name, payload)
-    png = out / f"{name}.png"
-    _plot(runs, png)
-    return {"json": str(path), "png": str(png), **payload}
+    return write_record(out, name, payload, lambda _, png: _plot(runs, png))
+
+
+def plot(payload: dict, png: Path) -> None:
+    """``_plot`` of the recorded runs."""
+    _plot(payload["runs"], png)
+
+
+#: a comparison of two measured times, not a result (``runner.verify`` leaves it out)
+TIMINGS = r"^contact_below_mechanics$"
+BENCHMARK = register(Benchmark(NAME, __doc__, MODES, measure, plot=plot, timings=TIMINGS))
+run = BENCHMARK.run
+register(
+    Benchmark(
+        "augury_blocks_long",
+        "The blocks to 0.2 s (issue 40): E/E0 and the time they leave each other's stencils",
+        {"full": {}},
+        None,
+        own_run=lambda mode, out: run_long(out),
+    )
+)

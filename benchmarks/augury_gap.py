@@ -25,16 +25,14 @@ Targets (T): APIC final gap < 1e-3 L; PIC final gap within 1e-3 L of the closed 
 from __future__ import annotations
 
 import logging
-import time
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
-from benchmarks.common import environment, write_json
+from benchmarks.common import figure, save
+from benchmarks.runner import Benchmark, register
 from bfemp.contact.augury import ContactOperator, augury_correction, contact_stencils
 
 log = logging.getLogger(__name__)
@@ -107,9 +105,7 @@ def simulate_gap(tau: float, apic: bool, samples: int = 200) -> tuple[np.ndarray
 
 
 def _plot(rows: list[dict], path: Path) -> None:
-    fig = Figure(figsize=(11, 4.2))
-    FigureCanvasAgg(fig)
-    axes = fig.subplots(1, 2)
+    fig, axes = figure((11, 4.2), 1, 2)
     for k, row in enumerate(rows):
         c = f"C{k}"
         t = np.array(row["t"])
@@ -120,20 +116,17 @@ def _plot(rows: list[dict], path: Path) -> None:
         axes[1].semilogy(t, np.maximum(row["apic_ode_gap"], 1e-16), c + ":", lw=1)
     axes[0].set(xlabel="t v0 / L", ylabel="gap / L", title="PIC (Fig. 6a): stops at a gap")
     axes[1].set(xlabel="t v0 / L", ylabel="gap / L", title="APIC (Fig. 7a): gap closes")
-    for ax in axes:
-        ax.grid(True, alpha=0.3)
-        ax.legend(fontsize="x-small")
-    fig.suptitle("augury_gap: H on 1D hats (solid) against the ODE (dotted), closed form dashed")
-    fig.savefig(path, dpi=110)
+    save(
+        fig,
+        path,
+        axes,
+        "augury_gap: H on 1D hats (solid) against the ODE (dotted), closed form dashed",
+        legend="x-small",
+    )
 
 
-def run(mode: str = "full", out: str | Path = "results") -> dict:
-    """Run every tau in both transfers; write ``augury_gap.json`` and ``.png`` to ``out``."""
-    if mode not in MODES:
-        raise ValueError(f"mode must be one of {sorted(MODES)}, got {mode!r}")
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    started = time.perf_counter()
+def measure(mode: str, taus) -> dict:
+    """Every tau of ``mode`` in both transfers: the gaps and the targets."""
     rows = []
     for tau in MODES[mode]:
         t, pic = simulate_gap(tau, apic=False)
@@ -172,8 +165,6 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
             "augury_gap tau %g: PIC %.4g (closed %.4g), APIC %.3g", tau, pic[-1], closed, apic[-1]
         )
     payload = {
-        "benchmark": NAME,
-        "mode": mode,
         "x0": X0,
         "t_end": T_END,
         "dt": f"min(tau / {STEPS_PER_TAU}, {DT_MAX})",
@@ -183,10 +174,11 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
         "target": "APIC gap < 1e-3 L; PIC gap within 1e-3 L of the closed form and > 0.05 L; "
         "H simulation within 1e-2 L of the ODE",
         "target_met": all(all(r["targets"].values()) for r in rows),
-        "wall_s": time.perf_counter() - started,
-        "environment": environment(),
     }
-    path = write_json(out, NAME, payload)
-    png = out / f"{NAME}.png"
-    _plot(rows, png)
-    return {"json": str(path), "png": str(png), **payload}
+    return payload
+
+
+BENCHMARK = register(
+    Benchmark(NAME, __doc__, MODES, measure, plot=lambda payload, png: _plot(payload["rows"], png))
+)
+run = BENCHMARK.run

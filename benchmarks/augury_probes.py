@@ -22,14 +22,12 @@ Quick records ``benchmarks/records/augury_probes.json``; the numbers are quoted 
 from __future__ import annotations
 
 import logging
-import time
-from pathlib import Path
 
 import numpy as np
 
 import bfemp
 import bfemp.steppers.augury as augury_module
-from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks.runner import Benchmark, register
 from bfemp.steppers.augury import AuguryOptions, AuguryStepper
 
 log = logging.getLogger(__name__)
@@ -194,14 +192,8 @@ def energy(h: float, t_end: float, iterations: int, guard: bool, mu: float = 0.7
     }
 
 
-def run(mode: str = "quick", out: str | Path = "results") -> dict:
-    """Every probe of ``mode``; writes ``augury_probes.json``."""
-    if mode not in MODES:
-        raise ValueError(f"mode must be one of {sorted(MODES)}, got {mode!r}")
-    cfg = MODES[mode]
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    started = time.perf_counter()
+def measure(mode: str, cfg) -> dict:
+    """Every probe of ``mode``."""
     flats = [flat(n, k) for n, k in cfg["flat"]]
     for f in flats:
         log.info("augury_probes flat %s N=%d: v = %.4f, %.4f", *f.values())
@@ -212,15 +204,13 @@ def run(mode: str = "quick", out: str | Path = "results") -> dict:
         )
     energies = [energy(cfg["h"], cfg["t_end"], k, g) for k, g in cfg["energy"]]
     payload = {
-        "benchmark": NAME,
-        "mode": mode,
         "flat": flats,
         "settled": settles,
         "energy": energies,
         "parameters": {k: v for k, v in cfg.items() if k in ("h", "settle", "t_end")},
-        "wall_s": time.perf_counter() - started,
-        "peak_memory_mb": peak_memory_mb(),
-        "environment": environment(),
     }
-    path = write_json(out, NAME, payload)
-    return {"json": str(path), **payload}
+    return payload
+
+
+BENCHMARK = register(Benchmark(NAME, __doc__, MODES, measure))
+run = BENCHMARK.run

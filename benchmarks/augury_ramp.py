@@ -21,14 +21,7 @@ steps), the control at h = 1; full: h in {1, 0.5, 0.25}, mu in {0, 0.2, 0.4}, t_
 Beside the paper's settings (N = 1, averaged normals) every mode records bfemp's variant
 ``normals="facing"``, N = 30 (APIC, with mu = 0.7) in ``variant_cases`` and its own targets in
 ``variant_targets``; the energy guard (``AuguryOptions.energy_guard``) is on in both.
-Measured (quick, ``benchmarks/records/augury_ramp.json``, t = 0.1 s): the paper's settings slide
-0.024 / 0.0088 m of the analytic 0.25 m (APIC, mu = 0, h = 1 / 0.5; relative error 0.905 /
-0.965, it grows under refinement), PIC 0.0045 / 0.0046 m; mu = 0.7 slips 2.5e-3 m (target
-1e-3). The variant slides 0.2275 / 0.2112 m at mu = 0 (error 0.09 / 0.155), overshoots at
-mu = 0.2 (0.216 / 0.198 m for 0.163, error 0.32 / 0.21) and slips 0.054 / 0.092 m at mu = 0.7.
-No target that needs both sliding and sticking is met: one iteration leaves a fixed fraction
-of the tangential drag every step (at fixed N the error does not fall with h), more iterations
-free the sliding and the sticking alike (``bfemp.contact.augury``: measurements and reason).
+Measured results, with the commits they ran on: ``benchmarks/records/augury_ramp.md``.
 Placement ``"spec"`` above (these records); ``"conforming"`` (issue 40, ``PLACEMENTS``, mode
 ``"conforming"``: ``run_conforming``) puts the block's nodes on the ramp's at every h
 (``benchmarks/records/augury_ramp_conforming.md``).
@@ -43,11 +36,10 @@ import time
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 import bfemp
-from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks.common import figure, save
+from benchmarks.runner import Benchmark, register, write_record
 from bfemp.steppers.augury import AuguryOptions, AuguryStepper
 
 log = logging.getLogger(__name__)
@@ -231,9 +223,7 @@ def run_case(
 
 
 def _plot(cases: list[dict], path: Path) -> None:
-    fig = Figure(figsize=(11, 4.2))
-    FigureCanvasAgg(fig)
-    axes = fig.subplots(1, 2)
+    fig, axes = figure((11, 4.2), 1, 2)
     mus = sorted({c["mu"] for c in cases})
     for c in cases:
         color = f"C{mus.index(c['mu'])}"
@@ -267,23 +257,17 @@ def _plot(cases: list[dict], path: Path) -> None:
                 )
     axes[0].set(xlabel="t (s)", ylabel="slope displacement s (m)", title="block on 30 deg ramp")
     axes[1].set(xlabel="h (m)", ylabel="relative error of s(t_end)", title="refinement")
-    for ax in axes:
-        ax.grid(True, alpha=0.3)
-        ax.legend(fontsize="xx-small")
-    fig.suptitle("augury_ramp (Fig. 11): dotted = 1/2 g (sin - mu cos) t^2")
-    fig.savefig(path, dpi=110)
+    save(
+        fig,
+        path,
+        axes,
+        "augury_ramp (Fig. 11): dotted = 1/2 g (sin - mu cos) t^2",
+        legend="xx-small",
+    )
 
 
-def run(mode: str = "full", out: str | Path = "results") -> dict:
-    """Every (h, mu, transfer) of ``mode`` and the sticking control; writes JSON and PNG."""
-    if mode == "conforming":  # issue 40's record: ``run_conforming``
-        return run_conforming(out)
-    if mode not in MODES:
-        raise ValueError(f"mode must be one of {sorted(MODES) + ['conforming']}, got {mode!r}")
-    cfg = MODES[mode]
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    started = time.perf_counter()
+def measure(mode: str, cfg) -> dict:
+    """Every (h, mu, transfer) of ``mode`` and the sticking control."""
     cases = []
     for h in cfg["hs"]:
         for mu in cfg["mus"]:
@@ -335,8 +319,6 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
         "mu_0.7_sticks": {str(c["h"]): bool(abs(c["slip_end"]) < 1e-3) for c in v_stick},
     }
     payload = {
-        "benchmark": NAME,
-        "mode": mode,
         "cases": cases,
         "control": control,
         "variant_cases": variant,
@@ -360,14 +342,8 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
             "ramp_bottom": "scripted Fixed",
             "energy_guard": True,
         },
-        "wall_s": time.perf_counter() - started,
-        "peak_memory_mb": peak_memory_mb(),
-        "environment": environment(),
     }
-    path = write_json(out, NAME, payload)
-    png = out / f"{NAME}.png"
-    _plot(cases, png)
-    return {"json": str(path), "png": str(png), **payload}
+    return payload
 
 
 #: ``run_conforming``'s record: what AUG reports and what the measurement shows of the method
@@ -487,21 +463,14 @@ def run_conforming(
             "energy_guard": True,
         },
         "wall_s": sum(c["wall_s"] for c in cases) if not ran else time.perf_counter() - started,
-        "peak_memory_mb": peak_memory_mb(),
-        "environment": environment(),
     }
-    path = write_json(out, name, payload)
-    png = out / f"{name}.png"
-    _plot_conforming(cases, png)
-    return {"json": str(path), "png": str(png), **payload}
+    return write_record(out, name, payload, lambda _, png: _plot_conforming(cases, png))
 
 
 def _plot_conforming(cases: list[dict], path: Path) -> None:
     """Slope displacement against time (APIC; solid: conforming, dashed: spec) and the
     relative error at t_end against h per (placement, transfer, mu)."""
-    fig = Figure(figsize=(11, 4.2))
-    FigureCanvasAgg(fig)
-    axes = fig.subplots(1, 2)
+    fig, axes = figure((11, 4.2), 1, 2)
     hs = sorted({c["h"] for c in cases}, reverse=True)
     mus = sorted({c["mu"] for c in cases})
     for c in cases:
@@ -540,8 +509,25 @@ def _plot_conforming(cases: list[dict], path: Path) -> None:
     axes[0].set(xlabel="t (s)", ylabel="slope displacement s (m)", title="block on 30 deg ramp")
     axes[1].set(xlabel="h (m)", ylabel="relative error of s(t_end)", title="refinement")
     axes[1].set_ylim(0.0, 1.05)
-    for ax in axes:
-        ax.grid(True, alpha=0.3)
-        ax.legend(fontsize="xx-small")
-    fig.suptitle("augury_ramp, paper settings (N = 1): dotted = 1/2 g (sin - mu cos) t^2")
-    fig.savefig(path, dpi=110)
+    save(
+        fig,
+        path,
+        axes,
+        "augury_ramp, paper settings (N = 1): dotted = 1/2 g (sin - mu cos) t^2",
+        legend="xx-small",
+    )
+
+
+BENCHMARK = register(
+    Benchmark(NAME, __doc__, MODES, measure, plot=lambda payload, png: _plot(payload["cases"], png))
+)
+run = BENCHMARK.run
+register(
+    Benchmark(
+        "augury_ramp_conforming",
+        "The ramp with the block's nodes on the ramp's (issue 40), AUG's settings",
+        {"full": {}},
+        None,
+        own_run=lambda mode, out: run_conforming(out),
+    )
+)

@@ -19,14 +19,7 @@ loads included), the benchmark's own ``wall_s`` from its JSON, and the BLAS CHOL
 that JSON names it; then reference / optimised for both times. ``--blas reference`` (or
 ``optimised``) runs one half, and ``--merge`` a later run's record with the other half's.
 
-Measured (2 cores, no AVX-512, quiet machine; the halves one after the other):
-
-- ``records/blas_wall.json`` (hertz full, at cf0120b): 720 s reference, 304 s OpenBLAS, 2.37x;
-- ``records/blas_wall_rings.json`` (``rings_transfers``, reference at 265adbe, OpenBLAS at
-  95295cb merged into it; the reference half alone is ``blas_wall_rings_reference.json``;
-  the rings code is the same in both): 1587 s reference (APIC 824 s, FLIP
-  757 s), 1073 s OpenBLAS (APIC 555 s, FLIP 514 s), 1.48x. Both give 8.451265311 / 7.984768802 %
-  energy loss and 11,648 Newton iterations: the BLAS does not change the trajectory.
+Measured results, with the commits they ran on: ``benchmarks/records/blas_wall.md``.
 """
 
 from __future__ import annotations
@@ -42,6 +35,7 @@ from pathlib import Path
 
 from benchmarks._blas_switch import reference_blas_env
 from benchmarks.common import environment, write_json
+from benchmarks.runner import Benchmark, register
 
 log = logging.getLogger(__name__)
 
@@ -202,3 +196,6 @@ def run(
         }
     path = write_json(out, "blas_wall", payload)
     return {"json": str(path), **payload}
+
+
+BENCHMARK = register(Benchmark("blas_wall", __doc__, MODES, None, own_run=run))

@@ -30,63 +30,13 @@ Choices where the paper is silent or the library forces a change (recorded in th
   half-width sqrt(2 R u) at u = 0.6 m) are scripted down at 1 m/s (the "cap"). Beyond u = 0.6 m
   a flat plate would flatten a wider crown. ``--mode plate_quick`` runs the paper's plate
   (``PLATE_HALF_WIDTH`` x ``PLATE_THICKNESS``, scripted down at 1 m/s, half d-hat above the
-  crown) with ``scene.set_friction("plate", "outer_ring", PLATE_MU)`` and the rings at mu.
-  Measured (``records/buckling_plate_quick.json``, rerun at b49aa3b with the friction loop's
-  stall rule, 610 s on 2 loaded cores): the plate touches only the top 4 crown nodes at
-  u = 0.2 m (the 2 m thick ring does not flatten like a Hertz contact) and holds them (0 m of
-  slip, against 6 mm frictionless); the detachment at u = 3 m is 0.162 m (mu = 0) and 0.144 m
-  (0.2) against 0.330 and 0.315 m with the cap, at 11x and 16x the Newton iterations (5354 and
-  14859 against 481 and 916); mu = 0.5 stops with MAX_ITERATIONS at its last step, u = 2.95 m
-  (||p|| / dt = 8.2 m/s after 500 iterations). Hence the cap. Before, at d3e77a1, mu = 0.5
-  stopped at u = 1.45 m (6.0 m/s); that stall went with a solver change between d3e77a1 and
-  30a3b59, not singled out (restarted from a checkpoint at u = 1.40 m, that step converged in
-  144 iterations). The stall at u = 2.95 m is not examined. ``--mode plate_partial`` (the
-  partial discretisation to u = 7 m with the plate, Newton cap 2000;
-  ``records/buckling_plate_partial.json`` / ``.png``, run at 30a3b59, before the stall rule,
-  and not rerun since: one mu per process on 2 cores, 340 s, 1193 s and 1343 s, 13785, 63217
-  and 71330 Newton iterations, 286 MB peak) shows the paper's picture more clearly than the cap: the
-  inner ring snaps through at u = 4.8-5 m for mu = 0 and 0.2 (detachment 0.24 m at u = 4 m, 1.42 m
-  at 6 m for mu = 0; 0.21 and 0.87 m for mu = 0.2) and runs to 2.24 and 1.48 m at u = 7 m, while at
-  mu = 0.5 it stays flatter and peaks at 0.51 m near u = 6 m, then 0.40 m at 6.5 m and 0.47 m at 7
-  m. By the measure above u_buckle = 5.00, 5.15 and 5.85 m: mu = 0.5 crosses the threshold by 0.01 m
-  for about 0.3 m of travel, so it still counts as buckled. Full mode with the plate
-  (``--mode plate_full``: the full discretisation, dt and travel with the plate, Newton cap
-  2000 as in partial mode) is the paper's experiment itself. It takes hours per mu on 2 cores,
-  so its cases are resumable: ``python -m benchmarks buckling --mode plate_full --mu 0.5
-  --budget-s 7200 --resumable --out DIR`` checkpoints the case in ``DIR/cases/`` every
-  ``CHECKPOINT_EVERY`` steps and at the budget, and the same command goes on from there, in a
-  later session too when ``DIR`` is kept (``benchmarks._case_checkpoint``; the segments
-  together equal one uninterrupted run bit for bit, ``tests/benchmarks/test_buckling_resume.py``);
-  ``merge`` joins the per-mu records. Recorded (``benchmarks/records/buckling_plate_full/``,
-  merged from ``records/buckling_plate_full_runs/mu<mu>/``, one mu per process on 2 cores, 1
-  BLAS thread each, CHOLMOD on OpenBLAS; every segment's seconds in the case's
-  ``progress.json``): u_buckle = 5.24 m (mu = 0), 5.57 m (mu = 0.2) and none for mu = 0.5,
-  whose detachment peaks at 0.41 m (u = 7.48 m) and ends at 0.35 m: the paper's result, mu = 0
-  first, 0.2 later, 0.5 not at all. Detachment at u = 4, 5, 6, 7 and 8 m: 0.21, 0.37, 1.08,
-  2.12 and 1.60 m (mu = 0, peak 2.54 m at 7.28); 0.16, 0.27, 0.72, 1.11 and 1.48 m (0.2); 0.07,
-  0.19, 0.36, 0.40 and 0.35 m (0.5). Case time 6616 s (mu = 0, three segments), 19,181 s
-  (0.2, three) and 25,232 s (0.5, five), 51,029 s in all; 98,155, 234,931 and 312,532 Newton
-  iterations; closest approach 0.96-0.97 mm (dhat 1 mm); 444 MB peak. The segments are not all
-  of one commit: from 25a03e5 the friction loop stops when it stalls
-  (``bfemp.steppers._barrier_solve.stalled``) instead of running to its cap of 20, which
-  changes the steps where it does not converge; before it, at mu = 0 from u = 3.2 m on, the
-  loop reached its cap on most steps (20 minimisations, up to 902 Newton iterations a step).
-  Steps 0-440 of mu = 0 and 0-380 of mu = 0.5 ran on 9cd6176, the rest of them and all of mu =
-  0.2 on 25a03e5's library code, so the record is not one run bit for bit. Cost per step,
-  measured: mu = 0 took 58-113 s from u = 4.2 to 4.4 m (the loop at its cap), then 4.3 s to
-  4.6 m and about 1.3 s to the end (on 25a03e5; the state got cheaper, not only the loop: the
-  stall rule replayed from the u = 4.2 m checkpoint cut three steps from 902 to 245-422 Newton
-  iterations, while the steps from u = 4.4 m took 76 and fewer). mu = 0.5 takes 30-45 s a step
-  from u = 2.8 m (435-650 Newton iterations), 36-54 s from u = 5 m (420-700) and 42 s on
-  average from 6.62 m to the end; mu = 0.2 12-15 s to u = 3 m, 20-46 s from there to 5.45 m
-  and 28 s on average from 5.45 m to the end (it did not get cheaper after buckling as mu = 0
-  did). In the last segments the loop stopped on its stall rule in 61 of mu = 0.5's 138 steps
-  and in 81 of mu = 0.2's 255, never at its cap. In mu = 0.5's steps the loop converges in 5-6
-  re-lags (to u = 3.8 m); the cost is the step's first solve, 235-336 Newton iterations at
-  step sizes 1e-7 to 0.1 (Armijo backtracking, 3-19 trials, below CCD bounds of 0.02-0.7). Its
-  steepest components are grid nodes of 1e-9 of the largest node mass, but holding every
-  unknown below 1e-4 of it fixed left the count as it was (409, 244 and 331 against 297, 243
-  and 263 for the three steps from u = 2.8 m): the cause is not found.
+  crown) with ``scene.set_friction("plate", "outer_ring", PLATE_MU)`` and the rings at mu; it
+  costs 11x to 16x the Newton iterations of the cap, hence the cap. ``--mode plate_partial`` and
+  ``--mode plate_full`` run the plate at the partial and full discretisations; the full one is
+  resumable: ``python -m benchmarks buckling --mode plate_full --mu 0.5 --budget-s 7200
+  --resumable --out DIR`` checkpoints the case in ``DIR/cases/`` every ``CHECKPOINT_EVERY``
+  steps and at the budget (``benchmarks._case_checkpoint``), and ``merge`` joins the per-mu
+  records.
 - Feet: the outer ring's nodes on y = 0 are fixed (level sets act on MPM grid nodes only); the
   inner ring's feet are held by two sticky level-set boxes ``9 <= |x| <= 13, -2 <= y <= 0``; a
   slip box ``|x| <= 9, -2 <= y <= 0`` lies under the middle. One scripted motion serves the cap
@@ -95,36 +45,16 @@ Choices where the paper is silent or the library forces a change (recorded in th
   PPC 9 in full mode (9898 particles; the paper's 10261 at dx = 0.25 m is 9.3 per cell); the
   MPM grid origin shifted by a quarter of the particle spacing (see ``benchmarks.rings``).
 - Full mode: dx = 0.25 m, PPC 9, FEM mesh size ``FULL_FEM_H`` (close to the paper's 2714
-  vertices), the paper's dt, run to u = 8 m (800 steps per mu). Recorded
-  (``benchmarks/records/buckling.json`` / ``.png``, at fdead73, one mu per process, the three
-  side by side on 2 cores, one thread each; 757 MB peak): every case reaches u = 8 m with the
-  rings never closer than 9.7e-4 m (< dhat: in contact, never touching). u_buckle = 3.52 m
-  (mu = 0), 3.73 m (0.2) and 4.00 m (0.5); the detachment at u = 8 m is 2.04, 1.36 and
-  0.86 m. So mu 0 buckles first and 0.2 later, as in the paper, but by this measure mu = 0.5
-  buckles too, 0.27 m after mu = 0.2, where the paper's does not buckle at all: its inner ring
-  ends in a flatter shape than the others (the figure) with a detachment that stops growing
-  near 0.8 m after u = 6 m. Cost: 537 s, 1735 s and 2370 s of case time; 3925, 17160 and
-  23856 Newton iterations; the lagged-friction loop stops at its cap of 20 in 59 (mu = 0.2)
-  and 67 (mu = 0.5) of the 800 steps.
+  vertices), the paper's dt, run to u = 8 m (800 steps per mu).
 - Quick mode: dx = 0.5 m, PPC 4 (1104 particles), FEM h = 0.5 m (537 vertices), dt = 5e-2 s
   (5 cm of push per step; the loading is quasi-static: waves cross the ring in 0.1 s), to
-  u = 3 m. (Before eed4f00 the mu = 0.5 run stopped with MAX_ITERATIONS at u = 3.9 m, hence
-  u = 3 m; it now reaches 7 m, see partial mode.)
+  u = 3 m.
 - Partial mode (``--mode partial``): the quick discretisation and dt pressed to u = 7 m, with a
-  Newton cap of 2000, for u_buckle at a coarse resolution. At dt = 2e-2 s, mu = 0 buckles at
-  u = 3.92 m; the friction cases stopped with MAX_ITERATIONS at u = 0.34 m and 0.36 m at
-  cc5084f (the 2-cycle below); mu = 0.2 now passes u = 1.2 m (checked, 60 steps).
-  Recorded (``benchmarks/records/buckling_partial.json``, 85 s on 2 loaded cores, rerun at
-  b49aa3b with the friction loop's stall rule): every case reaches u = 7 m; u_buckle = 3.95 m
-  (mu = 0), 4.05 m (mu = 0.2) and 4.35 m (mu = 0.5), and the detachment at u = 7 m is 1.97,
-  1.35 and 0.77 m: the full mode's ordering at this coarse resolution (before the stall rule,
-  at 10db032: the same u_buckle, 1.97, 1.35 and 0.73 m, and 1316, 3165 and 5180 Newton
-  iterations against 1319, 2312 and 3266 now). (Before eed4f00, a Newton 2-cycle of the
-  near-solution rule stopped mu = 0.2 at u = 6.65 m and mu = 0.5 at u = 3.85 m with MAX_ITERATIONS.)
+  Newton cap of 2000, for u_buckle at a coarse resolution.
 - Newton iteration cap 500 (partial mode 2000); lagged-friction loop capped at 20 iterations
-  (the default). The loop stops earlier when it stalls (``bfemp.steppers._barrier_solve``):
-  quick mode logs "friction loop stalled" in 7 of its 120 friction steps and goes on, as the
-  library does, and never reaches the cap (before the stall rule it did, on about 10 steps).
+  (the default). The loop stops earlier when it stalls (``bfemp.steppers._barrier_solve``).
+
+Measured results, with the commits they ran on: ``benchmarks/records/buckling.md``.
 """
 
 from __future__ import annotations
@@ -140,8 +70,10 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 import bfemp
+from benchmarks import catalogue
 from benchmarks._case_checkpoint import CaseCheckpoint
 from benchmarks.common import cases_by_mu, environment, note_merge, peak_memory_mb, write_json
+from benchmarks.runner import Benchmark, name_unless, register
 
 log = logging.getLogger(__name__)
 
@@ -304,14 +236,7 @@ def _run_one(
     every ``checkpoint_every`` steps, at the cut and at the end, and a checkpoint found there
     is resumed (``_case_checkpoint``): ``wall_s`` is then the sum of the ``segments_s`` of
     every process that ran the case, and ``budget_s`` bounds this process's segment."""
-    sim = bfemp.Simulation(
-        _scene(cfg, mu),
-        integrator="backward_euler",
-        transfer="apic",
-        dt=cfg["dt"],
-        tol=TOL,
-        max_newton_iterations=cfg["max_newton"],
-    )
+    sim = catalogue.paper_simulation(_scene(cfg, mu), cfg["dt"], TOL, cfg["max_newton"])
     measure = Detachment(sim.state.mpm_x, sim.state.fem_x, cfg["dx"])
     steps = round(cfg["u_end"] / (SPEED * cfg["dt"]))
     progress = {
@@ -350,11 +275,8 @@ def _run_one(
             )
 
     for k in range(sim.state.step, steps if error is None else 0):
-        try:
-            report = sim.step()
-        except bfemp.StepError as err:
-            error = str(err)
-            log.warning("buckling mu=%g: %s", mu, err)
+        report, error = catalogue.step(sim, f"buckling mu={mu:g}")
+        if error is not None:
             break
         newton += report.newton_iterations
         friction_max = max(friction_max, report.friction_iterations)
@@ -611,3 +533,9 @@ def main_from_args(args: argparse.Namespace) -> int:
     )
     print(f"buckling: wrote {summary['json']}")
     return 0
+
+
+# the committed records of modes other than full carry the mode in their names
+BENCHMARK = register(
+    Benchmark(NAME, __doc__, MODES, None, record=name_unless("full", NAME), own_run=run)
+)

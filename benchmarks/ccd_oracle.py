@@ -41,11 +41,10 @@ import multiprocessing
 import time
 from fractions import Fraction
 from itertools import combinations
-from pathlib import Path
 
 import numpy as np
 
-from benchmarks.common import environment, write_json
+from benchmarks.runner import Benchmark, name_unless, register
 from geometry import ccd
 from geometry._ccd_kernels import _accd
 from geometry._distance_kernels import KIND_EE, KIND_PE, KIND_PT
@@ -568,25 +567,31 @@ def _measure(name: str, kind: str, n: int, mode: str) -> dict:
     return out
 
 
-def run(mode: str = "full", out: str | Path = "results") -> dict:
-    """Every family x kind against the exact oracle; writes ``ccd_oracle.json`` to ``out``."""
-    n = CASES[mode]
+def measure(mode: str, n: int) -> dict:
+    """Every family x kind against the exact oracle, ``n`` cases each."""
     bfemp_toi("point_edge", *family("sliding", "point_edge", 2))  # load the kernels
     results = {
         f"{name}/{kind}": _measure(name, kind, n, mode) for name in FAMILIES for kind in KINDS
     }
     results["turning/point_edge"] = _measure("turning", "point_edge", n, mode)
     results["tangent/point_edge"] = _measure("tangent", "point_edge", n, mode)
-    payload = {
-        "benchmark": "ccd_oracle",
-        "mode": mode,
+    return {
         "ipctk": None if ipctk is None else getattr(ipctk, "__version__", "installed"),
         "families": results,
         "bfemp_false_negatives": sum(r["bfemp_false_negatives"] for r in results.values()),
         "ipctk_false_negatives": None
         if ipctk is None
         else sum(r["ipctk_false_negatives"] for r in results.values()),
-        "environment": environment(),
     }
-    path = write_json(out, "ccd_oracle", payload)
-    return {"json": str(path), **payload}
+
+
+BENCHMARK = register(
+    Benchmark(
+        "ccd_oracle",
+        __doc__,
+        CASES,
+        measure,
+        record=name_unless("full", "ccd_oracle"),
+    )
+)
+run = BENCHMARK.run

@@ -50,6 +50,7 @@ def _bench(args: argparse.Namespace) -> int:
     import importlib
 
     from benchmarks.__main__ import BENCHMARKS
+    from benchmarks.runner import run_named
 
     if args.name not in BENCHMARKS:
         raise SceneError(
@@ -57,7 +58,7 @@ def _bench(args: argparse.Namespace) -> int:
         )
     module = importlib.import_module(BENCHMARKS[args.name])
     try:
-        summary = module.run(args.mode or "full", args.out)
+        summary = run_named(args.name, args.mode or "full", args.out, module=module)
     except ValueError as err:  # a mode the benchmark does not have, named by it
         raise SceneError(f"bench {args.name}: {err}") from None
     print(f"{args.name}: wrote {summary.get('json', args.out)}")

@@ -66,6 +66,28 @@ def peak_memory_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
+def figure(figsize: tuple[float, float], *grid, layout: str | None = None, **subplots):
+    """A matplotlib figure drawn without a display (Agg canvas) and its axes
+    ``fig.subplots(*grid, **subplots)``: ``(fig, axes)``; ``figsize`` in inches."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=figsize, layout=layout)
+    FigureCanvasAgg(fig)
+    return fig, fig.subplots(*grid, **subplots)
+
+
+def save(fig, path: str | Path, axes=(), title: str | None = None, legend: str = "small") -> None:
+    """Grid and legend (font size ``legend``) on each of ``axes``, ``title`` above, then the
+    figure saved to ``path`` at 110 dpi."""
+    for ax in axes:
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=legend)
+    if title is not None:
+        fig.suptitle(title)
+    fig.savefig(path, dpi=110)
+
+
 def write_json(out: str | Path, name: str, payload: dict) -> Path:
     """Write ``out/name.json`` (indented) and return its path."""
     out = Path(out)

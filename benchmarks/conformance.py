@@ -56,6 +56,7 @@ from benchmarks._conformance_scenes import (
     cases,
 )
 from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks.runner import Benchmark, register
 from bfemp.steppers import STRATEGIES, StepError
 from bfemp.steppers.capabilities import scene_pairs
 
@@ -442,3 +443,6 @@ def plot_table(payload: dict, path: Path) -> None:
     ax.set_title(f"conformance ({payload['mode']})", fontsize=9, pad=18)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
+
+
+BENCHMARK = register(Benchmark("conformance", __doc__, {}, None, own_run=run))

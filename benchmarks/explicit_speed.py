@@ -24,12 +24,11 @@ from __future__ import annotations
 
 import logging
 import time
-from pathlib import Path
 
 import numpy as np
 
 import bfemp
-from benchmarks.common import environment, write_json
+from benchmarks.runner import Benchmark, register
 from bfemp import diagnostics
 from bfemp.steppers.augury import AuguryOptions
 
@@ -125,11 +124,8 @@ def run_strategy(h: float, strategy: str) -> dict:
     return out
 
 
-def run(mode: str = "full", out: str | Path = "results") -> dict:
-    """Every strategy at every h of ``mode``; writes ``explicit_speed.json``."""
-    if mode not in MODES:
-        raise ValueError(f"mode must be one of {sorted(MODES)}, got {mode!r}")
-    started = time.perf_counter()
+def measure(mode: str, cfg) -> dict:
+    """Every strategy at every h of ``mode``."""
     rows = []
     for strategy in (*EXPLICIT, "barrier"):  # warm-up: first calls and numba loading not timed
         run_strategy(MODES[mode][0], strategy)
@@ -150,8 +146,6 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
             row["barrier"]["s_per_step"],
         )
     payload = {
-        "benchmark": NAME,
-        "mode": mode,
         "rows": rows,
         "target": "augury contact part < mechanics part per step",
         "target_met": all(r["augury"]["contact_below_mechanics"] for r in rows),
@@ -166,8 +160,13 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
             "dhat_m": 2e-3,
             "kappa_Pa": 1e5,
         },
-        "wall_s": time.perf_counter() - started,
-        "environment": environment(),
     }
-    path = write_json(out, NAME, payload)
-    return {"json": str(path), **payload}
+    return payload
+
+
+BENCHMARK = register(
+    Benchmark(
+        NAME, __doc__, MODES, measure, timings=r"s_per_step|per_simulated_s|contact_below_mech"
+    )
+)
+run = BENCHMARK.run

@@ -91,7 +91,8 @@ from benchmarks._extreme_strategies import (
     not_applicable,
     strategy_options,
 )
-from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks.common import environment, peak_memory_mb
+from benchmarks.runner import Benchmark, register, write_record
 from geometry.mesh import TriMesh
 from geometry.sampling import points_in_mesh
 
@@ -587,12 +588,8 @@ def run(
     }
     payload = _clean(payload)
     name = output_name(mode)
-    path = write_json(out, name, payload)
-    md = out / f"{name}.md"
-    md.write_text(markdown_table(payload))
-    png = out / f"{name}.png"
-    plot_cases(payload, png, title=f"extremes ({mode})")
-    return {"json": str(path), "markdown": str(md), "png": str(png), **payload}
+    plot = lambda payload, png: plot_cases(payload, png, title=f"extremes ({mode})")  # noqa: E731
+    return write_record(out, name, payload, plot, markdown_table)
 
 
 # ---------------------------------------------------------------------------------- CLI
@@ -610,3 +607,8 @@ def main_from_args(args) -> int:
     summary = run(args.mode or "full", args.out, resolve_strategies(args.strategy))
     print(f"extremes: wrote {summary['json']}")
     return 0
+
+
+BENCHMARK = register(
+    Benchmark(NAME, __doc__, {}, None, record=lambda mode, _: output_name(mode), own_run=run)
+)

@@ -52,7 +52,8 @@ import numpy as np
 from benchmarks import _fuzz_scenes as scenes
 from benchmarks._crossing_oracle import MAX_SAMPLES, Bodies, judge_step
 from benchmarks._tradeoff_cache import code_version
-from benchmarks.common import environment, git_commit, write_json
+from benchmarks.common import environment, git_commit
+from benchmarks.runner import Benchmark, register, write_record
 
 log = logging.getLogger(__name__)
 
@@ -364,9 +365,7 @@ def run(
         "summary": summarise(results),
         "environment": environment(),
     }
-    path = write_json(out, name, payload)
-    (out / f"{name}.md").write_text(markdown(payload))
-    return {"json": str(path), **payload}
+    return write_record(out, name, payload, report=markdown)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -382,3 +381,6 @@ def main_from_args(args: argparse.Namespace) -> int:
     total = summary["summary"]["total"]["outcomes"]
     print(f"fuzz: wrote {summary['json']}: " + ", ".join(f"{k} {v}" for k, v in total.items()))
     return 0
+
+
+BENCHMARK = register(Benchmark("fuzz", __doc__, {}, None, own_run=run))

@@ -24,17 +24,8 @@ What limits the accuracy (measured): the grid, not the particles. a(F) is a stai
 width creeps, then jumps when an edge passes a B-spline knot, a cell centre) and the contact is
 narrower than Hertz's at equal force, by an amount close to first order in dx. Full mode adds
 a grid sweep (``grid_convergence``: linear disk, dx in ``SWEEP_DX``, quick settings with
-dt = ``SWEEP_DT``) and extrapolates C_fit / C_hertz to dx = 0 along a straight line. Recorded
-(``benchmarks/records/hertz.json``): C_fit / C_hertz = 1.148 (linear) and 1.155 (Neo-Hookean)
-at the paper's dx = 0.025; sweep 1.37, 1.28, 1.24, 1.16 at dx = 0.05, 0.04, 0.033, 0.025, i.e.
-0.95 extrapolated to dx = 0. The 15 % target is thus at the edge at the paper's grid (the
-Neo-Hookean disk misses it by 0.5 points); one grid step finer it holds with margin:
-``refined`` mode (dx = 0.02 m, 70,636 particles, ``hertz_refined.json``) gives 1.116 (linear)
-and 1.119 (Neo-Hookean), 1.100 / 1.106 with the interpolated a, as the sweep's trend predicted.
-Quick mode keeps that grid (dx = 0.02 m) with coarse steps and particles (spacing 0.01 m,
-33,926 particles, 10 steps of 6e-2 s, Newton tolerance 1e-4 m/s; about 1.5 min per material on
-2 cores) and meets the 15 % target too: 1.132 (linear) and 1.138 (Neo-Hookean), measured at
-f31e3e9; at dx = 0.04 m it gave ~1.3.
+dt = ``SWEEP_DT``) and extrapolates C_fit / C_hertz to dx = 0 along a straight line. Measured
+results: ``benchmarks/records/hertz.md``.
 
 Choices where the paper is silent or the library forces a change (recorded in the JSON):
 
@@ -76,12 +67,12 @@ import time
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 import bfemp
+from benchmarks import catalogue
 from benchmarks._penetration import penetration_summary
-from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks.common import figure
+from benchmarks.runner import Benchmark, register
 
 log = logging.getLogger(__name__)
 
@@ -348,7 +339,7 @@ def stress_force(deformation: np.ndarray, geo: dict, t: float) -> float:
     return -float(np.dot(sigma[:, 1, 1], volume)) / gap
 
 
-def _run_material(cfg: dict, material: str, top_plate: str = "elastic") -> dict:
+def run_material(cfg: dict, material: str, top_plate: str = "elastic") -> dict:
     """Compress the disk of one material; F and a after every step, and the fits.
 
     ``cfg["options"]`` (an options object; with ``strategy`` and ``integrator``) runs any
@@ -359,23 +350,10 @@ def _run_material(cfg: dict, material: str, top_plate: str = "elastic") -> dict:
     lowest particle above the plate; < 0: inside it).
     """
     scene, geo = _scene(cfg, material, cfg.get("top_plate", top_plate))
-    if cfg.get("options") is None:  # barrier, backward Euler (the paper's)
-        sim = bfemp.Simulation(
-            scene,
-            strategy=cfg.get("strategy", "barrier"),
-            integrator="backward_euler",
-            dt=cfg["dt"],
-            tol=cfg["tol"],
-            max_newton_iterations=cfg["max_newton_iterations"],
-        )
-    else:  # any strategy with its options object (the trade study's explicit ones on SOFT)
-        sim = bfemp.Simulation(
-            scene,
-            strategy=cfg["strategy"],
-            integrator=cfg["integrator"],
-            dt=cfg["dt"],
-            options=cfg["options"],
-        )
+    strategy = cfg.get("strategy", "barrier")
+    sim = catalogue.simulation(
+        scene, cfg, strategy, cfg.get("tol"), cfg.get("max_newton_iterations")
+    )
     model = sim.model
     dhat = cfg.get("dhat", DHAT)
     bottom = model.fem_bodies[geo["bottom"]].nodes
@@ -501,7 +479,7 @@ def run_point(settings: dict) -> dict:
             (s), ``max_newton_iterations``, ``boundary_refine`` and ``grid_offset_cells``.
 
     Returns:
-        JSON-ready scalars of ``_run_material`` (no samples): ``rel_error`` =
+        JSON-ready scalars of ``run_material`` (no samples): ``rel_error`` =
         ``|C_fit / C_hertz - 1|`` (NaN with fewer than 3 samples in the fit range),
         ``C_fit_over_C_hertz``, ``fit_samples``, ``steps``, ``newton_iterations``,
         ``particles``, and the ``StepError`` message in ``failure``.
@@ -515,7 +493,7 @@ def run_point(settings: dict) -> dict:
             f"hertz: settings.material must be one of {sorted(MATERIALS)}, "
             f"got {settings['material']!r}"
         )
-    run = _run_material(dict(settings), settings["material"])
+    run = run_material(dict(settings), settings["material"])
     out = {k: v for k, v in run.items() if k not in ("samples", "error")}
     out["failure"] = run["error"]
     return out
@@ -530,7 +508,7 @@ def _grid_sweep() -> dict:
     """
     rows = []
     for dx in SWEEP_DX:
-        r = _run_material(dict(_FAST, dx=dx, spacing=0.5 * dx, dt=SWEEP_DT), "linear")
+        r = run_material(dict(_FAST, dx=dx, spacing=0.5 * dx, dt=SWEEP_DT), "linear")
         rows.append(
             {
                 "dx": dx,
@@ -560,9 +538,7 @@ def _grid_sweep() -> dict:
 def _plot(runs: dict, cfg: dict, path: Path, title: str, sweep: dict | None = None) -> None:
     """Figure 10 style: F against a (both materials, Hertz, fits); F against the plate travel;
     with a sweep, C_fit / C_hertz against the grid spacing."""
-    fig = Figure(figsize=(16.0 if sweep else 11.0, 4.8), layout="constrained")
-    FigureCanvasAgg(fig)
-    axes = fig.subplots(1, 3 if sweep else 2)
+    fig, axes = figure((16.0 if sweep else 11.0, 4.8), 1, 3 if sweep else 2, layout="constrained")
     c_h = hertz_constant()
     a_max = max(max(r["samples"]["a"], default=0.0) for r in runs.values())
     a_line = np.linspace(0.0, max(a_max, 1e-3) * 1.05, 200)
@@ -603,29 +579,18 @@ def _plot(runs: dict, cfg: dict, path: Path, title: str, sweep: dict | None = No
     fig.savefig(path, dpi=110)
 
 
-def run(mode: str = "full", out: str | Path = "results") -> dict:
-    """Run both materials and write ``hertz.json`` and ``hertz.png`` to ``out``.
-
-    Args:
-        mode: ``"full"`` (paper resolution, with the grid sweep), ``"refined"`` (the full
-            settings at dx = 0.02 m, no sweep; written to ``hertz_refined.json``) or
-            ``"quick"`` (coarse steps on the refined grid, ~3 min).
-        out: output folder.
-
-    Returns:
-        ``{"json": path, "png": path, ...}`` with the top-level metrics.
-    """
-    if mode not in MODES:
-        raise ValueError(f"mode must be one of {sorted(MODES)}, got {mode!r}")
-    cfg = MODES[mode]
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    runs = {name: _run_material(cfg, name) for name in MATERIALS}
+def measure(mode: str, cfg: dict) -> dict:
+    """Both materials: ``"full"`` (paper resolution, with the grid sweep), ``"refined"`` (the
+    full settings at dx = 0.02 m, no sweep; recorded as ``hertz_refined``) or ``"quick"``
+    (coarse steps on the refined grid, ~3 min)."""
+    runs = {name: run_material(cfg, name) for name in MATERIALS}
     sweep = _grid_sweep() if mode == "full" else None
     materials = {name: {k: v for k, v in r.items() if k != "samples"} for name, r in runs.items()}
-    payload = {
-        "benchmark": NAME,
-        "mode": mode,
+    log.info(
+        "hertz: C_fit / C_hertz = %s",
+        {k: round(r["C_fit_over_C_hertz"], 4) for k, r in runs.items()},
+    )
+    return {
         "materials": materials,
         "samples": {name: r["samples"] for name, r in runs.items()},
         "fit_range_m": [FIT_MIN_CELLS * cfg["dx"], FIT_MAX_A_OVER_R * RADIUS],
@@ -636,7 +601,6 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
         "steps_total": sum(r["steps"] for r in runs.values()),
         "wall_s": sum(r["wall_s"] for r in runs.values()) + (sweep["wall_s"] if sweep else 0.0),
         "newton_iterations": sum(r["newton_iterations"] for r in runs.values()),
-        "peak_memory_mb": peak_memory_mb(),
         "paper": PAPER,
         "parameters": {
             **cfg,
@@ -659,14 +623,25 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
             "particles": next(iter(runs.values()))["particles"],
             "fit": "least squares F = C a^2 over fit_range_m",
         },
-        "environment": environment(),
+        "_runs": runs,
     }
-    name = f"{NAME}_refined" if mode == "refined" else NAME
-    path = write_json(out, name, payload)
-    png = out / f"{name}.png"
-    _plot(runs, cfg, png, f"Brazilian disk (MPM) between FEM plates, {mode} mode", sweep)
-    log.info(
-        "hertz: C_fit / C_hertz = %s",
-        {k: round(r["C_fit_over_C_hertz"], 4) for k, r in runs.items()},
+
+
+def plot(payload: dict, png: Path) -> None:
+    """``_plot`` of both materials (and the grid sweep in full mode)."""
+    mode = payload["mode"]
+    title = f"Brazilian disk (MPM) between FEM plates, {mode} mode"
+    _plot(payload["_runs"], MODES[mode], png, title, payload["grid_convergence"])
+
+
+BENCHMARK = register(
+    Benchmark(
+        NAME,
+        __doc__,
+        MODES,
+        measure,
+        plot=plot,
+        record=lambda mode, options: f"{NAME}_refined" if mode == "refined" else NAME,
     )
-    return {"json": str(path), "png": str(png), **payload}
+)
+run = BENCHMARK.run

@@ -27,29 +27,10 @@ contact state recorded), and the diagnostic ``lr_xpic5_dlr_forced`` (LR-XPIC(5) 
 forced: contact iff approaching) against SMM-XPIC(5).
 
 Targets (T): max |error| of LR-FLIP < 1 %, of LR-XPIC(5) < 0.5 % (paper: 1 % and 0.24 %); LR
-once above LR. Measured (records, up to issue 40, with Uintah's contact-node threshold
-``mass_fraction = 1e-8``): LR-FLIP 0.13 % (quick) and 1.00 % (full, to 15 %), LR once
-0.37 / 1.63 %; LR-XPIC(5) 0.78 / 3.18 %. With LR's contact node (any mass, the default since
-issue 40): quick LR-FLIP 0.33 %, LR once 0.36 %, LR-XPIC(5) 0.91 %, once + XPIC(5) 0.15 %
-(the quick rate is 10x the paper's and does not test its claim); full (the paper's rate, to
-15 %) LR-FLIP 0.112 %, LR once 0.107 % (so the paper's "once is worse" is not reproduced
-here), LR-XPIC(5) 1.21 %, once + XPIC(5) 0.239 % (the paper's LR-XPIC(5): 0.24 %), velocity
-9.9 %, cp 40 %. LR-XPIC(5) stays above its target, and the record's ``cause`` section
-(``release_cause``) measures why: from 1 to 8.7 % strain its error is at most 0.044 % and
-0.005 % just before the step; then at step 10760 (8.752 %) the contact of the
-3 nodes at x = 20 mm is released for one step with d_LR = +1.8e-7 cells (it was -7.2e-7), the
-compressed faces approach at 137-180 m/s in the uncorrected fields for that step and contact
-resumes at an overlap of 0.017 cells, and at step 10852 (8.827 %) 14 nodes likewise (d_LR
-+1.2e-6 cells, overlap 0.023 cells): the error goes -0.005 % -> -0.44 % -> -1.21 %, and the
-overlap, never pushed apart by the law (eq. 14), stays. The same run with d_LR < 0 forced
-(``lr_xpic5_dlr_forced``, a diagnostic, not the paper's rule) has 0.26 % (the paper: 0.24 %).
-The interface reaches d_LR = 0 because with two corrections the particles move with the
-contact-corrected fields while R_p (eq. 25) follows F: the measured gap opens (forced:
-d_LR up to +2.4e-3 cells, quick); with one correction the particles overlap more and more, so
-LR once + XPIC(5) is never released (0.239 %). The paper states d_LR < 0 strictly; whether a
+once above LR. Measured
+results (quick and full) and the cause of LR-XPIC(5)'s miss:
+``benchmarks/records/lr_compression_quick.md``. The paper states d_LR < 0 strictly; whether a
 touching interface should tolerate d_LR ~ 0 is a choice it leaves open, not taken here.
-(Measured before, on older code: re-imposing the contact law on the XPIC-projected field,
-NairnMPM's later form approximated, made LR-XPIC(5) worse, 1.9 %.)
 The record also carries the time per step split into P2G, LR fits, corrections
 and G2P (XPIC inside G2P), the share of contact nodes and the LR / velocity-detector time ratio
 (the paper reports LR about 55 % slower).
@@ -65,11 +46,10 @@ import time
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 import bfemp
-from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks.common import figure
+from benchmarks.runner import Benchmark, name_unless, register
 from bfemp.contact import lr as lr_contact
 from bfemp.materials import BulkShearHyperelastic
 from bfemp.motion import Linear
@@ -500,9 +480,7 @@ def compression(mode: str) -> dict:
 def plot(record: dict, path: Path) -> None:
     """Fig. 5: the stress error against strain per detector (all; the LR runs zoomed, with
     LR-XPIC(5)'s d_LR releases marked, ``release_cause``), and the stresses themselves."""
-    fig = Figure(figsize=(15, 4.4))
-    FigureCanvasAgg(fig)
-    ax, zx, bx = fig.subplots(1, 3)
+    fig, (ax, zx, bx) = figure((15, 4.4), 1, 3)
     comp = record["compression"]
     names = ("lr_flip", "lr_xpic5", "lr_once", "velocity", "cp_0.8", "lr_once_xpic5", FORCED)
     color = {name: f"C{k}" for k, name in enumerate(names)}
@@ -544,12 +522,9 @@ def plot(record: dict, path: Path) -> None:
     fig.savefig(path, dpi=110)
 
 
-def run(mode: str, out: Path) -> dict:
-    """Writes ``out/lr_compression[_quick].json`` and the PNG."""
-    started = time.perf_counter()
-    record = {
-        "benchmark": NAME,
-        "mode": mode,
+def measure(mode: str, cfg: tuple) -> dict:
+    """The column's setup and every run of ``mode`` (``compression``)."""
+    return {
         "setup": {
             "width": WIDTH,
             "height": HEIGHT,
@@ -564,10 +539,9 @@ def run(mode: str, out: Path) -> dict:
         },  # fmt: skip
         "compression": compression(mode),
     }
-    record["wall_s"] = time.perf_counter() - started
-    record["peak_memory_mb"] = peak_memory_mb()
-    record["environment"] = environment()
-    name = NAME if mode == "full" else f"{NAME}_{mode}"
-    path = write_json(out, name, record)
-    plot(record, Path(out) / f"{name}.png")
-    return {"json": str(path), **record}
+
+
+BENCHMARK = register(
+    Benchmark(NAME, __doc__, MODES, measure, plot=plot, record=name_unless("full", NAME))
+)
+run = BENCHMARK.run

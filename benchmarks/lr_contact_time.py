@@ -16,15 +16,13 @@ velocity-only detector detects before t_c - 0.5 dx / v0 in both cases. Runs to 1
 from __future__ import annotations
 
 import logging
-import time
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
-from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks.common import figure
 from benchmarks.lr_compression import C_K, DX, MODES, column_scene, run_case
+from benchmarks.runner import Benchmark, name_unless, register
 
 log = logging.getLogger(__name__)
 
@@ -76,9 +74,7 @@ def contact_time(mode: str) -> dict:
 
 def plot(record: dict, path: Path) -> None:
     """Fig. 2B: the mean stress against time per case, t_c dashed."""
-    fig = Figure(figsize=(6, 4.2))
-    FigureCanvasAgg(fig)
-    ax = fig.subplots()
+    fig, ax = figure((6, 4.2))
     for key, case in record["cases"].items():
         ax.plot(1e3 * np.asarray(case["t"]), -1e-6 * np.asarray(case["stress"]), label=key)
     ax.axvline(1e3 * record["t_c"], color="k", lw=0.6, ls="--")
@@ -89,14 +85,8 @@ def plot(record: dict, path: Path) -> None:
     fig.savefig(path, dpi=110)
 
 
-def run(mode: str, out: Path) -> dict:
-    """Writes ``out/lr_contact_time[_quick].json`` and the PNG."""
-    started = time.perf_counter()
-    record = {"benchmark": NAME, "mode": mode, **contact_time(mode)}
-    record["wall_s"] = time.perf_counter() - started
-    record["peak_memory_mb"] = peak_memory_mb()
-    record["environment"] = environment()
-    name = NAME if mode == "full" else f"{NAME}_{mode}"
-    path = write_json(out, name, record)
-    plot(record, Path(out) / f"{name}.png")
-    return {"json": str(path), **record}
+BENCHMARK = register(
+    Benchmark(NAME, __doc__, MODES, lambda mode, cfg: contact_time(mode), plot=plot,
+              record=name_unless("full", NAME))
+)  # fmt: skip
+run = BENCHMARK.run

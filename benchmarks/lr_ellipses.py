@@ -32,12 +32,11 @@ import time
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 import bfemp
 from benchmarks._ellipse_bodies import add_ellipse_classes
-from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks.common import figure
+from benchmarks.runner import Benchmark, name_unless, register
 from bfemp.materials import BulkShearHyperelastic
 from bfemp.motion import Linear
 from bfemp.steppers.lr import LROptions, LRStepper
@@ -152,9 +151,7 @@ def run_detector(cfg: dict, name: str, samples: int = 40) -> dict:
 
 def plot(record: dict, path: Path) -> None:
     """Stress and interpenetration against compression, per detector."""
-    fig = Figure(figsize=(10, 4))
-    FigureCanvasAgg(fig)
-    ax, bx = fig.subplots(1, 2)
+    fig, (ax, bx) = figure((10, 4), 1, 2)
     cfg = record["setup"]
     for name, run_ in record["runs"].items():
         comp = 100 * PISTON_SPEED * np.asarray(run_["history"]["t"]) / cfg["height"]
@@ -169,15 +166,11 @@ def plot(record: dict, path: Path) -> None:
     fig.savefig(path, dpi=110)
 
 
-def run(mode: str, out: Path) -> dict:
-    """All detectors of ``mode``; writes ``out/lr_ellipses[_quick].json`` and the PNG."""
-    cfg = MODES[mode]
-    started = time.perf_counter()
+def measure(mode: str, cfg) -> dict:
+    """All detectors of ``mode``."""
     runs = {name: run_detector(cfg, name) for name in cfg.get("detectors", DETECTORS)}
     lr, cp = runs["lr"], runs["cp_0.8"]
     record = {
-        "benchmark": NAME,
-        "mode": mode,
         "setup": {
             **cfg,
             "K": K_BULK,
@@ -197,10 +190,10 @@ def run(mode: str, out: Path) -> dict:
             "lr_below_cp": lr["interpenetrating_end"] < cp["interpenetrating_end"],
         },
     }
-    record["wall_s"] = time.perf_counter() - started
-    record["peak_memory_mb"] = peak_memory_mb()
-    record["environment"] = environment()
-    name = NAME if mode == "full" else f"{NAME}_{mode}"
-    path = write_json(out, name, record)
-    plot(record, Path(out) / f"{name}.png")
-    return {"json": str(path), **record}
+    return record
+
+
+BENCHMARK = register(
+    Benchmark(NAME, __doc__, MODES, measure, plot=plot, record=name_unless("full", NAME))
+)
+run = BENCHMARK.run

@@ -27,7 +27,7 @@ Scenes:
   dx / 2 as a material, frictionless, dt = "auto", to 0.3 s); error = the trade study's
   max(|L - L_ref| / L_ref, |T - T_ref| / T_ref) of the energy loss L and contact duration T
   against the barrier reference run of that discretisation (run here); also the particles found
-  inside the FEM ring at any step (``rings._PenetrationCheck``).
+  inside the FEM ring at any step (``catalogue.RingsPenetration``).
 - ``compression``: ``lr_compression``'s column (mu = 0.2, v0 = 0.5 % of c_K quick, 0.05 % full);
   error = the largest |stress error| in % past 1 % strain against the single-material run with
   the same particle update (FLIP for flip_c1, flip_c0 and once; PIC; XPIC(5)).
@@ -54,7 +54,8 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks import catalogue
+from benchmarks.runner import Benchmark, name_unless, register
 
 log = logging.getLogger(__name__)
 
@@ -91,7 +92,7 @@ def _totals(stepper: object) -> dict:
 
 def slope_case(mode: str, options: dict) -> dict:
     """The settle-and-slide slope case with lr ``options`` (module docstring)."""
-    from benchmarks import _tradeoff_runs, slope
+    from benchmarks import _tradeoff_runs
 
     settle_s, release_s, fit_start_s = _SLOPE[mode]
     s = dict(strategy="lr", dt=5e-5, options=options, transfer="flip", dx=5e-3, ppc=4)
@@ -104,14 +105,14 @@ def slope_case(mode: str, options: dict) -> dict:
         seen["stepper"] = sim.stepper
 
     started = time.perf_counter()
-    settled, _ = slope._settle(variant, round(settle_s / s["dt"]), p, on_step=keep)
+    settled, _ = catalogue.settle_slope(variant, round(settle_s / s["dt"]), p, on_step=keep)
     settle_totals = _totals(seen["stepper"])
     # tilted gravity: the slope is the plane y = 0, its normal +y; the bottom row of the lattice
     spacing = s["dx"] / math.sqrt(s["ppc"])
     y = settled.mpm_x[:, 1]
     bottom = y < y.min() + 0.5 * spacing
-    case = slope._release(variant, s["mu"], settled, round(release_s / s["dt"]), fit_start_s, p,
-                          on_step=keep)  # fmt: skip
+    steps = round(release_s / s["dt"])
+    case = catalogue.release_slope(variant, s["mu"], settled, steps, fit_start_s, p, on_step=keep)
     return {
         "error": case["accel_rel_error"],
         "accel_m_s2": case["accel"],
@@ -137,7 +138,7 @@ def rings_reference() -> dict:
     from benchmarks import _tradeoff_runs
 
     started = time.perf_counter()
-    out = _tradeoff_runs._rings(_rings_settings("barrier", "reference"))
+    out = _tradeoff_runs.rings_point(_rings_settings("barrier", "reference"))
     return {k: out[k] for k in ("energy_loss_pct", "contact_duration_s", "failure")} | {
         "wall_s": time.perf_counter() - started
     }
@@ -151,7 +152,7 @@ def rings_case(options: dict, reference: dict) -> dict:
     s["options"] = dict(s["options"]) | options
     seen: dict[str, object] = {}
     started = time.perf_counter()
-    out = _tradeoff_runs._rings(s, on_done=lambda sim: seen.update(stepper=sim.stepper))
+    out = _tradeoff_runs.rings_point(s, on_done=lambda sim: seen.update(stepper=sim.stepper))
     parts = [
         abs(out[k] - reference[k]) / reference[k]
         for k in ("energy_loss_pct", "contact_duration_s")
@@ -203,15 +204,10 @@ def _compression(mode: str, variants: tuple[str, ...]) -> dict:
     return {"mode": cmode, "v0_m_s": v0, "final_strain": strain, "runs": runs}
 
 
-def run(mode: str = "full", out: str | Path = "results") -> dict:
-    """Run ``mode``; write ``lr_variants[_MODE].json`` and its PNG."""
-    if mode not in MODES:
-        raise ValueError(f"lr_variants mode must be one of {sorted(MODES)}, got {mode!r}")
-    variants, scenes = MODES[mode]["variants"], MODES[mode]["scenes"]
-    started = time.perf_counter()
+def measure(mode: str, cfg: dict) -> dict:
+    """Every variant of ``mode`` on each of its scenes."""
+    variants, scenes = cfg["variants"], cfg["scenes"]
     payload: dict = {
-        "benchmark": NAME,
-        "mode": mode,
         "variants": {v: VARIANTS[v] for v in variants},
     }
     if "slope" in scenes:
@@ -227,13 +223,7 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
             payload["rings"]["runs"][name] = rings_case(VARIANTS[name], reference)
     if "compression" in scenes:
         payload["compression"] = _compression(mode, variants)
-    payload["wall_s"] = time.perf_counter() - started
-    payload["peak_memory_mb"] = peak_memory_mb()
-    payload["environment"] = environment()
-    name = NAME if mode == "full" else f"{NAME}_{mode}"
-    path = write_json(out, name, payload)
-    plot(payload, Path(out) / f"{name}.png")
-    return {"json": str(path), **payload}
+    return payload
 
 
 def _error(scene: str, run_: dict) -> float | None:
@@ -277,3 +267,9 @@ def plot(payload: dict, path: Path) -> None:
                  fontsize=9)  # fmt: skip
     fig.tight_layout()
     fig.savefig(path, dpi=110)
+
+
+BENCHMARK = register(
+    Benchmark(NAME, __doc__, MODES, measure, plot=plot, record=name_unless("full", NAME))
+)
+run = BENCHMARK.run

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks.runner import Benchmark, register
 from bfemp.plotting import plot_bars
 from geometry.broadphase import point_simplex_candidates
 
@@ -145,26 +145,25 @@ def _measure(dim: int, points: int, bodies: int, resolution: tuple[int, ...]) ->
     }
 
 
-def run(mode: str = "full", out: str | Path = "results") -> dict:
-    """Measure both cases; write ``perf_broadphase.json`` and ``perf_broadphase.png`` to ``out``."""
-    cases = {name: _measure(2 if name == "2d" else 3, **cfg) for name, cfg in CASES[mode].items()}
+def measure(mode: str, cases: dict) -> dict:
+    """Both cases of ``mode``: candidates and times of every method, and the auto choice."""
+    cases = {name: _measure(2 if name == "2d" else 3, **cfg) for name, cfg in cases.items()}
     queries = [q for case in cases.values() for q in (case["barrier"], case["ccd"])]
     hash_total = sum(q["hash_s"] for q in queries)
     fcl_total = sum(q["fcl_s"] for q in queries)
-    payload = {
-        "benchmark": "perf_broadphase",
-        "mode": mode,
+    return {
         "cases": cases,
         "auto_choice": "hash" if hash_total <= fcl_total else "fcl",
         "all_methods_agree": all(
             q["fcl_equals_hash"] and q["brute_equals_hash_on_subset"] for q in queries
         ),
-        "peak_memory_mb": peak_memory_mb(),
-        "environment": environment(),
     }
-    path = write_json(out, "perf_broadphase", payload)
+
+
+def plot(payload: dict, png: Path) -> None:
+    """Seconds per query and method (log scale)."""
     labels, groups = [], {"hash": [], "fcl": [], "brute (extrapolated)": []}
-    for name, case in cases.items():
+    for name, case in payload["cases"].items():
         for query in ("barrier", "ccd"):
             q = case[query]
             labels.append(f"{name} {query}\n{case['simplices']} simpl.")
@@ -174,9 +173,12 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
     plot_bars(
         labels,
         groups,
-        Path(out) / "perf_broadphase.png",
+        png,
         ylabel="seconds",
         title="Broad phase: spatial hash vs fcl BVH vs brute force",
         logy=True,
     )
-    return {"json": str(path), **payload}
+
+
+BENCHMARK = register(Benchmark("perf_broadphase", __doc__, CASES, measure, plot=plot))
+run = BENCHMARK.run

@@ -95,12 +95,12 @@ from pathlib import Path
 import numba
 import numpy as np
 import scipy.sparse as sp
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 import bfemp
+from benchmarks import catalogue
 from benchmarks._phases import newton_phases
-from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks.common import environment, figure, peak_memory_mb
+from benchmarks.runner import Benchmark, name_unless, register, write_record
 from bfemp.contact._barrier_kernels import _barrier_gradients, _barrier_hessians
 from bfemp.contact.barrier import barrier, barrier_derivative, barrier_second_derivative
 from bfemp.contact.evaluation import KERNEL_KIND
@@ -485,7 +485,7 @@ def _rings_breakdown(resolution: str, repeats: int) -> dict:
     from benchmarks import rings
 
     cfg = dict(rings.MODES[resolution], dt=RINGS_DT)
-    model = rings._scene(cfg).build()
+    model = catalogue.rings_scene(cfg).build()
 
     def simulation(dt: float) -> bfemp.Simulation:
         return bfemp.Simulation(
@@ -581,9 +581,9 @@ def _per_s(pairs: int, seconds: float | None) -> float | None:
 
 def _plot(payload: dict, path: Path) -> None:
     """Pairs/s per level (2D, 3D), CCD times, and the rings step's phases per iteration."""
-    fig = Figure(figsize=(13.0, 4.6), layout="constrained")
-    FigureCanvasAgg(fig)
-    ax_b, ax_c, ax_r = fig.subplots(1, 3, width_ratios=(2.2, 1.0, 1.6))
+    fig, (ax_b, ax_c, ax_r) = figure(
+        (13.0, 4.6), 1, 3, width_ratios=(2.2, 1.0, 1.6), layout="constrained"
+    )
     labels, series = [], {"bfemp": [], "ipctk": []}
     for dim_key, case in payload["cases"].items():
         bf, ip = case["bfemp"], case["ipctk"] or {}
@@ -727,8 +727,11 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
     record = out / f"{NAME}.json"
     previous = json.loads(record.read_text()) if record.exists() else None
     payload["before_after"] = _before_after(previous, payload)
-    path = write_json(out, NAME, payload)
-    png = out / f"{NAME}.png"
-    _plot(payload, png)
     log.info("perf_contact: pairs/s %s; CCD s %s", pairs_per_s, ccd_s)
-    return {"json": str(path), "png": str(png), **payload}
+    return write_record(out, NAME, payload, _plot)
+
+
+# the committed records of modes other than full carry the mode in their names
+BENCHMARK = register(
+    Benchmark(NAME, __doc__, MODES, None, record=name_unless("full", NAME), own_run=run)
+)

@@ -30,13 +30,12 @@ every round is recorded (``seconds_per_step_rounds``). Timings are recorded, nev
 
 import math
 import time
-from pathlib import Path
 
 import numba
 import numpy as np
 
 import bfemp
-from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks.runner import Benchmark, register
 from bfemp.integrators import BACKWARD_EULER
 from bfemp.steppers import BarrierOptions, stepper_class
 from bfemp.steppers.single_field import SingleFieldStepper
@@ -289,12 +288,8 @@ def _barrier_step(scene) -> dict:
     }
 
 
-def run(mode: str = "full", out: str | Path = "results") -> dict:
-    """Measure every case and write ``perf_explicit.json`` to ``out``."""
-    if mode not in CASES:
-        raise ValueError(f"mode must be one of {sorted(CASES)}, got {mode!r}")
-    cfg = CASES[mode]
-    started = time.perf_counter()
+def measure(mode: str, cfg: dict) -> dict:
+    """Every case of ``mode``."""
     cases = {}
     for k, cells in enumerate(cfg["cells"]):
         scene = _scene(cells)
@@ -327,9 +322,7 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
                 / explicit["seconds_per_step"],
             }
         cases[str(case["particles"])] = case
-    payload = {
-        "benchmark": "perf_explicit",
-        "mode": mode,
+    return {
         "parameters": {
             "material": MATERIAL,
             "ppc": 4,
@@ -340,9 +333,8 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
             "barrier_dt_s": BARRIER_DT,
         },
         "cases": cases,
-        "wall_s": time.perf_counter() - started,
-        "peak_memory_mb": peak_memory_mb(),
-        "environment": environment(),
     }
-    path = write_json(out, "perf_explicit", payload)
-    return {"json": str(path), **payload}
+
+
+BENCHMARK = register(Benchmark("perf_explicit", __doc__, CASES, measure, timings=r"_s$|per_s"))
+run = BENCHMARK.run

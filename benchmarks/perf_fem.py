@@ -17,13 +17,15 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import bfemp
-from benchmarks._blas_switch import factorisation_by_blas
-from benchmarks._phases import newton_phases
-from benchmarks.common import environment, peak_memory_mb, write_json
-from bfemp.integrators import BACKWARD_EULER
-from bfemp.plotting import plot_bars
-from bfemp.steppers.barrier import BarrierOptions, BarrierStepper
+from benchmarks import catalogue
+from benchmarks._phases import (
+    PERF_TIMINGS,
+    cases_and_blas,
+    newton_phases,
+    plot_phases,
+    warm_stepper,
+)
+from benchmarks.runner import Benchmark, name_unless, register
 
 CASES = {
     "full": {"3d": dict(n=(32, 16, 16)), "2d": dict(n=(448, 112))},
@@ -31,70 +33,29 @@ CASES = {
 }
 
 
-def _scene(dim: int, n: tuple[int, ...]) -> bfemp.Scene:
-    h = 1.0 / n[-1]
-    upper = tuple(k * h for k in n)
-    lower = (0.0,) * dim
-    mesh = (
-        bfemp.shapes.rectangle(lower, upper, h=h)
-        if dim == 2
-        else bfemp.shapes.box(lower, upper, h=h)
-    )
-    g = (0.0,) * (dim - 1) + (-9.81,)
-    scene = bfemp.Scene(dim=dim, gravity=g)
-    scene.add_fem(
-        mesh,
-        material=bfemp.NeoHookean(E=1e5, nu=0.3, density=1000.0),
-        prescribed=bfemp.motion.Fixed(),
-        prescribed_nodes=mesh.points[:, 0] < 1e-9,
-        name="block",
-    )
-    return scene
-
-
 def _measure(name: str, matrices: dict, dim: int, n: tuple[int, ...]) -> dict:
-    model = _scene(dim, n).build()
-    stepper = BarrierStepper(
-        model,
-        integrator=BACKWARD_EULER,
-        dt=0.05,
-        options=BarrierOptions(tol=1e-5),
-    )
-    state = stepper.initialize(model.initial_state())
-    state, _ = stepper.step(state)  # warm-up: compiles the numba kernels
+    model = catalogue.fem_block_scene(dim, n).build()
+    stepper, state = warm_stepper(model, dt=0.05, tol=1e-5)
     out = {"dim": dim, "cells": int(model.fem_cells.shape[0]), "nodes": int(model.n_fem_nodes)}
     out.update(newton_phases(stepper, state, matrices=matrices, name=name, step_repeats=3))
     return out
 
 
-def run(mode: str = "full", out: str | Path = "results") -> dict:
-    """Measure both cases and write ``perf_fem.json`` and ``perf_fem.png`` to ``out``."""
-    matrices: dict = {}
-    cases = {
-        name: _measure(name, matrices, 2 if name == "2d" else 3, cfg["n"])
-        for name, cfg in CASES[mode].items()
-    }
-    payload = {
-        "benchmark": "perf_fem",
-        "mode": mode,
-        "cases": cases,
-        # CHOLMOD factorisation of each case's Hessian, reference vs default BLAS (per process)
-        "blas_side_by_side": factorisation_by_blas(matrices),
-        "machine_note": "2 shared cores, loaded by other work: compare ratios within this run",
-        "peak_memory_mb": peak_memory_mb(),
-        "environment": environment(),
-    }
-    path = write_json(out, "perf_fem", payload)
-    labels, groups = [], {"assembly": [], "factorize": [], "analyze": []}
-    for name, case in cases.items():
-        labels.append(f"{name} ({case['cells']} cells)")
-        for key in groups:
-            groups[key].append(case.get(f"{key}_s", float("nan")))
-    plot_bars(
-        labels,
-        groups,
-        Path(out) / "perf_fem.png",
-        ylabel="seconds",
-        title="Per Newton iteration: assembly vs CHOLMOD",
+def measure(mode: str, cases: dict) -> dict:
+    """Both cases of ``mode``, and CHOLMOD on each case's Hessian per BLAS."""
+    return cases_and_blas(cases, lambda name, m, dim, cfg: _measure(name, m, dim, cfg["n"]))
+
+
+def plot(payload: dict, png: Path) -> None:
+    """Seconds of assembly and CHOLMOD per Newton iteration, per case."""
+    title = "Per Newton iteration: assembly vs CHOLMOD"
+    plot_phases(payload, png, ("assembly", "factorize", "analyze"), "cells", title)
+
+
+QUICK_RECORD = name_unless("full", "perf_fem")
+BENCHMARK = register(
+    Benchmark(
+        "perf_fem", __doc__, CASES, measure, plot=plot, record=QUICK_RECORD, timings=PERF_TIMINGS
     )
-    return {"json": str(path), **payload}
+)
+run = BENCHMARK.run

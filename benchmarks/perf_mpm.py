@@ -14,17 +14,18 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-
-import bfemp
-from benchmarks._blas_switch import factorisation_by_blas
-from benchmarks._phases import median_time, newton_phases
-from benchmarks.common import environment, peak_memory_mb, write_json
-from bfemp.integrators import BACKWARD_EULER
+from benchmarks import catalogue
+from benchmarks._phases import (
+    PERF_TIMINGS,
+    cases_and_blas,
+    median_time,
+    newton_phases,
+    plot_phases,
+    warm_stepper,
+)
+from benchmarks.runner import Benchmark, name_unless, register
 from bfemp.mpm.step import prepare_mpm_step
 from bfemp.mpm.transfer import grid_to_particles
-from bfemp.plotting import plot_bars
-from bfemp.steppers.barrier import BarrierOptions, BarrierStepper
 
 CASES = {
     "full": {"2d": dict(cells=(160, 160), ppc=4), "3d": dict(cells=(30, 30, 14), ppc=8)},
@@ -32,28 +33,9 @@ CASES = {
 }
 
 
-def _scene(dim: int, cells: tuple[int, ...], ppc: int) -> bfemp.Scene:
-    dx = 1.0 / cells[0]
-    upper = tuple(c * dx for c in cells)
-    x, vol = bfemp.sample.box((0.0,) * dim, upper, dx=dx, ppc=ppc)
-    scene = bfemp.Scene(dim=dim, gravity=(0.0,) * (dim - 1) + (-9.81,))
-    scene.add_mpm(x, vol, material=bfemp.NeoHookean(E=1e5, nu=0.3, density=1000.0))
-    scene.set_grid(dx=dx)
-    normal = (0.0,) * (dim - 1) + (1.0,)
-    scene.add_boundary(bfemp.levelset.HalfPlane(point=(0.0,) * dim, normal=normal), "slip")
-    return scene
-
-
 def _measure(name: str, matrices: dict, dim: int, cells: tuple[int, ...], ppc: int) -> dict:
-    model = _scene(dim, cells, ppc).build()
-    stepper = BarrierStepper(
-        model,
-        integrator=BACKWARD_EULER,
-        dt=0.01,
-        options=BarrierOptions(tol=1e-4),
-    )
-    state = stepper.initialize(model.initial_state())
-    state, _ = stepper.step(state)  # warm-up: compiles the numba kernels
+    model = catalogue.mpm_block_scene(dim, cells, ppc).build()
+    stepper, state = warm_stepper(model, dt=0.01, tol=1e-4)
     out = {"dim": dim, "particles": int(model.n_particles)}
     out["p2g_s"] = median_time(lambda: prepare_mpm_step(model, state, "apic", False))
     mpm = prepare_mpm_step(model, state, "apic", False)
@@ -83,34 +65,23 @@ def _measure(name: str, matrices: dict, dim: int, cells: tuple[int, ...], ppc: i
     return out
 
 
-def run(mode: str = "full", out: str | Path = "results") -> dict:
-    """Measure both cases and write ``perf_mpm.json`` and ``perf_mpm.png`` to ``out``."""
-    matrices: dict = {}
-    cases = {
-        name: _measure(name, matrices, 2 if name == "2d" else 3, cfg["cells"], cfg["ppc"])
-        for name, cfg in CASES[mode].items()
-    }
-    payload = {
-        "benchmark": "perf_mpm",
-        "mode": mode,
-        "cases": cases,
-        # CHOLMOD factorisation of each case's Hessian, reference vs default BLAS (per process)
-        "blas_side_by_side": factorisation_by_blas(matrices),
-        "machine_note": "2 shared cores, loaded by other work: compare ratios within this run",
-        "peak_memory_mb": peak_memory_mb(),
-        "environment": environment(),
-    }
-    path = write_json(out, "perf_mpm", payload)
-    labels = [f"{k} ({c['particles']} particles)" for k, c in cases.items()]
-    groups = {
-        key: [c.get(f"{key}_s", np.nan) for c in cases.values()]
-        for key in ("p2g", "g2p", "assembly", "factorize")
-    }
-    plot_bars(
-        labels,
-        groups,
-        Path(out) / "perf_mpm.png",
-        ylabel="seconds",
-        title="MPM: transfers, assembly and CHOLMOD per Newton iteration",
+def measure(mode: str, cases: dict) -> dict:
+    """Both cases of ``mode``, and CHOLMOD on each case's Hessian per BLAS."""
+    return cases_and_blas(
+        cases, lambda name, m, dim, cfg: _measure(name, m, dim, cfg["cells"], cfg["ppc"])
     )
-    return {"json": str(path), **payload}
+
+
+def plot(payload: dict, png: Path) -> None:
+    """Seconds of the transfers, assembly and CHOLMOD per Newton iteration, per case."""
+    title = "MPM: transfers, assembly and CHOLMOD per Newton iteration"
+    plot_phases(payload, png, ("p2g", "g2p", "assembly", "factorize"), "particles", title)
+
+
+QUICK_RECORD = name_unless("full", "perf_mpm")
+BENCHMARK = register(
+    Benchmark(
+        "perf_mpm", __doc__, CASES, measure, plot=plot, record=QUICK_RECORD, timings=PERF_TIMINGS
+    )
+)
+run = BENCHMARK.run

@@ -20,7 +20,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from benchmarks.common import environment, write_json
+from benchmarks.runner import Benchmark, name_unless, register
 
 log = logging.getLogger(__name__)
 
@@ -36,14 +36,14 @@ MODES = {
 _CHILD = """
 import json, sys, time
 import numba
-from benchmarks import perf_fem, perf_mpm
+from benchmarks import catalogue
 from bfemp.integrators import BACKWARD_EULER
 from bfemp.steppers.barrier import BarrierOptions, BarrierStepper
 from solvers.blas import cholmod_blas
 cfg = json.loads(sys.argv[1])
 scenes = {
-    "mpm3d": (perf_mpm._scene(3, tuple(cfg["mpm3d"][0]), cfg["mpm3d"][1]), 0.01),
-    "fem3d": (perf_fem._scene(3, tuple(cfg["fem3d"])), 0.05),
+    "mpm3d": (catalogue.mpm_block_scene(3, tuple(cfg["mpm3d"][0]), cfg["mpm3d"][1]), 0.01),
+    "fem3d": (catalogue.fem_block_scene(3, tuple(cfg["fem3d"])), 0.05),
 }
 blas = cholmod_blas()
 out = {"blas": blas.name, "blas_threads": blas.threads, "numba_threads": numba.get_num_threads(),
@@ -85,11 +85,8 @@ def _child(cfg: dict, blas_threads: int | None, numba_threads: int | None) -> di
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
-def run(mode: str = "full", out: str | Path = "results") -> dict:
-    """Time the scenes under each thread combination; write ``perf_threads[_MODE].json``."""
-    if mode not in MODES:
-        raise ValueError(f"perf_threads mode must be one of {sorted(MODES)}, got {mode!r}")
-    cfg = MODES[mode]
+def measure(mode: str, cfg: dict) -> dict:
+    """The scenes of ``mode`` under each thread combination."""
     cores = os.cpu_count() or 1
     combos = {"default": (None, None)}
     for b in sorted({1, cores}):
@@ -99,8 +96,6 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
     scenes = list(rows["default"]["step_s"])
     fastest = {s: min(rows, key=lambda r: rows[r]["step_s"][s]) for s in scenes}
     record = {
-        "benchmark": NAME,
-        "mode": mode,
         "cores": cores,
         "parameters": dict(cfg),
         "rows": rows,
@@ -108,9 +103,7 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
         "default_over_fastest": {
             s: rows["default"]["step_s"][s] / rows[fastest[s]]["step_s"][s] for s in scenes
         },
-        "environment": environment(),
     }
-    path = write_json(out, NAME if mode == "full" else f"{NAME}_{mode}", record)
     for s in scenes:
         log.info(
             "%s: fastest %s (%.3f s per step), default %.3f s",
@@ -119,4 +112,10 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
             rows[fastest[s]]["step_s"][s],
             rows["default"]["step_s"][s],
         )
-    return {**record, "json": str(path)}
+    return record
+
+
+BENCHMARK = register(
+    Benchmark(NAME, __doc__, MODES, measure, record=name_unless("full", NAME), timings=r"_s$")
+)
+run = BENCHMARK.run

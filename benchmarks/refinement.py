@@ -13,18 +13,7 @@ error of a resolution N is ``|y(N) - y(N_ref)|`` at the same PPC (``errors`` and
 ``errors_mpm``). The convergence order is the slope of the least-squares line through
 ``(log dx, log error)`` over every N of the series (``order``, ``order_mpm``).
 
-Recorded, full mode (``benchmarks/records/refinement.json`` / ``.png``, at fdead73, 843 s on 2
-cores beside two buckling runs, 516 MB peak): fitted order 3.02 at PPC 16 (3.06 for the MPM box
-alone; paper 2.75, target >= 2), errors 3.7e-2 ... 2.6e-4 m over N = 4 ... 20, decreasing at
-every step. PPC 9: order 2.74, decreasing to N = 12 (3.9e-4 m), then rising to 7.6e-4 m at
-N = 20. PPC 4: order 1.22, not monotone (2.0e-4 m at N = 6, 5.5e-3 m at N = 10). The paper's
-figure 14 makes the same point: a higher PPC takes the noise out of the curve at the finer
-resolutions. N = 2 (dx = 0.5 m, dhat = 0.25 m) ends with a TUNNELED step error at step 9 at
-PPC 9 and 16 (particles whose straight path crosses the FEM box although the end state is
-clear) and is left out of those fits; at PPC 4 it comes to rest and is in the fit. The
-``ppc16`` record (``refinement_ppc16.json``, at 2f917dc) has the same PPC 16 errors to 6e-9 m.
-Quick mode (``refinement_quick.json``): 3.6e-2, 5.3e-3, 7.9e-4 m at N = 4, 8, 12 against
-N = 16, order 3.41.
+Measured results, with the commits they ran on: ``benchmarks/records/refinement.md``.
 
 Choices where the paper is silent (all recorded in the JSON ``parameters``):
 
@@ -61,11 +50,11 @@ import time
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 import bfemp
-from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks import catalogue
+from benchmarks.common import figure
+from benchmarks.runner import Benchmark, name_unless, register
 
 log = logging.getLogger(__name__)
 
@@ -154,11 +143,8 @@ def settle(n: int, ppc: int, settings: dict = SETTINGS) -> dict:
     history, calm, iterations, error, min_distance = [heights()[1]], 0, 0, None, float("nan")
     started = time.perf_counter()
     while len(history) <= settings["max_steps"] and calm < settings["rest_steps"]:
-        try:
-            report = sim.step()
-        except bfemp.StepError as err:
-            error = str(err)
-            log.warning("refinement N=%d PPC=%d: %s", n, ppc, err)
+        report, error = catalogue.step(sim, f"refinement N={n} PPC={ppc}")
+        if error is not None:
             break
         iterations += report.newton_iterations
         min_distance = float(report.min_distance)
@@ -222,9 +208,7 @@ def _series(runs: list[dict], ref: dict) -> dict:
 
 def _plot(series: dict, path: Path, title: str) -> None:
     """Figure 14: error of the centre-of-mass height against dx, log-log, per PPC."""
-    fig = Figure(figsize=(6.4, 4.8), layout="constrained")
-    FigureCanvasAgg(fig)
-    ax = fig.subplots()
+    fig, ax = figure((6.4, 4.8), layout="constrained")
     for k, (ppc, s) in enumerate(series.items()):
         dx = 1.0 / np.array(s["ns"], dtype=float)
         ax.loglog(dx, s["errors"], "o-", color=f"C{k}", label=f"PPC {ppc}: order {s['order']:.2f}")
@@ -243,26 +227,10 @@ def _plot(series: dict, path: Path, title: str) -> None:
     fig.savefig(path, dpi=110)
 
 
-def run(mode: str = "full", out: str | Path = "results") -> dict:
-    """Settle every resolution and PPC of ``mode``; write ``refinement.json`` and ``.png``.
-
-    Args:
-        mode: ``"full"`` (N = 2..20 even against N = 30, PPC 4, 9, 16), ``"ppc16"`` (the
-            same at PPC 16 only) or ``"quick"``
-            (N = 4, 8, 12 against N = 16, PPC 16).
-        out: output folder.
-
-    Returns:
-        ``{"json": path, "png": path, **payload}``; ``payload["series"][ppc]`` holds the errors
-        and fitted orders.
-    """
-    if mode not in MODES:
-        raise ValueError(f"mode must be one of {sorted(MODES)}, got {mode!r}")
-    cfg = MODES[mode]
-    env = environment()
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    started = time.perf_counter()
+def measure(mode: str, cfg) -> dict:
+    """Settle every resolution and PPC of ``mode``: ``"full"`` (N = 2..20 even against N = 30,
+    PPC 4, 9, 16), ``"ppc16"`` (the same at PPC 16 only) or ``"quick"`` (N = 4, 8, 12 against
+    N = 16, PPC 16); ``series[ppc]`` holds the errors and fitted orders."""
     runs, series = {}, {}
     for ppc in cfg["ppcs"]:
         ref = settle(cfg["n_ref"], ppc)
@@ -270,11 +238,7 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
         runs[ppc] = {"reference": ref, "runs": tests}
         series[ppc] = {**_series(tests, ref), "reference_at_rest": ref["at_rest"]}
     payload = {
-        "benchmark": NAME,
-        "mode": mode,
         "series": {str(k): v for k, v in series.items()},
-        "wall_s": time.perf_counter() - started,
-        "peak_memory_mb": peak_memory_mb(),
         "paper": PAPER,
         "targets": {
             "full": "order >= 2 for PPC 16",
@@ -295,11 +259,18 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
             "initial_gap": "dx",
         },
         "runs": {str(k): v for k, v in runs.items()},
-        "environment": env,
     }
-    path = write_json(out, NAME, payload)
-    png = out / f"{NAME}.png"
+    return payload
+
+
+def plot(payload: dict, png: Path) -> None:
+    """The errors against dx per PPC (``_plot``)."""
+    series = {int(k): v for k, v in payload["series"].items()}
+    mode = payload["mode"]
     _plot(series, png, f"MPM box on FEM box: centre-of-mass height error ({mode} mode)")
-    for ppc, s in series.items():
-        log.info("refinement PPC %d: errors %s, order %.3f", ppc, s["errors"], s["order"])
-    return {"json": str(path), "png": str(png), **payload}
+
+
+BENCHMARK = register(
+    Benchmark(NAME, __doc__, MODES, measure, plot=plot, record=name_unless("full", NAME))
+)
+run = BENCHMARK.run

@@ -30,19 +30,7 @@ Partial and full modes also run it (``COMPARED_INTEGRATORS``, unless ``compare=F
 record it under ``compared_integrators``. Every run records ``energy_peak_over_start`` (max of
 kinetic + elastic + barrier over its value at t = 0).
 
-Recorded (``benchmarks/records/rings.json``, full mode at b692bd6: 19796 particles, 1500 steps
-per transfer, 812 s (APIC) + 694 s (FLIP) on 2 cores, 35 min together at aac4bd8 on a machine
-with faster BLAS kernels; plain ``newmark`` beside them, 2096 s): 8.45 % lost (APIC) and 7.98 %
-(FLIP) against the paper's 8.57 / 9.67 %, both within 2 points; the energy never rises above its
-start (peak 1.0000000000000455 x), momentum drift 8.5e-14, closest approach 8.39e-3 m, no
-penetration, contact from 0.0252 s to 0.2974 s (APIC) / 0.2956 s (FLIP). Plain ``newmark`` at full
-resolution (``compared_integrators``): APIC gains 11.4 % (peak 1.125 x, an ENERGY_GROWTH
-diagnostic), FLIP loses 5.6 % (never above its start; run apart at 5d43a01: 11.1 % and 6.6 %):
-the outcome of the
-trapezoidal rule with the barrier inside depends on the transfer. Partial mode (MPM dx = 0.2 m):
-``newmark_implicit_contact`` 15.3 % / 13.0 %, ``newmark`` -24.9 % / -23.8 % (gains),
-``newmark_damped`` (gamma = 0.55, at 8f0e5c1) 17.5 % / 16.4 %; the loss halves from the partial
-to the full MPM grid, as expected of transfer and contact-node dissipation.
+Measured results, with the commits they ran on: ``benchmarks/records/rings.md``.
 
 Besides, every step is checked independently of the solver for particles inside the deformed FEM
 ring (even-odd ray casting against the FEM boundary polygon): ``penetrations`` is the largest
@@ -58,7 +46,7 @@ Choices where the paper is silent (recorded in the JSON ``parameters``):
   collision window 0.025 s - 0.293 s.
 - Particles sit on the sub-cell lattice of a grid at the origin; the MPM grid itself is shifted
   by a quarter of the particle spacing (``dx / (4 k)``, k = sqrt(ppc)) so that no particle sits
-  on a half-integer grid coordinate (see ``_grid_origin``: with ppc = 9 and an unshifted grid
+  on a half-integer grid coordinate (see ``rings_grid_origin``: with ppc = 9 and an unshifted grid
   Newton cannot converge, even in free flight).
 - Quick mode keeps the geometry and the physics and coarsens the discretisation: dx = 1/3 m
   (three cells across the ring), ppc = 4, FEM h = 1/3 m, dt = 2e-3 s, t_end = 0.3 s (both
@@ -76,22 +64,29 @@ import time
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 import bfemp
-from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks.catalogue import (
+    DHAT,
+    GAP,
+    KAPPA,
+    MATERIAL,
+    R_INNER,
+    R_OUTER,
+    SPEED,
+    TOL,
+    WINDOW,
+    RingsPenetration,
+    rings_grid_origin,
+    rings_scene,
+    window_energies,
+)
+from benchmarks.common import figure
+from benchmarks.runner import Benchmark, register
 
 log = logging.getLogger(__name__)
 
 NAME = "rings"
-R_INNER, R_OUTER = 3.0, 4.0  # m
-GAP = 2.0  # m, between the outer surfaces
-SPEED = 40.0  # m/s, each ring toward the other
-MATERIAL = dict(E=1e8, nu=0.2, density=1000.0)  # Pa, -, kg/m^2 (2D)
-DHAT, KAPPA = 1e-2, 1e7  # m, Pa
-TOL = 1e-6  # m/s
-WINDOW = (0.025, 0.293)  # s: the paper's collision window
 PAPER = {
     "energy_loss_pct": {"apic": 8.57, "flip": 9.67},
     "particles": 20098,
@@ -113,92 +108,9 @@ MODES = {
 SERIES_POINTS = 400  # per-step curves stored in the JSON are subsampled to about this many
 
 
-def _grid_origin(cfg: dict) -> tuple[float, float]:
-    """Grid origin shifted by a quarter of the particle spacing off the sampling lattice.
-
-    With an odd number k of particles per cell and axis, the sub-cell centres fall on
-    half-integer grid coordinates, where the quadratic B-spline weight (and its gradient) of the
-    outermost stencil node vanishes; at the rim of a curved body some active nodes then have no
-    mass and no stiffness at all and Newton cannot converge. The shift keeps every weight positive.
-    """
-    k = round(cfg["ppc"] ** 0.5)
-    shift = cfg["dx"] / (4.0 * k)
-    return (shift, shift)
-
-
-def _scene(cfg: dict) -> bfemp.Scene:
-    """Both rings, 2 m apart, approaching at 40 m/s each (MPM left, FEM right)."""
-    centre = R_OUTER + 0.5 * GAP
-    material = bfemp.NeoHookean(**MATERIAL)
-    scene = bfemp.Scene(dim=2)
-    # The sampling mesh only decides which sub-cell centres lie in the ring: make it fine.
-    shape = bfemp.shapes.ring((-centre, 0.0), R_INNER, R_OUTER, h=0.25 * cfg["dx"])
-    particles, volumes = bfemp.sample.mesh(shape, dx=cfg["dx"], ppc=cfg["ppc"])
-    scene.add_mpm(particles, volumes, material=material, velocity=(SPEED, 0.0), name="mpm_ring")
-    mesh = bfemp.shapes.ring((centre, 0.0), R_INNER, R_OUTER, h=cfg["fem_h"])
-    scene.add_fem(mesh, material=material, velocity=(-SPEED, 0.0), name="fem_ring")
-    scene.set_grid(dx=cfg["dx"], origin=_grid_origin(cfg))
-    scene.set_contact(dhat=cfg.get("dhat", DHAT), kappa=KAPPA)
-    return scene
-
-
-def _inside_count(points: np.ndarray, edge_a: np.ndarray, edge_b: np.ndarray) -> int:
-    """Number of points ``(n, 2)`` inside the region bounded by the segments ``a -> b`` ``(k, 2)``.
-
-    Even-odd rule: a horizontal ray from the point crosses the boundary (outer and inner loop of
-    the ring together) an odd number of times exactly when the point lies in the ring.
-    """
-    if points.shape[0] == 0:
-        return 0
-    py, px = points[:, 1:2], points[:, 0:1]
-    ya, yb = edge_a[None, :, 1], edge_b[None, :, 1]
-    straddles = (ya > py) != (yb > py)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        x_cross = edge_a[None, :, 0] + (py - ya) * (edge_b[None, :, 0] - edge_a[None, :, 0]) / (
-            yb - ya
-        )
-    crossings = np.count_nonzero(straddles & (px < x_cross), axis=1)
-    return int(np.count_nonzero(crossings % 2 == 1))
-
-
-class _PenetrationCheck:
-    """Per-step callback: particles inside the deformed FEM ring (should stay 0)."""
-
-    def __init__(self, sim: bfemp.Simulation) -> None:
-        body = sim.model.fem_bodies[0]
-        self.edges = body.boundary  # (k, 2) global FEM node indices
-        self.worst = 0
-
-    def __call__(self, sim: bfemp.Simulation) -> None:
-        fem_x, mpm_x = sim.state.fem_x, sim.state.mpm_x
-        a, b = fem_x[self.edges[:, 0]], fem_x[self.edges[:, 1]]
-        lo, hi = np.minimum(a, b).min(axis=0), np.maximum(a, b).max(axis=0)
-        near = np.all((mpm_x >= lo) & (mpm_x <= hi), axis=1)
-        self.worst = max(self.worst, _inside_count(mpm_x[near], a, b))
-        if sim.state.step % 250 == 0:
-            row = sim.metrics.last
-            log.info(
-                "t = %.4f s: E_kin %.4g J, E_el %.4g J, %d contact pairs",
-                sim.state.t,
-                row["energy_kinetic"],
-                row["energy_elastic"],
-                row.get("contact_pairs", 0),
-            )
-
-
-def _window_energies(t: np.ndarray, energy: np.ndarray) -> tuple[float, float]:
-    """Total energy (J/m) at the last step <= 0.025 s and at the first step >= 0.293 s."""
-    eps = 1e-9
-    before = np.flatnonzero(t <= WINDOW[0] + eps)
-    after = np.flatnonzero(t >= WINDOW[1] - eps)
-    e0 = float(energy[before[-1]]) if before.size else float("nan")
-    e1 = float(energy[after[0]]) if after.size else float("nan")
-    return e0, e1
-
-
-def _run_one(cfg: dict, transfer: str) -> dict:
+def run_transfer(cfg: dict, transfer: str) -> dict:
     """One transfer: run to ``t_end`` and reduce the metrics table."""
-    scene = _scene(cfg)
+    scene = rings_scene(cfg)
     sim = bfemp.Simulation(
         scene,
         strategy=cfg.get("strategy", "barrier"),
@@ -208,7 +120,7 @@ def _run_one(cfg: dict, transfer: str) -> dict:
         tol=cfg.get("tol", TOL),
     )
     model = sim.model
-    check = _PenetrationCheck(sim)
+    check = RingsPenetration(sim)
     start = time.perf_counter()
     error = None
     try:
@@ -234,7 +146,7 @@ def _run_one(cfg: dict, transfer: str) -> dict:
     pairs = m.column("contact_pairs")[1:]
     touching = t[1:][pairs > 0]
     iters = m.column("iterations_newton")[1:]
-    e0, e1 = _window_energies(t, energy)
+    e0, e1 = window_energies(t, energy)
     return {
         "transfer": transfer,
         "error": error,
@@ -296,7 +208,7 @@ def run_point(settings: dict) -> dict:
     unknown = sorted(set(settings) - set(POINT_KEYS))
     if missing or unknown:
         raise ValueError(f"rings.run_point: missing settings {missing}, unknown {unknown}")
-    run = _run_one(dict(settings), settings["transfer"])
+    run = run_transfer(dict(settings), settings["transfer"])
     window = run["contact_window_s"]
     return {
         "energy_loss_pct": run["energy_loss_pct"],
@@ -326,9 +238,7 @@ def _for_json(run: dict) -> dict:
 def _plot(runs: dict, path: Path, title: str, compared: dict | None = None) -> None:
     """Figure 7 style: energies of each transfer over time (with ``compared``, {integrator:
     {transfer: run}}, the total energy of those runs too), and the momentum drift."""
-    fig = Figure(figsize=(8.0, 9.0), layout="constrained")
-    FigureCanvasAgg(fig)
-    axes = fig.subplots(3, 1, sharex=True)
+    fig, axes = figure((8.0, 9.0), 3, 1, sharex=True, layout="constrained")
     for ax, (transfer, run) in zip(axes[:2], runs.items(), strict=True):
         s = run["series"]
         for key, style, label in (
@@ -385,37 +295,20 @@ def main_from_args(args: argparse.Namespace) -> int:
     return 0
 
 
-def run(mode: str = "full", out: str | Path = "results", compare: bool = True) -> dict:
-    """Run both transfers and write ``rings.json`` and ``rings.png`` to ``out``.
-
-    Args:
-        mode: ``"full"`` (paper resolution), ``"partial"`` (paper dt and FEM mesh, MPM grid
-            2x coarser) or ``"quick"`` (coarse, < 60 s).
-        out: output folder.
-        compare: in partial and full modes, also run ``COMPARED_INTEGRATORS`` (doubles the
-            time).
-
-    Returns:
-        ``{"json": path, "png": path, ...}`` with the top-level metrics.
-    """
-    if mode not in MODES:
-        raise ValueError(f"mode must be one of {sorted(MODES)}, got {mode!r}")
-    cfg = MODES[mode]
-    env = environment()  # before the runs: the commit that ran, not the one at the end
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    runs = {transfer: _run_one(cfg, transfer) for transfer in TRANSFERS}
+def measure(mode: str, cfg: dict, compare: bool = True) -> dict:
+    """Both transfers in ``mode``: ``"full"`` (paper resolution), ``"partial"`` (paper dt and
+    FEM mesh, MPM grid 2x coarser) or ``"quick"`` (coarse, < 60 s); with ``compare``, in
+    partial and full modes, also ``COMPARED_INTEGRATORS`` (doubles the time)."""
+    runs = {transfer: run_transfer(cfg, transfer) for transfer in TRANSFERS}
     compared = {}
     if compare and mode != "quick":  # the paper's literal mid-point Newmark (see the docstring)
         compared = {
-            name: {t: _run_one({**cfg, "integrator": name}, t) for t in TRANSFERS}
+            name: {t: run_transfer({**cfg, "integrator": name}, t) for t in TRANSFERS}
             for name in COMPARED_INTEGRATORS
         }
     first = runs["apic"]
     min_distance = np.nanmin([r["min_distance"] for r in runs.values()])
     payload = {
-        "benchmark": NAME,
-        "mode": mode,
         "momentum_drift_rel": max(r["momentum_drift_rel"] for r in runs.values()),
         "min_distance": float(min_distance),
         "energy_loss_pct": {k: r["energy_loss_pct"] for k, r in runs.items()},
@@ -424,7 +317,6 @@ def run(mode: str = "full", out: str | Path = "results", compare: bool = True) -
         "wall_s": sum(r["wall_s"] for r in runs.values()),
         "newton_iterations": sum(r["newton_iterations"] for r in runs.values()),
         "penetrations": max(r["penetrations"] for r in runs.values()),
-        "peak_memory_mb": peak_memory_mb(),
         "paper": PAPER,
         "targets": {
             "momentum_drift_rel": "< 1e-9",
@@ -445,13 +337,12 @@ def run(mode: str = "full", out: str | Path = "results", compare: bool = True) -
             "integrator": INTEGRATOR,
             "tol_m_s": TOL,
             "energy_window_s": list(WINDOW),
-            "grid_origin_m": list(_grid_origin(cfg)),
+            "grid_origin_m": list(rings_grid_origin(cfg)),
             "particles": first["particles"],
             "fem_vertices": first["fem_vertices"],
             "fem_triangles": first["fem_triangles"],
         },
         "runs": {k: _for_json(r) for k, r in runs.items()},
-        "environment": env,
     }
     payload["energy_peak_over_start"] = {k: r["energy_peak_over_start"] for k, r in runs.items()}
     payload["compared_integrators"] = {}
@@ -470,13 +361,26 @@ def run(mode: str = "full", out: str | Path = "results", compare: bool = True) -
             "runs": {k: _for_json(r) for k, r in by_transfer.items()},
         }
         payload["wall_s"] += payload["compared_integrators"][name]["wall_s"]
-    path = write_json(out, NAME, payload)
-    png = out / f"{NAME}.png"
-    _plot(runs, png, f"Colliding rings, MPM (left) vs FEM (right), {mode} mode", compared)
     log.info(
         "rings: drift %.2e, min distance %.3e m, energy loss %s",
         payload["momentum_drift_rel"],
         payload["min_distance"],
         payload["energy_loss_pct"],
     )
-    return {"json": str(path), "png": str(png), **payload}
+    return payload
+
+
+def plot(payload: dict, png: Path) -> None:
+    """``_plot`` of the recorded runs (their subsampled series)."""
+
+    def arrays(runs: dict) -> dict:
+        return {k: {**r, "series": {s: np.asarray(v, dtype=float) for s, v in r["series"].items()}}
+                for k, r in runs.items()}  # fmt: skip
+
+    compared = {k: arrays(c["runs"]) for k, c in payload["compared_integrators"].items()}
+    title = f"Colliding rings, MPM (left) vs FEM (right), {payload['mode']} mode"
+    _plot(arrays(payload["runs"]), png, title, compared)
+
+
+BENCHMARK = register(Benchmark(NAME, __doc__, MODES, measure, plot=plot))
+run = BENCHMARK.run

@@ -72,12 +72,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 import bfemp
+from benchmarks import catalogue
 from benchmarks._penetration import penetration_summary
-from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks.common import figure
+from benchmarks.runner import Benchmark, register
 
 log = logging.getLogger(__name__)
 
@@ -279,27 +279,12 @@ def _snapshot(
     return {"t": t, "x": sim.state.mpm_x.copy(), "inside": inside.copy(), "curve": curve}
 
 
-def _run_one(cfg: dict, treatment: str) -> dict:
+def run_treatment(cfg: dict, treatment: str) -> dict:
     """One boundary treatment along the whole path; per-step series and snapshots."""
     geo = Geometry(scale=cfg["scale"])
     scene, lower = _scene(cfg, treatment)
-    if cfg.get("options") is None:  # barrier, backward Euler (the paper's)
-        sim = bfemp.Simulation(
-            scene,
-            strategy="barrier",
-            integrator="backward_euler",
-            dt=cfg["dt"],
-            tol=cfg.get("tol", TOL),
-            max_newton_iterations=cfg.get("max_newton_iterations", MAX_NEWTON),
-        )
-    else:  # another strategy with its options object (the trade study's explicit ones)
-        sim = bfemp.Simulation(
-            scene,
-            strategy=cfg["strategy"],
-            integrator=cfg["integrator"],
-            dt=cfg["dt"],
-            options=cfg["options"],
-        )
+    max_newton = cfg.get("max_newton_iterations", MAX_NEWTON)
+    sim = catalogue.simulation(scene, cfg, "barrier", cfg.get("tol", TOL), max_newton)
     n_particles = sim.model.n_particles
     strip = sim.model.fem_bodies[0].nodes if lower is not None else None
     margin = 2.0 * cfg["dx"] + DHAT
@@ -383,9 +368,7 @@ def _run_one(cfg: dict, treatment: str) -> dict:
 def _plot(runs: dict, geo: Geometry, path_png: Path, title: str) -> None:
     """Side by side per treatment: force and penetrations over time, snapshots at the deepest
     point and during separation (when the level set pulls hardest)."""
-    fig = Figure(figsize=(11.0, 12.0), layout="constrained")
-    FigureCanvasAgg(fig)
-    axes = fig.subplots(3, 2)
+    fig, axes = figure((11.0, 12.0), 3, 2, layout="constrained")
     ls = runs["levelset"]["series"]
     up = ls["t"] > geo.t_up
     t_pull = float(ls["t"][up][np.argmax(ls["fy"][up])]) if up.any() else geo.t_up
@@ -444,30 +427,12 @@ def _plot(runs: dict, geo: Geometry, path_png: Path, title: str) -> None:
     fig.savefig(path_png, dpi=110)
 
 
-def run(mode: str = "full", out: str | Path = "results") -> dict:
-    """Run both boundary treatments and write ``sine_boundary.json`` and ``.png`` to ``out``.
-
-    Args:
-        mode: ``"full"`` (the paper's resolution), ``"partial"`` (the paper's scene and time
-            step on a coarser grid, dx = 0.04 m, ppc = 4) or ``"quick"`` (half-size scene,
-            coarse, < 60 s).
-        out: output folder.
-
-    Returns:
-        ``{"json": path, "png": path, ...}`` with the top-level metrics.
-    """
-    if mode not in MODES:
-        raise ValueError(f"mode must be one of {sorted(MODES)}, got {mode!r}")
-    runs = {name: _run_one(MODES[mode], name) for name in ("bfemp", "levelset")}
-    return report(runs, mode, out)
-
-
-def report(runs: dict, mode: str, out: str | Path) -> dict:
-    """Write the JSON and the figure of finished runs (``_run_one`` of both treatments)."""
-    cfg = MODES[mode]
+def measure(mode: str, cfg: dict) -> dict:
+    """Both boundary treatments (``run_treatment``): ``"full"`` (the paper's resolution),
+    ``"partial"`` (the paper's scene and time step on a coarser grid, dx = 0.04 m, ppc = 4) or
+    ``"quick"`` (half-size scene, coarse, < 60 s)."""
+    runs = {name: run_treatment(cfg, name) for name in ("bfemp", "levelset")}
     geo = Geometry(scale=cfg["scale"])
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     bf, ls = runs["bfemp"], runs["levelset"]
     cap = geo.t_up + MAX_UP * geo.scale - 0.5 * cfg["dt"]
 
@@ -480,8 +445,6 @@ def report(runs: dict, mode: str, out: str | Path) -> dict:
         return out
 
     payload = {
-        "benchmark": NAME,
-        "mode": mode,
         "penetrations": bf["penetrations"],
         "max_tensile_force": bf["max_tensile_force"],
         "levelset": {
@@ -494,7 +457,6 @@ def report(runs: dict, mode: str, out: str | Path) -> dict:
         "steps_total": bf["steps"] + ls["steps"],
         "wall_s": bf["wall_s"] + ls["wall_s"],
         "newton_iterations": bf["newton_iterations"] + ls["newton_iterations"],
-        "peak_memory_mb": peak_memory_mb(),
         "paper": PAPER,
         "targets": {
             "penetrations": "0 (BFEMP)",
@@ -535,16 +497,12 @@ def report(runs: dict, mode: str, out: str | Path) -> dict:
             "fem_vertices": bf.get("fem_vertices"),
             "fem_triangles": bf.get("fem_triangles"),
         },
-        "environment": environment(),
     }
     if mode == "partial":
         payload["note"] = (
             "partial run: the paper's scene, path and dt on a coarser grid (dx 0.04 m, ppc 4, "
             "2500 particles); full mode (dx 0.02 m, ppc 9, 22500 particles) takes hours on 2 cores"
         )
-    path_json = write_json(out, NAME, payload)
-    png = out / f"{NAME}.png"
-    _plot(runs, geo, png, f"Sine boundary on an MPM box: BFEMP vs level-set slip, {mode} mode")
     log.info(
         "%s: BFEMP penetrations %d, tensile %.3g N/m; level set penetrations %d, tensile %.3g N/m",
         NAME,
@@ -553,4 +511,15 @@ def report(runs: dict, mode: str, out: str | Path) -> dict:
         ls["penetrations"],
         ls["max_tensile_force"],
     )
-    return {"json": str(path_json), "png": str(png), **payload}
+    return {**payload, "_runs": runs}
+
+
+def plot(payload: dict, png: Path) -> None:
+    """``_plot`` of both treatments."""
+    mode = payload["mode"]
+    title = f"Sine boundary on an MPM box: BFEMP vs level-set slip, {mode} mode"
+    _plot(payload["_runs"], Geometry(scale=MODES[mode]["scale"]), png, title)
+
+
+BENCHMARK = register(Benchmark(NAME, __doc__, MODES, measure, plot=plot))
+run = BENCHMARK.run

@@ -49,60 +49,21 @@ from __future__ import annotations
 
 import logging
 import math
-import time
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 import bfemp
-from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks.catalogue import SLOPE_PHYSICS as PHYSICS
+from benchmarks.catalogue import SLOPE_VARIANTS as VARIANTS
+from benchmarks.catalogue import release_slope, settle_slope
+from benchmarks.common import figure
+from benchmarks.runner import Benchmark, register
 
 log = logging.getLogger(__name__)
 
 NAME = "slope"
 
-PHYSICS = {
-    "box_size_m": (0.1, 0.02),
-    "particle_lattice": (41, 9),
-    "dx_m": 0.005,
-    "density_kg_m2": 100.0,
-    "E_Pa": 4e12,
-    "nu": 0.2,
-    "material": "neo_hookean",
-    "tan_theta": 0.2,
-    "g_m_s2": 5.10,
-    "mus": (0.0, 0.1, 0.1999, 0.2),
-    "dhat_m": 1e-3,
-    "kappa_Pa": 1e6,
-    "eps_v_m_s": 1e-5,
-    "integrator": "backward_euler",
-    "transfer": "apic",
-    "dt_s": 1e-3,
-    "tol_m_s": 1e-8,
-    "friction_iterations_cap": 100,
-    # the paper's Algorithm 2 line 14 (a^{n+1} from the forces): the default "positions" puts the
-    # Newton tolerance of this very stiff box into every step's velocity (full mode, mu = 0.1999:
-    # 4.0e-3 relative error against 3.4e-5; see BarrierOptions.velocity_update)
-    "velocity_update": "forces",
-    # the box starts this far from the slope and from the extra plane (dhat, plus a relative
-    # 1e-6 so that rounding of the rotated lattice never starts a particle inside dhat)
-    "initial_gap_m": 1e-3 * (1.0 + 1e-6),
-    "slope_lower_upper_m": ((-0.8, -0.5), (0.2, 0.0)),
-    "stop_plane_mesh": "rectangle 0.01 m x 0.037 m, from 3 dhat above the slope, h = 0.01 m",
-}
-
-#: variant -> (frame, slope mesh size h in m)
-VARIANTS = {
-    "tilted_gravity": ("tilted_gravity", 1.0),
-    "rotated_slope": ("rotated_slope", 1.0),
-    "fine_slope": ("tilted_gravity", 0.1),
-    # for strategies that see the FEM slope through its boundary nodes (lr): an edge of half a
-    # grid cell; run with a thin slope (``lr_scenes`` sets slope_lower_upper_m)
-    "dense_slope": ("tilted_gravity", 0.0025),
-}
 
 MODES = {
     "full": {
@@ -121,202 +82,10 @@ MODES = {
 }
 
 
-def _rotation(frame: str, theta: float) -> np.ndarray:
-    """World-from-slope rotation ``(2, 2)``: identity, or a rotation by theta (rad)."""
-    if frame == "tilted_gravity":
-        return np.eye(2)
-    if frame == "rotated_slope":
-        c, s = math.cos(theta), math.sin(theta)
-        return np.array([[c, -s], [s, c]])
-    raise ValueError(f"frame must be 'tilted_gravity' or 'rotated_slope', got {frame!r}")
-
-
-def _scene(variant: str, mu: float, with_stop: bool, p: dict = PHYSICS) -> bfemp.Scene:
-    """Slope (+ the downhill stop plane) and the box dhat away from both, in world coordinates.
-
-    ``p`` is ``PHYSICS`` or a copy with some entries changed (``run_point``).
-    """
-    frame, slope_h = VARIANTS[variant]
-    theta = math.atan(p["tan_theta"])
-    R = _rotation(frame, theta)
-    # gravity in slope coordinates (tangent, normal), then into the world frame
-    g_slope = p["g_m_s2"] * np.array([-math.sin(theta), -math.cos(theta)])
-    scene = bfemp.Scene(dim=2, gravity=tuple(R @ g_slope))
-    mat = bfemp.NeoHookean(E=p["E_Pa"], nu=p["nu"], density=p["density_kg_m2"])
-    fixed = bfemp.motion.Fixed()
-    gap, dhat = p["initial_gap_m"], p["dhat_m"]
-    slope = bfemp.shapes.rectangle(*p["slope_lower_upper_m"], h=slope_h)
-    scene.add_fem(slope.points @ R.T, slope.cells, material=mat, prescribed=fixed, name="slope")
-    if with_stop:
-        stop = bfemp.shapes.rectangle((-gap - 0.01, 3.0 * dhat), (-gap, 0.04), h=0.01)
-        scene.add_fem(stop.points @ R.T, stop.cells, material=mat, prescribed=fixed, name="stop")
-    (lx, ly), (nx, ny) = p["box_size_m"], p["particle_lattice"]
-    xs, ys = np.meshgrid(np.linspace(0.0, lx, nx), np.linspace(0.0, ly, ny))
-    particles = np.stack([xs.ravel(), ys.ravel() + gap], axis=1)
-    volumes = np.full(particles.shape[0], lx * ly / particles.shape[0])
-    scene.add_mpm(np.ascontiguousarray(particles @ R.T), volumes, material=mat, name="box")
-    scene.set_grid(dx=p["dx_m"])
-    scene.set_contact(
-        dhat=dhat,
-        kappa=p["kappa_Pa"],
-        mu=mu,
-        eps_v=p["eps_v_m_s"],
-        friction_iterations=p["friction_iterations_cap"],
-    )
-    return scene
-
-
-def _simulation(scene: bfemp.Scene, p: dict = PHYSICS) -> bfemp.Simulation:
-    strategy = p.get("strategy", "barrier")
-    options = p.get("options")  # another strategy's options (``two_stage_slope``)
-    if strategy == "barrier":
-        options = bfemp.BarrierOptions(
-            tol=p["tol_m_s"], velocity_update=p.get("velocity_update", "positions")
-        )
-    return bfemp.Simulation(
-        scene,
-        strategy=strategy,
-        integrator=p["integrator"],
-        transfer=p["transfer"],
-        dt=p["dt_s"],
-        options=options,
-    )
-
-
-def _com(sim: bfemp.Simulation) -> tuple[np.ndarray, np.ndarray]:
-    """Centre-of-mass position ``(2,)`` in m and velocity ``(2,)`` in m/s of the box."""
-    m = sim.model.mpm_mass
-    return m @ sim.state.mpm_x / m.sum(), m @ sim.state.mpm_v / m.sum()
-
-
-def _settle(
-    variant: str, steps: int, p: dict = PHYSICS, on_step: Callable | None = None
-) -> tuple[bfemp.State, dict]:
-    """Frictionless settling against the slope and the stop plane; the settled state.
-
-    ``on_step(sim, report)`` is called after every step (``benchmarks.lr_variants``).
-    """
-    sim = _simulation(_scene(variant, 0.0, with_stop=True, p=p), p)
-    started, newton = time.perf_counter(), 0
-    for _ in range(steps):
-        report = sim.step()
-        newton += report.newton_iterations
-        if on_step is not None:
-            on_step(sim, report)
-    _, v = _com(sim)
-    info = {
-        "steps": steps,
-        "newton_iterations": newton,
-        "wall_s": time.perf_counter() - started,
-        "com_speed_at_release_m_s": float(np.linalg.norm(v)),
-        "min_gap_at_release_m": float(_min_gap(sim, VARIANTS[variant][0])),
-    }
-    return sim.state.copy(), info
-
-
-def _min_gap(sim: bfemp.Simulation, frame: str) -> float:
-    """Smallest particle height above the slope line in m."""
-    R = _rotation(frame, math.atan(PHYSICS["tan_theta"]))
-    return float((sim.state.mpm_x @ R)[:, 1].min())
-
-
-def _fit_acceleration(tau: np.ndarray, s: np.ndarray, fit_start: float) -> dict:
-    """Least-squares s = s0 + v0 tau + a tau^2 / 2 over tau >= fit_start; a in m/s^2."""
-    window = tau >= fit_start - 1e-12
-    if window.sum() < 4:
-        return {"accel": float("nan"), "fit_window_s": None, "fit_rms_m": None}
-    # shifted to the window's start for conditioning
-    shifted, offset = tau[window] - tau[window][0], s[window] - s[window][0]
-    coef = np.polynomial.polynomial.polyfit(shifted, offset, 2)
-    residual = np.polynomial.polynomial.polyval(shifted, coef) - offset
-    return {
-        "accel": 2.0 * float(coef[2]),
-        "fit_window_s": [float(tau[window][0]), float(tau[-1])],
-        "fit_rms_m": float(np.sqrt(np.mean(residual**2))),
-    }
-
-
-def _release(
-    variant: str,
-    mu: float,
-    settled: bfemp.State,
-    steps: int,
-    fit_start: float,
-    p: dict = PHYSICS,
-    on_step: Callable | None = None,
-) -> dict:
-    """Continue the settled box without the stop plane at friction ``mu``; fit its motion.
-
-    A failed step (``StepError``) ends the case; it is recorded in ``error`` and the fit uses
-    the steps completed before it. ``on_step(sim, report)`` is called after every step.
-    """
-    theta = math.atan(p["tan_theta"])
-    downhill = _rotation(VARIANTS[variant][0], theta) @ np.array([-1.0, 0.0])
-    sim = _simulation(_scene(variant, mu, with_stop=False, p=p), p)
-    state = sim.state.copy()  # the release model's own (slope-only) FEM arrays
-    state.t, state.step = settled.t, settled.step
-    for key in ("mpm_x", "mpm_v", "mpm_F", "mpm_C", "mpm_a", "mpm_Ca"):
-        setattr(state, key, getattr(settled, key).copy())
-    sim.state = state
-    tau, s, v_along, speed = [], [], [], []
-
-    def record() -> None:
-        x, v = _com(sim)
-        tau.append(sim.state.t - settled.t)
-        s.append(float(x @ downhill))
-        v_along.append(float(v @ downhill))
-        speed.append(float(np.linalg.norm(v)))
-
-    record()
-    newton, friction_max, friction_ok, min_d, error = 0, 0, True, math.inf, None
-    started = time.perf_counter()
-    for _ in range(steps):
-        try:
-            report = sim.step()
-        except bfemp.StepError as err:
-            error = str(err)
-            log.warning("%s mu=%g: %s", variant, mu, error)
-            break
-        newton += report.newton_iterations
-        friction_max = max(friction_max, report.friction_iterations)
-        friction_ok = friction_ok and report.friction_converged
-        if np.isfinite(report.min_distance):
-            min_d = min(min_d, report.min_distance)
-        if on_step is not None:
-            on_step(sim, report)
-        record()
-    wall = time.perf_counter() - started
-    fit = _fit_acceleration(np.array(tau), np.array(s), fit_start)
-    g = p["g_m_s2"]
-    analytic = g * (math.sin(theta) - mu * math.cos(theta)) if mu < p["tan_theta"] else 0.0
-    accel = fit["accel"] if math.isfinite(fit["accel"]) else None  # None: too few steps
-    return {
-        "mu": mu,
-        "accel": accel,
-        "accel_analytic": analytic,
-        "accel_rel_error": (
-            abs(accel - analytic) / analytic if analytic > 0 and accel is not None else None
-        ),
-        "accel_abs_error": abs(accel - analytic) if accel is not None else None,
-        "max_speed": float(max(speed[1:], default=float("nan"))),
-        "final_speed": float(speed[-1]),
-        "fit_window_s": fit["fit_window_s"],
-        "fit_rms_m": fit["fit_rms_m"],
-        "steps": len(tau) - 1,
-        "error": error,
-        "newton_iterations": newton,
-        "friction_iterations_max": friction_max,
-        "friction_converged": friction_ok,
-        "min_distance_m": min_d if math.isfinite(min_d) else None,
-        "wall_s": wall,
-        "series": {"tau_s": tau, "speed_along_m_s": v_along},
-    }
-
-
 _STYLES = {"tilted_gravity": "-", "rotated_slope": "-.", "fine_slope": ":"}
 
 
-def _plot(results: dict, path: Path, title: str) -> None:
+def plot_cases(results: dict, path: Path, title: str) -> None:
     """Speed down the slope and per-step acceleration error against time since release.
 
     Colours are the friction coefficients, line styles the variants; thin dashed lines are the
@@ -327,9 +96,7 @@ def _plot(results: dict, path: Path, title: str) -> None:
     theta = math.atan(p["tan_theta"])
     g_sin = p["g_m_s2"] * math.sin(theta)
     colors = {mu: f"C{k}" for k, mu in enumerate(p["mus"])}
-    fig = Figure(figsize=(12.0, 4.6))
-    FigureCanvasAgg(fig)
-    ax_v, ax_a = fig.subplots(1, 2)
+    fig, (ax_v, ax_a) = figure((12.0, 4.6), 1, 2)
     for variant, result in results.items():
         for case in result["cases"]:
             tau = np.array(case["series"]["tau_s"])
@@ -363,7 +130,7 @@ def _plot(results: dict, path: Path, title: str) -> None:
 
 def _run_variant(variant: str, mus: tuple[float, ...], cfg: dict) -> dict:
     """Settle once, release at each mu; the variant's settle record and cases."""
-    settled, settle = _settle(variant, cfg["settle_steps"])
+    settled, settle = settle_slope(variant, cfg["settle_steps"])
     log.info(
         "%s: settled in %.1f s, COM speed %.2e m/s",
         variant,
@@ -372,7 +139,7 @@ def _run_variant(variant: str, mus: tuple[float, ...], cfg: dict) -> dict:
     )
     cases = []
     for mu in mus:
-        case = _release(variant, mu, settled, cfg["release_steps"], cfg["fit_start_s"])
+        case = release_slope(variant, mu, settled, cfg["release_steps"], cfg["fit_start_s"])
         log.info(
             "%s mu=%g: accel %.8g (analytic %.8g), max speed %.3g m/s, %.1f s",
             variant,
@@ -447,7 +214,7 @@ def run_point(settings: dict) -> dict:
             the fit's start ``fit_start_s`` (s after release).
 
     Returns:
-        JSON-ready scalars of the release (``_release`` without its series): ``accel``,
+        JSON-ready scalars of the release (``release`` without its series): ``accel``,
         ``accel_analytic`` (m/s^2), ``accel_rel_error``, ``steps``, ``newton_iterations`` (settling
         and release), ``particles``, and the ``StepError`` message in ``failure``.
     """
@@ -458,11 +225,11 @@ def run_point(settings: dict) -> dict:
     p = point_physics(settings)
     dt = settings["dt"]
     try:
-        settled, settle = _settle("tilted_gravity", round(settings["settle_s"] / dt), p)
+        settled, settle = settle_slope("tilted_gravity", round(settings["settle_s"] / dt), p)
     except bfemp.StepError as err:  # no release without a settled box
         log.warning("slope settling: %s", err)
         return {"accel": None, "accel_rel_error": None, "steps": None, "failure": str(err)}
-    case = _release(
+    case = release_slope(
         "tilted_gravity",
         settings["mu"],
         settled,
@@ -482,23 +249,11 @@ def run_point(settings: dict) -> dict:
     return out
 
 
-def run(mode: str = "full", out: str | Path = "results") -> dict:
-    """Settle, release at each mu, fit the accelerations; write ``slope.json`` and ``slope.png``.
-
-    Args:
-        mode: ``"full"`` (the paper's settling and release periods, every variant) or
-            ``"quick"`` (short periods; the ``fine_slope`` variant at mu = 0.1999 only).
-        out: output folder.
-
-    Returns:
-        ``{"json": path, "png": path, **payload}``; ``payload["cases"]`` are the
-        ``tilted_gravity`` results, ``payload["variants"]`` those of every variant.
-    """
-    if mode not in MODES:
-        raise ValueError(f"mode must be one of {sorted(MODES)}, got {mode!r}")
-    cfg = MODES[mode]
-    out = Path(out)
-    started = time.perf_counter()
+def measure(mode: str, cfg: dict) -> dict:
+    """Settle, release at each mu, fit the accelerations: ``"full"`` (the paper's settling and
+    release periods, every variant) or ``"quick"`` (short periods; the ``fine_slope`` variant at
+    mu = 0.1999 only). ``cases`` are the ``tilted_gravity`` results, ``variants`` those of every
+    variant."""
     results = {
         name: _run_variant(name, PHYSICS["mus"] if mus is None else mus, cfg)
         for name, mus in cfg["variants"].items()
@@ -507,9 +262,7 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
     everything = [c for r in results.values() for c in r["cases"]]
     steps = sum(r["settle"]["steps"] for r in results.values())
     newton = sum(r["settle"]["newton_iterations"] for r in results.values())
-    payload = {
-        "benchmark": NAME,
-        "mode": mode,
+    return {
         "frame": primary["frame"],
         "cases": _strip(primary["cases"]),
         "settle": primary["settle"],
@@ -523,16 +276,20 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
             for c in r["cases"]
             if c["error"] is not None
         ],
-        "wall_s": time.perf_counter() - started,
         "steps": steps + sum(c["steps"] for c in everything),
         "newton_iterations": newton + sum(c["newton_iterations"] for c in everything),
-        "peak_memory_mb": peak_memory_mb(),
         "parameters": {**PHYSICS, **cfg, "variant_specs": VARIANTS},
         "paper": {"accel_rel_error": 1e-4, "mu_0.2_speed": "around eps_v"},
-        "environment": environment(),
         "series": {str(c["mu"]): c["series"] for c in primary["cases"]},
+        "_results": results,
     }
-    path = write_json(out, NAME, payload)
-    png = out / f"{NAME}.png"
-    _plot(results, png, f"MPM box on a FEM slope, tan theta = 0.2 ({mode} mode, dt = 1e-3 s)")
-    return {"json": str(path), "png": str(png), **payload}
+
+
+def plot(payload: dict, png: Path) -> None:
+    """``plot_cases`` of every variant."""
+    title = f"MPM box on a FEM slope, tan theta = 0.2 ({payload['mode']} mode, dt = 1e-3 s)"
+    plot_cases(payload["_results"], png, title)
+
+
+BENCHMARK = register(Benchmark(NAME, __doc__, MODES, measure, plot=plot))
+run = BENCHMARK.run

@@ -30,12 +30,11 @@ import logging
 import pstats
 import time
 from collections.abc import Callable
-from pathlib import Path
 
 import numpy as np
 
 import bfemp
-from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks.runner import Benchmark, register
 from bfemp.demo import cantilever_scene, colliding_rings_scene
 from bfemp.steppers._barrier_solve import ScriptedSolve
 
@@ -142,23 +141,16 @@ def _broad_phase_share(cfg: dict) -> dict:
     }
 
 
-def run(mode: str = "full", out: str | Path = "results") -> dict:
-    """Measure each knob on and off; write ``speed_knobs.json`` to ``out``."""
-    if mode not in MODES:
-        raise ValueError(f"mode must be one of {sorted(MODES)}, got {mode!r}")
-    cfg = MODES[mode]
-    env = environment()
-    payload = {
-        "benchmark": NAME,
-        "mode": mode,
+def measure(mode: str, cfg: dict) -> dict:
+    """Each knob of ``mode`` on and off."""
+    return {
         "friction_back_solve": _friction_back_solve(cfg),
         "warm_start": _warm_start(cfg),
         "broad_phase_share": _broad_phase_share(cfg),
         "defaults": {"friction_back_solve": True, "warm_start": False},
-        "peak_memory_mb": peak_memory_mb(),
         "parameters": cfg,
-        "environment": env,
     }
-    path = write_json(out, NAME, payload)
-    log.info("speed knobs: %s", path)
-    return {"json": str(path), **payload}
+
+
+BENCHMARK = register(Benchmark(NAME, __doc__, MODES, measure))
+run = BENCHMARK.run

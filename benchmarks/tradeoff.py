@@ -130,6 +130,7 @@ from benchmarks._tradeoff_report import (
 )
 from benchmarks._tradeoff_scenes import SCENE_FINER, SCENES
 from benchmarks.common import environment, git_commit, write_json
+from benchmarks.runner import Benchmark, register
 
 log = logging.getLogger(__name__)
 
@@ -1078,3 +1079,6 @@ def main_from_args(args: argparse.Namespace) -> int:
             f"{', '.join(bad) or 'none'}; plot {summary['png'][scene]}"
         )
     return 0
+
+
+BENCHMARK = register(Benchmark(NAME, __doc__, MODES, None, own_run=run))

@@ -72,41 +72,8 @@ Choices where the paper is silent or contradicts itself (recorded in the JSON):
   default; a step that hits it logs "friction loop did not converge" and goes on, as the
   library does).
 
-Measured (2 shared cores, load 4 to 7, CHOLMOD on OpenBLAS; ``benchmarks/records/twist_*``):
-
-- Quick (record at a15ddde; bit-identical angles and Newton counts at 79a2b1b): slip angle
-  0.000 pi (mu = 0), 0.117 pi (0.2), 0.297 pi (0.5), no slip at mu = 1 (the cube's top at
-  0.86 pi when the shell stops, 0.04 pi behind it); ordered as the paper's, at about 0.4 x its
-  angles for mu = 0.2 and 0.5 (and without its 0.1 pi at mu = 0).
-  196 s for the four cases at load ~4 (mu = 1: 111 s), 334 s at load ~8 (the record), 351 MB
-  peak. The test's three cases (0, 0.2, 0.5): 71 s to 180 s with the load.
-- Partial (``records/twist_partial.json``, code of b0e7e02; mu 0 / 0.2 / 0.5 in one process and
-  mu = 1 in a second beside it, merged): slip angle 0.005 pi (mu = 0), 0.136 pi (0.2), 0.387 pi
-  (0.5), no slip at mu = 1 (the cube's top at 0.862 pi when the shell stops at 0.9 pi): ordered,
-  closer to the paper's than quick mode but 0.16 pi and 0.31 pi short for mu = 0.2 and 0.5.
-  Per case 592 / 1005 / 3282 / 4767 s (load 3 to 8; 2.7 h of case time, 1.9 h of wall time
-  side by side), 60 / 95 / 160 / 275 steps, 1441 / 3371 / 8574 / 13723 Newton iterations,
-  0 / 15 / 34 / 49 steps at the friction-loop cap, 1.1 GB peak; factorisation 53-58% of the
-  step, element Hessians 21-24%, assembly 5-11%.
-- Partial probe: 72 steps (to t = 1.44 s, 22 of them twisting) in 519 s; 8.6 s and 14.6
-  Newton iterations per twisting step, 603 MB peak; the three cases (825 steps) take 1.7 h at
-  the probe's mean step in contact (7.3 s), 2.0 h at its twisting rate, more where the
-  slipping steps need more Newton iterations (5-20x in quick mode): 2-4 h is our guess, not
-  measured. The phases: element Hessians (with their PSD projection)
-  41%, numeric factorisation 34%, assembly 12%.
-- Solver probe (the speed issue's linear solvers on the first 25 partial steps, mu = 0.5,
-  same process, load ~4.4): CHOLMOD 78.7 s (factorisation 28.5 s), PARDISO 55.9 s
-  (factorisation 21.1 s), the same 169 Newton iterations and positions equal to 5e-15 m; but
-  the solver-independent Hessian phase also differed (27.8 against 16.6 s), so most of that gap
-  is the shared machine's load: over the first 12 steps 21.7 against 24.0 s. CG + AMG reached
-  12 steps in its 150 s (172.7 s; 127 s in its solves, and more Newton iterations: 90 against
-  57). The default (CHOLMOD) stays; PARDISO may gain up to a quarter of the factorisation.
-- Full probe: the first 8 steps (press, up to 80 contact pairs) in 334 s: 47 s and 7 Newton
-  iterations per step in contact, 1.9 GB peak. 2200 steps at that rate are 29 h; the partial
-  probe's steps grew 7x from first contact to the twist, so the full mode is of order 200 h on
-  these 2 cores (an extrapolation): run it on a larger machine (``python -m benchmarks twist
-  --full``; the numba kernels and the BLAS under CHOLMOD take more cores when there are; memory
-  about 2 GB at first contact, growing with the contact set). See ``FULL_ESTIMATE``.
+Measured results (quick, partial and the probes), with their commits:
+``benchmarks/records/twist_quick.md``.
 """
 
 from __future__ import annotations
@@ -121,7 +88,9 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 import bfemp
+from benchmarks import catalogue
 from benchmarks.common import cases_by_mu, environment, note_merge, peak_memory_mb, write_json
+from benchmarks.runner import Benchmark, name_unless, register
 from geometry.mesh import TetMesh
 from solvers.choice import make_linear_solver
 
@@ -290,14 +259,9 @@ def _run_one(
     ``budget_s``: stop after the step that ends past this wall time in s, ``max_steps``: after
     that many steps (timing probes); ``solver``: a ``solvers.choice`` linear-solver name.
     """
-    sim = bfemp.Simulation(
-        _scene(cfg, mu),
-        integrator="backward_euler",
-        transfer="apic",
-        dt=cfg["dt"],
-        tol=TOL,
-        max_newton_iterations=MAX_NEWTON,
-        linear_solver=make_linear_solver(solver, block_size=3),
+    linear_solver = make_linear_solver(solver, block_size=3)
+    sim = catalogue.paper_simulation(
+        _scene(cfg, mu), cfg["dt"], TOL, MAX_NEWTON, linear_solver=linear_solver
     )
     spacing = cfg["dx"] / round(cfg["ppc"] ** (1.0 / 3.0))
     measure = TopTwist(sim.state.mpm_x, spacing)
@@ -313,11 +277,8 @@ def _run_one(
     started = time.perf_counter()
     for _ in range(steps):
         tick = time.perf_counter()
-        try:
-            report = sim.step()
-        except bfemp.StepError as err:
-            error = str(err)
-            log.warning("twist mu=%g: %s", mu, err)
+        report, error = catalogue.step(sim, f"twist mu={mu:g}")
+        if error is not None:
             break
         step_wall.append(time.perf_counter() - tick)
         step_newton.append(report.newton_iterations)
@@ -674,3 +635,9 @@ def merge(records: list[str | Path], out: str | Path = "results") -> dict:
     png = out / f"{NAME}.png"
     _plot(runs, png, f"Shell pressed and twisted on an MPM cube ({mode} mode)")
     return {"json": str(path), "png": str(png), **payload}
+
+
+# the committed records of modes other than full carry the mode in their names
+BENCHMARK = register(
+    Benchmark(NAME, __doc__, MODES, None, record=name_unless("full", NAME), own_run=run)
+)

@@ -18,12 +18,7 @@ Metric: the gap, the lowest particle's height above y = 0, averaged over the las
 run (and its min / max there). Targets (T): two_stage's gap at rest lies in (0, dhat] (tail min
 > 0) and below both grid treatments'.
 
-Measured (quick, dx = 0.01 m, 0.3 s): two_stage 0.9989e-3 m (0.10 dx; at rest, tail spread
-2e-7 m); level set 7.1e-3 m (0.71 dx) mean, still bouncing between 3.2e-3 and 10.9e-3 m;
-augury PIC 24.1e-3 m: the block is caught at once and never falls (0.24 of its 0.1 m contact
-cell). Full (dx = 0.005 m, 0.6 s, 222 s): two_stage 0.9989e-3 m (0.20 dx, spread 2e-10 m);
-level set 3.4e-3 m (0.68 dx; bouncing between 1.6e-3 and 5.3e-3 m): it halves with dx, the
-"dx gap"; augury PIC 24.1e-3 m again (its contact grid does not change with dx).
+Measured results, with the commits they ran on: ``benchmarks/records/two_stage_gap.md``.
 """
 
 from __future__ import annotations
@@ -33,11 +28,10 @@ import time
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 import bfemp
-from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks.common import figure
+from benchmarks.runner import Benchmark, register
 from bfemp.steppers.augury import AuguryOptions
 
 log = logging.getLogger(__name__)
@@ -107,13 +101,8 @@ def _run_case(case: str, cfg: dict) -> dict:
     }
 
 
-def run(mode: str = "full", out: str | Path = "results") -> dict:
-    """Run ``mode``; write ``two_stage_gap.json`` and ``.png``."""
-    if mode not in MODES:
-        raise ValueError(f"mode must be one of {sorted(MODES)}, got {mode!r}")
-    cfg = MODES[mode]
-    out = Path(out)
-    started = time.perf_counter()
+def measure(mode: str, cfg: dict) -> dict:
+    """Run the three cases of ``mode``: the gaps at rest and the targets."""
     cases = {case: _run_case(case, cfg) for case in CASES}
     ts = cases["two_stage"]
     ok = ts["error"] is None and ts["gap_tail_min_m"] is not None
@@ -128,9 +117,7 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
             for c in ("levelset", "augury_pic")
         ),
     }
-    payload = {
-        "benchmark": NAME,
-        "mode": mode,
+    return {
         "dx_m": cfg["dx"],
         "dhat_m": DHAT,
         "gap_at_rest_m": {c: r["gap_at_rest_m"] for c, r in cases.items()},
@@ -138,24 +125,24 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
         "targets": targets,
         "target_met": all(targets.values()),
         "cases": {c: {k: v for k, v in r.items() if k != "series"} for c, r in cases.items()},
-        "wall_s": time.perf_counter() - started,
-        "peak_memory_mb": peak_memory_mb(),
         "parameters": {**cfg, "material": MATERIAL, "kappa_Pa": KAPPA, "start_gap_m": START_GAP},
-        "environment": environment(),
         "series": {c: r["series"] for c, r in cases.items()},
     }
-    path = write_json(out, NAME, payload)
-    png = out / f"{NAME}.png"
-    fig = Figure(figsize=(6.0, 4.0))
-    FigureCanvasAgg(fig)
-    ax = fig.subplots()
-    for c, r in cases.items():
-        ax.plot(r["series"]["t"], r["series"]["lowest_m"], label=c)
+
+
+def plot(payload: dict, png: Path) -> None:
+    """The lowest particle's height against time, per case, beside dhat and dx."""
+    fig, ax = figure((6.0, 4.0))
+    for c, series in payload["series"].items():
+        ax.plot(series["t"], series["lowest_m"], label=c)
     ax.axhline(DHAT, color="k", ls=":", lw=0.8, label="dhat")
-    ax.axhline(cfg["dx"], color="k", ls="--", lw=0.8, label="dx")
+    ax.axhline(payload["dx_m"], color="k", ls="--", lw=0.8, label="dx")
     ax.set(xlabel="t (s)", ylabel="lowest particle height (m)")
-    ax.set_title(f"block at rest on a floor ({mode})", fontsize=9)
+    ax.set_title(f"block at rest on a floor ({payload['mode']})", fontsize=9)
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(png, dpi=110)
-    return {"json": str(path), "png": str(png), **payload}
+
+
+BENCHMARK = register(Benchmark(NAME, __doc__, MODES, measure, plot=plot))
+run = BENCHMARK.run

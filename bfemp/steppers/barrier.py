@@ -49,6 +49,7 @@ from bfemp.steppers._scaffold import StepNodes, gather_nodes, write_state
 from bfemp.steppers.base import ContactView, StepError, StepReport, finite_or_nan
 from bfemp.steppers.capabilities import BARRIER_PAIRS, Capabilities
 from bfemp.terms import StepContext
+from solvers.linear import LinearSolver
 from solvers.options import NewtonOptions
 from solvers.result import NewtonResult, NewtonStatus
 
@@ -114,7 +115,6 @@ class BarrierStepper:
         self.newton = NewtonOptions(
             tol=options.tol, max_iter=options.max_newton_iterations, step_scale=self.dt
         )
-        self.linear_solver = options.make_linear_solver(model.dim)
         self.transfer = transfer
         self.potential = build_potential(model)
         self.barrier = next(
@@ -134,10 +134,20 @@ class BarrierStepper:
             self.barrier,
             self.friction,
             self.newton,
-            self.linear_solver,
+            options.make_linear_solver(model.dim),
             self.dt,
             take_last_increment=options.velocity_update == "positions",
         )
+
+    @property
+    def linear_solver(self) -> LinearSolver:
+        """The linear solver of the Newton loop; assigning one makes the next steps factorise
+        (and analyse) with it."""
+        return self._solver.linear_solver
+
+    @linear_solver.setter
+    def linear_solver(self, solver: LinearSolver) -> None:
+        self._solver.linear_solver = solver
 
     @property
     def warm_start(self) -> bool:

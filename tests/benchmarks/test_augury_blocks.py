@@ -1,19 +1,17 @@
 """augury_blocks quick: APIC conserves angular momentum, both conserve linear momentum, PIC
 drifts (negative control), the initial grid damping falls with h (AUG section 3.2, Figs. 8-9)."""
 
-import json
-
 import pytest
 
 from benchmarks import augury_blocks
+from tests.benchmarks._records import check_written, record_fixture
+
+result = record_fixture("augury_blocks", "quick")
 
 
 @pytest.fixture(scope="module")
-def data(tmp_path_factory):
-    out = tmp_path_factory.mktemp("augury_blocks")
-    augury_blocks.run("quick", out)
-    assert (out / "augury_blocks.png").stat().st_size > 10_000
-    return json.loads((out / "augury_blocks.json").read_text())
+def data(result):
+    return check_written(result, "augury_blocks")
 
 
 def test_the_scene_is_the_papers(data):

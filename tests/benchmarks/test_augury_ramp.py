@@ -5,19 +5,17 @@ benchmarks/records/augury_ramp.json: with the paper's N = 1 the block hardly sli
 errors 0.88-0.98; bfemp's variant, "facing" normals and N = 30, slides within 0.09-0.32 but
 then mu = 0.7 slips 0.05-0.09 m)."""
 
-import json
-
 import pytest
 
 from benchmarks import augury_ramp
+from tests.benchmarks._records import check_written, record_fixture
+
+result = record_fixture("augury_ramp", "smoke")
 
 
 @pytest.fixture(scope="module")
-def data(tmp_path_factory):
-    out = tmp_path_factory.mktemp("augury_ramp")
-    augury_ramp.run("smoke", out)
-    assert (out / "augury_ramp.png").stat().st_size > 10_000
-    return json.loads((out / "augury_ramp.json").read_text())
+def data(result):
+    return check_written(result, "augury_ramp")
 
 
 def test_frictionless_slips_more_than_mu_above_tan30(data):

@@ -1,10 +1,10 @@
 """augury_scenes (smoke): the rings under augury beside two_stage and barrier, in one run."""
 
-from benchmarks import augury_scenes
+from benchmarks import scenes
 
 
 def test_rings_under_augury_conserve_momentum_beside_the_others(tmp_path):
-    rec = augury_scenes.run("smoke", tmp_path)
+    rec = scenes.run("smoke", tmp_path, strategy="augury")
     runs = rec["rings"]["runs"]
     assert set(runs) == {"augury", "two_stage", "barrier"}
     for name, r in runs.items():

@@ -42,6 +42,11 @@ def test_optimised_blas_gives_the_reference_trajectories(tmp_path):
     np.testing.assert_allclose(fast["mpm_x"], ref["mpm_x"], rtol=0.0, atol=1e-10)
 
 
+def _install_openblas(env: dict) -> subprocess.CompletedProcess:
+    script = str(ROOT / "tools" / "install_openblas.sh")
+    return subprocess.run(["sh", script], env=env, capture_output=True, text=True, timeout=60)
+
+
 def test_setup_without_openblas_goes_on_and_says_so_once(tmp_path):
     stub = tmp_path / "bin"
     stub.mkdir()
@@ -49,24 +54,12 @@ def test_setup_without_openblas_goes_on_and_says_so_once(tmp_path):
         (stub / tool).write_text("#!/bin/sh\nexit 100\n")
         (stub / tool).chmod(0o755)
     env = dict(os.environ, PATH=f"{stub}:{os.environ['PATH']}", OPENBLAS_GLOB="/nonexistent/x")
-    done = subprocess.run(
-        ["sh", str(ROOT / "tools" / "install_openblas.sh")],
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
+    done = _install_openblas(env)
     assert done.returncode == 0
     warnings = [line for line in done.stdout.splitlines() if line.startswith("warning:")]
     assert len(warnings) == 1
     assert "reference BLAS" in warnings[0]
     # with OpenBLAS present nothing is installed and nothing said
     present = dict(env, OPENBLAS_GLOB=str(ROOT / "tools" / "install_openblas.sh"))
-    quiet = subprocess.run(
-        ["sh", str(ROOT / "tools" / "install_openblas.sh")],
-        env=present,
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
+    quiet = _install_openblas(present)
     assert quiet.returncode == 0 and quiet.stdout == ""

@@ -7,22 +7,16 @@ import numpy as np
 import pytest
 
 from benchmarks import buckling
+from tests.benchmarks._records import check_written, record_fixture
 
-
-@pytest.fixture(scope="module")
-def result(tmp_path_factory):
-    out = tmp_path_factory.mktemp("buckling")
-    summary = buckling.run("quick", out)
-    return summary, json.loads((out / "buckling.json").read_text()), out
+result = record_fixture("buckling")
 
 
 def test_writes_json_and_plot(result):
-    summary, data, out = result
-    assert summary["json"] == str(out / "buckling.json")
-    assert (out / "buckling.png").stat().st_size > 10_000
+    data = check_written(
+        result, "buckling", "detachment_end_m u_buckle_m wall_s peak_memory_mb parameters"
+    )
     assert [case["mu"] for case in data["cases"]] == list(buckling.MUS)
-    for key in ("detachment_end_m", "u_buckle_m", "wall_s", "peak_memory_mb", "parameters"):
-        assert key in data, key
 
 
 def test_every_case_reaches_the_end_without_touching(result):

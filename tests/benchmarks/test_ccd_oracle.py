@@ -13,8 +13,8 @@ def test_run_writes_a_record_without_false_negatives(tmp_path, monkeypatch):
     monkeypatch.setitem(ccd_oracle.CASES, "quick", 4)
     monkeypatch.setattr(ccd_oracle, "ipctk", None)
     out = ccd_oracle.run("quick", tmp_path)
-    record = json.loads((tmp_path / "ccd_oracle.json").read_text())
-    assert out["json"].endswith("ccd_oracle.json")
+    record = json.loads((tmp_path / "ccd_oracle_quick.json").read_text())
+    assert out["json"].endswith("ccd_oracle_quick.json")  # as the committed quick record
     assert len(record["families"]) == len(ccd_oracle.FAMILIES) * len(ccd_oracle.KINDS) + 2
     assert {"turning/point_edge", "tangent/point_edge"} <= set(record["families"])
     assert record["bfemp_false_negatives"] == 0

@@ -2,7 +2,6 @@
 NaN, bounded energy) or ends with the named outcome it is expected to; nothing is UNEXPLAINED;
 the independent checks catch what they claim."""
 
-import json
 import math
 
 import numpy as np
@@ -12,6 +11,7 @@ import bfemp
 from benchmarks import extremes
 from benchmarks._extreme_cases import CASES, build_scene, quick_cases
 from benchmarks._extreme_strategies import EXPLICIT, MAX_STEPS, NO_CROSSING, STRATEGY_NAMES
+from tests.benchmarks._records import record_fixture
 
 #: the dt of every case but E_1e3 (1e-4 s and more) exceeds the explicit stable step at dx = 0.05
 #: m (4.8e-5 s at E = 1e8 Pa): "REFUSED" there, and "REFUSED/X" means X for the extra run at
@@ -102,12 +102,7 @@ EXPECTED = {
 EXPECTED["barrier"] = {c.name: c.expect for c in quick_cases()}
 
 
-@pytest.fixture(scope="module")
-def result(tmp_path_factory):
-    out = tmp_path_factory.mktemp("extremes")
-    summary = extremes.run("quick", out)
-    data = json.loads((out / "extremes_quick.json").read_text())
-    return summary, data, out
+result = record_fixture("extremes")
 
 
 @pytest.fixture(scope="module")

@@ -1,30 +1,24 @@
 """Brazilian disk, quick mode: plane Hertz contact F = C a^2 for both materials (section 6.3),
 plus the measurement helpers on synthetic data."""
 
-import json
 import math
 
 import numpy as np
 import pytest
 
 from benchmarks import hertz
+from tests.benchmarks._records import check_written, record_fixture
 
 C_HERTZ = math.pi * 1e10 / (4.0 * (1.0 - 0.3**2) * 1.0)
 
 
-@pytest.fixture(scope="module")
-def result(tmp_path_factory):
-    out = tmp_path_factory.mktemp("hertz")
-    summary = hertz.run("quick", out)
-    return summary, json.loads((out / "hertz.json").read_text()), out
+result = record_fixture("hertz")
 
 
 def test_writes_json_and_plot(result):
-    summary, data, out = result
-    assert (out / "hertz.png").stat().st_size > 10_000
-    assert summary["json"] == str(out / "hertz.json")
-    for key in ("materials", "samples", "wall_s", "steps", "newton_iterations", "parameters"):
-        assert key in data, key
+    data = check_written(
+        result, "hertz", "materials samples wall_s steps newton_iterations parameters"
+    )
     assert set(data["materials"]) == {"linear", "neo_hookean"}
     for run in data["materials"].values():
         assert run["error"] is None

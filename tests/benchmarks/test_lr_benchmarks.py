@@ -4,7 +4,7 @@ lr_ellipses (Fig. 6), the BFEMP scenes under lr (smoke) and lr's update variants
 import numpy as np
 import pytest
 
-from benchmarks import lr_compression, lr_contact_time, lr_ellipses, lr_scenes, lr_variants
+from benchmarks import lr_compression, lr_contact_time, lr_ellipses, lr_variants, scenes
 from bfemp.steppers.lr import LROptions, LRStepper
 
 
@@ -114,7 +114,7 @@ def test_lr_ellipses_smoke_interpenetration(tmp_path):
 
 
 def test_lr_scenes_smoke_rings_keep_momentum(tmp_path):
-    rec = lr_scenes.run("smoke", tmp_path)
+    rec = scenes.run("smoke", tmp_path, strategy="lr")
     runs = rec["rings"]["runs"]
     for name, r in runs.items():
         assert r["error"] is None, (name, r["error"])

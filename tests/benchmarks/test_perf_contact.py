@@ -5,30 +5,24 @@ barriers), the CCD step sizes of both are conservative against the exact time of
 rings breakdown is taken in contact. Timings are recorded, never asserted (shared machine).
 """
 
-import json
 import math
 
 import numpy as np
 import pytest
 
 from benchmarks import perf_contact
+from tests.benchmarks._records import check_written, record_fixture
 
 needs_ipctk = pytest.mark.skipif(perf_contact.ipctk is None, reason="ipctk not installed")
 
 
-@pytest.fixture(scope="module")
-def result(tmp_path_factory):
-    out = tmp_path_factory.mktemp("perf_contact")
-    summary = perf_contact.run("quick", out)
-    return summary, json.loads((out / "perf_contact.json").read_text()), out
+result = record_fixture("perf_contact")
 
 
 def test_writes_json_and_plot(result):
-    summary, data, out = result
-    assert summary["json"] == str(out / "perf_contact.json")
-    assert (out / "perf_contact.png").stat().st_size > 10_000
-    for key in ("barrier_pairs_per_s", "ccd_s", "ccd_step", "rings_breakdown", "wall_s"):
-        assert key in data, key
+    data = check_written(
+        result, "perf_contact", "barrier_pairs_per_s ccd_s ccd_step rings_breakdown wall_s"
+    )
     for key in ("steps", "newton_iterations", "peak_memory_mb", "parameters", "environment"):
         assert key in data, key
     for dim_key, rates in data["barrier_pairs_per_s"].items():
@@ -107,3 +101,37 @@ def test_runs_without_ipctk(monkeypatch):
     assert case["ipctk"] is None and case["agreement"] is None
     assert case["ccd"]["ipctk_step"] is None and case["ccd"]["conservative"]
     assert case["pairs"] == 200 and case["bfemp"]["dofs_s"] > 0.0
+
+
+def test_a_linear_solver_swapped_into_the_stepper_does_the_next_steps_factorisations():
+    """perf_contact times each repeat of the rings step with a fresh linear solver so that the
+    analysis is redone; the stepper's Newton loop must then factorise with that solver, not
+    with the one the stepper was built with."""
+    import bfemp
+    from bfemp.integrators import BACKWARD_EULER, integrator_from_name
+    from bfemp.steppers.barrier import BarrierOptions, BarrierStepper
+    from solvers.linear import default_linear_solver
+
+    scene = bfemp.Scene(dim=2, gravity=(0.0, -9.81))
+    scene.add_fem(
+        bfemp.shapes.rectangle((0.0, 0.0), (1.0, 0.5), h=0.25),
+        name="block",
+        material=bfemp.NeoHookean(E=1e5, nu=0.3, density=1000.0),
+    )
+    model = scene.build()
+    stepper = BarrierStepper(
+        model,
+        integrator=integrator_from_name(BACKWARD_EULER),
+        dt=1e-2,
+        options=BarrierOptions(tol=1e-8),
+    )
+    old = stepper.linear_solver
+    stepper.step(model.initial_state())
+    used_by_old = old.n_numeric
+    assert used_by_old > 0
+    fresh = default_linear_solver()
+    stepper.linear_solver = fresh
+    _, report = stepper.step(model.initial_state())
+    assert report.newton_iterations > 0
+    assert fresh.n_numeric > 0  # the swapped-in solver factorised ...
+    assert old.n_numeric == used_by_old  # ... and the old one no more

@@ -1,27 +1,15 @@
 """Convergence under refinement, quick mode (paper section 6.5): an MPM box settles on a FEM box
 and the centre-of-mass height at rest converges as dx = 1/N and dhat = 1/N^2 shrink."""
 
-import json
-
 import numpy as np
-import pytest
 
-from benchmarks import refinement
+from tests.benchmarks._records import check_written, record_fixture
 
-
-@pytest.fixture(scope="module")
-def result(tmp_path_factory):
-    out = tmp_path_factory.mktemp("refinement")
-    summary = refinement.run("quick", out)
-    return summary, json.loads((out / "refinement.json").read_text()), out
+result = record_fixture("refinement")
 
 
 def test_writes_json_and_plot(result):
-    summary, data, out = result
-    assert summary["json"] == str(out / "refinement.json")
-    assert (out / "refinement.png").stat().st_size > 10_000
-    for key in ("series", "wall_s", "peak_memory_mb", "parameters", "runs"):
-        assert key in data, key
+    check_written(result, "refinement_quick", "series wall_s peak_memory_mb parameters runs")
 
 
 def test_every_resolution_comes_to_rest_above_the_fem_box(result):

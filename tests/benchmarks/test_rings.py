@@ -1,28 +1,20 @@
 """Colliding rings, quick mode: momentum to round-off, no contact pair ever at zero distance, no
 particle inside the FEM ring, and an energy budget that only loses (section 6.1)."""
 
-import json
 import math
 
 import numpy as np
-import pytest
 
 from benchmarks import rings
+from tests.benchmarks._records import check_written, record_fixture
 
-
-@pytest.fixture(scope="module")
-def result(tmp_path_factory):
-    out = tmp_path_factory.mktemp("rings")
-    summary = rings.run("quick", out)
-    return summary, json.loads((out / "rings.json").read_text()), out
+result = record_fixture("rings")
 
 
 def test_writes_json_and_plot(result):
-    summary, data, out = result
-    assert (out / "rings.png").stat().st_size > 10_000
-    for key in ("momentum_drift_rel", "min_distance", "energy_loss_pct", "steps", "wall_s"):
-        assert key in data, key
-    assert summary["json"] == str(out / "rings.json")
+    data = check_written(
+        result, "rings", "momentum_drift_rel min_distance energy_loss_pct steps wall_s"
+    )
     assert all(run["error"] is None for run in data["runs"].values())
     for run in data["runs"].values():  # where each run's time went, summed over its steps
         phases = run["phase_s"]

@@ -2,28 +2,24 @@
 particle in and never pulls the box while lifting off; the level-set slip boundary, run along the
 same path, shows both artefacts (particles inside it, adhesion)."""
 
-import json
-
 import pytest
 
 from benchmarks import sine_boundary
+from tests.benchmarks._records import check_written, record_fixture
 
 pytestmark = pytest.mark.slow
 
 
-@pytest.fixture(scope="module")
-def result(tmp_path_factory):
-    out = tmp_path_factory.mktemp("sine_boundary")
-    summary = sine_boundary.run("quick", out)
-    return summary, json.loads((out / "sine_boundary.json").read_text()), out
+result = record_fixture("sine_boundary")
 
 
 def test_writes_json_and_plot(result):
-    summary, data, out = result
-    assert summary["json"] == str(out / "sine_boundary.json")
-    assert (out / "sine_boundary.png").stat().st_size > 20_000
-    for key in ("penetrations", "max_tensile_force", "levelset", "wall_s", "steps"):
-        assert key in data, key
+    data = check_written(
+        result,
+        "sine_boundary",
+        "penetrations max_tensile_force levelset wall_s steps",
+        png_bytes=20_000,
+    )
     for key in ("penetrations", "max_tensile_force"):
         assert key in data["levelset"], key
     assert data["bfemp"]["error"] is None and data["levelset"]["error"] is None

@@ -2,23 +2,19 @@
 g (sin theta - mu cos theta), and the box held at the critical friction coefficient with a creep
 speed of the order of eps_v."""
 
-import json
 import math
 
 import pytest
 
 from benchmarks import slope
+from tests.benchmarks._records import record_fixture
 
 THETA = math.atan(slope.PHYSICS["tan_theta"])
 G_SIN = slope.PHYSICS["g_m_s2"] * math.sin(THETA)
 EPS_V = slope.PHYSICS["eps_v_m_s"]
 
 
-@pytest.fixture(scope="module")
-def result(tmp_path_factory):
-    out = tmp_path_factory.mktemp("slope")
-    summary = slope.run("quick", out)
-    return summary, json.loads((out / "slope.json").read_text()), out
+result = record_fixture("slope")
 
 
 def _case(cases, mu):

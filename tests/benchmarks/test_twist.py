@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from benchmarks import twist
+from tests.benchmarks._records import check_written, record_fixture
 
 QUICK_MUS = (0.0, 0.2)  # mu = 0.5 and 1 (the longest cases: 102 and 177 s) are in the record only
 
@@ -81,20 +82,12 @@ def test_slip_onset_finds_the_stall_and_none_without_it():
     assert not twist.slip_ordered([None, None])
 
 
-@pytest.fixture(scope="module")
-def result(tmp_path_factory):
-    out = tmp_path_factory.mktemp("twist")
-    summary = twist.run("quick", out, mus=QUICK_MUS)
-    return summary, json.loads((out / "twist.json").read_text()), out
+result = record_fixture("twist", mus=QUICK_MUS)
 
 
 def test_writes_json_and_plot(result):
-    summary, data, out = result
-    assert summary["json"] == str(out / "twist.json")
-    assert (out / "twist.png").stat().st_size > 10_000
+    data = check_written(result, "twist", "slip_angle_pi wall_s peak_memory_mb parameters paper")
     assert [case["mu"] for case in data["cases"]] == list(QUICK_MUS)
-    for key in ("slip_angle_pi", "wall_s", "peak_memory_mb", "parameters", "paper"):
-        assert key in data, key
 
 
 def test_every_case_presses_and_twists_without_touching(result):

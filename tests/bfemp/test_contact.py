@@ -464,11 +464,11 @@ def test_box_slides_down_a_slope_at_the_coulomb_acceleration_under_newmark(integ
     """The slope benchmark's box (mu = 0.1, tan theta = 0.2) under the Newmark integrators:
     the friction force must be mu lambda, not s mu lambda with the sliding map's s = 2 (before
     the fix the box stuck). Measured errors: 1.1e-6 (newmark), 2.2e-8 (implicit contact)."""
-    from benchmarks import slope
+    from benchmarks import catalogue
 
-    physics = {**slope.PHYSICS, "integrator": integrator}
-    settled, _ = slope._settle("tilted_gravity", 20, physics)
-    case = slope._release("tilted_gravity", 0.1, settled, 60, 0.02, physics)
+    physics = {**catalogue.SLOPE_PHYSICS, "integrator": integrator}
+    settled, _ = catalogue.settle_slope("tilted_gravity", 20, physics)
+    case = catalogue.release_slope("tilted_gravity", 0.1, settled, 60, 0.02, physics)
     assert case["error"] is None
     assert case["accel_rel_error"] < 1e-4, case["accel"]
 

@@ -105,14 +105,14 @@ def _one_step(scene, dt, solver):
 
 @pytest.mark.parametrize("case", ["mpm2d", "fem3d", "mpm3d"])
 def test_cg_amg_reaches_the_cholmod_newton_solution(case):
-    from benchmarks import perf_fem, perf_mpm
+    from benchmarks import catalogue
 
     if case == "mpm2d":
-        scene, dt = perf_mpm._scene(2, (12, 12), 4), 0.01
+        scene, dt = catalogue.mpm_block_scene(2, (12, 12), 4), 0.01
     elif case == "mpm3d":
-        scene, dt = perf_mpm._scene(3, (5, 5, 3), 8), 0.01
+        scene, dt = catalogue.mpm_block_scene(3, (5, 5, 3), 8), 0.01
     else:
-        scene, dt = perf_fem._scene(3, (6, 3, 3)), 0.05
+        scene, dt = catalogue.fem_block_scene(3, (6, 3, 3)), 0.05
     direct, rep_d = _one_step(scene, dt, "default")
     cg, rep_cg = _one_step(scene, dt, "cg_amg")
     assert rep_d.newton_iterations > 1  # a real nonlinear solve, not one step

@@ -77,11 +77,11 @@ def test_rotate_with_a_kept_pattern_equals_a_fresh_rotation():
 
 
 def test_barrier_stepper_keeps_the_hessian_pattern_across_steps():
-    from benchmarks import perf_fem
+    from benchmarks import catalogue
     from bfemp.integrators import BACKWARD_EULER
     from bfemp.steppers.barrier import BarrierOptions, BarrierStepper
 
-    model = perf_fem._scene(2, (12, 3)).build()
+    model = catalogue.fem_block_scene(2, (12, 3)).build()
     stepper = BarrierStepper(
         model, integrator=BACKWARD_EULER, dt=0.05, options=BarrierOptions(tol=1e-6)
     )
@@ -102,14 +102,14 @@ def test_triplet_index_arrays_are_the_same_objects_from_step_to_step(kind):
     """Where the DOF numbering holds, the terms hand the same index arrays each step, so the
     stacked (and, with slip frames, rotated) pattern is not rebuilt (it cost 0.33 + 0.26 s a
     step on the 3D perf_fem mesh and 0.19 s on the 3D perf_mpm block, measured)."""
-    from benchmarks import perf_fem, perf_mpm
+    from benchmarks import catalogue
     from bfemp.integrators import BACKWARD_EULER
     from bfemp.steppers.barrier import BarrierOptions, BarrierStepper
 
     if kind == "fem":
-        model, dt = perf_fem._scene(2, (12, 3)).build(), 0.05
+        model, dt = catalogue.fem_block_scene(2, (12, 3)).build(), 0.05
     else:
-        model, dt = perf_mpm._scene(2, (8, 8), 4).build(), 0.01
+        model, dt = catalogue.mpm_block_scene(2, (8, 8), 4).build(), 0.01
     stepper = BarrierStepper(
         model, integrator=BACKWARD_EULER, dt=dt, options=BarrierOptions(tol=1e-6)
     )

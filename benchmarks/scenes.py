@@ -1,0 +1,716 @@
+"""``scenes``: the BFEMP rings and slope (``benchmarks.catalogue``) under an explicit strategy.
+
+``python -m benchmarks scenes --strategy S [--scene rings|slope]``, or by the old names:
+
+- ``augury_scenes`` (``--strategy augury``): rings with the MPM ring taking part through MPM
+  foreground particles (APIC contact operator, N = 1, "separate" mode, contact grid 2 x the FEM
+  boundary edge) and two_stage at ``dt="auto"``, barrier (``rings.run_transfer``) beside them;
+  slope (the softened box below) with the fixed FEM slope as kinematic foreground, mu = 0 and
+  0.2 = tan theta, beside two_stage. The record asserts APIC's momentum drift < 1e-10.
+- ``lr_scenes`` (``--strategy lr``): rings with the FEM ring as a material meshed at h = dx / 2
+  (lr sees it through its boundary nodes), both rings as MPM bodies (LR's multimaterial
+  setting), barrier beside them (FLIP, frictionless); slope meshed at dx / 2 and 1 cm thick
+  (``catalogue.LR_SLOPE``), beside two_stage.
+- ``two_stage_rings`` (``--strategy two_stage --scene rings``): symplectic Euler at the explicit
+  stable step; targets (T): momentum drift < 1e-9, closest distance > 0 at every step, no
+  particle inside the FEM ring; energy loss over the paper's window (0.025-0.293 s) beside
+  BFEMP's 8.57 % (APIC) / 9.67 % (FLIP).
+- ``two_stage_slope`` (``--strategy two_stage --scene slope``): the slope box softened from
+  E = 4e12 Pa to ``E_SOFT`` = 1e5 Pa (EXPLICIT_STRATEGIES.md 3.5: at 4e12 the explicit step
+  would be ~1e-8 s) at ``DT`` = 5e-5 s, two barrier stiffnesses (``KAPPAS``: scaled alike,
+  2.5e-2 Pa, and the paper's 1e6 Pa); settling as in ``slope``, release at each mu, centre of
+  mass fitted after ``fit_start_s``. Targets (T): relative acceleration error against
+  g (sin theta - mu cos theta) below ``TARGET_REL``; at mu = tan(theta) the speed after the fit
+  start below ``STICK_FACTOR`` eps_v. Mode ``sticking`` (``run_sticking``) tests 1.05 and
+  1.5 tan(theta) from rest and records Newton iterations against eps_v.
+
+Measured results are in ``benchmarks/records/`` (``two_stage_rings.md``,
+``two_stage_slope.md``, ``two_stage_slope_sticking.md`` and the JSON records).
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import math
+import time
+from collections.abc import Callable, Mapping
+from pathlib import Path
+
+import numpy as np
+
+import bfemp
+from benchmarks import catalogue as cat
+from benchmarks import rings, slope
+from benchmarks.common import environment, figure, peak_memory_mb
+from benchmarks.runner import Benchmark, register, run_named, write_record
+from bfemp.steppers.augury import AuguryOptions
+from bfemp.steppers.lr import LROptions
+from bfemp.steppers.two_stage import TwoStageOptions, TwoStageStepper
+
+log = logging.getLogger(__name__)
+
+NAME = "scenes"
+#: (strategy, scene) -> the record's name (the benchmark names before the merge)
+RECORD_NAMES = {
+    ("augury", "both"): "augury_scenes",
+    ("lr", "both"): "lr_scenes",
+    ("two_stage", "rings"): "two_stage_rings",
+    ("two_stage", "slope"): "two_stage_slope",
+}
+
+#: the rings' discretisations (two_stage's quick runs to 0.15 s, in contact from 0.025 s)
+RINGS_MODES = {
+    "full": dict(dx=0.1, ppc=9, fem_h=0.13, t_end=0.3, transfers=("apic", "flip")),
+    # rings' partial discretisation (MPM dx 0.2 m, ppc 4; the paper's FEM mesh)
+    "partial": dict(dx=0.2, ppc=4, fem_h=0.13, t_end=0.3, transfers=("apic", "flip")),
+    "quick": dict(dx=1.0 / 3.0, ppc=4, fem_h=1.0 / 3.0, t_end=0.15, transfers=("apic",)),
+}
+DRIFT_TARGET = 1e-9
+#: what the comparisons (augury, lr) run per mode: the rings' and the slope's modes
+COMPARE_MODES = {
+    "quick": {"rings": "quick", "slope": "quick"},
+    "full": {"rings": "partial", "slope": "partial"},
+    # what the tests run: the quick rings to 0.05 s, no slope
+    "smoke": {"rings": "quick", "slope": None, "t_end": 0.05},
+}
+
+# ----------------------------------------------------------------------------- softened slope
+E_SOFT = 1e5  # Pa
+DT = 5e-5  # s
+PHYSICS = {
+    **cat.SLOPE_PHYSICS,
+    "E_Pa": E_SOFT,
+    "kappa_Pa": cat.SLOPE_PHYSICS["kappa_Pa"] * E_SOFT / cat.SLOPE_PHYSICS["E_Pa"],
+    "strategy": "two_stage",
+    "integrator": "symplectic_euler",
+    "dt_s": DT,
+    "tol_m_s": 1e-6,
+    # Newton from x* as recorded (issue 40 made "auto" the default: x^n under friction)
+    "options": TwoStageOptions(tol=1e-6, start="free"),
+}
+PHYSICS.pop("velocity_update")
+KAPPAS = {"kappa_scaled": PHYSICS["kappa_Pa"], "kappa_paper": cat.SLOPE_PHYSICS["kappa_Pa"]}
+_ALL_MUS = (0.0, 0.1, 0.1999, 0.2)
+SLOPE_MODES = {
+    "full": dict(settle_s=0.1, release_s=0.5, fit_start_s=0.1, mus=_ALL_MUS,
+                 kappas=("kappa_scaled", "kappa_paper")),
+    # what the 2-core machine ran (full: 84,000 steps at ~24 ms, over half an hour)
+    "partial": dict(settle_s=0.1, release_s=0.2, fit_start_s=0.05, mus=_ALL_MUS,
+                    kappas=("kappa_paper",)),
+    "quick": dict(settle_s=0.02, release_s=0.03, fit_start_s=0.01, mus=(0.0, 0.2),
+                  kappas=("kappa_paper",)),
+}  # fmt: skip
+TARGET_REL = {"full": 2e-3, "partial": 2e-3, "quick": 2e-2}
+STICK_FACTOR = 10.0  # mu = 0.2: max speed after the fit start below this many eps_v
+_SLOPE_KEYS = ("mu", "accel", "accel_analytic", "accel_rel_error", "max_speed_after_fit_start",
+               "error", "steps", "wall_s")  # fmt: skip
+
+
+def _strip(run: Mapping) -> dict:
+    return {k: v for k, v in run.items() if k != "series"}
+
+
+# ----------------------------------------------------------------------------- rings
+def run_rings(
+    cfg: dict, transfer: str, strategy: str = "two_stage", options: object = None
+) -> dict:
+    """One run of the rings (``catalogue.rings_scene``) under an explicit ``strategy`` at
+    ``dt="auto"`` to ``cfg["t_end"]`` s: momentum drift, closest distance (m), particles inside
+    the FEM ring, energy loss (%) over the paper's window when reached, Newton iterations."""
+    sim = bfemp.Simulation(
+        cat.rings_scene(cfg), strategy=strategy, transfer=transfer, dt="auto", options=options
+    )
+    model = sim.model
+    check = cat.RingsPenetration(sim)
+    started, error = time.perf_counter(), None
+    try:
+        sim.run(t_end=cfg["t_end"], progress=False, callback=check)
+    except bfemp.StepError as err:
+        error = str(err)
+        log.error("%s rings/%s: %s", strategy, transfer, err)
+    wall = time.perf_counter() - started
+    m = sim.metrics
+    t = m.column("t")
+    energy = m.column("energy_kinetic") + m.column("energy_elastic")
+    momentum = np.stack([m.column("momentum_x"), m.column("momentum_y")], axis=1)
+    scale = float(
+        np.linalg.norm(model.fem_mass @ model.fem_v0)
+        + np.linalg.norm(model.mpm_mass @ model.mpm_v0)
+    )
+    drift = np.linalg.norm(momentum - momentum[0], axis=1) / scale
+    dist = m.column("min_distance")[1:]
+    pairs = m.column("contact_pairs")[1:]
+    iters = (
+        m.column("iterations_newton")[1:]
+        if "iterations_newton" in m.columns
+        else np.zeros(len(t) - 1)  # a strategy without Newton (augury)
+    )
+    e0, e1 = cat.window_energies(t, energy)
+    reached = t[-1] >= cat.WINDOW[1] - 1e-9
+    return {
+        "transfer": transfer,
+        "error": error,
+        "dt_s": sim.dt,
+        "steps": int(len(t) - 1),
+        "wall_s": wall,
+        "particles": int(model.n_particles),
+        "fem_vertices": int(model.n_fem_nodes),
+        "momentum_drift_rel": float(drift.max()),
+        "min_distance": float(np.nanmin(dist)) if np.isfinite(dist).any() else None,
+        "contact_steps": int(np.count_nonzero(pairs > 0)),
+        "penetrations": int(check.worst),
+        "energy_loss_pct": 100.0 * (e0 - e1) / e0 if reached else None,
+        "newton_iterations": int(np.nansum(iters)),
+        "newton_per_contact_step": float(np.nanmean(iters[pairs > 0])) if (pairs > 0).any() else 0,
+        "newton_iterations_max": int(np.nanmax(iters)) if iters.size else 0,
+        "series": {"t": t[::10].tolist(), "total": energy[::10].tolist()},
+    }
+
+
+def _run_mpm_rings(cfg: dict) -> dict:
+    """Both rings as MPM bodies under lr (frictionless, ``dt="auto"``)."""
+    sim = bfemp.Simulation(cat.mpm_rings_scene(cfg), strategy="lr", dt="auto",
+                           options=LROptions(law="frictionless"))  # fmt: skip
+    started, error = time.perf_counter(), None
+    try:
+        sim.run(t_end=cfg["t_end"], progress=False)
+    except bfemp.StepError as err:
+        error = str(err)
+    wall = time.perf_counter() - started
+    m, model = sim.metrics, sim.model
+    t = m.column("t")
+    momentum = np.stack([m.column("momentum_x"), m.column("momentum_y")], axis=1)
+    scale = float(np.abs(model.mpm_mass[:, None] * model.mpm_v0).sum())
+    energy = m.column("energy_kinetic") + m.column("energy_elastic")
+    e0, e1 = cat.window_energies(t, energy)
+    reached = t[-1] >= cat.WINDOW[1] - 1e-9
+    # closest approach of the two rings' particles at the end (a crude overlap measure)
+    x = sim.state.mpm_x
+    left = model.mpm_particle_body == 0
+    from scipy.spatial import cKDTree
+
+    gap = float(cKDTree(x[~left]).query(x[left])[0].min())
+    return {
+        "error": error,
+        "dt_s": sim.dt,
+        "steps": int(len(t) - 1),
+        "wall_s": wall,
+        "particles": int(model.n_particles),
+        "momentum_drift_rel": float(np.linalg.norm(momentum - momentum[0], axis=1).max() / scale),
+        "closest_particles_end_m": gap,
+        "energy_loss_pct": 100.0 * (e0 - e1) / e0 if reached else None,
+    }
+
+
+def _compared_rings(mode: str, strategy: str) -> dict:
+    """The rings under ``strategy`` (augury or lr) beside barrier (and two_stage)."""
+    cfg = dict(RINGS_MODES[COMPARE_MODES[mode]["rings"]])
+    if "t_end" in COMPARE_MODES[mode]:
+        cfg["t_end"] = COMPARE_MODES[mode]["t_end"]
+    if strategy == "augury":
+        transfer, options = "apic", AuguryOptions(mode="separate", penetration_check_every=0)
+        out = {
+            "augury": run_rings(cfg, transfer, strategy="augury", options=options),
+            "two_stage": run_rings(cfg, transfer),
+        }
+    else:
+        transfer, lr_cfg = "flip", {**cfg, "fem_h": 0.5 * cfg["dx"]}
+        out = {
+            "lr_fem_material": run_rings(
+                lr_cfg, transfer, strategy="lr", options=LROptions(law="frictionless")
+            ),
+            "lr_mpm_rings": _run_mpm_rings(cfg),
+        }
+    barrier_cfg = {**rings.MODES["quick" if COMPARE_MODES[mode]["rings"] == "quick" else "partial"]}
+    barrier_cfg["t_end"] = cfg["t_end"]
+    started = time.perf_counter()
+    out["barrier"] = rings.run_transfer(barrier_cfg, transfer)
+    out["barrier"]["wall_s"] = time.perf_counter() - started
+    out["barrier"]["dt_s"] = barrier_cfg["dt"]
+    for name, r in out.items():
+        log.info("rings %s: drift %.2e, %.1f s", name, r["momentum_drift_rel"], r["wall_s"])
+    found = {"discretisation": cfg}
+    if strategy == "lr":
+        found["lr_fem_h"] = 0.5 * cfg["dx"]
+    return {**found, "runs": {k: _strip(v) for k, v in out.items()}}
+
+
+def _two_stage_rings(mode: str) -> dict:
+    cfg = RINGS_MODES[mode]
+    runs = {tr: run_rings(cfg, tr) for tr in cfg["transfers"]}
+    drift = max(r["momentum_drift_rel"] for r in runs.values())
+    dists = [r["min_distance"] for r in runs.values() if r["min_distance"] is not None]
+    targets = {
+        "momentum_drift_below": DRIFT_TARGET,
+        "momentum_met": drift < DRIFT_TARGET,
+        "min_distance_positive": bool(dists) and min(dists) > 0.0,
+        "no_penetration": all(r["penetrations"] == 0 and r["error"] is None for r in runs.values()),
+    }
+    met = all(targets[k] for k in ("momentum_met", "min_distance_positive", "no_penetration"))
+    parameters = {**cfg, "strategy": "two_stage", "dt": "auto", "dhat": cat.DHAT,
+                  "kappa": cat.KAPPA, "material": cat.MATERIAL}  # fmt: skip
+    return {
+        "momentum_drift_rel": drift,
+        "min_distance": min(dists) if dists else None,
+        "energy_loss_pct": {tr: r["energy_loss_pct"] for tr, r in runs.items()},
+        "bfemp_energy_loss_pct": rings.PAPER["energy_loss_pct"],
+        "targets": targets,
+        "target_met": met,
+        "runs": {tr: _strip(r) for tr, r in runs.items()},
+        "parameters": parameters,
+        "series": {tr: r["series"] for tr, r in runs.items()},
+    }
+
+
+def _plot_two_stage_rings(payload: dict, png: Path) -> None:
+    fig, ax = figure((6.0, 4.0))
+    for tr, series in payload["series"].items():
+        ax.plot(series["t"], series["total"], label=f"two_stage {tr}")
+    ax.set(xlabel="t (s)", ylabel="kinetic + elastic energy (J/m)")
+    title = f"rings under two_stage ({payload['mode']}); drift {payload['momentum_drift_rel']:.1e}"
+    ax.set_title(title, fontsize=9)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(png, dpi=110)
+
+
+# ----------------------------------------------------------------------------- slope
+def stable_dt() -> float:
+    """The explicit stable step (s) of the softened settling scene's initial state."""
+    model = cat.slope_scene("tilted_gravity", 0.0, with_stop=True, p=PHYSICS).build()
+    return TwoStageStepper.auto_dt(model)
+
+
+def run_cases(
+    mode: str, kappa: str, physics: dict | None = None, variant: str = "tilted_gravity"
+) -> dict:
+    """Settle the softened box once, release at each mu of ``SLOPE_MODES[mode]`` with barrier
+    stiffness ``KAPPAS[kappa]``; ``physics`` overrides entries of ``PHYSICS`` (another
+    strategy), ``variant`` is the ``catalogue.SLOPE_VARIANTS`` entry."""
+    cfg = SLOPE_MODES[mode]
+    p = {**PHYSICS, "kappa_Pa": KAPPAS[kappa], **(physics or {})}
+    settled, settle = cat.settle_slope(variant, round(cfg["settle_s"] / DT), p)
+    cases = []
+    for mu in cfg["mus"]:
+        case = cat.release_slope(
+            variant, mu, settled, round(cfg["release_s"] / DT), cfg["fit_start_s"], p
+        )
+        tau = np.array(case["series"]["tau_s"])
+        v = np.abs(np.array(case["series"]["speed_along_m_s"]))
+        after = v[tau >= cfg["fit_start_s"]]
+        case["max_speed_after_fit_start"] = float(after.max()) if after.size else None
+        case["kappa"] = kappa
+        log.info("%s mu=%g: accel %s (analytic %.6g), %.1f s", kappa, mu, case["accel"],
+                 case["accel_analytic"], case["wall_s"])  # fmt: skip
+        cases.append(case)
+    return {"settle": settle, "cases": cases}
+
+
+def _compared_slope(mode: str, strategy: str) -> dict | None:
+    """The softened slope under ``strategy`` (augury or lr) beside two_stage."""
+    slope_mode = COMPARE_MODES[mode]["slope"]
+    if slope_mode is None:
+        return None
+    if strategy == "augury":
+        options = AuguryOptions(kinematic_foreground=True, penetration_check_every=0)
+        physics, variant = {"strategy": "augury", "options": options}, "tilted_gravity"
+    else:
+        physics = {"strategy": "lr", "options": LROptions(), "transfer": "flip",
+                   "slope_lower_upper_m": cat.LR_SLOPE}  # fmt: skip
+        variant = "dense_slope"
+    out = {}
+    for name, p, v in ((strategy, physics, variant), ("two_stage", None, "tilted_gravity")):
+        started = time.perf_counter()
+        res = run_cases(slope_mode, "kappa_paper", p, variant=v)
+        out[name] = {
+            "wall_s": time.perf_counter() - started,
+            "cases": [{k: c.get(k) for k in _SLOPE_KEYS} for c in res["cases"]],
+        }
+    return {"mode": slope_mode, "runs": out}
+
+
+def _slope_targets(cases: list[dict], mode: str) -> dict:
+    eps_v = PHYSICS["eps_v_m_s"]
+    sliding = [c for c in cases if c["accel_analytic"] > 0]
+    sticking = [c for c in cases if c["mu"] >= PHYSICS["tan_theta"]]
+    return {
+        "accel_met": all(
+            c["error"] is None
+            and c["accel_rel_error"] is not None
+            and c["accel_rel_error"] < TARGET_REL[mode]
+            for c in sliding
+        ),
+        "stick_met": all(
+            c["error"] is None
+            and c["max_speed_after_fit_start"] is not None
+            and c["max_speed_after_fit_start"] < STICK_FACTOR * eps_v
+            for c in sticking
+        ),
+    }
+
+
+def _two_stage_slope(mode: str) -> dict:
+    cfg = SLOPE_MODES[mode]
+    results = {kappa: run_cases(mode, kappa) for kappa in cfg["kappas"]}
+    variants = {
+        kappa: {
+            "kappa_Pa": KAPPAS[kappa],
+            "settle": r["settle"],
+            "cases": [_strip(c) for c in r["cases"]],
+            "targets": _slope_targets(r["cases"], mode),
+        }
+        for kappa, r in results.items()
+    }
+    everything = [c for r in results.values() for c in r["cases"]]
+    targets = {
+        "accel_rel_error_below": TARGET_REL[mode],
+        "stick_max_speed_below_m_s": STICK_FACTOR * PHYSICS["eps_v_m_s"],
+        **_slope_targets(everything, mode),
+    }
+    settles = [r["settle"] for r in results.values()]
+    return {
+        "variants": variants,
+        "targets": targets,
+        "target_met": targets["accel_met"] and targets["stick_met"],
+        "failed_cases": [
+            f"{c['kappa']} mu={c['mu']:g}: {c['error']}" for c in everything if c["error"]
+        ],
+        "stable_dt_s": stable_dt(),
+        "dt_s": DT,
+        "steps": sum(s["steps"] for s in settles) + sum(c["steps"] for c in everything),
+        "newton_iterations": sum(s["newton_iterations"] for s in settles)
+        + sum(c["newton_iterations"] for c in everything),
+        "parameters": {
+            **{k: v for k, v in PHYSICS.items() if k not in ("options", "kappa_Pa")},
+            "kappas_Pa": KAPPAS,
+            "options": {"friction": "once", "tol_m_s": 1e-6, "start": "free"},
+            "softened_from": {
+                "E_Pa": cat.SLOPE_PHYSICS["E_Pa"],
+                "kappa_Pa": cat.SLOPE_PHYSICS["kappa_Pa"],
+            },
+            **cfg,
+        },
+        "series": {f"{c['kappa']} {c['mu']}": c["series"] for c in everything},
+    }
+
+
+def _plot_two_stage_slope(payload: dict, png: Path) -> None:
+    mode, kappa = payload["mode"], SLOPE_MODES[payload["mode"]]["kappas"][-1]
+    title = (f"two_stage: soft MPM box on a FEM slope, tan theta = 0.2 ({mode}, dt = {DT:g} s, "
+             f"{kappa})")  # fmt: skip
+    cases = [{**c, "series": payload["series"][f"{c['kappa']} {c['mu']}"]}
+             for c in payload["variants"][kappa]["cases"]]  # fmt: skip
+    slope.plot_cases({"tilted_gravity": {"cases": cases}}, png, title)
+
+
+# ----------------------------------------------------------------------------- sticking
+#: ``run_sticking``'s record: what TS reports and why the cases start from rest
+STICKING_NOTES = {
+    "paper_numbers": "TS (two-page lecture notes) gives no Newton iteration count, benchmark or "
+    "static-friction figure; 'expect 1-3 iterations' was EXPLICIT_STRATEGIES.md 3.3's guess, "
+    "not TS's, and is not a target here. Nothing is compared with a published figure.",
+    "setup": "release_from 'initial': the unstressed particle lattice at rest, d-hat above the "
+    "slope, friction on from the first step, no stop plane, no settling. release_from "
+    "'settled': settled as two_stage_slope (frictionless, against the slope and the stop "
+    "plane, kappa_paper), every particle velocity and affine velocity then set to zero, "
+    "released without the plane (the plane's removal releases the box's along-slope "
+    "compression: a kick). mu = tan(theta) with a box released still moving (two_stage_slope's "
+    "records: 8.6e-4 m/s at release, 86 eps_v) is an ill-posed sticking test (exact Coulomb "
+    "friction then leaves that speed alone); mu = 1.05 and 1.5 tan(theta) from rest are not. "
+    "The box's elastic vibration (undamped under symplectic Euler) modulates the normal force.",
+    "sticking_criterion": "mean speed along the slope over [fit_start_s, end] (net displacement "
+    "/ time) below eps_v: the mollified friction (BFEMP eq. 36) reaches its Coulomb bound at "
+    "slip speed eps_v, so a sticking box creeps below it, at eps_v (1 - sqrt(1 - tan(theta) / "
+    "mu)) for a rigid box (creep_speed_mollifier_m_s: 0.78 eps_v at 1.05 tan(theta), 0.42 "
+    "eps_v at 1.5); the maximum speed is recorded too, and measures the box's undamped elastic "
+    "vibration, not sliding",
+    "newton_start": "start='auto' (the library default since issue 40, 6bb6211: Newton from x^n "
+    "when friction has a contact within d-hat, where every lagged contact starts in the stick "
+    "regime) is what a user gets and what the sticking cases use; start='free' (Newton from "
+    "the free motion x*, the old default that two_stage_slope.json ran) is recorded beside it "
+    "for the Newton count, which it sets together with eps_v.",
+}
+
+
+#: (Newton start, eps_v in m/s, mu / tan(theta)) of ``run_sticking``'s record
+#: (benchmarks/records/two_stage_slope_sticking.json), in the order run
+STICKING_PLAN = tuple(
+    (start, eps_v, f)
+    for start, eps_v in (
+        ("auto", 1e-5),
+        ("free", 1e-5),
+        ("auto", 1e-4),
+        ("auto", 1e-3),
+        ("free", 1e-3),
+    )
+    for f in (1.05, 1.5)
+)
+
+
+def run_sticking(
+    out: str | Path = "results",
+    plan: tuple[tuple[str, float, float], ...] = STICKING_PLAN,
+    release_from: str = "initial",
+    release_s: float = 0.1,
+    fit_start_s: float = 0.05,
+    settle_s: float = 0.02,
+    name: str = "two_stage_slope_sticking",
+    on_case: Callable[[dict], None] | None = None,
+    cases: list[dict] | None = None,
+) -> dict:
+    """Sticking at mu = f tan(theta), released from rest, and Newton iterations per step
+    against eps_v (m/s), for each (Newton start, eps_v, f) of ``plan``; writes
+    ``name``.json/.png.
+
+    ``release_from``: ``"initial"`` (no settling: the unstressed lattice at rest at its
+    initial gap d-hat above the slope, friction on from the first step) or ``"settled"``
+    (settled for ``settle_s`` s as ``two_stage_slope``, frictionless against the slope and the
+    stop plane, ``kappa_paper``; the velocities then zeroed; removing the plane releases the
+    box's along-slope compression). Each case runs ``release_s`` s; ``on_case`` is called
+    with each finished case. Per case: Newton iterations per step, the mean speed along the
+    slope over [``fit_start_s``, end] (net displacement / time, m/s: the box's undamped elastic
+    vibration moves its centre back and forth at well above eps_v, so the maximum speed
+    measures the vibration, not sliding) and its ratio to eps_v, the maximum speed, the
+    displacement over the release (m), the fitted acceleration (m/s^2) over [``fit_start_s``,
+    end], and the steady creep speed of the friction mollifier (``sticking_metrics``).
+    ``cases`` (``on_case`` results saved by a long driver, with their series) are recorded,
+    their metrics recomputed at ``fit_start_s``, instead of running ``plan``."""
+    if release_from not in ("settled", "initial"):
+        raise ValueError(f"release_from must be 'settled' or 'initial', got {release_from!r}")
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    started = time.perf_counter()
+    base = {**PHYSICS, "kappa_Pa": KAPPAS["kappa_paper"]}
+    ran = cases is None
+    if not ran:  # the saved cases' settling is not in them
+        settle = {"steps": 0} if release_from == "initial" else {"steps": None}
+    elif release_from == "settled":
+        settled, settle = cat.settle_slope("tilted_gravity", round(settle_s / DT), base)
+        settle["com_speed_before_zeroing_m_s"] = settle.pop("com_speed_at_release_m_s")
+        rest = settled.copy()
+        rest.mpm_v[:] = 0.0
+        rest.mpm_C[:] = 0.0
+    else:  # "initial"
+        scene = cat.slope_scene("tilted_gravity", 0.0, with_stop=False, p=base)
+        rest, settle = cat.slope_simulation(scene, base).state.copy(), {"steps": 0}
+    cases = [] if cases is None else [dict(c) for c in cases]
+    for start, eps_v, f in plan if ran else ():
+        p = {**base, "eps_v_m_s": eps_v, "options": TwoStageOptions(tol=1e-6, start=start)}
+        mu = f * PHYSICS["tan_theta"]
+        case = cat.release_slope("tilted_gravity", mu, rest, round(release_s / DT), fit_start_s, p)
+        case.update(start=start, eps_v=eps_v, mu_over_tan_theta=f)
+        sticking_metrics(case, fit_start_s)
+        log.info(
+            "%s start=%s eps_v=%g mu=%.3g: %.2f Newton/step, mean speed %s m/s after %g s "
+            "(mollifier creep %.3g), max %.3g m/s, slide %.3g m, %.1f s",
+            name,
+            start,
+            eps_v,
+            mu,
+            case["newton_per_step"],
+            case["mean_speed_after_fit_start"],
+            fit_start_s,
+            case["creep_speed_mollifier_m_s"],
+            case["max_speed_after_fit_start"],
+            case["displacement_m"],
+            case["wall_s"],
+        )
+        cases.append(case)
+        if on_case is not None:
+            on_case(case)
+    for case in cases if not ran else ():
+        sticking_metrics(case, fit_start_s)
+    payload = {
+        "benchmark": name,
+        "settle": settle,
+        "cases": [_strip(c) for c in cases],
+        **STICKING_NOTES,
+        "parameters": {
+            **{k: v for k, v in PHYSICS.items() if k not in ("options", "kappa_Pa", "eps_v_m_s")},
+            "kappa_Pa": KAPPAS["kappa_paper"],
+            "options": {"friction": "once", "tol_m_s": 1e-6},
+            "plan_start_eps_v_mu_factor": [list(x) for x in plan],
+            "release_from": release_from,
+            "settle_s": settle_s if release_from == "settled" else 0.0,
+            "release_s": release_s,
+            "fit_start_s": fit_start_s,
+        },
+        "wall_s": time.perf_counter() - started if ran else sum(c["wall_s"] for c in cases),
+        "peak_memory_mb": peak_memory_mb(),
+        "environment": environment(),
+        "series": {
+            # every 4th step (the metrics use every step)
+            f"{c['start']} eps_v={c['eps_v']:g} mu={c['mu']:.3g}": {
+                k: v[::4] for k, v in c["series"].items()
+            }
+            for c in cases
+        },
+    }
+    return write_record(out, name, payload, lambda _, png: _plot_sticking(cases, png))
+
+
+def sticking_metrics(case: dict, fit_start_s: float) -> None:
+    """Adds the sticking metrics of a released case (``catalogue.release_slope`` with ``start``,
+    ``eps_v`` and ``mu_over_tan_theta`` set) at ``fit_start_s`` s after release, in place.
+
+    ``creep_speed_mollifier_m_s``: the speed at which the mollified friction of BFEMP eq. 36
+    (f1(y) = 2 y / eps - y^2 / eps^2 for y < eps = eps_v dt, 1 beyond) balances gravity on a
+    rigid box, f1 = tan(theta) / mu: v = eps_v (1 - sqrt(1 - tan(theta) / mu)). A box that
+    sticks as well as the smoothed friction allows creeps at this speed."""
+    eps_v, f = case["eps_v"], case["mu_over_tan_theta"]
+    tau = np.array(case["series"]["tau_s"])
+    v = np.array(case["series"]["speed_along_m_s"])
+    after = np.abs(v[tau >= fit_start_s - 1e-12])
+    s_t = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(tau))])
+    i0 = int(np.searchsorted(tau, fit_start_s - 1e-12))
+    mean_v = float((s_t[-1] - s_t[i0]) / (tau[-1] - tau[i0])) if i0 < tau.size - 1 else None
+    fit = cat.fit_acceleration(tau, s_t, fit_start_s)
+    creep = eps_v * (1.0 - np.sqrt(1.0 - 1.0 / f)) if f > 1.0 else None
+    case.update(
+        fit_start_s=fit_start_s,
+        accel=fit["accel"],
+        fit_window_s=fit["fit_window_s"],
+        newton_per_step=case["newton_iterations"] / max(case["steps"], 1),
+        max_speed_after_fit_start=float(after.max()) if after.size else None,
+        max_speed_over_eps_v=float(after.max() / eps_v) if after.size else None,
+        displacement_m=float(s_t[-1]),
+        mean_speed_after_fit_start=mean_v,
+        mean_speed_over_eps_v=None if mean_v is None else abs(mean_v) / eps_v,
+        creep_speed_mollifier_m_s=None if creep is None else float(creep),
+        sticks=bool(case["error"] is None and mean_v is not None and abs(mean_v) < eps_v),
+    )
+
+
+def _plot_sticking(cases: list[dict], path: Path) -> None:
+    """Speed along the slope over eps_v against time since release, per case."""
+    fig, axes = figure((11, 4.2), 1, 2)
+    eps_vs = sorted({c["eps_v"] for c in cases})
+    for c in cases:
+        ax = axes[0 if c["mu_over_tan_theta"] < 1.2 else 1]
+        s = c["series"]
+        ax.semilogy(
+            s["tau_s"],
+            np.maximum(np.abs(s["speed_along_m_s"]) / c["eps_v"], 1e-6),
+            "-" if c["start"] == "auto" else ":",
+            color=f"C{eps_vs.index(c['eps_v'])}",
+            label=f"{c['start']} eps_v={c['eps_v']:g} ({c['newton_per_step']:.1f} Newton/step)",
+        )
+    for ax, f in zip(axes, ("~1.05", "~1.5"), strict=True):
+        ax.axhline(1.0, color="k", lw=0.8)
+        ax.set(
+            xlabel="t since release (s)",
+            ylabel="|speed along slope| / eps_v",
+            title=f"mu = {f} tan(theta), from rest",
+        )
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize="xx-small")
+    fig.suptitle("two_stage_slope sticking (dotted: start='free')")
+    fig.savefig(path, dpi=110)
+
+
+# ----------------------------------------------------------------------------- entry
+def _scene_of(strategy: str, scene: str | None) -> str:
+    scene = scene or ("both" if strategy in ("augury", "lr") else None)
+    if (strategy, scene) not in RECORD_NAMES:
+        raise ValueError(
+            f"scenes: strategy/scene must be one of {sorted(RECORD_NAMES)}, got "
+            f"({strategy!r}, {scene!r})"
+        )
+    return scene
+
+
+def _modes_of(strategy: str, scene: str) -> Mapping:
+    if scene == "both":
+        return COMPARE_MODES
+    return RINGS_MODES if scene == "rings" else {**SLOPE_MODES, "sticking": {}}
+
+
+def measure(mode: str, cfg: Mapping, strategy: str = "two_stage", scene: str | None = None,
+            **_: object) -> dict:  # fmt: skip
+    """The record of ``strategy`` on ``scene`` (see the module docstring)."""
+    scene = _scene_of(strategy, scene)
+    modes = _modes_of(strategy, scene)
+    if mode not in modes:
+        name = RECORD_NAMES[strategy, scene]
+        raise ValueError(f"{name}: mode must be one of {sorted(modes)}, got {mode!r}")
+    name = RECORD_NAMES[strategy, scene]
+    if scene == "rings":
+        return {"benchmark": name, **_two_stage_rings(mode)}
+    if scene == "slope":
+        return {"benchmark": name, **_two_stage_slope(mode)}
+    started = time.perf_counter()
+    payload = {
+        "benchmark": name,
+        "rings": _compared_rings(mode, strategy),
+        "slope": _compared_slope(mode, strategy),
+    }
+    if strategy == "augury":
+        payload["paper_bfemp_energy_loss_pct"] = rings.PAPER["energy_loss_pct"]
+    payload["wall_s"] = time.perf_counter() - started
+    if payload["benchmark"] == "augury_scenes":
+        aug = payload["rings"]["runs"]["augury"]
+        payload["augury_momentum_drift_below_1e-10"] = bool(aug["momentum_drift_rel"] < 1e-10)
+        dist = aug.get("min_distance")
+        nan = dist is None or (isinstance(dist, float) and math.isnan(dist))
+        payload["augury_min_distance"] = None if nan else dist
+    elif payload["benchmark"] == "lr_scenes":
+        mpm = payload["rings"]["runs"]["lr_mpm_rings"]
+        payload["lr_mpm_rings_drift_below_1e-10"] = bool(mpm["momentum_drift_rel"] < 1e-10)
+    return payload
+
+
+def _plot(payload: dict, png: Path) -> None:
+    if payload["benchmark"] == "two_stage_rings":
+        _plot_two_stage_rings(payload, png)
+    elif payload["benchmark"] == "two_stage_slope":
+        _plot_two_stage_slope(payload, png)
+
+
+def _record(mode: str, options: Mapping) -> str:
+    strategy = options.get("strategy", "two_stage")
+    name = RECORD_NAMES[strategy, _scene_of(strategy, options.get("scene"))]
+    return name if mode == "full" or name.startswith("two_stage") else f"{name}_{mode}"
+
+
+BENCHMARK = register(
+    Benchmark(
+        NAME,
+        __doc__,
+        {**COMPARE_MODES, **RINGS_MODES},
+        measure,
+        plot=_plot,
+        record=_record,
+        aliases={
+            "augury_scenes": {"strategy": "augury"},
+            "lr_scenes": {"strategy": "lr"},
+            "two_stage_rings": {"strategy": "two_stage", "scene": "rings"},
+            "two_stage_slope": {"strategy": "two_stage", "scene": "slope"},
+        },
+    )
+)
+run = BENCHMARK.run
+register(
+    Benchmark(
+        "two_stage_slope_sticking",
+        "Sticking of the softened slope box at mu = 1.05 and 1.5 tan(theta), from rest",
+        {"full": {}},
+        None,
+        own_run=lambda mode, out: run_sticking(out),
+    )
+)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--strategy`` and ``--scene`` (the old names imply them)."""
+    parser.add_argument("--strategy", choices=("augury", "lr", "two_stage"), default=None)
+    parser.add_argument("--scene", choices=("rings", "slope"), default=None)
+
+
+def main_from_args(args: argparse.Namespace) -> int:
+    """``python -m benchmarks scenes --strategy S [--scene rings|slope] [--quick | ...]``; an old
+    name (``augury_scenes``, ...) stands for its options."""
+    given = {k: getattr(args, k) for k in ("strategy", "scene") if getattr(args, k) is not None}
+    summary = run_named(args.name, args.mode or "full", args.out, **given)
+    print(f"{args.name}: wrote {summary['json']}")
+    return 0
