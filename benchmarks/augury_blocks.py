@@ -279,7 +279,7 @@ LONG_NOTES = {
     "is a recorded observation, not a target.",
     "method_limit": "While the blocks share contact nodes (each inside the other's contact "
     "stencils, grid_dx = 2 h) every step re-mixes their relative velocity and one augury "
-    "iteration (N = 1, tau = dt) undoes only part of it (AUDIT_EXPLICIT.md (a): the fraction "
+    "iteration (N = 1, tau = dt) undoes only part of it (audit_explicit.md (a): the fraction "
     "removed per step is ~0 for co-located pairs, 0.015 two contact cells apart); the energy "
     "keeps falling until they leave each other's stencils (separation_t).",
 }

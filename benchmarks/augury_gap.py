@@ -3,7 +3,7 @@
 Two equal masses in one contact cell [-L, L] with linear hats N0 = (1 - x)/2, N1 = (1 + x)/2,
 starting at -+x0 and moving at +-v0 toward each other, no force, B(0) = 0, augury with N = 0
 (the correction Â = (H V - V)/tau, eq. 29). Non-dimensional (x/L, v/v0, t v0/L, tau v0/L,
-B/(v0 L); D_p = 1 - x^2), from eqs. 17-20 (EXPLICIT_STRATEGIES.md section 1.7; printed eq. 49
+B/(v0 L); D_p = 1 - x^2), from eqs. 17-20 (explicit_strategies.md section 1.7; printed eq. 49
 lacks the 1/tau and flips B, pitfall A4):
 
     PIC:  dv/dt = (x^2 - 1) v / tau  -> v(x) = 1 + (F(x) - F(x0)) / tau,  F(x) = x^3/3 - x
@@ -47,7 +47,7 @@ TOL_APIC = 1e-3
 TOL_PIC = 1e-3
 PIC_MIN_GAP = 0.05
 TOL_SIM = 1e-2
-#: AUG section 3.1 closed form from x0 = -1 (EXPLICIT_STRATEGIES.md section 1.7)
+#: AUG section 3.1 closed form from x0 = -1 (explicit_strategies.md section 1.7)
 PAPER_PIC_GAPS = {0.05: 1.534, 0.1: 1.329, 0.2: 1.022, 0.4: 0.547, 0.6: 0.134}
 
 

@@ -1,7 +1,7 @@
 """``augury_ramp``: a block sliding down a 30 degree ramp (AUG section 3.3, Figs. 10-11).
 
 Ramp 4 (along the slope) x 1.5 x 0.25 m, its bottom face fixed (scripted ``Fixed``); block 1^3 m
-resting on it at zero gap. Placement (ours, EXPLICIT_STRATEGIES.md section 1.7): local
+resting on it at zero gap. Placement (ours, explicit_strategies.md section 1.7): local
 coordinates (s downhill, w across, n normal): ramp s in [0, 4], w in [-0.75, 0.75],
 n in [-0.25, 0]; block s in [0.25, 1.25], w in [-0.5, 0.5], n in [0, 1];
 x = s cos30 + n sin30, y = w, z = -s sin30 + n cos30; g = (0, 0, -100) m/s^2. Both bodies
@@ -70,7 +70,7 @@ def _to_local(x: np.ndarray) -> np.ndarray:
 
 
 #: placement name -> local (s, w, n) corners of the ramp and of the block, in m. ``"spec"`` is
-#: EXPLICIT_STRATEGIES.md 1.7's (the records before issue 40): the block's nodes sit h/2 off the
+#: explicit_strategies.md 1.7's (the records before issue 40): the block's nodes sit h/2 off the
 #: ramp's along s and w at h = 1 and 0.5, on them at h = 0.25. ``"conforming"`` (issue 40): the
 #: block's nodes on the ramp's top-face nodes at every h that divides 1 m (1, 1/2, 1/3, 1/4, ...):
 #: the ramp is 3 m wide so that a centred 1 m block has its faces on ramp nodes, and 3 m long
@@ -354,7 +354,7 @@ CONFORMING_NOTES = {
     "recorded observation, not a target.",
     "method_limit": "AUG's one augury iteration (N = 1, tau = dt) removes the sliding velocity "
     "of co-located node pairs only; a pair a contact cell apart keeps a fixed fraction of its "
-    "relative tangential velocity removed every step (AUDIT_EXPLICIT.md (a): 0.049 at one "
+    "relative tangential velocity removed every step (audit_explicit.md (a): 0.049 at one "
     "contact cell, 0.000 at zero distance), a drag per unit time that does not fall with h. The "
     "'spec' placement measures the scheme with the block's nodes h/2 off the ramp's (h = 1, "
     "0.5); 'conforming' with them on the ramp's. Both are the method's answer; neither hides "
@@ -409,7 +409,7 @@ def run_conforming(
             c["wall_s"],
         )
         cases.append(c)
-    for c in cases:  # AUDIT_EXPLICIT.md's figure: s / s_exact at 0.05 s (the block stops after)
+    for c in cases:  # audit_explicit.md's figure: s / s_exact at 0.05 s (the block stops after)
         exact = analytic_s(c["mu"], 0.05)
         c["s_over_exact_at_0.05s"] = (
             float(np.interp(0.05, c["t"], c["s"]) / exact)

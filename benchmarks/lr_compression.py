@@ -1,6 +1,6 @@
 """``lr_compression``: two blocks compressed by 10-15 % strain, LR paper sections 4.1-4.2 (Fig. 5).
 
-Setup (EXPLICIT_STRATEGIES.md section 2.9): 2D plane strain, a 40 x 100 mm column cut into two
+Setup (explicit_strategies.md section 2.9): 2D plane strain, a 40 x 100 mm column cut into two
 40 x 50 mm blocks (the interface on a grid line, y = 50 mm, or mid-cell, y = 52.5 mm: the lower
 block then is 52.5 mm high), the paper's hyperelastic law (eq. 18: K = 2450 MPa, G = 940 MPa;
 rho = 1200 kg/m^3, pitfall L-P1), 5 mm cells, 2 x 2 particles per cell (bfemp's quadratic

@@ -1,6 +1,6 @@
 """``lr_ellipses``: a box of random ellipses compressed by a piston, LR paper section 4.2 (Fig. 6).
 
-Setup (EXPLICIT_STRATEGIES.md section 2.9; LR's 280 x 560-pixel bitmap is not available): 2D,
+Setup (explicit_strategies.md section 2.9; LR's 280 x 560-pixel bitmap is not available): 2D,
 seeded random non-overlapping ellipses (``geometry.ellipses.pack_ellipses``: semi-axes 0.05-0.2
 mm, aspect 1-2.5, random orientation, solid fraction 0.6) in a 1 x 2 mm box; the ellipses
 coloured into 20 classes (greedy over the contact graph, gap < 2 cells,

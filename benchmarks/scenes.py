@@ -16,7 +16,7 @@
   particle inside the FEM ring; energy loss over the paper's window (0.025-0.293 s) beside
   BFEMP's 8.57 % (APIC) / 9.67 % (FLIP).
 - ``two_stage_slope`` (``--strategy two_stage --scene slope``): the slope box softened from
-  E = 4e12 Pa to ``E_SOFT`` = 1e5 Pa (EXPLICIT_STRATEGIES.md 3.5: at 4e12 the explicit step
+  E = 4e12 Pa to ``E_SOFT`` = 1e5 Pa (explicit_strategies.md 3.5: at 4e12 the explicit step
   would be ~1e-8 s) at ``DT`` = 5e-5 s, two barrier stiffnesses (``KAPPAS``: scaled alike,
   2.5e-2 Pa, and the paper's 1e6 Pa); settling as in ``slope``, release at each mu, centre of
   mass fitted after ``fit_start_s``. Targets (T): relative acceleration error against
@@ -408,7 +408,7 @@ def _plot_two_stage_slope(payload: dict, png: Path) -> None:
 #: ``run_sticking``'s record: what TS reports and why the cases start from rest
 STICKING_NOTES = {
     "paper_numbers": "TS (two-page lecture notes) gives no Newton iteration count, benchmark or "
-    "static-friction figure; 'expect 1-3 iterations' was EXPLICIT_STRATEGIES.md 3.3's guess, "
+    "static-friction figure; 'expect 1-3 iterations' was explicit_strategies.md 3.3's guess, "
     "not TS's, and is not a target here. Nothing is compared with a published figure.",
     "setup": "release_from 'initial': the unstressed particle lattice at rest, d-hat above the "
     "slope, friction on from the first step, no stop plane, no settling. release_from "
