@@ -21,6 +21,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from bfemp.mpm._transfer_kernels import _kirchhoff_volume
+
 __all__ = ["g2p_field", "g2p_update", "p2g_field", "p2g_materials", "p2g_nodal"]
 
 #: points from which the gathers run in parallel
@@ -57,12 +59,7 @@ def p2g_materials(
     tau = np.empty((d, d))
     for p in range(n_p):
         a = material[p]
-        for r in range(d):
-            for s in range(d):
-                acc = 0.0
-                for q in range(d):
-                    acc += piola[p, r, q] * F[p, s, q]
-                tau[r, s] = volume[p] * acc
+        _kirchhoff_volume(piola, F, volume, p, tau)
         for e in range(k):
             i = nodes[p, e]
             w = weights[p, e]

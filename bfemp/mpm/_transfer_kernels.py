@@ -16,6 +16,35 @@ _PIVOT_REL = 1e-12
 
 
 @njit(cache=True)
+def _affine_value(
+    v: np.ndarray, C: np.ndarray, affine: bool, p: int, r: int, node_x: np.ndarray, i: int,
+    x: np.ndarray,
+) -> float:  # fmt: skip
+    """Component r of v_p + C_p (x_i - x_p) (the APIC affine extrapolation of a particle value
+    ``v (P, d)`` to node i; ``v[p, r]`` alone unless ``affine``)."""
+    val = v[p, r]
+    if affine:
+        for c in range(x.shape[1]):
+            val += C[p, r, c] * (node_x[i, c] - x[p, c])
+    return val
+
+
+@njit(cache=True)
+def _kirchhoff_volume(
+    piola: np.ndarray, F: np.ndarray, volume: np.ndarray, p: int, tau: np.ndarray
+) -> None:
+    """tau (d, d) = V_p^0 P_p F_p^T, the Kirchhoff stress times the rest volume (N m), whose
+    product with grad w_ip is particle p's internal force on node i (BFEMP eq. 25)."""
+    d = tau.shape[0]
+    for r in range(d):
+        for s in range(d):
+            acc = 0.0
+            for m in range(d):
+                acc += piola[p, r, m] * F[p, s, m]
+            tau[r, s] = volume[p] * acc
+
+
+@njit(cache=True)
 def _p2g(
     nodes: np.ndarray,
     weights: np.ndarray,
@@ -48,16 +77,9 @@ def _p2g(
             wm = weights[p, a] * m
             grid_mass[i] += wm
             for r in range(d):
-                v = mpm_v[p, r]
-                if affine:
-                    for c in range(d):
-                        v += mpm_C[p, r, c] * (grid_x[i, c] - mpm_x[p, c])
-                grid_mom[i, r] += wm * v
+                grid_mom[i, r] += wm * _affine_value(mpm_v, mpm_C, affine, p, r, grid_x, i, mpm_x)
                 if with_a:
-                    acc = mpm_a[p, r]
-                    if affine_a:
-                        for c in range(d):
-                            acc += mpm_Ca[p, r, c] * (grid_x[i, c] - mpm_x[p, c])
+                    acc = _affine_value(mpm_a, mpm_Ca, affine_a, p, r, grid_x, i, mpm_x)
                     grid_ma[i, r] += wm * acc
 
 
@@ -97,6 +119,18 @@ def _cholesky_solve_rows(D: np.ndarray, B: np.ndarray, C: np.ndarray) -> bool:
                 t -= D[m, j] * C[row, m]
             C[row, j] = t / D[j, j]
     return True
+
+
+@njit(cache=True)
+def _affine_matrix(D: np.ndarray, B: np.ndarray, C: np.ndarray, out: np.ndarray) -> bool:
+    """out (d, d) = C = B D^-1 (Table 1's APIC C_p; ``C`` is scratch, D is overwritten), or
+    zeros and False when D is numerically singular."""
+    d = D.shape[0]
+    solved = _cholesky_solve_rows(D, B, C)
+    for r in range(d):
+        for c in range(d):
+            out[r, c] = C[r, c] if solved else 0.0
+    return solved
 
 
 @njit(cache=True, parallel=True)
@@ -191,15 +225,7 @@ def _g2p(
                         Ba[r, c] += 0.5 * w * (ur * (ac + bc) + (ar - br) * uc)
         D_a = D.copy()  # the solve overwrites D with its factor
         C = np.empty((d, d))
-        if _cholesky_solve_rows(D, B, C):
-            for r in range(d):
-                for c in range(d):
-                    out_C[p, r, c] = C[r, c]
-        else:
-            singular[p] = True
-            for r in range(d):
-                for c in range(d):
-                    out_C[p, r, c] = 0.0
+        singular[p] = not _affine_matrix(D, B, C, out_C[p])
         if affine_a and _cholesky_solve_rows(D_a, Ba, C):
             for r in range(d):
                 for c in range(d):
