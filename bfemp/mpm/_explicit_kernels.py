@@ -34,7 +34,13 @@ from collections.abc import Callable
 import numpy as np
 from numba import njit, prange
 
-from bfemp.mpm._transfer_kernels import _affine_matrix, _affine_value, _kirchhoff_volume
+from bfemp.mpm._transfer_kernels import (
+    _affine_matrix,
+    _affine_value,
+    _deformation_update,
+    _gathered,
+    _kirchhoff_volume,
+)
 
 #: the slabs may hold at most this many times the grid; fewer chunks are taken beyond it
 SLAB_BUDGET = 4
@@ -229,19 +235,12 @@ def _g2p_explicit(
                 for r in range(d):
                     xr = grid_x[i, r] + dt * grid_v[i, r]
                     xn[r] += w * xr
-                    if flip:
-                        out_v[p, r] += w * (grid_v[i, r] - grid_v_old[i, r])
-                    else:
-                        out_v[p, r] += w * grid_v[i, r]
+                    out_v[p, r] += _gathered(w, grid_v, grid_v_old, i, r, flip)
                     for s in range(d):
                         G[r, s] += xr * grads[p, a, s]
             for r in range(d):
                 out_x[p, r] = xn[r]
-                for s in range(d):
-                    acc = 0.0
-                    for m in range(d):
-                        acc += G[r, m] * mpm_F[p, m, s]
-                    out_F[p, r, s] = acc
+            _deformation_update(G, mpm_F, p, out_F)
             singular[p] = False
             if not apic:
                 continue

@@ -45,6 +45,25 @@ def _kirchhoff_volume(
 
 
 @njit(cache=True)
+def _gathered(w: float, new: np.ndarray, old: np.ndarray, i: int, r: int, flip: bool) -> float:
+    """Node i's share of a G2P gather, component r: w (u_i - u_i^n) (FLIP, added to the
+    particle's own value) or w u_i (PIC, APIC)."""
+    return w * (new[i, r] - old[i, r]) if flip else w * new[i, r]
+
+
+@njit(cache=True)
+def _deformation_update(G: np.ndarray, F: np.ndarray, p: int, out: np.ndarray) -> None:
+    """out[p] (d, d) = G F_p^n, with G = sum_i x~_i grad w_ip^T the grid's deformation."""
+    d = G.shape[0]
+    for r in range(d):
+        for c in range(d):
+            acc = 0.0
+            for m in range(d):
+                acc += G[r, m] * F[p, m, c]
+            out[p, r, c] = acc
+
+
+@njit(cache=True)
 def _p2g(
     nodes: np.ndarray,
     weights: np.ndarray,
@@ -182,23 +201,12 @@ def _g2p(
             w = weights[p, a]
             for r in range(d):
                 out_x[p, r] += w * grid_x_new[i, r]
-                if flip:
-                    out_v[p, r] += w * (grid_v_new[i, r] - grid_v_old[i, r])
-                else:
-                    out_v[p, r] += w * grid_v_new[i, r]
+                out_v[p, r] += _gathered(w, grid_v_new, grid_v_old, i, r, flip)
                 if with_a:
-                    if a_like_v and flip:
-                        out_a[p, r] += w * (grid_a_new[i, r] - grid_a_old[i, r])
-                    else:
-                        out_a[p, r] += w * grid_a_new[i, r]
+                    out_a[p, r] += _gathered(w, grid_a_new, grid_a_old, i, r, a_like_v and flip)
                 for c in range(d):
                     grid_def[r, c] += grid_x_new[i, r] * grads[p, a, c]
-        for r in range(d):
-            for c in range(d):
-                acc = 0.0
-                for m in range(d):
-                    acc += grid_def[r, m] * mpm_F[p, m, c]
-                out_F[p, r, c] = acc
+        _deformation_update(grid_def, mpm_F, p, out_F)
         singular[p] = False
         if not apic:
             continue
