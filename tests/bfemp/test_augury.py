@@ -372,6 +372,23 @@ def test_shared_region_conserves_momentum_and_smooths_fewer_particles():
     assert np.abs(diagnostics.angular_momentum(model, state) - L0).max() < 1e-12
 
 
+def test_a_step_gives_its_state_its_own_carried_B_and_repeats_bit_for_bit():
+    model = _two_squares(gap=0.01).build()
+    stepper = AuguryStepper(model, dt=1e-3)
+    state = stepper.initialize(model.initial_state())
+    for _ in range(20):
+        state, _ = stepper.step(state)
+    B_before = {name: value.copy() for name, value in state.carried.items()}
+    first, _ = stepper.step(state)
+    second, _ = stepper.step(state)
+    assert first.carried is not state.carried and first.carried is not second.carried
+    assert np.abs(first.carried["aug_B"] - state.carried["aug_B"]).max() > 0.0  # B moved
+    for name, value in B_before.items():  # the start state's B untouched by both steps
+        assert np.array_equal(state.carried[name], value), name
+        assert np.array_equal(first.carried[name], second.carried[name]), name
+    assert np.array_equal(first.fem_v, second.fem_v)
+
+
 def test_checkpoint_carries_the_augury_B(tmp_path):
     from bfemp.checkpoint import read_checkpoint, write_checkpoint
 
