@@ -401,6 +401,13 @@ def test_checkpoint_carries_the_augury_B(tmp_path):
     assert back.carried.keys() == sim.state.carried.keys() == {"aug_B", "aug_Bp"}
     for name, value in sim.state.carried.items():
         assert np.array_equal(back.carried[name], value), name
+    # a checkpoint written when B was a State field (state.aug_B) reads into carried
+    path = tmp_path / "checkpoint.npz"
+    with np.load(path) as old:
+        arrays = {k.replace("state.carried.", "state."): old[k] for k in old.files}
+    np.savez(path, **arrays)
+    legacy = read_checkpoint(tmp_path).state
+    assert np.array_equal(legacy.carried["aug_B"], sim.state.carried["aug_B"])
 
 
 def test_reach_condition_is_reported_by_name():
