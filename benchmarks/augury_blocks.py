@@ -91,7 +91,9 @@ def run_variant(h: float, transfer: str, iterations: int, t_end: float = T_END) 
         base = diagnostics.kinetic_energy(model, s) + diagnostics.fem_elastic_energy(
             model, s, groups
         )
-        b_term = c_b * float(model.fem_mass @ np.einsum("nij,nij->n", s.aug_B, s.aug_B))
+        b_term = c_b * float(
+            model.fem_mass @ np.einsum("nij,nij->n", s.carried["aug_B"], s.carried["aug_B"])
+        )
         return base, base + b_term
 
     P0 = diagnostics.linear_momentum(model, state)

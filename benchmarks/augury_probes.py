@@ -120,7 +120,7 @@ def settled(
     for _ in range(int(round(settle / st.dt))):
         state, _ = st.step(state)
         state.fem_v *= 0.99
-        state.aug_B *= 0.99
+        state.carried["aug_B"] *= 0.99
     b = plate_model(h, (gt, -gn))
     st = _stepper(b, h, mu, iterations, normals)
     state = st.initialize(state)
@@ -135,12 +135,12 @@ def settled(
     for k in range(1, steps + 1):
         state, _ = st.step(state)
         if zero_B:
-            state.aug_B[:] = 0.0
+            state.carried["aug_B"][:] = 0.0
         if k % max(1, steps // 5) == 0 or k == steps:
             d = state.fem_x[:, 0] - x0[:, 0]
             t.append(k * st.dt)
             slip.append(float(d[bottom].mean() - d[top].mean()))
-            b_max.append(float(np.abs(state.aug_B).max()))
+            b_max.append(float(np.abs(state.carried["aug_B"]).max()))
     return {
         "h": h,
         "mu": mu,

@@ -4,7 +4,8 @@ A checkpoint is ``{out}/checkpoint.npz`` (``np.savez``, written atomically: temp
 rename) with a human-readable sidecar ``{out}/checkpoint.json``. The ``.npz`` is authoritative
 and holds everything a continued run needs to equal the uninterrupted one:
 
-- ``state.<field>``: every array of the ``State`` (positions, velocities, accelerations, F, C);
+- ``state.<field>``: every array of the ``State`` (positions, velocities, accelerations, F, C;
+  a strategy's carried arrays as ``state.carried.<name>``);
   its scalar fields (``t``, ``step``) are in ``meta`` as JSON numbers (``repr`` of a float
   reads back to the same float);
 - ``metrics``: the metrics log so far (JSON rows; ints stay ints, NaN stays NaN);
@@ -139,14 +140,12 @@ def write_checkpoint(out: str | Path, sim: object, *, every: int | None = None) 
     """
     out = Path(out)
     state = sim.state
-    arrays: dict[str, np.ndarray] = {}
-    scalars = {}
-    for f in dataclasses.fields(state):
-        value = getattr(state, f.name)
-        if isinstance(value, np.ndarray):
-            arrays[f"state.{f.name}"] = value
-        else:
-            scalars[f.name] = value
+    arrays = {f"state.{name}": value for name, value in state.arrays().items()}
+    scalars = {
+        f.name: getattr(state, f.name)
+        for f in dataclasses.fields(state)
+        if f.name != "carried" and not isinstance(getattr(state, f.name), np.ndarray)
+    }
     for key, value in sim.stepper.checkpoint_data().items():
         arrays[f"stepper.{key}"] = np.asarray(value)
     pvd = {p.stem: p.read_text(encoding="utf-8") for p in sorted(out.glob("*.pvd"))}
@@ -257,8 +256,12 @@ def read_checkpoint(out: str | Path) -> Checkpoint:
             hint=_CORRUPT_HINT,
         )
     state_arrays = {k[6:]: v for k, v in contents.items() if k.startswith("state.")}
+    carried = {k[8:]: state_arrays.pop(k) for k in list(state_arrays) if k.startswith("carried.")}
+    for name in ("aug_B", "aug_Bp"):  # written as State fields before they moved to carried
+        if name in state_arrays:
+            carried[name] = state_arrays.pop(name)
     try:
-        state = State(**meta["scalars"], **state_arrays)
+        state = State(**meta["scalars"], **state_arrays, carried=carried)
     except TypeError as err:
         raise RunFolderError(
             f"corrupt checkpoint: its state does not match a State ({err})",

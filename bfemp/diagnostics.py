@@ -101,11 +101,12 @@ def angular_momentum(model: Model, state: State, transfer: str = "apic") -> np.n
     """sum m x x v about the origin, ``(1,)`` (z) in 2D or ``(3,)`` in 3D, kg m^2/s.
 
     With APIC the particles' spin m_p eps : (C_p D_p)^T is included; the augury matrices
-    ``state.aug_B`` (FEM nodes) and ``state.aug_Bp`` (particles), where present, add their spin
-    m eps : B^T whatever ``transfer`` (AUG eq. 36: the quantity H_APIC conserves).
+    ``state.carried["aug_B"]`` (FEM nodes) and ``["aug_Bp"]`` (particles), where present, add
+    their spin m eps : B^T whatever ``transfer`` (AUG eq. 36: the quantity H_APIC conserves).
     """
     total = _cross(state.fem_x, state.fem_v, model.fem_mass)
-    for B, m in ((state.aug_B, model.fem_mass), (state.aug_Bp, model.mpm_mass)):
+    for name, m in (("aug_B", model.fem_mass), ("aug_Bp", model.mpm_mass)):
+        B = state.carried.get(name, np.zeros((0, 2, 2)))
         if B.shape[0] and B.shape[0] == m.shape[0]:
             total = total + _spin(B, m)
     if model.n_particles:

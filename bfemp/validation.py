@@ -43,6 +43,22 @@ def _indices(idx: np.ndarray) -> str:
     return f"{idx[:10].tolist()}{more}"
 
 
+def _clearance_error(
+    what: str, items: np.ndarray, d_min: float, dhat: float, body: str, field: str, other: str
+) -> SceneError:
+    """The error for the ``items`` (``what``: "particle" or "node"; indices within ``body``,
+    from its ``field``) that start within ``dhat`` (m) of fem body ``other``, the closest at
+    ``d_min`` (m)."""
+    return SceneError(
+        f"{items.size} {what}(s) start within dhat = {dhat:g} m of fem body '{other}' (closest "
+        f"{d_min:.3g} m; {what}s {_indices(items)})",
+        body=body,
+        field=field,
+        hint=f"move the bodies at least {dhat - d_min:.3g} m further apart, or use a "
+        f"dhat below {d_min:.3g} m",
+    )
+
+
 def _body_mesh(model: Model, body: object, fem_x: np.ndarray) -> TriMesh | TetMesh:
     cells = model.fem_cells[body.cells] - body.nodes.start
     cls = TriMesh if model.dim == 2 else TetMesh
@@ -211,15 +227,9 @@ def check_clearance(
     fem_body = model.fem_bodies[int(owner[pairs[worst, 1]])]
     mine = close & (model.mpm_particle_body[pairs[:, 0]] == mpm_body.index)
     particles = np.unique(pairs[mine, 0]) - mpm_body.particles.start
+    body = f"mpm body '{mpm_body.name}'"
     d_min = float(dist[worst])
-    raise SceneError(
-        f"{particles.size} particle(s) start within dhat = {dhat:g} m of fem body "
-        f"'{fem_body.name}' (closest {d_min:.3g} m; particles {_indices(particles)})",
-        body=f"mpm body '{mpm_body.name}'",
-        field="particles",
-        hint=f"move the bodies at least {dhat - d_min:.3g} m further apart, or use a "
-        f"dhat below {d_min:.3g} m",
-    )
+    raise _clearance_error("particle", particles, d_min, dhat, body, "particles", fem_body.name)
 
 
 def _facet_distance(dim: int, p: np.ndarray, f: np.ndarray) -> np.ndarray:
@@ -265,14 +275,7 @@ def check_fem_clearance(model: Model, dhat: float, fem_x: np.ndarray | None = No
     same = close & (node_body[node] == a.index) & (facet_body == b.index)
     nodes = np.unique(node[same]) - a.nodes.start
     d_min = float(dist[worst])
-    raise SceneError(
-        f"{nodes.size} node(s) start within dhat = {dhat:g} m of fem body '{b.name}' (closest "
-        f"{d_min:.3g} m; nodes {_indices(nodes)})",
-        body=f"fem body '{a.name}'",
-        field="mesh",
-        hint=f"move the bodies at least {dhat - d_min:.3g} m further apart, or use a "
-        f"dhat below {d_min:.3g} m",
-    )
+    raise _clearance_error("node", nodes, d_min, dhat, f"fem body '{a.name}'", "mesh", b.name)
 
 
 def validate_initial(model: Model) -> None:

@@ -20,6 +20,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from bfemp.mpm._transfer_kernels import _affine_value
+
 
 @njit(cache=True)
 def p2g(
@@ -47,28 +49,23 @@ def p2g(
             wm = w * m[p]
             mass[i] += wm
             for a in range(d):
-                val = v[p, a]
-                if apic:
-                    for b in range(d):
-                        val += C[p, a, b] * (node_x[i, b] - x[p, b])
-                mom[i, a] += wm * val
+                mom[i, a] += wm * _affine_value(v, C, apic, p, a, node_x, i, x)
     return mass, mom
 
 
-@njit(cache=True)
-def _g2p_serial(
+def _g2p(
     nodes: np.ndarray,
     weights: np.ndarray,
     node_x: np.ndarray,
     x: np.ndarray,
     grid_v: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Serial ``g2p`` (same arithmetic)."""
+    """``g2p`` (compiled twice below: serial and parallel, same arithmetic)."""
     n_p, k = nodes.shape
     d = x.shape[1]
     out_v = np.zeros((n_p, d))
     out_B = np.zeros((n_p, d, d))
-    for p in range(n_p):
+    for p in prange(n_p):  # a plain range in the serial build
         for s in range(k):
             w = weights[p, s]
             if w == 0.0:
@@ -82,31 +79,8 @@ def _g2p_serial(
     return out_v, out_B
 
 
-@njit(cache=True, parallel=True)
-def _g2p_parallel(
-    nodes: np.ndarray,
-    weights: np.ndarray,
-    node_x: np.ndarray,
-    x: np.ndarray,
-    grid_v: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Parallel ``g2p`` (same arithmetic)."""
-    n_p, k = nodes.shape
-    d = x.shape[1]
-    out_v = np.zeros((n_p, d))
-    out_B = np.zeros((n_p, d, d))
-    for p in prange(n_p):
-        for s in range(k):
-            w = weights[p, s]
-            if w == 0.0:
-                continue
-            i = nodes[p, s]
-            for a in range(d):
-                wv = w * grid_v[i, a]
-                out_v[p, a] += wv
-                for b in range(d):
-                    out_B[p, a, b] += wv * (node_x[i, b] - x[p, b])
-    return out_v, out_B
+_g2p_serial = njit(cache=True)(_g2p)
+_g2p_parallel = njit(cache=True, parallel=True)(_g2p)
 
 
 #: below this many particles the gather runs serially (thread start-up costs ~1 ms per call on a

@@ -8,7 +8,8 @@ from __future__ import annotations
 import numpy as np
 
 from bfemp.contact._lr_args import dimension, float_array, grid_args, int_array
-from bfemp.contact._lr_grid_kernels import mass_gradients, mass_moments
+from bfemp.contact._lr_grid_kernels import mass_gradients
+from bfemp.mpm._multimaterial_kernels import mass_moments
 
 __all__ = [
     "CP_OFFSET_CELLS",

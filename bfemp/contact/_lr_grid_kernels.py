@@ -1,7 +1,7 @@
 """numba kernels of the per-material grid moments of LR contact (Nairn et al., "LR"): mass
-gradients (LR eq. 11), first mass moments (for the CP separation, LR eq. 16) and the point clouds
-of the contact nodes. One serial scatter over the particles each (bit-for-bit reproducible
-whatever the thread count).
+gradients (LR eq. 11) and the point clouds of the contact nodes (the first mass moments of the
+CP separation, LR eq. 16, are ``bfemp.mpm._multimaterial_kernels.mass_moments``). One serial
+scatter over the particles each (bit-for-bit reproducible whatever the thread count).
 """
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["mass_gradients", "mass_moments", "point_clouds"]
+__all__ = ["mass_gradients", "point_clouds"]
 
 
 @njit(cache=True)
@@ -34,33 +34,6 @@ def mass_gradients(
                 continue
             for a in range(d):
                 out[mat, i, a] += mass[p] * grads[p, s, a]
-    return out
-
-
-@njit(cache=True)
-def mass_moments(
-    nodes: np.ndarray,
-    weights: np.ndarray,
-    mass: np.ndarray,
-    x: np.ndarray,
-    material: np.ndarray,
-    n_nodes: int,
-    n_materials: int,
-) -> np.ndarray:
-    """sum_{p in alpha} w_ip m_p x_p ``(n_materials, n_nodes, d)`` in kg m (the numerator of
-    x^alpha = S^+alpha X, LR eq. 11)."""
-    n_p, n_s = nodes.shape
-    d = x.shape[1]
-    out = np.zeros((n_materials, n_nodes, d))
-    for p in range(n_p):
-        mat = material[p]
-        for s in range(n_s):
-            i = nodes[p, s]
-            if i < 0:
-                continue
-            wm = weights[p, s] * mass[p]
-            for a in range(d):
-                out[mat, i, a] += wm * x[p, a]
     return out
 
 

@@ -359,55 +359,11 @@ def _lr_node(
     out_code[c] = OK
 
 
-def _lr_planes(
-    node_x: np.ndarray,
-    cloud_ptr: np.ndarray,
-    cloud_idx: np.ndarray,
-    cloud_side: np.ndarray,
-    points_x: np.ndarray,
-    points_F: np.ndarray,
-    points_R0: np.ndarray,
-    lam: float,
-    tol: float,
-    max_iterations: int,
-    linear_scale: float,
-    thin_sq: float,
-    normal_start: np.ndarray,
-    has_start: np.ndarray,
-    out_normal: np.ndarray,
-    out_phi: np.ndarray,
-    out_sep: np.ndarray,
-    out_iter: np.ndarray,
-    out_conv: np.ndarray,
-    out_fb: np.ndarray,
-    out_code: np.ndarray,
-) -> None:
-    """_lr_node at every contact node; each writes only its own rows (compiled twice below)."""
+def _lr_planes(node_x: np.ndarray, *rest: object) -> None:
+    """_lr_node at every contact node (``rest``: the arguments of ``_lr_node`` after
+    ``node_x``); each writes only its own rows (compiled twice below)."""
     for c in prange(node_x.shape[0]):  # a plain range in the serial build
-        _lr_node(
-            c,
-            node_x,
-            cloud_ptr,
-            cloud_idx,
-            cloud_side,
-            points_x,
-            points_F,
-            points_R0,
-            lam,
-            tol,
-            max_iterations,
-            linear_scale,
-            thin_sq,
-            normal_start,
-            has_start,
-            out_normal,
-            out_phi,
-            out_sep,
-            out_iter,
-            out_conv,
-            out_fb,
-            out_code,
-        )
+        _lr_node(c, node_x, *rest)
 
 
 #: one loop, two builds: below ``PARALLEL_MIN`` nodes the thread start-up costs more than the loop

@@ -41,6 +41,20 @@ def _derivatives(fx: float, inv_dx: float) -> tuple:
     return (-(1.5 - fx) * inv_dx, -2.0 * (fx - 1.0) * inv_dx, (fx - 0.5) * inv_dx)
 
 
+@njit(cache=True)
+def _stencil(xi: np.ndarray, p: int, inv_dx: float, lo0: int, lo1: int, stride: int) -> tuple:
+    """Particle p's offsets ``fx0, fx1`` from its base node (grid units), per-axis weights
+    ``w0, w1`` and derivatives ``d0, d1`` (1/m) of the 3 x 3 stencil, and the box id of its
+    base node."""
+    f0 = np.floor(xi[p, 0] - 0.5)
+    f1 = np.floor(xi[p, 1] - 0.5)
+    fx0 = xi[p, 0] - f0
+    fx1 = xi[p, 1] - f1
+    node0 = (np.int64(f0) - lo0) * stride + (np.int64(f1) - lo1)
+    w0, w1 = _weights(fx0), _weights(fx1)
+    return fx0, fx1, w0, w1, _derivatives(fx0, inv_dx), _derivatives(fx1, inv_dx), node0
+
+
 @njit(cache=True, parallel=True)
 def _grid_units(x, o0, o1, inv_dx, n_chunks, xi):  # noqa: ANN001, ANN201
     """xi = (x - origin) / dx ``(P, 2)`` and the smallest and largest base node (2,) each."""
@@ -120,15 +134,7 @@ def _p2g_2d(
     for c in prange(n_chunks):
         base_row = offset[c] - lo[c]
         for p in range(c * n_p // n_chunks, (c + 1) * n_p // n_chunks):
-            f0 = np.floor(xi[p, 0] - 0.5)
-            f1 = np.floor(xi[p, 1] - 0.5)
-            fx0 = xi[p, 0] - f0
-            fx1 = xi[p, 1] - f1
-            w0 = _weights(fx0)
-            w1 = _weights(fx1)
-            d0 = _derivatives(fx0, inv_dx)
-            d1 = _derivatives(fx1, inv_dx)
-            node0 = (np.int64(f0) - lo0) * stride + (np.int64(f1) - lo1)
+            fx0, fx1, w0, w1, d0, d1, node0 = _stencil(xi, p, inv_dx, lo0, lo1, stride)
             # tau = V_p^0 P F^T
             P = piola[p]
             F = mpm_F[p]
@@ -187,15 +193,7 @@ def _g2p_2d(
     inv_dx = 1.0 / dx
     scale = 4.0 * inv_dx * inv_dx
     for p in prange(n_p):
-        f0 = np.floor(xi[p, 0] - 0.5)
-        f1 = np.floor(xi[p, 1] - 0.5)
-        fx0 = xi[p, 0] - f0
-        fx1 = xi[p, 1] - f1
-        w0 = _weights(fx0)
-        w1 = _weights(fx1)
-        d0 = _derivatives(fx0, inv_dx)
-        d1 = _derivatives(fx1, inv_dx)
-        node0 = (np.int64(f0) - lo0) * stride + (np.int64(f1) - lo1)
+        fx0, fx1, w0, w1, d0, d1, node0 = _stencil(xi, p, inv_dx, lo0, lo1, stride)
         v0 = v1 = 0.0
         u0 = u1 = 0.0  # FLIP increment
         g00 = g01 = g10 = g11 = 0.0

@@ -34,7 +34,13 @@ from collections.abc import Callable
 import numpy as np
 from numba import njit, prange
 
-from bfemp.mpm._transfer_kernels import _cholesky_solve_rows
+from bfemp.mpm._transfer_kernels import (
+    _affine_matrix,
+    _affine_value,
+    _deformation_update,
+    _gathered,
+    _kirchhoff_volume,
+)
 
 #: the slabs may hold at most this many times the grid; fewer chunks are taken beyond it
 SLAB_BUDGET = 4
@@ -95,13 +101,7 @@ def _p2g_force(
         base = offset[c] - lo[c]
         tau = np.empty((d, d))
         for p in range(c * n_p // n_chunks, (c + 1) * n_p // n_chunks):
-            # tau = V_p^0 P F^T (the Kirchhoff stress times the rest volume)
-            for r in range(d):
-                for s in range(d):
-                    acc = 0.0
-                    for m in range(d):
-                        acc += piola[p, r, m] * mpm_F[p, s, m]
-                    tau[r, s] = volume[p] * acc
+            _kirchhoff_volume(piola, mpm_F, volume, p, tau)
             mp = mpm_mass[p]
             for a in range(k):
                 i = nodes[p, a]
@@ -109,10 +109,7 @@ def _p2g_force(
                 wm = weights[p, a] * mp
                 scratch[row, 0] += wm
                 for r in range(d):
-                    v = mpm_v[p, r]
-                    if affine:
-                        for s in range(d):
-                            v += mpm_C[p, r, s] * (grid_x[i, s] - mpm_x[p, s])
+                    v = _affine_value(mpm_v, mpm_C, affine, p, r, grid_x, i, mpm_x)
                     scratch[row, 1 + r] += wm * v
                     f = 0.0
                     for s in range(d):
@@ -238,19 +235,12 @@ def _g2p_explicit(
                 for r in range(d):
                     xr = grid_x[i, r] + dt * grid_v[i, r]
                     xn[r] += w * xr
-                    if flip:
-                        out_v[p, r] += w * (grid_v[i, r] - grid_v_old[i, r])
-                    else:
-                        out_v[p, r] += w * grid_v[i, r]
+                    out_v[p, r] += _gathered(w, grid_v, grid_v_old, i, r, flip)
                     for s in range(d):
                         G[r, s] += xr * grads[p, a, s]
             for r in range(d):
                 out_x[p, r] = xn[r]
-                for s in range(d):
-                    acc = 0.0
-                    for m in range(d):
-                        acc += G[r, m] * mpm_F[p, m, s]
-                    out_F[p, r, s] = acc
+            _deformation_update(G, mpm_F, p, out_F)
             singular[p] = False
             if not apic:
                 continue
@@ -270,15 +260,7 @@ def _g2p_explicit(
                         bs = grid_x[i, s] + dt * grid_v[i, s] - xn[s]
                         B[r, s] += 0.5 * w * (vr * (as_ + bs) + (ar - br) * grid_v[i, s])
                         D[r, s] += w * ar * as_
-            if _cholesky_solve_rows(D, B, C):
-                for r in range(d):
-                    for s in range(d):
-                        out_C[p, r, s] = C[r, s]
-            else:
-                singular[p] = True
-                for r in range(d):
-                    for s in range(d):
-                        out_C[p, r, s] = 0.0
+            singular[p] = not _affine_matrix(D, B, C, out_C[p])
 
 
 def g2p_explicit(

@@ -21,7 +21,16 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-__all__ = ["g2p_field", "g2p_update", "p2g_field", "p2g_materials", "p2g_nodal"]
+from bfemp.mpm._transfer_kernels import _kirchhoff_volume
+
+__all__ = [
+    "g2p_field",
+    "g2p_update",
+    "mass_moments",
+    "p2g_field",
+    "p2g_materials",
+    "p2g_nodal",
+]
 
 #: points from which the gathers run in parallel
 PARALLEL_MIN_POINTS = 20_000
@@ -57,12 +66,7 @@ def p2g_materials(
     tau = np.empty((d, d))
     for p in range(n_p):
         a = material[p]
-        for r in range(d):
-            for s in range(d):
-                acc = 0.0
-                for q in range(d):
-                    acc += piola[p, r, q] * F[p, s, q]
-                tau[r, s] = volume[p] * acc
+        _kirchhoff_volume(piola, F, volume, p, tau)
         for e in range(k):
             i = nodes[p, e]
             w = weights[p, e]
@@ -127,6 +131,34 @@ def _g2p_field(
 
 
 @njit(cache=True)
+def mass_moments(
+    nodes: np.ndarray,
+    weights: np.ndarray,
+    mass: np.ndarray,
+    x: np.ndarray,
+    material: np.ndarray,
+    n_nodes: int,
+    n_materials: int,
+) -> np.ndarray:
+    """sum_{p in alpha} w_ip m_p x_p ``(n_materials, n_nodes, d)`` for particle values ``x (P,
+    d)`` (stencil entries with node -1 skipped): with positions, in kg m, the numerator of
+    x^alpha = S^+alpha X (LR eq. 11); ``p2g_field``'s numerator for any field."""
+    n_p, n_s = nodes.shape
+    d = x.shape[1]
+    out = np.zeros((n_materials, n_nodes, d))
+    for p in range(n_p):
+        mat = material[p]
+        for s in range(n_s):
+            i = nodes[p, s]
+            if i < 0:
+                continue
+            wm = weights[p, s] * mass[p]
+            for a in range(d):
+                out[mat, i, a] += wm * x[p, a]
+    return out
+
+
+@njit(cache=True)
 def p2g_field(
     nodes: np.ndarray,
     weights: np.ndarray,
@@ -141,17 +173,9 @@ def p2g_field(
         values: particle values ``(P, d)``.
         inv_grid_mass: 1 / m_i^a ``(M, G)`` (0 on massless nodes).
     """
-    n_p, k = nodes.shape
     n_m, n_g = inv_grid_mass.shape
     d = values.shape[1]
-    out = np.zeros((n_m, n_g, d))
-    for p in range(n_p):
-        a = material[p]
-        for e in range(k):
-            i = nodes[p, e]
-            w = weights[p, e] * mass[p]
-            for r in range(d):
-                out[a, i, r] += w * values[p, r]
+    out = mass_moments(nodes, weights, mass, values, material, n_g, n_m)
     for a in range(n_m):
         for i in range(n_g):
             for r in range(d):

@@ -16,6 +16,54 @@ _PIVOT_REL = 1e-12
 
 
 @njit(cache=True)
+def _affine_value(
+    v: np.ndarray, C: np.ndarray, affine: bool, p: int, r: int, node_x: np.ndarray, i: int,
+    x: np.ndarray,
+) -> float:  # fmt: skip
+    """Component r of v_p + C_p (x_i - x_p) (the APIC affine extrapolation of a particle value
+    ``v (P, d)`` to node i; ``v[p, r]`` alone unless ``affine``)."""
+    val = v[p, r]
+    if affine:
+        for c in range(x.shape[1]):
+            val += C[p, r, c] * (node_x[i, c] - x[p, c])
+    return val
+
+
+@njit(cache=True)
+def _kirchhoff_volume(
+    piola: np.ndarray, F: np.ndarray, volume: np.ndarray, p: int, tau: np.ndarray
+) -> None:
+    """tau (d, d) = V_p^0 P_p F_p^T, the Kirchhoff stress times the rest volume (N m), whose
+    product with grad w_ip is particle p's internal force on node i (BFEMP eq. 25)."""
+    d = tau.shape[0]
+    for r in range(d):
+        for s in range(d):
+            acc = 0.0
+            for m in range(d):
+                acc += piola[p, r, m] * F[p, s, m]
+            tau[r, s] = volume[p] * acc
+
+
+@njit(cache=True)
+def _gathered(w: float, new: np.ndarray, old: np.ndarray, i: int, r: int, flip: bool) -> float:
+    """Node i's share of a G2P gather, component r: w (u_i - u_i^n) (FLIP, added to the
+    particle's own value) or w u_i (PIC, APIC)."""
+    return w * (new[i, r] - old[i, r]) if flip else w * new[i, r]
+
+
+@njit(cache=True)
+def _deformation_update(G: np.ndarray, F: np.ndarray, p: int, out: np.ndarray) -> None:
+    """out[p] (d, d) = G F_p^n, with G = sum_i x~_i grad w_ip^T the grid's deformation."""
+    d = G.shape[0]
+    for r in range(d):
+        for c in range(d):
+            acc = 0.0
+            for m in range(d):
+                acc += G[r, m] * F[p, m, c]
+            out[p, r, c] = acc
+
+
+@njit(cache=True)
 def _p2g(
     nodes: np.ndarray,
     weights: np.ndarray,
@@ -48,16 +96,9 @@ def _p2g(
             wm = weights[p, a] * m
             grid_mass[i] += wm
             for r in range(d):
-                v = mpm_v[p, r]
-                if affine:
-                    for c in range(d):
-                        v += mpm_C[p, r, c] * (grid_x[i, c] - mpm_x[p, c])
-                grid_mom[i, r] += wm * v
+                grid_mom[i, r] += wm * _affine_value(mpm_v, mpm_C, affine, p, r, grid_x, i, mpm_x)
                 if with_a:
-                    acc = mpm_a[p, r]
-                    if affine_a:
-                        for c in range(d):
-                            acc += mpm_Ca[p, r, c] * (grid_x[i, c] - mpm_x[p, c])
+                    acc = _affine_value(mpm_a, mpm_Ca, affine_a, p, r, grid_x, i, mpm_x)
                     grid_ma[i, r] += wm * acc
 
 
@@ -97,6 +138,18 @@ def _cholesky_solve_rows(D: np.ndarray, B: np.ndarray, C: np.ndarray) -> bool:
                 t -= D[m, j] * C[row, m]
             C[row, j] = t / D[j, j]
     return True
+
+
+@njit(cache=True)
+def _affine_matrix(D: np.ndarray, B: np.ndarray, C: np.ndarray, out: np.ndarray) -> bool:
+    """out (d, d) = C = B D^-1 (Table 1's APIC C_p; ``C`` is scratch, D is overwritten), or
+    zeros and False when D is numerically singular."""
+    d = D.shape[0]
+    solved = _cholesky_solve_rows(D, B, C)
+    for r in range(d):
+        for c in range(d):
+            out[r, c] = C[r, c] if solved else 0.0
+    return solved
 
 
 @njit(cache=True, parallel=True)
@@ -148,23 +201,12 @@ def _g2p(
             w = weights[p, a]
             for r in range(d):
                 out_x[p, r] += w * grid_x_new[i, r]
-                if flip:
-                    out_v[p, r] += w * (grid_v_new[i, r] - grid_v_old[i, r])
-                else:
-                    out_v[p, r] += w * grid_v_new[i, r]
+                out_v[p, r] += _gathered(w, grid_v_new, grid_v_old, i, r, flip)
                 if with_a:
-                    if a_like_v and flip:
-                        out_a[p, r] += w * (grid_a_new[i, r] - grid_a_old[i, r])
-                    else:
-                        out_a[p, r] += w * grid_a_new[i, r]
+                    out_a[p, r] += _gathered(w, grid_a_new, grid_a_old, i, r, a_like_v and flip)
                 for c in range(d):
                     grid_def[r, c] += grid_x_new[i, r] * grads[p, a, c]
-        for r in range(d):
-            for c in range(d):
-                acc = 0.0
-                for m in range(d):
-                    acc += grid_def[r, m] * mpm_F[p, m, c]
-                out_F[p, r, c] = acc
+        _deformation_update(grid_def, mpm_F, p, out_F)
         singular[p] = False
         if not apic:
             continue
@@ -191,15 +233,7 @@ def _g2p(
                         Ba[r, c] += 0.5 * w * (ur * (ac + bc) + (ar - br) * uc)
         D_a = D.copy()  # the solve overwrites D with its factor
         C = np.empty((d, d))
-        if _cholesky_solve_rows(D, B, C):
-            for r in range(d):
-                for c in range(d):
-                    out_C[p, r, c] = C[r, c]
-        else:
-            singular[p] = True
-            for r in range(d):
-                for c in range(d):
-                    out_C[p, r, c] = 0.0
+        singular[p] = not _affine_matrix(D, B, C, out_C[p])
         if affine_a and _cholesky_solve_rows(D_a, Ba, C):
             for r in range(d):
                 for c in range(d):

@@ -115,16 +115,11 @@ class MpmElasticityTerm(ElasticityTerm):
     def hessian(self, x: np.ndarray, psd: bool) -> Triplets:
         """Node-pair blocks accumulated over particles, dP/dF projected to PSD when ``psd``."""
         st = self.stencils
-        d = self._layout.dim
-        dpdf = self.law.first_piola_derivative(self._F, st.mu, st.lam)
-        dpdf = np.ascontiguousarray(dpdf.reshape(-1, d * d, d * d))
-        if psd:
-            dpdf = self.law.project_derivative(dpdf, self._F, st.mu, st.lam)
         blocks = _accumulate_blocks(
             self._local_nodes,
             self._weights,
             st.grads,
-            dpdf,
+            self._piola_derivative(psd),
             st.volume,
             self._codes,
             self._nbr,

@@ -235,14 +235,19 @@ class AuguryStepper(ExplicitStepper):
         )
 
     def initialize(self, state: State) -> State:
-        """A copy of ``state`` with ``aug_B (N, d, d)`` and ``aug_Bp (P, d, d)`` (zeros when
-        absent or of another size)."""
+        """A copy of ``state`` carrying ``"aug_B" (N, d, d)`` and ``"aug_Bp" (P, d, d)`` (zeros
+        when absent or of another size; ``State.carried``)."""
         out = state.copy()
-        d = self.model.dim
-        if out.aug_B.shape != (self.model.n_fem_nodes, d, d):
-            out.aug_B = np.zeros((self.model.n_fem_nodes, d, d))
-        if out.aug_Bp.shape != (self.model.n_particles, d, d):
-            out.aug_Bp = np.zeros((self.model.n_particles, d, d))
+        out.carried.update(self._carried_B(out))
+        return out
+
+    def _carried_B(self, state: State) -> dict[str, np.ndarray]:
+        """``state.carried``'s ``"aug_B" (N, d, d)`` and ``"aug_Bp" (P, d, d)`` in m^2/s, zeros
+        where absent or of another size (not copied)."""
+        d, out = self.model.dim, {}
+        for name, n in (("aug_B", self.model.n_fem_nodes), ("aug_Bp", self.model.n_particles)):
+            B = state.carried.get(name)
+            out[name] = B if B is not None and B.shape == (n, d, d) else np.zeros((n, d, d))
         return out
 
     # ------------------------------------------------------------------ geometry per step
@@ -256,11 +261,8 @@ class AuguryStepper(ExplicitStepper):
         """The augury correction of the engine's free-flight end values (module docstring)."""
         started = time.perf_counter()
         model, d, state = self.model, self.model.dim, step.state
-        B_fem, B_mpm = state.aug_B, state.aug_Bp
-        if B_fem.shape != (model.n_fem_nodes, d, d) or B_mpm.shape != (model.n_particles, d, d):
-            start = self.initialize(state)
-            B_fem, B_mpm = start.aug_B, start.aug_Bp
-        motion.carried.update(aug_B=B_fem, aug_Bp=B_mpm)
+        motion.carried.update(self._carried_B(state))
+        B_fem, B_mpm = motion.carried["aug_B"], motion.carried["aug_Bp"]
         if self._coarse_note is not None:
             step.notes.append(self._coarse_note)
         fg = self._fem_fg

@@ -82,7 +82,8 @@ class Motion:
     """The end-of-step values of the moving points before they become the new ``State`` (the
     particle update's result; ``after_g2p`` may correct them): FEM node positions and
     velocities ``(N, d)`` in m, m/s; particle positions, velocities ``(P, d)``, deformation
-    gradients and APIC matrices ``(P, d, d)``; ``carried``: other ``State`` fields by name."""
+    gradients and APIC matrices ``(P, d, d)``; ``carried``: the new arrays of ``State.carried``
+    by name (the others carry over)."""
 
     fem_x: np.ndarray
     fem_v: np.ndarray
@@ -95,7 +96,7 @@ class Motion:
     def commit(self, step: GridStep) -> State:
         """The state at t^{n+1}: the one place a step writes positions."""
         start = step.state
-        values = dict(self.carried)
+        values = {"carried": {**start.carried, **self.carried}}  # a new dict: never shared
         if start.fem_x.shape[0]:
             values.update(
                 fem_x=self.fem_x, fem_v=self.fem_v, fem_a=(self.fem_v - start.fem_v) / step.dt

@@ -165,16 +165,21 @@ class ElasticityTerm:
         _scatter_forces(forces, st.nodes, st.grads, pv)
         return self._layout.restrict(forces)
 
-    def hessian(self, x: np.ndarray, psd: bool) -> Triplets:
-        """Local (k d)^2 blocks, dP/dF projected to PSD at the F-level when ``psd``."""
+    def _piola_derivative(self, psd: bool) -> np.ndarray:
+        """dP/dF at the current F as symmetric ``(S, d^2, d^2)`` blocks in Pa (entry
+        ``[s, i d + m, j d + l]`` = dP_im/dF_jl), projected to PSD at the F-level when ``psd``."""
         st = self.stencils
         d = self._layout.dim
         dpdf = self.law.first_piola_derivative(self._F, st.mu, st.lam)
-        # dP[s,i,m,j,l] = dP_im/dF_jl -> symmetric (d^2, d^2) blocks.
         dpdf = np.ascontiguousarray(dpdf.reshape(-1, d * d, d * d))
         if psd:
             dpdf = self.law.project_derivative(dpdf, self._F, st.mu, st.lam)
-        blocks = _local_hessians(dpdf, st.grads, st.volume)
+        return dpdf
+
+    def hessian(self, x: np.ndarray, psd: bool) -> Triplets:
+        """Local (k d)^2 blocks, dP/dF projected to PSD at the F-level when ``psd``."""
+        st = self.stencils
+        blocks = _local_hessians(self._piola_derivative(psd), st.grads, st.volume)
         return Triplets(self._rows, self._cols, blocks.reshape(-1)[self._keep])
 
     def max_step_size(self, x: np.ndarray, p: np.ndarray) -> float:
