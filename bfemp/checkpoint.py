@@ -33,6 +33,7 @@ import json
 import logging
 import signal
 import threading
+import tokenize
 import xml.etree.ElementTree as ET
 import zipfile
 import zlib
@@ -235,6 +236,8 @@ def read_checkpoint(out: str | Path) -> Checkpoint:
         KeyError,
         TypeError,
         EOFError,
+        SyntaxError,  # numpy parses a member's .npy header with ast.literal_eval
+        tokenize.TokenError,  # ... and, when that fails, re-reads it with tokenize
         zipfile.BadZipFile,
         zlib.error,
     ) as err:

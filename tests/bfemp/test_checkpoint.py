@@ -11,6 +11,7 @@ import shutil
 import signal
 import threading
 import warnings
+import zipfile
 
 import numpy as np
 import pytest
@@ -288,7 +289,9 @@ def _files(out):
     return {p.relative_to(out): p.read_bytes() for p in sorted(out.rglob("*")) if p.is_file()}
 
 
-@pytest.mark.parametrize("damage", ["truncated", "garbage", "damaged member"])
+@pytest.mark.parametrize(
+    "damage", ["truncated", "garbage", "damaged member", "damaged member header"]
+)
 def test_a_corrupt_checkpoint_is_refused_naming_the_file(reference, tmp_path, damage):
     """Before: zipfile.BadZipFile escaped (truncated, damaged member: a traceback, exit 1), and
     a garbage file was blamed on ``allow_pickle``."""
@@ -299,15 +302,23 @@ def test_a_corrupt_checkpoint_is_refused_naming_the_file(reference, tmp_path, da
         data = data[: len(data) // 2]
     elif damage == "garbage":
         data = b"x" * 1000
-    else:  # the zip directory intact, the data of a member overwritten
+    elif damage == "damaged member":  # the zip directory intact, the data of a member overwritten
         data[len(data) // 3 : len(data) // 3 + 64] = bytes(64)
+    else:  # the .npy header of the largest member overwritten (np.savez stores, uncompressed;
+        # numpy parses the header before the member's CRC is checked at its end)
+        with zipfile.ZipFile(path) as archive:
+            member = max(archive.infolist(), key=lambda info: info.file_size)
+        start = member.header_offset
+        lengths = int.from_bytes(data[start + 26 : start + 30], "little")  # name, extra field
+        header = start + 30 + (lengths & 0xFFFF) + (lengths >> 16) + 10  # after magic, length
+        data[header : header + 10] = bytes(10)  # numpy: tokenize.TokenError, not a ValueError
     path.write_bytes(bytes(data))
     before = _files(out)
     with pytest.raises(bfemp.RunFolderError) as err:
         _run(_sim(), out, t_end=14 * DT, resume=True)
     message = str(err.value)
     assert message.startswith(f"{path}: corrupt checkpoint: "), message
-    if damage != "damaged member":
+    if not damage.startswith("damaged member"):
         assert "not a complete zip archive" in message, message
     assert "pickle" not in message and "--overwrite" in message
     assert _files(out) == before  # refused before anything was changed
