@@ -101,9 +101,9 @@ def newton_phases(
         steps.append((report.timings.get("total", wall), wall, report, made))
     ordered = sorted(steps, key=lambda s: s[0])
     _, step_wall, report, n_made = ordered[(len(ordered) - 1) // 2]
-    x = stepper.begin_step(state)
-    pot = stepper.potential
-    y = pot.to_unknowns(x)
+    phases = stepper.phases(state)
+    pot = phases.potential
+    y = pot.to_unknowns(phases.x0)
     assembler = TripletAssembler(y.size)
 
     def assemble() -> None:

@@ -136,7 +136,7 @@ def run_variant(h: float, transfer: str, iterations: int, t_end: float = T_END) 
             series["E_with_B"].append(eb)
     wall = time.perf_counter() - started
     e0, _ = energies(stepper.initialize(model.initial_state()))
-    n_fg = int(stepper._fem_fg.size)
+    n_fg = int(stepper.fem_foreground.size)
     return {
         "h": h,
         "transfer": transfer,

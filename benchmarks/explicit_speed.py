@@ -114,7 +114,7 @@ def run_strategy(h: float, strategy: str) -> dict:
             "contact_below_mechanics": contact < mech,
         }
     if strategy == "augury":
-        n_fg = int(sim.stepper._fem_fg.size)
+        n_fg = int(sim.stepper.fem_foreground.size)
         out |= {"foreground": n_fg, "foreground_particle_steps_per_s": n_fg * steps / wall}
     if strategy == "two_stage":
         out |= {

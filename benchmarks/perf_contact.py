@@ -204,8 +204,8 @@ def _configuration(dim: int, n_pairs: int, seed: int = 7) -> dict:
     stepper = BarrierStepper(
         model, integrator=BACKWARD_EULER, dt=1e-3, options=BarrierOptions(tol=1e-6)
     )
-    x = stepper.begin_step(model.initial_state())
-    term = stepper.barrier
+    phases = stepper.phases(model.initial_state())
+    x, term = phases.x0, phases.barrier
     term.solution_changed(x)
     direction = np.zeros(dim)
     direction[0 if dim == 2 else 2] = -1.0
@@ -215,7 +215,7 @@ def _configuration(dim: int, n_pairs: int, seed: int = 7) -> dict:
         term=term,
         x=x,
         p=p,
-        layout=stepper.layout,
+        layout=phases.layout,
         particles=particles,
         n_facets=int(facets.shape[0]),
     )
@@ -534,14 +534,14 @@ def _rings_breakdown(resolution: str, repeats: int) -> dict:
     out["step_phases_per_iteration_s"] = {
         k: v / nit for k, v in best.items() if k not in ("setup", "g2p", "intersection", "step")
     }
-    x = stepper.begin_step(state)
-    term = stepper.barrier
+    phases = stepper.phases(state)
+    x, term = phases.x0, phases.barrier
     term.solution_changed(x)
     pos = term.collision_positions(x)
     dhat = sim.model.contact.dhat
     out["barrier_pairs"] = int(term.pairs.n_pairs)
     out["broad_phase_candidates"] = int(candidate_pairs(term.collisions, pos, dhat).shape[0])
-    p = stepper.context.x_hat - x  # the inertial predictor: the size of a first Newton step
+    p = phases.context.x_hat - x  # the inertial predictor: the size of a first Newton step
     out["ccd_step"] = float(term.max_step_size(x, p))
     ops = {
         "broad_phase": lambda: candidate_pairs(term.collisions, pos, dhat),

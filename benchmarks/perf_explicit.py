@@ -256,13 +256,12 @@ def _term_route(model) -> dict:
         options=BarrierOptions(tol=1e-4),
     )
     state = model.initial_state()
-    stepper.begin_step(state)  # warm-up
-    ctx = stepper.context
-    term = next(t for t in stepper.potential.potentials if hasattr(t, "particles"))
+    phases = stepper.phases(state)  # warm-up
+    term = next(t for t in phases.potential.potentials if hasattr(t, "particles"))
     t0 = time.perf_counter()
-    term.begin_step(ctx)
+    term.begin_step(phases.context)
     begin = time.perf_counter() - t0
-    x = stepper.begin_step(state)
+    x = stepper.phases(state).x0
     t0 = time.perf_counter()
     term.solution_changed(x)
     term.gradient(x)

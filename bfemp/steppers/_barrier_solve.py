@@ -52,6 +52,8 @@ class ScriptedSolve:
         friction_loop: run the outer friction loop on the step's last solve (Algorithm 1);
             False: friction lagged once, one minimisation (``two_stage``'s semi-implicit
             friction).
+        back_solve_stop: the loop's stopping test by a back-solve (``_increment_below_tol``,
+            ``BarrierOptions.friction_back_solve``); False: by a Newton iteration.
     """
 
     #: cap of the part-way moves of scripted nodes within one step
@@ -71,12 +73,13 @@ class ScriptedSolve:
         dt: float,
         take_last_increment: bool = True,
         friction_loop: bool = True,
+        back_solve_stop: bool = True,
     ) -> None:
         self.model, self.potential = model, potential
         self.barrier, self.friction = barrier, friction
         self.newton, self.linear_solver, self.dt = newton, linear_solver, dt
         self.take_last_increment = take_last_increment
-        self.friction_loop = friction_loop
+        self.friction_loop, self.back_solve_stop = friction_loop, back_solve_stop
         # the phases every step reports (0 when a step has none: the same metrics columns)
         self.phases = TIMING_KEYS + ("friction",) * (friction is not None)
         self.phases += ("scripted_ccd",) * (barrier is not None)
@@ -278,7 +281,7 @@ class ScriptedSolve:
         for j in range(cap):
             t0 = time.perf_counter()
             friction.lag(lag_at if j == 0 and lag_at is not None else pot.to_positions(y))
-            p = self._increment_below_tol(y, result) if j > 0 else None
+            p = self._increment_below_tol(y, result) if j > 0 and self.back_solve_stop else None
             add_timings(timings, {"friction": time.perf_counter() - t0})
             if p is not None:
                 result.nit, result.x = total_it, self._take(y, p)
@@ -289,7 +292,7 @@ class ScriptedSolve:
                 result.nit = total_it
                 return result, j + 1, False
             if j > 0 and result.nit == 0:  # its factorisation is of the fresh data: exact p
-                p = self._final_increment(y)
+                p = self._increment_below_tol(y)
                 result.nit = total_it
                 result.x = y if p is None else self._take(y, p)
                 return result, j + 1, True
@@ -363,14 +366,9 @@ class ScriptedSolve:
             p[free] = p_free
         return p, grad
 
-    def _final_increment(self, y: np.ndarray) -> np.ndarray | None:
-        """The last (below-tolerance) increment at y, or None when it is not below it."""
-        out = self._back_solve(y)
-        if out is None or not self.potential.increment_norm(out[0]) < self.newton.tol * self.dt:
-            return None
-        return out[0]
-
-    def _increment_below_tol(self, y: np.ndarray, result: NewtonResult) -> np.ndarray | None:
+    def _increment_below_tol(
+        self, y: np.ndarray, result: NewtonResult | None = None
+    ) -> np.ndarray | None:
         """The friction loop's stopping test, by a back-solve instead of a factorisation.
 
         Algorithm 1 stops when the Newton increment under friction data refreshed at y is below
@@ -378,12 +376,14 @@ class ScriptedSolve:
         (the Hessian at y before the refresh: the friction blocks lag by one update) and the
         fresh gradient; a cheap test that only decides when to stop: when it says no (None),
         Newton runs. On success it returns p ``(n,)`` and stores the gradient in ``result.jac``
-        (boundary reactions use it).
+        (boundary reactions use it) when a ``result`` is given; without one it is the last
+        increment of a solve that needed no Newton step.
         """
         out = self._back_solve(y)
         if out is None or not self.potential.increment_norm(out[0]) < self.newton.tol * self.dt:
             return None
-        result.jac = out[1]
+        if result is not None:
+            result.jac = out[1]
         return out[0]
 
     def _take(self, y: np.ndarray, p: np.ndarray) -> np.ndarray:

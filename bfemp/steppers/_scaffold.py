@@ -15,15 +15,20 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bfemp.contact.friction import FrictionTerm
+from bfemp.contact.term import BarrierTerm
 from bfemp.dofs import DofLayout
 from bfemp.frames import NodeFrames
 from bfemp.model import Model
 from bfemp.mpm.boundaries import normal_frames
 from bfemp.mpm.step import MpmStep, prepare_mpm_step
 from bfemp.mpm.transfer import grid_to_particles
+from bfemp.potential import IncrementalPotential
 from bfemp.state import State
+from bfemp.terms import StepContext
+from solvers.linear import LinearSolver
 
-__all__ = ["StepNodes", "gather_nodes", "nodes_of_step", "write_state"]
+__all__ = ["StepNodes", "StepPhases", "gather_nodes", "nodes_of_step", "write_state"]
 
 
 @dataclass(frozen=True)
@@ -65,6 +70,34 @@ class StepNodes:
         if self.mpm is not None and self.mpm.constraints.shift.any():
             return x_n + self.layout.restrict(self.shift)
         return x_n
+
+
+@dataclass(frozen=True)
+class StepPhases:
+    """A begun, untaken ``barrier`` step (``BarrierStepper.phases``), for inspection.
+
+    Attributes:
+        potential: the step's incremental potential E(y) (BFEMP eq. 22) in J (J/m in 2D), begun
+            for the step; its unknowns y = ``potential.to_unknowns(x)``.
+        context: the terms' view of the step (``StepContext``: layout, x_hat ``(n_dof,)`` in
+            m, DOF masses, MPM stencils, fixed positions).
+        x0: the unknowns' positions at t^n ``(n_dof,)`` in m, node-major.
+        barrier: the potential's barrier term (BFEMP eq. 27), None without contact.
+        friction: its lagged friction term (BFEMP eq. 37), None without friction.
+        linear_solver: the Newton loop's linear solver.
+    """
+
+    potential: IncrementalPotential
+    context: StepContext
+    x0: np.ndarray
+    barrier: BarrierTerm | None
+    friction: FrictionTerm | None
+    linear_solver: LinearSolver
+
+    @property
+    def layout(self) -> DofLayout:
+        """The step's unknowns (free FEM nodes and unconstrained grid nodes)."""
+        return self.context.layout
 
 
 def gather_nodes(

@@ -181,8 +181,10 @@ class AuguryStepper(ExplicitStepper):
         on_boundary &= model.fem_mass > 0.0
         scripted = model.fem_prescribed.astype(bool)
         kin = on_boundary & scripted if opts.kinematic_foreground else np.zeros(n, bool)
-        self._fem_fg = np.flatnonzero((on_boundary & ~scripted) | kin)
-        self._fem_fg_movable = ~scripted[self._fem_fg]
+        #: the FEM foreground: indices ``(n_fg,)`` of the FEM nodes on the contact grid (free
+        #: boundary nodes, and scripted ones with ``kinematic_foreground``); read it only
+        self.fem_foreground = np.flatnonzero((on_boundary & ~scripted) | kin)
+        self._fem_movable = ~scripted[self.fem_foreground]
         self._n_kinematic = int(kin.sum())
         fem_node_body = np.zeros(n, dtype=np.int64)
         for body in model.fem_bodies:
@@ -265,7 +267,7 @@ class AuguryStepper(ExplicitStepper):
         B_fem, B_mpm = motion.carried["aug_B"], motion.carried["aug_Bp"]
         if self._coarse_note is not None:
             step.notes.append(self._coarse_note)
-        fg = self._fem_fg
+        fg = self.fem_foreground
         n_fem = fg.size
         n_mpm = model.n_particles if self._mpm_fg else 0
         a_hat = np.zeros((n_fem + n_mpm, d))
@@ -311,7 +313,7 @@ class AuguryStepper(ExplicitStepper):
         """The foreground's start positions x ``(n, d)`` m, masses m ``(n,)`` kg, velocities
         v_n and v_free ``(n, d)`` m/s, matrices B ``(n, d, d)``, bodies ``(n,)`` and FEM normals,
         FEM boundary nodes first, then the particles."""
-        model, fg = self.model, self._fem_fg
+        model, fg = self.model, self.fem_foreground
         keys = ("x", "m", "v_n", "v_free", "B", "body")
         parts: list[tuple[np.ndarray, ...]] = []
         fem_normals = None
@@ -337,10 +339,10 @@ class AuguryStepper(ExplicitStepper):
         dt, tau, timings = self.dt, self.tau, step.timings
         x, m, body = points["x"], points["m"], points["body"]
         v_n, v_free, B_bar = points["v_n"], points["v_free"], points["B"]
-        n_fem = self._fem_fg.size
+        n_fem = self.fem_foreground.size
         n_all = x.shape[0]
         movable = np.ones(n_all, dtype=bool)
-        movable[:n_fem] = self._fem_fg_movable
+        movable[:n_fem] = self._fem_movable
         accel = (v_free - v_n) / dt
         v_bar = v_n + self._tau_predict * accel  # AUG eq. 27
         # kinematic nodes move with their scripted velocity
@@ -357,7 +359,7 @@ class AuguryStepper(ExplicitStepper):
                     m,
                     body,
                     normals,
-                    self._fem_fg,
+                    self.fem_foreground,
                     self._facets,
                     self._facet_opp,
                 )
@@ -416,7 +418,7 @@ class AuguryStepper(ExplicitStepper):
         3) on the end values, before the engine commits them."""
         dt, state = self.dt, step.state
         if n_fem:
-            fg, mov = self._fem_fg, self._fem_fg_movable
+            fg, mov = self.fem_foreground, self._fem_movable
             idx = fg[mov]
             motion.fem_v[idx] += dt * a_hat[:n_fem][mov]
             motion.fem_x[idx] += dt * dt * a_hat[:n_fem][mov]
@@ -441,8 +443,8 @@ class AuguryStepper(ExplicitStepper):
             return []
         if not model.fem_cells.shape[0]:
             return []
-        pts = [new.fem_x[self._fem_fg]]
-        owner = [self._fem_node_body[self._fem_fg]]
+        pts = [new.fem_x[self.fem_foreground]]
+        owner = [self._fem_node_body[self.fem_foreground]]
         if self._mpm_fg:
             pts.append(new.mpm_x)
             owner.append(self._mpm_body)
@@ -464,7 +466,7 @@ class AuguryStepper(ExplicitStepper):
         fem_f = np.zeros((model.n_fem_nodes, model.dim))
         part_f = np.zeros((model.n_particles, model.dim))
         if n_fem:
-            fem_f[self._fem_fg] = model.fem_mass[self._fem_fg, None] * a_hat[:n_fem]
+            fem_f[self.fem_foreground] = model.fem_mass[self.fem_foreground, None] * a_hat[:n_fem]
         if self._mpm_fg and model.n_particles:
             part_f[:] = model.mpm_mass[:, None] * a_hat[n_fem:]
         largest = float(np.sqrt(np.einsum("pd,pd->p", a_hat, a_hat)).max()) if a_hat.size else 0.0

@@ -37,15 +37,13 @@ from bfemp.contact.adaptive import AdaptiveKappa
 from bfemp.contact.friction import FrictionTerm
 from bfemp.contact.intersection import step_intersection, step_inversion
 from bfemp.contact.term import BarrierTerm
-from bfemp.dofs import DofLayout
-from bfemp.frames import NodeFrames
 from bfemp.integrators import Integrator
 from bfemp.model import Model
 from bfemp.state import State
 from bfemp.steppers._barrier_options import LINEAR_SOLVERS, BarrierOptions
 from bfemp.steppers._barrier_potential import build_potential, contact_view, has_contact
 from bfemp.steppers._barrier_solve import ScriptedSolve
-from bfemp.steppers._scaffold import StepNodes, gather_nodes, write_state
+from bfemp.steppers._scaffold import StepNodes, StepPhases, gather_nodes, write_state
 from bfemp.steppers.base import ContactView, StepError, StepReport, finite_or_nan
 from bfemp.steppers.capabilities import BARRIER_PAIRS, Capabilities
 from bfemp.terms import StepContext
@@ -125,9 +123,6 @@ class BarrierStepper:
         )
         self.adaptive: AdaptiveKappa | None = None
         self._contact: ContactView | None = None  # contact() of the last step, once asked
-        #: for inspection only: the DOF layout of the last ``begin_step`` (before any, that of
-        #: the FEM nodes alone)
-        self.layout = DofLayout(model.dim, ~model.fem_prescribed, model.n_fem_nodes)
         self._solver = ScriptedSolve(
             model,
             self.potential,
@@ -137,6 +132,7 @@ class BarrierStepper:
             options.make_linear_solver(model.dim),
             self.dt,
             take_last_increment=options.velocity_update == "positions",
+            back_solve_stop=options.friction_back_solve,
         )
 
     @property
@@ -164,15 +160,24 @@ class BarrierStepper:
         return float("inf")
 
     # ------------------------------------------------------------------ step set-up
-    def _gather(self, state: State, t_next: float) -> StepNodes:
-        return gather_nodes(
+    def _begin(
+        self, state: State, t_next: float, frames: bool = True
+    ) -> tuple[StepNodes, StepContext]:
+        """Gather the step's nodes (P2G at x^n), predict x_hat and begin the potential with the
+        integrator's weights (BFEMP eq. 22); ``frames=False``: without slip frames."""
+        integ, dt = self.integrator, self.dt
+        nodes = gather_nodes(
             self.model,
             state,
             transfer=self.transfer,
-            with_acceleration=self.integrator.uses_acceleration,
-            dt=self.dt,
+            with_acceleration=integ.uses_acceleration,
+            dt=dt,
             t_next=t_next,
         )
+        ctx = self._context(state, nodes, integ.predict(nodes.x, nodes.v, nodes.a, dt))
+        weights = integ.weight(dt), nodes.frames if frames else None
+        self.potential.begin_step(ctx, *weights, contact_weight=integ.contact_weight(dt))
+        return nodes, ctx
 
     def _context(self, state: State, nodes: StepNodes, x_hat_all: np.ndarray) -> StepContext:
         """The terms' view of the step; with friction, the sliding map of BFEMP eq. 37."""
@@ -208,13 +213,6 @@ class BarrierStepper:
         c[scripted] = dt * v_end[scripted] - s * nodes.fixed[scripted]
         return s, c
 
-    def _begin_potential(self, ctx: StepContext, frames: NodeFrames | None) -> None:
-        """Start the step's potential with the integrator's weights (BFEMP eq. 22)."""
-        integ = self.integrator
-        self.potential.begin_step(
-            ctx, integ.weight(self.dt), frames, contact_weight=integ.contact_weight(self.dt)
-        )
-
     def _adapt_kappa(self, x_n: np.ndarray) -> None:
         """kappa = "auto": bounds on the first step, gradient balance when contact appears."""
         contact = self.model.contact
@@ -242,30 +240,26 @@ class BarrierStepper:
         contact = False if self.integrator.implicit_contact else None
         return self.potential.potential_gradient(x, contact=contact)
 
-    def begin_step(self, state: State) -> np.ndarray:
-        """Set up the potential of the step starting at ``state`` (for inspection and tests).
+    def phases(self, state: State) -> StepPhases:
+        """Begin the step from ``state`` without taking it: what its Newton solve starts from.
 
-        Returns the start positions of the unknowns x^n ``(n_dof,)``. For inspection only (no
-        method of the stepper reads them), ``self.context`` and ``self.layout`` keep the step
-        context and DOF layout.
+        The documented inspection hook (benchmarks, tests): the step is begun (``_begin``: P2G
+        at x^n, x_hat of BFEMP eq. 22, the potential begun) exactly as ``step`` begins it,
+        before the kappa update and the solve.
+        Nothing is solved or written; ``step`` begins its own step again, so a ``step`` after
+        ``phases`` gives the same state, bit for bit, as one without.
         """
         self._contact = None
-        nodes = self._gather(state, state.t + self.dt)
-        x_hat_all = self.integrator.predict(nodes.x, nodes.v, nodes.a, self.dt)
-        ctx = self._context(state, nodes, x_hat_all)
-        self._begin_potential(ctx, nodes.frames)
-        self.context, self.layout = ctx, nodes.layout
-        return nodes.layout.restrict(nodes.x)
+        nodes, ctx = self._begin(state, state.t + self.dt)
+        x0 = nodes.layout.restrict(nodes.x)
+        return StepPhases(self.potential, ctx, x0, self.barrier, self.friction, self.linear_solver)
 
     def initialize(self, state: State) -> State:
         """Set a^0 of FEM nodes consistently with the forces at t = 0 (Newmark needs it)."""
         out = state.copy()
         if not self.integrator.uses_acceleration or self.model.n_fem_nodes == 0:
             return out
-        nodes = self._gather(state, state.t)
-        x_hat_all = self.integrator.predict(nodes.x, nodes.v, nodes.a, self.dt)
-        ctx = self._context(state, nodes, x_hat_all)
-        self._begin_potential(ctx, None)
+        nodes, ctx = self._begin(state, state.t, frames=False)
         x_n = nodes.layout.restrict(nodes.x)
         self.potential.solution_changed(x_n)
         accel = -self._memory_gradient(x_n) / ctx.dof_mass
@@ -282,12 +276,9 @@ class BarrierStepper:
         self._contact = None
         dt, integ = self.dt, self.integrator
         t_next = state.t + dt
-        nodes = self._gather(state, t_next)
+        nodes, ctx = self._begin(state, t_next)
         layout = nodes.layout
-        x_hat_all = integ.predict(nodes.x, nodes.v, nodes.a, dt)
-        ctx = self._context(state, nodes, x_hat_all)
         x_n, v_n, a_n = layout.restrict(nodes.x), layout.restrict(nodes.v), layout.restrict(nodes.a)
-        self._begin_potential(ctx, nodes.frames)
         self._adapt_kappa(x_n)
         setup_time = time.perf_counter() - started
         if layout.n_dof == 0:  # every node scripted: nothing to solve

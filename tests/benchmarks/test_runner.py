@@ -1,7 +1,9 @@
 """The benchmark runner: one registry, the record it writes, and ``verify``'s comparison."""
 
+import ast
 import json
 import math
+from pathlib import Path
 
 import pytest
 
@@ -107,3 +109,54 @@ def test_scenes_takes_its_options_from_the_command_line_and_the_old_names(monkey
         ("scenes", "partial", {"strategy": "two_stage", "scene": "slope"}),
     ]
     assert scenes.BENCHMARK.stem("partial", seen[1][2]) == "two_stage_slope"
+
+
+def stepper_internals(source: str) -> list[str]:
+    """The reaches into a stepper's internals in a module's source: ``<...>stepper._name``,
+    the private solve ``ScriptedSolve`` and imports of ``bfemp.steppers._*`` modules."""
+    found = []
+    for node in ast.walk(ast.parse(source)):
+        line = getattr(node, "lineno", 0)
+        if isinstance(node, ast.Attribute) and node.attr.startswith("_"):
+            owner = node.value
+            name = owner.id if isinstance(owner, ast.Name) else getattr(owner, "attr", "")
+            if name.endswith("stepper") and not node.attr.startswith("__"):
+                found.append(f"{line}: {name}.{node.attr}")
+        elif isinstance(node, ast.Name | ast.alias) and "ScriptedSolve" in (
+            getattr(node, "id", None),
+            getattr(node, "name", None),
+        ):
+            found.append(f"{line}: ScriptedSolve")
+        elif isinstance(node, ast.ImportFrom) and (node.module or "").startswith(
+            "bfemp.steppers._"
+        ):
+            found.append(f"{line}: from {node.module}")
+    return found
+
+
+def test_the_guard_finds_every_kind_of_reach():
+    source = (
+        "from bfemp.steppers._barrier_solve import ScriptedSolve\n"
+        "n = sim.stepper._fem_fg.size\n"
+        "stepper._solver.solve()\n"
+        "ok = stepper.phases(state).x0, stepper.fem_foreground, term._cache\n"
+    )
+    assert stepper_internals(source) == [
+        "1: from bfemp.steppers._barrier_solve",
+        "1: ScriptedSolve",
+        "2: stepper._fem_fg",
+        "3: stepper._solver",
+    ]
+
+
+def test_benchmarks_inspect_steppers_through_their_public_hooks_only():
+    """Benchmarks read a step through ``BarrierStepper.phases`` and public properties (``fem_
+    foreground``, ``linear_solver``) and switch rules through options, never through a
+    stepper's private names (which change without notice)."""
+    root = Path(runner.__file__).resolve().parent
+    reaches = {
+        path.name: found
+        for path in sorted(root.rglob("*.py"))
+        if (found := stepper_internals(path.read_text()))
+    }
+    assert reaches == {}

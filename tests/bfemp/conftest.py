@@ -9,7 +9,8 @@ from bfemp.steppers.barrier import BarrierOptions, BarrierStepper
 
 
 def started_stepper(scene, dt=1e-2, state=None, integrator=BACKWARD_EULER):
-    """An implicit stepper whose potential has begun a step from the scene's initial state."""
+    """``(model, phases, x0)``: a barrier step begun from ``state`` (the scene's initial state
+    when None) and not taken (``BarrierStepper.phases``), and its start positions."""
     model = scene.build()
     stepper = BarrierStepper(
         model,
@@ -18,8 +19,8 @@ def started_stepper(scene, dt=1e-2, state=None, integrator=BACKWARD_EULER):
         options=BarrierOptions(tol=1e-8),
     )
     state = model.initial_state() if state is None else state
-    x = stepper.begin_step(state)
-    return model, stepper, x
+    phases = stepper.phases(state)
+    return model, phases, phases.x0
 
 
 @pytest.fixture

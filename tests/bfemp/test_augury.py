@@ -138,7 +138,7 @@ def test_tau_dt_and_no_iteration_is_H_of_the_free_flight_velocity():
         state, _ = stepper.step(state)
     free, _ = SingleFieldStepper(model, dt=1e-3).step(state)  # the engine's free flight alone
     new, report = stepper.step(state)
-    fg = stepper._fem_fg
+    fg = stepper.fem_foreground
     st = contact_stencils(state.fem_x[fg], stepper.grid_dx)
     expect, _ = ContactOperator(st, state.fem_x[fg], model.fem_mass[fg]).apply(
         free.fem_v[fg], state.carried["aug_B"][fg]
@@ -343,7 +343,7 @@ def test_paper_predictor_projects_the_later_prediction():
         state, _ = stepper.step(state)
     free, _ = SingleFieldStepper(model, dt=1e-3).step(state)  # the free flight
     new, _ = stepper.step(state)
-    fg = stepper._fem_fg
+    fg = stepper.fem_foreground
     a = (free.fem_v[fg] - state.fem_v[fg]) / stepper.dt
     v_bar = state.fem_v[fg] + 1.5 * stepper.dt * a
     st = contact_stencils(state.fem_x[fg], stepper.grid_dx)
@@ -366,7 +366,7 @@ def test_shared_region_conserves_momentum_and_smooths_fewer_particles():
     for _ in range(80):
         state, report = stepper.step(state)
         touching.append(report.contact_pairs)
-    assert 0 < max(touching) < stepper._fem_fg.size  # H ran on a strict subset
+    assert 0 < max(touching) < stepper.fem_foreground.size  # H ran on a strict subset
     assert _relative_speed(model, state) < 0.5  # the approach was stopped (1 -> < 0.5 m/s)
     assert np.abs(diagnostics.linear_momentum(model, state) - p0).max() < 1e-12
     assert np.abs(diagnostics.angular_momentum(model, state) - L0).max() < 1e-12

@@ -5,8 +5,6 @@ import pytest
 
 import bfemp
 from benchmarks.speed_knobs import block_on_floor
-from bfemp.contact.term import BarrierTerm
-from bfemp.steppers._barrier_solve import ScriptedSolve
 from bfemp.testing import check_term
 from solvers.result import TIMING_KEYS
 from tests.bfemp.conftest import (
@@ -33,10 +31,6 @@ def _particles_scene(dim, particles, *, fem_free=True):
     scene.set_grid(dx=0.25)
     scene.set_contact(dhat=DHAT, kappa=1e4)
     return scene
-
-
-def _barrier(stepper):
-    return next(t for t in stepper.potential.potentials if isinstance(t, BarrierTerm))
 
 
 CASES_2D = {
@@ -66,8 +60,8 @@ CASES_3D = {
 def test_barrier_passes_fd_harness(dim, case, rng):
     """A particle near a facet, edge or vertex (2D and 3D): the barrier term's derivatives."""
     scene = _particles_scene(dim, (CASES_2D if dim == 2 else CASES_3D)[case])
-    _, stepper, x = started_stepper(scene)
-    term = _barrier(stepper)
+    _, begun, x = started_stepper(scene)
+    term = begun.barrier
     term.solution_changed(x)
     assert term.pairs.n_pairs >= 1
     # tiny random motion keeps the regime
@@ -84,8 +78,8 @@ def test_two_fem_bodies_barrier_passes_fd_harness_2d(rng):
     scene.add_fem(a, material=STIFF, name="a")
     scene.add_fem(b, material=STIFF, name="b")
     scene.set_contact(dhat=DHAT, kappa=1e4)
-    _, stepper, x = started_stepper(scene)
-    term = _barrier(stepper)
+    _, begun, x = started_stepper(scene)
+    term = begun.barrier
     term.solution_changed(x)
     assert term.pairs.n_pairs >= 2
     x = x + 1e-5 * rng.standard_normal(x.shape)
@@ -96,8 +90,8 @@ def test_two_fem_bodies_barrier_passes_fd_harness_2d(rng):
 def test_vertex_duplicates_count_once_2d():
     """A particle nearest to a boundary vertex feels one barrier, not one per incident edge."""
     scene = _particles_scene(2, [[1.0 + 0.3 * DHAT, 1.0 + 0.3 * DHAT]])
-    _, stepper, x = started_stepper(scene)
-    term = _barrier(stepper)
+    _, begun, x = started_stepper(scene)
+    term = begun.barrier
     term.solution_changed(x)
     from bfemp.contact.barrier import barrier
 
@@ -165,8 +159,8 @@ def test_free_fem_mpm_collision_conserves_linear_momentum(transfer, integrator):
 
 def test_ccd_bound_stops_before_impact():
     scene = _particles_scene(2, [[0.3, 1.0 + 2 * DHAT]], fem_free=False)
-    _, stepper, x = started_stepper(scene)
-    term = _barrier(stepper)
+    _, begun, x = started_stepper(scene)
+    term = begun.barrier
     term.solution_changed(x)
     # move every grid node down by 4 dhat: the particle would cross the face at alpha = 0.5
     p = np.zeros_like(x).reshape(-1, 2)
@@ -181,13 +175,13 @@ def _friction_setup(dim, slide, rng, integrator="backward_euler"):
     pos = [0.3, 1.0 + 0.3 * DHAT] if dim == 2 else [0.3, 0.4, 1.0 + 0.3 * DHAT]
     scene = _particles_scene(dim, [pos])
     scene.set_contact(dhat=DHAT, kappa=1e4, mu=0.4, eps_v=1e-3)
-    _, stepper, x = started_stepper(scene, dt=1e-2, integrator=integrator)
-    friction = next(t for t in stepper.potential.potentials if t.name == "friction")
+    _, begun, x = started_stepper(scene, dt=1e-2, integrator=integrator)
+    friction = next(t for t in begun.potential.potentials if t.name == "friction")
     friction.lag(x)
     assert friction.n_contacts >= 1
     # tangential motion of the grid only (the particle slides over the FEM body), plus noise
     x = x.reshape(-1, dim).copy()
-    grid_rows = stepper.layout.free_nodes >= stepper.layout.n_fem
+    grid_rows = begun.layout.free_nodes >= begun.layout.n_fem
     x[grid_rows, 0] += slide
     x = x.reshape(-1) + 1e-7 * rng.standard_normal(x.size)
     return friction, x
@@ -284,8 +278,8 @@ def _two_cubes(gap_fraction, edge_case):
 
 @pytest.mark.parametrize("edge_case", [False, True])
 def test_two_fem_bodies_barrier_passes_fd_harness_3d(edge_case, rng):
-    _, stepper, x = started_stepper(_two_cubes(0.4, edge_case))
-    term = _barrier(stepper)
+    _, begun, x = started_stepper(_two_cubes(0.4, edge_case))
+    term = begun.barrier
     term.solution_changed(x)
     if edge_case:
         assert term.pairs.points["ee"].shape[0] >= 1
@@ -296,8 +290,8 @@ def test_two_fem_bodies_barrier_passes_fd_harness_3d(edge_case, rng):
 
 
 def test_edge_edge_ccd_stops_crossing_edges():
-    _, stepper, x = started_stepper(_two_cubes(2.0, True))
-    term = _barrier(stepper)
+    _, begun, x = started_stepper(_two_cubes(2.0, True))
+    term = begun.barrier
     term.solution_changed(x)
     n_a = 8  # the lower cube's nodes come first
     p = np.zeros_like(x).reshape(-1, 3)
@@ -437,15 +431,14 @@ def test_a_scripted_plate_never_jumps_over_particles(dt):
     assert forces[:, 1].sum() < 0.0 and report.contact_pairs > 0  # it presses the block
 
 
-def test_friction_loop_stops_by_back_solve_with_the_same_result(monkeypatch):
+def test_friction_loop_stops_by_back_solve_with_the_same_result():
     """The friction loop's stopping test reuses the last factorisation: same trajectory as a
     full Newton solve under the refreshed friction data, fewer factorisations (sticking block:
     measured 284 -> 224 over 0.3 s, benchmarks/records/speed_knobs.json)."""
     sims = {}
     for cheap in (True, False):
-        if not cheap:
-            monkeypatch.setattr(ScriptedSolve, "_increment_below_tol", lambda *args: None)
-        sim = bfemp.Simulation(block_on_floor(0.5), dt=5e-3, tol=1e-6)
+        options = bfemp.BarrierOptions(tol=1e-6, friction_back_solve=cheap)
+        sim = bfemp.Simulation(block_on_floor(0.5), dt=5e-3, options=options)
         sim.run(0.1, progress=False)
         sims[cheap] = sim
     # both are Newton solutions to tol * dt = 5e-9 m per step (measured: 1.6e-9 m after 20)
@@ -480,8 +473,8 @@ def test_incremental_potential_weights_contact_terms_apart():
     scene = _particles_scene(2, [pos])
     scene.set_contact(dhat=DHAT, kappa=1e4, mu=0.4, eps_v=1e-3)
     dt = 1e-2
-    _, stepper, x = started_stepper(scene, dt=dt, integrator="newmark_implicit_contact")
-    pot = stepper.potential
+    _, begun, x = started_stepper(scene, dt=dt, integrator="newmark_implicit_contact")
+    pot = begun.potential
     pot.solution_changed(pot.to_unknowns(x))
     next(t for t in pot.potentials if t.name == "friction").lag(x)
     rng = np.random.default_rng(7)

@@ -58,8 +58,8 @@ def test_particles_as_their_own_stencils_put_collision_points_at_the_particles(d
 
 @pytest.mark.parametrize("dim", [2, 3])
 def test_stateless_barrier_equals_the_term_and_passes_finite_differences(dim, rng):
-    _, stepper, x = started_stepper(_particle_over_plate(dim), dt=1e-2)
-    bar = stepper.barrier
+    _, begun, x = started_stepper(_particle_over_plate(dim), dt=1e-2)
+    bar = begun.barrier
     bar.solution_changed(x)
     cs, pos = bar.collisions, bar.collision_positions(x)
     pairs = find_pairs(cs, pos, DHAT)
@@ -86,8 +86,8 @@ def test_stateless_barrier_equals_the_term_and_passes_finite_differences(dim, rn
 
 
 def test_lagging_friction_leaves_the_barrier_alone_and_matches_the_stateless_functions(rng):
-    _, stepper, x = started_stepper(_particle_over_plate(2), dt=1e-2)
-    bar, friction = stepper.barrier, stepper.friction
+    _, begun, x = started_stepper(_particle_over_plate(2), dt=1e-2)
+    bar, friction = begun.barrier, begun.friction
     bar.solution_changed(x)
     pairs_before = bar.pairs
     moved = x + 1e-5 * rng.standard_normal(x.size)

@@ -148,9 +148,9 @@ def test_fused_p2g_equals_transfer_and_minus_elasticity_gradient(rng):
     state.mpm_v = rng.standard_normal((n, 2))
     state.mpm_C = rng.standard_normal((n, 2, 2))
     state.mpm_x = state.mpm_x + 0.01 * rng.standard_normal((n, 2))
-    _, implicit, x_n = started_stepper(scene, state=state)
-    st = implicit.context.mpm.stencils
-    term = implicit.potential.potentials[0]
+    _, begun, x_n = started_stepper(scene, state=state)
+    st = begun.context.mpm.stencils
+    term = begun.potential.potentials[0]
     term.solution_changed(x_n)
     reference = -term.gradient(x_n).reshape(-1, 2)  # grid forces at the start positions
     fields = particles_to_grid(
@@ -165,7 +165,7 @@ def test_fused_p2g_equals_transfer_and_minus_elasticity_gradient(rng):
         )
         assert np.allclose(mass, fields.mass, rtol=1e-13)
         assert np.allclose(mom, fields.velocity * fields.mass[:, None], rtol=1e-12, atol=1e-14)
-        free = implicit.layout.free_nodes[implicit.layout.free_nodes >= model.n_fem_nodes]
+        free = begun.layout.free_nodes[begun.layout.free_nodes >= model.n_fem_nodes]
         assert np.allclose(force[free - model.n_fem_nodes], reference, rtol=1e-12, atol=1e-10)
 
 

@@ -39,8 +39,8 @@ def test_mpm_elasticity_passes_fd_harness_on_deformed_states(dim, ppc, material,
     A[np.linalg.det(A) < 0.2] = np.eye(dim)
     state.mpm_F = A
     state.mpm_x = state.mpm_x + 0.02 * rng.standard_normal(state.mpm_x.shape)
-    _, stepper, x_n = started_stepper(scene, state=state)
-    term = stepper.potential.potentials[0]
+    _, begun, x_n = started_stepper(scene, state=state)
+    term = begun.potential.potentials[0]
     assert term.name.startswith("mpm_elasticity")
     x = x_n + 0.01 * rng.standard_normal(x_n.shape)
     report = check_term(term, x, eps=1e-7, tol=1e-5)
@@ -314,15 +314,15 @@ def test_newton_increment_norm_ignores_nodes_the_particles_barely_reach():
     x = np.array([[0.5 + 1.5e-6, 0.3]])
     scene.add_mpm(x, np.array([1e-2]), material=bfemp.NeoHookean(E=1e5, nu=0.3, density=1.0))
     scene.set_grid(dx=1.0)
-    _, stepper, _ = started_stepper(scene)
-    pot, layout = stepper.potential, stepper.layout
-    weights = stepper.context.mpm.stencils.weights[0]
+    _, begun, _ = started_stepper(scene)
+    pot, layout = begun.potential, begun.layout
+    weights = begun.context.mpm.stencils.weights[0]
     light = int(np.argmin(weights))
     heavy = int(np.argmax(weights))
     assert weights[light] < 1e-11
     for node, expected in ((light, weights[light]), (heavy, weights[heavy])):
         dof_node = layout.dof_node[
-            stepper.context.mpm.node_offset + stepper.context.mpm.stencils.nodes[0, node]
+            begun.context.mpm.node_offset + begun.context.mpm.stencils.nodes[0, node]
         ]
         p = np.zeros(layout.n_dof)
         p[2 * dof_node] = 1e-6

@@ -18,10 +18,10 @@ def test_newton_converges_quadratically_on_a_large_deformation_step():
         prescribed=bfemp.motion.Fixed(),
         prescribed_nodes=mesh.points[:, 0] < 1e-9,
     )
-    model, stepper, x0 = started_stepper(scene, dt=1.0)  # quasi-static: large sag
+    model, begun, x0 = started_stepper(scene, dt=1.0)  # quasi-static: large sag
     iterates = []
     result = minimize(
-        stepper.potential,
+        begun.potential,
         x0.copy(),
         options=NewtonOptions(tol=1e-10, step_scale=1.0, max_iter=100),
         callback=lambda it: iterates.append(it.x),

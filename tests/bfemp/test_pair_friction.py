@@ -74,8 +74,8 @@ def test_pair_friction_passes_the_fd_harness(rng):
     sim = bfemp.Simulation(scene, dt=5e-3)
     for _ in range(10):  # the blocks land (they start 6 mm up)
         sim.step()
-    _, stepper, x = started_stepper(scene, dt=5e-3, state=sim.state)
-    friction = next(t for t in stepper.potential.potentials if t.name == "friction")
+    _, begun, x = started_stepper(scene, dt=5e-3, state=sim.state)
+    friction = next(t for t in begun.potential.potentials if t.name == "friction")
     friction.lag(x)
     assert friction.n_contacts > 0
     dim = 2

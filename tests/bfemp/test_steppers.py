@@ -55,9 +55,12 @@ def test_options_are_frozen_validated_and_named():
         "warm_start": False,
         "linear_solver": "default",
         "velocity_update": "positions",
+        "friction_back_solve": True,
     }
     with pytest.raises(ValueError, match="velocity_update must be one of"):
         BarrierOptions(velocity_update="residual")
+    with pytest.raises(ValueError, match="friction_back_solve must be true or false, got 'no'"):
+        BarrierOptions(friction_back_solve="no")
 
 
 def test_options_from_a_mapping_refuse_unknown_fields_and_wrong_types():

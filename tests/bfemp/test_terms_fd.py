@@ -37,9 +37,9 @@ def _deformed(model, stepper, rng, strong):
 @pytest.mark.parametrize("strong", [False, True])
 def test_elasticity_term_passes_fd_harness(dim, material, strong, rng):
     scene = block_scene(dim, MATERIALS[material], h=1.0 if dim == 3 else 0.5)
-    model, stepper, _ = started_stepper(scene)
-    term = next(t for t in stepper.potential.potentials if t.name.startswith("elasticity"))
-    x = _deformed(model, stepper, rng, strong)
+    model, begun, _ = started_stepper(scene)
+    term = next(t for t in begun.potential.potentials if t.name.startswith("elasticity"))
+    x = _deformed(model, begun, rng, strong)
     report = check_term(term, x, eps=1e-6, tol=1e-5)
     assert report.ok, report
 
@@ -48,11 +48,11 @@ def test_elasticity_term_passes_fd_harness(dim, material, strong, rng):
 def test_inertia_gravity_load_and_total_pass_fd_harness(dim, rng):
     scene = block_scene(dim, MATERIALS["neo_hookean"], h=1.0)
     scene.add_load(0, np.ones(dim))
-    model, stepper, x0 = started_stepper(scene)
-    names = [t.name for t in stepper.potential.terms]
+    model, begun, x0 = started_stepper(scene)
+    names = [t.name for t in begun.potential.terms]
     assert names == ["inertia", "elasticity[neo_hookean]", "gravity", "external_force"]
-    x = _deformed(model, stepper, rng, strong=False)
-    for term in [*stepper.potential.terms, stepper.potential]:
+    x = _deformed(model, begun, rng, strong=False)
+    for term in [*begun.potential.terms, begun.potential]:
         report = check_term(term, x, eps=1e-6, tol=1e-5)
         assert report.ok, (getattr(term, "name", "potential"), report)
 
@@ -63,9 +63,9 @@ def test_projected_hessian_is_psd_where_the_true_one_is_not(dim, rng):
     scene = block_scene(
         dim, MATERIALS["neo_hookean"], prescribed_bottom=False, gravity=False, h=1.0
     )
-    model, stepper, _ = started_stepper(scene)
-    term = stepper.potential.potentials[0]
-    x = stepper.layout.restrict(model.fem_X * np.r_[0.35, np.ones(dim - 1)])
+    model, begun, _ = started_stepper(scene)
+    term = begun.potential.potentials[0]
+    x = begun.layout.restrict(model.fem_X * np.r_[0.35, np.ones(dim - 1)])
     raw = dense_hessian(term, x, psd=False)
     projected = dense_hessian(term, x, psd=True)
     assert np.linalg.eigvalsh(raw).min() < -1e-6 * np.abs(raw).max()
@@ -75,12 +75,12 @@ def test_projected_hessian_is_psd_where_the_true_one_is_not(dim, rng):
 
 def test_elasticity_step_bound_keeps_cells_uninverted(rng):
     scene = block_scene(2, MATERIALS["neo_hookean"], prescribed_bottom=False, gravity=False)
-    model, stepper, x = started_stepper(scene)
-    term = stepper.potential.potentials[0]
+    model, begun, x = started_stepper(scene)
+    term = begun.potential.potentials[0]
     term.solution_changed(x)
     p = -3.0 * x  # collapses every cell through the origin at alpha = 1
     alpha = term.max_step_size(x, p)
     assert 0.0 < alpha < 1.0
-    y = stepper.layout.positions(x + alpha * p, stepper.context.fixed_positions)
+    y = begun.layout.positions(x + alpha * p, begun.context.fixed_positions)
     F = np.einsum("mai,maj->mij", y[model.fem_cells], model.fem_cell_grad)
     assert np.linalg.det(F).min() > 0.0

@@ -117,7 +117,7 @@ def test_triplet_index_arrays_are_the_same_objects_from_step_to_step(kind):
     seen = []
     for _ in range(3):
         state, _ = stepper.step(state)
-        pot = stepper._solver.potential
+        pot = stepper.potential
         seen.append((pot.frames, pot._stacker._rows))
     assert seen[1][1] is not None and seen[1][1] is seen[2][1]  # the stacked rows: kept
     if kind != "fem":
