@@ -62,7 +62,7 @@ MODES = {
 
 
 def flat(normals: str, iterations: int) -> dict:
-    """The ``flat`` probe: the block's mean velocity after 200 steps."""
+    """The ``flat`` probe: the block's mean velocity (m/s) and contact pairs after 200 steps."""
     soft = bfemp.NeoHookean(E=1e6, nu=0.3, density=1000.0)
     scene = bfemp.Scene(dim=2)
     scene.add_fem(bfemp.shapes.rectangle((0, -0.2), (2, 0), h=0.1), material=soft)
@@ -76,11 +76,12 @@ def flat(normals: str, iterations: int) -> dict:
     stepper = AuguryStepper(model, dt=1e-4, options=opts)
     state = stepper.initialize(model.initial_state())
     for _ in range(200):
-        state, _ = stepper.step(state)
+        state, report = stepper.step(state)
     block = model.fem_bodies[1]
     m = model.fem_mass[block.nodes]
     v = m @ state.fem_v[block.nodes] / m.sum()
-    return {"normals": normals, "iterations": iterations, "vx": float(v[0]), "vy": float(v[1])}
+    probe = {"normals": normals, "iterations": iterations, "vx": float(v[0]), "vy": float(v[1])}
+    return probe | {"contact_pairs": int(report.contact_pairs)}
 
 
 def plate_model(h: float, gravity: tuple[float, float]) -> bfemp.Model:
@@ -196,7 +197,7 @@ def measure(mode: str, cfg) -> dict:
     """Every probe of ``mode``."""
     flats = [flat(n, k) for n, k in cfg["flat"]]
     for f in flats:
-        log.info("augury_probes flat %s N=%d: v = %.4f, %.4f", *f.values())
+        log.info("augury_probes flat %(normals)s N=%(iterations)d: v = %(vx).4f, %(vy).4f", f)
     settles = [settled(cfg["h"], cfg["settle"], cfg["t_end"], **c) for c in cfg["settled"]]
     for s in settles:
         log.info(
