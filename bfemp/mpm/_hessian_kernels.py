@@ -69,97 +69,68 @@ def _accumulate_blocks(
     return kernel(nodes, weights, grads, dpdf, volume, pair_code, nbr, n_nodes, n_codes, n_chunks)
 
 
-@njit(inline="always")
-def _accumulate_impl(  # noqa: ANN202
-    dim,  # noqa: ANN001
-    nodes,  # noqa: ANN001
-    weights,  # noqa: ANN001
-    grads,  # noqa: ANN001
-    dpdf,  # noqa: ANN001
-    volume,  # noqa: ANN001
-    pair_code,  # noqa: ANN001
-    nbr,  # noqa: ANN001
-    n_nodes,  # noqa: ANN001
-    n_codes,  # noqa: ANN001
-    n_chunks,  # noqa: ANN001
-):
-    """Body of _accumulate_blocks; ``dim`` is a literal at each call site (see the wrappers)."""
-    n_p, k = nodes.shape
-    centre = (n_codes - 1) // 2  # the code of offset 0; code(-o) = n_codes - 1 - code(o)
-    partial = np.zeros((n_chunks, n_nodes, n_codes, dim, dim))
-    for c in prange(n_chunks):
-        blocks = partial[c]
-        tmp = np.empty((k, dim, dim, dim))
-        void = np.empty(k, dtype=np.bool_)
-        for p in range(c * n_p // n_chunks, (c + 1) * n_p // n_chunks):
-            # tmp[b, i, m, j] = V_p sum_l dP[(i, m), (j, l)] g_b[l]
-            v = volume[p]
-            for b in range(k):
-                void[b] = _is_void(weights, grads, p, b, dim)
-                for i in range(dim):
-                    for m in range(dim):
-                        for j in range(dim):
-                            acc = 0.0
-                            for l in range(dim):
-                                acc += dpdf[p, i * dim + m, j * dim + l] * grads[p, b, l]
-                            tmp[b, i, m, j] = v * acc
-            for a in range(k):
-                if void[a]:
-                    continue
-                node_a = nodes[p, a]
+def _dim_kernel(dim: int):  # noqa: ANN202
+    """The parallel body of _accumulate_blocks, compiled with ``dim`` a constant (closure)."""
+
+    @njit(cache=True, parallel=True)
+    def kernel(
+        nodes,  # noqa: ANN001
+        weights,  # noqa: ANN001
+        grads,  # noqa: ANN001
+        dpdf,  # noqa: ANN001
+        volume,  # noqa: ANN001
+        pair_code,  # noqa: ANN001
+        nbr,  # noqa: ANN001
+        n_nodes,  # noqa: ANN001
+        n_codes,  # noqa: ANN001
+        n_chunks,  # noqa: ANN001
+    ):  # noqa: ANN202
+        n_p, k = nodes.shape
+        centre = (n_codes - 1) // 2  # the code of offset 0; code(-o) = n_codes - 1 - code(o)
+        partial = np.zeros((n_chunks, n_nodes, n_codes, dim, dim))
+        for c in prange(n_chunks):
+            blocks = partial[c]
+            tmp = np.empty((k, dim, dim, dim))
+            void = np.empty(k, dtype=np.bool_)
+            for p in range(c * n_p // n_chunks, (c + 1) * n_p // n_chunks):
+                # tmp[b, i, m, j] = V_p sum_l dP[(i, m), (j, l)] g_b[l]
+                v = volume[p]
                 for b in range(k):
-                    code = pair_code[a, b]
-                    # dP is symmetric, so block (b, a) = block (a, b)^T: only offsets with
-                    # code >= centre are accumulated here, the others by _mirror_blocks
-                    if code < centre or void[b]:
-                        continue
+                    void[b] = _is_void(weights, grads, p, b, dim)
                     for i in range(dim):
-                        for j in range(dim):
-                            acc = 0.0
-                            for m in range(dim):
-                                acc += grads[p, a, m] * tmp[b, i, m, j]
-                            blocks[node_a, code, i, j] += acc
-    out = partial[0]
-    for c in range(1, n_chunks):
-        out += partial[c]
-    _mirror_blocks(out, nbr)
-    return out
+                        for m in range(dim):
+                            for j in range(dim):
+                                acc = 0.0
+                                for l in range(dim):
+                                    acc += dpdf[p, i * dim + m, j * dim + l] * grads[p, b, l]
+                                tmp[b, i, m, j] = v * acc
+                for a in range(k):
+                    if void[a]:
+                        continue
+                    node_a = nodes[p, a]
+                    for b in range(k):
+                        code = pair_code[a, b]
+                        # dP is symmetric, so block (b, a) = block (a, b)^T: only offsets with
+                        # code >= centre are accumulated here, the others by _mirror_blocks
+                        if code < centre or void[b]:
+                            continue
+                        for i in range(dim):
+                            for j in range(dim):
+                                acc = 0.0
+                                for m in range(dim):
+                                    acc += grads[p, a, m] * tmp[b, i, m, j]
+                                blocks[node_a, code, i, j] += acc
+        out = partial[0]
+        for c in range(1, n_chunks):
+            out += partial[c]
+        _mirror_blocks(out, nbr)
+        return out
+
+    return kernel
 
 
-@njit(cache=True, parallel=True)
-def _accumulate_blocks_2d(
-    nodes,  # noqa: ANN001
-    weights,  # noqa: ANN001
-    grads,  # noqa: ANN001
-    dpdf,  # noqa: ANN001
-    volume,  # noqa: ANN001
-    pair_code,  # noqa: ANN001
-    nbr,  # noqa: ANN001
-    n_nodes,  # noqa: ANN001
-    n_codes,  # noqa: ANN001
-    n_chunks,  # noqa: ANN001
-):  # noqa: ANN202
-    return _accumulate_impl(
-        2, nodes, weights, grads, dpdf, volume, pair_code, nbr, n_nodes, n_codes, n_chunks
-    )  # noqa: E501
-
-
-@njit(cache=True, parallel=True)
-def _accumulate_blocks_3d(
-    nodes,  # noqa: ANN001
-    weights,  # noqa: ANN001
-    grads,  # noqa: ANN001
-    dpdf,  # noqa: ANN001
-    volume,  # noqa: ANN001
-    pair_code,  # noqa: ANN001
-    nbr,  # noqa: ANN001
-    n_nodes,  # noqa: ANN001
-    n_codes,  # noqa: ANN001
-    n_chunks,  # noqa: ANN001
-):  # noqa: ANN202
-    return _accumulate_impl(
-        3, nodes, weights, grads, dpdf, volume, pair_code, nbr, n_nodes, n_codes, n_chunks
-    )  # noqa: E501
+_accumulate_blocks_2d = _dim_kernel(2)
+_accumulate_blocks_3d = _dim_kernel(3)
 
 
 @njit(cache=True)
