@@ -27,7 +27,6 @@ methods validate shapes and broadcast scalar Lame parameters, then call numba ke
 from __future__ import annotations
 
 import math
-from functools import partial
 
 import numpy as np
 from numba import njit, prange
@@ -48,24 +47,6 @@ def _n_ranges(n: int) -> int:
     """Point ranges for a parallel loop over ``n`` points: up to 64 (the threads share them
     out), >= 512 points each, so a range's scratch allocation is negligible."""
     return max(1, min(64, n // 512))
-
-
-@njit(cache=True, parallel=True)
-def _over_ranges(
-    body,  # noqa: ANN001
-    F: np.ndarray,
-    mu: np.ndarray,
-    lam: np.ndarray,
-    out: np.ndarray,
-) -> None:
-    """``body(F, mu, lam, out, start, stop, d)`` (a ``_nh_*_range`` kernel) over the point
-    ranges of ``_n_ranges`` in parallel: F ``(S, d, d)``, mu and lam ``(S,)`` in Pa, ``out``
-    the body's output, written at rows [start, stop) by each range."""
-    d = F.shape[1]
-    n = F.shape[0]
-    n_ranges = _n_ranges(n)
-    for c in prange(n_ranges):
-        body(F, mu, lam, out, c * n // n_ranges, (c + 1) * n // n_ranges, d)
 
 
 @njit(cache=True)
@@ -136,6 +117,15 @@ def _h_invariants(F: np.ndarray, s: int, H: np.ndarray) -> tuple[float, float, f
     return tr, tr + m2 + det_h, m2 + det_h
 
 
+@njit(cache=True, parallel=True)
+def _nh_energy(F: np.ndarray, mu: np.ndarray, lam: np.ndarray, out: np.ndarray) -> None:
+    d = F.shape[1]
+    n = F.shape[0]
+    n_ranges = _n_ranges(n)
+    for c in prange(n_ranges):
+        _nh_energy_range(F, mu, lam, out, c * n // n_ranges, (c + 1) * n // n_ranges, d)
+
+
 @njit(cache=True, inline="always")
 def _nh_energy_range(F, mu, lam, out, start, stop, d):  # noqa: ANN001, ANN202
     H = np.empty((d, d))
@@ -151,6 +141,15 @@ def _nh_energy_range(F, mu, lam, out, start, stop, d):  # noqa: ANN001, ANN202
                 sq += H[i, j] * H[i, j]
         logj = math.log1p(jm1)
         out[s] = mu[s] * (0.5 * sq + (tr - logj)) + 0.5 * lam[s] * logj * logj
+
+
+@njit(cache=True, parallel=True)
+def _nh_piola(F: np.ndarray, mu: np.ndarray, lam: np.ndarray, out: np.ndarray) -> None:
+    d = F.shape[1]
+    n = F.shape[0]
+    n_ranges = _n_ranges(n)
+    for c in prange(n_ranges):
+        _nh_piola_range(F, mu, lam, out, c * n // n_ranges, (c + 1) * n // n_ranges, d)
 
 
 @njit(cache=True, inline="always")
@@ -178,6 +177,15 @@ def _nh_piola_range(F, mu, lam, out, start, stop, d):  # noqa: ANN001, ANN202
                 cof = (1.0 + tr) * eye - H[j, i] + adj_t
                 diff = rest * eye + H[i, j] + H[j, i] + jm1 * H[i, j] - adj_t
                 out[s, i, j] = (mu[s] * diff + lam[s] * logj * cof) / J
+
+
+@njit(cache=True, parallel=True)
+def _nh_piola_derivative(F: np.ndarray, mu: np.ndarray, lam: np.ndarray, out: np.ndarray) -> None:
+    d = F.shape[1]
+    n = F.shape[0]
+    n_ranges = _n_ranges(n)
+    for c in prange(n_ranges):
+        _nh_piola_derivative_range(F, mu, lam, out, c * n // n_ranges, (c + 1) * n // n_ranges, d)
 
 
 @njit(cache=True, inline="always")
@@ -361,9 +369,9 @@ class NeoHookeanLaw(MaterialLaw):
 
     __slots__ = ()
     name = "neo_hookean"
-    _energy_kernel = staticmethod(partial(_over_ranges, _nh_energy_range))
-    _piola_kernel = staticmethod(partial(_over_ranges, _nh_piola_range))
-    _derivative_kernel = staticmethod(partial(_over_ranges, _nh_piola_derivative_range))
+    _energy_kernel = staticmethod(_nh_energy)
+    _piola_kernel = staticmethod(_nh_piola)
+    _derivative_kernel = staticmethod(_nh_piola_derivative)
 
     def project_derivative(
         self, blocks: np.ndarray, F: np.ndarray, mu: np.ndarray, lam: np.ndarray
