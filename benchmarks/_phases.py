@@ -13,7 +13,7 @@ from solvers.choice import make_linear_solver
 from solvers.linear import cholmod_available
 
 #: the keys of the perf records that hold times or ratios of times (``runner.verify``)
-PERF_TIMINGS = r"_s$|over_factorisation|fraction_of_iteration"
+PERF_TIMINGS = r"_s$|over_factorisation|below_factorisation|fraction_of_iteration"
 MACHINE_NOTE = "2 shared cores, loaded by other work: compare ratios within this run"
 
 
