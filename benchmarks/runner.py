@@ -170,11 +170,12 @@ def run_named(name: str, mode: str, out: str | Path, module: object = None, **op
 
 
 # --------------------------------------------------------------------------- verify
-#: keys whose values are measured times, machine load or memory: not compared by ``verify``
+#: keys whose values are measured times, machine load or memory, or provenance (the commit a
+#: point ran on, the command that replays it from its record's folder): not compared by ``verify``
 TIMING_KEY = re.compile(
     r"(^|_)(wall|cpu|timings?|elapsed|seconds|per_s|speedup|phases?)(_|$)|^time_|_time_s$|"
     r"s_per_step|time_per_step|_per_query$|"
-    r"^(environment|peak_memory_mb|merged_from|load_average_1min|segments_s)$"
+    r"^(environment|peak_memory_mb|merged_from|load_average_1min|segments_s|commit|replay)$"
 )
 
 
