@@ -107,17 +107,21 @@ def test_an_infeasible_point_is_never_a_winner_nor_on_a_front_even_cheapest_at_t
 
 
 def test_an_infeasible_point_is_named_in_the_report_and_drawn_as_a_cross(tmp_path, monkeypatch):
-    """The quick record's cheapest rings point at the coarsest targets (augury's front point,
-    the winner at the top error range) made infeasible: the report names it with its depth and
+    """The quick record's cheapest rings point at the coarsest targets (the front point of the
+    winner at the top error range) made infeasible: the report names it with its depth and
     bound and the winner changes; the plot draws it with a legend entry."""
     record = tmp_path / "tradeoff.json"
     shutil.copy(RECORD, record)
     data = json.loads(record.read_text())
-    assert data["winners"]["rings"][0]["winner"] == "augury"
+    top = data["winners"]["rings"][0]
+    strategy = top["winner"]
     target = next(
         p
         for p in data["points"]
-        if p["scene"] == "rings" and p["strategy"] == "augury" and p["pareto"]
+        if p["scene"] == "rings"
+        and p["strategy"] == strategy
+        and p["pareto"]
+        and p[data["cost"]] == top["cost_s"]
     )
     label = target["label"]
     target.update(
@@ -151,13 +155,15 @@ def test_an_infeasible_point_is_named_in_the_report_and_drawn_as_a_cross(tmp_pat
     assert out["winners"]["rings"] != data["winners"]["rings"]
     md = record.with_suffix(".md").read_text()
     rings = md.split("\n## rings")[1].split("\n## ")[0]
-    named = next(line for line in rings.splitlines() if "**Infeasible**: rings, **augury**" in line)
-    assert f"rings, **augury** at {label}" in named
+    named = next(
+        line for line in rings.splitlines() if f"**Infeasible**: rings, **{strategy}**" in line
+    )
+    assert f"rings, **{strategy}** at {label}" in named
     assert "went 0.0123 m inside a FEM body, beyond its bound of 0.005 m" in named
     assert "(0.5 cell(s) of the 0.01 m MPM grid)" in named
     front = next(line for line in rings.splitlines() if line.startswith("Non-dominated front"))
-    assert f"augury/{label} " not in front
-    assert f"| augury | {label} (infeasible) |" in rings and "0.0123 / 0.005" in rings
+    assert f"{strategy}/{label} " not in front
+    assert f"| {strategy} | {label} (infeasible) |" in rings and "0.0123 / 0.005" in rings
     # a scene without FEM bodies has nothing to judge, and says so
     lrc = md.split("\n## lr_compression")[1].split("\n## ")[0]
     assert "No point on lr_compression has both a penetration depth and a bound" in lrc
