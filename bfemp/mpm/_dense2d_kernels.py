@@ -182,13 +182,14 @@ def _g2p_2d(
     mpm_v: np.ndarray,
     mpm_F: np.ndarray,
     flip: bool,
-    apic: bool,
     out_x: np.ndarray,
     out_v: np.ndarray,
     out_F: np.ndarray,
     out_C: np.ndarray,
 ) -> None:
-    """x_p += dt v_p, v_p (PIC/APIC, FLIP), F_p <- (I + dt grad v) F_p, C_p (module doc)."""
+    """x_p += dt v_p, v_p (PIC/APIC, FLIP), F_p <- (I + dt grad v) F_p, C_p (module doc; PIC
+    and FLIP: ``out_C`` is the APIC C_p, set to zero by the caller: forming it unconditionally
+    costs less than a branch per node, 8 % of the kernel at 33k particles)."""
     n_p = xi.shape[0]
     inv_dx = 1.0 / dx
     scale = 4.0 * inv_dx * inv_dx
@@ -217,13 +218,12 @@ def _g2p_2d(
                 g01 += vi0 * gr1
                 g10 += vi1 * gr0
                 g11 += vi1 * gr1
-                if apic:
-                    wv0 = w * vi0
-                    wv1 = w * vi1
-                    b00 += wv0 * r0
-                    b01 += wv0 * r1
-                    b10 += wv1 * r0
-                    b11 += wv1 * r1
+                wv0 = w * vi0  # the APIC sums (PIC and FLIP: dropped by the caller)
+                wv1 = w * vi1
+                b00 += wv0 * r0
+                b01 += wv0 * r1
+                b10 += wv1 * r0
+                b11 += wv1 * r1
         out_x[p, 0] = mpm_x[p, 0] + dt * v0
         out_x[p, 1] = mpm_x[p, 1] + dt * v1
         if flip:
@@ -260,28 +260,23 @@ class DenseBox:
         lo: integer coordinates of the box's first node ``(2,)``.
         extent: nodes per axis ``(2,)``.
         active: box ids of the nodes with mass ``(G,)``, increasing.
+        node_x: positions of the active nodes ``(G, 2)`` in m (``Grid.node_positions``).
     """
 
     xi: np.ndarray
     lo: np.ndarray
     extent: np.ndarray
     active: np.ndarray
+    node_x: np.ndarray
 
     @property
     def size(self) -> int:
         """Number of box nodes."""
         return int(self.extent[0] * self.extent[1])
 
-    def active_ijk(self) -> np.ndarray:
-        """Integer coordinates ``(G, 2)`` of the active nodes."""
-        stride = self.extent[1]
-        return np.stack([self.active // stride + self.lo[0], self.active % stride + self.lo[1]], 1)
-
     def scatter(self, values: np.ndarray) -> np.ndarray:
         """Per-active-node ``values (G, 2)`` as a box array ``(size, 2)``, zero elsewhere."""
-        out = np.zeros((self.size, 2))
-        out[self.active] = values
-        return out
+        return _scatter(self.active, np.ascontiguousarray(values, dtype=np.float64), self.size)
 
 
 def dense_p2g(
@@ -328,10 +323,50 @@ def dense_p2g(
     )  # fmt: skip
     out = np.empty((size, 5))
     _reduce_slabs(scratch, ranges[0], ranges[1], offset, out)
-    active = np.flatnonzero(out[:, 0] > 0.0)
-    rows = out[active]
-    box = DenseBox(xi=xi, lo=lo, extent=extent, active=active)
-    return box, rows[:, 0].copy(), rows[:, 1:3].copy(), rows[:, 3:5].copy()
+    origin = np.asarray(origin, dtype=np.float64)
+    active, node_x, mass, momentum, force = _active_rows(out, origin, float(dx), lo, stride)
+    box = DenseBox(xi=xi, lo=lo, extent=extent, active=active, node_x=node_x)
+    return box, mass, momentum, force
+
+
+@njit(cache=True)
+def _active_rows(out, origin, dx, lo, stride):  # noqa: ANN001, ANN202
+    """The box nodes with mass: ids ``(G,)`` (increasing), positions origin + dx ijk ``(G,
+    2)`` m, and their rows of ``out (size, 5)``: mass ``(G,)``, momentum ``(G, 2)``, force
+    ``(G, 2)``. One pass: numpy's mask, gathers, copies and node positions took 0.2 ms at 33k
+    particles, as long as the stresses of a fifth of them."""
+    n = 0
+    for i in range(out.shape[0]):
+        if out[i, 0] > 0.0:
+            n += 1
+    active = np.empty(n, dtype=np.int64)
+    node_x = np.empty((n, 2))
+    mass = np.empty(n)
+    momentum = np.empty((n, 2))
+    force = np.empty((n, 2))
+    k = 0
+    for i in range(out.shape[0]):
+        if out[i, 0] > 0.0:
+            active[k] = i
+            node_x[k, 0] = origin[0] + dx * np.float64(i // stride + lo[0])
+            node_x[k, 1] = origin[1] + dx * np.float64(i % stride + lo[1])
+            mass[k] = out[i, 0]
+            momentum[k, 0] = out[i, 1]
+            momentum[k, 1] = out[i, 2]
+            force[k, 0] = out[i, 3]
+            force[k, 1] = out[i, 4]
+            k += 1
+    return active, node_x, mass, momentum, force
+
+
+@njit(cache=True)
+def _scatter(active: np.ndarray, values: np.ndarray, size: int) -> np.ndarray:
+    """``values (G, 2)`` of the active nodes as a box array ``(size, 2)``, zero elsewhere."""
+    out = np.zeros((size, 2))
+    for k in range(active.shape[0]):
+        out[active[k], 0] = values[k, 0]
+        out[active[k], 1] = values[k, 1]
+    return out
 
 
 def dense_g2p(
@@ -357,7 +392,7 @@ def dense_g2p(
     box_v_old = box.scatter(grid_v_old) if flip else np.zeros((0, 2))
     _g2p_2d(
         box.xi, dx, int(box.lo[0]), int(box.lo[1]), int(box.extent[1]), box_v_old,
-        box.scatter(grid_v), float(dt), mpm_x, mpm_v, mpm_F, flip, scheme == "apic",
+        box.scatter(grid_v), float(dt), mpm_x, mpm_v, mpm_F, flip,
         out_x, out_v, out_F, out_C,
     )  # fmt: skip
     if scheme != "apic":

@@ -392,7 +392,7 @@ class ExplicitStepper:
                 dense = dense_p2g(origin, model.grid.dx, *particles, self._pool.empty)
             if dense is not None:
                 box, grid_mass, momentum, grid_force = dense
-                grid_x = model.grid.node_positions(box.active_ijk())
+                grid_x = box.node_x
             else:
                 stencils = particle_stencils(model.grid, state.mpm_x)
                 grid_x = stencils.active_x

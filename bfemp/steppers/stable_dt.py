@@ -23,7 +23,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from bfemp.model import Model
 from bfemp.state import State
@@ -156,20 +156,44 @@ def _mpm_bound(model: Model, state: State, safety: float) -> StableStep:
     if model.n_particles == 0:
         return StableStep(math.inf)
     speed_b = np.array([b.material.p_wave_speed for b in model.mpm_bodies])
-    v = state.mpm_v
-    speed = speed_b[model.mpm_particle_body] + np.sqrt(np.einsum("pd,pd->p", v, v))
-    k = int(np.argmax(speed))
+    k, speed = _fastest_particle(speed_b, model.mpm_particle_body, state.mpm_v)
     body = model.mpm_bodies[int(model.mpm_particle_body[k])]
     dx = model.grid.dx
     return StableStep(
-        safety * dx / float(speed[k]),
-        body.name,
-        "mpm",
-        int(k - body.particles.start),
-        dx,
-        float(speed[k]),
-        safety,
+        safety * dx / speed, body.name, "mpm", int(k - body.particles.start), dx, speed, safety
     )
+
+
+@njit(cache=True, parallel=True)
+def _fastest_particle(speed_b: np.ndarray, body: np.ndarray, v: np.ndarray) -> tuple[int, float]:
+    """The particle k with the largest c_p + |v_p| (``speed_b (B,)`` m/s per body, ``body
+    (P,)``, ``v (P, d)`` m/s; the first of equals, as ``np.argmax``) and that speed in m/s.
+
+    One parallel pass (the numpy route took 0.2 ms a step at 33k particles, a tenth of an
+    explicit step); |v_p| sums the squares in axis order, as ``np.einsum`` does."""
+    n_p, d = v.shape
+    n_chunks = max(1, min(16, n_p // 1024))
+    best_k = np.zeros(n_chunks, dtype=np.int64)
+    best = np.full(n_chunks, -np.inf)
+    for c in prange(n_chunks):
+        k, top = c * n_p // n_chunks, -np.inf
+        for p in range(c * n_p // n_chunks, (c + 1) * n_p // n_chunks):
+            sq = 0.0
+            for r in range(d):
+                sq += v[p, r] * v[p, r]
+            speed = speed_b[body[p]] + math.sqrt(sq)
+            if speed > top or math.isnan(speed):
+                k, top = p, speed
+                if math.isnan(speed):
+                    break
+        best_k[c], best[c] = k, top
+    k, top = best_k[0], best[0]
+    for c in range(1, n_chunks):  # chunk order: the first of equal maxima wins
+        if math.isnan(top):
+            break
+        if best[c] > top or math.isnan(best[c]):
+            k, top = best_k[c], best[c]
+    return k, top
 
 
 def stable_time_step(

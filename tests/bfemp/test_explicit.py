@@ -9,7 +9,7 @@ from bfemp.mpm.transfer import g2p_explicit, grid_to_particles, p2g_with_forces,
 from bfemp.steppers import STRATEGIES, StepError, stepper_class
 from bfemp.steppers.base import Stepper, options_from_mapping
 from bfemp.steppers.single_field import SingleFieldOptions, SingleFieldStepper
-from bfemp.steppers.stable_dt import cell_altitudes
+from bfemp.steppers.stable_dt import _fastest_particle, cell_altitudes
 from bfemp.terms import fem_elastic_groups, stencil_energy
 from geometry.grid import particle_stencils
 from tests.bfemp.conftest import started_stepper
@@ -238,6 +238,27 @@ def test_mpm_bound_names_the_fastest_particle_and_a_step_past_cfl_one_fails():
         stepper.step(state)
     assert err.value.report.status == "CFL_VIOLATED"
     assert "particle 3 of mpm body 'blob'" in err.value.report.message
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_fastest_particle_is_numpys_argmax_bit_for_bit(d):
+    """The parallel search of the MPM bound picks numpy's particle (the first of equal maxima,
+    the first NaN) and speed exactly, so ``dt="auto"`` is unchanged to the last bit."""
+    rng = np.random.default_rng(d)
+    speed_b = rng.uniform(1.0, 50.0, 3)
+    for n in (1, 5, 3000, 40_000):
+        v = rng.standard_normal((n, d)) * rng.uniform(0.0, 10.0)
+        body = rng.integers(0, 3, n)
+        for case in ("random", "ties", "nan"):
+            if case == "ties":
+                v[:] = 1.0
+                body[:] = 0
+            elif case == "nan":
+                v[n // 2 :: 7] = np.nan
+            speed = speed_b[body] + np.sqrt(np.einsum("pd,pd->p", v, v))
+            k, top = _fastest_particle(speed_b, body, v)
+            assert k == np.argmax(speed), (n, case)
+            assert top == speed[k] or (np.isnan(top) and np.isnan(speed[k]))
 
 
 # ---------------------------------------------------------------------------- FEM scripted
