@@ -128,6 +128,18 @@ def _nh_energy(F: np.ndarray, mu: np.ndarray, lam: np.ndarray, out: np.ndarray) 
 
 @njit(cache=True, inline="always")
 def _nh_energy_range(F, mu, lam, out, start, stop, d):  # noqa: ANN001, ANN202
+    if d == 2:  # unrolled, the loop below's operations in its order (as ``_nh_piola_2d``)
+        for s in range(start, stop):
+            h00, h01, h10, h11 = F[s, 0, 0] - 1.0, F[s, 0, 1], F[s, 1, 0], F[s, 1, 1] - 1.0
+            tr = h00 + h11
+            jm1 = tr + (h00 * h11 - h01 * h10)
+            if not jm1 > -1.0:
+                out[s] = np.inf
+                continue
+            sq = h00 * h00 + h01 * h01 + h10 * h10 + h11 * h11
+            logj = math.log1p(jm1)
+            out[s] = mu[s] * (0.5 * sq + (tr - logj)) + 0.5 * lam[s] * logj * logj
+        return
     H = np.empty((d, d))
     for s in range(start, stop):
         tr, jm1, _ = _h_invariants(F, s, H)

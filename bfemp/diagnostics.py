@@ -30,6 +30,7 @@ __all__ = [
     "linear_momentum",
     "load_energy",
     "momentum_columns",
+    "mpm_body_elastic_energies",
     "mpm_elastic_energy",
     "per_body_energies",
     "per_body_momenta",
@@ -74,16 +75,25 @@ def fem_elastic_energy(model: Model, state: State, groups: list | None = None) -
     return float(sum(stencil_energy(law, st, state.fem_x) for law, st in groups))
 
 
-def mpm_elastic_energy(model: Model, state: State) -> float:
-    """sum_p V_p^0 psi(F_p) in J over the particles."""
+def mpm_elastic_energy(model: Model, state: State, per_body: list[float] | None = None) -> float:
+    """sum_p V_p^0 psi(F_p) in J over the particles (``per_body``: the bodies' shares from
+    :func:`mpm_body_elastic_energies`, computed here when None)."""
     total = 0.0
+    for energy in mpm_body_elastic_energies(model, state) if per_body is None else per_body:
+        total += energy
+    return total
+
+
+def mpm_body_elastic_energies(model: Model, state: State) -> list[float]:
+    """sum_p V_p^0 psi(F_p) in J over each MPM body's particles, in body order."""
+    out = []
     for body in model.mpm_bodies:  # a few bodies; vectorised over particles
         sl = body.particles
         n = body.n_particles
         mat = body.material
         psi = mat.law.energy_density(state.mpm_F[sl], np.full(n, mat.mu), np.full(n, mat.lam))
-        total += float(np.dot(model.mpm_volume[sl], psi))
-    return total
+        out.append(float(np.dot(model.mpm_volume[sl], psi)))
+    return out
 
 
 def linear_momentum(model: Model, state: State) -> np.ndarray:
@@ -133,14 +143,17 @@ def body_names(model: Model) -> list[str]:
 
 
 def per_body_energies(
-    model: Model, state: State, transfer: str = "apic"
+    model: Model, state: State, transfer: str = "apic", mpm_elastic: list[float] | None = None
 ) -> dict[str, dict[str, float]]:
     """Kinetic, elastic and gravitational energy of each body, in J (J/m in 2D).
 
     Returns ``{body name: {"kinetic": ..., "elastic": ..., "gravity": ...}}``; summed over the
     bodies these are :func:`kinetic_energy`, the elastic energy (FEM cells + particles) and
-    :func:`gravity_energy`.
+    :func:`gravity_energy`. ``mpm_elastic``: :func:`mpm_body_elastic_energies` of ``state``
+    where the caller has them (a metrics row: the particles' energy is then evaluated once).
     """
+    if mpm_elastic is None:
+        mpm_elastic = mpm_body_elastic_energies(model, state)
     out: dict[str, dict[str, float]] = {}
     if model.fem_bodies:
         x = state.fem_x[model.fem_cells]  # (M, d+1, d)
@@ -162,12 +175,11 @@ def per_body_energies(
             c2 = np.einsum("pij,pij->p", state.mpm_C, state.mpm_C)
             kin = kin + 0.5 * model.grid.dx**2 / 4.0 * model.mpm_mass * c2
         grav = -model.mpm_mass * (state.mpm_x @ model.gravity)
-    for body in model.mpm_bodies:
-        sl, mat, n = body.particles, body.material, body.n_particles
-        psi = mat.law.energy_density(state.mpm_F[sl], np.full(n, mat.mu), np.full(n, mat.lam))
+    for body, elastic in zip(model.mpm_bodies, mpm_elastic, strict=True):
+        sl = body.particles
         out[body.name] = {
             "kinetic": float(kin[sl].sum()),
-            "elastic": float(np.dot(model.mpm_volume[sl], psi)),
+            "elastic": elastic,
             "gravity": float(grav[sl].sum()),
         }
     return out
@@ -211,7 +223,11 @@ def contact_forces_between_bodies(
 
 
 def body_metrics(
-    model: Model, state: State, transfer: str = "apic", body_forces: np.ndarray | None = None
+    model: Model,
+    state: State,
+    transfer: str = "apic",
+    body_forces: np.ndarray | None = None,
+    mpm_elastic: list[float] | None = None,
 ) -> dict[str, float]:
     """Metrics columns per body and per pair of bodies (see the README for the names).
 
@@ -219,11 +235,11 @@ def body_metrics(
     ... (kg m/s), and in a scene with contact ``contact_force.A.B_x`` ... (N): the force on
     body A from body B, for every ordered pair with a FEM body in it (particles never touch
     particles), from ``body_forces (B, B, d)`` (``ContactView.body_forces``; None: zeros).
-    2D values are per unit thickness.
+    2D values are per unit thickness. ``mpm_elastic``: as in :func:`per_body_energies`.
     """
     axes = "xyz"[: model.dim]
     row: dict[str, float] = {}
-    for name, e in per_body_energies(model, state, transfer).items():
+    for name, e in per_body_energies(model, state, transfer, mpm_elastic).items():
         for key, value in e.items():
             row[f"body.{name}.energy_{key}"] = value
     for name, p in per_body_momenta(model, state).items():

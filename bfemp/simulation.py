@@ -459,10 +459,13 @@ class Simulation:
         half-step velocities (symplectic Euler), so their kinetic energy is that of v^{n+1/2}:
         off by O(dt) from the full-step one.
         """
-        state = self.state if state is None else state
+        return self._energies(self.state if state is None else state)
+
+    def _energies(self, state: State, mpm_elastic: list[float] | None = None) -> dict[str, float]:
+        """``energies`` (``mpm_elastic``: the MPM bodies' elastic energies, where known)."""
         elastic = diagnostics.fem_elastic_energy(self.model, state, self._fem_groups)
         if self.model.n_particles:
-            elastic += diagnostics.mpm_elastic_energy(self.model, state)
+            elastic += diagnostics.mpm_elastic_energy(self.model, state, mpm_elastic)
         out = {
             "energy_kinetic": diagnostics.kinetic_energy(self.model, state, self.transfer),
             "energy_elastic": float(elastic),
@@ -479,13 +482,16 @@ class Simulation:
 
     def _metrics_row(self, report: StepReport | None) -> dict[str, float]:
         row: dict[str, float] = {"t": self.state.t, "step": self.state.step}
-        row.update(self.energies())
+        mpm_elastic = diagnostics.mpm_body_elastic_energies(self.model, self.state)
+        row.update(self._energies(self.state, mpm_elastic))
         self._energy.check(row, report is not None, self.metrics, self.state.t)
         row.update(diagnostics.momentum_columns(self.model, self.state, self.transfer))
         if self._penetration is not None:
             row["penetration_depth"] = self._penetration.depth(self.state)
         forces = self.stepper.contact().body_forces if report is not None else None
-        row.update(diagnostics.body_metrics(self.model, self.state, self.transfer, forces))
+        row.update(
+            diagnostics.body_metrics(self.model, self.state, self.transfer, forces, mpm_elastic)
+        )
         if report is not None:
             contact = self.stepper.contact() if self._contact_columns else None
             row.update(diagnostics.report_columns(report, contact))

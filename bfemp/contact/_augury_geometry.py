@@ -8,7 +8,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from bfemp.contact._augury_kernels import points_in_cells
+from bfemp.contact._end_state import cells_containing
 from bfemp.contact.augury import ContactStencils, facet_normals
 from bfemp.model import Model
 from geometry.grid import particle_stencils
@@ -219,22 +219,24 @@ def subset(st: ContactStencils, sel: np.ndarray) -> ContactStencils:
 
 
 def inside_other_cells(
-    points: np.ndarray, owner: np.ndarray, cells: np.ndarray, cell_body: np.ndarray
+    points: np.ndarray,
+    owner: np.ndarray,
+    vertices: np.ndarray,
+    cells: np.ndarray,
+    cell_body: np.ndarray,
 ) -> tuple[int, float, float]:
     """How many ``points (Q, d)`` m of bodies ``owner (Q,)`` lie strictly inside a simplex
-    ``cells (C, d + 1, d)`` m of another body (``cell_body (C,)``), the deepest barycentric
-    depth and the deepest distance in m to that cell's nearest face (AUG pitfall A9)."""
-    found, depth = points_in_cells(
-        np.ascontiguousarray(points),
-        np.ascontiguousarray(owner),
-        np.ascontiguousarray(cells),
-        cell_body,
-        1e-9,
+    ``cells (C, d + 1)`` (vertex indices into ``vertices (V, d)`` m) of another body
+    (``cell_body (C,)``), the deepest barycentric depth and the deepest distance in m to that
+    cell's nearest face (AUG pitfall A9). Strictly: every barycentric coordinate above 1e-9
+    (bfemp's choice; the paper gives none)."""
+    found, depth = cells_containing(
+        np.ascontiguousarray(points), np.ascontiguousarray(owner), vertices, cells, cell_body, 1e-9
     )
     inside = found >= 0
     if not inside.any():
         return 0, 0.0, 0.0
-    depth_m = float(depth_in_cell(points[inside], cells[found[inside]]).max())
+    depth_m = float(depth_in_cell(points[inside], vertices[cells[found[inside]]]).max())
     return int(inside.sum()), float(depth.max()), depth_m
 
 

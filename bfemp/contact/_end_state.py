@@ -19,7 +19,7 @@ from bfemp.state import State
 from geometry.broadphase import point_simplex_candidates
 from geometry.inside import simplex_depth
 
-__all__ = ["Intersection", "end_of_step_points", "points_inside"]
+__all__ = ["Intersection", "cells_containing", "end_of_step_points", "points_inside"]
 
 #: Strict inside test (geometry.inside's convention): every barycentric coordinate above this.
 _BARY_EPS = 1e-12
@@ -122,6 +122,55 @@ def points_inside(
     if hits.shape[0]:
         first = np.concatenate(([True], hits[1:, 0] != hits[:-1, 0]))
         out[hits[first, 0]] = hits[first, 1]
+    return out
+
+
+def cells_containing(
+    points: np.ndarray,
+    point_body: np.ndarray,
+    vertices: np.ndarray,
+    cells: np.ndarray,
+    cell_body: np.ndarray,
+    tol: float = _BARY_EPS,
+) -> tuple[np.ndarray, np.ndarray]:
+    """For each point, the first cell of another body that contains it with every barycentric
+    coordinate above ``tol``, and that depth.
+
+    Arguments as :func:`points_inside`. Returns ``cell (P,)`` int64 (the smallest such cell
+    index, -1 where none) and ``depth (P,)``: its smallest barycentric coordinate
+    (dimensionless, 0 where none). Broad phase as the intersection check's: cost O(P + C + hits)
+    where a test of every pair costs O(P C).
+    """
+    found = np.full(points.shape[0], -1, dtype=np.int64)
+    depth = np.zeros(points.shape[0])
+    cand = _candidates(points, points, point_body, vertices, vertices, cells, cell_body)
+    if cand.shape[0] == 0:
+        return found, depth
+    cand_depth = _pair_depths(points, vertices, cells, cand)
+    keep = cand_depth > tol
+    if not keep.any():
+        return found, depth
+    hits, hit_depth = cand[keep], cand_depth[keep]
+    order = np.lexsort((hits[:, 1], hits[:, 0]))
+    hits, hit_depth = hits[order], hit_depth[order]
+    first = np.concatenate(([True], hits[1:, 0] != hits[:-1, 0]))
+    found[hits[first, 0]] = hits[first, 1]
+    depth[hits[first, 0]] = hit_depth[first]
+    return found, depth
+
+
+@njit(cache=True, parallel=True)
+def _pair_depths(
+    points: np.ndarray, vertices: np.ndarray, cells: np.ndarray, pairs: np.ndarray
+) -> np.ndarray:
+    """Smallest barycentric coordinate ``(n,)`` of point ``pairs[i, 0]`` in cell ``pairs[i, 1]``."""
+    n, d = pairs.shape[0], points.shape[1]
+    out = np.empty(n)
+    for i in prange(n):
+        v = np.empty((d + 1, d))
+        for a in range(d + 1):
+            v[a] = vertices[cells[pairs[i, 1], a]]
+        out[i] = simplex_depth(points[pairs[i, 0]], v)
     return out
 
 

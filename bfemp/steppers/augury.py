@@ -448,9 +448,8 @@ class AuguryStepper(ExplicitStepper):
         if self._mpm_fg:
             pts.append(new.mpm_x)
             owner.append(self._mpm_body)
-        cells = new.fem_x[model.fem_cells]
         inside, depth, depth_m = inside_other_cells(
-            np.concatenate(pts), np.concatenate(owner), cells, self._cell_body
+            np.concatenate(pts), np.concatenate(owner), new.fem_x, model.fem_cells, self._cell_body
         )
         if not inside:
             return []

@@ -402,3 +402,38 @@ def test_stepper_reports_a_crossed_solve_as_intersection(monkeypatch):
     assert err.value.report.status == "INTERSECTION"
     assert not err.value.report.success
     assert sim.state.t == 0.0
+
+
+# ------------------------------------------------------------------ cells_containing
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_cells_containing_is_the_first_deep_enough_cell_of_another_body(seed):
+    """Randomised against a test of every (point, cell) pair: overlapping disks of two bodies
+    (2D), points scattered over both (some exactly on vertices), three tolerances; the found
+    cell is the smallest-index one of another body with every barycentric above tol, and the
+    depth is its smallest barycentric coordinate."""
+    from bfemp.contact._end_state import cells_containing
+
+    rng = np.random.default_rng(seed)
+    a = bfemp.shapes.disk((0.0, 0.0), 0.5, h=0.12)
+    b = bfemp.shapes.disk((0.4 + 0.2 * rng.random(), 0.1), 0.5, h=0.1)
+    vertices = np.concatenate([a.points, b.points])
+    cells = np.concatenate([a.cells, b.cells + a.points.shape[0]])
+    cell_body = np.repeat([0, 1], [a.cells.shape[0], b.cells.shape[0]])
+    pts = np.concatenate([rng.uniform(-0.6, 1.2, (400, 2)), vertices[::5]])
+    owner = rng.integers(-1, 2, pts.shape[0])
+    v = vertices[cells]
+    dm = np.transpose(v[:, 1:] - v[:, :1], (0, 2, 1))
+    lam = np.einsum("cij,pcj->pci", np.linalg.inv(dm), pts[:, None, :] - v[None, :, 0])
+    bary = np.concatenate([1.0 - lam.sum(axis=2, keepdims=True), lam], axis=2).min(axis=2)
+    other = owner[:, None] != cell_body[None, :]
+    for tol in (1e-12, 1e-9, 0.05):
+        hit = (bary > tol) & other
+        expect = np.where(hit.any(axis=1), hit.argmax(axis=1), -1)
+        found, depth = cells_containing(pts, owner, vertices, cells, cell_body, tol)
+        np.testing.assert_array_equal(found, expect)
+        inside = found >= 0
+        assert inside.any() and not inside.all()
+        np.testing.assert_allclose(depth[inside], bary[inside, found[inside]], atol=1e-12)
+        assert (depth[~inside] == 0.0).all()

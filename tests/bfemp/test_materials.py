@@ -140,10 +140,11 @@ def assert_frame_indifferent(law, F, mu, lam, R):
     np.testing.assert_allclose(law.first_piola(R @ F, mu, lam), R @ P, atol=1e-10 * np.abs(P).max())
 
 
-def test_neo_hookean_2d_stress_is_the_plane_strain_block_of_the_3d_route_bit_for_bit():
-    """The 2D stress kernel (unrolled, in registers) does the general loop's operations in its
-    order: on F embedded as diag(F, 1) the 3D loop adds only exact zeros, so the in-plane
-    block agrees bit for bit, also for inverted points (NaN) and tiny strains."""
+def test_neo_hookean_2d_kernels_are_the_plane_strain_3d_route_bit_for_bit():
+    """The 2D stress and energy kernels (unrolled, in registers) do the general loop's
+    operations in its order: on F embedded as diag(F, 1) the 3D loop adds only exact zeros, so
+    the in-plane stress block and the energy agree bit for bit, also for inverted points (NaN,
+    inf) and tiny strains."""
     F, mu, lam = _cases(2, n=200)
     rng = np.random.default_rng(7)
     tiny = np.eye(2) + 1e-9 * rng.standard_normal((50, 2, 2))
@@ -157,6 +158,10 @@ def test_neo_hookean_2d_stress_is_the_plane_strain_block_of_the_3d_route_bit_for
     P3 = NEO_HOOKEAN.first_piola(F3, mu, lam)[:, :2, :2]
     assert np.isnan(P2[-2:]).all() and np.isnan(P3[-2:]).all()
     np.testing.assert_array_equal(P2, P3)
+    psi2 = NEO_HOOKEAN.energy_density(F, mu, lam)  # the energy kernel likewise
+    psi3 = NEO_HOOKEAN.energy_density(F3, mu, lam)
+    assert np.isinf(psi2[-2:]).all()
+    np.testing.assert_array_equal(psi2, psi3)
 
 
 @pytest.mark.parametrize("d", [2, 3])
