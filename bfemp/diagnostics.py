@@ -14,6 +14,8 @@ the bodies on either side of each pair, so that the force on a from b is minus t
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from bfemp.model import Model
@@ -24,6 +26,7 @@ __all__ = [
     "angular_momentum",
     "body_metrics",
     "contact_forces_between_bodies",
+    "energy_columns",
     "fem_elastic_energy",
     "gravity_energy",
     "kinetic_energy",
@@ -49,6 +52,35 @@ def kinetic_energy(model: Model, state: State, transfer: str = "apic") -> float:
         c2 = np.einsum("pij,pij->p", state.mpm_C, state.mpm_C)
         total += model.grid.dx**2 / 4.0 * np.dot(model.mpm_mass, c2)
     return 0.5 * float(total)
+
+
+def energy_columns(
+    model: Model,
+    state: State,
+    transfer: str = "apic",
+    groups: list | None = None,
+    contact: float | None = None,
+    mpm_elastic: list[float] | None = None,
+) -> dict[str, float]:
+    """``energy_kinetic``, ``_elastic``, ``_gravity`` (``_load`` where loaded, ``_contact``
+    where ``contact`` is given) and ``_total`` in J (J/m in 2D) of ``state``, as
+    ``Simulation.energies`` reports them; a NaN contact energy (a strategy without one) is
+    left out of the total. ``groups``: as in :func:`fem_elastic_energy`; ``mpm_elastic``:
+    :func:`mpm_body_elastic_energies` where the caller has them."""
+    elastic = fem_elastic_energy(model, state, groups)
+    if model.n_particles:
+        elastic += mpm_elastic_energy(model, state, mpm_elastic)
+    out = {
+        "energy_kinetic": kinetic_energy(model, state, transfer),
+        "energy_elastic": float(elastic),
+        "energy_gravity": gravity_energy(model, state),
+    }
+    if model.has_load:
+        out["energy_load"] = load_energy(model, state)
+    if contact is not None:
+        out["energy_contact"] = contact
+    out["energy_total"] = sum(v for v in out.values() if not math.isnan(v))
+    return out
 
 
 def gravity_energy(model: Model, state: State) -> float:

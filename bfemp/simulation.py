@@ -12,7 +12,6 @@ holds and the final writes are :mod:`bfemp.io.outputs`.
 from __future__ import annotations
 
 import logging
-import math
 import warnings
 from collections.abc import Callable
 from pathlib import Path
@@ -273,12 +272,7 @@ class Simulation:
     def step(self) -> StepReport:
         """Advance one time step; returns its report (raises ``StepError`` on failure, whose
         report is also kept as ``failed_report``: its iterations go to the run's manifest).
-
-        numpy's bundled BLAS runs on one thread inside the step (``solvers.blas.
-        serial_wheel_blas``): the step's vector work (the per-step energies and momenta, 1e4-1e5
-        entries) otherwise wakes OpenBLAS threads that compete with numba's and CHOLMOD's on
-        small machines; measured on 2 loaded cores, a 40k-particle ``np.dot`` took 7-21 ms
-        against 0.006 ms on one thread, 20-200 times the explicit step it monitored."""
+        numpy's BLAS runs on one thread inside (``solvers.blas.serial_wheel_blas``)."""
         with collect_warnings(self._notice), serial_wheel_blas():
             try:
                 self.state, report = self.stepper.step(self.state)
@@ -449,7 +443,9 @@ class Simulation:
             restore_checkpoint(out, self)
 
     # ------------------------------------------------------------------ output
-    def energies(self, state: State | None = None) -> dict[str, float]:
+    def energies(
+        self, state: State | None = None, *, mpm_elastic: list[float] | None = None
+    ) -> dict[str, float]:
         """Kinetic, elastic, gravitational (load, contact) and total energy in J (J/m in 2D).
 
         The contact (barrier) energy B is that of the current state's active pairs; it is the
@@ -457,41 +453,28 @@ class Simulation:
         nothing external works is what a conservative integrator keeps. A strategy without a
         contact energy reports NaN for it, and the total leaves it out. Explicit strategies store
         half-step velocities (symplectic Euler), so their kinetic energy is that of v^{n+1/2}:
-        off by O(dt) from the full-step one.
+        off by O(dt) from the full-step one. ``mpm_elastic``: the MPM bodies' elastic energies
+        (``diagnostics.mpm_body_elastic_energies``) where the caller has them.
         """
-        return self._energies(self.state if state is None else state)
-
-    def _energies(self, state: State, mpm_elastic: list[float] | None = None) -> dict[str, float]:
-        """``energies`` (``mpm_elastic``: the MPM bodies' elastic energies, where known)."""
-        elastic = diagnostics.fem_elastic_energy(self.model, state, self._fem_groups)
-        if self.model.n_particles:
-            elastic += diagnostics.mpm_elastic_energy(self.model, state, mpm_elastic)
-        out = {
-            "energy_kinetic": diagnostics.kinetic_energy(self.model, state, self.transfer),
-            "energy_elastic": float(elastic),
-            "energy_gravity": diagnostics.gravity_energy(self.model, state),
-        }
-        if self.model.has_load:
-            out["energy_load"] = diagnostics.load_energy(self.model, state)
+        state = self.state if state is None else state
+        contact = None
         if self._contact_columns:
-            energy = self.stepper.contact().energy if state is self.state else 0.0
-            out["energy_contact"] = energy
-        # a strategy without a contact energy reports NaN; the total is that of the rest
-        out["energy_total"] = sum(v for v in out.values() if not math.isnan(v))
-        return out
+            contact = self.stepper.contact().energy if state is self.state else 0.0
+        return diagnostics.energy_columns(
+            self.model, state, self.transfer, self._fem_groups, contact, mpm_elastic
+        )
 
     def _metrics_row(self, report: StepReport | None) -> dict[str, float]:
-        row: dict[str, float] = {"t": self.state.t, "step": self.state.step}
-        mpm_elastic = diagnostics.mpm_body_elastic_energies(self.model, self.state)
-        row.update(self._energies(self.state, mpm_elastic))
-        self._energy.check(row, report is not None, self.metrics, self.state.t)
-        row.update(diagnostics.momentum_columns(self.model, self.state, self.transfer))
+        model, state, transfer = self.model, self.state, self.transfer
+        row: dict[str, float] = {"t": state.t, "step": state.step}
+        mpm_elastic = diagnostics.mpm_body_elastic_energies(model, state)  # once for both uses
+        row.update(self.energies(mpm_elastic=mpm_elastic))
+        self._energy.check(row, report is not None, self.metrics, state.t)
+        row.update(diagnostics.momentum_columns(model, state, transfer))
         if self._penetration is not None:
-            row["penetration_depth"] = self._penetration.depth(self.state)
+            row["penetration_depth"] = self._penetration.depth(state)
         forces = self.stepper.contact().body_forces if report is not None else None
-        row.update(
-            diagnostics.body_metrics(self.model, self.state, self.transfer, forces, mpm_elastic)
-        )
+        row.update(diagnostics.body_metrics(model, state, transfer, forces, mpm_elastic))
         if report is not None:
             contact = self.stepper.contact() if self._contact_columns else None
             row.update(diagnostics.report_columns(report, contact))
