@@ -317,24 +317,3 @@ def compact_dense(
         for s in range(n_s):
             nodes[p, s] = slot[lin[p, s]]
     return nodes, node_x
-
-
-@njit(cache=True)
-def apic_inertia(
-    nodes: np.ndarray, weights: np.ndarray, node_x: np.ndarray, x: np.ndarray
-) -> np.ndarray:
-    """D_p = sum_i N_ip (x_i - x_p)(x_i - x_p)^T ``(P, d, d)`` in m^2 (AUG eq. 18)."""
-    n_p, n_s = nodes.shape
-    d = x.shape[1]
-    D = np.zeros((n_p, d, d))
-    r = np.empty(d)
-    for p in range(n_p):
-        for s in range(n_s):
-            w = weights[p, s]
-            i = nodes[p, s]
-            for a in range(d):
-                r[a] = node_x[i, a] - x[p, a]
-            for a in range(d):
-                for b in range(d):
-                    D[p, a, b] += w * r[a] * r[b]
-    return D
