@@ -17,6 +17,10 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from bfemp._njit import serial_or_parallel
+
+#: contact nodes from which the LR solves run in parallel (below, the thread start-up costs more
+#: than the loop)
 PARALLEL_MIN = 64
 
 OK = 0
@@ -359,16 +363,12 @@ def _lr_node(
     out_code[c] = OK
 
 
+@serial_or_parallel(PARALLEL_MIN)
 def _lr_planes(node_x: np.ndarray, *rest: object) -> None:
     """_lr_node at every contact node (``rest``: the arguments of ``_lr_node`` after
-    ``node_x``); each writes only its own rows (compiled twice below)."""
+    ``node_x``); each writes only its own rows."""
     for c in prange(node_x.shape[0]):  # a plain range in the serial build
         _lr_node(c, node_x, *rest)
-
-
-#: one loop, two builds: below ``PARALLEL_MIN`` nodes the thread start-up costs more than the loop
-_lr_planes_serial = njit(cache=True)(_lr_planes)
-_lr_planes_parallel = njit(cache=True, parallel=True)(_lr_planes)
 
 
 def lr_planes_kernel(
@@ -397,8 +397,7 @@ def lr_planes_kernel(
     out_conv = np.zeros(n_c, dtype=np.bool_)
     out_fb = np.zeros(n_c, dtype=np.bool_)
     out_code = np.zeros(n_c, dtype=np.int64)
-    kernel = _lr_planes_parallel if n_c >= PARALLEL_MIN else _lr_planes_serial
-    kernel(
+    _lr_planes(
         node_x, cloud_ptr, cloud_idx, cloud_side, points_x, points_F, points_R0,
         float(lam), float(tol), int(max_iterations), float(linear_scale), float(thin_sq),
         normal_start, has_start, out_normal, out_phi, out_sep, out_iter, out_conv, out_fb, out_code,
