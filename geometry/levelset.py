@@ -27,7 +27,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from geometry._checks import vector
+from geometry._checks import positive, vector
 
 __all__ = ["Box", "Disk", "HalfPlane", "Inverted", "LevelSet", "Union"]
 
@@ -167,13 +167,7 @@ class Disk:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "center", _vector("Disk", "center", self.center))
-        try:
-            radius = float(self.radius)
-        except (TypeError, ValueError) as exc:
-            raise ValueError(f"Disk.radius must be a number > 0, got {self.radius!r}") from exc
-        if not (np.isfinite(radius) and radius > 0.0):
-            raise ValueError(f"Disk.radius must be a finite number > 0, got {self.radius!r}")
-        object.__setattr__(self, "radius", radius)
+        object.__setattr__(self, "radius", positive("Disk.radius", self.radius))
 
     @property
     def dim(self) -> int:
