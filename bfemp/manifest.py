@@ -26,7 +26,6 @@ from __future__ import annotations
 import datetime
 import importlib.metadata
 import json
-import logging
 import os
 import platform
 import subprocess
@@ -52,7 +51,6 @@ __all__ = [
     "versions",
 ]
 
-log = logging.getLogger(__name__)
 
 MANIFEST_FILE = "manifest.json"
 _PACKAGES = (
