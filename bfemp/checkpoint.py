@@ -55,7 +55,6 @@ __all__ = [
     "check_frames",
     "model_fingerprint",
     "read_checkpoint",
-    "remove_checkpoint",
     "restore_checkpoint",
     "write_checkpoint",
 ]
@@ -381,14 +380,6 @@ def restore_checkpoint(out: str | Path, sim: object, *, every: int | None = None
         "resumed from step %d (t = %.6g s) of %s", ckpt.state.step, ckpt.state.t, out / "checkpoint"
     )
     return ckpt
-
-
-def remove_checkpoint(out: str | Path) -> None:
-    """Delete the checkpoint files of ``out`` (a fresh run must not resume an older one)."""
-    for name in (CHECKPOINT_FILE, SIDECAR_FILE):
-        path = Path(out) / name
-        if path.is_file():
-            path.unlink()
 
 
 class InterruptGuard:

@@ -18,7 +18,6 @@ clamped, swinging under gravity under Newmark; frames ``beam.pvd``, ``demo.png``
 from __future__ import annotations
 
 import json
-import logging
 import time
 from pathlib import Path
 
@@ -31,8 +30,6 @@ from bfemp.io.metrics import MetricsLog
 from bfemp.plotting import plot_series
 
 __all__ = ["cantilever_scene", "colliding_rings_scene", "run_cantilever_demo", "run_demo"]
-
-log = logging.getLogger(__name__)
 
 
 def cantilever_scene(*, length: float = 4.0, height: float = 0.5, h: float = 0.125) -> bfemp.Scene:

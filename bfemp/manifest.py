@@ -26,7 +26,6 @@ from __future__ import annotations
 import datetime
 import importlib.metadata
 import json
-import logging
 import os
 import platform
 import subprocess
@@ -52,7 +51,6 @@ __all__ = [
     "versions",
 ]
 
-log = logging.getLogger(__name__)
 
 MANIFEST_FILE = "manifest.json"
 _PACKAGES = (
@@ -83,26 +81,30 @@ def versions() -> dict[str, str | None]:
     return out
 
 
-def git_info() -> dict[str, object]:
-    """``{"commit": sha or None, "dirty": bool or None}`` of the bfemp sources' git checkout."""
-    where = Path(__file__).resolve().parent
+def git_output(*args: str) -> str | None:
+    """Standard output of ``git ARGS`` run in the bfemp package folder; None where git fails
+    (not a checkout, no git, a 10 s timeout)."""
     try:
-        commit = subprocess.run(
-            ["git", "rev-parse", "HEAD"], cwd=where, capture_output=True, text=True, timeout=10
-        )
-        if commit.returncode != 0:
-            return {"commit": None, "dirty": None}
-        status = subprocess.run(
-            ["git", "status", "--porcelain", "--untracked-files=no"],
-            cwd=where,
+        out = subprocess.run(
+            ["git", *args],
+            cwd=Path(__file__).resolve().parent,
             capture_output=True,
             text=True,
             timeout=10,
+            check=True,
         )
-        dirty = bool(status.stdout.strip()) if status.returncode == 0 else None
-        return {"commit": commit.stdout.strip(), "dirty": dirty}
     except (OSError, subprocess.SubprocessError):
+        return None
+    return out.stdout
+
+
+def git_info() -> dict[str, object]:
+    """``{"commit": sha or None, "dirty": bool or None}`` of the bfemp sources' git checkout."""
+    commit = git_output("rev-parse", "HEAD")
+    if commit is None:
         return {"commit": None, "dirty": None}
+    status = git_output("status", "--porcelain", "--untracked-files=no")
+    return {"commit": commit.strip(), "dirty": None if status is None else bool(status.strip())}
 
 
 def _material(material: object) -> dict:

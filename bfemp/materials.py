@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 import numbers
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
@@ -39,8 +40,24 @@ def _real_field(cls: str, field: str, value: object) -> float:
     return float(value)
 
 
+class _Law:
+    """What every material shares: its pointwise law object ``law`` (energy density, first
+    Piola stress and its derivative), set by each class, and what follows from it."""
+
+    law: ClassVar[MaterialLaw]
+
+    @property
+    def name(self) -> str:
+        """Registry name of the law ("neo_hookean", "linear", "bulk_shear")."""
+        return self.law.name
+
+    def cauchy_stress(self, F: np.ndarray) -> np.ndarray:
+        """Cauchy stress (S, d, d) in Pa of deformation gradients F (S, d, d) (2D: in-plane)."""
+        return self.law.cauchy_stress(F, self.mu, self.lam)
+
+
 @dataclass(frozen=True, kw_only=True)
-class _IsotropicElastic:
+class _IsotropicElastic(_Law):
     """Shared parameters and validation of the isotropic elastic materials.
 
     Fields:
@@ -80,10 +97,6 @@ class _IsotropicElastic:
         """Dilatational wave speed sqrt((lam + 2 mu) / density) in m/s (for CFL estimates)."""
         return math.sqrt((self.lam + 2.0 * self.mu) / self.density)
 
-    def cauchy_stress(self, F: np.ndarray) -> np.ndarray:
-        """Cauchy stress (S, d, d) in Pa of deformation gradients F (S, d, d) (2D: in-plane)."""
-        return self.law.cauchy_stress(F, self.mu, self.lam)
-
 
 @dataclass(frozen=True, kw_only=True)
 class NeoHookean(_IsotropicElastic):
@@ -94,15 +107,7 @@ class NeoHookean(_IsotropicElastic):
     Fields: E (Pa, > 0), nu (in (-1, 0.5)), density (kg/m^3, > 0).
     """
 
-    @property
-    def name(self) -> str:
-        """Registry name of the law: "neo_hookean"."""
-        return "neo_hookean"
-
-    @property
-    def law(self) -> MaterialLaw:
-        """The pointwise law object (energy density, first Piola stress and its derivative)."""
-        return NEO_HOOKEAN
+    law: ClassVar[MaterialLaw] = NEO_HOOKEAN
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -113,19 +118,11 @@ class LinearElastic(_IsotropicElastic):
     Fields: E (Pa, > 0), nu (in (-1, 0.5)), density (kg/m^3, > 0).
     """
 
-    @property
-    def name(self) -> str:
-        """Registry name of the law: "linear"."""
-        return "linear"
-
-    @property
-    def law(self) -> MaterialLaw:
-        """The pointwise law object (energy density, first Piola stress and its derivative)."""
-        return LINEAR_ELASTIC
+    law: ClassVar[MaterialLaw] = LINEAR_ELASTIC
 
 
 @dataclass(frozen=True, kw_only=True)
-class BulkShearHyperelastic:
+class BulkShearHyperelastic(_Law):
     """The hyperelastic law of LR eq. (18), given by its bulk and shear moduli.
 
     W(F) = G/2 (I1 J^{-2/3} - 3) + K/2 (1/2 (J^2 - 1) - ln J) in J/m^3, I1 = tr(F^T F), J = det F;
@@ -154,15 +151,7 @@ class BulkShearHyperelastic:
                 raise ValueError(f"{cls}.{field} must be finite and > 0 ({unit}), got {value}")
             object.__setattr__(self, field, value)
 
-    @property
-    def name(self) -> str:
-        """Registry name of the law: "bulk_shear"."""
-        return "bulk_shear"
-
-    @property
-    def law(self) -> MaterialLaw:
-        """The pointwise law object (energy density, first Piola stress and its derivative)."""
-        return BULK_SHEAR
+    law: ClassVar[MaterialLaw] = BULK_SHEAR
 
     @property
     def mu(self) -> float:
@@ -193,10 +182,6 @@ class BulkShearHyperelastic:
     def bulk_wave_speed(self) -> float:
         """Bulk sound speed sqrt(K / density) in m/s (LR's "wave speed", spec L-P2)."""
         return math.sqrt(self.K / self.density)
-
-    def cauchy_stress(self, F: np.ndarray) -> np.ndarray:
-        """Cauchy stress (S, d, d) in Pa of deformation gradients F (S, d, d) (2D: in-plane)."""
-        return self.law.cauchy_stress(F, self.mu, self.lam)
 
 
 Material = NeoHookean | LinearElastic | BulkShearHyperelastic

@@ -96,6 +96,20 @@ def _save_png(fig: Figure, path: str | Path) -> Path:
     return path
 
 
+def _finish(
+    fig: Figure, ax: object, path: str | Path, ylabel: str, title: str | None, logy: bool, **grid
+) -> Path:
+    """Label, grid (``ax.grid`` options ``grid``), legend and write the one-axes figure."""
+    if logy:
+        ax.set_yscale("log")
+    ax.set_ylabel(ylabel)
+    if title:
+        ax.set_title(title)
+    ax.grid(True, alpha=0.3, **grid)
+    ax.legend(fontsize="small")
+    return _save_png(fig, path)
+
+
 def metrics_figure(
     log: MetricsLog,
     *,
@@ -243,17 +257,10 @@ def plot_series(
     marker = "o" if x.size <= 50 else None
     for label, y in series.items():
         ax.plot(x, y, marker=marker, label=label)
-    if logy:
-        ax.set_yscale("log")
     if logx:
         ax.set_xscale("log")
     ax.set_xlabel(xlabel)
-    ax.set_ylabel(ylabel)
-    if title:
-        ax.set_title(title)
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize="small")
-    return _save_png(fig, path)
+    return _finish(fig, ax, path, ylabel, title, logy, which="both")
 
 
 def plot_bars(
@@ -286,11 +293,4 @@ def plot_bars(
     for i, (name, values) in enumerate(groups.items()):
         ax.bar(base + i * width, np.asarray(values, dtype=np.float64), width, label=name)
     ax.set_xticks(base + 0.4 - width / 2, labels)
-    if logy:
-        ax.set_yscale("log")
-    ax.set_ylabel(ylabel)
-    if title:
-        ax.set_title(title)
-    ax.grid(True, axis="y", alpha=0.3)
-    ax.legend(fontsize="small")
-    return _save_png(fig, path)
+    return _finish(fig, ax, path, ylabel, title, logy, axis="y")

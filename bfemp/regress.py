@@ -41,7 +41,6 @@ from __future__ import annotations
 import json
 import logging
 import math
-import subprocess
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
@@ -60,6 +59,7 @@ from bfemp._regress_reference import (
     tolerance_of,
 )
 from bfemp.errors import SceneError
+from bfemp.manifest import git_output
 
 __all__ = [
     "DEFAULT_QUANTITIES",
@@ -342,21 +342,10 @@ def check(ref: Reference) -> Report:
 
 def _commit() -> str | None:
     """The git commit of this bfemp source checkout (None for an installed copy)."""
-    package = Path(__file__).resolve().parent
-    try:
-        out = subprocess.run(
-            ["git", "rev-parse", "--show-toplevel", "HEAD"],
-            cwd=package,
-            capture_output=True,
-            text=True,
-            timeout=10,
-            check=True,
-        )
-    except (OSError, subprocess.SubprocessError):
-        return None
-    lines = out.stdout.split()
+    out = git_output("rev-parse", "--show-toplevel", "HEAD")
+    lines = [] if out is None else out.split()
     # a site-packages copy inside some other repository is not that repository's commit
-    if len(lines) != 2 or Path(lines[0]).resolve() / "bfemp" != package:
+    if len(lines) != 2 or Path(lines[0]).resolve() / "bfemp" != Path(__file__).resolve().parent:
         return None
     return lines[1]
 

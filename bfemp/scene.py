@@ -7,7 +7,6 @@ Every input is validated where it enters; errors name the body and the field, fo
 from __future__ import annotations
 
 import dataclasses
-import logging
 import math
 from dataclasses import dataclass
 
@@ -31,9 +30,6 @@ from geometry.grid import Grid, particles_per_cell
 from geometry.mesh import SourceNumbering, TetMesh, TriMesh
 
 __all__ = ["Scene", "check_fem_mesh"]
-
-
-log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)

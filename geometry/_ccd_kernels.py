@@ -94,27 +94,8 @@ def _plane_limit(
     n_a: int,
     level: float,
 ) -> float:
-    """Latest time t' >= t such that the separation along one of the directions n (rows)
-    certifies d >= level on [t, t']; t when none holds at t, inf when one holds for all later
-    times."""
-    best = t
-    for row in range(n.shape[0]):
-        best = max(best, _plane_limit_one(t, n[row], D, Q, nD, nQ, n_a, level))
-    return best
-
-
-@njit(cache=True, inline="always")
-def _plane_limit_one(
-    t: float,
-    n: np.ndarray,
-    D: np.ndarray,
-    Q: np.ndarray,
-    nD: np.ndarray,
-    nQ: np.ndarray,
-    n_a: int,
-    level: float,
-) -> float:
-    """:func:`_plane_limit` for one direction n (dim,)."""
+    """Latest time t' >= t such that the separation along the direction n (dim,) certifies
+    d >= level on [t, t']; t when it does not hold at t, inf when it holds for all later times."""
     nv, dim = D.shape
     ln = _norm(n)
     if not (ln > 0.0) or not np.isfinite(ln):
@@ -317,7 +298,8 @@ def _accd_pair(
                 t_lip = t
         t_plane = t
         if skip == 0 or t_lip <= t:
-            t_plane = _plane_limit(t, n, D, Q, nD, nQ, n_a, s + g_stop)
+            for row in range(n.shape[0]):  # the latest limit of the directions n (rows)
+                t_plane = max(t_plane, _plane_limit(t, n[row], D, Q, nD, nQ, n_a, s + g_stop))
             if t_plane > t_lip:
                 wait = 1
             else:  # the plane did not help (turning motion): try it again after 2, 4, .. 64

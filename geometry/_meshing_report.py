@@ -69,17 +69,14 @@ class MeshQualityReport:
 
     def problems(self) -> list[str]:
         """Human-readable description of each problem found (empty when :attr:`ok`)."""
-        out = []
-        if self.inverted_cells.size:
-            out.append(
-                f"{self.inverted_cells.size} inverted cell(s) (negative signed volume) at "
-                f"indices {format_indices(self.inverted_cells)}"
+        out = [
+            f"{found.size} {what} at indices {format_indices(found)}"
+            for found, what in (
+                (self.inverted_cells, "inverted cell(s) (negative signed volume)"),
+                (self.zero_volume_cells, "degenerate cell(s) (zero or near-zero area/volume)"),
             )
-        if self.zero_volume_cells.size:
-            out.append(
-                f"{self.zero_volume_cells.size} degenerate cell(s) (zero or near-zero area/volume) "
-                f"at indices {format_indices(self.zero_volume_cells)}"
-            )
+            if found.size
+        ]
         if self.sliver_cells.size:
             aspect = 1.0 / np.maximum(self.cell_quality[self.sliver_cells], 1e-300)
             worst = int(self.sliver_cells[int(np.argmax(aspect))])
@@ -91,10 +88,8 @@ class MeshQualityReport:
                 f"{format_indices(self.sliver_cells)}"
             )
         if self.unused_points.size:
-            out.append(
-                f"{self.unused_points.size} point(s) used by no cell at indices "
-                f"{format_indices(self.unused_points)}"
-            )
+            found = self.unused_points
+            out.append(f"{found.size} point(s) used by no cell at indices {format_indices(found)}")
         if self.nonmanifold_facets.size:
             rows = "; ".join(str(r.tolist()) for r in self.nonmanifold_facets[:10])
             out.append(f"{len(self.nonmanifold_facets)} facet(s) shared by >2 cells: {rows}")

@@ -110,10 +110,8 @@ def point_simplex_candidates(
     simplices = _indices("simplices", simplices, simplex_vertices.shape[0])
     points_end = _end("points_end", points_end, "points", points)
     vertices_end = _end("vertices_end", vertices_end, "simplex_vertices", simplex_vertices)
-    a_lo, a_hi = _primitive_boxes(points, points_end, None)
-    b_lo, b_hi = _primitive_boxes(simplex_vertices, vertices_end, simplices)
-    b_lo, b_hi = _inflate(b_lo, b_hi, inflation)
-    return _pairs(a_lo, a_hi, b_lo, b_hi, method)
+    a = (points, points_end, None)
+    return _swept_pairs(a, (simplex_vertices, vertices_end, simplices), inflation, method)
 
 
 def edge_edge_candidates(
@@ -145,10 +143,8 @@ def edge_edge_candidates(
     edges_a = _indices("edges_a", edges_a, vertices.shape[0], 2)
     edges_b = _indices("edges_b", edges_b, vertices.shape[0], 2)
     vertices_end = _end("vertices_end", vertices_end, "vertices", vertices)
-    a_lo, a_hi = _primitive_boxes(vertices, vertices_end, edges_a)
-    b_lo, b_hi = _primitive_boxes(vertices, vertices_end, edges_b)
-    b_lo, b_hi = _inflate(b_lo, b_hi, inflation)
-    return _pairs(a_lo, a_hi, b_lo, b_hi, method)
+    a, b = (vertices, vertices_end, edges_a), (vertices, vertices_end, edges_b)
+    return _swept_pairs(a, b, inflation, method)
 
 
 def box_overlap_pairs(
@@ -255,6 +251,14 @@ def _primitive_boxes(
     hi = np.empty((cells.shape[0], 3))
     hk._boxes(x0, x1, cells, lo, hi)
     return lo, hi
+
+
+def _swept_pairs(a: tuple, b: tuple, inflation: float, method: str) -> np.ndarray:
+    """Overlapping pairs of the swept boxes of primitives ``a`` and ``b``, each given as the
+    arguments of :func:`_primitive_boxes`, those of ``b`` grown by ``inflation``."""
+    a_lo, a_hi = _primitive_boxes(*a)
+    b_lo, b_hi = _inflate(*_primitive_boxes(*b), inflation)
+    return _pairs(a_lo, a_hi, b_lo, b_hi, method)
 
 
 def _inflate(lo: np.ndarray, hi: np.ndarray, inflation: float) -> tuple[np.ndarray, np.ndarray]:

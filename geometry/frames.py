@@ -68,6 +68,13 @@ def _projection(p: np.ndarray, e0: np.ndarray, e1: np.ndarray) -> np.ndarray:
     return np.clip(np.where(ee > 0.0, lam, 0.0), 0.0, 1.0)
 
 
+def _cross_and_norm_sq(u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """n = u x v (n, 3) and |n|^2 (n,), 1 where it vanishes (a safe divisor)."""
+    n = np.cross(u, v)
+    m = _dot(n, n)
+    return n, np.where(m > 0.0, m, 1.0)
+
+
 def _size(V: np.ndarray) -> np.ndarray:
     """Size L (n,) of each pair: the largest distance of a vertex from the first one."""
     return np.linalg.norm(V[:, 1:] - V[:, :1], axis=2).max(axis=1)
@@ -87,9 +94,7 @@ def _pt_barycentric(V: np.ndarray) -> np.ndarray:
     p, t0, t1, t2 = V[:, 0], V[:, 1], V[:, 2], V[:, 3]
     typ = _types(V, KIND_PT)
     u, v, r = t1 - t0, t2 - t0, p - t0
-    n = np.cross(u, v)
-    m = _dot(n, n)
-    m = np.where(m > 0.0, m, 1.0)
+    n, m = _cross_and_norm_sq(u, v)
     # Face: stable cross-product form of the plane projection's barycentric coordinates.
     face = np.stack([_dot(np.cross(r, v), n) / m, _dot(np.cross(u, r), n) / m], axis=1)
     l01 = _projection(p, t0, t1)
@@ -125,9 +130,7 @@ def _ee_parameters(V: np.ndarray) -> np.ndarray:
     a0, a1, b0, b1 = V[:, 0], V[:, 1], V[:, 2], V[:, 3]
     typ = _types(V, KIND_EE)
     a, b, r = a1 - a0, b1 - b0, b0 - a0
-    n = np.cross(a, b)
-    m = _dot(n, n)
-    m = np.where(m > 0.0, m, 1.0)
+    n, m = _cross_and_norm_sq(a, b)
     # Interiors: closest points of the two lines (a x b != 0 for this type).
     s_ll = np.clip(_dot(np.cross(r, b), n) / m, 0.0, 1.0)
     t_ll = np.clip(_dot(np.cross(r, a), n) / m, 0.0, 1.0)

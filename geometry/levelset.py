@@ -27,6 +27,8 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from geometry._checks import positive, vector
+
 __all__ = ["Box", "Disk", "HalfPlane", "Inverted", "LevelSet", "Union"]
 
 
@@ -50,15 +52,7 @@ class LevelSet(Protocol):
 
 def _vector(owner: str, name: str, value: object, dim: int | None = None) -> tuple[float, ...]:
     """``value`` as a tuple of 2 or 3 (or ``dim``) finite floats, else ValueError naming it."""
-    want = "2 or 3" if dim is None else str(dim)
-    try:
-        arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{owner}.{name} must be {want} numbers, got {value!r}") from exc
-    ok = arr.shape in ((2,), (3,)) if dim is None else arr.shape == (dim,)
-    if not ok or not np.all(np.isfinite(arr)):
-        raise ValueError(f"{owner}.{name} must be {want} finite numbers, got {value!r}")
-    return tuple(float(v) for v in arr)
+    return tuple(float(v) for v in vector(f"{owner}.{name}", value, dim))
 
 
 def _points(x: np.ndarray, dim: int | None, owner: str) -> np.ndarray:
@@ -173,13 +167,7 @@ class Disk:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "center", _vector("Disk", "center", self.center))
-        try:
-            radius = float(self.radius)
-        except (TypeError, ValueError) as exc:
-            raise ValueError(f"Disk.radius must be a number > 0, got {self.radius!r}") from exc
-        if not (np.isfinite(radius) and radius > 0.0):
-            raise ValueError(f"Disk.radius must be a finite number > 0, got {self.radius!r}")
-        object.__setattr__(self, "radius", radius)
+        object.__setattr__(self, "radius", positive("Disk.radius", self.radius))
 
     @property
     def dim(self) -> int:

@@ -25,6 +25,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from geometry.distance import _stack
+
 __all__ = [
     "edge_edge_mollifier",
     "edge_edge_mollifier_gradient",
@@ -33,20 +35,6 @@ __all__ = [
 ]
 
 _NAMES = ("ea0", "ea1", "eb0", "eb1")
-
-
-def _stack(arrays: tuple[np.ndarray, ...]) -> np.ndarray:
-    """Validate four (n, 3) arrays (same shape, finite) and stack them to (n, 4, 3)."""
-    arrs = [np.asarray(a, dtype=np.float64) for a in arrays]
-    if arrs[0].ndim != 2 or arrs[0].shape[1] != 3:
-        raise ValueError(f"ea0 must have shape (n, 3), got {arrs[0].shape}")
-    for name, a in zip(_NAMES, arrs, strict=True):
-        if a.shape != arrs[0].shape:
-            raise ValueError(f"{name} must have shape {arrs[0].shape} like ea0, got {a.shape}")
-        bad = ~np.isfinite(a).all(axis=1)
-        if bad.any():
-            raise ValueError(f"{name} has non-finite entries in rows {np.flatnonzero(bad)[:10]}")
-    return np.ascontiguousarray(np.stack(arrs, axis=1))
 
 
 def _check_eps(eps_x: np.ndarray, n: int) -> np.ndarray:
@@ -127,7 +115,7 @@ def _evaluate(X: np.ndarray, eps_x: np.ndarray, order: int) -> tuple:
 
 
 def _run(arrays: tuple[np.ndarray, ...], eps_x: np.ndarray, order: int) -> np.ndarray:
-    X = _stack(arrays)
+    X = _stack(arrays, _NAMES, (3,))
     return _evaluate(X, _check_eps(eps_x, X.shape[0]), order)[order]
 
 
@@ -135,7 +123,7 @@ def edge_edge_mollifier_threshold(
     ea0: np.ndarray, ea1: np.ndarray, eb0: np.ndarray, eb1: np.ndarray
 ) -> np.ndarray:
     """eps_x (n,) in m^4 = 1e-3 |ea1 - ea0|^2 |eb1 - eb0|^2 of REST positions (n, 3) in m."""
-    X = _stack((ea0, ea1, eb0, eb1))
+    X = _stack((ea0, ea1, eb0, eb1), _NAMES, (3,))
     a = X[:, 1] - X[:, 0]
     b = X[:, 3] - X[:, 2]
     return 1e-3 * np.einsum("ij,ij->i", a, a) * np.einsum("ij,ij->i", b, b)

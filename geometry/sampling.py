@@ -26,6 +26,8 @@ from collections.abc import Callable
 
 import numpy as np
 
+from geometry._checks import positive
+from geometry._checks import vector as _vector
 from geometry._sampling_kernels import _bin_cells, _locate
 from geometry.levelset import LevelSet
 from geometry.mesh import TetMesh, TriMesh
@@ -42,19 +44,6 @@ __all__ = [
 # Refuse to build more candidate points than this (memory guard against a tiny dx).
 _MAX_CANDIDATES = 50_000_000
 _BARY_TOL = 1e-12
-
-
-def _vector(name: str, value: object, dim: int | None = None) -> np.ndarray:
-    """``value`` as a finite float64 (d,) array, d = ``dim`` or 2 / 3, else ValueError."""
-    want = "2 or 3" if dim is None else str(dim)
-    try:
-        arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be {want} numbers, got {value!r}") from exc
-    ok = arr.shape in ((2,), (3,)) if dim is None else arr.shape == (dim,)
-    if not ok or not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} must be {want} finite numbers, got {value!r}")
-    return arr
 
 
 def _per_axis(ppc: object, dim: int) -> int:
@@ -88,12 +77,7 @@ def _lattice(
     hi = _vector("upper", upper, dim)
     if not np.all(hi > lo):
         raise ValueError(f"upper must exceed lower componentwise, got lower={lo}, upper={hi}")
-    try:
-        h = float(dx)  # type: ignore[arg-type]
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"dx must be a positive number, got {dx!r}") from exc
-    if not (np.isfinite(h) and h > 0.0):
-        raise ValueError(f"dx must be a finite number > 0, got {dx!r}")
+    h = positive("dx", dx)
     k = _per_axis(ppc, dim)
     if not (np.isfinite(jitter) and 0.0 <= jitter <= 1.0):
         raise ValueError(f"jitter must be in [0, 1] (fraction of the sub-spacing), got {jitter}")

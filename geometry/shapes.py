@@ -27,32 +27,12 @@ from __future__ import annotations
 import numpy as np
 
 from geometry import _meshing_build as mb
+from geometry._checks import positive as _positive
+from geometry._checks import vector as _vector
 from geometry._meshing_metrics import unique_rows
 from geometry.mesh import TetMesh, TriMesh
 
 _SQRT3_2 = np.sqrt(3.0) / 2.0
-
-
-def _vector(name: str, value: object, dim: int) -> np.ndarray:
-    """``value`` as a finite float64 array of shape (dim,), else ValueError naming ``name``."""
-    try:
-        arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be {dim} numbers, got {value!r}") from exc
-    if arr.shape != (dim,) or not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} must be {dim} finite numbers, got {value!r}")
-    return arr
-
-
-def _positive(name: str, value: object) -> float:
-    """``value`` as a finite float > 0, else ValueError naming ``name``."""
-    try:
-        out = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be a positive number, got {value!r}") from exc
-    if not (np.isfinite(out) and out > 0.0):
-        raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
-    return out
 
 
 def _radii(r_inner: object, r_outer: object, h: float) -> np.ndarray:

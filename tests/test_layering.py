@@ -78,18 +78,21 @@ def test_import_direction(package):
     assert not offenders, f"{package}/ imports across the layering: {offenders}"
 
 
-def test_layering_check_detects_a_violation(tmp_path):
+def _read(tmp_path, source, reader=_imported_top_levels):
+    """What ``reader`` finds imported by a module of text ``source``."""
     bad = tmp_path / "bad.py"
-    bad.write_text("import numpy\nfrom solvers.newton import minimize\n")
-    assert "solvers" in _imported_top_levels(bad)
+    bad.write_text(source)
+    return reader(bad)
+
+
+def test_layering_check_detects_a_violation(tmp_path):
+    assert "solvers" in _read(tmp_path, "import numpy\nfrom solvers.newton import minimize\n")
 
 
 def test_layering_check_sees_dynamic_imports(tmp_path):
-    bad = tmp_path / "bad.py"
-    bad.write_text("import importlib\nm = importlib.import_module('benchmarks.tradeoff')\n")
-    assert "benchmarks" in _imported_top_levels(bad)
-    bad.write_text("m = __import__('benchmarks')\n")
-    assert "benchmarks" in _imported_top_levels(bad)
+    source = "import importlib\nm = importlib.import_module('benchmarks.tradeoff')\n"
+    assert "benchmarks" in _read(tmp_path, source)
+    assert "benchmarks" in _read(tmp_path, "m = __import__('benchmarks')\n")
 
 
 @pytest.mark.parametrize("module", NO_NEWTON)
@@ -102,11 +105,8 @@ def test_explicit_strategies_never_import_newton(module):
 
 
 def test_the_newton_rule_detects_a_violation(tmp_path):
-    bad = tmp_path / "augury.py"
-    bad.write_text("from solvers.newton import minimize\n")
-    assert "solvers.newton" in _imported_modules(bad)
-    bad.write_text("from solvers import newton\n")
-    assert "solvers.newton" in _imported_modules(bad)
+    for source in ("from solvers.newton import minimize\n", "from solvers import newton\n"):
+        assert "solvers.newton" in _read(tmp_path, source, _imported_modules)
 
 
 #: every package of the repository the no-circle test covers

@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from bfemp._njit import serial_or_parallel
 from bfemp.mpm._transfer_kernels import _affine_value
 
 
@@ -53,14 +54,20 @@ def p2g(
     return mass, mom
 
 
-def _g2p(
+#: below this many particles the gather runs serially (thread start-up costs ~1 ms per call on a
+#: loaded machine, measured: the 2-particle gap test spent 1.5 ms per parallel call)
+PARALLEL_MIN = 4096
+
+
+@serial_or_parallel(PARALLEL_MIN)
+def g2p(
     nodes: np.ndarray,
     weights: np.ndarray,
     node_x: np.ndarray,
     x: np.ndarray,
     grid_v: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """``g2p`` (compiled twice below: serial and parallel, same arithmetic)."""
+    """Particle velocities ``(P, d)`` in m/s and B ``(P, d, d)`` in m^2/s (AUG eqs. 19-20)."""
     n_p, k = nodes.shape
     d = x.shape[1]
     out_v = np.zeros((n_p, d))
@@ -77,27 +84,6 @@ def _g2p(
                 for b in range(d):
                     out_B[p, a, b] += wv * (node_x[i, b] - x[p, b])
     return out_v, out_B
-
-
-_g2p_serial = njit(cache=True)(_g2p)
-_g2p_parallel = njit(cache=True, parallel=True)(_g2p)
-
-
-#: below this many particles the gather runs serially (thread start-up costs ~1 ms per call on a
-#: loaded machine, measured: the 2-particle gap test spent 1.5 ms per parallel call)
-PARALLEL_MIN = 4096
-
-
-def g2p(
-    nodes: np.ndarray,
-    weights: np.ndarray,
-    node_x: np.ndarray,
-    x: np.ndarray,
-    grid_v: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Particle velocities ``(P, d)`` in m/s and B ``(P, d, d)`` in m^2/s (AUG eqs. 19-20)."""
-    kernel = _g2p_parallel if nodes.shape[0] >= PARALLEL_MIN else _g2p_serial
-    return kernel(nodes, weights, node_x, x, grid_v)
 
 
 @njit(cache=True)
@@ -253,24 +239,3 @@ def compact_dense(
         for s in range(n_s):
             nodes[p, s] = slot[lin[p, s]]
     return nodes, node_x
-
-
-@njit(cache=True)
-def apic_inertia(
-    nodes: np.ndarray, weights: np.ndarray, node_x: np.ndarray, x: np.ndarray
-) -> np.ndarray:
-    """D_p = sum_i N_ip (x_i - x_p)(x_i - x_p)^T ``(P, d, d)`` in m^2 (AUG eq. 18)."""
-    n_p, n_s = nodes.shape
-    d = x.shape[1]
-    D = np.zeros((n_p, d, d))
-    r = np.empty(d)
-    for p in range(n_p):
-        for s in range(n_s):
-            w = weights[p, s]
-            i = nodes[p, s]
-            for a in range(d):
-                r[a] = node_x[i, a] - x[p, a]
-            for a in range(d):
-                for b in range(d):
-                    D[p, a, b] += w * r[a] * r[b]
-    return D

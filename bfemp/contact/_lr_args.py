@@ -5,7 +5,15 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["check_F_R0", "check_clouds", "dimension", "float_array", "grid_args", "int_array"]
+__all__ = [
+    "check_F_R0",
+    "check_clouds",
+    "contact_rows",
+    "dimension",
+    "float_array",
+    "grid_args",
+    "int_array",
+]
 
 
 def float_array(name: str, a: object, shape: tuple) -> np.ndarray:
@@ -75,6 +83,25 @@ def grid_args(
             f"[{material.min()}, {material.max()}]"
         )
     return nodes, material
+
+
+def contact_rows(
+    name: str, node: object, alpha: object, beta: object, n_nodes: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The contact rows' grid nodes ``node (C,)`` in [0, n_nodes) and materials ``alpha``,
+    ``beta (C,)`` as int64 arrays of one shape (ValueError naming ``name`` otherwise); the
+    materials' ranges are the caller's to check."""
+    node = int_array("node", node, 1)
+    alpha = int_array("alpha", alpha, 1)
+    beta = int_array("beta", beta, 1)
+    if alpha.shape != node.shape or beta.shape != node.shape:
+        raise ValueError(
+            f"{name}: node, alpha and beta must have one shape, got "
+            f"{node.shape}, {alpha.shape}, {beta.shape}"
+        )
+    if node.size and (node.min() < 0 or node.max() >= n_nodes):
+        raise ValueError(f"{name}: node must be in [0, {n_nodes})")
+    return node, alpha, beta
 
 
 def check_clouds(

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bfemp.contact._lr_args import dimension, float_array, grid_args, int_array
+from bfemp.contact._lr_args import contact_rows, dimension, float_array, grid_args
 from bfemp.contact._lr_grid_kernels import mass_gradients
 from bfemp.mpm._multimaterial_kernels import mass_moments
 
@@ -83,17 +83,8 @@ def material_mass_moments(
 def pair_args(
     name: str, node: object, alpha: object, beta: object, n_materials: int, n_nodes: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    node = int_array("node", node, 1)
-    alpha = int_array("alpha", alpha, 1)
-    beta = int_array("beta", beta, 1)
-    if alpha.shape != node.shape or beta.shape != node.shape:
-        raise ValueError(
-            f"{name}: node, alpha and beta must have one shape, got "
-            f"{node.shape}, {alpha.shape}, {beta.shape}"
-        )
+    node, alpha, beta = contact_rows(name, node, alpha, beta, n_nodes)
     if node.size:
-        if node.min() < 0 or node.max() >= n_nodes:
-            raise ValueError(f"{name}: node must be in [0, {n_nodes})")
         for label, a in (("alpha", alpha), ("beta", beta)):
             if a.min() < 0 or a.max() >= n_materials:
                 raise ValueError(f"{name}: {label} must be in [0, {n_materials})")

@@ -17,6 +17,10 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from bfemp._njit import serial_or_parallel
+
+#: contact nodes from which the LR solves run in parallel (below, the thread start-up costs more
+#: than the loop)
 PARALLEL_MIN = 64
 
 OK = 0
@@ -359,36 +363,12 @@ def _lr_node(
     out_code[c] = OK
 
 
-def _lr_planes(node_x: np.ndarray, *rest: object) -> None:
-    """_lr_node at every contact node (``rest``: the arguments of ``_lr_node`` after
-    ``node_x``); each writes only its own rows (compiled twice below)."""
-    for c in prange(node_x.shape[0]):  # a plain range in the serial build
-        _lr_node(c, node_x, *rest)
-
-
-#: one loop, two builds: below ``PARALLEL_MIN`` nodes the thread start-up costs more than the loop
-_lr_planes_serial = njit(cache=True)(_lr_planes)
-_lr_planes_parallel = njit(cache=True, parallel=True)(_lr_planes)
-
-
-def lr_planes_kernel(
-    node_x: np.ndarray,
-    cloud_ptr: np.ndarray,
-    cloud_idx: np.ndarray,
-    cloud_side: np.ndarray,
-    points_x: np.ndarray,
-    points_F: np.ndarray,
-    points_R0: np.ndarray,
-    lam: float,
-    tol: float,
-    max_iterations: int,
-    linear_scale: float,
-    thin_sq: float,
-    normal_start: np.ndarray,
-    has_start: np.ndarray,
-) -> tuple[np.ndarray, ...]:
-    """LR solves at the C contact nodes (validated inputs): ``(normal (C, d), phi (C, d+1),
-    separation (C,), iterations (C,), converged (C,), fallback (C,), code (C,))``."""
+@serial_or_parallel(PARALLEL_MIN)
+def lr_planes_kernel(node_x: np.ndarray, *inputs: object) -> tuple[np.ndarray, ...]:
+    """LR solves at the C contact nodes (validated inputs: ``inputs`` are the arguments of
+    ``_lr_node`` between ``node_x`` and its outputs): ``(normal (C, d), phi (C, d+1),
+    separation (C,), iterations (C,), converged (C,), fallback (C,), code (C,))``; each node
+    writes only its own rows."""
     n_c, d = node_x.shape
     out_normal = np.zeros((n_c, d))
     out_phi = np.zeros((n_c, d + 1))
@@ -397,10 +377,8 @@ def lr_planes_kernel(
     out_conv = np.zeros(n_c, dtype=np.bool_)
     out_fb = np.zeros(n_c, dtype=np.bool_)
     out_code = np.zeros(n_c, dtype=np.int64)
-    kernel = _lr_planes_parallel if n_c >= PARALLEL_MIN else _lr_planes_serial
-    kernel(
-        node_x, cloud_ptr, cloud_idx, cloud_side, points_x, points_F, points_R0,
-        float(lam), float(tol), int(max_iterations), float(linear_scale), float(thin_sq),
-        normal_start, has_start, out_normal, out_phi, out_sep, out_iter, out_conv, out_fb, out_code,
-    )  # fmt: skip
+    for c in prange(n_c):  # a plain range in the serial build
+        _lr_node(
+            c, node_x, *inputs, out_normal, out_phi, out_sep, out_iter, out_conv, out_fb, out_code
+        )
     return out_normal, out_phi, out_sep, out_iter, out_conv, out_fb, out_code

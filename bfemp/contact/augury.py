@@ -70,13 +70,13 @@ import numpy as np
 
 from bfemp.contact._augury_kernels import (
     KERNEL_IDS,
-    apic_inertia,
     compact_dense,
     g2p,
     index_bounds,
     p2g,
     stencil_weights,
 )
+from bfemp.mpm.transfer import apic_inertia
 
 __all__ = [
     "KERNELS",

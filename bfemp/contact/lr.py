@@ -27,6 +27,7 @@ import numpy as np
 from bfemp.contact._lr_args import (
     check_clouds,
     check_F_R0,
+    contact_rows,
     dimension,
     float_array,
     grid_args,
@@ -269,16 +270,7 @@ def contact_point_clouds(
         nodes, n_nodes, material, max(1, int(material.max(initial=0)) + 1), n_p
     )
     weights = float_array("weights", weights, nodes.shape)
-    node = int_array("node", node, 1)
-    alpha = int_array("alpha", alpha, 1)
-    beta = int_array("beta", beta, 1)
-    if alpha.shape != node.shape or beta.shape != node.shape:
-        raise ValueError(
-            f"contact_point_clouds: node, alpha and beta must have one shape, got "
-            f"{node.shape}, {alpha.shape}, {beta.shape}"
-        )
-    if node.size and (node.min() < 0 or node.max() >= n_nodes):
-        raise ValueError(f"contact_point_clouds: node must be in [0, {n_nodes})")
+    node, alpha, beta = contact_rows("contact_point_clouds", node, alpha, beta, n_nodes)
     if np.any(alpha < 0) or np.any(beta < -1) or np.any(alpha == beta):
         raise ValueError("contact_point_clouds: alpha must be >= 0, beta >= 0 (or -1) and != alpha")
     return point_clouds(nodes, weights, material, node, alpha, beta, int(n_nodes))

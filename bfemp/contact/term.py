@@ -13,8 +13,6 @@ the linear path x -> x + p (section 5), so no iterate ever crosses a boundary.
 
 from __future__ import annotations
 
-import logging
-
 import numpy as np
 
 from bfemp.contact._assembly_kernels import _chain_hessian, _scatter_gradient
@@ -37,7 +35,6 @@ from solvers.assembly import Triplets
 
 __all__ = ["BarrierTerm", "CCD_FRACTION"]
 
-log = logging.getLogger(__name__)
 
 #: Fraction of the earliest time of impact used as the line-search start (section 5).
 CCD_FRACTION = 0.9

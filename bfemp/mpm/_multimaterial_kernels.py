@@ -21,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from bfemp._njit import serial_or_parallel
 from bfemp.mpm._transfer_kernels import _kirchhoff_volume
 
 __all__ = [
@@ -113,7 +114,8 @@ def p2g_nodal(
                 grid_force[a, i, r] += w * force[b, r]
 
 
-def _g2p_field(
+@serial_or_parallel(PARALLEL_MIN_POINTS)
+def g2p_field(
     nodes: np.ndarray, weights: np.ndarray, material: np.ndarray, field: np.ndarray
 ) -> np.ndarray:
     """S u: ``(P, d)`` values sum_i w_ip u_i^{a(p)} of a per-material field ``(M, G, d)``."""
@@ -183,7 +185,8 @@ def p2g_field(
     return out
 
 
-def _g2p_update(
+@serial_or_parallel(PARALLEL_MIN_POINTS)
+def g2p_update(
     nodes: np.ndarray,
     weights: np.ndarray,
     grads: np.ndarray,
@@ -221,33 +224,3 @@ def _g2p_update(
                     acc += dt * L[r, q] * F[p, q, s]
                 out_F[p, r, s] = acc
     return sv, sv_end, out_F
-
-
-_g2p_field_serial = njit(cache=True)(_g2p_field)
-_g2p_field_parallel = njit(cache=True, parallel=True)(_g2p_field)
-_g2p_update_serial = njit(cache=True)(_g2p_update)
-_g2p_update_parallel = njit(cache=True, parallel=True)(_g2p_update)
-
-
-def g2p_field(
-    nodes: np.ndarray, weights: np.ndarray, material: np.ndarray, field: np.ndarray
-) -> np.ndarray:
-    """S u: ``(P, d)`` values sum_i w_ip u_i^{a(p)} of a per-material field ``(M, G, d)``."""
-    big = nodes.shape[0] >= PARALLEL_MIN_POINTS
-    return (_g2p_field_parallel if big else _g2p_field_serial)(nodes, weights, material, field)
-
-
-def g2p_update(
-    nodes: np.ndarray,
-    weights: np.ndarray,
-    grads: np.ndarray,
-    material: np.ndarray,
-    grid_v: np.ndarray,
-    grid_v_end: np.ndarray,
-    dt: float,
-    F: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(S v, S v+, F^{n+1})`` of the particle update (see ``_g2p_update``)."""
-    big = nodes.shape[0] >= PARALLEL_MIN_POINTS
-    kernel = _g2p_update_parallel if big else _g2p_update_serial
-    return kernel(nodes, weights, grads, material, grid_v, grid_v_end, dt, F)

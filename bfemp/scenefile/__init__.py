@@ -110,8 +110,7 @@ from pathlib import Path
 from bfemp.errors import SceneError
 from bfemp.io.vtk import atomic_path
 from bfemp.scenefile._read import TOP_LEVEL, parse_document
-from bfemp.scenefile._toml import dumps as dumps_toml
-from bfemp.scenefile._write import scene_dict
+from bfemp.scenefile._write import dumps
 from bfemp.scenefile.checks import validate_checks
 
 if sys.version_info >= (3, 11):
@@ -217,18 +216,6 @@ def load(path: str | os.PathLike) -> SceneFile:
     except (OSError, UnicodeDecodeError) as err:
         raise SceneError(f"cannot read the scene file: {err}", file=str(path)) from None
     return loads(text, file=str(path), base_dir=path.resolve().parent)
-
-
-def dumps(
-    scene: object,
-    *,
-    simulation: dict | None = None,
-    run: dict | None = None,
-    check: dict | None = None,
-) -> str:
-    """Scene-file TOML text of ``scene`` with optional ``[simulation]``, ``[run]``, ``[check]``."""
-    doc = scene_dict(scene, simulation=simulation, run=run, check=check)
-    return dumps_toml(doc, header_comment="bfemp scene file (format: bfemp.scenefile)")
 
 
 def write_text(path: str | os.PathLike, text: str) -> Path:

@@ -1,4 +1,4 @@
-"""``Scene`` -> the plain dict of a scene file (written as TOML by :mod:`._toml`).
+"""``Scene`` -> scene-file text: the plain dict of a scene file, written as TOML by :mod:`._toml`.
 
 What a scene file described (mesh shapes and files, particle sampling, node selections, material
 names) is written back as it was; what came from arrays is written inline: floats are written
@@ -14,9 +14,10 @@ from bfemp import levelset as ls
 from bfemp import motion as mo
 from bfemp.errors import SceneError
 from bfemp.materials import BulkShearHyperelastic, LinearElastic, NeoHookean
+from bfemp.scenefile._toml import dumps as dumps_toml
 from bfemp.steppers.base import options_to_dict
 
-__all__ = ["levelset_dict", "motion_dict", "scene_dict"]
+__all__ = ["dumps", "levelset_dict", "motion_dict"]
 
 
 def _uniform_or_rows(a: np.ndarray) -> list:
@@ -145,14 +146,15 @@ def _mpm_dict(scene: object, spec: object, materials: _Materials) -> dict:
     return out
 
 
-def scene_dict(
+def dumps(
     scene: object,
     *,
     simulation: dict | None = None,
     run: dict | None = None,
     check: dict | None = None,
-) -> dict:
-    """The scene-file document of ``scene`` (a ``bfemp.Scene``) and optional settings."""
+) -> str:
+    """Scene-file TOML text of ``scene`` (a ``bfemp.Scene``) with optional ``[simulation]``,
+    ``[run]``, ``[check]``."""
     doc: dict = {"scene": {"dim": scene.dim}}
     if np.any(scene.gravity != 0.0):
         doc["scene"]["gravity"] = scene.gravity.tolist()
@@ -211,4 +213,4 @@ def scene_dict(
         doc["load"] = loads
     if check:
         doc["check"] = dict(check)
-    return doc
+    return dumps_toml(doc, header_comment="bfemp scene file (format: bfemp.scenefile)")

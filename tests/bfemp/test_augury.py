@@ -273,7 +273,7 @@ def test_parallel_and_serial_gathers_agree(rng):
     x, m, st = _cloud(rng, 3, n=k.PARALLEL_MIN + 10)
     grid_v = rng.normal(size=(st.n_nodes, 3))
     args = (st.nodes, st.weights, st.node_x, x, grid_v)
-    for a, b in zip(k._g2p_serial(*args), k._g2p_parallel(*args), strict=True):
+    for a, b in zip(k.g2p.serial(*args), k.g2p.parallel(*args), strict=True):
         assert np.array_equal(a, b)
 
 

@@ -135,6 +135,13 @@ def _random_F(rng, n, d):
     return F
 
 
+def _random_F_and_direction(seed, n, d):
+    """``_random_F`` and standard normal directions D (n, d, d) from ``default_rng(seed)``."""
+    rng = np.random.default_rng(seed)
+    F = _random_F(rng, n, d)
+    return F, rng.standard_normal((n, d, d))
+
+
 @pytest.mark.parametrize("d", [2, 3])
 def test_random_cases_against_exact_and_dense_references(d):
     rng = np.random.default_rng(100 + d)
@@ -163,9 +170,7 @@ def test_random_cases_against_exact_and_dense_references(d):
 
 @pytest.mark.parametrize("d", [2, 3])
 def test_max_step_is_the_minimum_over_points(d):
-    rng = np.random.default_rng(7)
-    F = _random_F(rng, 50, d)
-    D = rng.standard_normal((50, d, d))
+    F, D = _random_F_and_direction(7, 50, d)
     roots = first_det_root(F, D, alpha_max=2.0)
     assert max_step_det_positive(F, D, alpha_max=2.0) == roots.min()
     assert max_step_det_positive(F[:0], D[:0], alpha_max=0.3) == 0.3
@@ -306,9 +311,7 @@ def test_near_singular_F_and_huge_D(d):
 
 @pytest.mark.parametrize("d", [2, 3])
 def test_extreme_scales_do_not_overflow_and_are_scale_invariant(d):
-    rng = np.random.default_rng(6)
-    F = _random_F(rng, 200, d)
-    D = rng.standard_normal((200, d, d))
+    F, D = _random_F_and_direction(6, 200, d)
     alpha = first_det_root(F, D, alpha_max=5.0)
     # Scaling F and D together by powers of two leaves the roots unchanged, bit for bit.
     for e in (-600, 600):

@@ -85,18 +85,24 @@ def test_particles_inside_a_mesh_are_named(dim):
         check_no_overlap(model)
 
 
+def _refused_at_a_gap_of_25_mm(check, model):
+    """``model`` (bodies 0.025 m apart, not overlapping) passes ``check`` with dhat = 0.02 m and
+    is refused with 0.03 m, naming the gap; returns the message."""
+    check_no_overlap(model)
+    check(model, dhat=0.02)
+    with pytest.raises(SceneError) as info:
+        check(model, dhat=0.03)
+    message = str(info.value)
+    assert "closest 0.025 m" in message and "0.005 m further apart" in message
+    return message
+
+
 @pytest.mark.parametrize("dim", [2, 3])
 def test_particles_within_dhat_are_refused_with_the_distance(dim):
     # the lowest particles sit 0.025 m above the top face y = 1 (or z = 1)
     lower = (0.0,) * (dim - 1) + (1.0,)
-    model = _particle_scene(dim, lower)
-    check_no_overlap(model)
-    check_clearance(model, dhat=0.02)
-    with pytest.raises(SceneError) as info:
-        check_clearance(model, dhat=0.03)
-    message = str(info.value)
+    message = _refused_at_a_gap_of_25_mm(check_clearance, _particle_scene(dim, lower))
     assert "mpm body 'blob': particles:" in message and "fem body 'floor'" in message
-    assert "closest 0.025 m" in message and "0.005 m further apart" in message
 
 
 def test_validate_initial_checks_only_contact_scenes():
@@ -127,12 +133,7 @@ def test_fem_nodes_within_dhat_of_another_fem_body_are_refused(dim):
     top_lo = (0.25,) * (dim - 1) + (1.025,)
     top_hi = (0.75,) * (dim - 1) + (1.525,)
     model = _fem_scene(dim, {"floor": (lo, hi), "top": (top_lo, top_hi)}, 0.25).build()
-    check_no_overlap(model)
-    check_fem_clearance(model, dhat=0.02)
-    with pytest.raises(SceneError) as info:
-        check_fem_clearance(model, dhat=0.03)
-    message = str(info.value)
-    assert "closest 0.025 m" in message and "0.005 m further apart" in message
+    message = _refused_at_a_gap_of_25_mm(check_fem_clearance, model)
     # the gap is symmetric: either body may be named first, with its nodes facing the other
     floor, top = model.fem_bodies
     if message.startswith("fem body 'top': mesh: "):

@@ -15,13 +15,10 @@ import pytest
 from benchmarks import ccd_oracle as oracle
 from geometry import ccd
 from geometry import distance as gd
+from tests.geometry.conftest import cols
 
 N_RANDOM = 2000
 N_SAMPLES = 2048
-
-
-def cols(X):
-    return tuple(np.ascontiguousarray(X[:, j]) for j in range(X.shape[1]))
 
 
 # --------------------------------------------------------------------------- reference

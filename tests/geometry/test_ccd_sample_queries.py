@@ -20,6 +20,7 @@ import pytest
 
 from geometry import ccd
 from geometry import distance as gd
+from tests.geometry.conftest import cols
 
 DATA = Path(__file__).parent / "data" / "sample_queries_ccd.json"
 KINDS = ("point_triangle", "edge_edge")
@@ -30,10 +31,6 @@ TOLERANCE = 0.1  # geometry.ccd's default final-gap fraction
 def data():
     with open(DATA) as fh:
         return json.load(fh)
-
-
-def cols(X):
-    return tuple(np.ascontiguousarray(X[:, j]) for j in range(X.shape[1]))
 
 
 def arrays(queries):

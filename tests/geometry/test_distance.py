@@ -5,13 +5,9 @@ import numpy as np
 import pytest
 
 from geometry import distance as gd
+from tests.geometry.conftest import cols, triangle_samples
 
 RNG_SEED = 20240611
-
-
-def cols(X):
-    """(n, k, d) -> tuple of k arrays (n, d): the argument convention of geometry.distance."""
-    return tuple(np.ascontiguousarray(X[:, j]) for j in range(X.shape[1]))
 
 
 def seg_dist_ref(p, a, b):
@@ -58,13 +54,8 @@ def test_point_triangle_matches_dense_sampling():
     X[:100, 0] = X[:100, 1:].mean(axis=1) + 0.05 * rng.standard_normal((100, 3))  # near face
     d = gd.point_triangle_distance(*cols(X))
     N = 120
-    i, j = np.meshgrid(np.arange(N + 1), np.arange(N + 1), indexing="ij")
-    keep = i + j <= N
-    b1, b2 = i[keep] / N, j[keep] / N
-    u, v = X[:, 2] - X[:, 1], X[:, 3] - X[:, 1]
-    pts = X[:, None, 1] + b1[None, :, None] * u[:, None] + b2[None, :, None] * v[:, None]
+    pts, longest = triangle_samples(X, N)
     d_sampled = np.linalg.norm(pts - X[:, None, 0], axis=-1).min(axis=1)
-    longest = np.linalg.norm(X[:, [2, 3, 3]] - X[:, [1, 1, 2]], axis=-1).max(axis=1)
     assert np.all(d <= d_sampled + 1e-12)
     assert np.all(d_sampled - d <= longest / N + 1e-12)
     assert np.mean(d_sampled - d < 1e-3) > 0.9

@@ -7,12 +7,9 @@ import pytest
 
 from geometry import distance as gd
 from geometry import frames as gf
+from tests.geometry.conftest import cols, triangle_samples
 
 RNG_SEED = 7
-
-
-def cols(X):
-    return tuple(np.ascontiguousarray(X[:, j]) for j in range(X.shape[1]))
 
 
 def assert_orthonormal(T):
@@ -64,14 +61,9 @@ def test_point_triangle_barycentric_matches_sampling_and_distance():
     d = np.linalg.norm(X[:, 0] - closest, axis=1)
     np.testing.assert_allclose(d, gd.point_triangle_distance(*cols(X)), rtol=1e-10, atol=1e-13)
     N = 100
-    i, j = np.meshgrid(np.arange(N + 1), np.arange(N + 1), indexing="ij")
-    keep = i + j <= N
-    b1, b2 = i[keep] / N, j[keep] / N
-    u, v = X[:, 2] - X[:, 1], X[:, 3] - X[:, 1]
-    pts = X[:, None, 1] + b1[None, :, None] * u[:, None] + b2[None, :, None] * v[:, None]
+    pts, longest = triangle_samples(X, N)
     best = np.linalg.norm(pts - X[:, None, 0], axis=-1).argmin(axis=1)
     sampled = pts[np.arange(X.shape[0]), best]
-    longest = np.linalg.norm(X[:, [2, 3, 3]] - X[:, [1, 1, 2]], axis=-1).max(axis=1)
     # The minimiser is unique (strictly convex); the sampled one is within a few cells of it.
     assert np.mean(np.linalg.norm(sampled - closest, axis=1) <= 3 * longest / N) > 0.95
     # Vertex types give the vertices' barycentrics exactly.

@@ -5,10 +5,7 @@ import numpy as np
 import pytest
 
 from geometry import mollifier as gm
-
-
-def cols(X):
-    return tuple(np.ascontiguousarray(X[:, j]) for j in range(X.shape[1]))
+from tests.geometry.conftest import cols
 
 
 def cross_sq(X):

@@ -1,0 +1,32 @@
+"""One loop, two numba builds: a gather over points runs serially below a size and in parallel
+from it on, where the thread start-up of a parallel loop costs less than the loop."""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable
+
+from numba import njit
+
+__all__ = ["serial_or_parallel"]
+
+
+def serial_or_parallel(min_rows: int) -> Callable[[Callable], Callable]:
+    """Decorator: the function compiled twice, ``njit(cache=True)`` and ``njit(cache=True,
+    parallel=True)`` (its ``prange`` loops run as plain ranges in the serial build, with the
+    same arithmetic: each iteration writes only its own rows), called with positional
+    arguments and running the parallel build when the first has ``min_rows`` rows or more.
+    The builds are the attributes ``serial`` and ``parallel`` of the decorated function."""
+
+    def build(func: Callable) -> Callable:
+        serial = njit(cache=True)(func)
+        parallel = njit(cache=True, parallel=True)(func)
+
+        @functools.wraps(func)
+        def run(*args: object) -> object:
+            return (parallel if args[0].shape[0] >= min_rows else serial)(*args)
+
+        run.serial, run.parallel = serial, parallel
+        return run
+
+    return build
