@@ -4,6 +4,7 @@ from it on, where the thread start-up of a parallel loop costs less than the loo
 from __future__ import annotations
 
 import functools
+import types
 from collections.abc import Callable
 
 from numba import njit
@@ -16,11 +17,20 @@ def serial_or_parallel(min_rows: int) -> Callable[[Callable], Callable]:
     parallel=True)`` (its ``prange`` loops run as plain ranges in the serial build, with the
     same arithmetic: each iteration writes only its own rows), called with positional
     arguments and running the parallel build when the first has ``min_rows`` rows or more.
-    The builds are the attributes ``serial`` and ``parallel`` of the decorated function."""
+    The builds are the attributes ``serial`` and ``parallel`` of the decorated function.
+
+    The parallel build compiles a twin of the function named ``NAME_parallel``: numba's disk
+    cache files a build under its module, qualified name and line, not its flags, so two
+    builds of one function share one entry and a process loads whichever was saved first for
+    both (the parallel build then ran serially from a warm cache)."""
 
     def build(func: Callable) -> Callable:
         serial = njit(cache=True)(func)
-        parallel = njit(cache=True, parallel=True)(func)
+        twin = types.FunctionType(
+            func.__code__, func.__globals__, f"{func.__name__}_parallel", func.__defaults__
+        )
+        twin.__qualname__ = f"{func.__qualname__}_parallel"
+        parallel = njit(cache=True, parallel=True)(twin)
 
         @functools.wraps(func)
         def run(*args: object) -> object:
