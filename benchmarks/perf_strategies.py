@@ -29,7 +29,7 @@ import tempfile
 from pathlib import Path
 
 from benchmarks.common import git_commit
-from benchmarks.runner import Benchmark, register
+from benchmarks.runner import Benchmark, name_unless, register
 
 NAME = "perf_strategies"
 ROOT = Path(__file__).resolve().parents[1]
@@ -130,14 +130,6 @@ def measure(mode: str, cfg: dict, baseline: str = BASELINE) -> dict:
     }
 
 
-BENCHMARK = register(
-    Benchmark(
-        NAME,
-        __doc__,
-        MODES,
-        measure,
-        record=lambda mode, _: NAME if mode == "full" else f"{NAME}_{mode}",
-        timings=r"s_per_step|speedup",
-    )
-)
+_STEM = name_unless("full", NAME)
+BENCHMARK = register(Benchmark(NAME, __doc__, MODES, measure, record=_STEM, timings="s_per_step"))
 run = BENCHMARK.run
