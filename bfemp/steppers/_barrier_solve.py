@@ -23,7 +23,7 @@ from bfemp.model import Model
 from bfemp.potential import IncrementalPotential
 from bfemp.state import State
 from bfemp.steppers._scaffold import StepNodes
-from bfemp.steppers.base import StepError, StepReport
+from bfemp.steppers.base import StepError
 from solvers.assembly import TripletAssembler
 from solvers.linear import LinearSolver
 from solvers.newton import minimize
@@ -169,20 +169,15 @@ class ScriptedSolve:
             x = pot.to_positions(result.x)
         else:
             fixed[:] = target
-            raise StepError(
-                StepReport(
-                    step=state.step + 1,
-                    t=state.t + self.dt,
-                    success=False,
-                    status="SCRIPTED_MOTION_BLOCKED",
-                    message=(
-                        f"scripted nodes could not reach their positions without crossing after "
-                        f"{self.SCRIPTED_SUBSTEPS} part-way moves (something is squeezed "
-                        f"between a scripted body and another boundary?)"
-                    ),
-                    iterations={"newton": its},
-                    timings=timings,
-                )
+            raise StepError.failed(
+                state.step + 1,
+                state.t + self.dt,
+                "SCRIPTED_MOTION_BLOCKED",
+                f"scripted nodes could not reach their positions without crossing after "
+                f"{self.SCRIPTED_SUBSTEPS} part-way moves (something is squeezed "
+                f"between a scripted body and another boundary?)",
+                iterations={"newton": its},
+                timings=timings,
             )
         fixed[:] = target
         result, f_its, f_ok = self._friction_loop(

@@ -209,6 +209,13 @@ class StepError(RuntimeError):
         )
         self.report = report
 
+    @classmethod
+    def failed(cls, step: int, t: float, status: str, message: str, **fields: object) -> StepError:
+        """The error of step ``step`` ending at ``t`` s that failed with ``status`` and
+        ``message`` (``fields``: the report's other fields, e.g. ``iterations``, ``timings``)."""
+        report = StepReport(step=step, t=t, success=False, status=status, message=message)
+        return cls(dataclasses.replace(report, **fields) if fields else report)
+
 
 @dataclass(frozen=True)
 class ContactView:

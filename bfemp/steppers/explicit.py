@@ -333,17 +333,12 @@ class ExplicitStepper:
         if self.dt <= bound.dt * (1.0 + 1e-12):
             return ()
         if self.dt > bound.limit:
-            raise StepError(
-                StepReport(
-                    step=state.step + 1,
-                    t=state.t + self.dt,
-                    success=False,
-                    status="CFL_VIOLATED",
-                    message=(
-                        f"dt = {self.dt:.6g} s exceeds the CFL limit {bound.limit:.6g} s "
-                        f"(CFL number 1; stable step {bound.describe()})"
-                    ),
-                )
+            raise StepError.failed(
+                state.step + 1,
+                state.t + self.dt,
+                "CFL_VIOLATED",
+                f"dt = {self.dt:.6g} s exceeds the CFL limit {bound.limit:.6g} s "
+                f"(CFL number 1; stable step {bound.describe()})",
             )
         return (f"CFL_ABOVE_SAFETY: dt = {self.dt:.6g} s above the stable step {bound.describe()}",)
 

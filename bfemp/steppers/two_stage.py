@@ -114,7 +114,7 @@ from bfemp.state import State
 from bfemp.steppers._barrier_potential import contact_view, has_contact
 from bfemp.steppers._barrier_solve import ScriptedSolve
 from bfemp.steppers._scaffold import StepNodes, gather_nodes, nodes_of_step
-from bfemp.steppers.base import ContactView, StepError, StepReport, finite_or_nan
+from bfemp.steppers.base import ContactView, StepError, finite_or_nan
 from bfemp.steppers.capabilities import BARRIER_PAIRS, Capabilities
 from bfemp.steppers.explicit import ExplicitOptions, ExplicitStepper, GridStep, Motion
 from bfemp.terms import InertiaTerm, StepContext
@@ -347,16 +347,13 @@ class TwoStageStepper(ExplicitStepper):
             x0, free = self._newton_start(nodes, x_start, ctx.x_hat, state)
             result, f_its, f_ok = self._solver.solve(state, nodes, x0, ctx.x_hat, None, x_start)
             if not result.success:
-                raise StepError(
-                    StepReport(
-                        step=state.step + 1,
-                        t=step.t_next,
-                        success=False,
-                        status=result.status.name,
-                        message=f"two_stage contact solve: {result.message}",
-                        iterations={"newton": int(result.nit), "friction": f_its},
-                        timings=dict(result.timings),
-                    )
+                raise StepError.failed(
+                    state.step + 1,
+                    step.t_next,
+                    result.status.name,
+                    f"two_stage contact solve: {result.message}",
+                    iterations={"newton": int(result.nit), "friction": f_its},
+                    timings=dict(result.timings),
                 )
             y, nit, status = result.x, int(result.nit), result.status.name
             pot.solution_changed(y)  # the barrier at the solution (distances, contact())
