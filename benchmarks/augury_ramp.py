@@ -23,7 +23,7 @@ Beside the paper's settings (N = 1, averaged normals) every mode records bfemp's
 ``variant_targets``; the energy guard (``AuguryOptions.energy_guard``) is on in both.
 Measured results, with the commits they ran on: ``benchmarks/records/augury_ramp.md``.
 Placement ``"spec"`` above (these records); ``"conforming"`` (issue 40, ``PLACEMENTS``, mode
-``"conforming"``: ``run_conforming``) puts the block's nodes on the ramp's at every h
+``"conforming"``: ``measure_conforming``) puts the block's nodes on the ramp's at every h
 (``benchmarks/records/augury_ramp_conforming.md``).
 Every penetration check reports INTERPENETRATION: genuine overlaps, the deepest per case
 5.4e-4 m to 1.5e-2 m (``max_penetration_depth_m``; APIC, h = 1), not nodes at zero gap.
@@ -39,7 +39,7 @@ import numpy as np
 
 import bfemp
 from benchmarks.common import figure, save
-from benchmarks.runner import Benchmark, register, write_record
+from benchmarks.runner import Benchmark, register
 from bfemp.steppers.augury import AuguryOptions, AuguryStepper
 
 log = logging.getLogger(__name__)
@@ -346,7 +346,7 @@ def measure(mode: str, cfg) -> dict:
     return payload
 
 
-#: ``run_conforming``'s record: what AUG reports and what the measurement shows of the method
+#: ``measure_conforming``'s record: what AUG reports and what the measurement shows of the method
 CONFORMING_NOTES = {
     "paper_numbers": "AUG gives no number for the ramp (section 3.3, Fig. 11: 'there appears to "
     "be improvement toward the exact solution as the mesh and background grid are refined'; no "
@@ -362,7 +362,7 @@ CONFORMING_NOTES = {
 }
 
 
-#: (placement, h in m, mu, transfer) of ``run_conforming``'s record (benchmarks/records/
+#: (placement, h in m, mu, transfer) of ``measure_conforming``'s record (benchmarks/records/
 #: augury_ramp_conforming.json), in its order: conforming APIC and PIC at mu = 0, APIC at the
 #: sticking control 0.7 and at 0.2; the spec placement (APIC, mu = 0) beside it; h = 1/8 last
 #: (APIC mu = 0 and 0.7, PIC mu = 0)
@@ -377,20 +377,19 @@ RECORD_PLAN = (
 )
 
 
-def run_conforming(
-    out: str | Path = "results",
+def measure_conforming(
+    mode: str,
+    cfg: dict,
     plan: tuple[tuple[str, float, float, str], ...] = RECORD_PLAN,
     t_end: float = 0.1,
     not_run: dict | None = None,
-    name: str = "augury_ramp_conforming",
     cases: list[dict] | None = None,
 ) -> dict:
     """The paper's settings (N = 1, averaged normals) for each (placement, h, mu, transfer) of
-    ``plan`` to ``t_end`` s; writes ``name``.json and .png. ``not_run`` lists the cases left
-    out with their estimated cost; ``cases`` (``run_case`` results, e.g. saved one by one by a
-    long driver) are recorded instead of running them."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    ``plan`` to ``t_end`` s. ``not_run`` lists the cases left out with their estimated cost;
+    ``cases`` (``run_case`` results, e.g. saved one by one by a long driver) are recorded
+    instead of running them."""
+    name = "augury_ramp_conforming"
     started = time.perf_counter()
     ran = cases is None
     cases = [] if cases is None else list(cases)
@@ -436,8 +435,7 @@ def run_conforming(
                     for a, b in zip(rows[:-1], rows[1:], strict=True)
                 )
             )
-    payload = {
-        "benchmark": name,
+    return {
         "cases": cases,
         "observations": observations,
         "not_run": not_run or {},
@@ -464,12 +462,12 @@ def run_conforming(
         },
         "wall_s": sum(c["wall_s"] for c in cases) if not ran else time.perf_counter() - started,
     }
-    return write_record(out, name, payload, lambda _, png: _plot_conforming(cases, png))
 
 
-def _plot_conforming(cases: list[dict], path: Path) -> None:
+def _plot_conforming(payload: dict, path: Path) -> None:
     """Slope displacement against time (APIC; solid: conforming, dashed: spec) and the
     relative error at t_end against h per (placement, transfer, mu)."""
+    cases = payload["cases"]
     fig, axes = figure((11, 4.2), 1, 2)
     hs = sorted({c["h"] for c in cases}, reverse=True)
     mus = sorted({c["mu"] for c in cases})
@@ -527,7 +525,7 @@ register(
         "augury_ramp_conforming",
         "The ramp with the block's nodes on the ramp's (issue 40), AUG's settings",
         {"full": {}},
-        None,
-        own_run=lambda mode, out: run_conforming(out),
+        measure_conforming,
+        plot=_plot_conforming,
     )
 )

@@ -99,8 +99,8 @@ import scipy.sparse as sp
 import bfemp
 from benchmarks import catalogue
 from benchmarks._phases import newton_phases
-from benchmarks.common import environment, figure, peak_memory_mb
-from benchmarks.runner import Benchmark, name_unless, register, write_record
+from benchmarks.common import figure
+from benchmarks.runner import Benchmark, name_unless, register
 from bfemp.contact._barrier_kernels import _barrier_gradients, _barrier_hessians
 from bfemp.contact.barrier import barrier, barrier_derivative, barrier_second_derivative
 from bfemp.contact.evaluation import KERNEL_KIND
@@ -627,22 +627,10 @@ def _plot(payload: dict, path: Path) -> None:
     fig.savefig(path, dpi=110)
 
 
-def run(mode: str = "full", out: str | Path = "results") -> dict:
-    """Measure both configurations and the rings breakdown; write ``perf_contact.json``/``.png``.
-
-    Args:
-        mode: ``"full"`` (50k pairs, rings at full resolution) or ``"quick"`` (5k, coarse rings).
-        out: output folder.
-
-    Returns:
-        ``{"json": path, "png": path, ...}`` with the top-level metrics.
-    """
-    if mode not in MODES:
-        raise ValueError(f"mode must be one of {sorted(MODES)}, got {mode!r}")
-    cfg = MODES[mode]
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    started = time.perf_counter()
+def measure(mode: str, cfg: dict, out: Path) -> dict:
+    """Both configurations and the rings breakdown of ``mode`` (``"full"``: 50k pairs, rings at
+    full resolution; ``"quick"``: 5k, coarse rings); ``before_after`` against the record of
+    the same mode in ``out``, if any."""
     threads = numba.get_num_threads(), ipctk.get_num_threads() if ipctk is not None else None
     numba.set_num_threads(COMPARE_THREADS)  # per-core throughput: robust on a shared machine
     if ipctk is not None:
@@ -687,7 +675,6 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
             for key, v in pairs_per_s.items()
         }
     payload = {
-        "benchmark": NAME,
         "mode": mode,
         "barrier_pairs_per_s": pairs_per_s,
         "ccd_s": ccd_s,
@@ -702,10 +689,8 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
         },
         "targets_met": targets_met,
         "ipctk_available": has_ipctk,
-        "wall_s": time.perf_counter() - started,
         "steps": sum(ring["approach_steps"].values()) + 1,
         "newton_iterations": ring["newton_iterations"],
-        "peak_memory_mb": peak_memory_mb(),
         "parameters": {
             "pairs": cfg["pairs"],
             "repeats": cfg["repeats"],
@@ -722,16 +707,18 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
             "ipctk_version": getattr(ipctk, "__version__", None) if has_ipctk else None,
         },
         "cases": cases,
-        "environment": environment(),
     }
-    record = out / f"{NAME}.json"
+    record = out / f"{BENCHMARK.stem(mode)}.json"
     previous = json.loads(record.read_text()) if record.exists() else None
     payload["before_after"] = _before_after(previous, payload)
     log.info("perf_contact: pairs/s %s; CCD s %s", pairs_per_s, ccd_s)
-    return write_record(out, NAME, payload, _plot)
+    return payload
 
 
 # the committed records of modes other than full carry the mode in their names
 BENCHMARK = register(
-    Benchmark(NAME, __doc__, MODES, None, record=name_unless("full", NAME), own_run=run)
+    Benchmark(
+        NAME, __doc__, MODES, measure, plot=_plot, record=name_unless("full", NAME), takes_out=True
+    )
 )
+run = BENCHMARK.run
