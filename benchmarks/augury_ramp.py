@@ -12,21 +12,18 @@ Analytic: s(t) = 1/2 g (sin30 - mu cos30) t^2 (sticks for mu >= tan30 = 0.577); 
 plots the x displacement s cos30 (both recorded). Metric: relative error of the block's centre-
 of-mass displacement along the slope at t_end, per (h, mu, transfer).
 
-Targets: the APIC error falls with h; APIC below PIC at the finest h; control: mu = 0.7 gives
-a slip |s(t_end)| < 1e-3 m, the slip measured as the mean downhill displacement of the block's
-bottom-face nodes minus that of the ramp's top-face nodes near the block (the centre of mass
-moves ~1e-2 m by the elastic shear of both bodies even when the block sticks; measured 0.0157 m
-at h = 1, t = 0.1 s, mu = 0.7). Quick: h in {1, 0.5}, mu in {0, 0.2}, t_end 0.1 s (4,000 and 8,000
-steps), the control at h = 1; full: h in {1, 0.5, 0.25}, mu in {0, 0.2, 0.4}, t_end 0.2 s.
-Beside the paper's settings (N = 1, averaged normals) every mode records bfemp's variant
-``normals="facing"``, N = 30 (APIC, with mu = 0.7) in ``variant_cases`` and its own targets in
-``variant_targets``; the energy guard (``AuguryOptions.energy_guard``) is on in both.
-Measured results, with the commits they ran on: ``benchmarks/records/augury_ramp.md``.
-Placement ``"spec"`` above (these records); ``"conforming"`` (issue 40, ``PLACEMENTS``, mode
-``"conforming"``: ``measure_conforming``) puts the block's nodes on the ramp's at every h
+Targets: the APIC error falls with h; APIC below PIC at the finest h; control: mu = 0.7 gives a slip
+|s(t_end)| < 1e-3 m, the slip measured as the mean downhill displacement of the block's bottom-face
+nodes minus that of the ramp's top-face nodes near the block (the centre of mass moves ~1e-2 m by
+the elastic shear of both bodies even when the block sticks). Quick: h in {1, 0.5}, mu in {0, 0.2},
+t_end 0.1 s (4,000 and 8,000 steps), the control at h = 1; full: h in {1, 0.5, 0.25}, mu in {0, 0.2,
+0.4}, t_end 0.2 s. Beside the paper's settings (N = 1, averaged normals) every mode records bfemp's
+variant ``normals="facing"``, N = 30 (APIC, with mu = 0.7) in ``variant_cases`` and its own targets
+in ``variant_targets``; the energy guard (``AuguryOptions.energy_guard``) is on in both. Measured
+results, with the commits they ran on: ``benchmarks/records/augury_ramp.md``. Placement ``"spec"``
+above (these records); ``"conforming"`` (issue 40, ``PLACEMENTS``, mode ``"conforming"``:
+``measure_conforming``) puts the block's nodes on the ramp's at every h
 (``benchmarks/records/augury_ramp_conforming.md``).
-Every penetration check reports INTERPENETRATION: genuine overlaps, the deepest per case
-5.4e-4 m to 1.5e-2 m (``max_penetration_depth_m``; APIC, h = 1), not nodes at zero gap.
 """
 
 from __future__ import annotations

@@ -1,9 +1,7 @@
 """``lr_variants``: which of lr's settings holds on which kind of contact (issue 17).
 
-The trade study (``benchmarks.tradeoff``) found lr's default (FLIP, two corrections, the
-paper's f^{C,1}) off by 100 % on ``slope`` and 415 % on the quick ``rings``, while
-``corrections=1`` was within 2 % and 69 %. This benchmark runs lr's update variants side by
-side on three scenes, each a different kind of contact, and records where each one breaks.
+lr's update variants side by side on three scenes, each a different kind of contact: where
+each one breaks (why it was asked: ``benchmarks/records/lr_variants.md``).
 
 Variants (``LROptions``, all other options the scene's):
 

@@ -29,7 +29,7 @@ from pathlib import Path
 
 import bfemp
 from benchmarks._blas_switch import factorisation_by_blas
-from benchmarks._phases import MACHINE_NOTE, newton_phases
+from benchmarks._phases import MACHINE_NOTE, PERF_TIMINGS, newton_phases
 from benchmarks.common import peak_memory_mb, write_json
 from benchmarks.runner import Benchmark, register
 from bfemp.integrators import BACKWARD_EULER
@@ -144,7 +144,13 @@ def measure(mode: str, cfg: dict, out: Path) -> dict:
 # the committed records carry the mode in their names (perf_3d_quick, perf_3d_full)
 BENCHMARK = register(
     Benchmark(
-        "perf_3d", __doc__, CASES, measure, record=lambda mode, _: f"perf_3d_{mode}", takes_out=True
+        "perf_3d",
+        __doc__,
+        CASES,
+        measure,
+        record=lambda mode, _: f"perf_3d_{mode}",
+        timings=PERF_TIMINGS,
+        takes_out=True,
     )
 )
 run = BENCHMARK.run

@@ -33,8 +33,7 @@
      gradient and the Hessian (its matrix also has rows for the prescribed FEM nodes, bfemp's
      only for the unknowns). ``barrier_pairs_per_s`` (the headline) = active pairs / this time.
      bfemp's chain rule sums the pairs' node blocks as it goes (one triplet per coupled DOF
-     pair), so this level runs on all pairs in 3D too (it used to emit (27 x 3)^2 = 6561 triplets
-     per 3D pair and ran on a smaller configuration, its time scaled).
+     pair), so this level runs on all pairs in 3D too.
 
    The pair search is timed apart (bfemp ``solution_changed``: collision positions, broad phase,
    distances, which ``value`` then reuses; ipctk as above, whose ``value`` recomputes them) and
@@ -67,17 +66,15 @@
    (``candidate_pairs``, inflation dhat), its whole pair search and the CCD step bound along the
    inertial predictor x_hat - x^n (``max_step_size``).
 
-Timings: each operation is called once (warm-up: numba kernels loaded, ipctk structures built)
-and then ``repeats`` times in a row; its time is the fastest of these calls. The 2-core machine
-is shared with other jobs, and the minimum is the least disturbed run; consecutive calls measure
-the steady state (interleaving the two libraries' calls made bfemp's Hessian several times
-slower here, mostly as system time: its fresh per-call triplet arrays, 24 bytes per triplet,
-page-faulting anew). The barrier and CCD comparisons run both libraries on one thread
-(``COMPARE_THREADS``: numba's and ipctk's TBB pools): per-core throughput, the fair comparison,
-and the one that survives a loaded 2-core machine (with two threads, a parallel region waits for
-its slowest thread while other jobs deschedule threads at random). The rings breakdown uses the
-default threads. ipctk is optional (``pip install .[bench]``); without it its columns are
-``null``.
+Timings: each operation is called once (warm-up: numba kernels loaded, ipctk structures built) and
+then ``repeats`` times in a row; its time is the fastest of these calls. The 2-core machine is
+shared with other jobs, and the minimum is the least disturbed run; consecutive calls measure the
+steady state (``benchmarks/records/perf_contact.md``: why). The barrier and CCD comparisons run both
+libraries on one thread (``COMPARE_THREADS``: numba's and ipctk's TBB pools): per-core throughput,
+the fair comparison, and the one that survives a loaded 2-core machine (with two threads, a parallel
+region waits for its slowest thread while other jobs deschedule threads at random). The rings
+breakdown uses the default threads. ipctk is optional (``pip install .[bench]``); without it its
+columns are ``null``.
 
 ``before_after``: where the output folder already holds a record of the same mode, ``[that
 record, this run]`` for the headline rates, CCD times and the rings' per-iteration phases (and

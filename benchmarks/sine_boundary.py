@@ -39,9 +39,7 @@ The FEM strip: as in the paper, every node of the sine body is scripted (rigid).
 brings scripted nodes to their end-of-step positions under CCD (part-way moves and re-solves), so
 the body never jumps over particles. ``STRIP_PRESCRIBED = "all"`` instead scripts only the top
 row and carries the wavy lower surface by a thin (2 element rows), stiff (E = 1e9 Pa) elastic
-strip; ``strip_surface_deviation_m`` then records how far the surface strays from its path. The
-recorded partial run (``benchmarks/records``) was made with ``"top"``, before the stepper learnt
-to move scripted bodies under CCD.
+strip; ``strip_surface_deviation_m`` then records how far the surface strays from its path.
 
 Choices where the paper is silent (recorded in the JSON ``parameters``):
 
@@ -52,9 +50,7 @@ Choices where the paper is silent (recorded in the JSON ``parameters``):
   left), edge length 0.005 m in full mode (27 edges per wavelength of arc);
 - particles: ``bfemp.sample.box`` at dx = 0.02 m with ppc = 9 (22500; the paper's 21026 is not a
   regular lattice count, ppc = 4 would give 10000); APIC transfer;
-- Newton iteration cap 1000 per step: on this scene projected Newton converges linearly at grid
-  nodes that carry a tiny mass (a particle at the edge of their B-spline support), taking a few
-  hundred iterations in some steps before the paper's 1e-4 m/s is met;
+- Newton iteration cap 1000 per step (``benchmarks/records/sine_boundary.md``: why);
 - ``partial`` mode (the recorded run, the full one being too slow for 2 cores): the paper's
   scene, path and dt on a coarser grid, dx = 0.04 m, ppc = 4 (2500 particles);
 - quick mode halves every length but the sine's (box 0.5 m, gap 0.1 m, path 0.3 m down, 0.25 m

@@ -39,10 +39,8 @@ relative error is undefined (null) and the speed is the metric: the mollified st
 lets the box creep up to eps_v, where full Coulomb friction balances gravity exactly.
 
 A step that fails (``StepError``) ends its case; the error is kept in the case's ``error`` and in
-``failed_cases``, and the fit uses the steps before it. Known library limits when this was
-written: at tol = 1e-8 m/s the Newton increment of this very stiff box (E = 4e12 Pa) reaches a
-round-off floor of 1e-8 to 4e-8 m/s after a few hundred sliding steps (MAX_ITERATIONS), and the
-friction term counts a particle near a shared FEM boundary vertex twice (``fine_slope``).
+``failed_cases``, and the fit uses the steps before it (known limits:
+``benchmarks/records/slope.md``).
 """
 
 from __future__ import annotations

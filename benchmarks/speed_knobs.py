@@ -13,10 +13,8 @@ Knobs:
   does not pay (the JSON says how much).
 - ``broad_phase_share``: what reusing broad-phase candidates across line-search trials could save
   at most: the share of the step time spent in ``bfemp.contact.pairs.candidate_pairs``
-  (cProfile, rings demo from 0.02 s to 0.1 s; quick: to 0.04 s). Not implemented: the record
-  gives 15 % of the step, of which the line-search trials (what reuse would remove; the CCD's
-  own swept query stays) are about half, i.e. a ~7 % gain for a cache that must prove that every
-  trial lies on the segment its candidates were swept over.
+  (cProfile, rings demo from 0.02 s to 0.1 s; quick: to 0.04 s). Not implemented (why:
+  ``benchmarks/records/speed_knobs.md``).
 
 For each run: Newton iterations, numeric factorisations, wall seconds (min of ``repeats`` runs;
 the machine is shared) and a result (final positions) whose on/off difference is recorded, so the
