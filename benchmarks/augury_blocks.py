@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 import bfemp
+from benchmarks._shared import falls_with_h
 from benchmarks.common import figure
 from benchmarks.runner import Benchmark, register
 from bfemp import diagnostics
@@ -187,6 +188,13 @@ def _plot(runs: list[dict], path: Path) -> None:
     fig.savefig(path, dpi=110)
 
 
+def _falls_with_h(runs: list[dict], key: str) -> dict[str, bool]:
+    """Per ``TRANSFER_NN`` with runs at two h or more: whether ``key`` falls at every
+    refinement."""
+    falls = falls_with_h(runs, key, ("transfer", "iterations"))
+    return {f"{t}_N{n}": ok for (t, n), ok in falls.items()}
+
+
 def measure(mode: str, cfg) -> dict:
     """Every variant at every h of ``mode``."""
     runs = []
@@ -205,21 +213,6 @@ def measure(mode: str, cfg) -> dict:
             )
             runs.append(r)
     hs = MODES[mode]
-    by = {(r["h"], r["transfer"], r["iterations"]): r for r in runs}
-    loss_falls = {
-        f"{t}_N{n}": all(
-            by[(hs[i + 1], t, n)]["energy_loss"] < by[(hs[i], t, n)]["energy_loss"]
-            for i in range(len(hs) - 1)
-        )
-        for t, n in VARIANTS
-    }
-    early_falls = {
-        f"{t}_N{n}": all(
-            by[(hs[i + 1], t, n)]["initial_energy_loss"] < by[(hs[i], t, n)]["initial_energy_loss"]
-            for i in range(len(hs) - 1)
-        )
-        for t, n in VARIANTS
-    }
     targets = {
         "apic_L_drift_below_1e-10": all(
             r["L_drift_max"] < 1e-10 for r in runs if r["transfer"] == "apic"
@@ -228,8 +221,8 @@ def measure(mode: str, cfg) -> dict:
         "pic_L_drift_above_1e-6": all(
             r["L_drift_max"] > 1e-6 for r in runs if r["transfer"] == "pic"
         ),
-        "energy_loss_falls_with_h": loss_falls,
-        "initial_energy_loss_falls_with_h": early_falls,
+        "energy_loss_falls_with_h": _falls_with_h(runs, "energy_loss"),
+        "initial_energy_loss_falls_with_h": _falls_with_h(runs, "initial_energy_loss"),
     }
     speed = [
         {
@@ -335,18 +328,9 @@ def measure_long(
             r["wall_s"],
         )
         runs.append(r)
-    observations = {"energy_loss_falls_with_h": {}, "separated_by_t_end": {}}
-    for t, n in sorted({(r["transfer"], r["iterations"]) for r in runs}):
-        rows = sorted(
-            (r for r in runs if (r["transfer"], r["iterations"]) == (t, n)), key=lambda r: -r["h"]
-        )
-        if len(rows) > 1:  # an observation, not a target (LONG_NOTES)
-            observations["energy_loss_falls_with_h"][f"{t}_N{n}"] = bool(
-                all(
-                    b["energy_loss"] < a["energy_loss"]
-                    for a, b in zip(rows[:-1], rows[1:], strict=True)
-                )
-            )
+    # an observation, not a target (LONG_NOTES)
+    observations = {"energy_loss_falls_with_h": _falls_with_h(runs, "energy_loss")}
+    observations["separated_by_t_end"] = {}
     for r in runs:
         key = f"{r['transfer']}_N{r['iterations']}_h{r['h']:g}"
         observations["separated_by_t_end"][key] = r["separation_t"] is not None

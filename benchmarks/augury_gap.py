@@ -115,13 +115,8 @@ def _plot(rows: list[dict], path: Path) -> None:
         axes[1].semilogy(t, np.maximum(row["apic_ode_gap"], 1e-16), c + ":", lw=1)
     axes[0].set(xlabel="t v0 / L", ylabel="gap / L", title="PIC (Fig. 6a): stops at a gap")
     axes[1].set(xlabel="t v0 / L", ylabel="gap / L", title="APIC (Fig. 7a): gap closes")
-    save(
-        fig,
-        path,
-        axes,
-        "augury_gap: H on 1D hats (solid) against the ODE (dotted), closed form dashed",
-        legend="x-small",
-    )
+    title = "augury_gap: H on 1D hats (solid) against the ODE (dotted), closed form dashed"
+    save(fig, path, axes, title, legend="x-small")
 
 
 def measure(mode: str, taus) -> dict:

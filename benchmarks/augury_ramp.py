@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 import bfemp
+from benchmarks._shared import falls_with_h
 from benchmarks.common import figure, save
 from benchmarks.runner import Benchmark, register
 from bfemp.steppers.augury import AuguryOptions, AuguryStepper
@@ -254,13 +255,7 @@ def _plot(cases: list[dict], path: Path) -> None:
                 )
     axes[0].set(xlabel="t (s)", ylabel="slope displacement s (m)", title="block on 30 deg ramp")
     axes[1].set(xlabel="h (m)", ylabel="relative error of s(t_end)", title="refinement")
-    save(
-        fig,
-        path,
-        axes,
-        "augury_ramp (Fig. 11): dotted = 1/2 g (sin - mu cos) t^2",
-        legend="xx-small",
-    )
+    save(fig, path, axes, "augury_ramp (Fig. 11): dotted = 1/2 g (sin - mu cos) t^2", "xx-small")
 
 
 def measure(mode: str, cfg) -> dict:
@@ -289,17 +284,11 @@ def measure(mode: str, cfg) -> dict:
     ]
     hs = cfg["hs"]
     err = {(c["h"], c["mu"], c["transfer"]): c["rel_error"] for c in cases}
-    v_err = {(c["h"], c["mu"]): c["rel_error"] for c in variant}
     v_stick = [c for c in variant if c["mu"] == MU_STICK]
+    apic = [c for c in cases if c["transfer"] == "apic"]
     targets = {
         "apic_error_falls_with_h": {
-            str(mu): bool(
-                all(
-                    err[(hs[i + 1], mu, "apic")] < err[(hs[i], mu, "apic")]
-                    for i in range(len(hs) - 1)
-                )
-            )
-            for mu in cfg["mus"]
+            str(mu): ok for (mu,), ok in falls_with_h(apic, "rel_error", ("mu",)).items()
         },
         "apic_below_pic_at_finest_h": {
             str(mu): bool(err[(hs[-1], mu, "apic")] < err[(hs[-1], mu, "pic")]) for mu in cfg["mus"]
@@ -308,10 +297,9 @@ def measure(mode: str, cfg) -> dict:
     }
     variant_targets = {
         "error_falls_with_h": {
-            str(mu): bool(
-                all(v_err[(hs[i + 1], mu)] < v_err[(hs[i], mu)] for i in range(len(hs) - 1))
-            )
-            for mu in cfg["mus"]
+            str(mu): ok
+            for (mu,), ok in falls_with_h(variant, "rel_error", ("mu",)).items()
+            if mu in cfg["mus"]
         },
         "mu_0.7_sticks": {str(c["h"]): bool(abs(c["slip_end"]) < 1e-3) for c in v_stick},
     }
@@ -412,26 +400,9 @@ def measure_conforming(
             if exact > 0 and c["t"][-1] >= 0.05
             else None
         )
-    observations = {}
-    for placement, mu, transfer in sorted(
-        {(c["placement"], c["mu"], c["transfer"]) for c in cases}
-    ):
-        rows = sorted(
-            (
-                c
-                for c in cases
-                if (c["placement"], c["mu"], c["transfer"]) == (placement, mu, transfer)
-                and c["rel_error"] is not None
-            ),
-            key=lambda c: -c["h"],
-        )
-        if len(rows) > 1:  # an observation, not a target (CONFORMING_NOTES)
-            observations[f"error_falls_with_h {placement} {transfer} mu={mu:g}"] = bool(
-                all(
-                    b["rel_error"] < a["rel_error"]
-                    for a, b in zip(rows[:-1], rows[1:], strict=True)
-                )
-            )
+    falls = falls_with_h(cases, "rel_error", ("placement", "transfer", "mu"))
+    # observations, not targets (CONFORMING_NOTES)
+    observations = {f"error_falls_with_h {p} {t} mu={mu:g}": ok for (p, t, mu), ok in falls.items()}
     return {
         "cases": cases,
         "observations": observations,
@@ -504,13 +475,8 @@ def _plot_conforming(payload: dict, path: Path) -> None:
     axes[0].set(xlabel="t (s)", ylabel="slope displacement s (m)", title="block on 30 deg ramp")
     axes[1].set(xlabel="h (m)", ylabel="relative error of s(t_end)", title="refinement")
     axes[1].set_ylim(0.0, 1.05)
-    save(
-        fig,
-        path,
-        axes,
-        "augury_ramp, paper settings (N = 1): dotted = 1/2 g (sin - mu cos) t^2",
-        legend="xx-small",
-    )
+    title = "augury_ramp, paper settings (N = 1): dotted = 1/2 g (sin - mu cos) t^2"
+    save(fig, path, axes, title, legend="xx-small")
 
 
 BENCHMARK = register(

@@ -101,16 +101,13 @@ _FAST = dict(
 )
 MODES = {
     "full": dict(
+        _FAST,
         dx=0.025,
         spacing=math.sqrt(math.pi * RADIUS**2 / PAPER["particles"]),
-        boundary_refine=4,
         dt=1e-2,
-        t_end=0.6,
         tol=1e-6,
         max_newton_iterations=1000,
-        mu=MU,
         eps_v=EPS_V,
-        grid_offset_cells=0.25,
     ),
     "quick": dict(dx=0.02, spacing=0.01, **_FAST),
 }
@@ -330,6 +327,10 @@ def stress_force(deformation: np.ndarray, geo: dict, t: float) -> float:
     return -float(np.dot(sigma[:, 1, 1], volume)) / gap
 
 
+#: the float series of ``run_material``'s samples (beside the counts n_contact, newton_iterations)
+SAMPLE_KEYS = ("t", "F", "F_top", "F_particles", "lowest_gap", "F_stress", "a", "a_interpolated")
+
+
 def run_material(cfg: dict, material: str, top_plate: str = "elastic") -> dict:
     """Compress the disk of one material; F and a after every step, and the fits.
 
@@ -352,9 +353,7 @@ def run_material(cfg: dict, material: str, top_plate: str = "elastic") -> dict:
     lower = sim.state.mpm_x[:, 1] < 0.0  # the disk's lower half (its centre is at y = 0)
     x_mean0 = sim.state.mpm_x[:, 0].mean()
     n_steps = int(round(cfg["t_end"] / sim.dt))
-    rows = {k: [] for k in ("t", "F", "F_top", "a", "a_interpolated", "n_contact", "newton")}
-    rows["F_particles"], rows["F_stress"], rows["lowest_gap"] = [], [], []
-    rows["friction_iterations"] = []
+    rows = {k: [] for k in (*SAMPLE_KEYS, "n_contact", "newton", "friction_iterations")}
     error = None
     start = time.perf_counter()
     for _ in range(n_steps):
@@ -426,14 +425,7 @@ def run_material(cfg: dict, material: str, top_plate: str = "elastic") -> dict:
         # the shared penetration_depth column's largest value and the strategy's bound (issue 40)
         **penetration_summary(sim),
         "samples": {
-            "t": s["t"].tolist(),
-            "F": s["F"].tolist(),
-            "F_top": s["F_top"].tolist(),
-            "F_particles": s["F_particles"].tolist(),
-            "lowest_gap": s["lowest_gap"].tolist(),
-            "F_stress": s["F_stress"].tolist(),
-            "a": s["a"].tolist(),
-            "a_interpolated": s["a_interpolated"].tolist(),
+            **{k: s[k].tolist() for k in SAMPLE_KEYS},
             "n_contact": s["n_contact"].astype(int).tolist(),
             "newton_iterations": s["newton"].astype(int).tolist(),
         },
