@@ -357,11 +357,8 @@ def run_material(cfg: dict, material: str, top_plate: str = "elastic") -> dict:
     error = None
     start = time.perf_counter()
     for _ in range(n_steps):
-        try:
-            report = sim.step()
-        except bfemp.StepError as err:  # recorded; the samples so far are still fitted
-            error = str(err)
-            log.error("hertz/%s: %s", material, err)
+        report, error = catalogue.step(sim, f"hertz/{material}")
+        if error is not None:  # recorded; the samples so far are still fitted
             break
         fem_f, mpm_f = sim.contact_forces()
         x = sim.state.mpm_x

@@ -293,11 +293,8 @@ def run_treatment(cfg: dict, treatment: str) -> dict:
     # ``t_stop`` (s, optional): stop there (the trade study's warm-up)
     t_stop = min(cfg.get("t_stop") or math.inf, geo.t_up + MAX_UP * geo.scale)
     while sim.state.t < t_stop - 0.5 * sim.dt:
-        try:
-            report = sim.step()
-        except bfemp.StepError as err:  # recorded; the series so far are still reduced
-            error = str(err)
-            log.error("%s/%s: %s", NAME, treatment, err)
+        report, error = catalogue.step(sim, f"{NAME}/{treatment}")
+        if error is not None:  # recorded; the series so far are still reduced
             break
         t = sim.state.t
         if lower is None:
