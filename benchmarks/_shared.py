@@ -17,3 +17,13 @@ def falls_with_h(rows: list[dict], key: str, group: tuple[str, ...]) -> dict[tup
         for g, v in series.items()
         if len(v) > 1
     }
+
+
+def check_settings(where: str, settings: dict, keys: tuple[str, ...]) -> None:
+    """A ValueError naming the keys of ``keys`` missing from ``settings`` and those of
+    ``settings`` not among ``keys`` (``where``: the function that checks, e.g.
+    ``"hertz.run_point"``)."""
+    missing = [key for key in keys if key not in settings]
+    unknown = sorted(set(settings) - set(keys))
+    if missing or unknown:
+        raise ValueError(f"{where}: missing settings {missing}, unknown {unknown}")

@@ -62,6 +62,7 @@ import numpy as np
 import bfemp
 from benchmarks import catalogue
 from benchmarks._penetration import penetration_summary
+from benchmarks._shared import check_settings
 from benchmarks.common import figure
 from benchmarks.runner import Benchmark, register
 
@@ -430,20 +431,9 @@ def run_material(cfg: dict, material: str, top_plate: str = "elastic") -> dict:
 
 
 #: the keys of a ``run_point`` settings dict (the trade study's knobs and fixed settings)
-POINT_KEYS = (
-    "dx",
-    "spacing",
-    "dt",
-    "dhat",
-    "eps_v",
-    "tol",
-    "strategy",
-    "material",
-    "mu",
-    "t_end",
-    "max_newton_iterations",
-    "boundary_refine",
-    "grid_offset_cells",
+POINT_KEYS = tuple(
+    "dx spacing dt dhat eps_v tol strategy material mu t_end max_newton_iterations "
+    "boundary_refine grid_offset_cells".split()
 )
 
 
@@ -464,10 +454,7 @@ def run_point(settings: dict) -> dict:
         ``C_fit_over_C_hertz``, ``fit_samples``, ``steps``, ``newton_iterations``,
         ``particles``, and the ``StepError`` message in ``failure``.
     """
-    missing = [key for key in POINT_KEYS if key not in settings]
-    unknown = sorted(set(settings) - set(POINT_KEYS))
-    if missing or unknown:
-        raise ValueError(f"hertz.run_point: missing settings {missing}, unknown {unknown}")
+    check_settings("hertz.run_point", settings, POINT_KEYS)
     if settings["material"] not in MATERIALS:
         raise ValueError(
             f"hertz: settings.material must be one of {sorted(MATERIALS)}, "

@@ -131,20 +131,6 @@ COMPARE_THREADS = 1
 
 
 # --------------------------------------------------------------------------- configurations
-def _facet_frames(points: np.ndarray, facets: np.ndarray, centre: np.ndarray) -> np.ndarray:
-    """Unit outward normals ``(F, d)`` of the facets of a convex body about ``centre``."""
-    corners = points[facets]
-    if points.shape[1] == 2:
-        t = corners[:, 1] - corners[:, 0]
-        n = np.stack([t[:, 1], -t[:, 0]], axis=1)
-    else:
-        n = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-    n /= np.linalg.norm(n, axis=1)[:, None]
-    flip = np.einsum("ij,ij->i", n, corners.mean(axis=1) - centre) < 0.0
-    n[flip] *= -1.0
-    return n
-
-
 def _sample_on_facets(
     points: np.ndarray, facets: np.ndarray, n: int, rng: np.random.Generator
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -181,12 +167,9 @@ def _configuration(dim: int, n_pairs: int, seed: int = 7) -> dict:
     geo = GEOMETRY[dim]
     if dim == 2:
         mesh = bfemp.shapes.disk((0.0, 0.0), geo["radius"], h=geo["h"])
-        centre = np.zeros(2)
     else:
         mesh = bfemp.shapes.box((0.0,) * 3, (geo["side"],) * 3, h=geo["h"])
-        centre = np.full(3, 0.5 * geo["side"])
-    facets = mesh.boundary_edges if dim == 2 else mesh.boundary_faces
-    normals = _facet_frames(mesh.points, facets, centre)
+    facets, normals = mesh.boundary_facets, mesh.boundary_normals()  # outward unit normals
     base, owner = _sample_on_facets(mesh.points, facets, n_pairs, rng)
     gap = rng.uniform(0.05, 0.95, n_pairs) * DHAT
     particles = base + gap[:, None] * normals[owner]

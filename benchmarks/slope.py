@@ -52,6 +52,7 @@ from pathlib import Path
 import numpy as np
 
 import bfemp
+from benchmarks._shared import check_settings
 from benchmarks.catalogue import SLOPE_PHYSICS as PHYSICS
 from benchmarks.catalogue import SLOPE_VARIANTS as VARIANTS
 from benchmarks.catalogue import release_slope, settle_slope
@@ -157,19 +158,7 @@ def _strip(cases: list[dict]) -> list[dict]:
 
 
 #: the keys of a ``run_point`` settings dict (the trade study's knobs and fixed settings)
-POINT_KEYS = (
-    "dt",
-    "dx",
-    "ppc",
-    "dhat",
-    "eps_v",
-    "tol",
-    "strategy",
-    "mu",
-    "settle_s",
-    "release_s",
-    "fit_start_s",
-)
+POINT_KEYS = tuple("dt dx ppc dhat eps_v tol strategy mu settle_s release_s fit_start_s".split())
 
 
 def point_physics(settings: dict) -> dict:
@@ -216,10 +205,7 @@ def run_point(settings: dict) -> dict:
         ``accel_analytic`` (m/s^2), ``accel_rel_error``, ``steps``, ``newton_iterations`` (settling
         and release), ``particles``, and the ``StepError`` message in ``failure``.
     """
-    missing = [key for key in POINT_KEYS if key not in settings]
-    unknown = sorted(set(settings) - set(POINT_KEYS))
-    if missing or unknown:
-        raise ValueError(f"slope.run_point: missing settings {missing}, unknown {unknown}")
+    check_settings("slope.run_point", settings, POINT_KEYS)
     p = point_physics(settings)
     dt = settings["dt"]
     try:
