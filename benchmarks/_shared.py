@@ -27,3 +27,26 @@ def check_settings(where: str, settings: dict, keys: tuple[str, ...]) -> None:
     unknown = sorted(set(settings) - set(keys))
     if missing or unknown:
         raise ValueError(f"{where}: missing settings {missing}, unknown {unknown}")
+
+
+class StepCost:
+    """Wall time per phase (``report.timings``, s) and contact nodes
+    (``report.extra["contact_nodes"]``) summed over the steps of an ``LRStepper`` run."""
+
+    def __init__(self) -> None:
+        self.phases: dict[str, float] = {}
+        self.contact_nodes, self.steps = 0.0, 0
+
+    def add(self, report: object) -> None:
+        """Add one step's report."""
+        for key, value in report.timings.items():
+            self.phases[key] = self.phases.get(key, 0.0) + value
+        self.contact_nodes += report.extra["contact_nodes"]
+        self.steps += 1
+
+    def summary(self) -> dict:
+        """``ms_per_step`` (per phase) and ``mean_contact_nodes`` over the steps added."""
+        return {
+            "ms_per_step": {k: 1e3 * v / self.steps for k, v in self.phases.items()},
+            "mean_contact_nodes": self.contact_nodes / self.steps,
+        }
