@@ -95,7 +95,7 @@ import scipy.sparse as sp
 
 import bfemp
 from benchmarks import catalogue
-from benchmarks._phases import newton_phases
+from benchmarks._phases import newton_phases, wall_times
 from benchmarks.common import figure
 from benchmarks.runner import Benchmark, name_unless, register
 from bfemp.contact._barrier_kernels import _barrier_gradients, _barrier_hessians
@@ -314,12 +314,7 @@ def _timed(ops: dict, repeats: int) -> dict[str, float]:
     out = {}
     for name, fn in ops.items():
         fn()
-        best = math.inf
-        for _ in range(repeats):
-            start = time.perf_counter()
-            fn()
-            best = min(best, time.perf_counter() - start)
-        out[f"{name}_s"] = best
+        out[f"{name}_s"] = min(wall_times(fn, repeats))
     return out
 
 
