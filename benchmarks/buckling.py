@@ -239,53 +239,32 @@ def _run_one(
     sim = catalogue.paper_simulation(_scene(cfg, mu), cfg["dt"], TOL, cfg["max_newton"])
     measure = Detachment(sim.state.mpm_x, sim.state.fem_x, cfg["dx"])
     steps = round(cfg["u_end"] / (SPEED * cfg["dt"]))
-    progress = {
-        "u": [0.0],
-        "detach": [0.0],
-        "angle": [90.0],
-        "newton": 0,
-        "friction_max": 0,
-        "min_d": None,
-        "error": None,
-        "segments_s": [],
-    }
+    # the case's series and counters: what a checkpoint saves and a resumed run goes on from
+    p = {"u": [0.0], "detach": [0.0], "angle": [90.0], "newton": 0, "friction_max": 0}
+    p |= {"min_d": None, "error": None, "segments_s": []}
     if checkpoint is not None and checkpoint.exists():
-        progress = checkpoint.restore(sim)
-    u, detach, angle = progress["u"], progress["detach"], progress["angle"]
-    newton, friction_max = progress["newton"], progress["friction_max"]
-    min_d = math.inf if progress["min_d"] is None else progress["min_d"]
-    error, cut = progress["error"], False
-    segments, first_step = progress["segments_s"], sim.state.step
+        p = checkpoint.restore(sim)
+    error_before, segments, first_step, cut = p["error"], p["segments_s"], sim.state.step, False
     started = time.perf_counter()
 
     def save(done_segments: list[float] | None = None) -> None:
         if checkpoint is not None:
-            checkpoint.save(
-                sim,
-                {
-                    "u": u,
-                    "detach": detach,
-                    "angle": angle,
-                    "newton": newton,
-                    "friction_max": friction_max,
-                    "min_d": min_d if math.isfinite(min_d) else None,
-                    "error": error,
-                    "segments_s": done_segments or [*segments, time.perf_counter() - started],
-                },
-            )
+            done = done_segments or [*segments, time.perf_counter() - started]
+            checkpoint.save(sim, {**p, "segments_s": done})
 
-    for k in range(sim.state.step, steps if error is None else 0):
-        report, error = catalogue.step(sim, f"buckling mu={mu:g}")
-        if error is not None:
+    for k in range(sim.state.step, steps if p["error"] is None else 0):
+        report, p["error"] = catalogue.step(sim, f"buckling mu={mu:g}")
+        if p["error"] is not None:
             break
-        newton += report.newton_iterations
-        friction_max = max(friction_max, report.friction_iterations)
+        p["newton"] += report.newton_iterations
+        p["friction_max"] = max(p["friction_max"], report.friction_iterations)
         if np.isfinite(report.min_distance):
-            min_d = min(min_d, report.min_distance)
+            known = math.inf if p["min_d"] is None else p["min_d"]
+            p["min_d"] = min(known, report.min_distance)
         d, a = measure(sim.state.mpm_x, sim.state.fem_x)
-        u.append(SPEED * sim.state.t)
-        detach.append(d)
-        angle.append(a)
+        p["u"].append(SPEED * sim.state.t)
+        p["detach"].append(d)
+        p["angle"].append(a)
         elapsed = time.perf_counter() - started
         if (k + 1) % PROGRESS_EVERY == 0:
             log.info(
@@ -293,22 +272,23 @@ def _run_one(
                 mu,
                 k + 1,
                 steps,
-                u[-1],
+                p["u"][-1],
                 d,
-                newton,
+                p["newton"],
                 elapsed,
             )
         if elapsed > budget_s and k + 1 < steps:
             cut = True
             log.warning(
-                "buckling mu=%g: cut at the budget of %.0f s, u = %.2f m", mu, budget_s, u[-1]
+                "buckling mu=%g: cut at the budget of %.0f s, u = %.2f m", mu, budget_s, p["u"][-1]
             )
             break
         if (k + 1) % checkpoint_every == 0 and k + 1 < steps:
             save()
-    if sim.state.step > first_step or error != progress["error"]:  # this process ran steps
+    if sim.state.step > first_step or p["error"] != error_before:  # this process ran steps
         segments = [*segments, time.perf_counter() - started]
         save(segments)
+    u, detach, error = p["u"], p["detach"], p["error"]
     wall = sum(segments)
     threshold = BUCKLE_FRACTION * (INNER_RADII[1] - INNER_RADII[0])
     over = np.flatnonzero(np.array(detach) > threshold)
@@ -328,9 +308,9 @@ def _run_one(
         "u_end_m": u[-1],
         "detachment_end_m": detach[-1],
         "u_buckle_m": float(u[over[0]]) if over.size else None,
-        "newton_iterations": newton,
-        "friction_iterations_max": friction_max,
-        "min_distance_m": min_d if math.isfinite(min_d) else None,
+        "newton_iterations": p["newton"],
+        "friction_iterations_max": p["friction_max"],
+        "min_distance_m": p["min_d"],
         "wall_s": wall,
         "segments_s": segments,
         "particles": int(sim.model.n_particles),
@@ -338,7 +318,7 @@ def _run_one(
         "fem_triangles": int(sim.model.fem_cells.shape[0]),
         "final_mpm_x": sim.state.mpm_x.tolist(),
         "final_fem_x": sim.state.fem_x.tolist(),
-        "series": {"u_m": u, "detachment_m": detach, "angle_deg": angle},
+        "series": {"u_m": u, "detachment_m": detach, "angle_deg": p["angle"]},
     }
 
 
