@@ -2,6 +2,28 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+#: the repository (the folder above ``benchmarks``)
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def python_child(
+    args: list[str], env: dict | None = None, timeout: float = 3600.0, **run: object
+) -> subprocess.CompletedProcess:
+    """``python ARGS`` in a child process with the repository first on its ``PYTHONPATH``
+    (``env``: its environment, this process's by default), its output captured as text;
+    ``run``: more ``subprocess.run`` options (``check``, ``cwd``). Raises
+    ``subprocess.TimeoutExpired`` past ``timeout`` s."""
+    env = dict(os.environ if env is None else env)
+    env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
+    return subprocess.run(
+        [sys.executable, *args], capture_output=True, text=True, env=env, timeout=timeout, **run
+    )
+
 
 def falls_with_h(rows: list[dict], key: str, group: tuple[str, ...]) -> dict[tuple, bool]:
     """Whether ``row[key]`` falls at every refinement (h decreasing), per group of ``rows``

@@ -29,11 +29,11 @@ import json
 import logging
 import os
 import subprocess
-import sys
 import time
 from pathlib import Path
 
 from benchmarks._blas_switch import reference_blas_env
+from benchmarks._shared import ROOT, python_child
 from benchmarks.runner import Benchmark, register
 
 log = logging.getLogger(__name__)
@@ -52,15 +52,10 @@ def _run_child(
     name: str, mode: str, options: tuple[str, ...], out: Path, env: dict, timeout: float
 ) -> dict:
     """Run benchmark ``name`` in ``mode`` in a child process with ``env``; its wall and record."""
-    root = Path(__file__).resolve().parents[1]
-    env = dict(env)
-    env["PYTHONPATH"] = os.pathsep.join([str(root), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
-    command = [sys.executable, "-m", "benchmarks", name, f"--{mode}", *options, "--out", str(out)]
+    command = ["-m", "benchmarks", name, f"--{mode}", *options, "--out", str(out)]
     start = time.perf_counter()
     try:
-        done = subprocess.run(
-            command, capture_output=True, text=True, env=env, timeout=timeout, cwd=root
-        )
+        done = python_child(command, env, timeout, cwd=ROOT)
     except subprocess.TimeoutExpired:
         return {"error": f"timed out after {timeout:.0f} s"}
     wall = time.perf_counter() - start
@@ -74,7 +69,7 @@ def _run_child(
     if isinstance(runs, dict):  # rings: one run per transfer, each with its own wall time
         per_run = {k: r["wall_s"] for k, r in runs.items() if isinstance(r, dict) and "wall_s" in r}
     return {
-        "command": " ".join(command[1:]),
+        "command": " ".join(command),
         "wall_s": wall,
         "benchmark_wall_s": record.get("wall_s"),
         "run_wall_s": per_run,

@@ -21,15 +21,14 @@ Measured results: ``benchmarks/records/perf_3d_full.md``.
 from __future__ import annotations
 
 import json
-import os
 import subprocess
-import sys
 import time
 from pathlib import Path
 
 import bfemp
 from benchmarks._blas_switch import factorisation_by_blas
 from benchmarks._phases import MACHINE_NOTE, PERF_TIMINGS, newton_phases
+from benchmarks._shared import python_child
 from benchmarks.common import peak_memory_mb, write_json
 from benchmarks.runner import Benchmark, register
 from bfemp.integrators import BACKWARD_EULER
@@ -90,17 +89,12 @@ def _measure(mode: str, solver: str, matrices: dict | None = None) -> dict:
 
 
 def _measure_in_child(mode: str, solver: str) -> dict:
-    root = Path(__file__).resolve().parents[1]
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join([str(root), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
     code = (
         "import json; from benchmarks.perf_3d import _measure; "
         f"print(json.dumps(_measure({mode!r}, {solver!r}), default=float))"
     )
     try:
-        done = subprocess.run(
-            [sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=1800
-        )
+        done = python_child(["-c", code], timeout=1800)
     except subprocess.TimeoutExpired:
         return {"solver": solver, "error": "timed out after 1800 s"}
     if done.returncode != 0:
