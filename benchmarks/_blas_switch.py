@@ -13,11 +13,12 @@ from __future__ import annotations
 import json
 import os
 import subprocess
-import sys
 import tempfile
 from pathlib import Path
 
 import scipy.sparse as sp
+
+from benchmarks._shared import python_child
 
 __all__ = ["REFERENCE_DIRS", "factorisation_by_blas", "reference_blas_env"]
 
@@ -52,18 +53,9 @@ def reference_blas_env() -> dict | None:
 
 
 def _child(paths: dict, repeats: int, env: dict, timeout: float = 1800.0) -> dict:
-    root = Path(__file__).resolve().parents[1]
-    env = dict(env)
-    env["PYTHONPATH"] = os.pathsep.join([str(root), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
     try:
-        done = subprocess.run(
-            [sys.executable, "-c", _CHILD, json.dumps(paths), str(repeats)],
-            capture_output=True,
-            text=True,
-            env=env,
-            check=True,
-            timeout=timeout,
-        )
+        args = ["-c", _CHILD, json.dumps(paths), str(repeats)]
+        done = python_child(args, env, timeout, check=True)
     except subprocess.TimeoutExpired:  # recorded, not fatal: the rest of the record stands
         return {"blas": None, "factorize_s": {}, "error": f"timed out after {timeout:.0f} s"}
     return json.loads(done.stdout.strip().splitlines()[-1])

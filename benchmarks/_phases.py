@@ -57,14 +57,19 @@ def warm_stepper(model, dt: float, tol: float):
     return stepper, state
 
 
-def median_time(fn, repeats: int = 3) -> float:
-    """Median wall time of ``fn()`` over ``repeats`` calls, in s."""
+def wall_times(fn, repeats: int) -> list[float]:
+    """Wall times in s of ``repeats`` consecutive calls of ``fn()``."""
     times = []
     for _ in range(repeats):
         start = time.perf_counter()
         fn()
         times.append(time.perf_counter() - start)
-    return statistics.median(times)
+    return times
+
+
+def median_time(fn, repeats: int = 3) -> float:
+    """Median wall time of ``fn()`` over ``repeats`` calls, in s."""
+    return statistics.median(wall_times(fn, repeats))
 
 
 def newton_phases(

@@ -16,7 +16,7 @@ Targets (T): APIC relative angular-momentum drift < 1e-10; linear-momentum drift
 (relative to |P|) for both; negative control: PIC angular-momentum drift > 1e-6; the energy loss
 at t_end falls with h. Quick: h in {1, 0.5} (64 and 343 nodes per block, 600 and 1,200 steps);
 full: h in {1, 0.5, 0.25} (longer than 5 minutes here: the record is the quick mode). Mode
-``"long"`` (``run_long``, issue 40): APIC N = 1 to 0.2 s at h in {1, 0.5, 0.25}, with the time
+``"long"`` (``measure_long``, issue 40): APIC N = 1 to 0.2 s at h in {1, 0.5, 0.25}, with the time
 the blocks leave each other's stencils (``benchmarks/records/augury_blocks_long.md``).
 
 Measured results, with the commits they ran on: ``benchmarks/records/augury_blocks.md``.
@@ -31,8 +31,9 @@ from pathlib import Path
 import numpy as np
 
 import bfemp
+from benchmarks._shared import falls_with_h
 from benchmarks.common import figure
-from benchmarks.runner import Benchmark, register, write_record
+from benchmarks.runner import Benchmark, register
 from bfemp import diagnostics
 from bfemp.steppers.augury import AuguryOptions, AuguryStepper
 from bfemp.terms import fem_elastic_groups
@@ -187,6 +188,13 @@ def _plot(runs: list[dict], path: Path) -> None:
     fig.savefig(path, dpi=110)
 
 
+def _falls_with_h(runs: list[dict], key: str) -> dict[str, bool]:
+    """Per ``TRANSFER_NN`` with runs at two h or more: whether ``key`` falls at every
+    refinement."""
+    falls = falls_with_h(runs, key, ("transfer", "iterations"))
+    return {f"{t}_N{n}": ok for (t, n), ok in falls.items()}
+
+
 def measure(mode: str, cfg) -> dict:
     """Every variant at every h of ``mode``."""
     runs = []
@@ -205,21 +213,6 @@ def measure(mode: str, cfg) -> dict:
             )
             runs.append(r)
     hs = MODES[mode]
-    by = {(r["h"], r["transfer"], r["iterations"]): r for r in runs}
-    loss_falls = {
-        f"{t}_N{n}": all(
-            by[(hs[i + 1], t, n)]["energy_loss"] < by[(hs[i], t, n)]["energy_loss"]
-            for i in range(len(hs) - 1)
-        )
-        for t, n in VARIANTS
-    }
-    early_falls = {
-        f"{t}_N{n}": all(
-            by[(hs[i + 1], t, n)]["initial_energy_loss"] < by[(hs[i], t, n)]["initial_energy_loss"]
-            for i in range(len(hs) - 1)
-        )
-        for t, n in VARIANTS
-    }
     targets = {
         "apic_L_drift_below_1e-10": all(
             r["L_drift_max"] < 1e-10 for r in runs if r["transfer"] == "apic"
@@ -228,8 +221,8 @@ def measure(mode: str, cfg) -> dict:
         "pic_L_drift_above_1e-6": all(
             r["L_drift_max"] > 1e-6 for r in runs if r["transfer"] == "pic"
         ),
-        "energy_loss_falls_with_h": loss_falls,
-        "initial_energy_loss_falls_with_h": early_falls,
+        "energy_loss_falls_with_h": _falls_with_h(runs, "energy_loss"),
+        "initial_energy_loss_falls_with_h": _falls_with_h(runs, "initial_energy_loss"),
     }
     speed = [
         {
@@ -273,7 +266,7 @@ def measure(mode: str, cfg) -> dict:
     return payload
 
 
-#: ``run_long``'s record: what AUG reports, and what the measurement says about the method
+#: ``measure_long``'s record: what AUG reports, and what the measurement says about the method
 LONG_NOTES = {
     "paper_numbers": "AUG gives no number for the blocks (section 2.3 / Fig. 4: they 'bounce "
     "cleanly'; section 3.2 / Fig. 9: 'the energy loss decreases under mesh and grid "
@@ -287,7 +280,7 @@ LONG_NOTES = {
 }
 
 
-#: (h in m, transfer, N) of ``run_long``'s record (benchmarks/records/augury_blocks_long.json),
+#: (h in m, transfer, N) of ``measure_long``'s record (benchmarks/records/augury_blocks_long.json),
 #: in the order run: the paper's APIC N = 1 at every h, then PIC N = 1 and APIC N = 0 beside it
 RECORD_PLAN = (
     (1.0, "apic", 1),
@@ -302,21 +295,20 @@ RECORD_PLAN = (
 )
 
 
-def run_long(
-    out: str | Path = "results",
+def measure_long(
+    mode: str,
+    cfg: dict,
     plan: tuple[tuple[float, str, int], ...] = RECORD_PLAN,
     t_end: float = 0.2,
     not_run: dict | None = None,
-    name: str = "augury_blocks_long",
     runs: list[dict] | None = None,
 ) -> dict:
     """The blocks to ``t_end`` s (issue 40: 0.2 s, against the quick record's 0.06 s) for each
-    (h, transfer, N) of ``plan``; writes ``name``.json and .png with E/E0 at ``t_end`` and the
-    time the blocks leave each other's stencils. ``not_run`` lists the cases left out with
-    their estimated cost; ``runs`` (``run_variant`` results, e.g. saved one by one by a long
-    driver) are recorded instead of running them."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    (h, transfer, N) of ``plan``: E/E0 at ``t_end`` and the time the blocks leave each other's
+    stencils. ``not_run`` lists the cases left out with their estimated cost; ``runs``
+    (``run_variant`` results, e.g. saved one by one by a long driver) are recorded instead of
+    running them."""
+    name = "augury_blocks_long"
     started = time.perf_counter()
     ran = runs is None
     runs = [] if runs is None else list(runs)
@@ -336,23 +328,13 @@ def run_long(
             r["wall_s"],
         )
         runs.append(r)
-    observations = {"energy_loss_falls_with_h": {}, "separated_by_t_end": {}}
-    for t, n in sorted({(r["transfer"], r["iterations"]) for r in runs}):
-        rows = sorted(
-            (r for r in runs if (r["transfer"], r["iterations"]) == (t, n)), key=lambda r: -r["h"]
-        )
-        if len(rows) > 1:  # an observation, not a target (LONG_NOTES)
-            observations["energy_loss_falls_with_h"][f"{t}_N{n}"] = bool(
-                all(
-                    b["energy_loss"] < a["energy_loss"]
-                    for a, b in zip(rows[:-1], rows[1:], strict=True)
-                )
-            )
+    # an observation, not a target (LONG_NOTES)
+    observations = {"energy_loss_falls_with_h": _falls_with_h(runs, "energy_loss")}
+    observations["separated_by_t_end"] = {}
     for r in runs:
         key = f"{r['transfer']}_N{r['iterations']}_h{r['h']:g}"
         observations["separated_by_t_end"][key] = r["separation_t"] is not None
-    payload = {
-        "benchmark": name,
+    return {
         "runs": runs,
         "observations": observations,
         "not_run": not_run or {},
@@ -373,7 +355,6 @@ def run_long(
         },
         "wall_s": time.perf_counter() - started if ran else sum(r["wall_s"] for r in runs),
     }
-    return write_record(out, name, payload, lambda _, png: _plot(runs, png))
 
 
 def plot(payload: dict, png: Path) -> None:
@@ -390,7 +371,7 @@ register(
         "augury_blocks_long",
         "The blocks to 0.2 s (issue 40): E/E0 and the time they leave each other's stencils",
         {"full": {}},
-        None,
-        own_run=lambda mode, out: run_long(out),
+        measure_long,
+        plot=plot,
     )
 )

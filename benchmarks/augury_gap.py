@@ -11,11 +11,10 @@ lacks the 1/tau and flips B, pitfall A4):
     APIC: dx/dt = v, dv/dt = ((x^2 - 1) v + x B)/tau, dB/dt = ((x - x^3) v - x^2 B)/tau
           (LSODA, rtol 1e-11): the gap closes to zero.
 
-(a) those ODEs, (b) the library's ``ContactOperator`` (numba H, 1D linear hats, the cell
-[0, 2L] of the grid with origin 0) stepped with symplectic Euler at dt = min(tau/200,
-5e-4 L/v0) (measured: at dt = tau/200 the tau = 0.4 PIC gap is 1.5e-3 L off the closed form,
-the first-order time error of the scheme; 5e-4 brings it to a third of that), from
-x0 = -0.99 (so that D_p is not singular) to t = 20 L/v0. The closed form uses that x0.
+(a) those ODEs, (b) the library's ``ContactOperator`` (numba H, 1D linear hats, the cell [0, 2L] of
+the grid with origin 0) stepped with symplectic Euler at dt = min(tau/200, 5e-4 L/v0) (why:
+``benchmarks/records/augury_gap.md``), from x0 = -0.99 (so that D_p is not singular) to t = 20 L/v0.
+The closed form uses that x0.
 
 Targets (T): APIC final gap < 1e-3 L; PIC final gap within 1e-3 L of the closed form and
 > 0.05 L; (b) against (a) within 1e-2 L. Quick: tau v0/L in {0.1, 0.4}; full: {0.05, 0.1, 0.2,
@@ -116,13 +115,8 @@ def _plot(rows: list[dict], path: Path) -> None:
         axes[1].semilogy(t, np.maximum(row["apic_ode_gap"], 1e-16), c + ":", lw=1)
     axes[0].set(xlabel="t v0 / L", ylabel="gap / L", title="PIC (Fig. 6a): stops at a gap")
     axes[1].set(xlabel="t v0 / L", ylabel="gap / L", title="APIC (Fig. 7a): gap closes")
-    save(
-        fig,
-        path,
-        axes,
-        "augury_gap: H on 1D hats (solid) against the ODE (dotted), closed form dashed",
-        legend="x-small",
-    )
+    title = "augury_gap: H on 1D hats (solid) against the ODE (dotted), closed form dashed"
+    save(fig, path, axes, title, legend="x-small")
 
 
 def measure(mode: str, taus) -> dict:

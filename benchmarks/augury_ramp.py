@@ -12,21 +12,18 @@ Analytic: s(t) = 1/2 g (sin30 - mu cos30) t^2 (sticks for mu >= tan30 = 0.577); 
 plots the x displacement s cos30 (both recorded). Metric: relative error of the block's centre-
 of-mass displacement along the slope at t_end, per (h, mu, transfer).
 
-Targets: the APIC error falls with h; APIC below PIC at the finest h; control: mu = 0.7 gives
-a slip |s(t_end)| < 1e-3 m, the slip measured as the mean downhill displacement of the block's
-bottom-face nodes minus that of the ramp's top-face nodes near the block (the centre of mass
-moves ~1e-2 m by the elastic shear of both bodies even when the block sticks; measured 0.0157 m
-at h = 1, t = 0.1 s, mu = 0.7). Quick: h in {1, 0.5}, mu in {0, 0.2}, t_end 0.1 s (4,000 and 8,000
-steps), the control at h = 1; full: h in {1, 0.5, 0.25}, mu in {0, 0.2, 0.4}, t_end 0.2 s.
-Beside the paper's settings (N = 1, averaged normals) every mode records bfemp's variant
-``normals="facing"``, N = 30 (APIC, with mu = 0.7) in ``variant_cases`` and its own targets in
-``variant_targets``; the energy guard (``AuguryOptions.energy_guard``) is on in both.
-Measured results, with the commits they ran on: ``benchmarks/records/augury_ramp.md``.
-Placement ``"spec"`` above (these records); ``"conforming"`` (issue 40, ``PLACEMENTS``, mode
-``"conforming"``: ``run_conforming``) puts the block's nodes on the ramp's at every h
+Targets: the APIC error falls with h; APIC below PIC at the finest h; control: mu = 0.7 gives a slip
+|s(t_end)| < 1e-3 m, the slip measured as the mean downhill displacement of the block's bottom-face
+nodes minus that of the ramp's top-face nodes near the block (the centre of mass moves ~1e-2 m by
+the elastic shear of both bodies even when the block sticks). Quick: h in {1, 0.5}, mu in {0, 0.2},
+t_end 0.1 s (4,000 and 8,000 steps), the control at h = 1; full: h in {1, 0.5, 0.25}, mu in {0, 0.2,
+0.4}, t_end 0.2 s. Beside the paper's settings (N = 1, averaged normals) every mode records bfemp's
+variant ``normals="facing"``, N = 30 (APIC, with mu = 0.7) in ``variant_cases`` and its own targets
+in ``variant_targets``; the energy guard (``AuguryOptions.energy_guard``) is on in both. Measured
+results, with the commits they ran on: ``benchmarks/records/augury_ramp.md``. Placement ``"spec"``
+above (these records); ``"conforming"`` (issue 40, ``PLACEMENTS``, mode ``"conforming"``:
+``measure_conforming``) puts the block's nodes on the ramp's at every h
 (``benchmarks/records/augury_ramp_conforming.md``).
-Every penetration check reports INTERPENETRATION: genuine overlaps, the deepest per case
-5.4e-4 m to 1.5e-2 m (``max_penetration_depth_m``; APIC, h = 1), not nodes at zero gap.
 """
 
 from __future__ import annotations
@@ -38,8 +35,9 @@ from pathlib import Path
 import numpy as np
 
 import bfemp
+from benchmarks._shared import falls_with_h
 from benchmarks.common import figure, save
-from benchmarks.runner import Benchmark, register, write_record
+from benchmarks.runner import Benchmark, register
 from bfemp.steppers.augury import AuguryOptions, AuguryStepper
 
 log = logging.getLogger(__name__)
@@ -257,13 +255,7 @@ def _plot(cases: list[dict], path: Path) -> None:
                 )
     axes[0].set(xlabel="t (s)", ylabel="slope displacement s (m)", title="block on 30 deg ramp")
     axes[1].set(xlabel="h (m)", ylabel="relative error of s(t_end)", title="refinement")
-    save(
-        fig,
-        path,
-        axes,
-        "augury_ramp (Fig. 11): dotted = 1/2 g (sin - mu cos) t^2",
-        legend="xx-small",
-    )
+    save(fig, path, axes, "augury_ramp (Fig. 11): dotted = 1/2 g (sin - mu cos) t^2", "xx-small")
 
 
 def measure(mode: str, cfg) -> dict:
@@ -292,17 +284,11 @@ def measure(mode: str, cfg) -> dict:
     ]
     hs = cfg["hs"]
     err = {(c["h"], c["mu"], c["transfer"]): c["rel_error"] for c in cases}
-    v_err = {(c["h"], c["mu"]): c["rel_error"] for c in variant}
     v_stick = [c for c in variant if c["mu"] == MU_STICK]
+    apic = [c for c in cases if c["transfer"] == "apic"]
     targets = {
         "apic_error_falls_with_h": {
-            str(mu): bool(
-                all(
-                    err[(hs[i + 1], mu, "apic")] < err[(hs[i], mu, "apic")]
-                    for i in range(len(hs) - 1)
-                )
-            )
-            for mu in cfg["mus"]
+            str(mu): ok for (mu,), ok in falls_with_h(apic, "rel_error", ("mu",)).items()
         },
         "apic_below_pic_at_finest_h": {
             str(mu): bool(err[(hs[-1], mu, "apic")] < err[(hs[-1], mu, "pic")]) for mu in cfg["mus"]
@@ -311,10 +297,9 @@ def measure(mode: str, cfg) -> dict:
     }
     variant_targets = {
         "error_falls_with_h": {
-            str(mu): bool(
-                all(v_err[(hs[i + 1], mu)] < v_err[(hs[i], mu)] for i in range(len(hs) - 1))
-            )
-            for mu in cfg["mus"]
+            str(mu): ok
+            for (mu,), ok in falls_with_h(variant, "rel_error", ("mu",)).items()
+            if mu in cfg["mus"]
         },
         "mu_0.7_sticks": {str(c["h"]): bool(abs(c["slip_end"]) < 1e-3) for c in v_stick},
     }
@@ -346,7 +331,7 @@ def measure(mode: str, cfg) -> dict:
     return payload
 
 
-#: ``run_conforming``'s record: what AUG reports and what the measurement shows of the method
+#: ``measure_conforming``'s record: what AUG reports and what the measurement shows of the method
 CONFORMING_NOTES = {
     "paper_numbers": "AUG gives no number for the ramp (section 3.3, Fig. 11: 'there appears to "
     "be improvement toward the exact solution as the mesh and background grid are refined'; no "
@@ -362,7 +347,7 @@ CONFORMING_NOTES = {
 }
 
 
-#: (placement, h in m, mu, transfer) of ``run_conforming``'s record (benchmarks/records/
+#: (placement, h in m, mu, transfer) of ``measure_conforming``'s record (benchmarks/records/
 #: augury_ramp_conforming.json), in its order: conforming APIC and PIC at mu = 0, APIC at the
 #: sticking control 0.7 and at 0.2; the spec placement (APIC, mu = 0) beside it; h = 1/8 last
 #: (APIC mu = 0 and 0.7, PIC mu = 0)
@@ -377,20 +362,19 @@ RECORD_PLAN = (
 )
 
 
-def run_conforming(
-    out: str | Path = "results",
+def measure_conforming(
+    mode: str,
+    cfg: dict,
     plan: tuple[tuple[str, float, float, str], ...] = RECORD_PLAN,
     t_end: float = 0.1,
     not_run: dict | None = None,
-    name: str = "augury_ramp_conforming",
     cases: list[dict] | None = None,
 ) -> dict:
     """The paper's settings (N = 1, averaged normals) for each (placement, h, mu, transfer) of
-    ``plan`` to ``t_end`` s; writes ``name``.json and .png. ``not_run`` lists the cases left
-    out with their estimated cost; ``cases`` (``run_case`` results, e.g. saved one by one by a
-    long driver) are recorded instead of running them."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    ``plan`` to ``t_end`` s. ``not_run`` lists the cases left out with their estimated cost;
+    ``cases`` (``run_case`` results, e.g. saved one by one by a long driver) are recorded
+    instead of running them."""
+    name = "augury_ramp_conforming"
     started = time.perf_counter()
     ran = cases is None
     cases = [] if cases is None else list(cases)
@@ -416,28 +400,10 @@ def run_conforming(
             if exact > 0 and c["t"][-1] >= 0.05
             else None
         )
-    observations = {}
-    for placement, mu, transfer in sorted(
-        {(c["placement"], c["mu"], c["transfer"]) for c in cases}
-    ):
-        rows = sorted(
-            (
-                c
-                for c in cases
-                if (c["placement"], c["mu"], c["transfer"]) == (placement, mu, transfer)
-                and c["rel_error"] is not None
-            ),
-            key=lambda c: -c["h"],
-        )
-        if len(rows) > 1:  # an observation, not a target (CONFORMING_NOTES)
-            observations[f"error_falls_with_h {placement} {transfer} mu={mu:g}"] = bool(
-                all(
-                    b["rel_error"] < a["rel_error"]
-                    for a, b in zip(rows[:-1], rows[1:], strict=True)
-                )
-            )
-    payload = {
-        "benchmark": name,
+    falls = falls_with_h(cases, "rel_error", ("placement", "transfer", "mu"))
+    # observations, not targets (CONFORMING_NOTES)
+    observations = {f"error_falls_with_h {p} {t} mu={mu:g}": ok for (p, t, mu), ok in falls.items()}
+    return {
         "cases": cases,
         "observations": observations,
         "not_run": not_run or {},
@@ -464,12 +430,12 @@ def run_conforming(
         },
         "wall_s": sum(c["wall_s"] for c in cases) if not ran else time.perf_counter() - started,
     }
-    return write_record(out, name, payload, lambda _, png: _plot_conforming(cases, png))
 
 
-def _plot_conforming(cases: list[dict], path: Path) -> None:
+def _plot_conforming(payload: dict, path: Path) -> None:
     """Slope displacement against time (APIC; solid: conforming, dashed: spec) and the
     relative error at t_end against h per (placement, transfer, mu)."""
+    cases = payload["cases"]
     fig, axes = figure((11, 4.2), 1, 2)
     hs = sorted({c["h"] for c in cases}, reverse=True)
     mus = sorted({c["mu"] for c in cases})
@@ -509,13 +475,8 @@ def _plot_conforming(cases: list[dict], path: Path) -> None:
     axes[0].set(xlabel="t (s)", ylabel="slope displacement s (m)", title="block on 30 deg ramp")
     axes[1].set(xlabel="h (m)", ylabel="relative error of s(t_end)", title="refinement")
     axes[1].set_ylim(0.0, 1.05)
-    save(
-        fig,
-        path,
-        axes,
-        "augury_ramp, paper settings (N = 1): dotted = 1/2 g (sin - mu cos) t^2",
-        legend="xx-small",
-    )
+    title = "augury_ramp, paper settings (N = 1): dotted = 1/2 g (sin - mu cos) t^2"
+    save(fig, path, axes, title, legend="xx-small")
 
 
 BENCHMARK = register(
@@ -527,7 +488,7 @@ register(
         "augury_ramp_conforming",
         "The ramp with the block's nodes on the ramp's (issue 40), AUG's settings",
         {"full": {}},
-        None,
-        own_run=lambda mode, out: run_conforming(out),
+        measure_conforming,
+        plot=_plot_conforming,
     )
 )

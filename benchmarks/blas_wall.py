@@ -29,12 +29,11 @@ import json
 import logging
 import os
 import subprocess
-import sys
 import time
 from pathlib import Path
 
 from benchmarks._blas_switch import reference_blas_env
-from benchmarks.common import environment, write_json
+from benchmarks._shared import ROOT, python_child
 from benchmarks.runner import Benchmark, register
 
 log = logging.getLogger(__name__)
@@ -53,15 +52,10 @@ def _run_child(
     name: str, mode: str, options: tuple[str, ...], out: Path, env: dict, timeout: float
 ) -> dict:
     """Run benchmark ``name`` in ``mode`` in a child process with ``env``; its wall and record."""
-    root = Path(__file__).resolve().parents[1]
-    env = dict(env)
-    env["PYTHONPATH"] = os.pathsep.join([str(root), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
-    command = [sys.executable, "-m", "benchmarks", name, f"--{mode}", *options, "--out", str(out)]
+    command = ["-m", "benchmarks", name, f"--{mode}", *options, "--out", str(out)]
     start = time.perf_counter()
     try:
-        done = subprocess.run(
-            command, capture_output=True, text=True, env=env, timeout=timeout, cwd=root
-        )
+        done = python_child(command, env, timeout, cwd=ROOT)
     except subprocess.TimeoutExpired:
         return {"error": f"timed out after {timeout:.0f} s"}
     wall = time.perf_counter() - start
@@ -75,7 +69,7 @@ def _run_child(
     if isinstance(runs, dict):  # rings: one run per transfer, each with its own wall time
         per_run = {k: r["wall_s"] for k, r in runs.items() if isinstance(r, dict) and "wall_s" in r}
     return {
-        "command": " ".join(command[1:]),
+        "command": " ".join(command),
         "wall_s": wall,
         "benchmark_wall_s": record.get("wall_s"),
         "run_wall_s": per_run,
@@ -105,7 +99,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def main_from_args(args: argparse.Namespace) -> int:
     """``python -m benchmarks blas_wall [--mode M] [--blas B] [--merge J] [--out D]``."""
-    summary = run(args.mode or "full", args.out, blas=args.blas, merge=args.merge)
+    summary = BENCHMARK.run(args.mode or "full", args.out, blas=args.blas, merge=args.merge)
     print(f"blas_wall: wrote {summary['json']}")
     return 0
 
@@ -124,17 +118,18 @@ def _read_merge(path: str | Path, mode: str) -> dict:
     return record
 
 
-def run(
-    mode: str = "full",
-    out: str | Path = "results",
+def measure(
+    mode: str,
+    cfg: tuple,
+    out: Path,
     timeout_s: float = 4 * 3600.0,
     blas: str = "both",
     merge: str | Path | None = None,
 ) -> dict:
-    """Run each benchmark of ``mode`` on both BLAS; write ``blas_wall.json`` to ``out``.
+    """Run each benchmark of ``cfg`` (``MODES[mode]``) on both BLAS.
 
     Args:
-        mode: a key of :data:`MODES`.
+        mode, cfg: a key of :data:`MODES` and its value.
         out: output folder; the children's own records go under ``out/blas_wall/``.
         timeout_s: wall limit of one child (s); a child past it is recorded as an error.
         blas: ``"both"``, or the one half to run (the other is then absent from the record).
@@ -143,12 +138,9 @@ def run(
             ``merged_from`` names it (its commit, BLAS and load).
 
     Returns:
-        ``{"json": path, **payload}``; ``payload["runs"][name]`` holds ``reference`` and
-        ``optimised`` (each as :func:`_run_child` returns) and ``speedup`` (reference /
-        optimised wall) where both ran.
+        The payload; ``payload["runs"][name]`` holds ``reference`` and ``optimised`` (each as
+        :func:`_run_child` returns) and ``speedup`` (reference / optimised wall) where both ran.
     """
-    if mode not in MODES:
-        raise ValueError(f"mode must be one of {sorted(MODES)}, got {mode!r}")
     if blas not in BLAS_CHOICES:
         raise ValueError(f"blas must be one of {BLAS_CHOICES}, got {blas!r}")
     reference = reference_blas_env()
@@ -156,7 +148,7 @@ def run(
     halves = [(label, env) for label, env in halves if blas in ("both", label)]
     merged = _read_merge(merge, mode) if merge is not None else None
     runs: dict[str, dict] = {}
-    for name, bench_mode, options in MODES[mode]:
+    for name, bench_mode, options in cfg:
         row: dict = {"mode": bench_mode, "options": list(options)}
         for label, env in halves:
             if env is None:
@@ -179,12 +171,9 @@ def run(
                 row["benchmark_speedup"] = ref["benchmark_wall_s"] / opt["benchmark_wall_s"]
         runs[name] = row
     payload = {
-        "benchmark": "blas_wall",
-        "mode": mode,
         "blas": blas,
         "runs": runs,
         "machine_note": "2 shared cores; the two runs of a benchmark are sequential",
-        "environment": environment(),
     }
     if merged is not None:
         env = merged.get("environment", {})
@@ -194,8 +183,8 @@ def run(
             "commit": env.get("commit"),
             "load_average_1min": env.get("load_average_1min"),
         }
-    path = write_json(out, "blas_wall", payload)
-    return {"json": str(path), **payload}
+    return payload
 
 
-BENCHMARK = register(Benchmark("blas_wall", __doc__, MODES, None, own_run=run))
+BENCHMARK = register(Benchmark("blas_wall", __doc__, MODES, measure, takes_out=True))
+run = BENCHMARK.run

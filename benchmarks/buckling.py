@@ -72,8 +72,8 @@ from matplotlib.figure import Figure
 import bfemp
 from benchmarks import catalogue
 from benchmarks._case_checkpoint import CaseCheckpoint
-from benchmarks.common import cases_by_mu, environment, note_merge, peak_memory_mb, write_json
-from benchmarks.runner import Benchmark, name_unless, register
+from benchmarks.common import cases_by_mu, environment, note_merge, peak_memory_mb
+from benchmarks.runner import Benchmark, name_unless, register, write_record
 
 log = logging.getLogger(__name__)
 
@@ -239,53 +239,32 @@ def _run_one(
     sim = catalogue.paper_simulation(_scene(cfg, mu), cfg["dt"], TOL, cfg["max_newton"])
     measure = Detachment(sim.state.mpm_x, sim.state.fem_x, cfg["dx"])
     steps = round(cfg["u_end"] / (SPEED * cfg["dt"]))
-    progress = {
-        "u": [0.0],
-        "detach": [0.0],
-        "angle": [90.0],
-        "newton": 0,
-        "friction_max": 0,
-        "min_d": None,
-        "error": None,
-        "segments_s": [],
-    }
+    # the case's series and counters: what a checkpoint saves and a resumed run goes on from
+    p = {"u": [0.0], "detach": [0.0], "angle": [90.0], "newton": 0, "friction_max": 0}
+    p |= {"min_d": None, "error": None, "segments_s": []}
     if checkpoint is not None and checkpoint.exists():
-        progress = checkpoint.restore(sim)
-    u, detach, angle = progress["u"], progress["detach"], progress["angle"]
-    newton, friction_max = progress["newton"], progress["friction_max"]
-    min_d = math.inf if progress["min_d"] is None else progress["min_d"]
-    error, cut = progress["error"], False
-    segments, first_step = progress["segments_s"], sim.state.step
+        p = checkpoint.restore(sim)
+    error_before, segments, first_step, cut = p["error"], p["segments_s"], sim.state.step, False
     started = time.perf_counter()
 
     def save(done_segments: list[float] | None = None) -> None:
         if checkpoint is not None:
-            checkpoint.save(
-                sim,
-                {
-                    "u": u,
-                    "detach": detach,
-                    "angle": angle,
-                    "newton": newton,
-                    "friction_max": friction_max,
-                    "min_d": min_d if math.isfinite(min_d) else None,
-                    "error": error,
-                    "segments_s": done_segments or [*segments, time.perf_counter() - started],
-                },
-            )
+            done = done_segments or [*segments, time.perf_counter() - started]
+            checkpoint.save(sim, {**p, "segments_s": done})
 
-    for k in range(sim.state.step, steps if error is None else 0):
-        report, error = catalogue.step(sim, f"buckling mu={mu:g}")
-        if error is not None:
+    for k in range(sim.state.step, steps if p["error"] is None else 0):
+        report, p["error"] = catalogue.step(sim, f"buckling mu={mu:g}")
+        if p["error"] is not None:
             break
-        newton += report.newton_iterations
-        friction_max = max(friction_max, report.friction_iterations)
+        p["newton"] += report.newton_iterations
+        p["friction_max"] = max(p["friction_max"], report.friction_iterations)
         if np.isfinite(report.min_distance):
-            min_d = min(min_d, report.min_distance)
+            known = math.inf if p["min_d"] is None else p["min_d"]
+            p["min_d"] = min(known, report.min_distance)
         d, a = measure(sim.state.mpm_x, sim.state.fem_x)
-        u.append(SPEED * sim.state.t)
-        detach.append(d)
-        angle.append(a)
+        p["u"].append(SPEED * sim.state.t)
+        p["detach"].append(d)
+        p["angle"].append(a)
         elapsed = time.perf_counter() - started
         if (k + 1) % PROGRESS_EVERY == 0:
             log.info(
@@ -293,22 +272,23 @@ def _run_one(
                 mu,
                 k + 1,
                 steps,
-                u[-1],
+                p["u"][-1],
                 d,
-                newton,
+                p["newton"],
                 elapsed,
             )
         if elapsed > budget_s and k + 1 < steps:
             cut = True
             log.warning(
-                "buckling mu=%g: cut at the budget of %.0f s, u = %.2f m", mu, budget_s, u[-1]
+                "buckling mu=%g: cut at the budget of %.0f s, u = %.2f m", mu, budget_s, p["u"][-1]
             )
             break
         if (k + 1) % checkpoint_every == 0 and k + 1 < steps:
             save()
-    if sim.state.step > first_step or error != progress["error"]:  # this process ran steps
+    if sim.state.step > first_step or p["error"] != error_before:  # this process ran steps
         segments = [*segments, time.perf_counter() - started]
         save(segments)
+    u, detach, error = p["u"], p["detach"], p["error"]
     wall = sum(segments)
     threshold = BUCKLE_FRACTION * (INNER_RADII[1] - INNER_RADII[0])
     over = np.flatnonzero(np.array(detach) > threshold)
@@ -328,9 +308,9 @@ def _run_one(
         "u_end_m": u[-1],
         "detachment_end_m": detach[-1],
         "u_buckle_m": float(u[over[0]]) if over.size else None,
-        "newton_iterations": newton,
-        "friction_iterations_max": friction_max,
-        "min_distance_m": min_d if math.isfinite(min_d) else None,
+        "newton_iterations": p["newton"],
+        "friction_iterations_max": p["friction_max"],
+        "min_distance_m": p["min_d"],
         "wall_s": wall,
         "segments_s": segments,
         "particles": int(sim.model.n_particles),
@@ -338,11 +318,11 @@ def _run_one(
         "fem_triangles": int(sim.model.fem_cells.shape[0]),
         "final_mpm_x": sim.state.mpm_x.tolist(),
         "final_fem_x": sim.state.fem_x.tolist(),
-        "series": {"u_m": u, "detachment_m": detach, "angle_deg": angle},
+        "series": {"u_m": u, "detachment_m": detach, "angle_deg": p["angle"]},
     }
 
 
-def _plot(runs: list[dict], cfg: dict, path: Path, title: str) -> None:
+def _plot(runs: list[dict], path: Path, title: str) -> None:
     """Detachment against plate displacement per mu, and each run's final shape."""
     fig = Figure(figsize=(12.0, 8.0), layout="constrained")
     FigureCanvasAgg(fig)
@@ -371,21 +351,19 @@ def _plot(runs: list[dict], cfg: dict, path: Path, title: str) -> None:
     fig.savefig(path, dpi=110)
 
 
-def run(
-    mode: str = "full",
-    out: str | Path = "results",
+def measure(
+    mode: str,
+    cfg: dict,
+    out: Path,
     mus: tuple[float, ...] | None = None,
     budget_s: float = math.inf,
     resumable: bool = False,
 ) -> dict:
-    """Press the rings at each mu; write ``buckling.json``, ``buckling.png`` and the final
-    shapes ``buckling_final.npz`` (``mpm_<mu>``, ``fem_<mu>``: positions in m) to ``out``.
+    """Press the rings at each mu of ``mode`` (``MODES``); the final shapes go to
+    ``out/STEM_final.npz`` (``mpm_<mu>``, ``fem_<mu>``: positions in m).
 
     Args:
-        mode: ``"full"`` (the paper's resolution and dt, to u = 8 m), ``"partial"`` (coarse,
-            to u = 7 m), ``"quick"`` (coarse, to u = 3 m), ``"plate_quick"`` or
-            ``"plate_partial"`` (quick or partial with the paper's FEM plate instead of the
-            scripted cap).
+        mode, cfg: a key of ``MODES`` and its value.
         out: output folder.
         mus: friction coefficients between the rings instead of ``MUS`` (one per process, to
             run the full mode's cases side by side; ``merge`` joins their records).
@@ -397,28 +375,28 @@ def run(
             in later sessions too when the folder is kept (``_case_checkpoint``).
 
     Returns:
-        ``{"json": path, "png": path, **payload}``; ``payload["cases"]`` per mu. The record
-        and the figure are rewritten after every case, so a stopped run keeps the cases done.
+        The payload; ``payload["cases"]`` per mu. The record and the figure are written after
+        every case, so a stopped run keeps the cases done.
     """
-    if mode not in MODES:
-        raise ValueError(f"mode must be one of {sorted(MODES)}, got {mode!r}")
-    cfg = MODES[mode]
     mus = MUS if mus is None else tuple(float(m) for m in mus)
-    env = environment()
-    out = Path(out)
+    stem, env = BENCHMARK.stem(mode), environment()
     out.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
     runs: list[dict] = []
     for mu in mus:
-        folder = out / "cases" / f"{mode}_mu{mu:g}"
-        checkpoint = CaseCheckpoint(folder) if resumable else None
+        checkpoint = CaseCheckpoint(out / "cases" / f"{mode}_mu{mu:g}") if resumable else None
         runs.append(_run_one(cfg, mu, budget_s=budget_s, checkpoint=checkpoint))
         payload = _payload(mode, cfg, mus, runs, time.perf_counter() - started, env)
-        path = write_json(out, NAME, payload)
-        _save_shapes(runs, out / f"{NAME}_final.npz")
-        png = out / f"{NAME}.png"
-        _plot(runs, cfg, png, f"Semicircular rings pressed at the crown ({mode} mode)")
-    return {"json": str(path), "png": str(png), **payload}
+        _save_shapes(runs, out / f"{stem}_final.npz")
+        if len(runs) < len(mus):  # the runner writes the last one
+            write_record(out, stem, payload, plot)
+    return payload
+
+
+def plot(payload: dict, png: Path) -> None:
+    """``_plot`` of the payload's runs (with their final shapes)."""
+    title = f"Semicircular rings pressed at the crown ({payload['mode']} mode)"
+    _plot(payload["_runs"], png, title)
 
 
 def _save_shapes(runs: list[dict], path: Path) -> None:
@@ -475,33 +453,29 @@ def _payload(
             "fem_triangles": runs[0]["fem_triangles"],
         },
         "environment": env,
+        "_runs": runs,
     }
 
 
 def merge(records: list[str | Path], out: str | Path = "results") -> dict:
     """One record (``buckling.json``, ``.png``, ``_final.npz`` in ``out``) from records of the
-    same mode whose cases ran in separate processes (each with its ``buckling_final.npz``
-    beside it), cases sorted by mu; ``wall_s`` is the sum of the cases' wall times."""
+    same mode whose cases ran in separate processes (each with its ``STEM_final.npz`` beside
+    it), cases sorted by mu; ``wall_s`` is the sum of the cases' wall times."""
     mode, loaded, runs = cases_by_mu(records, _with_shapes)
     mus = tuple(r["mu"] for r in runs)
-    cfg = MODES[mode]
     payload = _payload(
-        mode, cfg, mus, runs, sum(r["wall_s"] for r in runs), loaded[0]["environment"]
+        mode, MODES[mode], mus, runs, sum(r["wall_s"] for r in runs), loaded[0]["environment"]
     )
     note_merge(payload, records, loaded)
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    path = write_json(out, NAME, payload)
-    _save_shapes(runs, out / f"{NAME}_final.npz")
-    png = out / f"{NAME}.png"
-    _plot(runs, cfg, png, f"Semicircular rings pressed at the crown ({mode} mode)")
-    return {"json": str(path), "png": str(png), **payload}
+    Path(out).mkdir(parents=True, exist_ok=True)
+    _save_shapes(runs, Path(out) / f"{NAME}_final.npz")
+    return write_record(out, NAME, payload, plot)
 
 
 def _with_shapes(path: Path, case: dict) -> dict:
-    """``case`` with its final shapes from the ``buckling_final.npz`` beside its record."""
+    """``case`` with its final shapes from the ``STEM_final.npz`` beside its record."""
     key = f"{case['mu']:g}"
-    with np.load(path.with_name(f"{NAME}_final.npz")) as shapes:
+    with np.load(path.with_name(f"{path.stem}_final.npz")) as shapes:
         return {**case, "final_mpm_x": shapes[f"mpm_{key}"], "final_fem_x": shapes[f"fem_{key}"]}
 
 
@@ -524,7 +498,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def main_from_args(args: argparse.Namespace) -> int:
     if not args.budget_s >= 0.0:
         raise ValueError(f"--budget-s must be >= 0, got {args.budget_s}")
-    summary = run(
+    summary = BENCHMARK.run(
         args.mode or "full",
         args.out,
         mus=tuple(args.mu) if args.mu else None,
@@ -537,5 +511,6 @@ def main_from_args(args: argparse.Namespace) -> int:
 
 # the committed records of modes other than full carry the mode in their names
 BENCHMARK = register(
-    Benchmark(NAME, __doc__, MODES, None, record=name_unless("full", NAME), own_run=run)
+    Benchmark(NAME, __doc__, MODES, measure, plot, record=name_unless("full", NAME), takes_out=True)
 )
+run = BENCHMARK.run

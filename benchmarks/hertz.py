@@ -20,43 +20,34 @@ a^4 weight of a sample in the fit makes the small-a end matter little anyway).
 crosses d-hat, interpolated between the last particle within d-hat and the first beyond): it
 separates the particles' quantisation of a from the error of the simulation.
 
-What limits the accuracy (measured): the grid, not the particles. a(F) is a staircase (the
-width creeps, then jumps when an edge passes a B-spline knot, a cell centre) and the contact is
-narrower than Hertz's at equal force, by an amount close to first order in dx. Full mode adds
-a grid sweep (``grid_convergence``: linear disk, dx in ``SWEEP_DX``, quick settings with
-dt = ``SWEEP_DT``) and extrapolates C_fit / C_hertz to dx = 0 along a straight line. Measured
-results: ``benchmarks/records/hertz.md``.
+Full mode adds a grid sweep (``grid_convergence``: linear disk, dx in ``SWEEP_DX``, quick
+settings with dt = ``SWEEP_DT``) and extrapolates C_fit / C_hertz to dx = 0 along a straight
+line. Measured results, what limits the accuracy and why each choice below was made:
+``benchmarks/records/hertz.md``.
 
 Choices where the paper is silent or the library forces a change (recorded in the JSON):
 
 - Particles: concentric rings (``_disk_particles``), not the sub-cell lattice of
-  ``bfemp.sample``, whose disk has a flat bottom row acting as a flat punch (measured with
-  ``sample.levelset`` at dx = 0.04, ppc 4: a = 0.13 m from the first step on while F grows
-  20-fold). Interior rings have spacing s radially and along the arc (full mode: s =
-  sqrt(pi R^2 / 42920), the paper's count; 45939 particles in all); the rim ring is
+  ``bfemp.sample`` (a flat punch). Interior rings have spacing s radially and along the arc
+  (full mode: s = sqrt(pi R^2 / 42920), the paper's count; 45939 particles in all); the rim is
   ``boundary_refine`` = 4 times finer both ways (isotropic particles keep the barrier weight
   2 sqrt(V / pi) per unit length), so the contact surface is at R - s / 8 and a steps by s / 4.
   Ring areas are exact: the volumes sum to pi R^2.
 - The disk centre is a quarter cell right of a grid node (``grid_offset_cells``): centred on a
   node, both edges pass the knots at once and a jumps by a cell; staggered, the edges jump in
   turn (same mean, half the scatter).
-- Top plate: the library moves scripted FEM nodes to their end-of-step positions before the
-  Newton solve, outside the CCD-filtered line search, so a fully scripted plate moving 1 mm per
-  step (10 d-hat) jumps past the disk's top particles with no contact force at all
-  (``_scene(..., top_plate="rigid")`` reproduces it). Only the plate's top face (2 of its 4
-  vertices) is scripted; its contact face is made of the 2 free vertices (unknowns, CCD-checked)
-  and the plate is linear elastic with 1000 x the disk's E (it shortens ~1e-6 m under the
-  largest load). The bottom plate is fixed and fully scripted.
+- Top plate (``_scene(..., top_plate="rigid")``: fully scripted, as in the paper): only the plate's
+  top face (2 of its 4 vertices) is scripted; its contact face is made of the 2 free vertices
+  (unknowns, CCD-checked) and the plate is linear elastic with 1000 x the disk's E (it shortens
+  ~1e-6 m under the largest load). The bottom plate is fixed and fully scripted.
 - Plates 2.4 m x 0.2 m; initial gaps d-hat (1 + 1e-6) (at exactly d-hat the initial-state
   validation finds the nearest particle within d-hat by round-off); eps_v = 1e-5 m/s.
-- Newton tolerance 1e-6 m/s, not the paper's 1e-8 m/s: at 1e-8 m/s (an increment of 1e-10 m on a
-  disk carrying 1e8 N/m) projected Newton stalls at ||p|| / dt ~ 4e-8 m/s (energy changes at
-  round-off) and hit a 2000-iteration cap (dx = 0.05, step 31). 1e-6 m/s is 1e-4 d-hat per step.
+- Newton tolerance 1e-6 m/s (1e-4 d-hat per step), not the paper's 1e-8 m/s (a round-off
+  stall).
 - Full mode: dx = 0.025 m (the paper's grid), 60 steps (t_end 0.6 s, a/R up to ~0.14).
 - Quick mode and sweep: dt = 6e-2 s (sweep 3e-2 s), tol 1e-4 m/s, eps_v = 1e-3 m/s. The
-  compression is quasi-static (waves cross the disk in 2e-4 s): C_fit moved by < 2 % between
-  dt = 2e-2 and 6e-2 s. mu stays 1: between frictionless plates a Neo-Hookean disk has a
-  neutral (rolling) mode on which projected Newton needs ~300 iterations in some steps.
+  compression is quasi-static (waves cross the disk in 2e-4 s). mu stays 1 (frictionless
+  plates leave the disk a neutral, rolling mode).
 """
 
 from __future__ import annotations
@@ -71,6 +62,7 @@ import numpy as np
 import bfemp
 from benchmarks import catalogue
 from benchmarks._penetration import penetration_summary
+from benchmarks._shared import check_settings
 from benchmarks.common import figure
 from benchmarks.runner import Benchmark, register
 
@@ -110,16 +102,13 @@ _FAST = dict(
 )
 MODES = {
     "full": dict(
+        _FAST,
         dx=0.025,
         spacing=math.sqrt(math.pi * RADIUS**2 / PAPER["particles"]),
-        boundary_refine=4,
         dt=1e-2,
-        t_end=0.6,
         tol=1e-6,
         max_newton_iterations=1000,
-        mu=MU,
         eps_v=EPS_V,
-        grid_offset_cells=0.25,
     ),
     "quick": dict(dx=0.02, spacing=0.01, **_FAST),
 }
@@ -339,6 +328,10 @@ def stress_force(deformation: np.ndarray, geo: dict, t: float) -> float:
     return -float(np.dot(sigma[:, 1, 1], volume)) / gap
 
 
+#: the float series of ``run_material``'s samples (beside the counts n_contact, newton_iterations)
+SAMPLE_KEYS = ("t", "F", "F_top", "F_particles", "lowest_gap", "F_stress", "a", "a_interpolated")
+
+
 def run_material(cfg: dict, material: str, top_plate: str = "elastic") -> dict:
     """Compress the disk of one material; F and a after every step, and the fits.
 
@@ -361,17 +354,12 @@ def run_material(cfg: dict, material: str, top_plate: str = "elastic") -> dict:
     lower = sim.state.mpm_x[:, 1] < 0.0  # the disk's lower half (its centre is at y = 0)
     x_mean0 = sim.state.mpm_x[:, 0].mean()
     n_steps = int(round(cfg["t_end"] / sim.dt))
-    rows = {k: [] for k in ("t", "F", "F_top", "a", "a_interpolated", "n_contact", "newton")}
-    rows["F_particles"], rows["F_stress"], rows["lowest_gap"] = [], [], []
-    rows["friction_iterations"] = []
+    rows = {k: [] for k in (*SAMPLE_KEYS, "n_contact", "newton", "friction_iterations")}
     error = None
     start = time.perf_counter()
     for _ in range(n_steps):
-        try:
-            report = sim.step()
-        except bfemp.StepError as err:  # recorded; the samples so far are still fitted
-            error = str(err)
-            log.error("hertz/%s: %s", material, err)
+        report, error = catalogue.step(sim, f"hertz/{material}")
+        if error is not None:  # recorded; the samples so far are still fitted
             break
         fem_f, mpm_f = sim.contact_forces()
         x = sim.state.mpm_x
@@ -435,14 +423,7 @@ def run_material(cfg: dict, material: str, top_plate: str = "elastic") -> dict:
         # the shared penetration_depth column's largest value and the strategy's bound (issue 40)
         **penetration_summary(sim),
         "samples": {
-            "t": s["t"].tolist(),
-            "F": s["F"].tolist(),
-            "F_top": s["F_top"].tolist(),
-            "F_particles": s["F_particles"].tolist(),
-            "lowest_gap": s["lowest_gap"].tolist(),
-            "F_stress": s["F_stress"].tolist(),
-            "a": s["a"].tolist(),
-            "a_interpolated": s["a_interpolated"].tolist(),
+            **{k: s[k].tolist() for k in SAMPLE_KEYS},
             "n_contact": s["n_contact"].astype(int).tolist(),
             "newton_iterations": s["newton"].astype(int).tolist(),
         },
@@ -450,20 +431,9 @@ def run_material(cfg: dict, material: str, top_plate: str = "elastic") -> dict:
 
 
 #: the keys of a ``run_point`` settings dict (the trade study's knobs and fixed settings)
-POINT_KEYS = (
-    "dx",
-    "spacing",
-    "dt",
-    "dhat",
-    "eps_v",
-    "tol",
-    "strategy",
-    "material",
-    "mu",
-    "t_end",
-    "max_newton_iterations",
-    "boundary_refine",
-    "grid_offset_cells",
+POINT_KEYS = tuple(
+    "dx spacing dt dhat eps_v tol strategy material mu t_end max_newton_iterations "
+    "boundary_refine grid_offset_cells".split()
 )
 
 
@@ -484,10 +454,7 @@ def run_point(settings: dict) -> dict:
         ``C_fit_over_C_hertz``, ``fit_samples``, ``steps``, ``newton_iterations``,
         ``particles``, and the ``StepError`` message in ``failure``.
     """
-    missing = [key for key in POINT_KEYS if key not in settings]
-    unknown = sorted(set(settings) - set(POINT_KEYS))
-    if missing or unknown:
-        raise ValueError(f"hertz.run_point: missing settings {missing}, unknown {unknown}")
+    check_settings("hertz.run_point", settings, POINT_KEYS)
     if settings["material"] not in MATERIALS:
         raise ValueError(
             f"hertz: settings.material must be one of {sorted(MATERIALS)}, "

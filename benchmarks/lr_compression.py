@@ -48,6 +48,7 @@ from pathlib import Path
 import numpy as np
 
 import bfemp
+from benchmarks._shared import StepCost
 from benchmarks.common import figure
 from benchmarks.runner import Benchmark, name_unless, register
 from bfemp.contact import lr as lr_contact
@@ -257,15 +258,11 @@ def run_case(
     n_steps = int(math.ceil(t_end / stepper.dt))
     every = max(1, n_steps // samples)
     hist_t, hist_s, hist_d = [], [], []
-    phases: dict[str, float] = {}
-    contact_nodes = 0.0
-    t_detect = None
+    cost, t_detect = StepCost(), None
     started = time.perf_counter()
     for k in range(n_steps):
         state, report = stepper.step(state)
-        for name, value in report.timings.items():
-            phases[name] = phases.get(name, 0.0) + value
-        contact_nodes += report.extra["contact_nodes"]
+        cost.add(report)
         if t_detect is None and report.contact_pairs > 0:
             t_detect = state.t
         if watch is not None:
@@ -303,8 +300,7 @@ def run_case(
         "strain": [v0 * t / HEIGHT for t in hist_t],
         "stress": hist_s,
         "t_detect": t_detect,
-        "ms_per_step": {k: 1e3 * v / n_steps for k, v in phases.items()},
-        "mean_contact_nodes": contact_nodes / n_steps,
+        **cost.summary(),
     }
     if watch is not None:
         out["switches"] = {

@@ -35,6 +35,7 @@ import numpy as np
 
 import bfemp
 from benchmarks._ellipse_bodies import add_ellipse_classes
+from benchmarks._shared import StepCost
 from benchmarks.common import figure
 from benchmarks.runner import Benchmark, name_unless, register
 from bfemp.materials import BulkShearHyperelastic
@@ -112,14 +113,11 @@ def run_detector(cfg: dict, name: str, samples: int = 40) -> dict:
     material = model.mpm_particle_body
     spacing = 0.5 * cfg["dx"]
     history = {"t": [], "stress": [], "interpenetrating": []}
-    phases: dict[str, float] = {}
-    contact_nodes = 0.0
+    cost = StepCost()
     started = time.perf_counter()
     for k in range(n_steps):
         state, report = stepper.step(state)
-        for key, value in report.timings.items():
-            phases[key] = phases.get(key, 0.0) + value
-        contact_nodes += report.extra["contact_nodes"]
+        cost.add(report)
         if (k + 1) % every == 0 or k + 1 == n_steps:
             J = np.linalg.det(state.mpm_F)
             count = int(interpenetrating(state.mpm_x, material, J, spacing).sum())
@@ -138,8 +136,7 @@ def run_detector(cfg: dict, name: str, samples: int = 40) -> dict:
         "dt": stepper.dt,
         "steps": n_steps,
         "wall_s": wall,
-        "ms_per_step": {k: 1e3 * v / n_steps for k, v in phases.items()},
-        "mean_contact_nodes": contact_nodes / n_steps,
+        **cost.summary(),
         "unconverged_fits": stepper.unconverged_fits,
         "history": history,
         "final_stress_Pa": float(np.mean(history["stress"][-tail:])),

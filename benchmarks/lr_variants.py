@@ -1,9 +1,7 @@
 """``lr_variants``: which of lr's settings holds on which kind of contact (issue 17).
 
-The trade study (``benchmarks.tradeoff``) found lr's default (FLIP, two corrections, the
-paper's f^{C,1}) off by 100 % on ``slope`` and 415 % on the quick ``rings``, while
-``corrections=1`` was within 2 % and 69 %. This benchmark runs lr's update variants side by
-side on three scenes, each a different kind of contact, and records where each one breaks.
+lr's update variants side by side on three scenes, each a different kind of contact: where
+each one breaks (why it was asked: ``benchmarks/records/lr_variants.md``).
 
 Variants (``LROptions``, all other options the scene's):
 
@@ -51,10 +49,9 @@ import time
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 from benchmarks import catalogue
+from benchmarks.common import figure
 from benchmarks.runner import Benchmark, name_unless, register
 
 log = logging.getLogger(__name__)
@@ -79,14 +76,16 @@ MODES = {
 _COMPRESSION_MODE = {"smoke": "quick", "quick": "quick", "full": "full"}
 
 
-def _totals(stepper: object) -> dict:
-    """``LRStepper``'s first/second correction totals of a run."""
-    first, second = stepper.first_correction_impulse, stepper.second_correction_impulse
+def _totals(run: object) -> dict:
+    """``LRStepper``'s first/second correction totals of a run: from the stepper, or from
+    ``lr_compression.run_case``'s result (a dict with the same keys)."""
+    get = run.get if isinstance(run, dict) else lambda key: getattr(run, key)
+    first, second = get("first_correction_impulse"), get("second_correction_impulse")
     return {
         "first_correction_impulse": first,
         "second_correction_impulse": second,
         "first_over_second": first / second if second > 0.0 else None,
-        "first_correction_windows": stepper.first_correction_windows,
+        "first_correction_windows": get("first_correction_windows"),
     }
 
 
@@ -178,13 +177,7 @@ def compression_case(mode: str, options: dict, reference: dict) -> dict:
     started = time.perf_counter()
     case = lc.run_case(lc.column_scene(v0=v0), strain=strain, v0=v0, **options)
     _, worst = lc.stress_error(case, reference)
-    totals = {k: case[k] for k in ("first_correction_impulse", "second_correction_impulse")}
-    second = totals["second_correction_impulse"]
-    totals["first_over_second"] = (
-        totals["first_correction_impulse"] / second if second > 0.0 else None
-    )
-    totals["first_correction_windows"] = case["first_correction_windows"]
-    return {"error_pct": worst, "run": totals, "wall_s": time.perf_counter() - started}
+    return {"error_pct": worst, "run": _totals(case), "wall_s": time.perf_counter() - started}
 
 
 def _compression(mode: str, variants: tuple[str, ...]) -> dict:
@@ -245,9 +238,8 @@ def plot(payload: dict, path: Path) -> None:
     """Bars: each variant's error per scene (log scale), the first/second ratio above them."""
     scenes = [s for s in ("slope", "rings", "compression") if s in payload]
     variants = list(payload["variants"])
-    fig = Figure(figsize=(3.6 * len(scenes), 3.8))
-    FigureCanvasAgg(fig)
-    axes = fig.subplots(1, len(scenes), squeeze=False)[0]
+    fig, axes = figure((3.6 * len(scenes), 3.8), 1, len(scenes), squeeze=False)
+    axes = axes[0]
     for ax, scene in zip(axes, scenes, strict=True):
         runs = payload[scene]["runs"]
         errors = [_error(scene, runs[v]) for v in variants]

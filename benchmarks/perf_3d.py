@@ -15,25 +15,21 @@ CHOLMOD's factorisation of the same Hessian on the reference BLAS and on the def
 its own process (``blas_side_by_side``). Target (issue 13): one step in under a minute on 2
 cores; Newton iteration <= 1.5 x the factorisation.
 
-Recorded (``benchmarks/records/perf_3d_full.json``, 2 shared cores, load average ~5): 100,000
-particles, 51,624 unknowns, 16.4M nonzeros; one step (1 Newton iteration, 2 linear solves: the
-iteration and the convergence test) 25.2 s with CHOLMOD (factorisation floor 8.0 s, 11.6 s per
-linear solve, peak 4.5 GB) and 40.6 s with CG + AMG (peak 3.3 GB). PARDISO was not recorded.
+Measured results: ``benchmarks/records/perf_3d_full.md``.
 """
 
 from __future__ import annotations
 
 import json
-import os
 import subprocess
-import sys
 import time
 from pathlib import Path
 
 import bfemp
 from benchmarks._blas_switch import factorisation_by_blas
-from benchmarks._phases import newton_phases
-from benchmarks.common import environment, peak_memory_mb, write_json
+from benchmarks._phases import MACHINE_NOTE, PERF_TIMINGS, newton_phases
+from benchmarks._shared import python_child
+from benchmarks.common import peak_memory_mb, write_json
 from benchmarks.runner import Benchmark, register
 from bfemp.integrators import BACKWARD_EULER
 from bfemp.steppers.barrier import BarrierOptions, BarrierStepper
@@ -93,17 +89,12 @@ def _measure(mode: str, solver: str, matrices: dict | None = None) -> dict:
 
 
 def _measure_in_child(mode: str, solver: str) -> dict:
-    root = Path(__file__).resolve().parents[1]
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join([str(root), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
     code = (
         "import json; from benchmarks.perf_3d import _measure; "
         f"print(json.dumps(_measure({mode!r}, {solver!r}), default=float))"
     )
     try:
-        done = subprocess.run(
-            [sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=1800
-        )
+        done = python_child(["-c", code], timeout=1800)
     except subprocess.TimeoutExpired:
         return {"solver": solver, "error": "timed out after 1800 s"}
     if done.returncode != 0:
@@ -111,10 +102,9 @@ def _measure_in_child(mode: str, solver: str) -> dict:
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
-def run(mode: str = "full", out: str | Path = "results") -> dict:
-    """Measure every installed solver and write ``perf_3d.json`` to ``out``."""
-    if mode not in CASES:
-        raise ValueError(f"mode must be one of {sorted(CASES)}, got {mode!r}")
+def measure(mode: str, cfg: dict, out: Path) -> dict:
+    """Every installed solver on ``mode``'s scene (full mode: each in its own process, their
+    results saved to ``out/perf_3d_solvers.json`` before the BLAS comparison)."""
     matrices: dict = {}
     installed = []
     for name in SOLVERS:
@@ -130,39 +120,31 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
         else:
             results[name] = _measure_in_child(mode, name)
     if not matrices:  # full mode: the Hessian for the BLAS comparison, from a fresh model
-        cfg = CASES[mode]
         model = _scene(cfg["cells"], cfg["dx"]).build()
         stepper = BarrierStepper(model, integrator=BACKWARD_EULER, dt=DT, options=BarrierOptions())
         newton_phases(stepper, stepper.initialize(model.initial_state()), "cholmod", matrices, mode)
     if mode != "quick":  # the solvers' hour of work is on disk before the BLAS comparison
         write_json(out, "perf_3d_solvers", {"mode": mode, "solvers": results})
     ok = {k: v for k, v in results.items() if "error" not in v}
-    payload = {
-        "benchmark": "perf_3d",
-        "mode": mode,
-        "parameters": {
-            "cells": CASES[mode]["cells"],
-            "dx": CASES[mode]["dx"],
-            "dhat": DHAT,
-            "kappa": KAPPA,
-            "mu": MU,
-            "dt": DT,
-            "tol": TOL,
-        },
+    return {
+        "parameters": {**cfg, "dhat": DHAT, "kappa": KAPPA, "mu": MU, "dt": DT, "tol": TOL},
         "solvers": results,
         "fastest_step": min(ok, key=lambda k: ok[k]["step_wall_s"]) if ok else None,
         "blas_side_by_side": factorisation_by_blas(matrices),
-        "machine_note": "2 shared cores, loaded by other work: compare ratios within this run",
-        "peak_memory_mb": peak_memory_mb(),
-        "environment": environment(),
+        "machine_note": MACHINE_NOTE,
     }
-    path = write_json(out, "perf_3d", payload)
-    return {"json": str(path), **payload}
 
 
 # the committed records carry the mode in their names (perf_3d_quick, perf_3d_full)
 BENCHMARK = register(
     Benchmark(
-        "perf_3d", __doc__, CASES, None, record=lambda mode, _: f"perf_3d_{mode}", own_run=run
+        "perf_3d",
+        __doc__,
+        CASES,
+        measure,
+        record=lambda mode, _: f"perf_3d_{mode}",
+        timings=PERF_TIMINGS + "|^fastest_step$",  # the fastest solver: a timing result
+        takes_out=True,
     )
 )
+run = BENCHMARK.run

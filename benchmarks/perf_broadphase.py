@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks._phases import wall_times
 from benchmarks.runner import Benchmark, register
 from bfemp.plotting import plot_bars
 from geometry.broadphase import point_simplex_candidates
@@ -79,21 +80,12 @@ def _spheres(
     return vertices, triangles
 
 
-def _times(fn, repeats: int = 5) -> list[float]:
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return times
-
-
 def _query(points, vertices, simplices, kwargs: dict) -> dict:
     def call(method: str, pts=points) -> np.ndarray:
         return point_simplex_candidates(pts, vertices, simplices, method=method, **kwargs)
 
     pairs = call("hash")  # warm-up: loads (or compiles) the numba kernels
-    t_hash = _times(lambda: call("hash"))
+    t_hash = wall_times(lambda: call("hash"), 5)
     start = time.perf_counter()
     pairs_fcl = call("fcl")
     t_fcl = time.perf_counter() - start

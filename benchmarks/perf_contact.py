@@ -33,8 +33,7 @@
      gradient and the Hessian (its matrix also has rows for the prescribed FEM nodes, bfemp's
      only for the unknowns). ``barrier_pairs_per_s`` (the headline) = active pairs / this time.
      bfemp's chain rule sums the pairs' node blocks as it goes (one triplet per coupled DOF
-     pair), so this level runs on all pairs in 3D too (it used to emit (27 x 3)^2 = 6561 triplets
-     per 3D pair and ran on a smaller configuration, its time scaled).
+     pair), so this level runs on all pairs in 3D too.
 
    The pair search is timed apart (bfemp ``solution_changed``: collision positions, broad phase,
    distances, which ``value`` then reuses; ipctk as above, whose ``value`` recomputes them) and
@@ -67,17 +66,15 @@
    (``candidate_pairs``, inflation dhat), its whole pair search and the CCD step bound along the
    inertial predictor x_hat - x^n (``max_step_size``).
 
-Timings: each operation is called once (warm-up: numba kernels loaded, ipctk structures built)
-and then ``repeats`` times in a row; its time is the fastest of these calls. The 2-core machine
-is shared with other jobs, and the minimum is the least disturbed run; consecutive calls measure
-the steady state (interleaving the two libraries' calls made bfemp's Hessian several times
-slower here, mostly as system time: its fresh per-call triplet arrays, 24 bytes per triplet,
-page-faulting anew). The barrier and CCD comparisons run both libraries on one thread
-(``COMPARE_THREADS``: numba's and ipctk's TBB pools): per-core throughput, the fair comparison,
-and the one that survives a loaded 2-core machine (with two threads, a parallel region waits for
-its slowest thread while other jobs deschedule threads at random). The rings breakdown uses the
-default threads. ipctk is optional (``pip install .[bench]``); without it its columns are
-``null``.
+Timings: each operation is called once (warm-up: numba kernels loaded, ipctk structures built) and
+then ``repeats`` times in a row; its time is the fastest of these calls. The 2-core machine is
+shared with other jobs, and the minimum is the least disturbed run; consecutive calls measure the
+steady state (``benchmarks/records/perf_contact.md``: why). The barrier and CCD comparisons run both
+libraries on one thread (``COMPARE_THREADS``: numba's and ipctk's TBB pools): per-core throughput,
+the fair comparison, and the one that survives a loaded 2-core machine (with two threads, a parallel
+region waits for its slowest thread while other jobs deschedule threads at random). The rings
+breakdown uses the default threads. ipctk is optional (``pip install .[bench]``); without it its
+columns are ``null``.
 
 ``before_after``: where the output folder already holds a record of the same mode, ``[that
 record, this run]`` for the headline rates, CCD times and the rings' per-iteration phases (and
@@ -98,9 +95,9 @@ import scipy.sparse as sp
 
 import bfemp
 from benchmarks import catalogue
-from benchmarks._phases import newton_phases
-from benchmarks.common import environment, figure, peak_memory_mb
-from benchmarks.runner import Benchmark, name_unless, register, write_record
+from benchmarks._phases import newton_phases, wall_times
+from benchmarks.common import figure
+from benchmarks.runner import Benchmark, name_unless, register
 from bfemp.contact._barrier_kernels import _barrier_gradients, _barrier_hessians
 from bfemp.contact.barrier import barrier, barrier_derivative, barrier_second_derivative
 from bfemp.contact.evaluation import KERNEL_KIND
@@ -134,20 +131,6 @@ COMPARE_THREADS = 1
 
 
 # --------------------------------------------------------------------------- configurations
-def _facet_frames(points: np.ndarray, facets: np.ndarray, centre: np.ndarray) -> np.ndarray:
-    """Unit outward normals ``(F, d)`` of the facets of a convex body about ``centre``."""
-    corners = points[facets]
-    if points.shape[1] == 2:
-        t = corners[:, 1] - corners[:, 0]
-        n = np.stack([t[:, 1], -t[:, 0]], axis=1)
-    else:
-        n = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-    n /= np.linalg.norm(n, axis=1)[:, None]
-    flip = np.einsum("ij,ij->i", n, corners.mean(axis=1) - centre) < 0.0
-    n[flip] *= -1.0
-    return n
-
-
 def _sample_on_facets(
     points: np.ndarray, facets: np.ndarray, n: int, rng: np.random.Generator
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -184,12 +167,9 @@ def _configuration(dim: int, n_pairs: int, seed: int = 7) -> dict:
     geo = GEOMETRY[dim]
     if dim == 2:
         mesh = bfemp.shapes.disk((0.0, 0.0), geo["radius"], h=geo["h"])
-        centre = np.zeros(2)
     else:
         mesh = bfemp.shapes.box((0.0,) * 3, (geo["side"],) * 3, h=geo["h"])
-        centre = np.full(3, 0.5 * geo["side"])
-    facets = mesh.boundary_edges if dim == 2 else mesh.boundary_faces
-    normals = _facet_frames(mesh.points, facets, centre)
+    facets, normals = mesh.boundary_facets, mesh.boundary_normals()  # outward unit normals
     base, owner = _sample_on_facets(mesh.points, facets, n_pairs, rng)
     gap = rng.uniform(0.05, 0.95, n_pairs) * DHAT
     particles = base + gap[:, None] * normals[owner]
@@ -334,12 +314,7 @@ def _timed(ops: dict, repeats: int) -> dict[str, float]:
     out = {}
     for name, fn in ops.items():
         fn()
-        best = math.inf
-        for _ in range(repeats):
-            start = time.perf_counter()
-            fn()
-            best = min(best, time.perf_counter() - start)
-        out[f"{name}_s"] = best
+        out[f"{name}_s"] = min(wall_times(fn, repeats))
     return out
 
 
@@ -627,22 +602,10 @@ def _plot(payload: dict, path: Path) -> None:
     fig.savefig(path, dpi=110)
 
 
-def run(mode: str = "full", out: str | Path = "results") -> dict:
-    """Measure both configurations and the rings breakdown; write ``perf_contact.json``/``.png``.
-
-    Args:
-        mode: ``"full"`` (50k pairs, rings at full resolution) or ``"quick"`` (5k, coarse rings).
-        out: output folder.
-
-    Returns:
-        ``{"json": path, "png": path, ...}`` with the top-level metrics.
-    """
-    if mode not in MODES:
-        raise ValueError(f"mode must be one of {sorted(MODES)}, got {mode!r}")
-    cfg = MODES[mode]
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    started = time.perf_counter()
+def measure(mode: str, cfg: dict, out: Path) -> dict:
+    """Both configurations and the rings breakdown of ``mode`` (``"full"``: 50k pairs, rings at
+    full resolution; ``"quick"``: 5k, coarse rings); ``before_after`` against the record of
+    the same mode in ``out``, if any."""
     threads = numba.get_num_threads(), ipctk.get_num_threads() if ipctk is not None else None
     numba.set_num_threads(COMPARE_THREADS)  # per-core throughput: robust on a shared machine
     if ipctk is not None:
@@ -687,7 +650,6 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
             for key, v in pairs_per_s.items()
         }
     payload = {
-        "benchmark": NAME,
         "mode": mode,
         "barrier_pairs_per_s": pairs_per_s,
         "ccd_s": ccd_s,
@@ -702,10 +664,8 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
         },
         "targets_met": targets_met,
         "ipctk_available": has_ipctk,
-        "wall_s": time.perf_counter() - started,
         "steps": sum(ring["approach_steps"].values()) + 1,
         "newton_iterations": ring["newton_iterations"],
-        "peak_memory_mb": peak_memory_mb(),
         "parameters": {
             "pairs": cfg["pairs"],
             "repeats": cfg["repeats"],
@@ -722,16 +682,18 @@ def run(mode: str = "full", out: str | Path = "results") -> dict:
             "ipctk_version": getattr(ipctk, "__version__", None) if has_ipctk else None,
         },
         "cases": cases,
-        "environment": environment(),
     }
-    record = out / f"{NAME}.json"
+    record = out / f"{BENCHMARK.stem(mode)}.json"
     previous = json.loads(record.read_text()) if record.exists() else None
     payload["before_after"] = _before_after(previous, payload)
     log.info("perf_contact: pairs/s %s; CCD s %s", pairs_per_s, ccd_s)
-    return write_record(out, NAME, payload, _plot)
+    return payload
 
 
 # the committed records of modes other than full carry the mode in their names
 BENCHMARK = register(
-    Benchmark(NAME, __doc__, MODES, None, record=name_unless("full", NAME), own_run=run)
+    Benchmark(
+        NAME, __doc__, MODES, measure, plot=_plot, record=name_unless("full", NAME), takes_out=True
+    )
 )
+run = BENCHMARK.run

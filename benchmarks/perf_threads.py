@@ -16,10 +16,8 @@ from __future__ import annotations
 import json
 import logging
 import os
-import subprocess
-import sys
-from pathlib import Path
 
+from benchmarks._shared import python_child
 from benchmarks.runner import Benchmark, name_unless, register
 
 log = logging.getLogger(__name__)
@@ -67,21 +65,12 @@ _POOL_VARS = ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "OMP_NUM_THREADS", "NUM
 
 
 def _child(cfg: dict, blas_threads: int | None, numba_threads: int | None) -> dict:
-    root = Path(__file__).resolve().parents[1]
     env = {k: v for k, v in os.environ.items() if k not in _POOL_VARS}
-    env["PYTHONPATH"] = os.pathsep.join([str(root), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
     if blas_threads is not None:
         env["OPENBLAS_NUM_THREADS"] = env["MKL_NUM_THREADS"] = str(blas_threads)
     if numba_threads is not None:
         env["NUMBA_NUM_THREADS"] = str(numba_threads)
-    done = subprocess.run(
-        [sys.executable, "-c", _CHILD, json.dumps(cfg)],
-        capture_output=True,
-        text=True,
-        env=env,
-        check=True,
-        timeout=3600,
-    )
+    done = python_child(["-c", _CHILD, json.dumps(cfg)], env, 3600, check=True)
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 

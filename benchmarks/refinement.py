@@ -26,21 +26,16 @@ Choices where the paper is silent (all recorded in the JSON ``parameters``):
   sub-cell centres fall on half-integer grid coordinates, where the outermost B-spline weight
   vanishes.
 - Time step dt = 1 s (the box's vertical period is about 4 h / sqrt(E / rho) = 0.6 s: backward
-  Euler at dt = 1 s damps it within a few steps; dt = 0.3 s took more steps and more Newton
-  iterations in all, measured at N = 16, PPC 4).
-- Newton tolerance 1e-6 m/s (an increment below 1e-6 m at dt = 1 s), not the paper's 1e-9 m/s:
-  the first step (the drop and most of the settling) creeps at a floor set by round-off: at
-  1e-9 m/s it stalls at ||p|| = 2.7e-9 m after 500 iterations (N = 16, PPC 16), at 1e-7 m/s
-  at 2.0e-7 m after 500 iterations (N = 8, PPC 16); at 1e-6 m/s it takes 218 iterations. Rest
-  heights with tol = rest_tol = 1e-6 agree with tol = rest_tol = 1e-7 runs to 3.5e-6 m (N = 8)
-  and 2e-8 m (N = 16). The cap is 1000 Newton iterations per step.
+  Euler at dt = 1 s damps it within a few steps).
+- Newton tolerance 1e-6 m/s (an increment below 1e-6 m at dt = 1 s), not the paper's 1e-9 m/s
+  (a round-off floor; measured in ``benchmarks/records/refinement.md``). The cap is 1000 Newton
+  iterations per step.
 - Rest criterion: the MPM box's centre-of-mass height changes by less than ``rest_tol`` = 1e-6 m
-  over ``rest_steps`` = 2 consecutive steps, at most ``max_steps`` = 60 steps. The smallest
-  error of the quick series is 8e-4 m, three decades above rest_tol; a resolution that does not
-  come to rest is recorded (``at_rest`` false) and is not used in the fit.
-- Quick mode: one PPC (16), N = 4, 8, 12 against the reference N = 16 (39 s on 2 loaded
-  cores, 30 s of it the reference); full mode: N = 2, 4, ..., 20 against N = 30, PPC 4, 9 and 16;
-  ``ppc16`` mode (``--mode ppc16``): the full series at PPC 16 only.
+  over ``rest_steps`` = 2 consecutive steps, at most ``max_steps`` = 60 steps; a resolution
+  that does not come to rest is recorded (``at_rest`` false) and is not used in the fit.
+- Quick mode: one PPC (16), N = 4, 8, 12 against the reference N = 16; full mode: N = 2, 4, ..., 20
+  against N = 30, PPC 4, 9 and 16; ``ppc16`` mode (``--mode ppc16``): the full series at PPC 16
+  only.
 """
 
 from __future__ import annotations

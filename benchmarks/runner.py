@@ -60,6 +60,8 @@ class Benchmark:
         own_run: ``own_run(mode, out) -> summary`` of a benchmark not yet on the runner.
         aliases: other names that run this entry (old names of merged benchmarks), each with
             the options it implies: ``{alias: {option: value}}``.
+        takes_out: ``measure`` is also given ``out=Path(out)``, for a benchmark that keeps
+            files beside its record (checkpoints, child processes' records, a previous record).
     """
 
     name: str
@@ -72,6 +74,7 @@ class Benchmark:
     timings: str = ""
     own_run: Callable[[str, str | Path], dict] | None = None
     aliases: Mapping[str, Mapping] = field(default_factory=dict)
+    takes_out: bool = False
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "title", self.title.strip().split("\n")[0])
@@ -101,7 +104,8 @@ class Benchmark:
         cfg = self.check_mode(mode)
         env = environment()  # before the run: the commit that ran, not the one at the end
         started = time.perf_counter()
-        measured = self.measure(mode, cfg, **options)
+        extra = {"out": Path(out)} if self.takes_out else {}
+        measured = self.measure(mode, cfg, **options, **extra)
         wall = time.perf_counter() - started
         payload = {"benchmark": self.name, "mode": mode, **measured}
         payload.setdefault("wall_s", wall)

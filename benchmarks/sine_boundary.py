@@ -37,11 +37,8 @@ the box up with it for a long time.
 
 The FEM strip: as in the paper, every node of the sine body is scripted (rigid). The stepper
 brings scripted nodes to their end-of-step positions under CCD (part-way moves and re-solves), so
-the body never jumps over particles. ``STRIP_PRESCRIBED = "all"`` instead scripts only the top
-row and carries the wavy lower surface by a thin (2 element rows), stiff (E = 1e9 Pa) elastic
-strip; ``strip_surface_deviation_m`` then records how far the surface strays from its path. The
-recorded partial run (``benchmarks/records``) was made with ``"top"``, before the stepper learnt
-to move scripted bodies under CCD.
+the body never jumps over particles (``strip_surface_deviation_m``: how far its lower surface
+strays from the scripted path, 0 up to round-off).
 
 Choices where the paper is silent (recorded in the JSON ``parameters``):
 
@@ -52,9 +49,7 @@ Choices where the paper is silent (recorded in the JSON ``parameters``):
   left), edge length 0.005 m in full mode (27 edges per wavelength of arc);
 - particles: ``bfemp.sample.box`` at dx = 0.02 m with ppc = 9 (22500; the paper's 21026 is not a
   regular lattice count, ppc = 4 would give 10000); APIC transfer;
-- Newton iteration cap 1000 per step: on this scene projected Newton converges linearly at grid
-  nodes that carry a tiny mass (a particle at the edge of their B-spline support), taking a few
-  hundred iterations in some steps before the paper's 1e-4 m/s is met;
+- Newton iteration cap 1000 per step (``benchmarks/records/sine_boundary.md``: why);
 - ``partial`` mode (the recorded run, the full one being too slow for 2 cores): the paper's
   scene, path and dt on a coarser grid, dx = 0.04 m, ppc = 4 (2500 particles);
 - quick mode halves every length but the sine's (box 0.5 m, gap 0.1 m, path 0.3 m down, 0.25 m
@@ -68,7 +63,6 @@ from __future__ import annotations
 import logging
 import math
 import time
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -90,11 +84,6 @@ MAX_UP = 1.0  # s, cap of the upward phase at scale 1 (scaled with the scene)
 DHAT, KAPPA, TOL = 1e-3, 1e4, 1e-4  # m, Pa, m/s
 STRIP_ROWS = 2  # element rows of the FEM strip: thickness = STRIP_ROWS x strip_h
 MAX_NEWTON = 1000  # Newton iteration cap per step (see the module docstring)
-#: which strip nodes are scripted: "top" (the top row; the wavy lower surface is carried by a
-#: stiff elastic strip, see the module docstring) or "all" (the paper's rigid boundary; needs
-#: prescribed motion inside the CCD-filtered line search, which the library lacks for now)
-STRIP_PRESCRIBED = "all"
-STRIP_MATERIAL = dict(E=1e9, nu=0.2, density=1000.0)  # Pa, -, kg/m^2: 1000 x the box's E
 SNAPSHOT_EVERY = 0.01  # s, particle snapshots of the upward phase (for the figure)
 PAPER = {
     "particles": 21026,
@@ -111,36 +100,18 @@ MODES = {
 }
 
 
-@dataclass(frozen=True, kw_only=True)
 class Geometry:
-    """Lengths (m) and phase times (s) of the scene at ``scale`` (1: the paper's)."""
+    """Lengths (m) and phase times (s) of the scene at ``scale`` (1: the paper's): ``box``, the
+    side of the MPM box; ``y0``, the mean line of the sine at t = 0 (0.2 m above the box at
+    scale 1); ``t_down``, the end of the downward phase (0.6 m at 1 m/s at scale 1); ``t_up``,
+    the start of the upward (separating) phase, after 0.5 m to the left at scale 1;
+    ``strip_x_range``, the extent of the FEM strip (the box and its bulge after moving left)."""
 
-    scale: float
-
-    @property
-    def box(self) -> float:
-        """Side of the MPM box, m."""
-        return 1.0 * self.scale
-
-    @property
-    def y0(self) -> float:
-        """Mean line of the sine at t = 0 (0.2 m above the box at scale 1), m."""
-        return 1.2 * self.scale
-
-    @property
-    def t_down(self) -> float:
-        """End of the downward phase (0.6 m at 1 m/s at scale 1), s."""
-        return 0.6 * self.scale / SPEED
-
-    @property
-    def t_up(self) -> float:
-        """Start of the upward (separating) phase, after 0.5 m to the left at scale 1, s."""
-        return self.t_down + 0.5 * self.scale / SPEED
-
-    @property
-    def strip_x_range(self) -> tuple[float, float]:
-        """Extent of the FEM strip: covers the box and its bulge after moving left, m."""
-        return (-0.3 * self.scale, 1.8 * self.scale)
+    def __init__(self, scale: float) -> None:
+        self.scale, self.box, self.y0 = scale, 1.0 * scale, 1.2 * scale
+        self.t_down = 0.6 * scale / SPEED
+        self.t_up = self.t_down + 0.5 * scale / SPEED
+        self.strip_x_range = (-0.3 * scale, 1.8 * scale)
 
     def path(self) -> bfemp.motion.Sequence:
         """The boundary's prescribed path: down, left, then up (forever) at 1 m/s."""
@@ -224,22 +195,11 @@ def _scene(cfg: dict, treatment: str) -> tuple[bfemp.Scene, np.ndarray | None]:
     )
     pts = strip.points
     lower = np.flatnonzero(np.abs(pts[:, 1] - _surface(pts[:, 0], geo.y0)[0]) < 1e-9)
-    if STRIP_PRESCRIBED == "all":
-        # ``strip_density_factor`` (the trade study's): the scripted strip's density only
-        # weighs its nodes in augury's and lr's mass-weighted velocity mixing
-        factor = cfg.get("strip_density_factor", 1.0)
-        heavy = bfemp.NeoHookean(**{**MATERIAL, "density": MATERIAL["density"] * factor})
-        scene.add_fem(strip, material=heavy, prescribed=geo.path(), name="sine")
-    else:  # the top row scripted, the wavy lower surface carried by a stiff strip
-        top = np.abs(pts[:, 1] - _surface(pts[:, 0], geo.y0 + thickness)[0]) < 1e-9
-        scene.add_fem(
-            strip,
-            material=bfemp.NeoHookean(**STRIP_MATERIAL),
-            velocity=(0.0, -SPEED),
-            prescribed=geo.path(),
-            prescribed_nodes=top,
-            name="sine",
-        )
+    # every node scripted (the paper's rigid boundary); ``strip_density_factor`` (the trade
+    # study's): its density only weighs its nodes in augury's and lr's velocity mixing
+    factor = cfg.get("strip_density_factor", 1.0)
+    heavy = bfemp.NeoHookean(**{**MATERIAL, "density": MATERIAL["density"] * factor})
+    scene.add_fem(strip, material=heavy, prescribed=geo.path(), name="sine")
     scene.set_contact(dhat=DHAT, kappa=KAPPA, mu=0.0)
     return scene, lower[np.argsort(pts[lower, 0])]
 
@@ -297,11 +257,8 @@ def run_treatment(cfg: dict, treatment: str) -> dict:
     # ``t_stop`` (s, optional): stop there (the trade study's warm-up)
     t_stop = min(cfg.get("t_stop") or math.inf, geo.t_up + MAX_UP * geo.scale)
     while sim.state.t < t_stop - 0.5 * sim.dt:
-        try:
-            report = sim.step()
-        except bfemp.StepError as err:  # recorded; the series so far are still reduced
-            error = str(err)
-            log.error("%s/%s: %s", NAME, treatment, err)
+        report, error = catalogue.step(sim, f"{NAME}/{treatment}")
+        if error is not None:  # recorded; the series so far are still reduced
             break
         t = sim.state.t
         if lower is None:
@@ -480,10 +437,8 @@ def measure(mode: str, cfg: dict) -> dict:
                 "x_range_m": geo.strip_x_range,
                 "thickness_m": STRIP_ROWS * cfg["strip_h"],
                 "h_m": cfg["strip_h"],
-                "prescribed_nodes": STRIP_PRESCRIBED,
-                "material": {"model": "NeoHookean", **STRIP_MATERIAL}
-                if STRIP_PRESCRIBED == "top"
-                else "rigid (all nodes prescribed)",
+                "prescribed_nodes": "all",
+                "material": "rigid (all nodes prescribed)",
             },
             "dhat_m": DHAT,
             "kappa_Pa": KAPPA,

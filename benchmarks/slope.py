@@ -39,10 +39,8 @@ relative error is undefined (null) and the speed is the metric: the mollified st
 lets the box creep up to eps_v, where full Coulomb friction balances gravity exactly.
 
 A step that fails (``StepError``) ends its case; the error is kept in the case's ``error`` and in
-``failed_cases``, and the fit uses the steps before it. Known library limits when this was
-written: at tol = 1e-8 m/s the Newton increment of this very stiff box (E = 4e12 Pa) reaches a
-round-off floor of 1e-8 to 4e-8 m/s after a few hundred sliding steps (MAX_ITERATIONS), and the
-friction term counts a particle near a shared FEM boundary vertex twice (``fine_slope``).
+``failed_cases``, and the fit uses the steps before it (known limits:
+``benchmarks/records/slope.md``).
 """
 
 from __future__ import annotations
@@ -54,6 +52,7 @@ from pathlib import Path
 import numpy as np
 
 import bfemp
+from benchmarks._shared import check_settings
 from benchmarks.catalogue import SLOPE_PHYSICS as PHYSICS
 from benchmarks.catalogue import SLOPE_VARIANTS as VARIANTS
 from benchmarks.catalogue import release_slope, settle_slope
@@ -159,19 +158,7 @@ def _strip(cases: list[dict]) -> list[dict]:
 
 
 #: the keys of a ``run_point`` settings dict (the trade study's knobs and fixed settings)
-POINT_KEYS = (
-    "dt",
-    "dx",
-    "ppc",
-    "dhat",
-    "eps_v",
-    "tol",
-    "strategy",
-    "mu",
-    "settle_s",
-    "release_s",
-    "fit_start_s",
-)
+POINT_KEYS = tuple("dt dx ppc dhat eps_v tol strategy mu settle_s release_s fit_start_s".split())
 
 
 def point_physics(settings: dict) -> dict:
@@ -218,10 +205,7 @@ def run_point(settings: dict) -> dict:
         ``accel_analytic`` (m/s^2), ``accel_rel_error``, ``steps``, ``newton_iterations`` (settling
         and release), ``particles``, and the ``StepError`` message in ``failure``.
     """
-    missing = [key for key in POINT_KEYS if key not in settings]
-    unknown = sorted(set(settings) - set(POINT_KEYS))
-    if missing or unknown:
-        raise ValueError(f"slope.run_point: missing settings {missing}, unknown {unknown}")
+    check_settings("slope.run_point", settings, POINT_KEYS)
     p = point_physics(settings)
     dt = settings["dt"]
     try:

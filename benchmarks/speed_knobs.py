@@ -13,10 +13,8 @@ Knobs:
   does not pay (the JSON says how much).
 - ``broad_phase_share``: what reusing broad-phase candidates across line-search trials could save
   at most: the share of the step time spent in ``bfemp.contact.pairs.candidate_pairs``
-  (cProfile, rings demo from 0.02 s to 0.1 s; quick: to 0.04 s). Not implemented: the record
-  gives 15 % of the step, of which the line-search trials (what reuse would remove; the CCD's
-  own swept query stays) are about half, i.e. a ~7 % gain for a cache that must prove that every
-  trial lies on the segment its candidates were swept over.
+  (cProfile, rings demo from 0.02 s to 0.1 s; quick: to 0.04 s). Not implemented (why:
+  ``benchmarks/records/speed_knobs.md``).
 
 For each run: Newton iterations, numeric factorisations, wall seconds (min of ``repeats`` runs;
 the machine is shared) and a result (final positions) whose on/off difference is recorded, so the
@@ -77,50 +75,40 @@ def _measure(make: Callable[[], bfemp.Simulation], t_end: float, repeats: int) -
     }
 
 
-def _pair(off: dict, on: dict) -> dict:
-    """The off/on records and how far apart their final positions are (m)."""
+def _on_off(make: Callable[[bool], bfemp.Simulation], t_end: float, repeats: int) -> dict:
+    """``_measure`` of ``make(False)`` (knob off) and ``make(True)`` (on), and how far apart
+    their final positions are (m)."""
+    off, on = (_measure(lambda on=on: make(on), t_end, repeats) for on in (False, True))
     diff = float(np.abs(on.pop("_positions") - off.pop("_positions")).max())
     return {"off": off, "on": on, "max_position_difference_m": diff}
 
 
 def _friction_back_solve(cfg: dict) -> dict:
-    out = {}
-    for label, mu in (("sticking_mu_0.5", 0.5), ("sliding_mu_0.1", 0.1)):
-        runs = {
-            on: _measure(
-                lambda mu=mu, on=on: bfemp.Simulation(
-                    block_on_floor(mu),
-                    dt=5e-3,
-                    options=bfemp.BarrierOptions(tol=1e-6, friction_back_solve=on),
-                ),
-                cfg["t_block"],
-                cfg["repeats"],
-            )
-            for on in (False, True)
-        }
-        out[label] = _pair(runs[False], runs[True])
-    return out
+    def block(mu: float, on: bool) -> bfemp.Simulation:
+        options = bfemp.BarrierOptions(tol=1e-6, friction_back_solve=on)
+        return bfemp.Simulation(block_on_floor(mu), dt=5e-3, options=options)
+
+    return {
+        label: _on_off(lambda on, mu=mu: block(mu, on), cfg["t_block"], cfg["repeats"])
+        for label, mu in (("sticking_mu_0.5", 0.5), ("sliding_mu_0.1", 0.1))
+    }
 
 
 def _warm_start(cfg: dict) -> dict:
     scenes = {
-        "rings_demo": (colliding_rings_scene, "newmark", 2e-3, cfg["t_rings"]),
-        "cantilever_demo": (cantilever_scene, "newmark", 1e-2, cfg["t_cantilever"]),
+        "rings_demo": (colliding_rings_scene, 2e-3, cfg["t_rings"]),
+        "cantilever_demo": (cantilever_scene, 1e-2, cfg["t_cantilever"]),
     }
-    out = {}
-    for label, (scene, integrator, dt, t_end) in scenes.items():
-        runs = {
-            on: _measure(
-                lambda scene=scene, integrator=integrator, dt=dt, on=on: bfemp.Simulation(
-                    scene(), integrator=integrator, dt=dt, tol=1e-6, warm_start=on
-                ),
-                t_end,
-                cfg["repeats"],
-            )
-            for on in (False, True)
-        }
-        out[label] = _pair(runs[False], runs[True])
-    return out
+    return {
+        label: _on_off(
+            lambda on, scene=scene, dt=dt: bfemp.Simulation(
+                scene(), integrator="newmark", dt=dt, tol=1e-6, warm_start=on
+            ),
+            t_end,
+            cfg["repeats"],
+        )
+        for label, (scene, dt, t_end) in scenes.items()
+    }
 
 
 def _broad_phase_share(cfg: dict) -> dict:

@@ -14,7 +14,7 @@ result = record_fixture("buckling")
 
 def test_writes_json_and_plot(result):
     data = check_written(
-        result, "buckling", "detachment_end_m u_buckle_m wall_s peak_memory_mb parameters"
+        result, "buckling_quick", "detachment_end_m u_buckle_m wall_s peak_memory_mb parameters"
     )
     assert [case["mu"] for case in data["cases"]] == list(buckling.MUS)
 
@@ -78,7 +78,7 @@ def test_the_papers_plate_holds_the_crown_only_with_its_own_friction(plate_mu, m
 
 def test_records_of_cases_run_apart_merge_into_the_record_of_one_run(result, tmp_path):
     _, data, out = result
-    shapes = np.load(out / "buckling_final.npz")
+    shapes = np.load(out / "buckling_quick_final.npz")
     assert sorted(shapes.files) == sorted(
         f"{kind}_{mu:g}" for kind in ("mpm", "fem") for mu in buckling.MUS
     )
@@ -88,7 +88,7 @@ def test_records_of_cases_run_apart_merge_into_the_record_of_one_run(result, tmp
         folder = tmp_path / f"part{k}"
         folder.mkdir()
         (folder / "buckling.json").write_text(json.dumps({**data, "cases": [case]}))
-        (folder / "buckling_final.npz").write_bytes((out / "buckling_final.npz").read_bytes())
+        (folder / "buckling_final.npz").write_bytes((out / "buckling_quick_final.npz").read_bytes())
         paths.append(folder / "buckling.json")
     merged = buckling.merge(paths, tmp_path / "merged")
     assert [c["mu"] for c in merged["cases"]] == list(buckling.MUS)

@@ -76,11 +76,11 @@ def test_progress_of_another_step_than_the_checkpoint_is_named(segmented, tmp_pa
 def test_the_command_line_runs_a_budgeted_resumable_case_and_goes_on(tmp_path, capsys):
     args = ["buckling", "--quick", "--mu", "0", "--budget-s", "0", "--resumable"]
     assert main([*args, "--out", str(tmp_path)]) == 0
-    first = json.loads((tmp_path / "buckling.json").read_text())
+    first = json.loads((tmp_path / "buckling_quick.json").read_text())
     assert first["cut_cases"] == [0.0] and first["cases"][0]["steps"] == 1
     assert (tmp_path / "cases" / "quick_mu0" / "checkpoint.npz").is_file()
     assert main([*args, "--out", str(tmp_path)]) == 0
-    second = json.loads((tmp_path / "buckling.json").read_text())
+    second = json.loads((tmp_path / "buckling_quick.json").read_text())
     assert second["cases"][0]["steps"] == 2
     assert len(second["cases"][0]["segments_s"]) == 2
     assert "buckling: wrote" in capsys.readouterr().out

@@ -21,7 +21,7 @@ result = record_fixture("perf_contact")
 
 def test_writes_json_and_plot(result):
     data = check_written(
-        result, "perf_contact", "barrier_pairs_per_s ccd_s ccd_step rings_breakdown wall_s"
+        result, "perf_contact_quick", "barrier_pairs_per_s ccd_s ccd_step rings_breakdown wall_s"
     )
     for key in ("steps", "newton_iterations", "peak_memory_mb", "parameters", "environment"):
         assert key in data, key
