@@ -66,15 +66,21 @@ def step_table(metrics: object) -> dict[str, np.ndarray]:
     return out
 
 
-def summarise(table: dict[str, np.ndarray], sim: object, wall_s: float) -> dict:
-    """The probe's view of one transfer: phase seconds, mean step times, iterations, digest.
+def summarise(table: dict[str, np.ndarray], sim: object, wall_s: float, cpu_s: float) -> dict:
+    """The probe's view of one transfer: phase seconds, mean step times, iterations, digest;
+    ``cpu_s``: the process's CPU seconds over the run (all threads: less sensitive than the wall
+    to other processes on a shared machine).
 
-    The first step is left out of the means (it compiles what the numba cache lacks and builds
-    the first patterns and factorisation analysis); ``first_step_s`` records it.
+    The first step and the first step with a contact pair are left out of the means (they
+    compile what the numba cache lacks: the elastic and the contact kernels; ``first_step_s``
+    and ``first_contact_step_s`` record them); ``step_s`` keeps every step's seconds.
     """
     step_s = table["time_step"]
     contact = table["contact_pairs"] > 0
     later = np.arange(step_s.size) > 0
+    first_contact = int(np.argmax(contact)) if contact.any() else None
+    if first_contact is not None:
+        later[first_contact] = False
     free, touch = later & ~contact, later & contact
     phases = sorted(c for c in table if c.startswith("time_") and c != "time_step")
 
@@ -90,12 +96,14 @@ def summarise(table: dict[str, np.ndarray], sim: object, wall_s: float) -> dict:
         "contact_steps": int(contact.sum()),
         "wall_s": wall_s,
         "first_step_s": float(step_s[0]),
+        "first_contact_step_s": None if first_contact is None else float(step_s[first_contact]),
         "mean_step_s": float(step_s[later].mean()),
         "mean_step_free_s": float(step_s[free].mean()) if free.any() else None,
         "mean_step_contact_s": float(step_s[touch].mean()) if touch.any() else None,
         "newton_iterations_free": int(its[~contact].sum()),
         "newton_iterations_contact": int(its[contact].sum()),
         "s_per_contact_iteration": float(step_s[touch].sum() / max(1.0, its[touch].sum())),
+        "cpu_s": cpu_s,
         "phase_s": {p[len("time_") :]: float(table[p].sum()) for p in phases + ["time_step"]},
         "phase_s_per_free_step": per_step(free),
         "phase_s_per_contact_step": per_step(touch),
@@ -109,6 +117,7 @@ def summarise(table: dict[str, np.ndarray], sim: object, wall_s: float) -> dict:
             "mpm_x_sum": float(state.mpm_x.sum()),
             "fem_x_sum": float(state.fem_x.sum()),
         },
+        "step_s": step_s.tolist(),
     }
 
 
@@ -159,10 +168,10 @@ def measure_probe(cfg: dict, run_transfer, transfers: tuple[str, ...]) -> dict: 
     load = [os.getloadavg()[0]]
     for transfer in transfers:
         keep: dict = {}
-        start = time.perf_counter()
+        start, cpu = time.perf_counter(), time.process_time()
         reduced = run_transfer(cfg, transfer, keep=keep)
-        wall = time.perf_counter() - start
-        runs[transfer] = summarise(step_table(keep["sim"].metrics), keep["sim"], wall)
+        wall, cpu = time.perf_counter() - start, time.process_time() - cpu
+        runs[transfer] = summarise(step_table(keep["sim"].metrics), keep["sim"], wall, cpu)
         keys = ("momentum_drift_rel", "min_distance", "penetrations", "error", "contact_steps")
         physics[transfer] = {k: reduced[k] for k in keys}
         load.append(os.getloadavg()[0])
