@@ -19,9 +19,10 @@ The full mode's wall is extrapolated from the probe in two ways (``extrapolation
   iterations per free step): deeper contact takes more Newton iterations per step than the
   probe's first contact steps.
 
-Both leave out the model set-up (a few seconds) and assume the cost of a Newton iteration in
-deep contact is that of the first contact steps (more pairs later: the line search's CCD and the
-barrier's Hessian grow with them).
+Both add the run's seconds per step outside the stepper (the metrics row of every step and the
+penetration check of ``benchmarks.rings``), leave out the model set-up (a few seconds) and
+assume the cost of a Newton iteration in deep contact is that of the first contact steps (more
+pairs later: the line search's CCD and the barrier's Hessian grow with them).
 """
 
 from __future__ import annotations
@@ -33,6 +34,8 @@ from pathlib import Path
 
 import numpy as np
 
+#: contact steps left out of the means: the first two compile the contact kernels (pairs, CCD)
+WARM_CONTACT_STEPS = 2
 #: the committed full-mode record whose step and iteration counts the extrapolation takes
 FULL_RECORD = Path(__file__).resolve().parent / "records" / "rings.json"
 
@@ -71,16 +74,16 @@ def summarise(table: dict[str, np.ndarray], sim: object, wall_s: float, cpu_s: f
     ``cpu_s``: the process's CPU seconds over the run (all threads: less sensitive than the wall
     to other processes on a shared machine).
 
-    The first step and the first step with a contact pair are left out of the means (they
-    compile what the numba cache lacks: the elastic and the contact kernels; ``first_step_s``
-    and ``first_contact_step_s`` record them); ``step_s`` keeps every step's seconds.
+    The first step and the first ``WARM_CONTACT_STEPS`` steps with a contact pair are left out
+    of the means (they compile what the numba cache lacks: the elastic and the contact kernels,
+    up to minutes on a loaded machine; ``first_step_s`` and ``first_contact_steps_s`` record
+    them); ``step_s`` keeps every step's seconds.
     """
     step_s = table["time_step"]
     contact = table["contact_pairs"] > 0
     later = np.arange(step_s.size) > 0
-    first_contact = int(np.argmax(contact)) if contact.any() else None
-    if first_contact is not None:
-        later[first_contact] = False
+    warm = np.flatnonzero(contact)[:WARM_CONTACT_STEPS]
+    later[warm] = False
     free, touch = later & ~contact, later & contact
     phases = sorted(c for c in table if c.startswith("time_") and c != "time_step")
 
@@ -96,7 +99,7 @@ def summarise(table: dict[str, np.ndarray], sim: object, wall_s: float, cpu_s: f
         "contact_steps": int(contact.sum()),
         "wall_s": wall_s,
         "first_step_s": float(step_s[0]),
-        "first_contact_step_s": None if first_contact is None else float(step_s[first_contact]),
+        "first_contact_steps_s": step_s[warm].tolist(),
         "mean_step_s": float(step_s[later].mean()),
         "mean_step_free_s": float(step_s[free].mean()) if free.any() else None,
         "mean_step_contact_s": float(step_s[touch].mean()) if touch.any() else None,
@@ -104,6 +107,7 @@ def summarise(table: dict[str, np.ndarray], sim: object, wall_s: float, cpu_s: f
         "newton_iterations_contact": int(its[contact].sum()),
         "s_per_contact_iteration": float(step_s[touch].sum() / max(1.0, its[touch].sum())),
         "cpu_s": cpu_s,
+        "outside_step_s": wall_s - float(step_s.sum()),
         "phase_s": {p[len("time_") :]: float(table[p].sum()) for p in phases + ["time_step"]},
         "phase_s_per_free_step": per_step(free),
         "phase_s_per_contact_step": per_step(touch),
@@ -137,10 +141,14 @@ def extrapolate(runs: dict, full: dict) -> dict:
         n_free = counts["steps"] - n_touch
         free = run["mean_step_free_s"] or 0.0
         touch = run["mean_step_contact_s"] or free
-        by_steps[transfer] = n_free * free + n_touch * touch
+        # the run's seconds outside the stepper (metrics row, penetration check) per step
+        outside = (run["wall_s"] - sum(run["step_s"])) / max(1, run["steps"])
+        by_steps[transfer] = n_free * free + n_touch * touch + counts["steps"] * outside
         its_free_per_step = run["newton_iterations_free"] / max(1, run["free_steps"])
         its_contact = counts["newton_iterations"] - n_free * its_free_per_step
-        by_its[transfer] = n_free * free + its_contact * run["s_per_contact_iteration"]
+        by_its[transfer] = (
+            n_free * free + its_contact * run["s_per_contact_iteration"] + counts["steps"] * outside
+        )
     return {
         "full_counts": full,
         "by_steps_s": {**by_steps, "total": sum(by_steps.values())},
@@ -183,3 +191,41 @@ def measure_probe(cfg: dict, run_transfer, transfers: tuple[str, ...]) -> dict: 
         "load_average_1min": load,
         "wall_s": sum(r["wall_s"] for r in runs.values()),
     }
+
+
+def comparison_table(before: dict, after: dict) -> str:
+    """Markdown: milliseconds per phase of a free-flight and of a contact step, per transfer,
+    in two probe records (``before`` and ``after`` a change), then the mean step and the
+    extrapolated full wall."""
+    lines = []
+    for transfer in after["runs"]:
+        b, a = before["runs"][transfer], after["runs"][transfer]
+        lines += [
+            f"{transfer.upper()} (ms per step) | free, before | free, after | contact, before "
+            "| contact, after",
+            "--- | ---: | ---: | ---: | ---:",
+        ]
+        phases = sorted(set(a["phase_s_per_free_step"]) | set(b["phase_s_per_free_step"]))
+        for phase in phases:
+            cells = [
+                run[key].get(phase)
+                for key in ("phase_s_per_free_step", "phase_s_per_contact_step")
+                for run in (b, a)
+            ]
+            lines.append(
+                f"{phase} | " + " | ".join("-" if c is None else f"{1e3 * c:.1f}" for c in cells)
+            )
+        means = [run[key] for key in ("mean_step_free_s", "mean_step_contact_s") for run in (b, a)]
+        lines.append("**step** | " + " | ".join(f"**{1e3 * m:.1f}**" for m in means))
+        lines.append("")
+    for name, rec in (("before", before), ("after", after)):
+        ext = extrapolate(rec["runs"], full_counts())
+        lines.append(
+            f"- {name}: full mode extrapolated to {ext['by_steps_s']['total']:.0f} s by steps, "
+            f"{ext['by_iterations_s']['total']:.0f} s by Newton iterations (target 600 s); "
+            f"load average {', '.join(f'{x:.1f}' for x in rec['load_average_1min'])}; CPU "
+            + ", ".join(
+                f"{t} {r['cpu_s']:.0f} s / wall {r['wall_s']:.0f} s" for t, r in rec["runs"].items()
+            )
+        )
+    return "\n".join(lines) + "\n"
