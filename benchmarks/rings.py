@@ -54,6 +54,11 @@ Choices where the paper is silent (recorded in the JSON ``parameters``):
 - Partial mode (``run("partial")``, ``--mode partial``): the paper's dt, FEM mesh and physics,
   MPM grid dx = 0.2 m with ppc = 4 (2196 particles); a few minutes per run where full mode
   takes 15-20 (2 cores).
+- Probe mode (``--mode full_probe``, record ``rings_full_probe.json``): the full mode's scene
+  and stepper cut at t = 0.035 s (125 free-flight steps and 50 in contact per transfer), for
+  the seconds of each phase of a step and the full mode's wall extrapolated from them
+  (:mod:`benchmarks._rings_probe`). Full mode records ``phase_s`` too: per run, and summed over
+  both transfers at the top level.
 """
 
 from __future__ import annotations
