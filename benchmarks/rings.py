@@ -54,6 +54,11 @@ Choices where the paper is silent (recorded in the JSON ``parameters``):
 - Partial mode (``run("partial")``, ``--mode partial``): the paper's dt, FEM mesh and physics,
   MPM grid dx = 0.2 m with ppc = 4 (2196 particles); a few minutes per run where full mode
   takes 15-20 (2 cores).
+- Probe mode (``--mode full_probe``, record ``rings_full_probe.json``): the full mode's scene
+  and stepper cut at t = 0.035 s (125 free-flight steps and 50 in contact per transfer), for
+  the seconds of each phase of a step and the full mode's wall extrapolated from them
+  (:mod:`benchmarks._rings_probe`). Full mode records ``phase_s`` too: per run, and summed over
+  both transfers at the top level.
 """
 
 from __future__ import annotations
@@ -66,6 +71,7 @@ from pathlib import Path
 import numpy as np
 
 import bfemp
+from benchmarks._rings_probe import measure_probe
 from benchmarks.catalogue import (
     DHAT,
     GAP,
@@ -104,12 +110,16 @@ MODES = {
     # paper dt and FEM mesh, MPM grid coarsened 2x (what this 2-core machine runs in ~30 min)
     "partial": dict(dx=0.2, ppc=4, fem_h=0.13, dt=2e-4, t_end=0.3),
     "quick": dict(dx=1.0 / 3.0, ppc=4, fem_h=1.0 / 3.0, dt=2e-3, t_end=0.3),
+    # the full scene cut after 125 free-flight and about 50 contact steps: per-phase timings
+    # (benchmarks._rings_probe)
+    "full_probe": dict(dx=0.1, ppc=9, fem_h=0.13, dt=2e-4, t_end=0.035),
 }
 SERIES_POINTS = 400  # per-step curves stored in the JSON are subsampled to about this many
 
 
-def run_transfer(cfg: dict, transfer: str) -> dict:
-    """One transfer: run to ``t_end`` and reduce the metrics table."""
+def run_transfer(cfg: dict, transfer: str, keep: dict | None = None) -> dict:
+    """One transfer: run to ``t_end`` and reduce the metrics table (``keep`` given: the
+    simulation is stored under ``keep["sim"]``)."""
     scene = rings_scene(cfg)
     sim = bfemp.Simulation(
         scene,
@@ -120,6 +130,8 @@ def run_transfer(cfg: dict, transfer: str) -> dict:
         tol=cfg.get("tol", TOL),
     )
     model = sim.model
+    if keep is not None:
+        keep["sim"] = sim
     check = RingsPenetration(sim)
     start = time.perf_counter()
     error = None
@@ -298,7 +310,10 @@ def main_from_args(args: argparse.Namespace) -> int:
 def measure(mode: str, cfg: dict, compare: bool = True) -> dict:
     """Both transfers in ``mode``: ``"full"`` (paper resolution), ``"partial"`` (paper dt and
     FEM mesh, MPM grid 2x coarser) or ``"quick"`` (coarse, < 60 s); with ``compare``, in
-    partial and full modes, also ``COMPARED_INTEGRATORS`` (doubles the time)."""
+    partial and full modes, also ``COMPARED_INTEGRATORS`` (doubles the time). ``"full_probe"``:
+    the timing probe of ``benchmarks._rings_probe`` (no compared integrators)."""
+    if mode == "full_probe":
+        return {"parameters": dict(cfg), **measure_probe(cfg, run_transfer, TRANSFERS)}
     runs = {transfer: run_transfer(cfg, transfer) for transfer in TRANSFERS}
     compared = {}
     if compare and mode != "quick":  # the paper's literal mid-point Newmark (see the docstring)
@@ -315,6 +330,11 @@ def measure(mode: str, cfg: dict, compare: bool = True) -> dict:
         "steps": first["steps"],
         "steps_total": sum(r["steps"] for r in runs.values()),
         "wall_s": sum(r["wall_s"] for r in runs.values()),
+        # seconds per step phase summed over both transfers (each run's own under runs.*)
+        "phase_s": {
+            phase: sum(r["phase_s"].get(phase, 0.0) for r in runs.values())
+            for phase in sorted({p for r in runs.values() for p in r["phase_s"]})
+        },
         "newton_iterations": sum(r["newton_iterations"] for r in runs.values()),
         "penetrations": max(r["penetrations"] for r in runs.values()),
         "paper": PAPER,
@@ -371,7 +391,9 @@ def measure(mode: str, cfg: dict, compare: bool = True) -> dict:
 
 
 def plot(payload: dict, png: Path) -> None:
-    """``_plot`` of the recorded runs (their subsampled series)."""
+    """``_plot`` of the recorded runs (their subsampled series); none for the probe."""
+    if payload["mode"] == "full_probe":
+        return
 
     def arrays(runs: dict) -> dict:
         return {k: {**r, "series": {s: np.asarray(v, dtype=float) for s, v in r["series"].items()}}
@@ -382,5 +404,10 @@ def plot(payload: dict, png: Path) -> None:
     _plot(arrays(payload["runs"]), png, title, compared)
 
 
-BENCHMARK = register(Benchmark(NAME, __doc__, MODES, measure, plot=plot))
+def record(mode: str, options: dict) -> str:
+    """Record stem: ``rings`` (every mode but the probe), ``rings_full_probe`` (the probe)."""
+    return f"{NAME}_{mode}" if mode == "full_probe" else NAME
+
+
+BENCHMARK = register(Benchmark(NAME, __doc__, MODES, measure, plot=plot, record=record))
 run = BENCHMARK.run

@@ -3,7 +3,8 @@
 Every energy term returns its Hessian as :class:`Triplets` (row, column, value; duplicates
 allowed, they are summed).  :class:`TripletAssembler` turns them into a ``scipy.sparse``
 CSC matrix.  The expensive part of assembly is finding, for every triplet, the slot of the
-CSC ``data`` array it adds into (a sort of the (column, row) keys).  That map depends only on
+CSC ``data`` array it adds into (counting sorts of the triplets by column and by slot,
+``solvers._pattern_kernels``).  That map depends only on
 the ``rows``/``cols`` arrays, so it is cached and reused while the next call brings equal
 arrays (triplets that carry the ``pattern_key`` of the last call are taken as equal without a
 comparison: :class:`TripletStacker` keys the patterns it keeps); assembly then is one parallel
@@ -23,11 +24,14 @@ from __future__ import annotations
 
 import itertools
 import logging
+import time
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
 from numba import njit, prange
+
+from solvers._pattern_kernels import _csc_pattern
 
 __all__ = ["TripletAssembler", "TripletStacker", "Triplets", "new_pattern_key"]
 
@@ -179,6 +183,8 @@ class TripletAssembler:
 
     Attributes:
         pattern_changed: whether the last :meth:`assemble` call rebuilt the pattern.
+        last_pattern_s: seconds the last :meth:`assemble` call spent on the pattern (comparing
+            and rebuilding it; 0 when keyed as the last one).
         pattern_version: process-unique id of the current pattern (0 before the first call).
         n_rebuilds: number of pattern rebuilds so far.
     """
@@ -202,6 +208,7 @@ class TripletAssembler:
             full_to_reduced[free] = np.arange(self.n_out, dtype=np.int64)
             self._full_to_reduced = full_to_reduced
         self.pattern_changed = False
+        self.last_pattern_s = 0.0
         self.pattern_version = 0
         self.n_rebuilds = 0
         self._rows: np.ndarray | None = None
@@ -238,34 +245,20 @@ class TripletAssembler:
                 f"rows {rows[bad[:10]].tolist()}, cols {cols[bad[:10]].tolist()}"
             )
         if self._full_to_reduced is None:
-            r, c = rows, cols
-            keep = None
-        else:
-            r = self._full_to_reduced[rows]
-            c = self._full_to_reduced[cols]
-            keep = (r >= 0) & (c >= 0)
-            r, c = r[keep], c[keep]
-        # Column-major keys: sorting them orders entries exactly as CSC stores them.
-        keys = c * m + r
-        unique_keys, inverse = np.unique(keys, return_inverse=True)
-        nnz = unique_keys.size
+            r, c = rows.astype(np.int64, copy=False), cols.astype(np.int64, copy=False)
+        else:  # dropped triplets (a fixed DOF) get -1 and add into one extra slot, cut off
+            r, c = self._full_to_reduced[rows], self._full_to_reduced[cols]
+        # counting sorts (solvers._pattern_kernels): the arrays np.unique of the column-major
+        # keys c * m + r and a stable argsort of the slots would give, in O(T + m)
+        indptr, indices, slots, order, starts = _csc_pattern(r, c, m)
+        nnz = indices.size
         index_dtype = np.int32 if max(nnz, m) < np.iinfo(np.int32).max else np.int64
-        self._indices = (unique_keys % max(m, 1)).astype(index_dtype)
-        col_counts = np.bincount(unique_keys // max(m, 1), minlength=m)
-        indptr = np.zeros(m + 1, dtype=index_dtype)
-        np.cumsum(col_counts, out=indptr[1:])
-        self._indptr = indptr
-        # Dropped triplets (fixed DOFs) add into one extra slot that is cut off afterwards.
-        slots = np.full(rows.size, nnz, dtype=np.int64)
-        if keep is None:
-            slots[:] = inverse.ravel()
-        else:
-            slots[keep] = inverse.ravel()
+        self._indices = indices.astype(index_dtype)
+        self._indptr = indptr.astype(index_dtype)
         self._slots = slots
         index = np.int32 if rows.size < np.iinfo(np.int32).max else np.int64
-        self._order = np.argsort(slots, kind="stable").astype(index)
-        self._starts = np.zeros(nnz + 1, dtype=np.int64)
-        np.cumsum(np.bincount(slots, minlength=nnz + 1)[:nnz], out=self._starts[1:])
+        self._order = order.astype(index)
+        self._starts = starts
         self._rows = rows.copy()
         self._cols = cols.copy()
         self.n_rebuilds += 1
@@ -292,9 +285,11 @@ class TripletAssembler:
         """
         if not isinstance(t, Triplets):
             raise ValueError(f"assemble expects Triplets, got {type(t).__name__}")
+        start = time.perf_counter()
         self.pattern_changed = not self._same_pattern(t)
         if self.pattern_changed:
             self._rebuild(t.rows, t.cols)
+        self.last_pattern_s = time.perf_counter() - start
         self._input_key = t.pattern_key
         data = _slot_sums(t.vals, self._order, self._starts)
         m = self.n_out

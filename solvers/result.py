@@ -17,10 +17,12 @@ __all__ = ["TIMING_KEYS", "NewtonIteration", "NewtonResult", "NewtonStatus", "ad
 
 #: Phases timed by :func:`solvers.newton.minimize`, in s. ``analyze`` is the symbolic
 #: factorisation (just a pattern check while the pattern is reused), ``line_search`` includes every
-#: energy evaluation (the one at ``x0`` too) and ``total`` the whole call.
+#: energy evaluation (the one at ``x0`` too), ``pattern`` the sparsity-pattern builds of the
+#: assembler (apart from ``assemble``, the sums into the pattern) and ``total`` the whole call.
 TIMING_KEYS: tuple[str, ...] = (
     "gradient",
     "hessian",
+    "pattern",
     "assemble",
     "analyze",
     "factorize",

@@ -147,3 +147,74 @@ def _mirror_blocks(blocks, nbr):  # noqa: ANN001, ANN202
             for r in range(d):
                 for s in range(d):
                     blocks[j, back, r, s] = blocks[i, code, s, r]
+
+
+@njit(cache=True, parallel=True)
+def _effective_gradients(F_n, grads_w, nodes, active_x, particles):  # noqa: ANN001, ANN202
+    """g (p, K, d) and C (p, d, d) of the selected particles (BFEMP eq. 25 made affine).
+
+    ``g_pk = (F_p^n)^T grad w_pk`` and ``C_p = F_p^n - sum_k x_k^n g_pk^T`` for p in
+    ``particles`` (p,), from ``F_n`` (P, d, d), ``grads_w`` (P, K, d) in 1/m, ``nodes`` (P, K)
+    into ``active_x`` (G, d) in m; the sums run over j and k in increasing order, as the
+    ``np.einsum`` calls they replace do.
+    """
+    n_sel = particles.size
+    k_st, d = grads_w.shape[1], grads_w.shape[2]
+    g = np.empty((n_sel, k_st, d))
+    const = np.empty((n_sel, d, d))
+    for s in prange(n_sel):
+        p = particles[s]
+        for k in range(k_st):
+            for i in range(d):
+                acc = 0.0
+                for j in range(d):
+                    acc += F_n[p, j, i] * grads_w[p, k, j]
+                g[s, k, i] = acc
+        for i in range(d):
+            for j in range(d):
+                acc = 0.0
+                for k in range(k_st):
+                    acc += active_x[nodes[p, k], i] * g[s, k, j]
+                const[s, i, j] = F_n[p, i, j] - acc
+    return g, const
+
+
+@njit(cache=True)
+def _pair_pattern(nbr, dof_grid, d):  # noqa: ANN001, ANN202
+    """Rows, columns and kept block entries of the node-pair blocks (G, 5^d, d, d).
+
+    Entry ``(i, code, r, s)`` of the blocks couples DOF ``dof(i) d + r`` with ``dof(j) d + s``
+    for ``j = nbr[i, code]``; it is kept where both nodes are unknowns (``dof_grid`` (G,) >= 0;
+    -1: prescribed or sticky) and ``j >= 0``. Returns ``rows, cols`` (n,) int64 of the kept
+    entries, in the row-major order of the blocks, and ``keep`` (G 5^d d d,) bool.
+    """
+    n_nodes, n_codes = nbr.shape
+    keep = np.zeros(n_nodes * n_codes * d * d, dtype=np.bool_)
+    n = 0
+    for i in range(n_nodes):
+        if dof_grid[i] < 0:
+            continue
+        for code in range(n_codes):
+            j = nbr[i, code]
+            if j >= 0 and dof_grid[j] >= 0:
+                n += 1
+    rows = np.empty(n * d * d, dtype=np.int64)
+    cols = np.empty(n * d * d, dtype=np.int64)
+    q = 0
+    for i in range(n_nodes):
+        di = dof_grid[i]
+        if di < 0:
+            continue
+        for code in range(n_codes):
+            j = nbr[i, code]
+            if j < 0 or dof_grid[j] < 0:
+                continue
+            dj = dof_grid[j]
+            base = (i * n_codes + code) * d * d
+            for r in range(d):
+                for s in range(d):
+                    keep[base + r * d + s] = True
+                    rows[q] = di * d + r
+                    cols[q] = dj * d + s
+                    q += 1
+    return rows, cols, keep

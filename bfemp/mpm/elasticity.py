@@ -13,7 +13,12 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from bfemp.mpm._hessian_kernels import _accumulate_blocks, _neighbour_table
+from bfemp.mpm._hessian_kernels import (
+    _accumulate_blocks,
+    _effective_gradients,
+    _neighbour_table,
+    _pair_pattern,
+)
 from bfemp.terms.base import StepContext
 from bfemp.terms.elasticity import ElasticityTerm, ElasticStencils
 from geometry.grid import stencil_offsets
@@ -38,11 +43,11 @@ def mpm_particle_stencils(
     """Elastic stencils of the selected particles ``(p,)`` for this step (grid-offset nodes)."""
     mpm = ctx.mpm
     st = mpm.stencils
-    F_n = ctx.state.mpm_F[particles]
-    grads = np.einsum("pji,pkj->pki", F_n, st.grads[particles])  # g = F^nT grad w
+    # g = F^nT grad w and the constant part C (module docstring), in one numba pass
+    grads, const = _effective_gradients(
+        ctx.state.mpm_F, st.grads, st.nodes, st.active_x, np.asarray(particles, dtype=np.int64)
+    )
     nodes = st.nodes[particles]
-    x_n = st.active_x[nodes]  # (p, K, d)
-    const = F_n - np.einsum("pki,pkj->pij", x_n, grads)
     return ElasticStencils(
         nodes=np.ascontiguousarray(nodes + mpm.node_offset),
         grads=np.ascontiguousarray(grads),
@@ -91,18 +96,12 @@ class MpmElasticityTerm(ElasticityTerm):
         self._nbr = nbr
         # rows/cols of every (node, offset) d x d block; prescribed (sticky) DOFs dropped
         offset = ctx.mpm.node_offset
-        row_node = np.repeat(np.arange(self._n_grid), self._n_codes)
-        col_node = nbr.reshape(-1)
-        has = col_node >= 0
-        dof_row = ctx.layout.dof_node[row_node + offset]
-        dof_col = np.where(has, ctx.layout.dof_node[np.where(has, col_node, 0) + offset], -1)
-        comp = np.arange(d)
-        rows = (dof_row[:, None, None] * d + comp[None, :, None]) * np.ones(d, dtype=np.int64)
-        cols = (dof_col[:, None, None] * d + comp[None, None, :]) * np.ones((d, 1), dtype=np.int64)
-        keep = ((dof_row >= 0) & (dof_col >= 0))[:, None, None] & np.ones((d, d), dtype=bool)
-        self._keep = keep.reshape(-1)
-        rows = np.ascontiguousarray(rows.reshape(-1)[self._keep])
-        cols = np.ascontiguousarray(cols.reshape(-1)[self._keep])
+        dof_grid = np.ascontiguousarray(ctx.layout.dof_node[offset : offset + self._n_grid])
+        rows, cols, self._keep = _pair_pattern(nbr, dof_grid, d)
+        # views with numpy's own int64 dtype object: Triplets' np.ascontiguousarray(dtype=int64)
+        # then hands these very arrays on (numba's returned dtype instance would make it wrap
+        # a new view each call, and the patterns downstream, keyed on identity, rebuilt)
+        rows, cols = rows.view(np.int64), cols.view(np.int64)
         # Where the active grid and its node pairs are those of the last step (a body at rest
         # or moving within its cells), the last arrays are kept: the stacked, rotated and
         # assembled patterns downstream key on these very objects and are reused.

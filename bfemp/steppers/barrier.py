@@ -123,6 +123,7 @@ class BarrierStepper:
         )
         self.adaptive: AdaptiveKappa | None = None
         self._contact: ContactView | None = None  # contact() of the last step, once asked
+        self._setup_parts: dict[str, float] = {}  # seconds of the last _begin, by part
         self._solver = ScriptedSolve(
             model,
             self.potential,
@@ -166,6 +167,7 @@ class BarrierStepper:
         """Gather the step's nodes (P2G at x^n), predict x_hat and begin the potential with the
         integrator's weights (BFEMP eq. 22); ``frames=False``: without slip frames."""
         integ, dt = self.integrator, self.dt
+        started = time.perf_counter()
         nodes = gather_nodes(
             self.model,
             state,
@@ -174,9 +176,15 @@ class BarrierStepper:
             dt=dt,
             t_next=t_next,
         )
+        gathered = time.perf_counter()
         ctx = self._context(state, nodes, integ.predict(nodes.x, nodes.v, nodes.a, dt))
         weights = integ.weight(dt), nodes.frames if frames else None
         self.potential.begin_step(ctx, *weights, contact_weight=integ.contact_weight(dt))
+        # the parts of the step's "setup" phase: P2G and stencils, then the terms' begin_step
+        self._setup_parts = {
+            "setup_p2g": gathered - started,
+            "setup_terms": time.perf_counter() - gathered,
+        }
         return nodes, ctx
 
     def _context(self, state: State, nodes: StepNodes, x_hat_all: np.ndarray) -> StepContext:
@@ -328,6 +336,7 @@ class BarrierStepper:
         )
         timings = dict(result.timings)
         timings["setup"] = setup_time
+        timings.update(self._setup_parts)
         timings["update"] = g2p_start - update_start
         timings["g2p"] = time.perf_counter() - g2p_start
         checked = time.perf_counter()  # independent of the barrier: bfemp.contact.intersection

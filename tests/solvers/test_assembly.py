@@ -171,3 +171,59 @@ def test_stacked_patterns_carry_a_key_and_the_assembler_trusts_it():
     B = asm.assemble(moved)
     assert asm.pattern_changed and asm.n_rebuilds == 2
     np.testing.assert_allclose(B.toarray(), _reference(moved, n).toarray(), atol=1e-13)
+
+
+def _sorted_route(r, c, m):
+    """The pattern as ``TripletAssembler`` built it before the counting sorts: ``np.unique`` of
+    the column-major keys and a stable argsort of the slots (dropped triplets: -1, slot nnz)."""
+    keep = (r >= 0) & (c >= 0)
+    unique, inverse = np.unique(c[keep] * m + r[keep], return_inverse=True)
+    nnz = unique.size
+    indptr = np.zeros(m + 1, dtype=np.int64)
+    np.cumsum(np.bincount(unique // m, minlength=m), out=indptr[1:])
+    slots = np.full(r.size, nnz, dtype=np.int64)
+    slots[keep] = inverse.ravel()
+    starts = np.zeros(nnz + 1, dtype=np.int64)
+    np.cumsum(np.bincount(slots, minlength=nnz + 1)[:nnz], out=starts[1:])
+    return indptr, unique % m, slots, np.argsort(slots, kind="stable"), starts
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_counting_sort_pattern_equals_the_unique_and_argsort_route(seed):
+    """The numba pattern (``solvers._pattern_kernels``) gives the arrays of the sorted route
+    exactly: CSC structure, each triplet's slot, and the triplets' order inside each slot (the
+    order of the sums, so the bits of the assembled values); with duplicates, dropped triplets,
+    empty columns and a column holding one row many times."""
+    from solvers._pattern_kernels import _csc_pattern
+
+    rng = np.random.default_rng(seed)
+    m = 97
+    r = rng.integers(-1, m, 5000)  # -1: dropped (a fixed DOF)
+    c = rng.integers(-1, m, 5000)
+    c[c == 13] = 14  # column 13 empty
+    r[:300], c[:300] = 5, 40  # one entry repeated
+    got = _csc_pattern(r, c, m)
+    want = _sorted_route(r, c, m)
+    for name, g, w in zip(
+        ("indptr", "indices", "slots", "order", "starts"), got, want, strict=True
+    ):
+        assert np.array_equal(g, w), name
+    assert got[0][14] == got[0][13]  # the empty column
+
+
+def test_a_moved_pattern_is_rebuilt_to_a_fresh_assemblers_matrix():
+    """After triplets move to other slots (particles crossing cells), a reused assembler's
+    matrix has the structure and the bits of a fresh assembler's."""
+    rng = np.random.default_rng(3)
+    n = 200
+    free = rng.random(n) > 0.1
+    asm = TripletAssembler(n, free=free)
+    t = _random_triplets(rng, n, 4000)
+    asm.assemble(t)
+    moved = Triplets((t.rows + rng.integers(0, 3, t.nnz)) % n, t.cols, t.vals)
+    A, B = asm.assemble(moved), TripletAssembler(n, free=free).assemble(moved)
+    assert asm.pattern_changed
+    for name in ("indptr", "indices", "data"):
+        assert np.array_equal(getattr(A, name), getattr(B, name)), name
+    ref = _reference(moved, n)[free][:, free]
+    np.testing.assert_allclose(A.toarray(), ref.toarray(), rtol=1e-13, atol=1e-13)
