@@ -112,6 +112,8 @@ PROGRESS_EVERY = 10  # steps between progress lines in the log
 #: s of wall time per timing probe (the full mode's steps take minutes: the whole probe, last step
 #: included, stays within a 10-minute slot)
 PROBE_BUDGET_S = {"partial": 480.0, "full": 300.0}
+#: phases of ``StepReport.timings`` kept per step (the probes' per-iteration split)
+STEP_PHASES = ("hessian", "hessian_projection", "assemble", "analyze", "factorize", "solve")
 SOLVER_PROBE_STEPS, SOLVER_PROBE_BUDGET_S = 25, 150.0  # per linear solver in the solver probe
 PAPER = {
     "particles": 90929,
@@ -274,9 +276,12 @@ def _run_one(
     cut = False  # stopped by budget_s before the end of the run
     step_wall, step_newton, step_pairs = [], [], []
     phases: dict[str, float] = {}
+    step_phases: dict[str, list[float]] = {k: [] for k in STEP_PHASES}
+    hessian_split: list[dict[str, float]] = []  # per step, by term (see _hessian_split)
     started = time.perf_counter()
     for _ in range(steps):
         tick = time.perf_counter()
+        before = sim.stepper.potential.hessian_seconds()
         report, error = catalogue.step(sim, f"twist mu={mu:g}")
         if error is not None:
             break
@@ -285,6 +290,10 @@ def _run_one(
         step_pairs.append(report.contact_pairs)
         for name, seconds in report.timings.items():
             phases[name] = phases.get(name, 0.0) + seconds
+        for name, series in step_phases.items():
+            series.append(report.timings.get(name, 0.0))
+        after = sim.stepper.potential.hessian_seconds()
+        hessian_split.append({k: v - before.get(k, 0.0) for k, v in after.items()})
         newton += report.newton_iterations
         friction_max = max(friction_max, report.friction_iterations)
         friction_unconverged += int(not report.friction_converged)
@@ -356,6 +365,8 @@ def _run_one(
             "step_wall_s": step_wall,
             "step_newton_iterations": step_newton,
             "step_contact_pairs": step_pairs,
+            "step_phase_s": step_phases,
+            "step_hessian_split_s": hessian_split,
         },
     }
 
@@ -398,14 +409,19 @@ def _plot(runs: list[dict], path: Path, title: str) -> None:
     fig.savefig(path, dpi=110)
 
 
-def probe(mode: str, out: str | Path = "results", mu: float = 0.5) -> dict:
+def probe(
+    mode: str, out: str | Path = "results", mu: float = 0.5, max_steps: int | None = None
+) -> dict:
     """Timing probe (not a result): the first ``PROBE_BUDGET_S[mode]`` s of wall time of ``mode``'s
-    ``mu`` case; writes ``twist_<mode>_probe.json`` with the per-step wall time, Newton
-    iterations, contact pairs and the peak memory, and a naive estimate of the whole mode."""
+    ``mu`` case (or its first ``max_steps`` steps, whichever ends first: a shorter probe of the
+    same scene); writes ``twist_<mode>_probe.json`` with the per-step wall time, Newton
+    iterations, contact pairs, Hessian and factorisation time per Newton iteration (the Hessian
+    split by term and the elasticity terms' dP/dF projection), the peak memory, and a naive
+    estimate of the whole mode."""
     cfg = MODES[mode]
     started = time.perf_counter()
     budget = PROBE_BUDGET_S[mode]
-    case = _run_one(cfg, mu, budget_s=budget)
+    case = _run_one(cfg, mu, budget_s=budget, max_steps=max_steps)
     s = case["series"]
     wall, newton, pairs = (
         np.array(s[k]) for k in ("step_wall_s", "step_newton_iterations", "step_contact_pairs")
@@ -420,12 +436,25 @@ def probe(mode: str, out: str | Path = "results", mu: float = 0.5) -> dict:
         return float(np.mean(values[mask])) if np.any(mask) else None
 
     rate = mean(wall, contact)
+    its = int(newton[contact].sum())
+    per_iteration = {
+        name: float(np.sum(np.array(series)[contact]) / its) if its else None
+        for name, series in s["step_phase_s"].items()
+    }
+    split = s["step_hessian_split_s"]
+    parts = sorted({k for step in split for k in step})
+    hessian_split = {
+        k: float(sum(split[i].get(k, 0.0) for i in np.flatnonzero(contact)) / its) if its else None
+        for k in parts
+    }
+    hessian, factorize = per_iteration["hessian"], per_iteration["factorize"]
     payload = {
         "benchmark": NAME,
         "mode": f"{mode}_probe",
         "kind": "TIMING PROBE, not a result: the first steps of one case, cut at the wall budget",
         "probe_mu": mu,
         "budget_s": budget,
+        "max_steps": max_steps,
         "steps_done": case["steps"],
         "t_reached_s": case["t_end_s"],
         "steps_per_case": steps_per_case,
@@ -437,6 +466,14 @@ def probe(mode: str, out: str | Path = "results", mu: float = 0.5) -> dict:
         "phase_s": case["phase_s"],
         "mean_step_s_in_contact": rate,
         "mean_newton_per_step_in_contact": mean(newton, contact),
+        "per_newton_iteration_in_contact_s": per_iteration,
+        "hessian_split_per_iteration_in_contact_s": hessian_split,
+        "hessian_over_factorisation": (
+            hessian / factorize if hessian is not None and factorize else None
+        ),
+        "min_distance_m": case["min_distance_m"],
+        "max_cube_angle_pi": case["max_cube_angle_pi"],
+        "final_particle_centroid_m": case["final_mpm_x"].mean(axis=0).tolist(),
         "twist_steps_done": int(np.count_nonzero(twisting)),
         "mean_step_s_twisting": mean(wall, twisting),
         "mean_newton_per_step_twisting": mean(newton, twisting),
@@ -444,6 +481,7 @@ def probe(mode: str, out: str | Path = "results", mu: float = 0.5) -> dict:
             "wall_s": wall.tolist(),
             "newton_iterations": newton.tolist(),
             "contact_pairs": pairs.tolist(),
+            "phase_s": s["step_phase_s"],
         },
         "naive_estimate_h": (
             None if rate is None else rate * steps_per_case * len(cfg["mus"]) / 3600.0
