@@ -114,6 +114,7 @@ PROGRESS_EVERY = 10  # steps between progress lines in the log
 PROBE_BUDGET_S = {"partial": 480.0, "full": 300.0}
 #: phases of ``StepReport.timings`` kept per step (the probes' per-iteration split)
 STEP_PHASES = ("hessian", "hessian_projection", "assemble", "analyze", "factorize", "solve")
+WARM_UP_CONTACT_STEPS = 2  # quick-mode contact steps run before a probe (``_warm_up``)
 SOLVER_PROBE_STEPS, SOLVER_PROBE_BUDGET_S = 25, 150.0  # per linear solver in the solver probe
 PAPER = {
     "particles": 90929,
@@ -274,18 +275,19 @@ def _run_one(
     newton, friction_max, friction_unconverged, min_d, error = 0, 0, 0, math.inf, None
     slip_t = slip_angle = None
     cut = False  # stopped by budget_s before the end of the run
-    step_wall, step_newton, step_pairs = [], [], []
+    step_wall, step_cpu, step_newton, step_pairs = [], [], [], []
     phases: dict[str, float] = {}
     step_phases: dict[str, list[float]] = {k: [] for k in STEP_PHASES}
     hessian_split: list[dict[str, float]] = []  # per step, by term (see _hessian_split)
     started = time.perf_counter()
     for _ in range(steps):
-        tick = time.perf_counter()
+        tick, cpu = time.perf_counter(), time.process_time()
         before = sim.stepper.potential.hessian_seconds()
         report, error = catalogue.step(sim, f"twist mu={mu:g}")
         if error is not None:
             break
         step_wall.append(time.perf_counter() - tick)
+        step_cpu.append(time.process_time() - cpu)
         step_newton.append(report.newton_iterations)
         step_pairs.append(report.contact_pairs)
         for name, seconds in report.timings.items():
@@ -363,6 +365,7 @@ def _run_one(
             "cube_angle_rad": cube,
             "shell_angle_rad": shell,
             "step_wall_s": step_wall,
+            "step_cpu_s": step_cpu,
             "step_newton_iterations": step_newton,
             "step_contact_pairs": step_pairs,
             "step_phase_s": step_phases,
@@ -409,26 +412,58 @@ def _plot(runs: list[dict], path: Path, title: str) -> None:
     fig.savefig(path, dpi=110)
 
 
+def _warm_up(mu: float) -> float:
+    """Compile (or load from numba's cache) every kernel a contact step runs, on the quick mode's
+    steps up to its ``WARM_UP_CONTACT_STEPS``-th in contact: a probe's first contact step then
+    measures the step, not the compiler (the full probe's first contact step on a cold cache
+    took 286 s, the barrier Hessian 69 s of it, beside 17 s for the step before). Returns the
+    wall time in s."""
+    started = time.perf_counter()
+    cfg = MODES["quick"]
+    sim = catalogue.paper_simulation(
+        _scene(cfg, mu),
+        cfg["dt"],
+        TOL,
+        MAX_NEWTON,
+        linear_solver=make_linear_solver("default", block_size=3),
+    )
+    in_contact = 0
+    for _ in range(round(PRESS_TIME / cfg["dt"])):
+        report, error = catalogue.step(sim, f"twist warm-up mu={mu:g}")
+        in_contact += error is None and report.contact_pairs > 0
+        if error is not None or in_contact >= WARM_UP_CONTACT_STEPS:
+            break
+    return time.perf_counter() - started
+
+
 def probe(
-    mode: str, out: str | Path = "results", mu: float = 0.5, max_steps: int | None = None
+    mode: str,
+    out: str | Path = "results",
+    mu: float = 0.5,
+    max_steps: int | None = None,
+    budget_s: float | None = None,
 ) -> dict:
     """Timing probe (not a result): the first ``PROBE_BUDGET_S[mode]`` s of wall time of ``mode``'s
     ``mu`` case (or its first ``max_steps`` steps, whichever ends first: a shorter probe of the
     same scene); writes ``twist_<mode>_probe.json`` with the per-step wall time, Newton
     iterations, contact pairs, Hessian and factorisation time per Newton iteration (the Hessian
     split by term and the elasticity terms' dP/dF projection), the peak memory, and a naive
-    estimate of the whole mode."""
+    estimate of the whole mode. ``budget_s`` replaces the mode's wall budget (a loaded machine).
+    The kernels are compiled first (``_warm_up``); ``step_cpu_s``, the process's CPU time per
+    step (all threads), is the measure least moved by other processes on the machine."""
     cfg = MODES[mode]
+    warm_up_s = _warm_up(mu)
     started = time.perf_counter()
-    budget = PROBE_BUDGET_S[mode]
+    budget = PROBE_BUDGET_S[mode] if budget_s is None else float(budget_s)
     case = _run_one(cfg, mu, budget_s=budget, max_steps=max_steps)
     s = case["series"]
-    wall, newton, pairs = (
-        np.array(s[k]) for k in ("step_wall_s", "step_newton_iterations", "step_contact_pairs")
+    wall, cpu, newton, pairs = (
+        np.array(s[k])
+        for k in ("step_wall_s", "step_cpu_s", "step_newton_iterations", "step_contact_pairs")
     )
     steps_per_case = round((PRESS_TIME + cfg["twist_time"]) / cfg["dt"])
     t_end = np.array(s["t_s"][1:])
-    # the first step pays the numba compilation: it is left out of the rates
+    # the first step builds what later steps reuse: it is left out of the rates
     later = np.arange(wall.size) > 0
     contact, twisting = later & (pairs > 0), later & (t_end > PRESS_TIME + 1e-9)
 
@@ -462,9 +497,11 @@ def probe(
         "particles": case["particles"],
         "shell_vertices": case["shell_vertices"],
         "shell_tetrahedra": case["shell_tetrahedra"],
+        "warm_up_s": warm_up_s,
         "first_step_s": float(wall[0]) if wall.size else None,
         "phase_s": case["phase_s"],
         "mean_step_s_in_contact": rate,
+        "mean_step_cpu_s_in_contact": mean(cpu, contact),
         "mean_newton_per_step_in_contact": mean(newton, contact),
         "per_newton_iteration_in_contact_s": per_iteration,
         "hessian_split_per_iteration_in_contact_s": hessian_split,
@@ -479,6 +516,7 @@ def probe(
         "mean_newton_per_step_twisting": mean(newton, twisting),
         "per_step": {
             "wall_s": wall.tolist(),
+            "cpu_s": cpu.tolist(),
             "newton_iterations": newton.tolist(),
             "contact_pairs": pairs.tolist(),
             "phase_s": s["step_phase_s"],
