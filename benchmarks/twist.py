@@ -28,8 +28,7 @@ Measures (the paper defines neither; ours):
   spreading in from the rim of the contact patch, lets it lag a little before). ``None`` when
   the cube follows the shell to the end of the run (no slip; larger than any angle for the
   ordering). Without friction the cube does not follow the shell at all, so its slip angle is
-  its angle at the start of the twist (0 here: our interface is smooth enough that the cube's
-  top does not turn with a frictionless shell; the paper's turned to 0.1 pi).
+  its angle at the start of the twist.
 
 Targets: full mode, slip angles within 0.1 pi of the paper's for each mu (mu = 1: no slip);
 quick mode, the slip angle increases with mu (``None`` counted as the largest).
@@ -52,7 +51,8 @@ Choices where the paper is silent or contradicts itself (recorded in the JSON):
   tetrahedra).
 - Full mode: dx = 0.0625 m, 27 particles per cell (110,592 particles; the paper's 90,929 is 22.2
   per cell), shell h = 0.08 m (1204 vertices, 3600 tetrahedra; the paper's 1364 / 3920), the
-  paper's dt and motion, the four mu. Not run here (see ``FULL_ESTIMATE``).
+  paper's dt and motion, the four mu; its cost is estimated from the full timing probe
+  (``FULL_ESTIMATE``).
 - Partial mode: dx = 0.125 m, 8 particles per cell (4,096 particles), shell h = 0.1 m (772
   vertices, 2304 tetrahedra), dt = 2e-2 s (2x), the paper's motion, the four mu; like quick
   mode, each case stops ``STOP_AFTER_SLIP_S`` after its slip starts (mu = 1 runs to the end).
@@ -62,18 +62,20 @@ Choices where the paper is silent or contradicts itself (recorded in the JSON):
   (the same 0.9 pi); the four mu (the test, ``tests/benchmarks/test_twist.py``, runs 0, 0.2
   and 0.5: mu = 1 does not slip and is the longest case). Each run stops
   ``STOP_AFTER_SLIP_S`` = 0.15 s after its slip starts (the slipping steps take many Newton
-  iterations: measured, the quick mu = 0.5 case run to the end of the twist took 247 s, 80% of
-  it after the slip; its cube angle stayed between 0.29 and 0.33 pi after the slip).
+  iterations).
 - Timing probes (``--mode partial_probe`` / ``full_probe``: the mu = 0.5 case cut after
-  ``PROBE_BUDGET_S`` of wall time; ``--mode partial_solvers``: the first
-  ``SOLVER_PROBE_STEPS`` partial steps per linear solver) record per-step wall time, Newton
-  iterations, contact pairs, phases and peak memory: they are measurements of cost, not results.
+  ``PROBE_BUDGET_S`` of wall time, or after ``max_steps`` steps with ``probe``, its kernels
+  compiled beforehand; ``--mode partial_solvers``: the first ``SOLVER_PROBE_STEPS`` partial
+  steps per linear solver) record per-step wall and CPU time, Newton iterations, contact pairs,
+  phases (the Hessian and the factorisation per Newton iteration, the Hessian split by term)
+  and peak memory: they are measurements of cost, not results.
 - Newton iteration cap 1000 per minimisation; lagged-friction loop capped at 20 updates (the
   default; a step that hits it logs "friction loop did not converge" and goes on, as the
   library does).
 
-Measured results (quick, partial and the probes), with their commits:
-``benchmarks/records/twist_quick.md``.
+Measured results, with their commits: ``benchmarks/records/twist_quick.md`` (quick, partial,
+the partial and solver probes), ``benchmarks/records/twist_full_probe.md`` (the full probe and
+the full mode's estimate).
 """
 
 from __future__ import annotations
@@ -124,44 +126,32 @@ PAPER = {
 }
 PAPER_OMEGA, PAPER_TWIST_TIME = math.pi / 5.0, 4.5  # rad/s, s
 
+
+def _mode(
+    dx: float, ppc: int, shell_h: float, dt: float, speed: float = 1.0, stop_after_slip: bool = True
+) -> dict:
+    """A mode's parameters: grid spacing ``dx`` (m), particles per cell, the shell's edge
+    ``shell_h`` (m), ``dt`` (s); the twist ``speed`` x the paper's angular velocity for 1/speed
+    of its time (the same 0.9 pi); the four mu."""
+    return dict(
+        dx=dx,
+        ppc=ppc,
+        shell_h=shell_h,
+        dt=dt,
+        omega=speed * PAPER_OMEGA,
+        twist_time=PAPER_TWIST_TIME / speed,
+        mus=(0.0, 0.2, 0.5, 1.0),
+        stop_after_slip=stop_after_slip,
+    )
+
+
 MODES = {
-    "full": dict(
-        dx=0.0625,
-        ppc=27,
-        shell_h=0.08,
-        dt=1e-2,
-        omega=PAPER_OMEGA,
-        twist_time=PAPER_TWIST_TIME,
-        mus=(0.0, 0.2, 0.5, 1.0),
-        stop_after_slip=False,
-    ),
-    "partial": dict(
-        dx=0.125,
-        ppc=8,
-        shell_h=0.1,
-        dt=2e-2,
-        omega=PAPER_OMEGA,
-        twist_time=PAPER_TWIST_TIME,
-        mus=(0.0, 0.2, 0.5, 1.0),
-        stop_after_slip=True,
-    ),
-    "quick": dict(
-        dx=0.25,
-        ppc=8,
-        shell_h=0.15,
-        dt=5e-2,
-        omega=2.0 * PAPER_OMEGA,
-        twist_time=0.5 * PAPER_TWIST_TIME,
-        mus=(0.0, 0.2, 0.5, 1.0),
-        stop_after_slip=True,
-    ),
+    "full": _mode(0.0625, 27, 0.08, 1e-2, stop_after_slip=False),
+    "partial": _mode(0.125, 8, 0.1, 2e-2),
+    "quick": _mode(0.25, 8, 0.15, 5e-2, speed=2.0),
 }
-#: wall-time estimate of the full mode (see the partial-mode timing probe in the records)
-FULL_ESTIMATE = (
-    "of order 200 h on 2 shared cores: 47 s per press step in early contact (full probe, 8 steps)"
-    " x 2200 steps = 29 h, times the 7x growth of the step cost from first contact to the twist"
-    " seen in the partial probe; about 2 GB of memory at first contact"
-)
+#: where the full mode's wall-time estimate is (the probe's numbers change with the code)
+FULL_ESTIMATE = "see benchmarks/records/twist_full_probe.md (from the full timing probe)"
 
 
 def shell_mesh(h: float) -> tuple[TetMesh, np.ndarray]:
@@ -369,7 +359,7 @@ def _run_one(
             "step_newton_iterations": step_newton,
             "step_contact_pairs": step_pairs,
             "step_phase_s": step_phases,
-            "step_hessian_split_s": hessian_split,
+            "step_hessian_phases_s": hessian_split,
         },
     }
 
@@ -476,7 +466,7 @@ def probe(
         name: float(np.sum(np.array(series)[contact]) / its) if its else None
         for name, series in s["step_phase_s"].items()
     }
-    split = s["step_hessian_split_s"]
+    split = s["step_hessian_phases_s"]
     parts = sorted({k for step in split for k in step})
     hessian_split = {
         k: float(sum(split[i].get(k, 0.0) for i in np.flatnonzero(contact)) / its) if its else None
