@@ -402,6 +402,24 @@ def _plot(runs: list[dict], path: Path, title: str) -> None:
     fig.savefig(path, dpi=110)
 
 
+def per_newton_iteration(series: dict, steps: np.ndarray) -> tuple[dict, dict]:
+    """Seconds per Newton iteration over the ``steps`` (bool mask over the run's steps): of each
+    phase of ``series["step_phase_s"]`` and of each part of the Hessian split
+    (``series["step_hessian_phases_s"]``), summed over those steps and divided by their Newton
+    iterations (None without any)."""
+    its = int(np.sum(np.array(series["step_newton_iterations"])[steps]))
+    phases = {
+        name: float(np.sum(np.array(values)[steps]) / its) if its else None
+        for name, values in series["step_phase_s"].items()
+    }
+    split = [series["step_hessian_phases_s"][i] for i in np.flatnonzero(steps)]
+    parts = sorted({k for step in split for k in step})
+    hessian = {
+        k: float(sum(step.get(k, 0.0) for step in split) / its) if its else None for k in parts
+    }
+    return phases, hessian
+
+
 def _warm_up(mu: float) -> float:
     """Compile (or load from numba's cache) every kernel a contact step runs, on the quick mode's
     steps up to its ``WARM_UP_CONTACT_STEPS``-th in contact: a probe's first contact step then
@@ -461,17 +479,7 @@ def probe(
         return float(np.mean(values[mask])) if np.any(mask) else None
 
     rate = mean(wall, contact)
-    its = int(newton[contact].sum())
-    per_iteration = {
-        name: float(np.sum(np.array(series)[contact]) / its) if its else None
-        for name, series in s["step_phase_s"].items()
-    }
-    split = s["step_hessian_phases_s"]
-    parts = sorted({k for step in split for k in step})
-    hessian_split = {
-        k: float(sum(split[i].get(k, 0.0) for i in np.flatnonzero(contact)) / its) if its else None
-        for k in parts
-    }
+    per_iteration, hessian_split = per_newton_iteration(s, contact)
     hessian, factorize = per_iteration["hessian"], per_iteration["factorize"]
     payload = {
         "benchmark": NAME,
