@@ -134,6 +134,9 @@ class IncrementalPotential:
         clock = self._hessian_s
         started = time.perf_counter()
         parts = [self.inertia.hessian(x, psd)]
+        now = time.perf_counter()
+        clock["inertia"] = clock.get("inertia", 0.0) + now - started
+        started = now
         for weight, term in zip(self._weights, self.potentials, strict=True):
             t = term.hessian(x, psd)
             parts.append(Triplets(t.rows, t.cols, weight * t.vals))
@@ -147,14 +150,16 @@ class IncrementalPotential:
 
     def hessian_seconds(self) -> dict[str, float]:
         """Wall time in s spent in :meth:`hessian` since construction, by part: each potential's
-        name, ``"stack"`` (stacking, weighting and rotating the triplets; inertia's own blocks
-        too) and ``"<name>/<phase>"`` for a term that times its phases (``hessian_seconds``
-        attribute: the elasticity terms' ``dpdf`` and ``projection``). A step's split is the
-        difference of two calls; the parts add up to Newton's ``hessian`` phase."""
+        name (terms of one name summed; the weighting included), ``"inertia"``, ``"stack"``
+        (stacking and rotating the triplets) and ``"<name>/<phase>"`` for a term that times its
+        phases (``hessian_seconds`` attribute: the elasticity terms' ``dpdf`` and
+        ``projection``). A step's split is the difference of two calls; the parts without a
+        ``/`` add up to Newton's ``hessian`` phase."""
         out = dict(self._hessian_s)
         for term in self.potentials:
             for phase, seconds in getattr(term, "hessian_seconds", {}).items():
-                out[f"{term.name}/{phase}"] = seconds
+                key = f"{term.name}/{phase}"
+                out[key] = out.get(key, 0.0) + seconds
         return out
 
     def increment_norm(self, p: np.ndarray) -> float:

@@ -16,9 +16,9 @@ def test_hessian_split_covers_the_hessian_phase_and_names_the_projection():
         after = potential.hessian_seconds()
         step = {k: v - before.get(k, 0.0) for k, v in after.items()}
         t = report.timings
-        # one entry per potential and the stacking; the elasticity terms' phases below them
+        # one entry per potential, inertia and the stacking; the elasticity terms' phases below
         names = {term.name for term in potential.potentials}
-        assert names | {"stack"} == {k for k in step if "/" not in k}
+        assert names | {"inertia", "stack"} == {k for k in step if "/" not in k}
         mpm = next(term.name for term in potential.potentials if term.name.startswith("mpm_"))
         whole = sum(v for k, v in step.items() if "/" not in k)
         # nested in Newton's hessian phase, and most of it (the rest: a few Python statements)
