@@ -423,9 +423,8 @@ def per_newton_iteration(series: dict, steps: np.ndarray) -> tuple[dict, dict]:
 def _warm_up(mu: float) -> float:
     """Compile (or load from numba's cache) every kernel a contact step runs, on the quick mode's
     steps up to its ``WARM_UP_CONTACT_STEPS``-th in contact: a probe's first contact step then
-    measures the step, not the compiler (the full probe's first contact step on a cold cache
-    took 286 s, the barrier Hessian 69 s of it, beside 17 s for the step before). Returns the
-    wall time in s."""
+    measures the step, not the compiler (on a cold cache the contact kernels compile in the
+    first contact step; see ``records/twist_full_probe.md``). Returns the wall time in s."""
     started = time.perf_counter()
     cfg = MODES["quick"]
     sim = catalogue.paper_simulation(
