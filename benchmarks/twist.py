@@ -637,6 +637,17 @@ def run(
     return {"json": str(path), "png": str(png), **payload}
 
 
+#: per-step series of ``_run_one`` kept by the timing probes only (not in a mode's record)
+PROBE_SERIES = ("step_phase_s", "step_hessian_phases_s")
+
+
+def _case_record(run: dict) -> dict:
+    """A case of a mode's record: ``run`` without its final positions and probe-only series."""
+    out = {k: v for k, v in run.items() if k != "final_mpm_x"}
+    out["series"] = {k: v for k, v in run["series"].items() if k not in PROBE_SERIES}
+    return out
+
+
 def _payload(mode: str, cfg: dict, runs: list[dict], wall_s: float, env: dict) -> dict:
     """The record of ``mode`` after the finished ``runs`` (one per mu, in ``cfg["mus"]`` order)."""
     angles = [r["slip_angle_rad"] for r in runs]
@@ -649,7 +660,7 @@ def _payload(mode: str, cfg: dict, runs: list[dict], wall_s: float, env: dict) -
         "slip_angle_pi": {str(r["mu"]): r["slip_angle_pi"] for r in runs},
         "slip_increases_with_mu": bool(complete and slip_ordered(angles)),
         "failed_cases": [r["mu"] for r in runs if r["error"] is not None],
-        "cases": [{k: v for k, v in r.items() if k != "final_mpm_x"} for r in runs],
+        "cases": [_case_record(r) for r in runs],
         "wall_s": wall_s,
         "peak_memory_mb": peak_memory_mb(),
         "paper": PAPER,
