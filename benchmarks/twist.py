@@ -28,8 +28,7 @@ Measures (the paper defines neither; ours):
   spreading in from the rim of the contact patch, lets it lag a little before). ``None`` when
   the cube follows the shell to the end of the run (no slip; larger than any angle for the
   ordering). Without friction the cube does not follow the shell at all, so its slip angle is
-  its angle at the start of the twist (0 here: our interface is smooth enough that the cube's
-  top does not turn with a frictionless shell; the paper's turned to 0.1 pi).
+  its angle at the start of the twist.
 
 Targets: full mode, slip angles within 0.1 pi of the paper's for each mu (mu = 1: no slip);
 quick mode, the slip angle increases with mu (``None`` counted as the largest).
@@ -52,7 +51,8 @@ Choices where the paper is silent or contradicts itself (recorded in the JSON):
   tetrahedra).
 - Full mode: dx = 0.0625 m, 27 particles per cell (110,592 particles; the paper's 90,929 is 22.2
   per cell), shell h = 0.08 m (1204 vertices, 3600 tetrahedra; the paper's 1364 / 3920), the
-  paper's dt and motion, the four mu. Not run here (see ``FULL_ESTIMATE``).
+  paper's dt and motion, the four mu; its cost is estimated from the full timing probe
+  (``FULL_ESTIMATE``).
 - Partial mode: dx = 0.125 m, 8 particles per cell (4,096 particles), shell h = 0.1 m (772
   vertices, 2304 tetrahedra), dt = 2e-2 s (2x), the paper's motion, the four mu; like quick
   mode, each case stops ``STOP_AFTER_SLIP_S`` after its slip starts (mu = 1 runs to the end).
@@ -62,18 +62,20 @@ Choices where the paper is silent or contradicts itself (recorded in the JSON):
   (the same 0.9 pi); the four mu (the test, ``tests/benchmarks/test_twist.py``, runs 0, 0.2
   and 0.5: mu = 1 does not slip and is the longest case). Each run stops
   ``STOP_AFTER_SLIP_S`` = 0.15 s after its slip starts (the slipping steps take many Newton
-  iterations: measured, the quick mu = 0.5 case run to the end of the twist took 247 s, 80% of
-  it after the slip; its cube angle stayed between 0.29 and 0.33 pi after the slip).
+  iterations).
 - Timing probes (``--mode partial_probe`` / ``full_probe``: the mu = 0.5 case cut after
-  ``PROBE_BUDGET_S`` of wall time; ``--mode partial_solvers``: the first
-  ``SOLVER_PROBE_STEPS`` partial steps per linear solver) record per-step wall time, Newton
-  iterations, contact pairs, phases and peak memory: they are measurements of cost, not results.
+  ``PROBE_BUDGET_S`` of wall time, or after ``max_steps`` steps with ``probe``, its kernels
+  compiled beforehand; ``--mode partial_solvers``: the first ``SOLVER_PROBE_STEPS`` partial
+  steps per linear solver) record per-step wall and CPU time, Newton iterations, contact pairs,
+  phases (the Hessian and the factorisation per Newton iteration, the Hessian split by term)
+  and peak memory: they are measurements of cost, not results.
 - Newton iteration cap 1000 per minimisation; lagged-friction loop capped at 20 updates (the
   default; a step that hits it logs "friction loop did not converge" and goes on, as the
   library does).
 
-Measured results (quick, partial and the probes), with their commits:
-``benchmarks/records/twist_quick.md``.
+Measured results, with their commits: ``benchmarks/records/twist_quick.md`` (quick, partial,
+the partial and solver probes), ``benchmarks/records/twist_full_probe.md`` (the full probe and
+the full mode's estimate).
 """
 
 from __future__ import annotations
@@ -112,6 +114,9 @@ PROGRESS_EVERY = 10  # steps between progress lines in the log
 #: s of wall time per timing probe (the full mode's steps take minutes: the whole probe, last step
 #: included, stays within a 10-minute slot)
 PROBE_BUDGET_S = {"partial": 480.0, "full": 300.0}
+#: phases of ``StepReport.timings`` kept per step (the probes' per-iteration split)
+STEP_PHASES = ("hessian", "hessian_projection", "assemble", "analyze", "factorize", "solve")
+WARM_UP_CONTACT_STEPS = 2  # quick-mode contact steps run before a probe (``_warm_up``)
 SOLVER_PROBE_STEPS, SOLVER_PROBE_BUDGET_S = 25, 150.0  # per linear solver in the solver probe
 PAPER = {
     "particles": 90929,
@@ -121,44 +126,32 @@ PAPER = {
 }
 PAPER_OMEGA, PAPER_TWIST_TIME = math.pi / 5.0, 4.5  # rad/s, s
 
+
+def _mode(
+    dx: float, ppc: int, shell_h: float, dt: float, speed: float = 1.0, stop_after_slip: bool = True
+) -> dict:
+    """A mode's parameters: grid spacing ``dx`` (m), particles per cell, the shell's edge
+    ``shell_h`` (m), ``dt`` (s); the twist ``speed`` x the paper's angular velocity for 1/speed
+    of its time (the same 0.9 pi); the four mu."""
+    return dict(
+        dx=dx,
+        ppc=ppc,
+        shell_h=shell_h,
+        dt=dt,
+        omega=speed * PAPER_OMEGA,
+        twist_time=PAPER_TWIST_TIME / speed,
+        mus=(0.0, 0.2, 0.5, 1.0),
+        stop_after_slip=stop_after_slip,
+    )
+
+
 MODES = {
-    "full": dict(
-        dx=0.0625,
-        ppc=27,
-        shell_h=0.08,
-        dt=1e-2,
-        omega=PAPER_OMEGA,
-        twist_time=PAPER_TWIST_TIME,
-        mus=(0.0, 0.2, 0.5, 1.0),
-        stop_after_slip=False,
-    ),
-    "partial": dict(
-        dx=0.125,
-        ppc=8,
-        shell_h=0.1,
-        dt=2e-2,
-        omega=PAPER_OMEGA,
-        twist_time=PAPER_TWIST_TIME,
-        mus=(0.0, 0.2, 0.5, 1.0),
-        stop_after_slip=True,
-    ),
-    "quick": dict(
-        dx=0.25,
-        ppc=8,
-        shell_h=0.15,
-        dt=5e-2,
-        omega=2.0 * PAPER_OMEGA,
-        twist_time=0.5 * PAPER_TWIST_TIME,
-        mus=(0.0, 0.2, 0.5, 1.0),
-        stop_after_slip=True,
-    ),
+    "full": _mode(0.0625, 27, 0.08, 1e-2, stop_after_slip=False),
+    "partial": _mode(0.125, 8, 0.1, 2e-2),
+    "quick": _mode(0.25, 8, 0.15, 5e-2, speed=2.0),
 }
-#: wall-time estimate of the full mode (see the partial-mode timing probe in the records)
-FULL_ESTIMATE = (
-    "of order 200 h on 2 shared cores: 47 s per press step in early contact (full probe, 8 steps)"
-    " x 2200 steps = 29 h, times the 7x growth of the step cost from first contact to the twist"
-    " seen in the partial probe; about 2 GB of memory at first contact"
-)
+#: where the full mode's wall-time estimate is (the probe's numbers change with the code)
+FULL_ESTIMATE = "see benchmarks/records/twist_full_probe.md (from the full timing probe)"
 
 
 def shell_mesh(h: float) -> tuple[TetMesh, np.ndarray]:
@@ -272,19 +265,27 @@ def _run_one(
     newton, friction_max, friction_unconverged, min_d, error = 0, 0, 0, math.inf, None
     slip_t = slip_angle = None
     cut = False  # stopped by budget_s before the end of the run
-    step_wall, step_newton, step_pairs = [], [], []
+    step_wall, step_cpu, step_newton, step_pairs = [], [], [], []
     phases: dict[str, float] = {}
+    step_phases: dict[str, list[float]] = {k: [] for k in STEP_PHASES}
+    hessian_split: list[dict[str, float]] = []  # per step, by term (see _hessian_split)
     started = time.perf_counter()
     for _ in range(steps):
-        tick = time.perf_counter()
+        tick, cpu = time.perf_counter(), time.process_time()
+        before = sim.stepper.potential.hessian_seconds()
         report, error = catalogue.step(sim, f"twist mu={mu:g}")
         if error is not None:
             break
         step_wall.append(time.perf_counter() - tick)
+        step_cpu.append(time.process_time() - cpu)
         step_newton.append(report.newton_iterations)
         step_pairs.append(report.contact_pairs)
         for name, seconds in report.timings.items():
             phases[name] = phases.get(name, 0.0) + seconds
+        for name, series in step_phases.items():
+            series.append(report.timings.get(name, 0.0))
+        after = sim.stepper.potential.hessian_seconds()
+        hessian_split.append({k: v - before.get(k, 0.0) for k, v in after.items()})
         newton += report.newton_iterations
         friction_max = max(friction_max, report.friction_iterations)
         friction_unconverged += int(not report.friction_converged)
@@ -354,8 +355,11 @@ def _run_one(
             "cube_angle_rad": cube,
             "shell_angle_rad": shell,
             "step_wall_s": step_wall,
+            "step_cpu_s": step_cpu,
             "step_newton_iterations": step_newton,
             "step_contact_pairs": step_pairs,
+            "step_phase_s": step_phases,
+            "step_hessian_phases_s": hessian_split,
         },
     }
 
@@ -398,21 +402,75 @@ def _plot(runs: list[dict], path: Path, title: str) -> None:
     fig.savefig(path, dpi=110)
 
 
-def probe(mode: str, out: str | Path = "results", mu: float = 0.5) -> dict:
-    """Timing probe (not a result): the first ``PROBE_BUDGET_S[mode]`` s of wall time of ``mode``'s
-    ``mu`` case; writes ``twist_<mode>_probe.json`` with the per-step wall time, Newton
-    iterations, contact pairs and the peak memory, and a naive estimate of the whole mode."""
-    cfg = MODES[mode]
+def per_newton_iteration(series: dict, steps: np.ndarray) -> tuple[dict, dict]:
+    """Seconds per Newton iteration over the ``steps`` (bool mask over the run's steps): of each
+    phase of ``series["step_phase_s"]`` and of each part of the Hessian split
+    (``series["step_hessian_phases_s"]``), summed over those steps and divided by their Newton
+    iterations (None without any)."""
+    its = int(np.sum(np.array(series["step_newton_iterations"])[steps]))
+    phases = {
+        name: float(np.sum(np.array(values)[steps]) / its) if its else None
+        for name, values in series["step_phase_s"].items()
+    }
+    split = [series["step_hessian_phases_s"][i] for i in np.flatnonzero(steps)]
+    parts = sorted({k for step in split for k in step})
+    hessian = {
+        k: float(sum(step.get(k, 0.0) for step in split) / its) if its else None for k in parts
+    }
+    return phases, hessian
+
+
+def _warm_up(mu: float) -> float:
+    """Compile (or load from numba's cache) every kernel a contact step runs, on the quick mode's
+    steps up to its ``WARM_UP_CONTACT_STEPS``-th in contact: a probe's first contact step then
+    measures the step, not the compiler (on a cold cache the contact kernels compile in the
+    first contact step; see ``records/twist_full_probe.md``). Returns the wall time in s."""
     started = time.perf_counter()
-    budget = PROBE_BUDGET_S[mode]
-    case = _run_one(cfg, mu, budget_s=budget)
+    cfg = MODES["quick"]
+    sim = catalogue.paper_simulation(
+        _scene(cfg, mu),
+        cfg["dt"],
+        TOL,
+        MAX_NEWTON,
+        linear_solver=make_linear_solver("default", block_size=3),
+    )
+    in_contact = 0
+    for _ in range(round(PRESS_TIME / cfg["dt"])):
+        report, error = catalogue.step(sim, f"twist warm-up mu={mu:g}")
+        in_contact += error is None and report.contact_pairs > 0
+        if error is not None or in_contact >= WARM_UP_CONTACT_STEPS:
+            break
+    return time.perf_counter() - started
+
+
+def probe(
+    mode: str,
+    out: str | Path = "results",
+    mu: float = 0.5,
+    max_steps: int | None = None,
+    budget_s: float | None = None,
+) -> dict:
+    """Timing probe (not a result): the first ``PROBE_BUDGET_S[mode]`` s of wall time of ``mode``'s
+    ``mu`` case (or its first ``max_steps`` steps, whichever ends first: a shorter probe of the
+    same scene); writes ``twist_<mode>_probe.json`` with the per-step wall time, Newton
+    iterations, contact pairs, Hessian and factorisation time per Newton iteration (the Hessian
+    split by term and the elasticity terms' dP/dF projection), the peak memory, and a naive
+    estimate of the whole mode. ``budget_s`` replaces the mode's wall budget (a loaded machine).
+    The kernels are compiled first (``_warm_up``); ``step_cpu_s``, the process's CPU time per
+    step (all threads), is the measure least moved by other processes on the machine."""
+    cfg = MODES[mode]
+    warm_up_s = _warm_up(mu)
+    started = time.perf_counter()
+    budget = PROBE_BUDGET_S[mode] if budget_s is None else float(budget_s)
+    case = _run_one(cfg, mu, budget_s=budget, max_steps=max_steps)
     s = case["series"]
-    wall, newton, pairs = (
-        np.array(s[k]) for k in ("step_wall_s", "step_newton_iterations", "step_contact_pairs")
+    wall, cpu, newton, pairs = (
+        np.array(s[k])
+        for k in ("step_wall_s", "step_cpu_s", "step_newton_iterations", "step_contact_pairs")
     )
     steps_per_case = round((PRESS_TIME + cfg["twist_time"]) / cfg["dt"])
     t_end = np.array(s["t_s"][1:])
-    # the first step pays the numba compilation: it is left out of the rates
+    # the first step builds what later steps reuse: it is left out of the rates
     later = np.arange(wall.size) > 0
     contact, twisting = later & (pairs > 0), later & (t_end > PRESS_TIME + 1e-9)
 
@@ -420,12 +478,15 @@ def probe(mode: str, out: str | Path = "results", mu: float = 0.5) -> dict:
         return float(np.mean(values[mask])) if np.any(mask) else None
 
     rate = mean(wall, contact)
+    per_iteration, hessian_split = per_newton_iteration(s, contact)
+    hessian, factorize = per_iteration["hessian"], per_iteration["factorize"]
     payload = {
         "benchmark": NAME,
         "mode": f"{mode}_probe",
         "kind": "TIMING PROBE, not a result: the first steps of one case, cut at the wall budget",
         "probe_mu": mu,
         "budget_s": budget,
+        "max_steps": max_steps,
         "steps_done": case["steps"],
         "t_reached_s": case["t_end_s"],
         "steps_per_case": steps_per_case,
@@ -433,17 +494,29 @@ def probe(mode: str, out: str | Path = "results", mu: float = 0.5) -> dict:
         "particles": case["particles"],
         "shell_vertices": case["shell_vertices"],
         "shell_tetrahedra": case["shell_tetrahedra"],
+        "warm_up_s": warm_up_s,
         "first_step_s": float(wall[0]) if wall.size else None,
         "phase_s": case["phase_s"],
         "mean_step_s_in_contact": rate,
+        "mean_step_cpu_s_in_contact": mean(cpu, contact),
         "mean_newton_per_step_in_contact": mean(newton, contact),
+        "per_newton_iteration_in_contact_s": per_iteration,
+        "hessian_split_per_iteration_in_contact_s": hessian_split,
+        "hessian_over_factorisation": (
+            hessian / factorize if hessian is not None and factorize else None
+        ),
+        "min_distance_m": case["min_distance_m"],
+        "max_cube_angle_pi": case["max_cube_angle_pi"],
+        "final_particle_centroid_m": case["final_mpm_x"].mean(axis=0).tolist(),
         "twist_steps_done": int(np.count_nonzero(twisting)),
         "mean_step_s_twisting": mean(wall, twisting),
         "mean_newton_per_step_twisting": mean(newton, twisting),
         "per_step": {
             "wall_s": wall.tolist(),
+            "cpu_s": cpu.tolist(),
             "newton_iterations": newton.tolist(),
             "contact_pairs": pairs.tolist(),
+            "phase_s": s["step_phase_s"],
         },
         "naive_estimate_h": (
             None if rate is None else rate * steps_per_case * len(cfg["mus"]) / 3600.0
@@ -564,6 +637,17 @@ def run(
     return {"json": str(path), "png": str(png), **payload}
 
 
+#: per-step series of ``_run_one`` kept by the timing probes only (not in a mode's record)
+PROBE_SERIES = ("step_phase_s", "step_hessian_phases_s")
+
+
+def _case_record(run: dict) -> dict:
+    """A case of a mode's record: ``run`` without its final positions and probe-only series."""
+    out = {k: v for k, v in run.items() if k != "final_mpm_x"}
+    out["series"] = {k: v for k, v in run["series"].items() if k not in PROBE_SERIES}
+    return out
+
+
 def _payload(mode: str, cfg: dict, runs: list[dict], wall_s: float, env: dict) -> dict:
     """The record of ``mode`` after the finished ``runs`` (one per mu, in ``cfg["mus"]`` order)."""
     angles = [r["slip_angle_rad"] for r in runs]
@@ -576,7 +660,7 @@ def _payload(mode: str, cfg: dict, runs: list[dict], wall_s: float, env: dict) -
         "slip_angle_pi": {str(r["mu"]): r["slip_angle_pi"] for r in runs},
         "slip_increases_with_mu": bool(complete and slip_ordered(angles)),
         "failed_cases": [r["mu"] for r in runs if r["error"] is not None],
-        "cases": [{k: v for k, v in r.items() if k != "final_mpm_x"} for r in runs],
+        "cases": [_case_record(r) for r in runs],
         "wall_s": wall_s,
         "peak_memory_mb": peak_memory_mb(),
         "paper": PAPER,

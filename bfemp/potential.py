@@ -11,6 +11,7 @@ boundaries) the solver's unknowns are y, x = Q y, and the normal coordinates are
 
 from __future__ import annotations
 
+import time
 from collections.abc import Sequence
 
 import numpy as np
@@ -47,6 +48,7 @@ class IncrementalPotential:
         self._particles: tuple | None = None  # (nodes, weights, grads, node offset, dx)
         # stacks the terms' triplets, reusing the stacked index arrays of a fixed pattern
         self._stacker = TripletStacker()
+        self._hessian_s: dict[str, float] = {}  # see hessian_seconds
 
     @property
     def terms(self) -> list[Term]:
@@ -129,12 +131,36 @@ class IncrementalPotential:
     def hessian(self, y: np.ndarray, psd: bool) -> Triplets:
         """All terms' triplets (potentials scaled by the weight), in the unknowns' frames."""
         x = self._x
+        clock = self._hessian_s
+        started = time.perf_counter()
         parts = [self.inertia.hessian(x, psd)]
+        now = time.perf_counter()
+        clock["inertia"] = clock.get("inertia", 0.0) + now - started
+        started = now
         for weight, term in zip(self._weights, self.potentials, strict=True):
             t = term.hessian(x, psd)
             parts.append(Triplets(t.rows, t.cols, weight * t.vals))
+            now = time.perf_counter()
+            clock[term.name] = clock.get(term.name, 0.0) + now - started
+            started = now
         total = self._stacker.stack(parts)
-        return total if self.frames is None else self.frames.rotate(total)
+        total = total if self.frames is None else self.frames.rotate(total)
+        clock["stack"] = clock.get("stack", 0.0) + time.perf_counter() - started
+        return total
+
+    def hessian_seconds(self) -> dict[str, float]:
+        """Wall time in s spent in :meth:`hessian` since construction, by part: each potential's
+        name (terms of one name summed; the weighting included), ``"inertia"``, ``"stack"``
+        (stacking and rotating the triplets) and ``"<name>/<phase>"`` for a term that times its
+        phases (``hessian_seconds`` attribute: the elasticity terms' ``dpdf`` and
+        ``projection``). A step's split is the difference of two calls; the parts without a
+        ``/`` add up to Newton's ``hessian`` phase."""
+        out = dict(self._hessian_s)
+        for term in self.potentials:
+            for phase, seconds in getattr(term, "hessian_seconds", {}).items():
+                key = f"{term.name}/{phase}"
+                out[key] = out.get(key, 0.0) + seconds
+        return out
 
     def increment_norm(self, p: np.ndarray) -> float:
         """Size of an increment p of the unknowns ``(n_dof,)`` for Newton's stopping rule, in m.

@@ -281,6 +281,7 @@ class BarrierStepper:
     def step(self, state: State) -> tuple[State, StepReport]:
         """Advance ``state`` by ``dt``; raises ``StepError`` when Newton fails."""
         started = time.perf_counter()
+        hessian_before = self.potential.hessian_seconds()
         self._contact = None
         dt, integ = self.dt, self.integrator
         t_next = state.t + dt
@@ -348,6 +349,13 @@ class BarrierStepper:
             raise StepError(StepReport(**report_args, timings=timings))
         timings["intersection"] = time.perf_counter() - checked
         timings["step"] = time.perf_counter() - started
+        # the part of the Hessian phase spent projecting the elasticity terms' dP/dF to PSD (the
+        # whole split by term: ``IncrementalPotential.hessian_seconds``)
+        timings["hessian_projection"] = sum(
+            seconds - hessian_before.get(part, 0.0)
+            for part, seconds in self.potential.hessian_seconds().items()
+            if part.endswith("/projection")
+        )
         if self.barrier is not None and self.barrier.pairs is not None:
             min_d = self.barrier.min_distance()
             report_args["min_distance"] = finite_or_nan(min_d)

@@ -13,6 +13,7 @@ cost of projecting the (k d)^2 block.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -124,6 +125,9 @@ class ElasticityTerm:
         self._source = stencils
         self._pattern_key: tuple[int, int] | None = None
         self._dofs: np.ndarray | None = None
+        #: s spent in the Hessian's sub-phases since construction (``IncrementalPotential``
+        #: reports them per step): ``dpdf`` (dP/dF), ``projection`` (its PSD projection)
+        self.hessian_seconds = {"dpdf": 0.0, "projection": 0.0}
         if isinstance(stencils, ElasticStencils):
             self.stencils = stencils
 
@@ -170,10 +174,14 @@ class ElasticityTerm:
         ``[s, i d + m, j d + l]`` = dP_im/dF_jl), projected to PSD at the F-level when ``psd``."""
         st = self.stencils
         d = self._layout.dim
+        started = time.perf_counter()
         dpdf = self.law.first_piola_derivative(self._F, st.mu, st.lam)
         dpdf = np.ascontiguousarray(dpdf.reshape(-1, d * d, d * d))
+        projected = time.perf_counter()
+        self.hessian_seconds["dpdf"] += projected - started
         if psd:
             dpdf = self.law.project_derivative(dpdf, self._F, st.mu, st.lam)
+            self.hessian_seconds["projection"] += time.perf_counter() - projected
         return dpdf
 
     def hessian(self, x: np.ndarray, psd: bool) -> Triplets:

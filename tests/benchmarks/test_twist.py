@@ -153,3 +153,19 @@ def _with_mode(tmp_path, data, mode):
     path = tmp_path / f"mode_{mode}.json"
     path.write_text(json.dumps({**data, "mode": mode}))
     return path
+
+
+def test_probe_rates_are_per_newton_iteration_of_the_chosen_steps():
+    """The probe's per-iteration phases: summed over the chosen steps (in contact, the first
+    step left out) and divided by their Newton iterations, not averaged per step."""
+    series = {
+        "step_newton_iterations": [3, 2, 8],
+        "step_phase_s": {"hessian": [30.0, 1.0, 4.0], "factorize": [9.0, 2.0, 8.0]},
+        "step_hessian_phases_s": [{"a": 20.0}, {"a": 0.5, "stack": 0.1}, {"a": 3.5}],
+    }
+    steps = np.array([False, True, True])
+    phases, split = twist.per_newton_iteration(series, steps)
+    assert phases == {"hessian": pytest.approx(0.5), "factorize": pytest.approx(1.0)}
+    assert split == {"a": pytest.approx(0.4), "stack": pytest.approx(0.01)}
+    none, _ = twist.per_newton_iteration(series, np.zeros(3, dtype=bool))
+    assert none == {"hessian": None, "factorize": None}

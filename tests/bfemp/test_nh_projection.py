@@ -52,3 +52,26 @@ def test_ill_conditioned_and_non_finite_blocks():
         got[0], project_psd(A[:1])[0], rtol=0, atol=1e-9 * np.abs(A[0]).max()
     )
     assert np.isnan(got[1]).all()
+
+
+def _rotations(rng, n):
+    q, _ = np.linalg.qr(rng.standard_normal((n, 3, 3)))
+    return q * np.sign(np.linalg.det(q))[:, None, None]
+
+
+def test_analytic_projection_holds_near_inversion_and_at_large_stretch():
+    """F = R1 diag(s) R2 with s_min down to 1.3e-4 s_max (near inversion: the fallback to the
+    generic projection starts at 1e-4) and s_max up to 32 (stretch): equal to the generic clamp
+    to 1e-10 of the block. With s from the square roots of the eigenvalues of F^T F the
+    near-inverted blocks differed by 3e-8 (eps s_max^2 / s_min^2); with s_a = |F v_a|, 6e-12."""
+    rng = np.random.default_rng(11)
+    n = 400
+    near = np.column_stack([rng.uniform(0.5, 1.5, (n, 2)), 10 ** rng.uniform(-3.9, -2.0, n)])
+    stretched = np.column_stack([10 ** rng.uniform(0.5, 1.5, (n, 1)), rng.uniform(0.3, 2, (n, 2))])
+    for s in (near, stretched):
+        F = _rotations(rng, n) @ (s[:, :, None] * _rotations(rng, n))
+        A, mu, lam = _blocks(F)
+        got = NEO_HOOKEAN.project_derivative(A, F, mu, lam)
+        scale = np.abs(A).max(axis=(1, 2))
+        assert (np.abs(got - project_psd(A)).max(axis=(1, 2)) / scale).max() < 1e-10
+        assert (np.linalg.eigvalsh(A)[:, 0] < 0.0).mean() > 0.5  # mostly indefinite blocks
