@@ -52,8 +52,8 @@ import numpy as np
 from benchmarks import _fuzz_scenes as scenes
 from benchmarks._crossing_oracle import MAX_SAMPLES, Bodies, judge_step
 from benchmarks._tradeoff_cache import code_version
-from benchmarks.common import environment, git_commit
-from benchmarks.runner import Benchmark, register, write_record
+from benchmarks.common import git_commit
+from benchmarks.runner import Benchmark, name_unless, register
 
 log = logging.getLogger(__name__)
 
@@ -300,13 +300,11 @@ def markdown(payload: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def run(
-    mode: str = "full",
-    out: str | Path = "results",
-    workers: int | None = None,
-    resume: bool = False,
+def measure(
+    mode: str, cfg: object, out: str | Path, workers: int | None = None, resume: bool = False
 ) -> dict:
-    """Run the fuzz cases of ``mode``; writes ``fuzz[_quick].json`` and ``.md`` to ``out``."""
+    """The fuzz cases of ``mode``, each appended to ``out/fuzz_cases_<mode>.jsonl`` as it
+    finishes (``resume``: keep those of the same code); ``workers`` processes (None: cores)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     todo = cases(mode)
@@ -349,10 +347,7 @@ def run(
                 log.info("fuzz: %d of %d cases (%.0f s)", i, n, time.perf_counter() - t0)
 
         _run_all(todo, workers, keep)
-    name = "fuzz" if mode == "full" else f"fuzz_{mode}"
-    payload = {
-        "benchmark": "fuzz",
-        "mode": mode,
+    return {
         "commit": commit,
         "code": code,
         "strategies": no_crossing_strategies(),
@@ -363,12 +358,10 @@ def run(
         "resumed": resumed,
         "wall_s": time.perf_counter() - t0,
         "summary": summarise(results),
-        "environment": environment(),
     }
-    return write_record(out, name, payload, report=markdown)
 
 
-def add_arguments(parser: argparse.ArgumentParser) -> None:
+def add_arguments(parser: argparse._ActionsContainer) -> None:
     """``--workers`` and ``--resume`` (``python -m benchmarks fuzz``)."""
     parser.add_argument("--workers", type=int, help="processes at once (default: cores)")
     parser.add_argument(
@@ -376,11 +369,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def main_from_args(args: argparse.Namespace) -> int:
-    summary = run(args.mode or "full", args.out, workers=args.workers, resume=args.resume)
-    total = summary["summary"]["total"]["outcomes"]
-    print(f"fuzz: wrote {summary['json']}: " + ", ".join(f"{k} {v}" for k, v in total.items()))
-    return 0
-
-
-BENCHMARK = register(Benchmark("fuzz", __doc__, {}, None, own_run=run))
+BENCHMARK = register(
+    Benchmark("fuzz", __doc__, dict.fromkeys(CASES, {}), measure, report=markdown,
+              record=name_unless("full", "fuzz"), arguments=add_arguments, needs_out=True)
+)  # fmt: skip
+run = BENCHMARK.run

@@ -129,7 +129,7 @@ from benchmarks._tradeoff_report import (
     winners,
 )
 from benchmarks._tradeoff_scenes import SCENE_FINER, SCENES
-from benchmarks.common import environment, git_commit, write_json
+from benchmarks.common import git_commit
 from benchmarks.runner import Benchmark, register
 
 log = logging.getLogger(__name__)
@@ -582,10 +582,18 @@ def analyse(records: list[dict], scenes: list[str], cost: str = "wall_s") -> dic
 
 
 # ----------------------------------------------------------------------------- entry points
-def sweep(
-    mode: str = "quick",
-    out: str | Path = "results",
+def sweep(mode: str = "quick", out: str | Path = "results", **options) -> dict:
+    """Run the trade study and write ``tradeoff.json``, ``tradeoff.md``, ``tradeoff_<scene>.png``
+    (``BENCHMARK.run``; ``options`` those of ``_measure``); returns ``{"json": path, "md": path,
+    **record}``."""
+    return BENCHMARK.run(mode, out, **options)
+
+
+def _measure(
+    mode: str,
+    cfg: object,
     *,
+    out: str | Path,
     scenes: str | list[str] | None = None,
     knobs: str | list[str] | None = None,
     strategies: str | list[str] | None = None,
@@ -600,10 +608,9 @@ def sweep(
     points: str | Path | None = None,
     progress: bool = False,
 ) -> dict:
-    """Run the trade study and write ``tradeoff.json``, ``tradeoff.md``, ``tradeoff_<scene>.png``.
-
-    Every point's measurement is also kept in ``out/tradeoff_points/`` as it arrives
-    (``benchmarks._tradeoff_cache``), so that a stopped sweep can be resumed.
+    """The trade study's payload. Every point's measurement is also kept in
+    ``out/tradeoff_points/`` as it arrives (``benchmarks._tradeoff_cache``), so that a stopped
+    sweep can be resumed.
 
     Args:
         mode, scenes, knobs, strategies, sweeps, threads: see :func:`plan`.
@@ -622,11 +629,7 @@ def sweep(
         points: the folder where each point is kept as it finishes (default
             ``out/tradeoff_points/``); a committed folder lets a sweep go on in a later session.
         progress: show a progress bar (points done of all, the last point's id) on stderr, for
-            the warm-up and for the points (``bfemp sweep`` and ``python -m benchmarks
-            tradeoff`` do; a ``quiet`` option, where given, turns it off).
-
-    Returns:
-        ``{"json": path, "markdown": path, "png": {scene: path}, **payload}``.
+            the warm-up and for the points.
     """
     if scheduler is not None:
         check_scheduler(scheduler)
@@ -639,9 +642,8 @@ def sweep(
     records = plan(mode, scenes, knobs, strategies=strategies, sweeps=sweeps, threads=threads)
     scene_names = list(dict.fromkeys(r["scene"] for r in records))
     pairs = list(dict.fromkeys((r["scene"], r["strategy"]) for r in records))
-    env = environment()
+    commit = git_commit()
     out = Path(out)
-    json_path = out / f"{NAME}.json"
     jobs = [_job(r, timeout_s) for r in records]
     log.info("tradeoff (%s): %d points of %s", mode, len(jobs), ", ".join(scene_names))
 
@@ -663,7 +665,7 @@ def sweep(
         finally:
             bar.close()
 
-    cache = PointCache(out / CACHE_FOLDER if points is None else Path(points), env["commit"])
+    cache = PointCache(out / CACHE_FOLDER if points is None else Path(points), commit)
     entries = [cache.entry(job) if resume else None for job in jobs]
     kept = [None if e is None else e["measurement"] for e in entries]
     todo = run_order(records, [k for k, m in enumerate(kept) if m is None])
@@ -671,21 +673,13 @@ def sweep(
     measured_by = {
         records[k]["id"]: entries[k].get("commit") for k, m in enumerate(kept) if m is not None
     }
-    resumed = list(measured_by)
     if resume:
-        log.info(
-            "tradeoff: %d of %d points kept in %s, %d to run",
-            len(resumed),
-            len(jobs),
-            cache.folder,
-            len(todo),
-        )
-
+        log.info("tradeoff: %d of %d points kept in %s", len(measured_by), len(jobs), cache.folder)
     started = time.perf_counter()
     warm = [
-        (scene, strategy)
-        for scene, strategy in (pairs if warmup else [])
-        if any(records[k]["scene"] == scene and records[k]["strategy"] == strategy for k in todo)
+        pair
+        for pair in (pairs if warmup else [])
+        if any((records[k]["scene"], records[k]["strategy"]) == pair for k in todo)
     ]
     warmed = execute(
         [f"{scene}/{strategy}/warmup" for scene, strategy in warm],
@@ -704,26 +698,28 @@ def sweep(
         results[k] = measurement
     elapsed = time.perf_counter() - started
     references = _reference(records, results)
+    json_path = shlex.quote(str(out / f"{NAME}.json"))
     finished = []
     for record, result in zip(records, results, strict=True):
         done = _finish(record, result, references.get(record["scene"]))
         done["resumed"] = record["id"] in measured_by
-        done["commit"] = measured_by.get(record["id"], env["commit"])
+        done["commit"] = measured_by.get(record["id"], commit)
         done["replay"] = (
-            f"python -m benchmarks tradeoff --replay {shlex.quote(str(json_path))} "
-            f"--id {shlex.quote(record['id'])}"
+            f"python -m benchmarks tradeoff --replay {json_path} --id {shlex.quote(record['id'])}"
         )
         finished.append(done)
     analysis = analyse(finished, scene_names, cost_key)
 
-    def chosen_in(scene: str) -> list[str]:
-        if isinstance(strategies, dict):
-            return _names(strategies.get(scene), "strategy", _registry())
-        return _names(strategies, "strategy", _registry())
+    def not_run(scene: str) -> dict:
+        chosen = strategies.get(scene) if isinstance(strategies, dict) else strategies
+        why = SCENES[scene]["not_applicable"]
+        return {
+            st: why.get(st, "not declared for this scene")
+            for st in _names(chosen, "strategy", _registry())
+            if (scene, st) not in pairs
+        }
 
-    payload = {
-        "benchmark": NAME,
-        "mode": mode,
+    return {
         "scenes": scene_names,
         "strategies": {
             s: list(dict.fromkeys(st for sc, st in pairs if sc == s)) for s in scene_names
@@ -732,14 +728,7 @@ def sweep(
             s: {st: SCENES[s]["strategies"][st].get("note") for sc, st in pairs if sc == s}
             for s in scene_names
         },
-        "not_run": {
-            s: {
-                st: SCENES[s]["not_applicable"].get(st, "not declared for this scene")
-                for st in chosen_in(s)
-                if (s, st) not in pairs
-            }
-            for s in scene_names
-        },
+        "not_run": {s: not_run(s) for s in scene_names},
         "knobs": {s: swept_knobs(finished, s) for s in scene_names},
         "errors": {s: SCENES[s]["error"] for s in scene_names},
         "executor": {
@@ -756,7 +745,7 @@ def sweep(
         "warmup_s": warmup_s,
         "warmup_failures": [w["failure"] for w in warmed if w.get("failure")],
         "wall_s": elapsed,
-        "resumed": resumed,
+        "resumed": list(measured_by),
         "point_wall_s_total": sum(r["wall_s"] or 0.0 for r in finished),
         "failed": [r["id"] for r in finished if r["failure"]],
         "pareto": {
@@ -765,26 +754,17 @@ def sweep(
         **analysis,
         "references": references,
         "points": finished,
-        "environment": env,
     }
-    path = write_json(out, NAME, payload)
-    md = out / f"{NAME}.md"
-    md.write_text(markdown(payload))
-    pngs = {}
-    for scene in scene_names:
-        recs = [r for r in finished if r["scene"] == scene]
-        title = f"{scene}: error against {COSTS[cost_key]} ({mode} mode)"
-        label = (
-            "error vs reference run" if "reference_keys" in SCENES[scene] else "error vs analytic"
-        )
-        pngs[scene] = str(plot_scene(recs, out / f"{NAME}_{scene}.png", title, label, cost_key))
-    for scene in scene_names:
-        log.info(
-            "%s: winners %s",
-            scene,
-            [(w["error_from"], w["winner"]) for w in payload["winners"][scene]],
-        )
-    return {"json": str(path), "markdown": str(md), "png": pngs, **payload}
+
+
+def _plot(payload: dict, png: Path) -> None:
+    """One figure per scene, ``<stem>_<scene>.png`` beside ``png`` (error against cost)."""
+    for scene in payload["scenes"]:
+        recs = [r for r in payload["points"] if r["scene"] == scene]
+        title = f"{scene}: error against {COSTS[payload['cost']]} ({payload['mode']} mode)"
+        kind = "reference run" if "reference_keys" in SCENES[scene] else "analytic"
+        plot_scene(recs, png.with_name(f"{png.stem}_{scene}.png"), title, f"error vs {kind}",
+                   payload["cost"])  # fmt: skip
 
 
 def rerender(path: str | Path) -> dict:
@@ -800,16 +780,8 @@ def rerender(path: str | Path) -> dict:
         s: [r["id"] for r in points if r["scene"] == s and r["pareto"]] for s in scenes
     }
     path.write_text(json.dumps(payload, indent=2, default=float))
-    md = path.with_suffix(".md")
-    md.write_text(markdown(payload))
-    for scene in scenes:
-        recs = [r for r in points if r["scene"] == scene]
-        title = f"{scene}: error against {COSTS[payload['cost']]} ({payload['mode']} mode)"
-        label = (
-            "error vs reference run" if "reference_keys" in SCENES[scene] else "error vs analytic"
-        )
-        png = path.parent / f"{path.stem}_{scene}.png"  # tradeoff_full.json: tradeoff_full_*.png
-        plot_scene(recs, png, title, label, payload["cost"])
+    path.with_suffix(".md").write_text(markdown(payload))
+    _plot(payload, path.with_suffix(".png"))
     return payload
 
 
@@ -898,12 +870,6 @@ def _kept_points(old: dict, new: dict) -> list[dict]:
                  "error_against": f"reference run at {commit}" if reference else None}
             )  # fmt: skip
     return kept
-
-
-def run(mode: str = "full", out: str | Path = "results") -> dict:
-    """The registry's entry point (``python -m benchmarks tradeoff``): every scene, strategy and
-    knob."""
-    return sweep(mode, out)
 
 
 def load_record(
@@ -1068,17 +1034,18 @@ def main_from_args(args: argparse.Namespace) -> int:
         points=args.points,
         progress=not getattr(args, "quiet", False),
     )
-    print(f"tradeoff: wrote {summary['json']}, {summary['markdown']}")
+    print(f"tradeoff: wrote {summary['json']}, {summary['md']}")
     for scene in summary["scenes"]:
         won = ", ".join(
             f"{w['winner']} from {w['error_from']:.3g}" for w in summary["winners"][scene]
         )
-        bad = summary["infeasible"][scene]
+        bad = ", ".join(summary["infeasible"][scene]) or "none"
         print(
-            f"  {scene}: winners {won or '-'}; infeasible (beyond their penetration bound): "
-            f"{', '.join(bad) or 'none'}; plot {summary['png'][scene]}"
+            f"  {scene}: winners {won or '-'}; infeasible (beyond their penetration bound): {bad}"
         )
     return 0
 
 
-BENCHMARK = register(Benchmark(NAME, __doc__, MODES, None, own_run=run))
+BENCHMARK = register(
+    Benchmark(NAME, __doc__, dict.fromkeys(MODES, {}), _measure, _plot, markdown, needs_out=True)
+)

@@ -330,7 +330,7 @@ def test_the_command_line_passes_resume_and_the_points_folder_to_the_sweep(monke
 
     def fake_sweep(mode, out, **kwargs):  # noqa: ANN001, ANN003, ANN202
         seen.update(mode=mode, out=out, **kwargs)
-        return {"json": "j", "markdown": "m", "scenes": [], "png": {}}
+        return {"json": "j", "md": "m", "scenes": []}
 
     monkeypatch.setattr(tradeoff, "sweep", fake_sweep)
     parser = bench_main._parser()
