@@ -137,11 +137,7 @@ def check_scheduler(address: str) -> str:
 
 
 def execute_dask(
-    ids: list[str],
-    jobs: list[dict],
-    address: str,
-    timeout_s: float,
-    on_done: OnDone | None = None,
+    ids: list[str], jobs: list[dict], address: str, timeout_s: float, on_done: OnDone | None = None
 ) -> list[dict]:
     """``execute_point`` of every job on the Dask cluster of the scheduler at ``address``.
 

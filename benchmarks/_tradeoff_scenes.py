@@ -116,7 +116,7 @@ SCENES = {
             },
         },
         "not_applicable": {
-            "single_field": "no contact algorithm: the FEM ring and the MPM ring never interact",
+            "single_field": "no contact algorithm: the FEM ring and the MPM ring never interact"
         },
     },
     "slope": {
@@ -194,7 +194,7 @@ SCENES = {
                 "dt": {"quick": 6e-2, "full": 1e-2},
                 "options": {"tol": 1e-4, "max_newton_iterations": 500},
                 "note": "backward Euler (hertz)",
-            },
+            }
         },
         "not_applicable": {
             s: "E = 1e10 Pa disk: the explicit stable step scales as E^-1/2, 1.7e-6 s from the "
@@ -361,7 +361,7 @@ SCENES = {
                 "options": {},
                 "no_knobs": {"cfl_safety_fem": "no FEM body: the FEM bound does not exist"},
                 "note": "FLIP, dt = 'auto' (lr_compression); dx and ppc are the paper's, fixed",
-            },
+            }
         },
         "not_applicable": {
             "barrier": "MPM-MPM contact: barrier couples MPM to FEM only",

@@ -49,12 +49,7 @@ from pathlib import Path
 import numpy as np
 
 import bfemp
-from benchmarks._conformance_scenes import (
-    Case,
-    body_mass_arrays,
-    body_positions,
-    cases,
-)
+from benchmarks._conformance_scenes import Case, body_mass_arrays, body_positions, cases
 from benchmarks.common import figure
 from benchmarks.runner import Benchmark, name_unless, register
 from bfemp.steppers import STRATEGIES, StepError

@@ -313,12 +313,7 @@ def run_case(case: Case, mode: str, strategy: str = "barrier") -> dict:
 
 
 def _run(
-    sim: bfemp.Simulation,
-    case: Case,
-    mode: str,
-    strategy: str,
-    info: dict,
-    warnings: list[str],
+    sim: bfemp.Simulation, case: Case, mode: str, strategy: str, info: dict, warnings: list[str]
 ) -> dict:
     """Step ``sim`` through the case with the checks; returns the row's measured values."""
     cfg = case.config

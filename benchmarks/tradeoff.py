@@ -111,12 +111,7 @@ from benchmarks._tradeoff_knobs import (
     option_knobs,
     strategy_knobs,
 )
-from benchmarks._tradeoff_point import (
-    check_scheduler,
-    execute_dask,
-    execute_local,
-    execute_point,
-)
+from benchmarks._tradeoff_point import check_scheduler, execute_dask, execute_local, execute_point
 from benchmarks._tradeoff_report import (
     COSTS,
     best_knob,
