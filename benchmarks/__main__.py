@@ -70,7 +70,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if hasattr(module, "main_from_args"):
             return module.main_from_args(args)
-        options = {dest: getattr(args, dest) for dest in own}
+        options = {d: getattr(args, d) for d in own if getattr(args, d) is not None}
         summary = run_named(args.name, args.mode or "full", args.out, module=module, **options)
     except ValueError as err:  # a mode the benchmark does not have, named by it
         parser.error(f"{args.name}: {err}")
