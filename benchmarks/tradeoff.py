@@ -8,28 +8,12 @@ options. Replay one point:
 ``python -m benchmarks tradeoff --replay tradeoff.json --id ID`` or ``--point '<record as
 JSON>'``.
 
-Strategies go by the registry's names (``bfemp.steppers.STRATEGIES``: ``barrier``,
-``two_stage``, ``augury``, ``lr``, ``single_field``). Which of them run a scene is declared per
-scene (``_tradeoff_scenes.SCENES[scene]["strategies"]``, with how each runs it), and so is why
-the others do not (``not_applicable``: lr refuses MPM-only FEM contact it cannot see, explicit
-strategies at the paper's stiffness need steps the scene cannot afford, the softened slope of
-``two_stage_slope`` and the softened disk ``hertz_soft`` stand in, measured failures). Scenes
-and what the error is against:
-
-- ``rings``: barrier, two_stage, augury, lr; against the reference run (barrier at the finest
-  value of each of its swept knobs): the energy loss over the collision window and the contact
-  duration.
-- ``slope``: barrier (E = 4e12 Pa), two_stage, augury, lr (the softened box, E = 1e5 Pa, at
-  the explicit step); against the analytic acceleration (eq. 40).
-- ``hertz``: barrier; against Hertz's C (eq. 39).
-- ``hertz_soft``: barrier, two_stage on the softened disk (``hertz.SOFT``, E = 1e5 Pa: the
-  explicit step 5.4e-4 s); against Hertz's C of that E (augury and lr: measured why not).
-- ``sine_boundary``: barrier, two_stage, lr (the scripted strip leaves the box's E = 1e6 Pa to
-  set the explicit step, 6e-4 s); against the reference run's largest compressive force.
-- ``augury_blocks`` (AUG Figs. 8-9, 3D): augury, barrier (Newmark), two_stage; against the
-  reference run's (augury's) energy loss.
-- ``lr_compression`` (LR Fig. 5): lr; against the single-material run (the cost is that of the
-  two-block run alone).
+Strategies go by the registry's names (``bfemp.steppers.STRATEGIES``). The scenes (``rings``,
+``slope``, ``hertz`` and its softened ``hertz_soft``, ``sine_boundary``, ``augury_blocks``,
+``lr_compression``) are declared in ``_tradeoff_scenes.SCENES``: what each point's error is
+against (an analytic value, or the scene's reference run: its reference strategy at the finest
+value of every swept knob at once), which strategies run it and how, and why the others do not
+(``not_applicable``); the record and its report repeat each of these per scene.
 
 Knobs. The scene's discretisation knobs (``dx``, ``ppc``, ``spacing``, ``dhat``, ``eps_v``, less
 those a strategy does not have) take the mode's values; each strategy's own knobs are the fields
@@ -53,19 +37,13 @@ strategy (``warmup``) fill numba's on-disk cache.
 Each point's measurement is kept in ``<out>/tradeoff_points/`` (``--points DIR``) as it arrives
 (``benchmarks._tradeoff_cache``): ``--resume`` takes the points an earlier sweep of the same
 code kept there (same settings and threads; points that gave no metrics run again), so a
-stopped sweep goes on where it stopped, in a later session too when the folder is committed
-(``benchmarks/records/tradeoff_full_points/`` holds the full sweep's points so far). A later
-run of some scenes merges into a record with ``merge(record, rerun)`` (the quick record
-``benchmarks/records/tradeoff.json`` was so made: its header says which scenes, at which commit).
+stopped sweep goes on where it stopped, in a later session too when the folder is committed.
+A later run of some scenes merges into a record with ``merge(record, rerun)``.
 
-Feasibility (issue 40): every point records ``max_penetration_m`` (the deepest any FEM node or
-particle went inside another FEM body over its run, the shared ``penetration_depth`` check) and
-the bound it is judged against, ``penetration_bound_m`` (its strategy's
-``capabilities.penetration_bound_cells``, read when the point runs, times the dx of the point's
-MPM grid, or of augury's contact grid in a scene without particles; 0 for barrier and
-two_stage; ``benchmarks._penetration``). A point beyond its bound is infeasible
-(``record["infeasible"]``): drawn as a cross, named in the report with its depth and bound,
-never on a Pareto front and never the winner of an error range.
+Feasibility (issue 40): every point records ``max_penetration_m`` and the bound it is judged
+against, ``penetration_bound_m`` (``benchmarks._penetration``); a point beyond its bound is
+infeasible (``_tradeoff_report.infeasible``): drawn as a cross, named in the report, never on a
+Pareto front and never the winner of an error range.
 
 Outputs in ``--out`` (default ``results/``): ``tradeoff.json`` (every point's record, the
 fronts, the winners per error range and the crossovers, the knob effects, the infeasible points),
@@ -101,7 +79,7 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks._penetration import KEYS as PENETRATION_SUMMARY_KEYS
+from benchmarks._penetration import KEYS as PENETRATION_KEYS
 from benchmarks._tradeoff_cache import FOLDER as CACHE_FOLDER
 from benchmarks._tradeoff_cache import PointCache
 from benchmarks._tradeoff_knobs import (
@@ -439,11 +417,6 @@ def point_error(scene: str, measurement: dict, reference: dict | None) -> tuple:
             return None, {}
         parts[key] = abs(value - target) / abs(target)
     return max(parts.values()), parts
-
-
-#: the penetration measurement of a point (``benchmarks._penetration``), lifted from its metrics
-#: into its record (None where the run did not give it)
-PENETRATION_KEYS = PENETRATION_SUMMARY_KEYS
 
 
 def _finish(record: dict, measurement: dict, reference: dict | None) -> dict:
@@ -954,45 +927,32 @@ def replay(record: dict, timeout_s: float | None = None) -> dict:
     return {**done, "recorded_error": recorded, "reproduced": same}
 
 
+#: the sweep's command-line options: flag -> (keyword of ``sweep``, argparse settings)
+OPTIONS = {
+    "--scenes": ("scenes", dict(help=f"comma-separated scenes (default: {', '.join(SCENES)})")),
+    "--knobs": ("knobs", dict(help="comma-separated knobs (default: every knob of each strategy)")),
+    "--strategies": ("strategies", dict(help="comma-separated strategies (default: every one "
+                                             "that applies to each scene)")),
+    "--workers": ("workers", dict(type=int, help="local point processes at once (default: cores)")),
+    "--scheduler": ("scheduler", dict(help="run the points on a Dask scheduler (tcp://host:port)")),
+    "--threads-per-point": ("threads", dict(type=int, default=1, help="threads of each point")),
+    "--point-timeout": ("timeout_s", dict(type=float, help="wall-time limit of one point in s")),
+    "--resume": ("resume", dict(action="store_true", help="take the points an earlier sweep of "
+                                "the same code kept in the points folder")),
+    "--points": ("points", dict(metavar="DIR", help="where each point is kept as it finishes "
+                                "(default OUT/tradeoff_points/)")),
+    "--cost": ("cost", dict(choices=("wall", "cpu"), default="wall", help="cost axis: the "
+                            "points' wall time (default) or CPU time (steadier when busy)")),
+}  # fmt: skip
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The trade study's options (``python -m benchmarks tradeoff``; ``bfemp sweep`` repeats
-    them, a test keeps the two in step)."""
+    them, a test keeps the two in step): ``OPTIONS``, and the replay of one point."""
     group = parser.add_argument_group("trade study")
-    group.add_argument(
-        "--scenes", help=f"comma-separated scenes (default: all: {', '.join(sorted(SCENES))})"
-    )
-    group.add_argument(
-        "--knobs", help="comma-separated knobs (default: every knob of each strategy)"
-    )
-    group.add_argument(
-        "--strategies",
-        help="comma-separated strategies (default: every one that applies to each scene)",
-    )
-    group.add_argument("--workers", type=int, help="local point processes at once (default: cores)")
-    group.add_argument("--scheduler", help="run the points on a Dask scheduler (tcp://host:port)")
-    group.add_argument(
-        "--threads-per-point", type=int, default=1, help="threads of each point (default 1)"
-    )
-    group.add_argument("--point-timeout", type=float, help="wall-time limit of one point in s")
-    group.add_argument(
-        "--resume",
-        action="store_true",
-        help="take the points an earlier sweep of the same code kept in the points folder",
-    )
-    group.add_argument(
-        "--points",
-        metavar="DIR",
-        help="where each point is kept as it finishes (default OUT/tradeoff_points/)",
-    )
-    group.add_argument(
-        "--cost",
-        choices=("wall", "cpu"),
-        default="wall",
-        help="cost axis: the points' wall time (default) or CPU time (steadier on a busy machine)",
-    )
-    group.add_argument(
-        "--replay", metavar="JSON", help="re-run a recorded point (record or tradeoff.json)"
-    )
+    for flag, (dest, settings) in OPTIONS.items():
+        group.add_argument(flag, dest=dest, **settings)
+    group.add_argument("--replay", metavar="JSON", help="re-run a recorded point (tradeoff.json)")
     group.add_argument("--id", help="with --replay: the point's id in tradeoff.json")
     group.add_argument("--point", metavar="JSON", help="re-run the point given as a JSON record")
 
@@ -1002,8 +962,7 @@ def main_from_args(args: argparse.Namespace) -> int:
     if args.replay is not None or args.point is not None:
         if args.replay is not None and args.point is not None:
             raise ValueError("give --replay or --point, not both")
-        record = load_record(args.replay, args.id, args.point)
-        result = replay(record, timeout_s=args.point_timeout)
+        result = replay(load_record(args.replay, args.id, args.point), timeout_s=args.timeout_s)
         status = "reproduced" if result["reproduced"] else "NOT reproduced"
         print(
             f"{result['id']}: error {result['error']} (recorded {result['recorded_error']}): "
@@ -1014,30 +973,14 @@ def main_from_args(args: argparse.Namespace) -> int:
         return 0 if result["reproduced"] else 1
     if args.id is not None:
         raise ValueError("--id goes with --replay")
-    summary = sweep(
-        args.mode or "full",
-        args.out,
-        scenes=args.scenes,
-        knobs=args.knobs,
-        strategies=args.strategies,
-        workers=args.workers,
-        scheduler=args.scheduler,
-        threads=args.threads_per_point,
-        timeout_s=args.point_timeout,
-        cost=args.cost,
-        resume=args.resume,
-        points=args.points,
-        progress=not getattr(args, "quiet", False),
-    )
+    options = {dest: getattr(args, dest) for dest, _ in OPTIONS.values()}
+    progress = not getattr(args, "quiet", False)
+    summary = sweep(args.mode or "full", args.out, **options, progress=progress)
     print(f"tradeoff: wrote {summary['json']}, {summary['md']}")
     for scene in summary["scenes"]:
-        won = ", ".join(
-            f"{w['winner']} from {w['error_from']:.3g}" for w in summary["winners"][scene]
-        )
+        won = [f"{w['winner']} from {w['error_from']:.3g}" for w in summary["winners"][scene]]
         bad = ", ".join(summary["infeasible"][scene]) or "none"
-        print(
-            f"  {scene}: winners {won or '-'}; infeasible (beyond their penetration bound): {bad}"
-        )
+        print(f"  {scene}: winners {', '.join(won) or '-'}; infeasible (past its bound): {bad}")
     return 0
 
 
