@@ -83,6 +83,14 @@ TOL = 1e-6  # m/s
 
 WINDOW = (0.025, 0.293)  # s: the paper's collision window
 
+#: the rings' MPM grid spacing ``dx`` (m), particles per cell ``ppc`` and FEM edge ``fem_h`` (m):
+#: the paper's (full), the MPM grid coarsened 2x (partial: what a 2-core machine runs) and quick
+RINGS_DISCRETISATION = {
+    "full": dict(dx=0.1, ppc=9, fem_h=0.13),
+    "partial": dict(dx=0.2, ppc=4, fem_h=0.13),
+    "quick": dict(dx=1.0 / 3.0, ppc=4, fem_h=1.0 / 3.0),
+}
+
 
 def rings_grid_origin(cfg: dict) -> tuple[float, float]:
     """Grid origin shifted by a quarter of the particle spacing off the sampling lattice.
@@ -213,6 +221,13 @@ SLOPE_PHYSICS = {
     "stop_plane_mesh": "rectangle 0.01 m x 0.037 m, from 3 dhat above the slope, h = 0.01 m",
 }
 
+
+#: the slope's settling, release and fit start (s after release) of the shortened runs (the
+#: paper's are 0.1, 0.5 and 0.1 s)
+SLOPE_TIMES = {
+    "partial": dict(settle_s=0.1, release_s=0.2, fit_start_s=0.05),
+    "quick": dict(settle_s=0.02, release_s=0.03, fit_start_s=0.01),
+}
 
 #: variant -> (frame, slope mesh size h in m)
 SLOPE_VARIANTS = {

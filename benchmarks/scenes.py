@@ -61,11 +61,9 @@ RECORD_NAMES = {
 
 #: the rings' discretisations (two_stage's quick runs to 0.15 s, in contact from 0.025 s)
 RINGS_MODES = {
-    "full": dict(dx=0.1, ppc=9, fem_h=0.13, t_end=0.3, transfers=("apic", "flip")),
-    # rings' partial discretisation (MPM dx 0.2 m, ppc 4; the paper's FEM mesh)
-    "partial": dict(dx=0.2, ppc=4, fem_h=0.13, t_end=0.3, transfers=("apic", "flip")),
-    "quick": dict(dx=1.0 / 3.0, ppc=4, fem_h=1.0 / 3.0, t_end=0.15, transfers=("apic",)),
-}
+    m: {**cat.RINGS_DISCRETISATION[m], "t_end": 0.3, "transfers": ("apic", "flip")}
+    for m in ("full", "partial")
+} | {"quick": {**cat.RINGS_DISCRETISATION["quick"], "t_end": 0.15, "transfers": ("apic",)}}
 DRIFT_TARGET = 1e-9
 #: what the comparisons (augury, lr) run per mode: the rings' and the slope's modes
 COMPARE_MODES = {
@@ -96,10 +94,8 @@ SLOPE_MODES = {
     "full": dict(settle_s=0.1, release_s=0.5, fit_start_s=0.1, mus=_ALL_MUS,
                  kappas=("kappa_scaled", "kappa_paper")),
     # what the 2-core machine ran (full: 84,000 steps at ~24 ms, over half an hour)
-    "partial": dict(settle_s=0.1, release_s=0.2, fit_start_s=0.05, mus=_ALL_MUS,
-                    kappas=("kappa_paper",)),
-    "quick": dict(settle_s=0.02, release_s=0.03, fit_start_s=0.01, mus=(0.0, 0.2),
-                  kappas=("kappa_paper",)),
+    "partial": dict(**cat.SLOPE_TIMES["partial"], mus=_ALL_MUS, kappas=("kappa_paper",)),
+    "quick": dict(**cat.SLOPE_TIMES["quick"], mus=(0.0, 0.2), kappas=("kappa_paper",)),
 }  # fmt: skip
 TARGET_REL = {"full": 2e-3, "partial": 2e-3, "quick": 2e-2}
 STICK_FACTOR = 10.0  # mu = 0.2: max speed after the fit start below this many eps_v
