@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import os
 import platform
 import resource
@@ -59,6 +60,20 @@ def environment() -> dict:
         "openmp": openmp_report(),
         "load_average_1min": os.getloadavg()[0],
     }
+
+
+def json_ready(value: object) -> object:
+    """``value`` with numpy scalars as Python numbers and NaN and infinities as None, through
+    dicts (keys as strings), lists and tuples: what strict JSON holds."""
+    if isinstance(value, dict):
+        return {str(k): json_ready(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [json_ready(v) for v in value]
+    if hasattr(value, "item") and not isinstance(value, str):  # numpy scalar
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
 
 
 def peak_memory_mb() -> float:

@@ -92,6 +92,7 @@ from benchmarks._extreme_strategies import (
     not_applicable,
     strategy_options,
 )
+from benchmarks.common import json_ready
 from benchmarks.runner import Benchmark, name_unless, register
 from geometry.mesh import TriMesh
 from geometry.sampling import points_in_mesh
@@ -201,19 +202,6 @@ class _Checks:
         if growth > self.energy_tol:
             problems.append(f"energy grew by {growth:.3g} of E_ref (tolerance {self.energy_tol})")
         return problems
-
-
-def _clean(obj: object) -> object:
-    """``obj`` with numpy scalars as Python numbers and non-finite floats as None (strict JSON)."""
-    if isinstance(obj, dict):
-        return {k: _clean(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_clean(v) for v in obj]
-    if isinstance(obj, np.integer | np.bool_):
-        return obj.item()
-    if isinstance(obj, float | np.floating):
-        return float(obj) if math.isfinite(obj) else None
-    return obj
 
 
 def _finite(value: float) -> float | None:
@@ -565,7 +553,7 @@ def measure(mode: str, cfg: dict, strategy: list[str] | None = None) -> dict:
         },
         "cases": rows,
     }
-    return _clean(payload)
+    return json_ready(payload)
 
 
 # ---------------------------------------------------------------------------------- CLI
