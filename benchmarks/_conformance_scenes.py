@@ -33,8 +33,6 @@ import numpy as np
 
 import bfemp
 
-__all__ = ["CASES", "Case", "cases"]
-
 SOFT = bfemp.NeoHookean(E=1e5, nu=0.3, density=1000.0)
 STIFF = bfemp.NeoHookean(E=1e7, nu=0.3, density=1000.0)
 #: MPM grid spacing of the 2D and 3D cases in m

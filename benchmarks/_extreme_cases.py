@@ -40,8 +40,6 @@ import numpy as np
 
 import bfemp
 
-__all__ = ["CASES", "Case", "CaseConfig", "MODES", "SCENE_SIZE", "build_scene", "quick_cases"]
-
 SCENE_SIZE = 1.0  # m: the slab width, the length d-hat is measured against
 SPEED = 40.0  # m/s
 GRAZING_ANGLE = 3.0  # degrees between the block's velocity and the slab's top face

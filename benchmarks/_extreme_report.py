@@ -8,8 +8,6 @@ import numpy as np
 
 from benchmarks.common import figure
 
-__all__ = ["markdown_table", "plot_cases", "short_outcome"]
-
 #: colour per kind of outcome
 _COLOURS = {"pass": "tab:green", "named": "tab:orange", "na": "0.8", "UNEXPLAINED": "tab:red"}
 

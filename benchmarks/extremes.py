@@ -507,6 +507,7 @@ def measure(mode: str, cfg: dict, strategy: list[str] | None = None) -> dict:
     every = [run for r in rows for run in _runs(r)]
     by_strategy = {s: _counts([r for r in rows if r["strategy"] == s]) for s in strategies}
     counts = _counts(rows)
+    del counts["wall_s"]  # the run's wall time is the runner's (scene builds included)
     payload = {
         "strategies": list(strategies),
         **counts,
