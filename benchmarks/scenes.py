@@ -108,6 +108,35 @@ def _strip(run: Mapping) -> dict:
 
 
 # ----------------------------------------------------------------------------- rings
+def _run_rings(sim: bfemp.Simulation, t_end: float, callback: object = None) -> tuple:
+    """Run ``sim`` to ``t_end`` s: ``(common, t, energy)``: ``common`` the record entries every
+    rings run has (its ``StepError`` message or None, dt and steps, wall time, particles, energy
+    loss (%) over the paper's window when reached), ``t (n,)`` s and the kinetic plus elastic
+    energy ``(n,)`` J/m of every step."""
+    started, error = time.perf_counter(), None
+    try:
+        sim.run(t_end=t_end, progress=False, callback=callback)
+    except bfemp.StepError as err:
+        error = str(err)
+        log.error("rings under %s: %s", sim.strategy, err)
+    wall = time.perf_counter() - started
+    m = sim.metrics
+    t = m.column("t")
+    energy = m.column("energy_kinetic") + m.column("energy_elastic")
+    e0, e1 = cat.window_energies(t, energy)
+    reached = t[-1] >= cat.WINDOW[1] - 1e-9
+    common = {"error": error, "dt_s": sim.dt, "steps": int(len(t) - 1), "wall_s": wall,
+              "particles": int(sim.model.n_particles),
+              "energy_loss_pct": 100.0 * (e0 - e1) / e0 if reached else None}  # fmt: skip
+    return common, t, energy
+
+
+def _drift(m: object, scale: float) -> float:
+    """Largest ``|p(t) - p(0)| / scale`` of the linear momentum of the metrics ``m``."""
+    momentum = np.stack([m.column("momentum_x"), m.column("momentum_y")], axis=1)
+    return float((np.linalg.norm(momentum - momentum[0], axis=1) / scale).max())
+
+
 def run_rings(
     cfg: dict, transfer: str, strategy: str = "two_stage", options: object = None
 ) -> dict:
@@ -119,22 +148,12 @@ def run_rings(
     )
     model = sim.model
     check = cat.RingsPenetration(sim)
-    started, error = time.perf_counter(), None
-    try:
-        sim.run(t_end=cfg["t_end"], progress=False, callback=check)
-    except bfemp.StepError as err:
-        error = str(err)
-        log.error("%s rings/%s: %s", strategy, transfer, err)
-    wall = time.perf_counter() - started
+    common, t, energy = _run_rings(sim, cfg["t_end"], check)
     m = sim.metrics
-    t = m.column("t")
-    energy = m.column("energy_kinetic") + m.column("energy_elastic")
-    momentum = np.stack([m.column("momentum_x"), m.column("momentum_y")], axis=1)
     scale = float(
         np.linalg.norm(model.fem_mass @ model.fem_v0)
         + np.linalg.norm(model.mpm_mass @ model.mpm_v0)
     )
-    drift = np.linalg.norm(momentum - momentum[0], axis=1) / scale
     dist = m.column("min_distance")[1:]
     pairs = m.column("contact_pairs")[1:]
     iters = (
@@ -142,21 +161,14 @@ def run_rings(
         if "iterations_newton" in m.columns
         else np.zeros(len(t) - 1)  # a strategy without Newton (augury)
     )
-    e0, e1 = cat.window_energies(t, energy)
-    reached = t[-1] >= cat.WINDOW[1] - 1e-9
     return {
         "transfer": transfer,
-        "error": error,
-        "dt_s": sim.dt,
-        "steps": int(len(t) - 1),
-        "wall_s": wall,
-        "particles": int(model.n_particles),
+        **common,
         "fem_vertices": int(model.n_fem_nodes),
-        "momentum_drift_rel": float(drift.max()),
+        "momentum_drift_rel": _drift(m, scale),
         "min_distance": float(np.nanmin(dist)) if np.isfinite(dist).any() else None,
         "contact_steps": int(np.count_nonzero(pairs > 0)),
         "penetrations": int(check.worst),
-        "energy_loss_pct": 100.0 * (e0 - e1) / e0 if reached else None,
         "newton_iterations": int(np.nansum(iters)),
         "newton_per_contact_step": float(np.nanmean(iters[pairs > 0])) if (pairs > 0).any() else 0,
         "newton_iterations_max": int(np.nanmax(iters)) if iters.size else 0,
@@ -166,37 +178,18 @@ def run_rings(
 
 def _run_mpm_rings(cfg: dict) -> dict:
     """Both rings as MPM bodies under lr (frictionless, ``dt="auto"``)."""
-    sim = bfemp.Simulation(cat.mpm_rings_scene(cfg), strategy="lr", dt="auto",
-                           options=LROptions(law="frictionless"))  # fmt: skip
-    started, error = time.perf_counter(), None
-    try:
-        sim.run(t_end=cfg["t_end"], progress=False)
-    except bfemp.StepError as err:
-        error = str(err)
-    wall = time.perf_counter() - started
-    m, model = sim.metrics, sim.model
-    t = m.column("t")
-    momentum = np.stack([m.column("momentum_x"), m.column("momentum_y")], axis=1)
-    scale = float(np.abs(model.mpm_mass[:, None] * model.mpm_v0).sum())
-    energy = m.column("energy_kinetic") + m.column("energy_elastic")
-    e0, e1 = cat.window_energies(t, energy)
-    reached = t[-1] >= cat.WINDOW[1] - 1e-9
-    # closest approach of the two rings' particles at the end (a crude overlap measure)
-    x = sim.state.mpm_x
-    left = model.mpm_particle_body == 0
     from scipy.spatial import cKDTree
 
+    sim = bfemp.Simulation(cat.mpm_rings_scene(cfg), strategy="lr", dt="auto",
+                           options=LROptions(law="frictionless"))  # fmt: skip
+    common, _, _ = _run_rings(sim, cfg["t_end"])
+    model, x = sim.model, sim.state.mpm_x
+    scale = float(np.abs(model.mpm_mass[:, None] * model.mpm_v0).sum())
+    # closest approach of the two rings' particles at the end (a crude overlap measure)
+    left = model.mpm_particle_body == 0
     gap = float(cKDTree(x[~left]).query(x[left])[0].min())
-    return {
-        "error": error,
-        "dt_s": sim.dt,
-        "steps": int(len(t) - 1),
-        "wall_s": wall,
-        "particles": int(model.n_particles),
-        "momentum_drift_rel": float(np.linalg.norm(momentum - momentum[0], axis=1).max() / scale),
-        "closest_particles_end_m": gap,
-        "energy_loss_pct": 100.0 * (e0 - e1) / e0 if reached else None,
-    }
+    return {**common, "momentum_drift_rel": _drift(sim.metrics, scale),
+            "closest_particles_end_m": gap}  # fmt: skip
 
 
 def _compared_rings(mode: str, strategy: str) -> dict:
