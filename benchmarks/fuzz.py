@@ -36,7 +36,6 @@ from __future__ import annotations
 
 import argparse
 import collections
-import dataclasses
 import json
 import logging
 import math
@@ -54,6 +53,7 @@ from benchmarks._crossing_oracle import MAX_SAMPLES, Bodies, judge_step
 from benchmarks._tradeoff_cache import code_version
 from benchmarks.common import git_commit
 from benchmarks.runner import Benchmark, name_unless, register
+from bfemp.steppers import STRATEGIES
 
 log = logging.getLogger(__name__)
 
@@ -70,8 +70,6 @@ _STATUS = re.compile(r"[A-Z][A-Z0-9_]+")
 
 def no_crossing_strategies() -> list[str]:
     """The registered strategies whose capabilities state a penetration bound of 0."""
-    from bfemp.steppers import STRATEGIES
-
     return [
         name
         for name, cls in STRATEGIES.items()
@@ -100,32 +98,17 @@ def pair_kind(case: dict) -> str:
 def _simulation(scene, case: dict):
     import bfemp
 
-    if _is_explicit(case["strategy"]):
-        from bfemp.steppers import STRATEGIES
-
-        options = STRATEGIES[case["strategy"]].Options(
-            cfl_safety_fem=case["cfl"][0], cfl_safety_mpm=case["cfl"][1]
-        )
-        return bfemp.Simulation(
-            scene,
-            strategy=case["strategy"],
-            dt="auto",
-            options=options,  # its own Newton cap (TwoStageOptions: 200)
-        )
-    return bfemp.Simulation(
-        scene,
-        strategy=case["strategy"],
-        integrator=case["integrator"],
-        dt=case["dt"],
-        max_newton_iterations=NEWTON_CAP,
-    )
+    if _is_explicit(case["strategy"]):  # its own Newton cap (TwoStageOptions: 200)
+        cfl = dict(zip(("cfl_safety_fem", "cfl_safety_mpm"), case["cfl"], strict=True))
+        options = STRATEGIES[case["strategy"]].Options(**cfl)
+        return bfemp.Simulation(scene, strategy=case["strategy"], dt="auto", options=options)
+    return bfemp.Simulation(scene, strategy=case["strategy"], integrator=case["integrator"],
+                            dt=case["dt"], max_newton_iterations=NEWTON_CAP)  # fmt: skip
 
 
 def _is_explicit(strategy: str) -> bool:
-    """Whether the strategy steps at an explicit stable step (its options have CFL fractions)."""
-    from bfemp.steppers import STRATEGIES
-
-    return "cfl_safety_fem" in {f.name for f in dataclasses.fields(STRATEGIES[strategy].Options)}
+    """Whether the strategy steps at an explicit stable step."""
+    return STRATEGIES[strategy].explicit
 
 
 def _closing_speed(case: dict) -> float:
