@@ -103,6 +103,11 @@ def save(fig, path: str | Path, axes=(), title: str | None = None, legend: str =
     fig.savefig(path, dpi=110)
 
 
+def table_head(*columns: str) -> list[str]:
+    """The header row and the separator row of a Markdown table of ``columns``."""
+    return [f"| {' | '.join(columns)} |", "|" + "---|" * len(columns)]
+
+
 def write_json(out: str | Path, name: str, payload: dict) -> Path:
     """Write ``out/name.json`` (indented) and return its path."""
     out = Path(out)

@@ -50,7 +50,7 @@ import numpy as np
 
 import bfemp
 from benchmarks._conformance_scenes import Case, body_mass_arrays, body_positions, cases
-from benchmarks.common import figure
+from benchmarks.common import figure, table_head
 from benchmarks.runner import Benchmark, name_unless, register
 from bfemp.steppers import STRATEGIES, StepError
 from bfemp.steppers.capabilities import scene_pairs
@@ -316,8 +316,7 @@ def report_markdown(payload: dict) -> str:
         "`refused`: the strategy does not couple a pair of the scene (refused by name); "
         "`named failure`: a step stopped with a named status.",
         "",
-        "| case | " + " | ".join(strategies) + " |",
-        "|---|" + "---|" * len(strategies),
+        *table_head("case", *strategies),
     ]
     for name in names:
         cells = [_cell_text(by[(name, s)]) for s in strategies]
@@ -356,10 +355,7 @@ def readme_table(payload: dict) -> str:
     in a named failure, broke a guarantee (FAIL) or missed an accuracy limit."""
     strategies = payload["strategies"]
     families = list(dict.fromkeys(_family(r["case"]) for r in payload["rows"]))
-    lines = [
-        "| strategy | " + " | ".join(f.replace("_", " ") for f in families) + " |",
-        "|---|" + "---|" * len(families),
-    ]
+    lines = table_head("strategy", *(f.replace("_", " ") for f in families))
     for s in strategies:
         cells = []
         for fam in families:
