@@ -60,12 +60,12 @@ def main(argv: list[str] | None = None) -> int:
     module = importlib.import_module(BENCHMARKS[name]) if name in BENCHMARKS else None
     bench = catalogue().get(name)
     own = []
-    if module is not None and hasattr(module, "add_arguments"):
-        module.add_arguments(parser)
-    elif bench is not None and bench.arguments is not None:
+    if bench is not None and bench.arguments is not None:
         group = parser.add_argument_group(name)
         bench.arguments(group)
         own = [action.dest for action in group._group_actions]
+    elif module is not None and hasattr(module, "add_arguments"):
+        module.add_arguments(parser)
     args = parser.parse_args(argv)
     try:
         if hasattr(module, "main_from_args"):

@@ -558,7 +558,7 @@ def measure(mode: str, cfg: dict, strategy: list[str] | None = None) -> dict:
 
 
 # ---------------------------------------------------------------------------------- CLI
-def add_arguments(parser: argparse._ActionsContainer) -> None:
+def _arguments(parser: argparse._ActionsContainer) -> None:
     """``--strategy NAME`` (repeatable; ``all``, the default, runs every strategy)."""
     parser.add_argument(
         "--strategy",
@@ -574,6 +574,6 @@ def _plot(payload: dict, png: Path) -> None:
 
 BENCHMARK = register(
     Benchmark(NAME, __doc__, MODES, measure, _plot, markdown_table,
-              record=name_unless("full", NAME), arguments=add_arguments)
+              record=name_unless("full", NAME), arguments=_arguments)
 )  # fmt: skip
 run = BENCHMARK.run

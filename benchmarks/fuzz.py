@@ -344,7 +344,7 @@ def measure(
     }
 
 
-def add_arguments(parser: argparse._ActionsContainer) -> None:
+def _arguments(parser: argparse._ActionsContainer) -> None:
     """``--workers`` and ``--resume`` (``python -m benchmarks fuzz``)."""
     parser.add_argument("--workers", type=int, help="processes at once (default: cores)")
     parser.add_argument(
@@ -354,6 +354,6 @@ def add_arguments(parser: argparse._ActionsContainer) -> None:
 
 BENCHMARK = register(
     Benchmark("fuzz", __doc__, dict.fromkeys(CASES, {}), measure, report=markdown,
-              record=name_unless("full", "fuzz"), arguments=add_arguments, needs_out=True)
+              record=name_unless("full", "fuzz"), arguments=_arguments, needs_out=True)
 )  # fmt: skip
 run = BENCHMARK.run
