@@ -984,6 +984,11 @@ def main_from_args(args: argparse.Namespace) -> int:
     return 0
 
 
+#: the record's keys computed from the points' wall or CPU times (fronts, winners, crossovers,
+#: knob effects) and the warm-up's time: left out by ``verify``, which compares every point's
+#: settings, metrics and error
+TIMINGS = r"^(pareto|strategy_pareto|winners|crossovers|knob_effects|best_knob|warmup_s)$"
 BENCHMARK = register(
-    Benchmark(NAME, __doc__, dict.fromkeys(MODES, {}), _measure, _plot, markdown, needs_out=True)
-)
+    Benchmark(NAME, __doc__, dict.fromkeys(MODES, {}), _measure, _plot, markdown,
+              timings=TIMINGS, needs_out=True)
+)  # fmt: skip
