@@ -1,11 +1,11 @@
-"""``python -m benchmarks NAME [--quick | --full | --mode M] [--out DIR]``: run one benchmark;
-``python -m benchmarks verify NAME [NAME ...] [--mode M]``: rerun a mode (quick by default) into
-a temporary folder and compare its non-timing fields with the committed record.
+"""``python -m benchmarks NAME [--quick | --full | --mode M] [--out DIR] [options]``: run one
+benchmark; ``python -m benchmarks verify NAME [NAME ...] [--mode M]``: rerun a mode (quick by
+default) into a temporary folder and compare its non-timing fields with the committed record.
 
 The names are those of the catalogue (``benchmarks.runner.catalogue``: every module registers
-its ``Benchmark``). A benchmark module may add options of its own: ``add_arguments(parser)``
-extends the parser and ``main_from_args(args) -> int`` then runs it instead of the runner
-(``tradeoff``: ``--scenes``, ``--knobs``, ``--workers``, ...). Its ``ValueError`` is printed as
+its ``Benchmark``). A benchmark's own options come from its entry's ``arguments`` and reach its
+``measure``; a module may instead take over with ``add_arguments(parser)`` and
+``main_from_args(args) -> int`` (``tradeoff``: its ``--replay``). A ``ValueError`` is printed as
 a usage error (exit status 2).
 """
 
@@ -16,7 +16,7 @@ import importlib
 import logging
 import sys
 
-from benchmarks.runner import catalogue, run_named, verify
+from benchmarks.runner import catalogue, mode_options, run_named, verify
 
 #: benchmark name (aliases included) -> module exposing ``run(mode: str, out: Path) -> dict``
 BENCHMARKS = {name: bench.module for name, bench in catalogue().items()}
@@ -25,17 +25,7 @@ BENCHMARKS = {name: bench.module for name, bench in catalogue().items()}
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="python -m benchmarks")
     parser.add_argument("name", choices=sorted(BENCHMARKS))
-    mode = parser.add_mutually_exclusive_group()
-    mode.add_argument("--quick", action="store_const", const="quick", dest="mode")
-    mode.add_argument("--full", action="store_const", const="full", dest="mode")
-    mode.add_argument(
-        "--mode",
-        dest="mode",
-        help="another mode of the benchmark (rings: partial; hertz: refined; "
-        "buckling: partial, plate_quick, plate_partial, plate_full; "
-        "twist: partial, partial_probe, full_probe)",
-    )
-    parser.add_argument("--out", default="results", help="output folder (default results/)")
+    mode_options(parser)
     return parser
 
 
@@ -68,16 +58,20 @@ def main(argv: list[str] | None = None) -> int:
     first.add_argument("name", nargs="?")
     name = first.parse_known_args(argv)[0].name
     module = importlib.import_module(BENCHMARKS[name]) if name in BENCHMARKS else None
-    if module is not None and hasattr(module, "add_arguments"):
+    bench = catalogue().get(name)
+    own = []
+    if bench is not None and bench.arguments is not None:
+        group = parser.add_argument_group(name)
+        bench.arguments(group)
+        own = [action.dest for action in group._group_actions]
+    elif module is not None and hasattr(module, "add_arguments"):
         module.add_arguments(parser)
     args = parser.parse_args(argv)
-    if hasattr(module, "main_from_args"):
-        try:
-            return module.main_from_args(args)
-        except ValueError as err:
-            parser.error(str(err))
     try:
-        summary = run_named(args.name, args.mode or "full", args.out, module=module)
+        if hasattr(module, "main_from_args"):
+            return module.main_from_args(args)
+        options = {d: getattr(args, d) for d in own if getattr(args, d) is not None}
+        summary = run_named(args.name, args.mode or "full", args.out, module=module, **options)
     except ValueError as err:  # a mode the benchmark does not have, named by it
         parser.error(f"{args.name}: {err}")
     print(f"{args.name}: wrote {summary['json']}")

@@ -33,8 +33,6 @@ import numpy as np
 
 import bfemp
 
-__all__ = ["CASES", "Case", "cases"]
-
 SOFT = bfemp.NeoHookean(E=1e5, nu=0.3, density=1000.0)
 STIFF = bfemp.NeoHookean(E=1e7, nu=0.3, density=1000.0)
 #: MPM grid spacing of the 2D and 3D cases in m
@@ -176,86 +174,35 @@ def _all_cases() -> tuple[Case, ...]:
     out = []
     for dim, dx, t_end, dt in ((2, DX_2D, (0.1, 0.4), 2e-3), (3, DX_3D, (0.06, 0.3), 4e-3)):
         for mu in (0.0, 0.3):
-            out.append(
-                Case(
-                    name=f"drop_{dim}d_mu{mu:g}",
-                    scene="drop",
-                    dim=dim,
-                    t_end={"quick": t_end[0], "full": t_end[1]},
-                    barrier_dt=dt,
-                    dx=dx,
-                    checks=("held", "penetration"),
-                    params={"mu": mu, "up": dim - 1, "plate_top": 0.0},
-                )
-            )
+            params = {"mu": mu, "up": dim - 1, "plate_top": 0.0}
+            out.append(Case(f"drop_{dim}d_mu{mu:g}", "drop", dim, _modes(*t_end), dt, dx,
+                            ("held", "penetration"), params))  # fmt: skip
     a_free = G * math.sin(THETA)
     for body in ("mpm", "fem"):
         for label, mu in (("mu0", 0.0), ("mu0.5tan", 0.25), ("mu1.5tan", 0.75)):
             sticks = mu >= math.tan(THETA)
             exact = 0.0 if sticks else G * (math.sin(THETA) - mu * math.cos(THETA))
-            out.append(
-                Case(
-                    name=f"incline_{body}_{label}",
-                    scene="incline",
-                    dim=2,
-                    t_end={"quick": 0.15, "full": 0.5},
-                    barrier_dt=2e-3,
-                    dx=DX_2D,
-                    checks=("held", "penetration", "sticks" if sticks else "acceleration"),
-                    params={
-                        "mu": mu,
-                        "body": body,
-                        "up": 1,
-                        "plate_top": 0.0,
-                        "a_exact": exact,
-                        "a_free": a_free,
-                        # the block lands within 25 ms; the fit skips the landing's ringing
-                        "fit_from": {"quick": 0.06, "full": 0.1},
-                    },
-                )
-            )
+            checks = ("held", "penetration", "sticks" if sticks else "acceleration")
+            # the block lands within 25 ms; the fit skips the landing's ringing
+            params = {"mu": mu, "body": body, "up": 1, "plate_top": 0.0, "a_exact": exact,
+                      "a_free": a_free, "fit_from": _modes(0.06, 0.1)}  # fmt: skip
+            out.append(Case(f"incline_{body}_{label}", "incline", 2, _modes(0.15, 0.5), 2e-3,
+                            DX_2D, checks, params))  # fmt: skip
     for kinds in (("mpm", "mpm"), ("mpm", "fem"), ("fem", "fem")):
         for label, offset in (("head_on", 0.0), ("oblique", 0.1)):
-            checks = ("momentum", "rebound", "penetration")
-            if offset:
-                checks += ("angular_momentum",)
-            out.append(
-                Case(
-                    name=f"impact_{kinds[0]}_{kinds[1]}_{label}",
-                    scene="impact",
-                    dim=2,
-                    t_end={"quick": 0.1, "full": 0.25},
-                    barrier_dt=1e-3,
-                    dx=DX_2D,
-                    checks=checks,
-                    params={"kinds": kinds, "offset": offset},
-                )
-            )
-    out.append(
-        Case(
-            name="stack",
-            scene="stack",
-            dim=2,
-            t_end={"quick": 0.15, "full": 0.5},
-            barrier_dt=2e-3,
-            dx=DX_2D,
-            checks=("stacked", "penetration", "drift"),
-            params={"up": 1, "plate_top": 0.0},
-        )
-    )
-    out.append(
-        Case(
-            name="thin_plate",
-            scene="thin_plate",
-            dim=2,
-            t_end={"quick": 0.02, "full": 0.04},
-            barrier_dt=1e-3,
-            dx=DX_2D,
-            checks=("no_pass", "penetration"),
-            params={"up": 1, "plate_bottom": -DX_2D / 2},
-        )
-    )
+            checks = ("momentum", "rebound", "penetration") + (("angular_momentum",) * bool(offset))
+            out.append(Case(f"impact_{kinds[0]}_{kinds[1]}_{label}", "impact", 2,
+                            _modes(0.1, 0.25), 1e-3, DX_2D, checks,
+                            {"kinds": kinds, "offset": offset}))  # fmt: skip
+    out.append(Case("stack", "stack", 2, _modes(0.15, 0.5), 2e-3, DX_2D,
+                    ("stacked", "penetration", "drift"), {"up": 1, "plate_top": 0.0}))  # fmt: skip
+    out.append(Case("thin_plate", "thin_plate", 2, _modes(0.02, 0.04), 1e-3, DX_2D,
+                    ("no_pass", "penetration"), {"up": 1, "plate_bottom": -DX_2D / 2}))  # fmt: skip
     return tuple(out)
+
+
+def _modes(quick: float, full: float) -> dict:
+    return {"quick": quick, "full": full}
 
 
 #: every case of the catalogue, in table order
@@ -271,13 +218,6 @@ def cases(names: list[str] | None = None) -> list[Case]:
     if unknown:
         raise ValueError(f"unknown conformance case(s) {unknown}; known: {sorted(known)}")
     return [known[n] for n in names]
-
-
-def body_masses(model: bfemp.Model) -> dict[str, float]:
-    """Mass of each body in kg (per m in 2D)."""
-    out = {b.name: float(model.fem_mass[b.nodes].sum()) for b in model.fem_bodies}
-    out.update({b.name: float(model.mpm_mass[b.particles].sum()) for b in model.mpm_bodies})
-    return out
 
 
 def body_positions(model: bfemp.Model, state: bfemp.State) -> dict[str, np.ndarray]:

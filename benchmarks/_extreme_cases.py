@@ -34,13 +34,11 @@ Each case changes one knob of the base (see ``CASES``); choices where the issue 
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
 import bfemp
-
-__all__ = ["CASES", "Case", "CaseConfig", "MODES", "SCENE_SIZE", "build_scene", "quick_cases"]
 
 SCENE_SIZE = 1.0  # m: the slab width, the length d-hat is measured against
 SPEED = 40.0  # m/s
@@ -139,6 +137,7 @@ def _case(name: str, group: str, knob: str, quick: bool = False, expect: str = "
     )
 
 
+# fmt: off
 CASES: tuple[Case, ...] = (
     _case("base", "base", "the base scene", quick=True),
     _case("E_1e3", "stiffness", "E = 1e3 Pa", quick=True, E=1e3),
@@ -163,65 +162,28 @@ CASES: tuple[Case, ...] = (
     _case("grazing", "geometry", "velocity 3 deg off the face", geometry="grazing", duration=4e-3),
     _case("corner_mpm", "geometry", "MPM block corner first (45 deg)", geometry="corner_mpm"),
     _case("corner_fem", "geometry", "FEM square corner first (45 deg)", geometry="corner_fem"),
-    _case(
-        "vertex", "geometry", "particles exactly over FEM vertices", quick=True, geometry="vertex"
-    ),
-    _case(
-        "cell_centre",
-        "geometry",
-        "particle columns on grid-cell centres (zero B-spline weights)",
-        geometry="cell_centre",
-    ),
-    _case(
-        "kappa_1e0",
-        "kappa",
-        "kappa = 1 Pa (far too small)",
-        quick=True,
-        expect="MAX_ITERATIONS",
-        kappa=1.0,
-    ),
+    _case("vertex", "geometry", "particles exactly over FEM vertices", quick=True,
+          geometry="vertex"),
+    _case("cell_centre", "geometry", "particle columns on grid-cell centres (zero B-spline "
+          "weights)", geometry="cell_centre"),
+    _case("kappa_1e0", "kappa", "kappa = 1 Pa (far too small)", quick=True,
+          expect="MAX_ITERATIONS", kappa=1.0),
     _case("kappa_1e16", "kappa", "kappa = 1e16 Pa (far too large)", quick=True, kappa=1e16),
     _case("kappa_auto", "kappa", 'kappa = "auto"', kappa="auto"),
-    _case(
-        "resting",
-        "drift",
-        "block resting on a fixed slab under gravity, dt = 5e-3 s",
-        quick=True,
-        geometry="resting",
-        dt=5e-3,
-        duration=0.5,
-        duration_full=5.0,
-    ),
+    _case("resting", "drift", "block resting on a fixed slab under gravity, dt = 5e-3 s",
+          quick=True, geometry="resting", dt=5e-3, duration=0.5, duration_full=5.0),
     _case("newmark", "integrator", "Newmark (average acceleration)", integrator="newmark"),
-    _case(
-        "newmark_coarse",
-        "integrator",
-        "Newmark, dx = h = 0.05 m (the quick resolution) in every mode",
-        integrator="newmark",
-        dx=0.05,
-    ),
-    _case(
-        "implicit_contact",
-        "integrator",
-        "Newmark with implicit contact (memory-free contact forces)",
-        integrator="newmark_implicit_contact",
-    ),
-    _case(
-        "implicit_contact_coarse",
-        "integrator",
-        "Newmark with implicit contact, dx = h = 0.05 m in every mode (newmark_coarse's setting)",
-        integrator="newmark_implicit_contact",
-        dx=0.05,
-    ),
-    _case(
-        "grazing_friction",
-        "friction",
-        "grazing with mu = 0.5",
-        geometry="grazing",
-        mu=0.5,
-        duration=4e-3,
-    ),
+    _case("newmark_coarse", "integrator", "Newmark, dx = h = 0.05 m (the quick resolution) in "
+          "every mode", integrator="newmark", dx=0.05),
+    _case("implicit_contact", "integrator", "Newmark with implicit contact (memory-free contact "
+          "forces)", integrator="newmark_implicit_contact"),
+    _case("implicit_contact_coarse", "integrator", "Newmark with implicit contact, dx = h = 0.05 "
+          "m in every mode (newmark_coarse's setting)", integrator="newmark_implicit_contact",
+          dx=0.05),
+    _case("grazing_friction", "friction", "grazing with mu = 0.5", geometry="grazing", mu=0.5,
+          duration=4e-3),
 )
+# fmt: on
 
 
 def quick_cases() -> tuple[Case, ...]:
@@ -324,8 +286,3 @@ def build_scene(config: CaseConfig, mode: str) -> tuple[bfemp.Scene, dict]:
         "energy_ref_J": float(rho_mpm * vol.sum() * GRAVITY * 0.2) if resting else None,
     }
     return scene, info
-
-
-def with_overrides(case: Case, **kw) -> Case:
-    """A copy of ``case`` with some knobs changed (for tests and experiments)."""
-    return replace(case, config=replace(case.config, **kw))

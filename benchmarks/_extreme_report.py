@@ -6,9 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.common import figure
-
-__all__ = ["markdown_table", "plot_cases", "short_outcome"]
+from benchmarks.common import figure, table_head
 
 #: colour per kind of outcome
 _COLOURS = {"pass": "tab:green", "named": "tab:orange", "na": "0.8", "UNEXPLAINED": "tab:red"}
@@ -90,8 +88,7 @@ def markdown_table(payload: dict) -> str:
         "independent particle-to-boundary distance) in m, pen: most particles inside the FEM "
         "body at once, J: min J of cells and particles, ΔE: max_t (E(t) - E(0)) / E_ref.",
         "",
-        "| case | knob | " + " | ".join(strategies) + " |",
-        "|---|---|" + "---|" * len(strategies),
+        *table_head("case", "knob", *strategies),
     ]
     for name, per in _by_case(payload).items():
         first = next(iter(per.values()))

@@ -46,19 +46,6 @@ from __future__ import annotations
 from benchmarks._extreme_cases import Case, CaseConfig
 from bfemp.steppers import STRATEGIES, AuguryOptions, TwoStageOptions
 
-__all__ = [
-    "EXPLICIT",
-    "EXPLICIT_DURATION",
-    "MAX_STEPS",
-    "NO_CROSSING",
-    "STRATEGY_NAMES",
-    "crossing_reason",
-    "drift_reason",
-    "duration",
-    "not_applicable",
-    "strategy_options",
-]
-
 #: every strategy, barrier first (the column order of the table)
 STRATEGY_NAMES: tuple[str, ...] = ("barrier",) + tuple(s for s in STRATEGIES if s != "barrier")
 #: strategies with an explicit stable step (symplectic Euler)

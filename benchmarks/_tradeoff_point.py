@@ -25,7 +25,6 @@ from __future__ import annotations
 import importlib
 import json
 import logging
-import math
 import os
 import re
 import subprocess
@@ -36,6 +35,8 @@ import traceback
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
+
+from benchmarks.common import json_ready, peak_memory_mb
 
 log = logging.getLogger(__name__)
 
@@ -137,11 +138,7 @@ def check_scheduler(address: str) -> str:
 
 
 def execute_dask(
-    ids: list[str],
-    jobs: list[dict],
-    address: str,
-    timeout_s: float,
-    on_done: OnDone | None = None,
+    ids: list[str], jobs: list[dict], address: str, timeout_s: float, on_done: OnDone | None = None
 ) -> list[dict]:
     """``execute_point`` of every job on the Dask cluster of the scheduler at ``address``.
 
@@ -192,7 +189,6 @@ def _failed(why: str, started: float) -> dict:
 
 def measure(module: str, settings: dict) -> dict:
     """In this process: ``module.run_point(settings)``, its wall time and the peak memory."""
-    from benchmarks.common import peak_memory_mb
 
     run_point = importlib.import_module(module).run_point
     started, cpu_started = time.perf_counter(), time.process_time()
@@ -224,21 +220,8 @@ def main(argv: list[str]) -> int:
     spec = json.loads(Path(spec_path).read_text())
     measurement = measure(spec["module"], spec["settings"])
     # NaN is not JSON: the parent reads it back as None
-    Path(result_path).write_text(json.dumps(_finite(measurement)))
+    Path(result_path).write_text(json.dumps(json_ready(measurement)))
     return 0
-
-
-def _finite(value: object) -> object:
-    """``value`` with NaN and infinities replaced by None (recursively; numpy scalars too)."""
-    if isinstance(value, dict):
-        return {str(k): _finite(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_finite(v) for v in value]
-    if hasattr(value, "item") and not isinstance(value, str):  # numpy scalar
-        value = value.item()
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
 
 
 if __name__ == "__main__":

@@ -247,9 +247,7 @@ BLOCKS_KEYS = ("strategy", "dt", "options", "dx", "t_end")
 
 def _augury_blocks(s: dict) -> dict:
     from benchmarks import augury_blocks
-    from bfemp import diagnostics
     from bfemp.contact.penetration import PenetrationCheck
-    from bfemp.terms import fem_elastic_groups
 
     _check(s, BLOCKS_KEYS, "augury_blocks")
     if s["strategy"] in ("barrier", "two_stage"):
@@ -261,21 +259,13 @@ def _augury_blocks(s: dict) -> dict:
     options = _options("augury", {"grid_dx": 2.0 * h, **s["options"]})
     stepper = stepper_class("augury")(model, dt=s["dt"], options=options)
     state = stepper.initialize(model.initial_state())
-    groups = fem_elastic_groups(model)
-
-    def energy(st: bfemp.State) -> float:
-        kinetic = diagnostics.kinetic_energy(model, st)
-        return kinetic + diagnostics.fem_elastic_energy(model, st, groups)
-
-    e0 = energy(state)
-    p0 = diagnostics.linear_momentum(model, state)
-    steps = int(round(s["t_end"] / s["dt"]))
+    ledger = _BlocksLedger(model, state)
     # the stepper runs without a Simulation, so without its penetration_depth column: the same
     # check (bfemp.contact.penetration) after every step, as Simulation does (and pays)
     check = PenetrationCheck.for_model(model)
     deepest = check.depth(state)
     failure, done = None, 0
-    for _ in range(steps):
+    for _ in range(int(round(s["t_end"] / s["dt"]))):
         try:
             state, _report = stepper.step(state)
         except bfemp.StepError as err:
@@ -283,17 +273,36 @@ def _augury_blocks(s: dict) -> dict:
             break
         done += 1
         deepest = max(deepest, check.depth(state))
-    drift = np.linalg.norm(diagnostics.linear_momentum(model, state) - p0) / np.linalg.norm(p0)
-    return {
-        "energy_loss": 1.0 - energy(state) / e0,
-        "momentum_drift_rel": float(drift),
-        "steps": done,
-        "iterations": 0,
-        "nodes_per_block": int(model.fem_bodies[0].n_nodes),
-        "max_penetration_m": deepest,
-        **penetration_bound(stepper),
-        "failure": failure,
-    }
+    return {**ledger.end(state, done), "iterations": 0, "max_penetration_m": deepest,
+            **penetration_bound(stepper), "failure": failure}  # fmt: skip
+
+
+class _BlocksLedger:
+    """The blocks' energy loss ``1 - E(end) / E0`` (kinetic + FEM elastic) and momentum drift
+    ``|p(end) - p0| / |p0|`` from a start state."""
+
+    def __init__(self, model: bfemp.Model, state: bfemp.State) -> None:
+        from bfemp.terms import fem_elastic_groups
+
+        self.model, self.groups = model, fem_elastic_groups(model)
+        self.e0, self.p0 = self.energy(state), self.momentum(state)
+
+    def energy(self, state: bfemp.State) -> float:
+        from bfemp import diagnostics
+
+        kinetic = diagnostics.kinetic_energy(self.model, state)
+        return kinetic + diagnostics.fem_elastic_energy(self.model, state, self.groups)
+
+    def momentum(self, state: bfemp.State) -> np.ndarray:
+        from bfemp import diagnostics
+
+        return diagnostics.linear_momentum(self.model, state)
+
+    def end(self, state: bfemp.State, steps: int) -> dict:
+        drift = np.linalg.norm(self.momentum(state) - self.p0) / np.linalg.norm(self.p0)
+        return {"energy_loss": 1.0 - self.energy(state) / self.e0,
+                "momentum_drift_rel": float(drift), "steps": steps,
+                "nodes_per_block": int(self.model.fem_bodies[0].n_nodes)}  # fmt: skip
 
 
 #: barrier contact of the blocks (m, Pa): the rotated block's nearest edge starts 0.07 m away
@@ -307,32 +316,16 @@ def _blocks_barrier(s: dict) -> dict:
     """The blocks by barrier (Newmark, implicit contact) or two_stage (symplectic Euler), with
     frictionless barrier contact (``BLOCKS_DHAT``, ``BLOCKS_KAPPA``)."""
     from benchmarks import augury_blocks
-    from bfemp import diagnostics
-    from bfemp.terms import fem_elastic_groups
 
     strategy = s["strategy"]
     scene = augury_blocks.blocks_scene(s["dx"])
     scene.set_contact(dhat=BLOCKS_DHAT, kappa=BLOCKS_KAPPA, mu=0.0)
-    implicit = strategy == "barrier"
-    sim = bfemp.Simulation(
-        scene,
-        strategy=strategy,
-        integrator=BLOCKS_INTEGRATOR if implicit else EXPLICIT_INTEGRATOR,
-        dt=s["dt"],
-        options=_options(strategy, s["options"]),
-    )
-    model = sim.model
-    groups = fem_elastic_groups(model)
-
-    def energy(st: bfemp.State) -> float:
-        kinetic = diagnostics.kinetic_energy(model, st)
-        return kinetic + diagnostics.fem_elastic_energy(model, st, groups)
-
-    e0 = energy(sim.state)
-    p0 = diagnostics.linear_momentum(model, sim.state)
-    steps = int(round(s["t_end"] / sim.dt))
+    integrator = BLOCKS_INTEGRATOR if strategy == "barrier" else EXPLICIT_INTEGRATOR
+    sim = bfemp.Simulation(scene, strategy=strategy, integrator=integrator, dt=s["dt"],
+                           options=_options(strategy, s["options"]))  # fmt: skip
+    ledger = _BlocksLedger(sim.model, sim.state)
     failure, done, iterations = None, 0, 0
-    for _ in range(steps):
+    for _ in range(int(round(s["t_end"] / sim.dt))):
         try:
             report = sim.step()
         except bfemp.StepError as err:
@@ -340,20 +333,14 @@ def _blocks_barrier(s: dict) -> dict:
             break
         done += 1
         iterations += report.newton_iterations
-    drift = np.linalg.norm(diagnostics.linear_momentum(model, sim.state) - p0) / np.linalg.norm(p0)
-    return {
-        "energy_loss": 1.0 - energy(sim.state) / e0,
-        "momentum_drift_rel": float(drift),
-        "steps": done,
-        "dt_s": float(sim.dt),
-        "iterations": int(iterations),
-        "nodes_per_block": int(model.fem_bodies[0].n_nodes),
-        "min_distance": float(np.nanmin(sim.metrics.column("min_distance")[1:]))
-        if "min_distance" in sim.metrics.columns and done
-        else None,
-        **penetration_summary(sim),
-        "failure": failure,
-    }
+    m = sim.metrics
+    closest = (
+        float(np.nanmin(m.column("min_distance")[1:]))
+        if "min_distance" in m.columns and done
+        else None
+    )
+    return {**ledger.end(sim.state, done), "dt_s": float(sim.dt), "iterations": int(iterations),
+            "min_distance": closest, **penetration_summary(sim), "failure": failure}  # fmt: skip
 
 
 # ----------------------------------------------------------------------------- lr_compression

@@ -27,9 +27,14 @@ from __future__ import annotations
 
 import math
 
+from benchmarks.catalogue import RINGS_DISCRETISATION, SLOPE_PHYSICS, SLOPE_TIMES
+
 #: scene knobs -> +1 when a larger value is finer (more accurate, costlier), -1 when smaller is
 SCENE_FINER = {"dx": -1, "ppc": 1, "spacing": -1, "dhat": -1, "eps_v": -1}
 _HERTZ_PAPER_SPACING = math.sqrt(math.pi / 42920)  # m: the paper's particle count in the disk
+#: the slope's discretisation (the paper's) and friction of every point
+_SLOPE_BASE = dict(dx=SLOPE_PHYSICS["dx_m"], ppc=4, dhat=SLOPE_PHYSICS["dhat_m"],
+                   eps_v=SLOPE_PHYSICS["eps_v_m_s"], mu=0.1)  # fmt: skip
 _SOFT = "the softened slope of two_stage_slope (E = 1e5 Pa instead of 4e12, kappa 1e6 Pa)"
 # the hertz and hertz_soft scenes share their discretisation (hertz_soft changes the material)
 _HERTZ_QUICK_BASE = dict(dx=0.05, spacing=0.035, dhat=1e-4, eps_v=1e-3, material="linear") | dict(
@@ -43,15 +48,14 @@ _HERTZ_FULL = {
     | {"spacing": (2.0 * _HERTZ_PAPER_SPACING, _HERTZ_PAPER_SPACING)}
     | {"dhat": (2e-4, 1e-4, 5e-5), "eps_v": (1e-4, 1e-5, 1e-6)},
 }
+_HERTZ_BARRIER = {
+    "dt": {"quick": 6e-2, "full": 1e-2},
+    "options": {"tol": 1e-4, "max_newton_iterations": 500},
+}
 _HERTZ_SOFT = (
     "E = 1e5 Pa instead of 1e10, kappa scaled with E, the top plate as stiff as the disk and "
     "16 x denser, both plates meshed at dx / 2"
 )
-_STIFF = (
-    "explicit at the paper's stiffness needs a step the scene cannot afford and the repo has no "
-    "softened variant of it"
-)
-
 # the strip is scripted whole: no FEM cell takes part in the explicit stable step, so the FEM
 # fraction changes nothing (measured: cfl_safety_fem = 0.25 took the base's steps, 1468 at the
 # quick base and 42 per 0.01 s at the full base, with the base's error in the quick sweep)
@@ -82,7 +86,7 @@ SCENES = {
                 "sweeps": {"dx": (0.5, 1.0 / 3.0), "ppc": (4, 9), "dhat": (2e-2, 1e-2)},
             },
             "full": {
-                "base": dict(dx=0.1, ppc=9, dhat=1e-2, fem_h=0.13, t_end=0.3),
+                "base": dict(**RINGS_DISCRETISATION["full"], dhat=1e-2, t_end=0.3),
                 "sweeps": {"dx": (0.2, 0.1), "ppc": (4, 9, 16), "dhat": (2e-2, 1e-2, 5e-3)},
             },
         },
@@ -116,7 +120,7 @@ SCENES = {
             },
         },
         "not_applicable": {
-            "single_field": "no contact algorithm: the FEM ring and the MPM ring never interact",
+            "single_field": "no contact algorithm: the FEM ring and the MPM ring never interact"
         },
     },
     "slope": {
@@ -128,18 +132,12 @@ SCENES = {
         "scene_knobs": ("dx", "ppc", "dhat", "eps_v"),
         "modes": {
             "quick": {
-                "base": dict(
-                    dx=5e-3, ppc=4, dhat=1e-3, eps_v=1e-5, mu=0.1, settle_s=0.02, release_s=0.03
-                )
-                | {"fit_start_s": 0.01},
+                "base": _SLOPE_BASE | SLOPE_TIMES["quick"],
                 "sweeps": {"dx": (1e-2, 5e-3), "ppc": (4, 9), "dhat": (2e-3, 1e-3)}
                 | {"eps_v": (1e-4, 1e-5)},
             },
             "full": {
-                "base": dict(
-                    dx=5e-3, ppc=4, dhat=1e-3, eps_v=1e-5, mu=0.1, settle_s=0.1, release_s=0.2
-                )
-                | {"fit_start_s": 0.05},
+                "base": _SLOPE_BASE | SLOPE_TIMES["partial"],
                 "sweeps": {"dx": (1e-2, 5e-3, 2.5e-3), "ppc": (4, 9, 16)}
                 | {"dhat": (2e-3, 1e-3, 5e-4), "eps_v": (1e-4, 1e-5, 1e-6)},
             },
@@ -189,13 +187,7 @@ SCENES = {
             },
             "full": _HERTZ_FULL,
         },
-        "strategies": {
-            "barrier": {
-                "dt": {"quick": 6e-2, "full": 1e-2},
-                "options": {"tol": 1e-4, "max_newton_iterations": 500},
-                "note": "backward Euler (hertz)",
-            },
-        },
+        "strategies": {"barrier": _HERTZ_BARRIER | {"note": "backward Euler (hertz)"}},
         "not_applicable": {
             s: "E = 1e10 Pa disk: the explicit stable step scales as E^-1/2, 1.7e-6 s from the "
             "5.4e-4 s measured at E = 1e5 Pa (3.5e5 steps to 0.6 s); the explicit strategies run "
@@ -219,11 +211,8 @@ SCENES = {
             "full": _HERTZ_FULL,
         },
         "strategies": {
-            "barrier": {
-                "dt": {"quick": 6e-2, "full": 1e-2},
-                "options": {"tol": 1e-4, "max_newton_iterations": 500},
-                "note": "backward Euler on the softened disk (hertz.SOFT)",
-            },
+            "barrier": _HERTZ_BARRIER
+            | {"note": "backward Euler on the softened disk (hertz.SOFT)"},
             "two_stage": {
                 "dt": {"quick": "auto", "full": "auto"},
                 "options": {"tol": 1e-4},
@@ -361,7 +350,7 @@ SCENES = {
                 "options": {},
                 "no_knobs": {"cfl_safety_fem": "no FEM body: the FEM bound does not exist"},
                 "note": "FLIP, dt = 'auto' (lr_compression); dx and ppc are the paper's, fixed",
-            },
+            }
         },
         "not_applicable": {
             "barrier": "MPM-MPM contact: barrier couples MPM to FEM only",
@@ -371,8 +360,3 @@ SCENES = {
         },
     },
 }
-
-
-def strategies_of(scene: str) -> tuple[str, ...]:
-    """The strategies declared for ``scene``, in declaration order."""
-    return tuple(SCENES[scene]["strategies"])

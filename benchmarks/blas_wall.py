@@ -186,5 +186,5 @@ def measure(
     return payload
 
 
-BENCHMARK = register(Benchmark("blas_wall", __doc__, MODES, measure, takes_out=True))
+BENCHMARK = register(Benchmark("blas_wall", __doc__, MODES, measure, needs_out=True))
 run = BENCHMARK.run

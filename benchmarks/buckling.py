@@ -511,6 +511,6 @@ def main_from_args(args: argparse.Namespace) -> int:
 
 # the committed records of modes other than full carry the mode in their names
 BENCHMARK = register(
-    Benchmark(NAME, __doc__, MODES, measure, plot, record=name_unless("full", NAME), takes_out=True)
+    Benchmark(NAME, __doc__, MODES, measure, plot, record=name_unless("full", NAME), needs_out=True)
 )
 run = BENCHMARK.run

@@ -83,6 +83,14 @@ TOL = 1e-6  # m/s
 
 WINDOW = (0.025, 0.293)  # s: the paper's collision window
 
+#: the rings' MPM grid spacing ``dx`` (m), particles per cell ``ppc`` and FEM edge ``fem_h`` (m):
+#: the paper's (full), the MPM grid coarsened 2x (partial: what a 2-core machine runs) and quick
+RINGS_DISCRETISATION = {
+    "full": dict(dx=0.1, ppc=9, fem_h=0.13),
+    "partial": dict(dx=0.2, ppc=4, fem_h=0.13),
+    "quick": dict(dx=1.0 / 3.0, ppc=4, fem_h=1.0 / 3.0),
+}
+
 
 def rings_grid_origin(cfg: dict) -> tuple[float, float]:
     """Grid origin shifted by a quarter of the particle spacing off the sampling lattice.
@@ -213,6 +221,13 @@ SLOPE_PHYSICS = {
     "stop_plane_mesh": "rectangle 0.01 m x 0.037 m, from 3 dhat above the slope, h = 0.01 m",
 }
 
+
+#: the slope's settling, release and fit start (s after release) of the shortened runs (the
+#: paper's are 0.1, 0.5 and 0.1 s)
+SLOPE_TIMES = {
+    "partial": dict(settle_s=0.1, release_s=0.2, fit_start_s=0.05),
+    "quick": dict(settle_s=0.02, release_s=0.03, fit_start_s=0.01),
+}
 
 #: variant -> (frame, slope mesh size h in m)
 SLOPE_VARIANTS = {
@@ -421,37 +436,31 @@ def release_slope(
 
 
 # ----------------------------------------------------------------------------- blocks
+#: the blocks' material: E = 1e5 Pa, nu = 0.3, 1000 kg/m^dim
+_BLOCK = bfemp.NeoHookean(E=1e5, nu=0.3, density=1000.0)
+
+
 def fem_block_scene(dim: int, n: tuple[int, ...]) -> bfemp.Scene:
-    """A Neo-Hookean FEM block (E = 1e5 Pa, nu = 0.3, 1000 kg/m^dim) of ``n`` cells per axis,
-    h = 1 / n[-1] m, its x = 0 face fixed, under gravity (``perf_fem``, the solver tests)."""
+    """A Neo-Hookean FEM block (``_BLOCK``) of ``n`` cells per axis, h = 1 / n[-1] m, its x = 0
+    face fixed, under gravity (``perf_fem``, the solver tests)."""
     h = 1.0 / n[-1]
-    upper = tuple(k * h for k in n)
-    lower = (0.0,) * dim
-    mesh = (
-        bfemp.shapes.rectangle(lower, upper, h=h)
-        if dim == 2
-        else bfemp.shapes.box(lower, upper, h=h)
-    )
-    g = (0.0,) * (dim - 1) + (-9.81,)
-    scene = bfemp.Scene(dim=dim, gravity=g)
-    scene.add_fem(
-        mesh,
-        material=bfemp.NeoHookean(E=1e5, nu=0.3, density=1000.0),
-        prescribed=bfemp.motion.Fixed(),
-        prescribed_nodes=mesh.points[:, 0] < 1e-9,
-        name="block",
-    )
+    shape = bfemp.shapes.rectangle if dim == 2 else bfemp.shapes.box
+    mesh = shape((0.0,) * dim, tuple(k * h for k in n), h=h)
+    scene = bfemp.Scene(dim=dim, gravity=(0.0,) * (dim - 1) + (-9.81,))
+    fixed = mesh.points[:, 0] < 1e-9
+    scene.add_fem(mesh, material=_BLOCK, prescribed=bfemp.motion.Fixed(), prescribed_nodes=fixed,
+                  name="block")  # fmt: skip
     return scene
 
 
 def mpm_block_scene(dim: int, cells: tuple[int, ...], ppc: int) -> bfemp.Scene:
-    """A Neo-Hookean MPM block (E = 1e5 Pa, nu = 0.3) of ``cells`` grid cells (dx = 1 /
-    cells[0] m), ``ppc`` particles per cell, on a slip floor under gravity (``perf_mpm``)."""
+    """A Neo-Hookean MPM block (``_BLOCK``) of ``cells`` grid cells (dx = 1 / cells[0] m),
+    ``ppc`` particles per cell, on a slip floor under gravity (``perf_mpm``)."""
     dx = 1.0 / cells[0]
     upper = tuple(c * dx for c in cells)
     x, vol = bfemp.sample.box((0.0,) * dim, upper, dx=dx, ppc=ppc)
     scene = bfemp.Scene(dim=dim, gravity=(0.0,) * (dim - 1) + (-9.81,))
-    scene.add_mpm(x, vol, material=bfemp.NeoHookean(E=1e5, nu=0.3, density=1000.0))
+    scene.add_mpm(x, vol, material=_BLOCK)
     scene.set_grid(dx=dx)
     normal = (0.0,) * (dim - 1) + (1.0,)
     scene.add_boundary(bfemp.levelset.HalfPlane(point=(0.0,) * dim, normal=normal), "slip")

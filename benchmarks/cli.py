@@ -19,31 +19,21 @@ __all__ = ["add_commands"]
 def add_commands(sub: argparse._SubParsersAction) -> dict[str, Callable[[argparse.Namespace], int]]:
     """Add the ``bench`` and ``sweep`` sub-commands to ``sub``; returns their handlers."""
     from benchmarks import tradeoff
+    from benchmarks.runner import mode_options
 
     bench = sub.add_parser("bench", help="run a benchmark (python -m benchmarks NAME)")
     bench.add_argument("name", help="benchmark name")
-    _mode_options(bench)
-    bench.add_argument("--out", default="results", help="output folder (default results/)")
+    mode_options(bench)
 
     sweep = sub.add_parser(
         "sweep",
         help="trade study: accuracy against cost of the discretisation knobs "
         "(python -m benchmarks tradeoff)",
     )
-    _mode_options(sweep)
-    sweep.add_argument("--out", default="results", help="output folder (default results/)")
+    mode_options(sweep)
     tradeoff.add_arguments(sweep)
     sweep.add_argument("--verbose", action="store_true", help="log every point as it finishes")
     return {"bench": _bench, "sweep": tradeoff.main_from_args}
-
-
-def _mode_options(parser: argparse.ArgumentParser) -> None:
-    mode = parser.add_mutually_exclusive_group()
-    mode.add_argument("--quick", action="store_const", const="quick", dest="mode")
-    mode.add_argument("--full", action="store_const", const="full", dest="mode")
-    mode.add_argument(
-        "--mode", dest="mode", help="another mode of the benchmark (rings: partial; hertz: refined)"
-    )
 
 
 def _bench(args: argparse.Namespace) -> int:

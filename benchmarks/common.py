@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import os
 import platform
 import resource
@@ -61,6 +62,20 @@ def environment() -> dict:
     }
 
 
+def json_ready(value: object) -> object:
+    """``value`` with numpy scalars as Python numbers and NaN and infinities as None, through
+    dicts (keys as strings), lists and tuples: what strict JSON holds."""
+    if isinstance(value, dict):
+        return {str(k): json_ready(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [json_ready(v) for v in value]
+    if hasattr(value, "item") and not isinstance(value, str):  # numpy scalar
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
 def peak_memory_mb() -> float:
     """Peak resident memory of this process in MiB."""
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
@@ -86,6 +101,11 @@ def save(fig, path: str | Path, axes=(), title: str | None = None, legend: str =
     if title is not None:
         fig.suptitle(title)
     fig.savefig(path, dpi=110)
+
+
+def table_head(*columns: str) -> list[str]:
+    """The header row and the separator row of a Markdown table of ``columns``."""
+    return [f"| {' | '.join(columns)} |", "|" + "---|" * len(columns)]
 
 
 def write_json(out: str | Path, name: str, payload: dict) -> Path:

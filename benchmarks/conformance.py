@@ -49,14 +49,9 @@ from pathlib import Path
 import numpy as np
 
 import bfemp
-from benchmarks._conformance_scenes import (
-    Case,
-    body_mass_arrays,
-    body_positions,
-    cases,
-)
-from benchmarks.common import environment, peak_memory_mb, write_json
-from benchmarks.runner import Benchmark, register
+from benchmarks._conformance_scenes import Case, body_mass_arrays, body_positions, cases
+from benchmarks.common import figure, table_head
+from benchmarks.runner import Benchmark, name_unless, register
 from bfemp.steppers import STRATEGIES, StepError
 from bfemp.steppers.capabilities import scene_pairs
 
@@ -268,44 +263,27 @@ def run_cell(case: Case, strategy: str, mode: str) -> dict:
     return row
 
 
-def run(
-    mode: str,
-    out: str | Path,
-    *,
-    strategies: list[str] | None = None,
-    case_names: list[str] | None = None,
+def measure(
+    mode: str, cfg: object, strategies: list[str] | None = None, case_names: list[str] | None = None
 ) -> dict:
-    """Run the catalogue (``mode`` ``"quick"`` or ``"full"``) and write the record to ``out``."""
-    if mode not in ("quick", "full"):
-        raise ValueError(f"conformance: mode must be 'quick' or 'full', got {mode!r}")
+    """Every case (``case_names``, None: all) of ``mode`` under each strategy (None: all)."""
     strategies = list(STRATEGIES) if strategies is None else strategies
-    start = time.perf_counter()
     rows = [run_cell(c, s, mode) for c in cases(case_names) for s in strategies]
-    payload = {
-        "benchmark": "conformance",
-        "mode": mode,
+    capabilities = {s: STRATEGIES[s].capabilities for s in strategies}
+    return {
         "strategies": strategies,
         "capabilities": {
             s: {
-                "pairs": dict(STRATEGIES[s].capabilities.pairs),
-                "friction": STRATEGIES[s].capabilities.friction,
-                "penetration_bound_cells": STRATEGIES[s].capabilities.penetration_bound_cells,
+                "pairs": dict(c.pairs),
+                "friction": c.friction,
+                "penetration_bound_cells": c.penetration_bound_cells,
             }
-            for s in strategies
-        },
+            for s, c in capabilities.items()
+        },  # fmt: skip
         "limits": LIMITS,
         "rows": rows,
         "n_fail": sum(r["verdict"] == "FAIL" for r in rows),
-        "wall_s": time.perf_counter() - start,
-        "peak_memory_mb": peak_memory_mb(),
-        "environment": environment(),
     }
-    out = Path(out)
-    name = "conformance" if mode == "full" else "conformance_quick"
-    write_json(out, name, payload)
-    (out / f"{name}.md").write_text(report_markdown(payload))
-    plot_table(payload, out / f"{name}.png")
-    return payload
 
 
 def _cell_text(row: dict) -> str:
@@ -338,8 +316,7 @@ def report_markdown(payload: dict) -> str:
         "`refused`: the strategy does not couple a pair of the scene (refused by name); "
         "`named failure`: a step stopped with a named status.",
         "",
-        "| case | " + " | ".join(strategies) + " |",
-        "|---|" + "---|" * len(strategies),
+        *table_head("case", *strategies),
     ]
     for name in names:
         cells = [_cell_text(by[(name, s)]) for s in strategies]
@@ -378,10 +355,7 @@ def readme_table(payload: dict) -> str:
     in a named failure, broke a guarantee (FAIL) or missed an accuracy limit."""
     strategies = payload["strategies"]
     families = list(dict.fromkeys(_family(r["case"]) for r in payload["rows"]))
-    lines = [
-        "| strategy | " + " | ".join(f.replace("_", " ") for f in families) + " |",
-        "|---|" + "---|" * len(families),
-    ]
+    lines = table_head("strategy", *(f.replace("_", " ") for f in families))
     for s in strategies:
         cells = []
         for fam in families:
@@ -411,8 +385,6 @@ def readme_table(payload: dict) -> str:
 def plot_table(payload: dict, path: Path) -> None:
     """The strategy x case table in colour (green pass, yellow accuracy miss, red FAIL, blue
     named failure, grey refused)."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
     from matplotlib.patches import Rectangle
 
     strategies = payload["strategies"]
@@ -424,9 +396,7 @@ def plot_table(payload: dict, path: Path) -> None:
         "NAMED_FAILURE": "#42a5f5",
         "REFUSED": "#bdbdbd",
     }
-    fig = Figure(figsize=(2.0 + 1.6 * len(strategies), 0.9 + 0.32 * len(names)))
-    FigureCanvasAgg(fig)
-    ax = fig.add_subplot(1, 1, 1)
+    fig, ax = figure((2.0 + 1.6 * len(strategies), 0.9 + 0.32 * len(names)))
     for i, name in enumerate(names):
         for j, s in enumerate(strategies):
             r = by[(name, s)]
@@ -445,4 +415,8 @@ def plot_table(payload: dict, path: Path) -> None:
     fig.savefig(path, dpi=110)
 
 
-BENCHMARK = register(Benchmark("conformance", __doc__, {}, None, own_run=run))
+BENCHMARK = register(
+    Benchmark("conformance", __doc__, {"quick": {}, "full": {}}, measure, plot_table,
+              report_markdown, record=name_unless("full", "conformance"))
+)  # fmt: skip
+run = BENCHMARK.run

@@ -59,6 +59,7 @@ shows the outcome grid and per-case values of every strategy.
 
 from __future__ import annotations
 
+import argparse
 import logging
 import math
 import time
@@ -91,8 +92,8 @@ from benchmarks._extreme_strategies import (
     not_applicable,
     strategy_options,
 )
-from benchmarks.common import environment, peak_memory_mb
-from benchmarks.runner import Benchmark, register, write_record
+from benchmarks.common import json_ready
+from benchmarks.runner import Benchmark, name_unless, register
 from geometry.mesh import TriMesh
 from geometry.sampling import points_in_mesh
 
@@ -203,19 +204,6 @@ class _Checks:
         return problems
 
 
-def _clean(obj: object) -> object:
-    """``obj`` with numpy scalars as Python numbers and non-finite floats as None (strict JSON)."""
-    if isinstance(obj, dict):
-        return {k: _clean(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_clean(v) for v in obj]
-    if isinstance(obj, np.integer | np.bool_):
-        return obj.item()
-    if isinstance(obj, float | np.floating):
-        return float(obj) if math.isfinite(obj) else None
-    return obj
-
-
 def _finite(value: float) -> float | None:
     return float(value) if value is not None and math.isfinite(value) else None
 
@@ -313,12 +301,7 @@ def run_case(case: Case, mode: str, strategy: str = "barrier") -> dict:
 
 
 def _run(
-    sim: bfemp.Simulation,
-    case: Case,
-    mode: str,
-    strategy: str,
-    info: dict,
-    warnings: list[str],
+    sim: bfemp.Simulation, case: Case, mode: str, strategy: str, info: dict, warnings: list[str]
 ) -> dict:
     """Step ``sim`` through the case with the checks; returns the row's measured values."""
     cfg = case.config
@@ -514,30 +497,18 @@ def resolve_strategies(names: list[str] | tuple[str, ...] | None) -> tuple[str, 
     return tuple(s for s in STRATEGY_NAMES if s in names)
 
 
-def output_name(mode: str) -> str:
-    """File stem of the records of ``mode``: ``extremes`` (full), ``extremes_quick``, ..."""
-    return NAME if mode == "full" else f"{NAME}_{mode}"
+def measure(mode: str, cfg: dict, strategy: list[str] | None = None) -> dict:
+    """Every case of ``mode`` under each strategy (``strategy``: names, None or ``all``: every
+    one): the table (module docstring)."""
+    strategies = resolve_strategies(strategy)
 
-
-def run(
-    mode: str = "full", out: str | Path = "results", strategies: tuple[str, ...] | None = None
-) -> dict:
-    """Run every case of ``mode`` under each strategy (None: all) and write the table
-    (``extremes.json``, ``.md``, ``.png``; ``extremes_quick.*`` in quick mode)."""
-    if mode not in MODES:
-        raise ValueError(f"mode must be one of {sorted(MODES)}, got {mode!r}")
-    strategies = resolve_strategies(strategies)
-    out = Path(out)
     cases = quick_cases() if mode == "quick" else CASES
-    started = time.perf_counter()
     rows = [run_case(case, mode, s) for s in strategies for case in cases]
-    wall = time.perf_counter() - started
     every = [run for r in rows for run in _runs(r)]
     by_strategy = {s: _counts([r for r in rows if r["strategy"] == s]) for s in strategies}
     counts = _counts(rows)
+    del counts["wall_s"]  # the run's wall time is the runner's (scene builds included)
     payload = {
-        "benchmark": NAME,
-        "mode": mode,
         "strategies": list(strategies),
         **counts,
         "n_cases": len(cases),
@@ -559,9 +530,7 @@ def run(
             for s in strategies
         },
         "min_J": min((run["min_J"] for run in every if run.get("min_J") is not None), default=None),
-        "wall_s": wall,
         "newton_iterations": int(sum(run.get("newton_iterations", 0) for run in every)),
-        "peak_memory_mb": peak_memory_mb(),
         "table": {
             case.name: {
                 r["strategy"]: r["status"]
@@ -573,7 +542,7 @@ def run(
         },
         "by_strategy": by_strategy,
         "parameters": {
-            "mode": MODES[mode],
+            "mode": cfg,
             "scene_size_m": SCENE_SIZE,
             "energy_tol": ENERGY_TOL,
             "drift_tol_dhat": DRIFT_TOL,
@@ -584,16 +553,12 @@ def run(
             "base": "see benchmarks/_extreme_cases.py: free FEM slab, MPM block at 40 m/s",
         },
         "cases": rows,
-        "environment": environment(),
     }
-    payload = _clean(payload)
-    name = output_name(mode)
-    plot = lambda payload, png: plot_cases(payload, png, title=f"extremes ({mode})")  # noqa: E731
-    return write_record(out, name, payload, plot, markdown_table)
+    return json_ready(payload)
 
 
 # ---------------------------------------------------------------------------------- CLI
-def add_arguments(parser) -> None:
+def _arguments(parser: argparse._ActionsContainer) -> None:
     """``--strategy NAME`` (repeatable; ``all``, the default, runs every strategy)."""
     parser.add_argument(
         "--strategy",
@@ -603,12 +568,12 @@ def add_arguments(parser) -> None:
     )
 
 
-def main_from_args(args) -> int:
-    summary = run(args.mode or "full", args.out, resolve_strategies(args.strategy))
-    print(f"extremes: wrote {summary['json']}")
-    return 0
+def _plot(payload: dict, png: Path) -> None:
+    plot_cases(payload, png, title=f"extremes ({payload['mode']})")
 
 
 BENCHMARK = register(
-    Benchmark(NAME, __doc__, {}, None, record=lambda mode, _: output_name(mode), own_run=run)
-)
+    Benchmark(NAME, __doc__, MODES, measure, _plot, markdown_table,
+              record=name_unless("full", NAME), arguments=_arguments)
+)  # fmt: skip
+run = BENCHMARK.run

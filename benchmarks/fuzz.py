@@ -36,7 +36,6 @@ from __future__ import annotations
 
 import argparse
 import collections
-import dataclasses
 import json
 import logging
 import math
@@ -52,8 +51,9 @@ import numpy as np
 from benchmarks import _fuzz_scenes as scenes
 from benchmarks._crossing_oracle import MAX_SAMPLES, Bodies, judge_step
 from benchmarks._tradeoff_cache import code_version
-from benchmarks.common import environment, git_commit
-from benchmarks.runner import Benchmark, register, write_record
+from benchmarks.common import git_commit
+from benchmarks.runner import Benchmark, name_unless, register
+from bfemp.steppers import STRATEGIES
 
 log = logging.getLogger(__name__)
 
@@ -70,8 +70,6 @@ _STATUS = re.compile(r"[A-Z][A-Z0-9_]+")
 
 def no_crossing_strategies() -> list[str]:
     """The registered strategies whose capabilities state a penetration bound of 0."""
-    from bfemp.steppers import STRATEGIES
-
     return [
         name
         for name, cls in STRATEGIES.items()
@@ -100,32 +98,17 @@ def pair_kind(case: dict) -> str:
 def _simulation(scene, case: dict):
     import bfemp
 
-    if _is_explicit(case["strategy"]):
-        from bfemp.steppers import STRATEGIES
-
-        options = STRATEGIES[case["strategy"]].Options(
-            cfl_safety_fem=case["cfl"][0], cfl_safety_mpm=case["cfl"][1]
-        )
-        return bfemp.Simulation(
-            scene,
-            strategy=case["strategy"],
-            dt="auto",
-            options=options,  # its own Newton cap (TwoStageOptions: 200)
-        )
-    return bfemp.Simulation(
-        scene,
-        strategy=case["strategy"],
-        integrator=case["integrator"],
-        dt=case["dt"],
-        max_newton_iterations=NEWTON_CAP,
-    )
+    if _is_explicit(case["strategy"]):  # its own Newton cap (TwoStageOptions: 200)
+        cfl = dict(zip(("cfl_safety_fem", "cfl_safety_mpm"), case["cfl"], strict=True))
+        options = STRATEGIES[case["strategy"]].Options(**cfl)
+        return bfemp.Simulation(scene, strategy=case["strategy"], dt="auto", options=options)
+    return bfemp.Simulation(scene, strategy=case["strategy"], integrator=case["integrator"],
+                            dt=case["dt"], max_newton_iterations=NEWTON_CAP)  # fmt: skip
 
 
 def _is_explicit(strategy: str) -> bool:
-    """Whether the strategy steps at an explicit stable step (its options have CFL fractions)."""
-    from bfemp.steppers import STRATEGIES
-
-    return "cfl_safety_fem" in {f.name for f in dataclasses.fields(STRATEGIES[strategy].Options)}
+    """Whether the strategy steps at an explicit stable step."""
+    return STRATEGIES[strategy].explicit
 
 
 def _closing_speed(case: dict) -> float:
@@ -300,13 +283,11 @@ def markdown(payload: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def run(
-    mode: str = "full",
-    out: str | Path = "results",
-    workers: int | None = None,
-    resume: bool = False,
+def measure(
+    mode: str, cfg: object, out: str | Path, workers: int | None = None, resume: bool = False
 ) -> dict:
-    """Run the fuzz cases of ``mode``; writes ``fuzz[_quick].json`` and ``.md`` to ``out``."""
+    """The fuzz cases of ``mode``, each appended to ``out/fuzz_cases_<mode>.jsonl`` as it
+    finishes (``resume``: keep those of the same code); ``workers`` processes (None: cores)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     todo = cases(mode)
@@ -349,10 +330,7 @@ def run(
                 log.info("fuzz: %d of %d cases (%.0f s)", i, n, time.perf_counter() - t0)
 
         _run_all(todo, workers, keep)
-    name = "fuzz" if mode == "full" else f"fuzz_{mode}"
-    payload = {
-        "benchmark": "fuzz",
-        "mode": mode,
+    return {
         "commit": commit,
         "code": code,
         "strategies": no_crossing_strategies(),
@@ -363,12 +341,10 @@ def run(
         "resumed": resumed,
         "wall_s": time.perf_counter() - t0,
         "summary": summarise(results),
-        "environment": environment(),
     }
-    return write_record(out, name, payload, report=markdown)
 
 
-def add_arguments(parser: argparse.ArgumentParser) -> None:
+def _arguments(parser: argparse._ActionsContainer) -> None:
     """``--workers`` and ``--resume`` (``python -m benchmarks fuzz``)."""
     parser.add_argument("--workers", type=int, help="processes at once (default: cores)")
     parser.add_argument(
@@ -376,11 +352,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def main_from_args(args: argparse.Namespace) -> int:
-    summary = run(args.mode or "full", args.out, workers=args.workers, resume=args.resume)
-    total = summary["summary"]["total"]["outcomes"]
-    print(f"fuzz: wrote {summary['json']}: " + ", ".join(f"{k} {v}" for k, v in total.items()))
-    return 0
-
-
-BENCHMARK = register(Benchmark("fuzz", __doc__, {}, None, own_run=run))
+BENCHMARK = register(
+    Benchmark("fuzz", __doc__, dict.fromkeys(CASES, {}), measure, report=markdown,
+              record=name_unless("full", "fuzz"), arguments=_arguments, needs_out=True)
+)  # fmt: skip
+run = BENCHMARK.run

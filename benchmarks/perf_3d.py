@@ -144,7 +144,7 @@ BENCHMARK = register(
         measure,
         record=lambda mode, _: f"perf_3d_{mode}",
         timings=PERF_TIMINGS + "|^fastest_step$",  # the fastest solver: a timing result
-        takes_out=True,
+        needs_out=True,
     )
 )
 run = BENCHMARK.run

@@ -693,7 +693,7 @@ def measure(mode: str, cfg: dict, out: Path) -> dict:
 # the committed records of modes other than full carry the mode in their names
 BENCHMARK = register(
     Benchmark(
-        NAME, __doc__, MODES, measure, plot=_plot, record=name_unless("full", NAME), takes_out=True
+        NAME, __doc__, MODES, measure, plot=_plot, record=name_unless("full", NAME), needs_out=True
     )
 )
 run = BENCHMARK.run

@@ -5,7 +5,8 @@ A benchmark module builds its entry and registers it::
     BENCHMARK = register(Benchmark(NAME, "title", MODES, measure, plot=_plot))
     run = BENCHMARK.run  # run(mode, out, **options) -> {"json": path, "png": path, ...}
 
-``measure(mode, cfg, **options)`` returns the record's payload (``cfg`` is ``modes[mode]``); the
+``measure(mode, cfg, **options)`` returns the record's payload (``cfg`` is ``modes[mode]``;
+``options`` from the command line where the entry declares ``arguments``); the
 runner (``Benchmark.run``) checks the mode, records the environment before the measurement and
 the peak memory after it, adds ``benchmark``, ``mode`` and ``wall_s`` where the payload has none,
 writes ``out/STEM.json`` (``STEM`` from ``record(mode)``), the optional ``.md`` report and the
@@ -16,6 +17,7 @@ optional plot. ``python -m benchmarks NAME`` finds every registered entry (``cat
 
 from __future__ import annotations
 
+import argparse
 import importlib
 import json
 import math
@@ -60,8 +62,11 @@ class Benchmark:
         own_run: ``own_run(mode, out) -> summary`` of a benchmark not yet on the runner.
         aliases: other names that run this entry (old names of merged benchmarks), each with
             the options it implies: ``{alias: {option: value}}``.
-        takes_out: ``measure`` is also given ``out=Path(out)``, for a benchmark that keeps
-            files beside its record (checkpoints, child processes' records, a previous record).
+        arguments: ``arguments(group)`` adds the benchmark's own command-line options to an
+            argparse group; ``python -m benchmarks NAME`` passes their values to ``measure``.
+        needs_out: ``measure`` also takes ``out=Path(out)``, the output folder, for a benchmark
+            that keeps files beside its record (finished cases to resume a stopped run,
+            checkpoints, child processes' records, a previous record).
     """
 
     name: str
@@ -74,7 +79,8 @@ class Benchmark:
     timings: str = ""
     own_run: Callable[[str, str | Path], dict] | None = None
     aliases: Mapping[str, Mapping] = field(default_factory=dict)
-    takes_out: bool = False
+    arguments: Callable[[argparse._ActionsContainer], None] | None = None
+    needs_out: bool = False
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "title", self.title.strip().split("\n")[0])
@@ -104,8 +110,8 @@ class Benchmark:
         cfg = self.check_mode(mode)
         env = environment()  # before the run: the commit that ran, not the one at the end
         started = time.perf_counter()
-        extra = {"out": Path(out)} if self.takes_out else {}
-        measured = self.measure(mode, cfg, **options, **extra)
+        where = {"out": Path(out)} if self.needs_out else {}
+        measured = self.measure(mode, cfg, **options, **where)
         wall = time.perf_counter() - started
         payload = {"benchmark": self.name, "mode": mode, **measured}
         payload.setdefault("wall_s", wall)
@@ -140,6 +146,22 @@ def write_record(
         if png.exists():  # a plot may have nothing to draw for some options
             summary["png"] = str(png)
     return {**summary, **record}
+
+
+def mode_options(parser: argparse.ArgumentParser) -> None:
+    """``--quick``, ``--full``, ``--mode M`` (one of them; ``args.mode`` None: full) and
+    ``--out DIR``: the options of every benchmark's command line."""
+    mode = parser.add_mutually_exclusive_group()
+    mode.add_argument("--quick", action="store_const", const="quick", dest="mode")
+    mode.add_argument("--full", action="store_const", const="full", dest="mode")
+    mode.add_argument(
+        "--mode",
+        dest="mode",
+        help="another mode of the benchmark (rings: partial; hertz: refined; "
+        "buckling: partial, plate_quick, plate_partial, plate_full; "
+        "twist: partial, partial_probe, full_probe; extremes: coarse)",
+    )
+    parser.add_argument("--out", default="results", help="output folder (default results/)")
 
 
 def register(benchmark: Benchmark) -> Benchmark:

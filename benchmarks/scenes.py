@@ -21,7 +21,7 @@
   2.5e-2 Pa, and the paper's 1e6 Pa); settling as in ``slope``, release at each mu, centre of
   mass fitted after ``fit_start_s``. Targets (T): relative acceleration error against
   g (sin theta - mu cos theta) below ``TARGET_REL``; at mu = tan(theta) the speed after the fit
-  start below ``STICK_FACTOR`` eps_v. Mode ``sticking`` (``run_sticking``) tests 1.05 and
+  start below ``STICK_FACTOR`` eps_v. ``two_stage_slope_sticking`` (``sticking``) tests 1.05 and
   1.5 tan(theta) from rest and records Newton iterations against eps_v.
 
 Measured results are in ``benchmarks/records/`` (``two_stage_rings.md``,
@@ -34,7 +34,7 @@ import argparse
 import logging
 import math
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -42,8 +42,8 @@ import numpy as np
 import bfemp
 from benchmarks import catalogue as cat
 from benchmarks import rings, slope
-from benchmarks.common import environment, figure, peak_memory_mb
-from benchmarks.runner import Benchmark, register, run_named, write_record
+from benchmarks.common import figure
+from benchmarks.runner import Benchmark, register
 from bfemp.steppers.augury import AuguryOptions
 from bfemp.steppers.lr import LROptions
 from bfemp.steppers.two_stage import TwoStageOptions, TwoStageStepper
@@ -61,11 +61,9 @@ RECORD_NAMES = {
 
 #: the rings' discretisations (two_stage's quick runs to 0.15 s, in contact from 0.025 s)
 RINGS_MODES = {
-    "full": dict(dx=0.1, ppc=9, fem_h=0.13, t_end=0.3, transfers=("apic", "flip")),
-    # rings' partial discretisation (MPM dx 0.2 m, ppc 4; the paper's FEM mesh)
-    "partial": dict(dx=0.2, ppc=4, fem_h=0.13, t_end=0.3, transfers=("apic", "flip")),
-    "quick": dict(dx=1.0 / 3.0, ppc=4, fem_h=1.0 / 3.0, t_end=0.15, transfers=("apic",)),
-}
+    m: {**cat.RINGS_DISCRETISATION[m], "t_end": 0.3, "transfers": ("apic", "flip")}
+    for m in ("full", "partial")
+} | {"quick": {**cat.RINGS_DISCRETISATION["quick"], "t_end": 0.15, "transfers": ("apic",)}}
 DRIFT_TARGET = 1e-9
 #: what the comparisons (augury, lr) run per mode: the rings' and the slope's modes
 COMPARE_MODES = {
@@ -96,10 +94,8 @@ SLOPE_MODES = {
     "full": dict(settle_s=0.1, release_s=0.5, fit_start_s=0.1, mus=_ALL_MUS,
                  kappas=("kappa_scaled", "kappa_paper")),
     # what the 2-core machine ran (full: 84,000 steps at ~24 ms, over half an hour)
-    "partial": dict(settle_s=0.1, release_s=0.2, fit_start_s=0.05, mus=_ALL_MUS,
-                    kappas=("kappa_paper",)),
-    "quick": dict(settle_s=0.02, release_s=0.03, fit_start_s=0.01, mus=(0.0, 0.2),
-                  kappas=("kappa_paper",)),
+    "partial": dict(**cat.SLOPE_TIMES["partial"], mus=_ALL_MUS, kappas=("kappa_paper",)),
+    "quick": dict(**cat.SLOPE_TIMES["quick"], mus=(0.0, 0.2), kappas=("kappa_paper",)),
 }  # fmt: skip
 TARGET_REL = {"full": 2e-3, "partial": 2e-3, "quick": 2e-2}
 STICK_FACTOR = 10.0  # mu = 0.2: max speed after the fit start below this many eps_v
@@ -112,6 +108,35 @@ def _strip(run: Mapping) -> dict:
 
 
 # ----------------------------------------------------------------------------- rings
+def _run_rings(sim: bfemp.Simulation, t_end: float, callback: object = None) -> tuple:
+    """Run ``sim`` to ``t_end`` s: ``(common, t, energy)``: ``common`` the record entries every
+    rings run has (its ``StepError`` message or None, dt and steps, wall time, particles, energy
+    loss (%) over the paper's window when reached), ``t (n,)`` s and the kinetic plus elastic
+    energy ``(n,)`` J/m of every step."""
+    started, error = time.perf_counter(), None
+    try:
+        sim.run(t_end=t_end, progress=False, callback=callback)
+    except bfemp.StepError as err:
+        error = str(err)
+        log.error("rings under %s: %s", sim.strategy, err)
+    wall = time.perf_counter() - started
+    m = sim.metrics
+    t = m.column("t")
+    energy = m.column("energy_kinetic") + m.column("energy_elastic")
+    e0, e1 = cat.window_energies(t, energy)
+    reached = t[-1] >= cat.WINDOW[1] - 1e-9
+    common = {"error": error, "dt_s": sim.dt, "steps": int(len(t) - 1), "wall_s": wall,
+              "particles": int(sim.model.n_particles),
+              "energy_loss_pct": 100.0 * (e0 - e1) / e0 if reached else None}  # fmt: skip
+    return common, t, energy
+
+
+def _drift(m: object, scale: float) -> float:
+    """Largest ``|p(t) - p(0)| / scale`` of the linear momentum of the metrics ``m``."""
+    momentum = np.stack([m.column("momentum_x"), m.column("momentum_y")], axis=1)
+    return float((np.linalg.norm(momentum - momentum[0], axis=1) / scale).max())
+
+
 def run_rings(
     cfg: dict, transfer: str, strategy: str = "two_stage", options: object = None
 ) -> dict:
@@ -123,22 +148,12 @@ def run_rings(
     )
     model = sim.model
     check = cat.RingsPenetration(sim)
-    started, error = time.perf_counter(), None
-    try:
-        sim.run(t_end=cfg["t_end"], progress=False, callback=check)
-    except bfemp.StepError as err:
-        error = str(err)
-        log.error("%s rings/%s: %s", strategy, transfer, err)
-    wall = time.perf_counter() - started
+    common, t, energy = _run_rings(sim, cfg["t_end"], check)
     m = sim.metrics
-    t = m.column("t")
-    energy = m.column("energy_kinetic") + m.column("energy_elastic")
-    momentum = np.stack([m.column("momentum_x"), m.column("momentum_y")], axis=1)
     scale = float(
         np.linalg.norm(model.fem_mass @ model.fem_v0)
         + np.linalg.norm(model.mpm_mass @ model.mpm_v0)
     )
-    drift = np.linalg.norm(momentum - momentum[0], axis=1) / scale
     dist = m.column("min_distance")[1:]
     pairs = m.column("contact_pairs")[1:]
     iters = (
@@ -146,21 +161,14 @@ def run_rings(
         if "iterations_newton" in m.columns
         else np.zeros(len(t) - 1)  # a strategy without Newton (augury)
     )
-    e0, e1 = cat.window_energies(t, energy)
-    reached = t[-1] >= cat.WINDOW[1] - 1e-9
     return {
         "transfer": transfer,
-        "error": error,
-        "dt_s": sim.dt,
-        "steps": int(len(t) - 1),
-        "wall_s": wall,
-        "particles": int(model.n_particles),
+        **common,
         "fem_vertices": int(model.n_fem_nodes),
-        "momentum_drift_rel": float(drift.max()),
+        "momentum_drift_rel": _drift(m, scale),
         "min_distance": float(np.nanmin(dist)) if np.isfinite(dist).any() else None,
         "contact_steps": int(np.count_nonzero(pairs > 0)),
         "penetrations": int(check.worst),
-        "energy_loss_pct": 100.0 * (e0 - e1) / e0 if reached else None,
         "newton_iterations": int(np.nansum(iters)),
         "newton_per_contact_step": float(np.nanmean(iters[pairs > 0])) if (pairs > 0).any() else 0,
         "newton_iterations_max": int(np.nanmax(iters)) if iters.size else 0,
@@ -170,37 +178,18 @@ def run_rings(
 
 def _run_mpm_rings(cfg: dict) -> dict:
     """Both rings as MPM bodies under lr (frictionless, ``dt="auto"``)."""
-    sim = bfemp.Simulation(cat.mpm_rings_scene(cfg), strategy="lr", dt="auto",
-                           options=LROptions(law="frictionless"))  # fmt: skip
-    started, error = time.perf_counter(), None
-    try:
-        sim.run(t_end=cfg["t_end"], progress=False)
-    except bfemp.StepError as err:
-        error = str(err)
-    wall = time.perf_counter() - started
-    m, model = sim.metrics, sim.model
-    t = m.column("t")
-    momentum = np.stack([m.column("momentum_x"), m.column("momentum_y")], axis=1)
-    scale = float(np.abs(model.mpm_mass[:, None] * model.mpm_v0).sum())
-    energy = m.column("energy_kinetic") + m.column("energy_elastic")
-    e0, e1 = cat.window_energies(t, energy)
-    reached = t[-1] >= cat.WINDOW[1] - 1e-9
-    # closest approach of the two rings' particles at the end (a crude overlap measure)
-    x = sim.state.mpm_x
-    left = model.mpm_particle_body == 0
     from scipy.spatial import cKDTree
 
+    sim = bfemp.Simulation(cat.mpm_rings_scene(cfg), strategy="lr", dt="auto",
+                           options=LROptions(law="frictionless"))  # fmt: skip
+    common, _, _ = _run_rings(sim, cfg["t_end"])
+    model, x = sim.model, sim.state.mpm_x
+    scale = float(np.abs(model.mpm_mass[:, None] * model.mpm_v0).sum())
+    # closest approach of the two rings' particles at the end (a crude overlap measure)
+    left = model.mpm_particle_body == 0
     gap = float(cKDTree(x[~left]).query(x[left])[0].min())
-    return {
-        "error": error,
-        "dt_s": sim.dt,
-        "steps": int(len(t) - 1),
-        "wall_s": wall,
-        "particles": int(model.n_particles),
-        "momentum_drift_rel": float(np.linalg.norm(momentum - momentum[0], axis=1).max() / scale),
-        "closest_particles_end_m": gap,
-        "energy_loss_pct": 100.0 * (e0 - e1) / e0 if reached else None,
-    }
+    return {**common, "momentum_drift_rel": _drift(sim.metrics, scale),
+            "closest_particles_end_m": gap}  # fmt: skip
 
 
 def _compared_rings(mode: str, strategy: str) -> dict:
@@ -405,149 +394,83 @@ def _plot_two_stage_slope(payload: dict, png: Path) -> None:
 
 
 # ----------------------------------------------------------------------------- sticking
-#: ``run_sticking``'s record: what TS reports and why the cases start from rest
-STICKING_NOTES = {
-    "paper_numbers": "TS (two-page lecture notes) gives no Newton iteration count, benchmark or "
-    "static-friction figure; 'expect 1-3 iterations' was explicit_strategies.md 3.3's guess, "
-    "not TS's, and is not a target here. Nothing is compared with a published figure.",
-    "setup": "release_from 'initial': the unstressed particle lattice at rest, d-hat above the "
-    "slope, friction on from the first step, no stop plane, no settling. release_from "
-    "'settled': settled as two_stage_slope (frictionless, against the slope and the stop "
-    "plane, kappa_paper), every particle velocity and affine velocity then set to zero, "
-    "released without the plane (the plane's removal releases the box's along-slope "
-    "compression: a kick). mu = tan(theta) with a box released still moving (two_stage_slope's "
-    "records: 8.6e-4 m/s at release, 86 eps_v) is an ill-posed sticking test (exact Coulomb "
-    "friction then leaves that speed alone); mu = 1.05 and 1.5 tan(theta) from rest are not. "
-    "The box's elastic vibration (undamped under symplectic Euler) modulates the normal force.",
-    "sticking_criterion": "mean speed along the slope over [fit_start_s, end] (net displacement "
-    "/ time) below eps_v: the mollified friction (BFEMP eq. 36) reaches its Coulomb bound at "
-    "slip speed eps_v, so a sticking box creeps below it, at eps_v (1 - sqrt(1 - tan(theta) / "
-    "mu)) for a rigid box (creep_speed_mollifier_m_s: 0.78 eps_v at 1.05 tan(theta), 0.42 "
-    "eps_v at 1.5); the maximum speed is recorded too, and measures the box's undamped elastic "
-    "vibration, not sliding",
-    "newton_start": "start='auto' (the library default since issue 40, 6bb6211: Newton from x^n "
-    "when friction has a contact within d-hat, where every lagged contact starts in the stick "
-    "regime) is what a user gets and what the sticking cases use; start='free' (Newton from "
-    "the free motion x*, the old default that two_stage_slope.json ran) is recorded beside it "
-    "for the Newton count, which it sets together with eps_v.",
-}
-
-
-#: (Newton start, eps_v in m/s, mu / tan(theta)) of ``run_sticking``'s record
-#: (benchmarks/records/two_stage_slope_sticking.json), in the order run
-STICKING_PLAN = tuple(
-    (start, eps_v, f)
-    for start, eps_v in (
-        ("auto", 1e-5),
-        ("free", 1e-5),
-        ("auto", 1e-4),
-        ("auto", 1e-3),
-        ("free", 1e-3),
+#: ``sticking``'s one mode: ``plan`` holds (Newton start, eps_v in m/s, mu / tan(theta)) in the
+#: order run; what TS reports, the setup and the sticking criterion are in the record's .md
+STICKING_MODES = {
+    "full": dict(
+        plan=tuple(
+            (start, eps_v, f)
+            for start, eps_v in (("auto", 1e-5), ("free", 1e-5), ("auto", 1e-4), ("auto", 1e-3),
+                                 ("free", 1e-3))
+            for f in (1.05, 1.5)
+        ),
+        release_from="initial", release_s=0.1, fit_start_s=0.05, settle_s=0.02,
     )
-    for f in (1.05, 1.5)
-)
+}  # fmt: skip
 
 
-def run_sticking(
-    out: str | Path = "results",
-    plan: tuple[tuple[str, float, float], ...] = STICKING_PLAN,
-    release_from: str = "initial",
-    release_s: float = 0.1,
-    fit_start_s: float = 0.05,
-    settle_s: float = 0.02,
-    name: str = "two_stage_slope_sticking",
-    on_case: Callable[[dict], None] | None = None,
-    cases: list[dict] | None = None,
-) -> dict:
+def sticking(mode: str, cfg: Mapping, release_from: str | None = None) -> dict:
     """Sticking at mu = f tan(theta), released from rest, and Newton iterations per step
-    against eps_v (m/s), for each (Newton start, eps_v, f) of ``plan``; writes
-    ``name``.json/.png.
+    against eps_v (m/s), for each (Newton start, eps_v, f) of ``cfg["plan"]``.
 
-    ``release_from``: ``"initial"`` (no settling: the unstressed lattice at rest at its
-    initial gap d-hat above the slope, friction on from the first step) or ``"settled"``
-    (settled for ``settle_s`` s as ``two_stage_slope``, frictionless against the slope and the
-    stop plane, ``kappa_paper``; the velocities then zeroed; removing the plane releases the
-    box's along-slope compression). Each case runs ``release_s`` s; ``on_case`` is called
-    with each finished case. Per case: Newton iterations per step, the mean speed along the
-    slope over [``fit_start_s``, end] (net displacement / time, m/s: the box's undamped elastic
-    vibration moves its centre back and forth at well above eps_v, so the maximum speed
-    measures the vibration, not sliding) and its ratio to eps_v, the maximum speed, the
-    displacement over the release (m), the fitted acceleration (m/s^2) over [``fit_start_s``,
-    end], and the steady creep speed of the friction mollifier (``sticking_metrics``).
-    ``cases`` (``on_case`` results saved by a long driver, with their series) are recorded,
-    their metrics recomputed at ``fit_start_s``, instead of running ``plan``."""
+    ``release_from`` (default ``cfg``'s): ``"initial"`` (no settling: the unstressed lattice at
+    rest at its initial gap d-hat above the slope, friction on from the first step) or
+    ``"settled"`` (settled for ``settle_s`` s as ``two_stage_slope``, frictionless against the
+    slope and the stop plane, ``kappa_paper``; the velocities then zeroed; removing the plane
+    releases the box's along-slope compression). Each case runs ``release_s`` s. Per case:
+    Newton iterations per step, the mean speed along the slope over [``fit_start_s``, end] (net
+    displacement / time, m/s: the box's undamped elastic vibration moves its centre back and
+    forth at well above eps_v, so the maximum speed measures the vibration, not sliding) and its
+    ratio to eps_v, the maximum speed, the displacement over the release (m), the fitted
+    acceleration (m/s^2) over [``fit_start_s``, end], and the steady creep speed of the
+    friction mollifier (``sticking_metrics``)."""
+    release_from = release_from or cfg["release_from"]
     if release_from not in ("settled", "initial"):
         raise ValueError(f"release_from must be 'settled' or 'initial', got {release_from!r}")
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    started = time.perf_counter()
+    plan, fit_start_s = cfg["plan"], cfg["fit_start_s"]
     base = {**PHYSICS, "kappa_Pa": KAPPAS["kappa_paper"]}
-    ran = cases is None
-    if not ran:  # the saved cases' settling is not in them
-        settle = {"steps": 0} if release_from == "initial" else {"steps": None}
-    elif release_from == "settled":
-        settled, settle = cat.settle_slope("tilted_gravity", round(settle_s / DT), base)
+    if release_from == "settled":
+        settled, settle = cat.settle_slope("tilted_gravity", round(cfg["settle_s"] / DT), base)
         settle["com_speed_before_zeroing_m_s"] = settle.pop("com_speed_at_release_m_s")
         rest = settled.copy()
         rest.mpm_v[:] = 0.0
         rest.mpm_C[:] = 0.0
-    else:  # "initial"
+    else:
         scene = cat.slope_scene("tilted_gravity", 0.0, with_stop=False, p=base)
         rest, settle = cat.slope_simulation(scene, base).state.copy(), {"steps": 0}
-    cases = [] if cases is None else [dict(c) for c in cases]
-    for start, eps_v, f in plan if ran else ():
+    cases = []
+    for start, eps_v, f in plan:
         p = {**base, "eps_v_m_s": eps_v, "options": TwoStageOptions(tol=1e-6, start=start)}
         mu = f * PHYSICS["tan_theta"]
-        case = cat.release_slope("tilted_gravity", mu, rest, round(release_s / DT), fit_start_s, p)
+        steps = round(cfg["release_s"] / DT)
+        case = cat.release_slope("tilted_gravity", mu, rest, steps, fit_start_s, p)
         case.update(start=start, eps_v=eps_v, mu_over_tan_theta=f)
         sticking_metrics(case, fit_start_s)
-        log.info(
-            "%s start=%s eps_v=%g mu=%.3g: %.2f Newton/step, mean speed %s m/s after %g s "
-            "(mollifier creep %.3g), max %.3g m/s, slide %.3g m, %.1f s",
-            name,
-            start,
-            eps_v,
-            mu,
-            case["newton_per_step"],
-            case["mean_speed_after_fit_start"],
-            fit_start_s,
-            case["creep_speed_mollifier_m_s"],
-            case["max_speed_after_fit_start"],
-            case["displacement_m"],
-            case["wall_s"],
-        )
+        log.info("start=%s eps_v=%g mu=%.3g: %.2f Newton/step, mean speed %s m/s, %.1f s", start,
+                 eps_v, mu, case["newton_per_step"], case["mean_speed_after_fit_start"],
+                 case["wall_s"])  # fmt: skip
         cases.append(case)
-        if on_case is not None:
-            on_case(case)
-    for case in cases if not ran else ():
-        sticking_metrics(case, fit_start_s)
-    payload = {
-        "benchmark": name,
+    return {
         "settle": settle,
         "cases": [_strip(c) for c in cases],
-        **STICKING_NOTES,
         "parameters": {
             **{k: v for k, v in PHYSICS.items() if k not in ("options", "kappa_Pa", "eps_v_m_s")},
             "kappa_Pa": KAPPAS["kappa_paper"],
             "options": {"friction": "once", "tol_m_s": 1e-6},
             "plan_start_eps_v_mu_factor": [list(x) for x in plan],
             "release_from": release_from,
-            "settle_s": settle_s if release_from == "settled" else 0.0,
-            "release_s": release_s,
+            "settle_s": cfg["settle_s"] if release_from == "settled" else 0.0,
+            "release_s": cfg["release_s"],
             "fit_start_s": fit_start_s,
         },
-        "wall_s": time.perf_counter() - started if ran else sum(c["wall_s"] for c in cases),
-        "peak_memory_mb": peak_memory_mb(),
-        "environment": environment(),
-        "series": {
-            # every 4th step (the metrics use every step)
+        "series": {  # every 4th step (the metrics use every step)
             f"{c['start']} eps_v={c['eps_v']:g} mu={c['mu']:.3g}": {
                 k: v[::4] for k, v in c["series"].items()
             }
             for c in cases
         },
+        "_cases": cases,
     }
-    return write_record(out, name, payload, lambda _, png: _plot_sticking(cases, png))
 
 
 def sticking_metrics(case: dict, fit_start_s: float) -> None:
@@ -582,8 +505,9 @@ def sticking_metrics(case: dict, fit_start_s: float) -> None:
     )
 
 
-def _plot_sticking(cases: list[dict], path: Path) -> None:
+def _plot_sticking(payload: dict, path: Path) -> None:
     """Speed along the slope over eps_v against time since release, per case."""
+    cases = payload["_cases"]
     fig, axes = figure((11, 4.2), 1, 2)
     eps_vs = sorted({c["eps_v"] for c in cases})
     for c in cases:
@@ -673,6 +597,12 @@ def _record(mode: str, options: Mapping) -> str:
     return name if mode == "full" or name.startswith("two_stage") else f"{name}_{mode}"
 
 
+def _arguments(parser: argparse._ActionsContainer) -> None:
+    """``--strategy`` and ``--scene`` (the old names imply them)."""
+    parser.add_argument("--strategy", choices=("augury", "lr", "two_stage"))
+    parser.add_argument("--scene", choices=("rings", "slope"))
+
+
 BENCHMARK = register(
     Benchmark(
         NAME,
@@ -681,6 +611,7 @@ BENCHMARK = register(
         measure,
         plot=_plot,
         record=_record,
+        arguments=_arguments,
         aliases={
             "augury_scenes": {"strategy": "augury"},
             "lr_scenes": {"strategy": "lr"},
@@ -690,27 +621,5 @@ BENCHMARK = register(
     )
 )
 run = BENCHMARK.run
-register(
-    Benchmark(
-        "two_stage_slope_sticking",
-        "Sticking of the softened slope box at mu = 1.05 and 1.5 tan(theta), from rest",
-        {"full": {}},
-        None,
-        own_run=lambda mode, out: run_sticking(out),
-    )
-)
-
-
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--strategy`` and ``--scene`` (the old names imply them)."""
-    parser.add_argument("--strategy", choices=("augury", "lr", "two_stage"), default=None)
-    parser.add_argument("--scene", choices=("rings", "slope"), default=None)
-
-
-def main_from_args(args: argparse.Namespace) -> int:
-    """``python -m benchmarks scenes --strategy S [--scene rings|slope] [--quick | ...]``; an old
-    name (``augury_scenes``, ...) stands for its options."""
-    given = {k: getattr(args, k) for k in ("strategy", "scene") if getattr(args, k) is not None}
-    summary = run_named(args.name, args.mode or "full", args.out, **given)
-    print(f"{args.name}: wrote {summary['json']}")
-    return 0
+register(Benchmark("two_stage_slope_sticking", sticking.__doc__, STICKING_MODES, sticking,
+                   _plot_sticking))  # fmt: skip

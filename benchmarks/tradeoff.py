@@ -8,28 +8,12 @@ options. Replay one point:
 ``python -m benchmarks tradeoff --replay tradeoff.json --id ID`` or ``--point '<record as
 JSON>'``.
 
-Strategies go by the registry's names (``bfemp.steppers.STRATEGIES``: ``barrier``,
-``two_stage``, ``augury``, ``lr``, ``single_field``). Which of them run a scene is declared per
-scene (``_tradeoff_scenes.SCENES[scene]["strategies"]``, with how each runs it), and so is why
-the others do not (``not_applicable``: lr refuses MPM-only FEM contact it cannot see, explicit
-strategies at the paper's stiffness need steps the scene cannot afford, the softened slope of
-``two_stage_slope`` and the softened disk ``hertz_soft`` stand in, measured failures). Scenes
-and what the error is against:
-
-- ``rings``: barrier, two_stage, augury, lr; against the reference run (barrier at the finest
-  value of each of its swept knobs): the energy loss over the collision window and the contact
-  duration.
-- ``slope``: barrier (E = 4e12 Pa), two_stage, augury, lr (the softened box, E = 1e5 Pa, at
-  the explicit step); against the analytic acceleration (eq. 40).
-- ``hertz``: barrier; against Hertz's C (eq. 39).
-- ``hertz_soft``: barrier, two_stage on the softened disk (``hertz.SOFT``, E = 1e5 Pa: the
-  explicit step 5.4e-4 s); against Hertz's C of that E (augury and lr: measured why not).
-- ``sine_boundary``: barrier, two_stage, lr (the scripted strip leaves the box's E = 1e6 Pa to
-  set the explicit step, 6e-4 s); against the reference run's largest compressive force.
-- ``augury_blocks`` (AUG Figs. 8-9, 3D): augury, barrier (Newmark), two_stage; against the
-  reference run's (augury's) energy loss.
-- ``lr_compression`` (LR Fig. 5): lr; against the single-material run (the cost is that of the
-  two-block run alone).
+Strategies go by the registry's names (``bfemp.steppers.STRATEGIES``). The scenes (``rings``,
+``slope``, ``hertz`` and its softened ``hertz_soft``, ``sine_boundary``, ``augury_blocks``,
+``lr_compression``) are declared in ``_tradeoff_scenes.SCENES``: what each point's error is
+against (an analytic value, or the scene's reference run: its reference strategy at the finest
+value of every swept knob at once), which strategies run it and how, and why the others do not
+(``not_applicable``); the record and its report repeat each of these per scene.
 
 Knobs. The scene's discretisation knobs (``dx``, ``ppc``, ``spacing``, ``dhat``, ``eps_v``, less
 those a strategy does not have) take the mode's values; each strategy's own knobs are the fields
@@ -53,19 +37,13 @@ strategy (``warmup``) fill numba's on-disk cache.
 Each point's measurement is kept in ``<out>/tradeoff_points/`` (``--points DIR``) as it arrives
 (``benchmarks._tradeoff_cache``): ``--resume`` takes the points an earlier sweep of the same
 code kept there (same settings and threads; points that gave no metrics run again), so a
-stopped sweep goes on where it stopped, in a later session too when the folder is committed
-(``benchmarks/records/tradeoff_full_points/`` holds the full sweep's points so far). A later
-run of some scenes merges into a record with ``merge(record, rerun)`` (the quick record
-``benchmarks/records/tradeoff.json`` was so made: its header says which scenes, at which commit).
+stopped sweep goes on where it stopped, in a later session too when the folder is committed.
+A later run of some scenes merges into a record with ``merge(record, rerun)``.
 
-Feasibility (issue 40): every point records ``max_penetration_m`` (the deepest any FEM node or
-particle went inside another FEM body over its run, the shared ``penetration_depth`` check) and
-the bound it is judged against, ``penetration_bound_m`` (its strategy's
-``capabilities.penetration_bound_cells``, read when the point runs, times the dx of the point's
-MPM grid, or of augury's contact grid in a scene without particles; 0 for barrier and
-two_stage; ``benchmarks._penetration``). A point beyond its bound is infeasible
-(``record["infeasible"]``): drawn as a cross, named in the report with its depth and bound,
-never on a Pareto front and never the winner of an error range.
+Feasibility (issue 40): every point records ``max_penetration_m`` and the bound it is judged
+against, ``penetration_bound_m`` (``benchmarks._penetration``); a point beyond its bound is
+infeasible (``_tradeoff_report.infeasible``): drawn as a cross, named in the report, never on a
+Pareto front and never the winner of an error range.
 
 Outputs in ``--out`` (default ``results/``): ``tradeoff.json`` (every point's record, the
 fronts, the winners per error range and the crossovers, the knob effects, the infeasible points),
@@ -101,7 +79,7 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks._penetration import KEYS as PENETRATION_SUMMARY_KEYS
+from benchmarks._penetration import KEYS as PENETRATION_KEYS
 from benchmarks._tradeoff_cache import FOLDER as CACHE_FOLDER
 from benchmarks._tradeoff_cache import PointCache
 from benchmarks._tradeoff_knobs import (
@@ -111,12 +89,7 @@ from benchmarks._tradeoff_knobs import (
     option_knobs,
     strategy_knobs,
 )
-from benchmarks._tradeoff_point import (
-    check_scheduler,
-    execute_dask,
-    execute_local,
-    execute_point,
-)
+from benchmarks._tradeoff_point import check_scheduler, execute_dask, execute_local, execute_point
 from benchmarks._tradeoff_report import (
     COSTS,
     best_knob,
@@ -129,7 +102,7 @@ from benchmarks._tradeoff_report import (
     winners,
 )
 from benchmarks._tradeoff_scenes import SCENE_FINER, SCENES
-from benchmarks.common import environment, git_commit, write_json
+from benchmarks.common import git_commit
 from benchmarks.runner import Benchmark, register
 
 log = logging.getLogger(__name__)
@@ -446,11 +419,6 @@ def point_error(scene: str, measurement: dict, reference: dict | None) -> tuple:
     return max(parts.values()), parts
 
 
-#: the penetration measurement of a point (``benchmarks._penetration``), lifted from its metrics
-#: into its record (None where the run did not give it)
-PENETRATION_KEYS = PENETRATION_SUMMARY_KEYS
-
-
 def _finish(record: dict, measurement: dict, reference: dict | None) -> dict:
     """A record with its measurement and error. A point whose metrics carry ``point_wall_s``
     and ``point_cpu_s`` (a run that also runs its own reference, lr_compression) costs those.
@@ -582,10 +550,18 @@ def analyse(records: list[dict], scenes: list[str], cost: str = "wall_s") -> dic
 
 
 # ----------------------------------------------------------------------------- entry points
-def sweep(
-    mode: str = "quick",
-    out: str | Path = "results",
+def sweep(mode: str = "quick", out: str | Path = "results", **options) -> dict:
+    """Run the trade study and write ``tradeoff.json``, ``tradeoff.md``, ``tradeoff_<scene>.png``
+    (``BENCHMARK.run``; ``options`` those of ``_measure``); returns ``{"json": path, "md": path,
+    **record}``."""
+    return BENCHMARK.run(mode, out, **options)
+
+
+def _measure(
+    mode: str,
+    cfg: object,
     *,
+    out: str | Path,
     scenes: str | list[str] | None = None,
     knobs: str | list[str] | None = None,
     strategies: str | list[str] | None = None,
@@ -600,10 +576,9 @@ def sweep(
     points: str | Path | None = None,
     progress: bool = False,
 ) -> dict:
-    """Run the trade study and write ``tradeoff.json``, ``tradeoff.md``, ``tradeoff_<scene>.png``.
-
-    Every point's measurement is also kept in ``out/tradeoff_points/`` as it arrives
-    (``benchmarks._tradeoff_cache``), so that a stopped sweep can be resumed.
+    """The trade study's payload. Every point's measurement is also kept in
+    ``out/tradeoff_points/`` as it arrives (``benchmarks._tradeoff_cache``), so that a stopped
+    sweep can be resumed.
 
     Args:
         mode, scenes, knobs, strategies, sweeps, threads: see :func:`plan`.
@@ -622,11 +597,7 @@ def sweep(
         points: the folder where each point is kept as it finishes (default
             ``out/tradeoff_points/``); a committed folder lets a sweep go on in a later session.
         progress: show a progress bar (points done of all, the last point's id) on stderr, for
-            the warm-up and for the points (``bfemp sweep`` and ``python -m benchmarks
-            tradeoff`` do; a ``quiet`` option, where given, turns it off).
-
-    Returns:
-        ``{"json": path, "markdown": path, "png": {scene: path}, **payload}``.
+            the warm-up and for the points.
     """
     if scheduler is not None:
         check_scheduler(scheduler)
@@ -639,9 +610,8 @@ def sweep(
     records = plan(mode, scenes, knobs, strategies=strategies, sweeps=sweeps, threads=threads)
     scene_names = list(dict.fromkeys(r["scene"] for r in records))
     pairs = list(dict.fromkeys((r["scene"], r["strategy"]) for r in records))
-    env = environment()
+    commit = git_commit()
     out = Path(out)
-    json_path = out / f"{NAME}.json"
     jobs = [_job(r, timeout_s) for r in records]
     log.info("tradeoff (%s): %d points of %s", mode, len(jobs), ", ".join(scene_names))
 
@@ -663,7 +633,7 @@ def sweep(
         finally:
             bar.close()
 
-    cache = PointCache(out / CACHE_FOLDER if points is None else Path(points), env["commit"])
+    cache = PointCache(out / CACHE_FOLDER if points is None else Path(points), commit)
     entries = [cache.entry(job) if resume else None for job in jobs]
     kept = [None if e is None else e["measurement"] for e in entries]
     todo = run_order(records, [k for k, m in enumerate(kept) if m is None])
@@ -671,21 +641,13 @@ def sweep(
     measured_by = {
         records[k]["id"]: entries[k].get("commit") for k, m in enumerate(kept) if m is not None
     }
-    resumed = list(measured_by)
     if resume:
-        log.info(
-            "tradeoff: %d of %d points kept in %s, %d to run",
-            len(resumed),
-            len(jobs),
-            cache.folder,
-            len(todo),
-        )
-
+        log.info("tradeoff: %d of %d points kept in %s", len(measured_by), len(jobs), cache.folder)
     started = time.perf_counter()
     warm = [
-        (scene, strategy)
-        for scene, strategy in (pairs if warmup else [])
-        if any(records[k]["scene"] == scene and records[k]["strategy"] == strategy for k in todo)
+        pair
+        for pair in (pairs if warmup else [])
+        if any((records[k]["scene"], records[k]["strategy"]) == pair for k in todo)
     ]
     warmed = execute(
         [f"{scene}/{strategy}/warmup" for scene, strategy in warm],
@@ -704,26 +666,28 @@ def sweep(
         results[k] = measurement
     elapsed = time.perf_counter() - started
     references = _reference(records, results)
+    json_path = shlex.quote(str(out / f"{NAME}.json"))
     finished = []
     for record, result in zip(records, results, strict=True):
         done = _finish(record, result, references.get(record["scene"]))
         done["resumed"] = record["id"] in measured_by
-        done["commit"] = measured_by.get(record["id"], env["commit"])
+        done["commit"] = measured_by.get(record["id"], commit)
         done["replay"] = (
-            f"python -m benchmarks tradeoff --replay {shlex.quote(str(json_path))} "
-            f"--id {shlex.quote(record['id'])}"
+            f"python -m benchmarks tradeoff --replay {json_path} --id {shlex.quote(record['id'])}"
         )
         finished.append(done)
     analysis = analyse(finished, scene_names, cost_key)
 
-    def chosen_in(scene: str) -> list[str]:
-        if isinstance(strategies, dict):
-            return _names(strategies.get(scene), "strategy", _registry())
-        return _names(strategies, "strategy", _registry())
+    def not_run(scene: str) -> dict:
+        chosen = strategies.get(scene) if isinstance(strategies, dict) else strategies
+        why = SCENES[scene]["not_applicable"]
+        return {
+            st: why.get(st, "not declared for this scene")
+            for st in _names(chosen, "strategy", _registry())
+            if (scene, st) not in pairs
+        }
 
-    payload = {
-        "benchmark": NAME,
-        "mode": mode,
+    return {
         "scenes": scene_names,
         "strategies": {
             s: list(dict.fromkeys(st for sc, st in pairs if sc == s)) for s in scene_names
@@ -732,14 +696,7 @@ def sweep(
             s: {st: SCENES[s]["strategies"][st].get("note") for sc, st in pairs if sc == s}
             for s in scene_names
         },
-        "not_run": {
-            s: {
-                st: SCENES[s]["not_applicable"].get(st, "not declared for this scene")
-                for st in chosen_in(s)
-                if (s, st) not in pairs
-            }
-            for s in scene_names
-        },
+        "not_run": {s: not_run(s) for s in scene_names},
         "knobs": {s: swept_knobs(finished, s) for s in scene_names},
         "errors": {s: SCENES[s]["error"] for s in scene_names},
         "executor": {
@@ -756,7 +713,7 @@ def sweep(
         "warmup_s": warmup_s,
         "warmup_failures": [w["failure"] for w in warmed if w.get("failure")],
         "wall_s": elapsed,
-        "resumed": resumed,
+        "resumed": list(measured_by),
         "point_wall_s_total": sum(r["wall_s"] or 0.0 for r in finished),
         "failed": [r["id"] for r in finished if r["failure"]],
         "pareto": {
@@ -765,26 +722,17 @@ def sweep(
         **analysis,
         "references": references,
         "points": finished,
-        "environment": env,
     }
-    path = write_json(out, NAME, payload)
-    md = out / f"{NAME}.md"
-    md.write_text(markdown(payload))
-    pngs = {}
-    for scene in scene_names:
-        recs = [r for r in finished if r["scene"] == scene]
-        title = f"{scene}: error against {COSTS[cost_key]} ({mode} mode)"
-        label = (
-            "error vs reference run" if "reference_keys" in SCENES[scene] else "error vs analytic"
-        )
-        pngs[scene] = str(plot_scene(recs, out / f"{NAME}_{scene}.png", title, label, cost_key))
-    for scene in scene_names:
-        log.info(
-            "%s: winners %s",
-            scene,
-            [(w["error_from"], w["winner"]) for w in payload["winners"][scene]],
-        )
-    return {"json": str(path), "markdown": str(md), "png": pngs, **payload}
+
+
+def _plot(payload: dict, png: Path) -> None:
+    """One figure per scene, ``<stem>_<scene>.png`` beside ``png`` (error against cost)."""
+    for scene in payload["scenes"]:
+        recs = [r for r in payload["points"] if r["scene"] == scene]
+        title = f"{scene}: error against {COSTS[payload['cost']]} ({payload['mode']} mode)"
+        kind = "reference run" if "reference_keys" in SCENES[scene] else "analytic"
+        plot_scene(recs, png.with_name(f"{png.stem}_{scene}.png"), title, f"error vs {kind}",
+                   payload["cost"])  # fmt: skip
 
 
 def rerender(path: str | Path) -> dict:
@@ -800,16 +748,8 @@ def rerender(path: str | Path) -> dict:
         s: [r["id"] for r in points if r["scene"] == s and r["pareto"]] for s in scenes
     }
     path.write_text(json.dumps(payload, indent=2, default=float))
-    md = path.with_suffix(".md")
-    md.write_text(markdown(payload))
-    for scene in scenes:
-        recs = [r for r in points if r["scene"] == scene]
-        title = f"{scene}: error against {COSTS[payload['cost']]} ({payload['mode']} mode)"
-        label = (
-            "error vs reference run" if "reference_keys" in SCENES[scene] else "error vs analytic"
-        )
-        png = path.parent / f"{path.stem}_{scene}.png"  # tradeoff_full.json: tradeoff_full_*.png
-        plot_scene(recs, png, title, label, payload["cost"])
+    path.with_suffix(".md").write_text(markdown(payload))
+    _plot(payload, path.with_suffix(".png"))
     return payload
 
 
@@ -900,12 +840,6 @@ def _kept_points(old: dict, new: dict) -> list[dict]:
     return kept
 
 
-def run(mode: str = "full", out: str | Path = "results") -> dict:
-    """The registry's entry point (``python -m benchmarks tradeoff``): every scene, strategy and
-    knob."""
-    return sweep(mode, out)
-
-
 def load_record(
     path: str | Path | None = None, point_id: str | None = None, point: str | None = None
 ) -> dict:
@@ -993,45 +927,32 @@ def replay(record: dict, timeout_s: float | None = None) -> dict:
     return {**done, "recorded_error": recorded, "reproduced": same}
 
 
+#: the sweep's command-line options: flag -> (keyword of ``sweep``, argparse settings)
+OPTIONS = {
+    "--scenes": ("scenes", dict(help=f"comma-separated scenes (default: {', '.join(SCENES)})")),
+    "--knobs": ("knobs", dict(help="comma-separated knobs (default: every knob of each strategy)")),
+    "--strategies": ("strategies", dict(help="comma-separated strategies (default: every one "
+                                             "that applies to each scene)")),
+    "--workers": ("workers", dict(type=int, help="local point processes at once (default: cores)")),
+    "--scheduler": ("scheduler", dict(help="run the points on a Dask scheduler (tcp://host:port)")),
+    "--threads-per-point": ("threads", dict(type=int, default=1, help="threads of each point")),
+    "--point-timeout": ("timeout_s", dict(type=float, help="wall-time limit of one point in s")),
+    "--resume": ("resume", dict(action="store_true", help="take the points an earlier sweep of "
+                                "the same code kept in the points folder")),
+    "--points": ("points", dict(metavar="DIR", help="where each point is kept as it finishes "
+                                "(default OUT/tradeoff_points/)")),
+    "--cost": ("cost", dict(choices=("wall", "cpu"), default="wall", help="cost axis: the "
+                            "points' wall time (default) or CPU time (steadier when busy)")),
+}  # fmt: skip
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The trade study's options (``python -m benchmarks tradeoff``; ``bfemp sweep`` repeats
-    them, a test keeps the two in step)."""
+    them, a test keeps the two in step): ``OPTIONS``, and the replay of one point."""
     group = parser.add_argument_group("trade study")
-    group.add_argument(
-        "--scenes", help=f"comma-separated scenes (default: all: {', '.join(sorted(SCENES))})"
-    )
-    group.add_argument(
-        "--knobs", help="comma-separated knobs (default: every knob of each strategy)"
-    )
-    group.add_argument(
-        "--strategies",
-        help="comma-separated strategies (default: every one that applies to each scene)",
-    )
-    group.add_argument("--workers", type=int, help="local point processes at once (default: cores)")
-    group.add_argument("--scheduler", help="run the points on a Dask scheduler (tcp://host:port)")
-    group.add_argument(
-        "--threads-per-point", type=int, default=1, help="threads of each point (default 1)"
-    )
-    group.add_argument("--point-timeout", type=float, help="wall-time limit of one point in s")
-    group.add_argument(
-        "--resume",
-        action="store_true",
-        help="take the points an earlier sweep of the same code kept in the points folder",
-    )
-    group.add_argument(
-        "--points",
-        metavar="DIR",
-        help="where each point is kept as it finishes (default OUT/tradeoff_points/)",
-    )
-    group.add_argument(
-        "--cost",
-        choices=("wall", "cpu"),
-        default="wall",
-        help="cost axis: the points' wall time (default) or CPU time (steadier on a busy machine)",
-    )
-    group.add_argument(
-        "--replay", metavar="JSON", help="re-run a recorded point (record or tradeoff.json)"
-    )
+    for flag, (dest, settings) in OPTIONS.items():
+        group.add_argument(flag, dest=dest, **settings)
+    group.add_argument("--replay", metavar="JSON", help="re-run a recorded point (tradeoff.json)")
     group.add_argument("--id", help="with --replay: the point's id in tradeoff.json")
     group.add_argument("--point", metavar="JSON", help="re-run the point given as a JSON record")
 
@@ -1041,8 +962,7 @@ def main_from_args(args: argparse.Namespace) -> int:
     if args.replay is not None or args.point is not None:
         if args.replay is not None and args.point is not None:
             raise ValueError("give --replay or --point, not both")
-        record = load_record(args.replay, args.id, args.point)
-        result = replay(record, timeout_s=args.point_timeout)
+        result = replay(load_record(args.replay, args.id, args.point), timeout_s=args.timeout_s)
         status = "reproduced" if result["reproduced"] else "NOT reproduced"
         print(
             f"{result['id']}: error {result['error']} (recorded {result['recorded_error']}): "
@@ -1053,32 +973,22 @@ def main_from_args(args: argparse.Namespace) -> int:
         return 0 if result["reproduced"] else 1
     if args.id is not None:
         raise ValueError("--id goes with --replay")
-    summary = sweep(
-        args.mode or "full",
-        args.out,
-        scenes=args.scenes,
-        knobs=args.knobs,
-        strategies=args.strategies,
-        workers=args.workers,
-        scheduler=args.scheduler,
-        threads=args.threads_per_point,
-        timeout_s=args.point_timeout,
-        cost=args.cost,
-        resume=args.resume,
-        points=args.points,
-        progress=not getattr(args, "quiet", False),
-    )
-    print(f"tradeoff: wrote {summary['json']}, {summary['markdown']}")
+    options = {dest: getattr(args, dest) for dest, _ in OPTIONS.values()}
+    progress = not getattr(args, "quiet", False)
+    summary = sweep(args.mode or "full", args.out, **options, progress=progress)
+    print(f"tradeoff: wrote {summary['json']}, {summary['md']}")
     for scene in summary["scenes"]:
-        won = ", ".join(
-            f"{w['winner']} from {w['error_from']:.3g}" for w in summary["winners"][scene]
-        )
-        bad = summary["infeasible"][scene]
-        print(
-            f"  {scene}: winners {won or '-'}; infeasible (beyond their penetration bound): "
-            f"{', '.join(bad) or 'none'}; plot {summary['png'][scene]}"
-        )
+        won = [f"{w['winner']} from {w['error_from']:.3g}" for w in summary["winners"][scene]]
+        bad = ", ".join(summary["infeasible"][scene]) or "none"
+        print(f"  {scene}: winners {', '.join(won) or '-'}; infeasible (past its bound): {bad}")
     return 0
 
 
-BENCHMARK = register(Benchmark(NAME, __doc__, MODES, None, own_run=run))
+#: the record's keys computed from the points' wall or CPU times (fronts, winners, crossovers,
+#: knob effects) and the warm-up's time: left out by ``verify``, which compares every point's
+#: settings, metrics and error
+TIMINGS = r"^(pareto|strategy_pareto|winners|crossovers|knob_effects|best_knob|warmup_s)$"
+BENCHMARK = register(
+    Benchmark(NAME, __doc__, dict.fromkeys(MODES, {}), _measure, _plot, markdown,
+              timings=TIMINGS, needs_out=True)
+)  # fmt: skip

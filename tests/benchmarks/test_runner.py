@@ -160,3 +160,35 @@ def test_benchmarks_inspect_steppers_through_their_public_hooks_only():
         if (found := stepper_internals(path.read_text()))
     }
     assert reaches == {}
+
+
+def test_a_benchmarks_own_options_reach_its_measure_and_unset_ones_stay_out(monkeypatch, tmp_path):
+    """``Benchmark.arguments`` adds a benchmark's options to ``python -m benchmarks NAME``; the
+    values given reach ``run`` (and so ``measure``), options left unset do not (an alias's
+    options stand, the measure's defaults apply)."""
+    seen = []
+
+    def fake_run(self, mode, out, **options):
+        seen.append((self.name, mode, options))
+        return {"json": str(tmp_path / "x.json")}
+
+    monkeypatch.setattr(Benchmark, "run", fake_run)
+    assert main(["fuzz", "--quick", "--workers", "3", "--resume", "--out", str(tmp_path)]) == 0
+    assert main(["extremes", "--mode", "coarse", "--strategy", "lr", "--out", str(tmp_path)]) == 0
+    assert main(["conformance", "--out", str(tmp_path)]) == 0
+    assert seen == [
+        ("fuzz", "quick", {"workers": 3, "resume": True}),
+        ("extremes", "coarse", {"strategy": ["lr"]}),
+        ("conformance", "full", {}),
+    ]
+
+
+def test_needs_out_passes_the_output_folder_to_measure(tmp_path):
+    got = []
+
+    def measure(mode, cfg, out):
+        got.append(out)
+        return {"n": cfg["n"]}
+
+    bench = Benchmark("fake_out", "Fake.", {"quick": {"n": 1}}, measure, needs_out=True)
+    assert bench.run("quick", tmp_path)["n"] == 1 and got == [tmp_path]

@@ -330,7 +330,7 @@ def test_the_command_line_passes_resume_and_the_points_folder_to_the_sweep(monke
 
     def fake_sweep(mode, out, **kwargs):  # noqa: ANN001, ANN003, ANN202
         seen.update(mode=mode, out=out, **kwargs)
-        return {"json": "j", "markdown": "m", "scenes": [], "png": {}}
+        return {"json": "j", "md": "m", "scenes": []}
 
     monkeypatch.setattr(tradeoff, "sweep", fake_sweep)
     parser = bench_main._parser()
@@ -685,3 +685,25 @@ def test_a_sweep_shows_its_progress_point_by_point(monkeypatch, tmp_path, capsys
     tradeoff.add_arguments(parser)
     tradeoff.main_from_args(parser.parse_args(["tradeoff", "--quick", "--scenes", "slope"]))
     assert seen["progress"] is True  # the command line shows it
+
+
+def test_verify_compares_the_points_not_what_their_times_decide():
+    """The fronts, winners, crossovers and knob effects follow the points' wall times, which
+    no rerun reproduces: ``verify`` leaves them out, and still sees a point's error move."""
+    from benchmarks.runner import differences
+
+    point = {"id": "slope/barrier/base", "error": 0.1, "wall_s": 2.0, "pareto": True}
+    old = {"points": [point], "pareto": {"slope": ["slope/barrier/base"]}, "warmup_s": 3.0,
+           "winners": {"slope": [{"winner": "barrier", "cost_s": 2.0}]}, "crossovers": {},
+           "knob_effects": {"slope": {"barrier": {"dt": {"loglog_slope": -1.0}}}},
+           "best_knob": {"slope": {"barrier": "dt"}}}  # fmt: skip
+    new = json.loads(json.dumps(old))
+    new["points"][0].update(wall_s=1.0, pareto=False)
+    new.update(pareto={"slope": []}, warmup_s=9.0, winners={"slope": []}, best_knob={})
+    new["knob_effects"]["slope"]["barrier"]["dt"]["loglog_slope"] = -2.0
+    new["crossovers"] = {"slope": [{"error": 0.1}]}
+    assert differences(old, new, timings=tradeoff.BENCHMARK.timings) == []
+    new["points"][0]["error"] = 0.2
+    assert differences(old, new, timings=tradeoff.BENCHMARK.timings) == [
+        "/points[0]/error: 0.1, now 0.2"
+    ]

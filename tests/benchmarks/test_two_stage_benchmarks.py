@@ -79,4 +79,4 @@ def test_sticking_metrics_judge_the_creep_after_the_window_start():
 
 def test_sticking_refuses_an_unknown_release():
     with pytest.raises(ValueError, match="release_from must be 'settled' or 'initial'"):
-        scenes.run_sticking("unused", release_from="moving")
+        scenes.sticking("full", scenes.STICKING_MODES["full"], release_from="moving")
