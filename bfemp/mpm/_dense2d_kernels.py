@@ -57,13 +57,19 @@ def _stencil(xi: np.ndarray, p: int, inv_dx: float, lo0: int, lo1: int, stride: 
 
 @njit(cache=True, parallel=True)
 def _grid_units(x, o0, o1, inv_dx, n_chunks, xi):  # noqa: ANN001, ANN201
-    """xi = (x - origin) / dx ``(P, 2)`` and the smallest and largest base node (2,) each."""
+    """xi = (x - origin) / dx ``(P, 2)``; the smallest and largest base node ``(4,)`` (i_min,
+    j_min, i_max, j_max), and per chunk of particles the lexicographically first and last base
+    node ``(C, 2)`` each: with the box's row stride above any j spread, their box ids are the
+    chunk's smallest and largest (``_box_ranges`` in one pass with the units: a parallel
+    region fewer, whose thread wake-ups cost about 0.15 ms a step at 33k particles)."""
     n_p = x.shape[0]
     lo = np.empty((n_chunks, 2), dtype=np.int64)
     hi = np.empty((n_chunks, 2), dtype=np.int64)
+    first = np.empty((n_chunks, 2), dtype=np.int64)
+    last = np.empty((n_chunks, 2), dtype=np.int64)
     for c in prange(n_chunks):
-        mn0 = mn1 = np.int64(1) << 62
-        mx0 = mx1 = -(np.int64(1) << 62)
+        mn0 = mn1 = f0 = f1 = np.int64(1) << 62
+        mx0 = mx1 = l0 = l1 = -(np.int64(1) << 62)
         for p in range(c * n_p // n_chunks, (c + 1) * n_p // n_chunks):
             a = (x[p, 0] - o0) * inv_dx
             b = (x[p, 1] - o1) * inv_dx
@@ -75,16 +81,18 @@ def _grid_units(x, o0, o1, inv_dx, n_chunks, xi):  # noqa: ANN001, ANN201
             mn1 = min(mn1, b1)
             mx0 = max(mx0, b0)
             mx1 = max(mx1, b1)
-        lo[c, 0] = mn0
-        lo[c, 1] = mn1
-        hi[c, 0] = mx0
-        hi[c, 1] = mx1
+            if b0 < f0 or (b0 == f0 and b1 < f1):
+                f0, f1 = b0, b1
+            if b0 > l0 or (b0 == l0 and b1 > l1):
+                l0, l1 = b0, b1
+        lo[c, 0], lo[c, 1], hi[c, 0], hi[c, 1] = mn0, mn1, mx0, mx1
+        first[c, 0], first[c, 1], last[c, 0], last[c, 1] = f0, f1, l0, l1
     out = np.empty(4, dtype=np.int64)
     out[0] = lo[:, 0].min()
     out[1] = lo[:, 1].min()
     out[2] = hi[:, 0].max()
     out[3] = hi[:, 1].max()
-    return out
+    return out, first, last
 
 
 @njit(cache=True, parallel=True)
@@ -297,15 +305,16 @@ def dense_p2g(
     ``alloc(shape)`` gives the particle-sized work arrays (``BufferPool.empty``)."""
     n_p = mpm_x.shape[0]
     xi = alloc((n_p, 2))
-    bounds = _grid_units(mpm_x, float(origin[0]), float(origin[1]), 1.0 / dx, min(n_p, 16), xi)
+    n_chunks = max(1, min(int(n_chunks), n_p))
+    origin_x, origin_y = float(origin[0]), float(origin[1])
+    bounds, first, last = _grid_units(mpm_x, origin_x, origin_y, 1.0 / dx, n_chunks, xi)
     lo = bounds[:2].copy()
     extent = bounds[2:] - lo + 3
     if float(extent[0]) * float(extent[1]) > BOX_BUDGET * 9 * n_p:
         return None
     stride = int(extent[1])
     size = int(extent[0]) * stride
-    n_chunks = max(1, min(int(n_chunks), n_p))
-    ranges = _box_ranges(xi, int(lo[0]), int(lo[1]), stride, n_chunks)
+    ranges = ((first - lo) @ [stride, 1], (last - lo) @ [stride, 1] + 2 * stride + 2)
     sizes = ranges[1] - ranges[0] + 1
     while n_chunks > 1 and sizes.sum() > SLAB_BUDGET * size:
         n_chunks //= 2

@@ -23,7 +23,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from bfemp.model import Model
 from bfemp.state import State
@@ -164,35 +164,24 @@ def _mpm_bound(model: Model, state: State, safety: float) -> StableStep:
     )
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def _fastest_particle(speed_b: np.ndarray, body: np.ndarray, v: np.ndarray) -> tuple[int, float]:
     """The particle k with the largest c_p + |v_p| (``speed_b (B,)`` m/s per body, ``body
-    (P,)``, ``v (P, d)`` m/s; the first of equals, as ``np.argmax``) and that speed in m/s.
+    (P,)``, ``v (P, d)`` m/s; the first of equals, the first NaN, as ``np.argmax``) and that
+    speed in m/s; |v_p| sums the squares in axis order, as ``np.einsum`` does.
 
-    One parallel pass (the numpy route took 0.2 ms a step at 33k particles, a tenth of an
-    explicit step); |v_p| sums the squares in axis order, as ``np.einsum`` does."""
-    n_p, d = v.shape
-    n_chunks = max(1, min(16, n_p // 1024))
-    best_k = np.zeros(n_chunks, dtype=np.int64)
-    best = np.full(n_chunks, -np.inf)
-    for c in prange(n_chunks):
-        k, top = c * n_p // n_chunks, -np.inf
-        for p in range(c * n_p // n_chunks, (c + 1) * n_p // n_chunks):
-            sq = 0.0
-            for r in range(d):
-                sq += v[p, r] * v[p, r]
-            speed = speed_b[body[p]] + math.sqrt(sq)
-            if speed > top or math.isnan(speed):
-                k, top = p, speed
-                if math.isnan(speed):
-                    break
-        best_k[c], best[c] = k, top
-    k, top = best_k[0], best[0]
-    for c in range(1, n_chunks):  # chunk order: the first of equal maxima wins
-        if math.isnan(top):
-            break
-        if best[c] > top or math.isnan(best[c]):
-            k, top = best_k[c], best[c]
+    One serial pass: the numpy route took 0.2 ms a step at 33k particles, a tenth of an explicit
+    step, this 0.03 ms; a parallel pass costs more in thread wake-ups than it saves."""
+    k, top = 0, -np.inf
+    for p in range(v.shape[0]):
+        sq = 0.0
+        for r in range(v.shape[1]):
+            sq += v[p, r] * v[p, r]
+        speed = speed_b[body[p]] + math.sqrt(sq)
+        if math.isnan(speed):
+            return p, speed
+        if speed > top:
+            k, top = p, speed
     return k, top
 
 
