@@ -28,6 +28,7 @@ import tarfile
 import tempfile
 from pathlib import Path
 
+from benchmarks.catalogue import RINGS_DISCRETISATION
 from benchmarks.common import git_commit
 from benchmarks.runner import Benchmark, name_unless, register
 
@@ -37,8 +38,8 @@ STRATEGIES = ("single_field", "augury", "lr", "two_stage")
 #: the commit before issue 43's work on the explicit engine
 BASELINE = "554ac83"
 MODES = {
-    "full": dict(rings=dict(dx=0.1, ppc=9, fem_h=0.13), warmup=3, steps=30, rounds=3),
-    "quick": dict(rings=dict(dx=1.0 / 3.0, ppc=4, fem_h=1.0 / 3.0), warmup=1, steps=3, rounds=1),
+    "full": dict(rings=RINGS_DISCRETISATION["full"], warmup=3, steps=30, rounds=3),
+    "quick": dict(rings=RINGS_DISCRETISATION["quick"], warmup=1, steps=3, rounds=1),
 }
 
 #: what each subprocess runs: public API only, so that an older tree runs it as well

@@ -79,6 +79,7 @@ from benchmarks.catalogue import (
     MATERIAL,
     R_INNER,
     R_OUTER,
+    RINGS_DISCRETISATION,
     SPEED,
     TOL,
     WINDOW,
@@ -105,14 +106,14 @@ INTEGRATOR = "newmark_implicit_contact"
 #: also run in partial and full modes, recorded under ``compared_integrators``
 COMPARED_INTEGRATORS = ("newmark",)
 
+#: the catalogue's discretisations (partial: paper dt and FEM mesh, MPM grid coarsened 2x) with
+#: their steps; full_probe: the full scene cut after 125 free-flight and about 50 contact steps,
+#: for per-phase timings (benchmarks._rings_probe)
 MODES = {
-    "full": dict(dx=0.1, ppc=9, fem_h=0.13, dt=2e-4, t_end=0.3),
-    # paper dt and FEM mesh, MPM grid coarsened 2x (what this 2-core machine runs in ~30 min)
-    "partial": dict(dx=0.2, ppc=4, fem_h=0.13, dt=2e-4, t_end=0.3),
-    "quick": dict(dx=1.0 / 3.0, ppc=4, fem_h=1.0 / 3.0, dt=2e-3, t_end=0.3),
-    # the full scene cut after 125 free-flight and about 50 contact steps: per-phase timings
-    # (benchmarks._rings_probe)
-    "full_probe": dict(dx=0.1, ppc=9, fem_h=0.13, dt=2e-4, t_end=0.035),
+    "full": dict(**RINGS_DISCRETISATION["full"], dt=2e-4, t_end=0.3),
+    "partial": dict(**RINGS_DISCRETISATION["partial"], dt=2e-4, t_end=0.3),
+    "quick": dict(**RINGS_DISCRETISATION["quick"], dt=2e-3, t_end=0.3),
+    "full_probe": dict(**RINGS_DISCRETISATION["full"], dt=2e-4, t_end=0.035),
 }
 SERIES_POINTS = 400  # per-step curves stored in the JSON are subsampled to about this many
 
