@@ -71,6 +71,9 @@ def _accumulate_blocks(
 
 def _dim_kernel(dim: int):  # noqa: ANN202
     """The parallel body of _accumulate_blocks, compiled with ``dim`` a constant (closure)."""
+    contract, add_block = (
+        (_contract_2d, _add_block_2d) if dim == 2 else (_contract_3d, _add_block_3d)
+    )
 
     @njit(cache=True, parallel=True)
     def kernel(
@@ -93,33 +96,18 @@ def _dim_kernel(dim: int):  # noqa: ANN202
             tmp = np.empty((k, dim, dim, dim))
             void = np.empty(k, dtype=np.bool_)
             for p in range(c * n_p // n_chunks, (c + 1) * n_p // n_chunks):
-                # tmp[b, i, m, j] = V_p sum_l dP[(i, m), (j, l)] g_b[l]
-                v = volume[p]
                 for b in range(k):
                     void[b] = _is_void(weights, grads, p, b, dim)
-                    for i in range(dim):
-                        for m in range(dim):
-                            for j in range(dim):
-                                acc = 0.0
-                                for l in range(dim):
-                                    acc += dpdf[p, i * dim + m, j * dim + l] * grads[p, b, l]
-                                tmp[b, i, m, j] = v * acc
+                    contract(dpdf, grads, volume, p, b, tmp)
                 for a in range(k):
                     if void[a]:
                         continue
-                    node_a = nodes[p, a]
                     for b in range(k):
                         code = pair_code[a, b]
                         # dP is symmetric, so block (b, a) = block (a, b)^T: only offsets with
                         # code >= centre are accumulated here, the others by _mirror_blocks
-                        if code < centre or void[b]:
-                            continue
-                        for i in range(dim):
-                            for j in range(dim):
-                                acc = 0.0
-                                for m in range(dim):
-                                    acc += grads[p, a, m] * tmp[b, i, m, j]
-                                blocks[node_a, code, i, j] += acc
+                        if code >= centre and not void[b]:
+                            add_block(grads, p, a, tmp, b, blocks, nodes[p, a], code)
         out = partial[0]
         for c in range(1, n_chunks):
             out += partial[c]
@@ -127,6 +115,88 @@ def _dim_kernel(dim: int):  # noqa: ANN202
         return out
 
     return kernel
+
+
+# The per-entry pieces of the kernel, one per dimension, written out in scalars: every load of
+# a pair comes before its stores. In loops over d, numba reloaded the gradients and tmp after
+# each store into ``blocks`` (it cannot rule out aliasing), and those loads stalled on the
+# stores where the arrays' addresses shared their low 12 bits ("4K aliasing"): the 3D kernel
+# took 0.24 s against 0.16 s at the twist's 110,592 particles, with the same sums in the same
+# order (bit for bit).
+
+
+@njit(cache=True, inline="always")
+def _contract_3d(dpdf, grads, volume, p, b, tmp):  # noqa: ANN001, ANN202
+    """tmp[b, i, m, j] = V_p sum_l dpdf[p, (i, m), (j, l)] g_b[l] (l in increasing order)."""
+    v = volume[p]
+    g0 = grads[p, b, 0]
+    g1 = grads[p, b, 1]
+    g2 = grads[p, b, 2]
+    for i in range(3):
+        for m in range(3):
+            r = 3 * i + m
+            for j in range(3):
+                tmp[b, i, m, j] = v * (
+                    0.0
+                    + dpdf[p, r, 3 * j] * g0
+                    + dpdf[p, r, 3 * j + 1] * g1
+                    + dpdf[p, r, 3 * j + 2] * g2
+                )
+
+
+@njit(cache=True, inline="always")
+def _contract_2d(dpdf, grads, volume, p, b, tmp):  # noqa: ANN001, ANN202
+    """``_contract_3d`` in 2D."""
+    v = volume[p]
+    g0 = grads[p, b, 0]
+    g1 = grads[p, b, 1]
+    for i in range(2):
+        for m in range(2):
+            r = 2 * i + m
+            for j in range(2):
+                tmp[b, i, m, j] = v * (0.0 + dpdf[p, r, 2 * j] * g0 + dpdf[p, r, 2 * j + 1] * g1)
+
+
+@njit(cache=True, inline="always")
+def _add_block_3d(grads, p, a, tmp, b, blocks, node, code):  # noqa: ANN001, ANN202
+    """blocks[node, code, i, j] += sum_m g_a[m] tmp[b, i, m, j] (m in increasing order), all
+    loads first."""
+    g0 = grads[p, a, 0]
+    g1 = grads[p, a, 1]
+    g2 = grads[p, a, 2]
+    s00 = 0.0 + g0 * tmp[b, 0, 0, 0] + g1 * tmp[b, 0, 1, 0] + g2 * tmp[b, 0, 2, 0]
+    s01 = 0.0 + g0 * tmp[b, 0, 0, 1] + g1 * tmp[b, 0, 1, 1] + g2 * tmp[b, 0, 2, 1]
+    s02 = 0.0 + g0 * tmp[b, 0, 0, 2] + g1 * tmp[b, 0, 1, 2] + g2 * tmp[b, 0, 2, 2]
+    s10 = 0.0 + g0 * tmp[b, 1, 0, 0] + g1 * tmp[b, 1, 1, 0] + g2 * tmp[b, 1, 2, 0]
+    s11 = 0.0 + g0 * tmp[b, 1, 0, 1] + g1 * tmp[b, 1, 1, 1] + g2 * tmp[b, 1, 2, 1]
+    s12 = 0.0 + g0 * tmp[b, 1, 0, 2] + g1 * tmp[b, 1, 1, 2] + g2 * tmp[b, 1, 2, 2]
+    s20 = 0.0 + g0 * tmp[b, 2, 0, 0] + g1 * tmp[b, 2, 1, 0] + g2 * tmp[b, 2, 2, 0]
+    s21 = 0.0 + g0 * tmp[b, 2, 0, 1] + g1 * tmp[b, 2, 1, 1] + g2 * tmp[b, 2, 2, 1]
+    s22 = 0.0 + g0 * tmp[b, 2, 0, 2] + g1 * tmp[b, 2, 1, 2] + g2 * tmp[b, 2, 2, 2]
+    blocks[node, code, 0, 0] += s00
+    blocks[node, code, 0, 1] += s01
+    blocks[node, code, 0, 2] += s02
+    blocks[node, code, 1, 0] += s10
+    blocks[node, code, 1, 1] += s11
+    blocks[node, code, 1, 2] += s12
+    blocks[node, code, 2, 0] += s20
+    blocks[node, code, 2, 1] += s21
+    blocks[node, code, 2, 2] += s22
+
+
+@njit(cache=True, inline="always")
+def _add_block_2d(grads, p, a, tmp, b, blocks, node, code):  # noqa: ANN001, ANN202
+    """``_add_block_3d`` in 2D."""
+    g0 = grads[p, a, 0]
+    g1 = grads[p, a, 1]
+    s00 = 0.0 + g0 * tmp[b, 0, 0, 0] + g1 * tmp[b, 0, 1, 0]
+    s01 = 0.0 + g0 * tmp[b, 0, 0, 1] + g1 * tmp[b, 0, 1, 1]
+    s10 = 0.0 + g0 * tmp[b, 1, 0, 0] + g1 * tmp[b, 1, 1, 0]
+    s11 = 0.0 + g0 * tmp[b, 1, 0, 1] + g1 * tmp[b, 1, 1, 1]
+    blocks[node, code, 0, 0] += s00
+    blocks[node, code, 0, 1] += s01
+    blocks[node, code, 1, 0] += s10
+    blocks[node, code, 1, 1] += s11
 
 
 _accumulate_blocks_2d = _dim_kernel(2)
