@@ -270,8 +270,7 @@ def _normalised(x: np.ndarray) -> np.ndarray:
 
 
 def _unit(rng: np.random.Generator, n: int, dim: int) -> np.ndarray:
-    u = rng.standard_normal((n, dim))
-    return u / np.linalg.norm(u, axis=1, keepdims=True)
+    return _normalised(rng.standard_normal((n, dim)))
 
 
 def _feature(rng, kind: str, n: int):
@@ -285,21 +284,15 @@ def _feature(rng, kind: str, n: int):
         c = e0 + s * (e1 - e0)
         normal = np.stack([-t[:, 1], t[:, 0]], axis=1)
         return np.stack([e0, e1], 1), c, normal, t
-    t0 = rng.uniform(-1, 1, (n, 3))
-    u = rng.uniform(-1, 1, (n, 3))
-    w = rng.uniform(-1, 1, (n, 3))
+    t0, u, w = (rng.uniform(-1, 1, (n, 3)) for _ in range(3))
+    normal, tangent = _normalised(np.cross(u, w)), _normalised(u)
     if kind == "point_triangle":
         t1, t2 = t0 + u, t0 + w
         b = rng.dirichlet([1, 1, 1], n)
         c = b[:, :1] * t0 + b[:, 1:2] * t1 + b[:, 2:] * t2
-        normal = np.cross(u, w)
-        normal /= np.linalg.norm(normal, axis=1, keepdims=True)
-        return np.stack([t0, t1, t2], 1), c, normal, u / np.linalg.norm(u, axis=1, keepdims=True)
+        return np.stack([t0, t1, t2], 1), c, normal, tangent
     s = rng.uniform(0.05, 0.95, (n, 1))
-    c = t0 + s * u
-    normal = np.cross(u, w)
-    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
-    return np.stack([t0, t0 + u], 1), c, normal, u / np.linalg.norm(u, axis=1, keepdims=True)
+    return np.stack([t0, t0 + u], 1), t0 + s * u, normal, tangent
 
 
 def _assemble(

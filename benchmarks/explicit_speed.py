@@ -67,13 +67,9 @@ def _relative_speed(sim: bfemp.Simulation) -> float:
 
 def run_strategy(h: float, strategy: str) -> dict:
     """One run to ``T_END``; wall time and its split."""
-    if strategy == "augury":
-        options = AuguryOptions(penetration_check_every=0)
-        sim = bfemp.Simulation(scene(h), strategy="augury", options=options, dt="auto")
-    elif strategy == "two_stage":
-        sim = bfemp.Simulation(scene(h), strategy="two_stage", dt="auto")
-    else:
-        sim = bfemp.Simulation(scene(h), strategy="barrier", dt=BARRIER_DT)
+    options = AuguryOptions(penetration_check_every=0) if strategy == "augury" else None
+    dt = "auto" if strategy in EXPLICIT else BARRIER_DT
+    sim = bfemp.Simulation(scene(h), strategy=strategy, options=options, dt=dt)
     p0 = diagnostics.linear_momentum(sim.model, sim.state)
     steps = int(np.ceil(T_END / sim.dt - 1e-9))
     mech = contact = 0.0
