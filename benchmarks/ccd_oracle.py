@@ -196,12 +196,8 @@ def _quadratic_roots(c2: Fraction, c1: Fraction, c0: Fraction) -> list[Surd] | N
     return [Surd(-c1 / (2 * c2), sg / (2 * c2), disc) for sg in ((-1, 1) if disc else (1,))]
 
 
-def _poly(coef: tuple[Fraction, Fraction, Fraction], t) -> Surd:
-    return (
-        coef[0] * t * t + coef[1] * t + coef[2]
-        if isinstance(t, Surd)
-        else Surd(coef[0] * t * t + coef[1] * t + coef[2])
-    )
+def _poly(coef: tuple[Fraction, Fraction, Fraction], t: Surd) -> Surd:
+    return coef[0] * t * t + coef[1] * t + coef[2]
 
 
 def exact_toi_point_edge_2d(X: np.ndarray, dX: np.ndarray, t_max: float = 1.0):
