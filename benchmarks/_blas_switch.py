@@ -98,8 +98,3 @@ def factorisation_by_blas(matrices: dict[str, sp.spmatrix], repeats: int = 3) ->
         "speedup": speedup,
         "repeats": repeats,
     }
-
-
-if __name__ == "__main__":  # pragma: no cover - a manual check
-    A = sp.random(2000, 2000, density=0.01, random_state=0)
-    print(factorisation_by_blas({"random": (A @ A.T + 10 * sp.eye(2000)).tocsc()}))

@@ -19,11 +19,11 @@ MACHINE_NOTE = "2 shared cores, loaded by other work: compare ratios within this
 
 def cases_and_blas(cases: dict, measure_one) -> dict:
     """Each case of ``cases`` (name -> its parameters) measured by ``measure_one(name,
-    matrices, dim, cfg)``, which adds the case's Hessian to ``matrices``; then CHOLMOD's
-    factorisation of each Hessian on the reference and the default BLAS (per process)."""
+    matrices, dim, **parameters)``, which adds the case's Hessian to ``matrices``; then
+    CHOLMOD's factorisation of each Hessian on the reference and the default BLAS (per process)."""
     matrices: dict = {}
     measured = {
-        name: measure_one(name, matrices, 2 if name == "2d" else 3, cfg)
+        name: measure_one(name, matrices, 2 if name == "2d" else 3, **cfg)
         for name, cfg in cases.items()
     }
     return {
@@ -44,14 +44,14 @@ def plot_phases(payload: dict, png, phases: tuple[str, ...], size: str, title: s
     plot_bars(labels, groups, png, ylabel="seconds", title=title)
 
 
-def warm_stepper(model, dt: float, tol: float):
-    """A barrier stepper (backward Euler, step ``dt`` s, Newton tolerance ``tol`` m/s) on
-    ``model`` and the state after one step (the warm-up that compiles the numba kernels):
-    ``(stepper, state)``."""
+def warm_stepper(model, dt: float, tol: float, **options):
+    """A barrier stepper (backward Euler, step ``dt`` s, Newton tolerance ``tol`` m/s, other
+    ``BarrierOptions`` fields from ``options``) on ``model`` and the state after one step (the
+    warm-up that compiles the numba kernels): ``(stepper, state)``."""
     from bfemp.integrators import BACKWARD_EULER
     from bfemp.steppers.barrier import BarrierOptions, BarrierStepper
 
-    options = BarrierOptions(tol=tol)
+    options = BarrierOptions(tol=tol, **options)
     stepper = BarrierStepper(model, integrator=BACKWARD_EULER, dt=dt, options=options)
     state, _ = stepper.step(stepper.initialize(model.initial_state()))
     return stepper, state

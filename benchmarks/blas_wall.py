@@ -82,26 +82,18 @@ def _run_child(
 BLAS_CHOICES = ("both", "reference", "optimised")
 
 
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--blas {both,reference,optimised}``: run one half only (default both)."""
-    parser.add_argument(
+def _arguments(group: argparse._ActionsContainer) -> None:
+    """``--blas {both,reference,optimised}`` (one half only; default both) and ``--merge J``."""
+    group.add_argument(
         "--blas",
         choices=BLAS_CHOICES,
-        default="both",
         help="run on both BLAS (default) or on one (the other half of a record measured apart)",
     )
-    parser.add_argument(
+    group.add_argument(
         "--merge",
         metavar="BLAS_WALL_JSON",
         help="take the halves this run does not make from that record of the same mode",
     )
-
-
-def main_from_args(args: argparse.Namespace) -> int:
-    """``python -m benchmarks blas_wall [--mode M] [--blas B] [--merge J] [--out D]``."""
-    summary = BENCHMARK.run(args.mode or "full", args.out, blas=args.blas, merge=args.merge)
-    print(f"blas_wall: wrote {summary['json']}")
-    return 0
 
 
 def _read_merge(path: str | Path, mode: str) -> dict:
@@ -186,5 +178,7 @@ def measure(
     return payload
 
 
-BENCHMARK = register(Benchmark("blas_wall", __doc__, MODES, measure, needs_out=True))
+BENCHMARK = register(
+    Benchmark("blas_wall", __doc__, MODES, measure, arguments=_arguments, needs_out=True)
+)
 run = BENCHMARK.run

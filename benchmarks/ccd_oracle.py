@@ -196,12 +196,8 @@ def _quadratic_roots(c2: Fraction, c1: Fraction, c0: Fraction) -> list[Surd] | N
     return [Surd(-c1 / (2 * c2), sg / (2 * c2), disc) for sg in ((-1, 1) if disc else (1,))]
 
 
-def _poly(coef: tuple[Fraction, Fraction, Fraction], t) -> Surd:
-    return (
-        coef[0] * t * t + coef[1] * t + coef[2]
-        if isinstance(t, Surd)
-        else Surd(coef[0] * t * t + coef[1] * t + coef[2])
-    )
+def _poly(coef: tuple[Fraction, Fraction, Fraction], t: Surd) -> Surd:
+    return coef[0] * t * t + coef[1] * t + coef[2]
 
 
 def exact_toi_point_edge_2d(X: np.ndarray, dX: np.ndarray, t_max: float = 1.0):
@@ -270,8 +266,7 @@ def _normalised(x: np.ndarray) -> np.ndarray:
 
 
 def _unit(rng: np.random.Generator, n: int, dim: int) -> np.ndarray:
-    u = rng.standard_normal((n, dim))
-    return u / np.linalg.norm(u, axis=1, keepdims=True)
+    return _normalised(rng.standard_normal((n, dim)))
 
 
 def _feature(rng, kind: str, n: int):
@@ -285,21 +280,15 @@ def _feature(rng, kind: str, n: int):
         c = e0 + s * (e1 - e0)
         normal = np.stack([-t[:, 1], t[:, 0]], axis=1)
         return np.stack([e0, e1], 1), c, normal, t
-    t0 = rng.uniform(-1, 1, (n, 3))
-    u = rng.uniform(-1, 1, (n, 3))
-    w = rng.uniform(-1, 1, (n, 3))
+    t0, u, w = (rng.uniform(-1, 1, (n, 3)) for _ in range(3))
+    normal, tangent = _normalised(np.cross(u, w)), _normalised(u)
     if kind == "point_triangle":
         t1, t2 = t0 + u, t0 + w
         b = rng.dirichlet([1, 1, 1], n)
         c = b[:, :1] * t0 + b[:, 1:2] * t1 + b[:, 2:] * t2
-        normal = np.cross(u, w)
-        normal /= np.linalg.norm(normal, axis=1, keepdims=True)
-        return np.stack([t0, t1, t2], 1), c, normal, u / np.linalg.norm(u, axis=1, keepdims=True)
+        return np.stack([t0, t1, t2], 1), c, normal, tangent
     s = rng.uniform(0.05, 0.95, (n, 1))
-    c = t0 + s * u
-    normal = np.cross(u, w)
-    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
-    return np.stack([t0, t0 + u], 1), c, normal, u / np.linalg.norm(u, axis=1, keepdims=True)
+    return np.stack([t0, t0 + u], 1), t0 + s * u, normal, tangent
 
 
 def _assemble(
@@ -468,66 +457,37 @@ def _public_toi(kind: str, X: np.ndarray, dX: np.ndarray, **options) -> np.ndarr
     return getattr(ccd, kind + "_ccd")(*cols, **options)
 
 
-def _ipctk_worker(conn) -> None:  # pragma: no cover - runs in the ipctk subprocess
-    """Answer (kind, x0, x1) queries with ipctk's Tight-Inclusion CCD until None arrives."""
-    import ipctk as ip
-
-    narrow = ip.TightInclusionCCD()
+def _ipctk_query(kind: str, x0: list, x1: list) -> float:  # pragma: no cover - in the worker
+    """ipctk's Tight-Inclusion time of impact of one pair (``conservative_rescaling = 1``), 1.0
+    where it reports no collision."""
+    narrow = ipctk.TightInclusionCCD()
     narrow.conservative_rescaling = 1.0
-    while (msg := conn.recv()) is not None:
-        kind, x0, x1 = msg
-        hit, t = getattr(narrow, kind + "_ccd")(*x0, *x1)
-        conn.send(float(t) if hit else 1.0)
-
-
-class _Ipctk:  # pragma: no cover - needs ipctk
-    """ipctk queries in a subprocess, each given ``timeout`` seconds: ipctk 1.6.1's
-    Tight-Inclusion point-edge CCD did not return within 120 s on the defect case of issue 44
-    (it retries while it finds toi 0), so a stuck query is killed and counted, not waited for."""
-
-    def __init__(self, timeout: float):
-        self.timeout = timeout
-        self.proc = None
-
-    def _start(self) -> None:
-        ctx = multiprocessing.get_context("fork")
-        self.conn, child = ctx.Pipe()
-        self.proc = ctx.Process(target=_ipctk_worker, args=(child,), daemon=True)
-        self.proc.start()
-
-    def query(self, kind: str, x0: list, x1: list) -> float:
-        """Time of impact, 1.0 for no collision, nan when it timed out."""
-        if self.proc is None:
-            self._start()
-        self.conn.send((kind, x0, x1))
-        if self.conn.poll(self.timeout):
-            return self.conn.recv()
-        self.close(kill=True)
-        return float("nan")
-
-    def close(self, kill: bool = False) -> None:
-        if self.proc is None:
-            return
-        if kill:
-            self.proc.kill()
-        else:
-            self.conn.send(None)
-        self.proc.join()
-        self.proc = None
+    hit, t = getattr(narrow, kind + "_ccd")(*x0, *x1)
+    return float(t) if hit else 1.0
 
 
 def ipctk_toi(kind: str, X: np.ndarray, dX: np.ndarray, timeout: float = 2.0) -> np.ndarray | None:
     """ipctk's Tight-Inclusion times of impact (n,) (1.0 where it reports no collision, nan where
     it did not answer within ``timeout`` s), or None without ipctk. ipctk interpolates ``x0`` and
-    ``x1 = fl(x0 + dX)``, a trajectory equal to bfemp's up to rounding."""
+    ``x1 = fl(x0 + dX)``, a trajectory equal to bfemp's up to rounding. The queries run in a
+    worker process: ipctk 1.6.1's point-edge CCD did not return within 120 s on the defect case
+    of issue 44 (it retries while it finds toi 0), so a stuck worker is killed and replaced."""
     if ipctk is None:
         return None
-    runner = _Ipctk(timeout)  # pragma: no cover - needs ipctk
-    try:  # pragma: no cover
-        X1 = X + dX
-        return np.array([runner.query(kind, list(X[i]), list(X1[i])) for i in range(len(X))])
-    finally:  # pragma: no cover
-        runner.close()
+    ctx = multiprocessing.get_context("fork")
+    pool, X1, toi = ctx.Pool(1), X + dX, []
+    try:
+        for i in range(len(X)):
+            query = pool.apply_async(_ipctk_query, (kind, list(X[i]), list(X1[i])))
+            try:
+                toi.append(query.get(timeout))
+            except multiprocessing.TimeoutError:
+                toi.append(float("nan"))
+                pool.terminate()
+                pool = ctx.Pool(1)
+    finally:
+        pool.terminate()
+    return np.array(toi)
 
 
 def _measure(name: str, kind: str, n: int, mode: str) -> dict:

@@ -27,13 +27,13 @@ from pathlib import Path
 
 import bfemp
 from benchmarks._blas_switch import factorisation_by_blas
-from benchmarks._phases import MACHINE_NOTE, PERF_TIMINGS, newton_phases
+from benchmarks._phases import MACHINE_NOTE, PERF_TIMINGS, newton_phases, warm_stepper
 from benchmarks._shared import python_child
 from benchmarks.common import peak_memory_mb, write_json
 from benchmarks.runner import Benchmark, register
 from bfemp.integrators import BACKWARD_EULER
 from bfemp.steppers.barrier import BarrierOptions, BarrierStepper
-from solvers.choice import make_linear_solver
+from solvers.choice import linear_algebra, make_linear_solver
 
 CASES = {
     "full": dict(cells=(25, 25, 20), dx=0.02),
@@ -69,14 +69,9 @@ def _measure(mode: str, solver: str, matrices: dict | None = None) -> dict:
     """One warm-up and one timed step of ``mode``'s scene with ``solver``."""
     cfg = CASES[mode]
     model = _scene(cfg["cells"], cfg["dx"]).build()
-    stepper = BarrierStepper(
-        model,
-        integrator=BACKWARD_EULER,
-        dt=DT,
-        options=BarrierOptions(tol=TOL, linear_solver=make_linear_solver(solver, block_size=3)),
-    )
     start = time.perf_counter()
-    state, _ = stepper.step(stepper.initialize(model.initial_state()))  # warm-up
+    linear_solver = make_linear_solver(solver, block_size=3)
+    stepper, state = warm_stepper(model, DT, TOL, linear_solver=linear_solver)
     out = {
         "solver": solver,
         "particles": int(model.n_particles),
@@ -106,13 +101,7 @@ def measure(mode: str, cfg: dict, out: Path) -> dict:
     """Every installed solver on ``mode``'s scene (full mode: each in its own process, their
     results saved to ``out/perf_3d_solvers.json`` before the BLAS comparison)."""
     matrices: dict = {}
-    installed = []
-    for name in SOLVERS:
-        try:
-            make_linear_solver(name)
-            installed.append(name)
-        except RuntimeError:
-            pass
+    installed = [name for name in SOLVERS if linear_algebra()["solvers"][name]]
     results = {}
     for name in installed:
         if mode == "quick":

@@ -90,9 +90,7 @@ def _query(points, vertices, simplices, kwargs: dict) -> dict:
     pairs_fcl = call("fcl")
     t_fcl = time.perf_counter() - start
     n_sub = min(BRUTE_POINTS, points.shape[0])
-    sub_kwargs = dict(kwargs)
-    if "points_end" in sub_kwargs:
-        sub_kwargs["points_end"] = kwargs["points_end"][:n_sub]
+    sub_kwargs = {k: v[:n_sub] if k == "points_end" else v for k, v in kwargs.items()}
     start = time.perf_counter()
     pairs_brute = point_simplex_candidates(
         points[:n_sub], vertices, simplices, method="brute", **sub_kwargs

@@ -1,84 +1,40 @@
 """Barrier and CCD throughput against the ipctk library, and a Newton-iteration breakdown (rings).
 
-``python -m benchmarks perf_contact``. Three parts:
+``python -m benchmarks perf_contact``. Three parts (method notes: ``records/perf_contact.md``):
 
 1. **Barrier** (value + gradient + PSD-projected Hessian) on one particle-segment (2D) and one
-   particle-triangle (3D) configuration, through bfemp's ``BarrierTerm`` and through ipctk's
-   ``BarrierPotential`` on the same collision points. Configuration: a prescribed (fixed) FEM
-   body (2D: disk of radius 1 m, h = 0.05 m, 120 boundary segments; 3D: unit box, h = 0.1 m,
-   1200 boundary triangles) and MPM particles outside it at distances uniform in
-   [0.05, 0.95] dhat (dhat = 1e-3 m) from a facet, above the facet's interior and at least
-   2 dhat from its edges, so that each particle has exactly one active pair, a facet-interior
-   one (no vertex or edge term, no corner) in both libraries. Pairs: 50k (full) / 5k (quick) in
-   both dimensions; MPM grid dx 0.05 m (2D) / 0.1 m (3D); particle volume (dx / 2)^d.
+   particle-triangle (3D) configuration, through bfemp's ``BarrierTerm`` and ipctk's
+   ``BarrierPotential`` on the same collision points. A prescribed FEM body (2D: disk of radius
+   1 m, h = 0.05 m, 120 boundary segments; 3D: unit box, h = 0.1 m, 1200 boundary triangles) and
+   MPM particles at distances uniform in [0.05, 0.95] dhat (dhat = 1e-3 m) above facet interiors,
+   at least 2 dhat from their edges: one facet-interior pair per particle in both libraries.
+   Pairs: 50k (full) / 5k (quick); MPM grid dx 0.05 m (2D) / 0.1 m (3D); particle volume
+   (dx / 2)^d. ipctk's collision mesh takes bfemp's collision points and its affine collision
+   map (the particles' B-spline weights, BFEMP eq. 29) as ``displacement_map``. Levels timed:
+   ``kernel`` (bfemp's pointwise kernels on the pair arrays: no pair search, chain rule or
+   scatter), ``collision`` (ipctk, w.r.t. the collision vertices, assembled) and ``dofs`` (both,
+   w.r.t. the simulation unknowns, assembled); ``barrier_pairs_per_s`` = active pairs / ``dofs``
+   time. The pair search is timed apart and also added (``*_with_pair_search``). ``agreement``:
+   the same active pairs; ipctk's energy equals ``stiffness * sum -(d^2 - dhat^2)^2 ln(d^2 /
+   dhat^2)`` over bfemp's pair distances; ipctk's vertex gradient equals bfemp's point force
+   times ``stiffness b_ipc'(d^2) 2 d / (omega b'(d))``.
 
-   ipctk's collision mesh has the same vertices as bfemp's collision points (FEM boundary nodes,
-   then particles), the boundary facets as edges / faces, and bfemp's affine collision map (the
-   particles' B-spline weights, paper eq. 29) as its ``displacement_map``, so ``to_full_dof``
-   applies the same chain rule to the same unknowns (grid nodes; the FEM body is prescribed).
-   ipctk 1.6 proposes codimensional particle-particle candidates whatever the mesh's
-   ``can_collide`` filter says; bfemp never pairs particles, so ipctk's pair search is
-   ``Candidates.build`` + dropping its vertex-vertex candidates + ``NormalCollisions.build``.
-   Levels timed:
+2. **CCD**: every grid node translated by 3 dhat along -x (2D) / -z (3D): bfemp
+   ``max_step_size`` against ipctk ``compute_collision_free_stepsize``, each with its broad phase;
+   both must not exceed the exact first time of impact (brute force over every particle and
+   facet).
 
-   - ``kernel`` (bfemp): the pointwise kernels alone on the pair arrays (the pairs' distances;
-     ``bfemp.contact.barrier`` b, b', b''; ``bfemp.contact._barrier_kernels``: per pair the
-     distance gradient and Hessian, the local barrier gradient and Hessian and its PSD
-     projection): no pair search, no chain rule, no scatter;
-   - ``collision`` (ipctk): value + gradient + Hessian (CLAMP projection) w.r.t. the collision
-     vertices, assembled into its CSC matrix (ipctk's own level);
-   - ``dofs`` (both): w.r.t. the simulation unknowns, assembled. bfemp: ``value`` + ``gradient``
-     + ``hessian(psd=True)`` (triplets chained through the B-spline weights) + CSC assembly
-     (``TripletAssembler``, pattern reused); ipctk: collision level + ``to_full_dof`` of the
-     gradient and the Hessian (its matrix also has rows for the prescribed FEM nodes, bfemp's
-     only for the unknowns). ``barrier_pairs_per_s`` (the headline) = active pairs / this time.
-     bfemp's chain rule sums the pairs' node blocks as it goes (one triplet per coupled DOF
-     pair), so this level runs on all pairs in 3D too.
+3. **Rings breakdown**: the ``rings`` scene at its quick / full resolution, Newmark, dt = 2e-4 s,
+   APIC, tol 1e-6 m/s, stepped to 5 steps after the first active contact pair (t ~ 0.025 s);
+   there one step's phases (``report.timings``, the fastest of ``repeats`` runs, a fresh linear
+   solver each), the per-iteration assembly and CHOLMOD phases (``benchmarks._phases``), the
+   broad phase, the pair search and the CCD step bound along the inertial predictor.
 
-   The pair search is timed apart (bfemp ``solution_changed``: collision positions, broad phase,
-   distances, which ``value`` then reuses; ipctk as above, whose ``value`` recomputes them) and
-   also added to the ``dofs`` level (``*_with_pair_search``: the whole per-iterate cost).
-
-   Correctness facts recorded (``agreement``): both find the same number of active pairs;
-   ipctk's energy equals ``stiffness * sum -(d^2 - dhat^2)^2 ln(d^2 /
-   dhat^2)`` over bfemp's pair distances (ipctk's barrier is the clamped log in the squared
-   distance, weight 1 per collision, no area weighting); per particle, ipctk's vertex gradient
-   equals bfemp's point force times the analytic ratio of the two barriers' derivatives,
-   ``stiffness b_ipc'(d^2) 2 d / (omega b'(d))`` (same distances, same distance gradients). The
-   stiffnesses differ in meaning (bfemp: kappa in Pa times the point weight omega; ipctk: a plain
-   factor, here also 1e7); the timings do not depend on them.
-
-2. **CCD**: every grid node (hence every particle) translated by 3 dhat along -x (2D) / -z
-   (3D): bfemp ``max_step_size`` (0.9 x its conservative time of impact) against ipctk
-   ``compute_collision_free_stepsize`` (its default broad phase and Tight-Inclusion CCD), each
-   timed with its broad phase. The exact first time of impact is computed by brute force (every
-   particle against every facet: the facets do not move, so it is the first crossing of a
-   facet's line / plane inside the facet); both step sizes must not exceed it (conservative).
-
-3. **Rings breakdown**: the ``rings`` scene (``benchmarks.rings``; quick: its quick resolution,
-   full: its full resolution) with Newmark, dt = 2e-4 s, APIC, tol 1e-6 m/s. The rings fly
-   freely (rigid translation) with 10 dt up to t = 0.02 s, then with dt to the first step with
-   an active contact pair (t ~ 0.025 s) and 5 steps more (a developed contact zone). There, one
-   step is timed (``report.timings``: gradient, hessian, assemble, analyze, factorize, solve,
-   line_search, step_bound, setup, g2p, each the fastest of ``repeats`` runs of that step with a
-   fresh linear solver; also per Newton iteration) and, at its start, the
-   per-iteration assembly and CHOLMOD phases (``benchmarks._phases``), the barrier's broad phase
-   (``candidate_pairs``, inflation dhat), its whole pair search and the CCD step bound along the
-   inertial predictor x_hat - x^n (``max_step_size``).
-
-Timings: each operation is called once (warm-up: numba kernels loaded, ipctk structures built) and
-then ``repeats`` times in a row; its time is the fastest of these calls. The 2-core machine is
-shared with other jobs, and the minimum is the least disturbed run; consecutive calls measure the
-steady state (``benchmarks/records/perf_contact.md``: why). The barrier and CCD comparisons run both
-libraries on one thread (``COMPARE_THREADS``: numba's and ipctk's TBB pools): per-core throughput,
-the fair comparison, and the one that survives a loaded 2-core machine (with two threads, a parallel
-region waits for its slowest thread while other jobs deschedule threads at random). The rings
-breakdown uses the default threads. ipctk is optional (``pip install .[bench]``); without it its
-columns are ``null``.
-
-``before_after``: where the output folder already holds a record of the same mode, ``[that
-record, this run]`` for the headline rates, CCD times and the rings' per-iteration phases (and
-the record's commit); ``null`` otherwise.
+Every operation is called once, then ``repeats`` times in a row; its time (s) is the fastest call.
+Parts 1 and 2 run both libraries on ``COMPARE_THREADS`` threads (per-core throughput), part 3 on
+the default threads. ipctk is optional (``pip install .[bench]``); without it its columns are
+``null``. ``before_after``: ``[the record of the same mode already in the output folder, this
+run]`` for the headline rates, CCD times and the rings' per-iteration phases, or ``null``.
 """
 
 from __future__ import annotations
@@ -554,6 +510,18 @@ def _per_s(pairs: int, seconds: float | None) -> float | None:
     return None if seconds is None or seconds <= 0.0 else pairs / seconds
 
 
+def _bars(ax, labels: list[str], series: dict, ylabel: str, title: str) -> None:
+    """Grouped bars of ``series`` (name -> one value per label) on a log scale."""
+    pos = np.arange(len(labels))
+    for k, (name, vals) in enumerate(series.items()):
+        ax.bar(pos + (k - 0.5) * 0.38, vals, 0.38, label=name)
+    ax.set_xticks(pos, labels, fontsize="small")
+    ax.set_yscale("log")
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize="medium")
+    ax.legend(fontsize="small")
+
+
 def _plot(payload: dict, path: Path) -> None:
     """Pairs/s per level (2D, 3D), CCD times, and the rings step's phases per iteration."""
     fig, (ax_b, ax_c, ax_r) = figure(
@@ -569,23 +537,9 @@ def _plot(payload: dict, path: Path) -> None:
             labels.append(f"{dim_key}\n{level}")
             series["bfemp"].append(_per_s(case["pairs"], b_s) or np.nan)
             series["ipctk"].append(_per_s(case["pairs"], i_s) or np.nan)
-    pos = np.arange(len(labels))
-    for k, (name, vals) in enumerate(series.items()):
-        ax_b.bar(pos + (k - 0.5) * 0.38, vals, 0.38, label=name)
-    ax_b.set_xticks(pos, labels, fontsize="small")
-    ax_b.set_yscale("log")
-    ax_b.set_ylabel("active pairs per second")
-    ax_b.set_title("barrier value + gradient + PSD Hessian", fontsize="medium")
-    ax_b.legend(fontsize="small")
-    dims = list(payload["cases"])
-    for k, name in enumerate(("bfemp", "ipctk")):
-        vals = [payload["cases"][d]["ccd"][f"{name}_s"] or np.nan for d in dims]
-        ax_c.bar(np.arange(len(dims)) + (k - 0.5) * 0.38, vals, 0.38, label=name)
-    ax_c.set_xticks(np.arange(len(dims)), dims)
-    ax_c.set_yscale("log")
-    ax_c.set_ylabel("seconds (broad + narrow phase)")
-    ax_c.set_title("CCD step bound", fontsize="medium")
-    ax_c.legend(fontsize="small")
+    _bars(ax_b, labels, series, "active pairs per second", "barrier value + gradient + PSD Hessian")
+    ccd = {n: [c["ccd"][f"{n}_s"] or np.nan for c in payload["cases"].values()] for n in series}
+    _bars(ax_c, list(payload["cases"]), ccd, "seconds (broad + narrow phase)", "CCD step bound")
     ring = payload["rings_breakdown"]
     parts = dict(ring["step_phases_per_iteration_s"])
     parts["broad phase\n(one call)"] = ring["broad_phase_s"]
@@ -619,18 +573,15 @@ def measure(mode: str, cfg: dict, out: Path) -> dict:
     ring = _rings_breakdown(cfg["rings"], cfg["repeats"])
     pairs_per_s, ccd_s, ccd_step = {}, {}, {}
     for key, case in cases.items():
-        ip = case["ipctk"] or {}
+        bf, ip, n = case["bfemp"], case["ipctk"] or {}, case["pairs"]
+        searched = ip["dofs_s"] + ip["pair_search_s"] if ip else None
         pairs_per_s[key] = {
-            "bfemp": _per_s(case["pairs"], case["bfemp"]["dofs_s"]),
+            "bfemp": _per_s(n, bf["dofs_s"]),
             "ipctk": _per_s(ip.get("pairs", 0), ip.get("dofs_s")),
-            "bfemp_kernel": _per_s(case["pairs"], case["bfemp"]["kernel_s"]),
+            "bfemp_kernel": _per_s(n, bf["kernel_s"]),
             "ipctk_collision": _per_s(ip.get("pairs", 0), ip.get("collision_s")),
-            "bfemp_with_pair_search": _per_s(
-                case["pairs"], case["bfemp"]["dofs_s"] + case["bfemp"]["pair_search_s"]
-            ),
-            "ipctk_with_pair_search": _per_s(
-                ip.get("pairs", 0), ip["dofs_s"] + ip["pair_search_s"] if ip else None
-            ),
+            "bfemp_with_pair_search": _per_s(n, bf["dofs_s"] + bf["pair_search_s"]),
+            "ipctk_with_pair_search": _per_s(ip.get("pairs", 0), searched),
         }
         c = case["ccd"]
         ccd_s[key] = {"bfemp": c["bfemp_s"], "ipctk": c["ipctk_s"]}

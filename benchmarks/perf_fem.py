@@ -43,7 +43,7 @@ def _measure(name: str, matrices: dict, dim: int, n: tuple[int, ...]) -> dict:
 
 def measure(mode: str, cases: dict) -> dict:
     """Both cases of ``mode``, and CHOLMOD on each case's Hessian per BLAS."""
-    return cases_and_blas(cases, lambda name, m, dim, cfg: _measure(name, m, dim, cfg["n"]))
+    return cases_and_blas(cases, _measure)
 
 
 def plot(payload: dict, png: Path) -> None:

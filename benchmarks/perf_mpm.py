@@ -67,9 +67,7 @@ def _measure(name: str, matrices: dict, dim: int, cells: tuple[int, ...], ppc: i
 
 def measure(mode: str, cases: dict) -> dict:
     """Both cases of ``mode``, and CHOLMOD on each case's Hessian per BLAS."""
-    return cases_and_blas(
-        cases, lambda name, m, dim, cfg: _measure(name, m, dim, cfg["cells"], cfg["ppc"])
-    )
+    return cases_and_blas(cases, _measure)
 
 
 def plot(payload: dict, png: Path) -> None:

@@ -35,8 +35,7 @@ _CHILD = """
 import json, sys, time
 import numba
 from benchmarks import catalogue
-from bfemp.integrators import BACKWARD_EULER
-from bfemp.steppers.barrier import BarrierOptions, BarrierStepper
+from benchmarks._phases import warm_stepper
 from solvers.blas import cholmod_blas
 cfg = json.loads(sys.argv[1])
 scenes = {
@@ -47,11 +46,9 @@ blas = cholmod_blas()
 out = {"blas": blas.name, "blas_threads": blas.threads, "numba_threads": numba.get_num_threads(),
        "step_s": {}}
 for name, (scene, dt) in scenes.items():
-    model = scene.build()
-    stepper = BarrierStepper(model, integrator=BACKWARD_EULER, dt=dt,
-                             options=BarrierOptions(tol=1e-4))
-    state0 = stepper.initialize(model.initial_state())
-    stepper.step(state0)  # warm-up: numba compilation (cached) and the symbolic analysis
+    # warm-up: numba compilation (cached) and the symbolic analysis
+    stepper, _ = warm_stepper(scene.build(), dt, 1e-4)
+    state0 = stepper.initialize(stepper.model.initial_state())
     best = float("inf")
     for _ in range(cfg["repeats"]):
         t = time.perf_counter()

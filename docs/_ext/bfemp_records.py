@@ -64,7 +64,6 @@ FAMILIES: tuple[tuple[str, str, tuple[str, ...]], ...] = (
             "perf_explicit",
             "perf_threads",
             "perf_broadphase",
-            "explicit_speed",
             "blas_wall",
             "speed_knobs",
         ),

@@ -53,3 +53,31 @@ def test_surd_sign_and_order():
     assert ccd_oracle._less(S(1, 1, 3), S(2, 1, 2))  # 2.732 < 3.414
     assert not ccd_oracle._less(S(2, 1, 2), S(1, 1, 3))
     assert not ccd_oracle._less(S(0, 1, 2), S(0, 1, 2))
+
+
+class _FakeTightInclusion:
+    """Stands in for ipctk's ``TightInclusionCCD``: a hit at t = x0[0] of the point, no
+    collision for x0[0] = 1, and a query that never returns for x0[0] = 2 (as ipctk 1.6.1's
+    point-edge CCD on the defect case of issue 44)."""
+
+    conservative_rescaling = 0.8
+
+    def point_edge_ccd(self, p0, e00, e01, p1, e10, e11):
+        assert self.conservative_rescaling == 1.0
+        if p0[0] == 2.0:
+            while True:
+                pass
+        return p0[0] != 1.0, p0[0]
+
+
+def test_ipctk_queries_answer_and_a_stuck_one_is_killed_and_counted(monkeypatch):
+    import sys
+    import types
+
+    fake = types.SimpleNamespace(TightInclusionCCD=_FakeTightInclusion)
+    monkeypatch.setitem(sys.modules, "ipctk", fake)
+    monkeypatch.setattr(ccd_oracle, "ipctk", fake)
+    X = np.zeros((4, 3, 2))
+    X[:, 0, 0] = [0.25, 2.0, 1.0, 0.5]  # the second query hangs; the ones after it still run
+    toi = ccd_oracle.ipctk_toi("point_edge", X, np.zeros_like(X), timeout=0.5)
+    assert toi[0] == 0.25 and np.isnan(toi[1]) and toi[2] == 1.0 and toi[3] == 0.5
