@@ -5,8 +5,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import ClassVar
 
-import numpy as np
-
 from bfemp.steppers.base import StepperOptions
 from solvers.choice import LINEAR_SOLVER_NAMES, make_linear_solver
 from solvers.linear import LinearSolver
@@ -66,22 +64,15 @@ class BarrierOptions(StepperOptions):
     velocity_update: str = "positions"
     friction_back_solve: bool = True
 
+    def _named(self, name: str) -> str:
+        """The field alone: ``Simulation``'s flat keywords report these messages as its own."""
+        return name
+
     def __post_init__(self) -> None:
-        tol = self.tol
-        if isinstance(tol, bool) or not (isinstance(tol, int | float) and np.isfinite(tol)):
-            raise ValueError(f"tol must be a finite number of m/s, got {tol!r}")
-        if not tol > 0.0:
-            raise ValueError(f"tol must be > 0 (a Newton tolerance in m/s), got {tol!r}")
-        n = self.max_newton_iterations
-        if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
-            raise ValueError(f"max_newton_iterations must be an integer >= 1, got {n!r}")
-        for name in ("warm_start", "friction_back_solve"):
-            if not isinstance(getattr(self, name), bool | np.bool_):
-                raise ValueError(f"{name} must be true or false, got {getattr(self, name)!r}")
-        if self.velocity_update not in VELOCITY_UPDATES:
-            raise ValueError(
-                f"velocity_update must be one of {VELOCITY_UPDATES}, got {self.velocity_update!r}"
-            )
+        self.check_numbers("tol", what="a Newton tolerance in m/s")
+        self.check_integers("max_newton_iterations", low=1)
+        self.check_flags("warm_start", "friction_back_solve")
+        self.check_choices(velocity_update=VELOCITY_UPDATES)
         solver = self.linear_solver
         if isinstance(solver, str) and solver not in LINEAR_SOLVERS:
             raise ValueError(f"linear_solver must be one of {LINEAR_SOLVERS}, got {solver!r}")

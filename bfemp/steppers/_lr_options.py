@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import ClassVar
 
@@ -136,43 +135,16 @@ class LROptions(ExplicitOptions):
         super().__post_init__()
         name = type(self).__name__
         self.check_choices(
-            law=LAWS,
-            interface=INTERFACES,
-            detector=DETECTORS,
-            lump=LUMPS,
-            xpic_variant=XPIC_VARIANTS,
-        )
-        if self.contact_force not in CONTACT_FORCES:
-            raise ValueError(
-                f"{name}.contact_force must be one of {CONTACT_FORCES}, got {self.contact_force!r}"
-            )
+            law=LAWS, interface=INTERFACES, detector=DETECTORS, lump=LUMPS,
+            xpic_variant=XPIC_VARIANTS, contact_force=CONTACT_FORCES,
+        )  # fmt: skip
         if self.corrections not in (1, 2) or isinstance(self.corrections, bool):
             raise ValueError(f"{name}.corrections must be 1 or 2, got {self.corrections!r}")
-        order = self.xpic_order
-        if order is not None and (isinstance(order, bool) or not isinstance(order, int)):
-            raise ValueError(f"{name}.xpic_order must be None or an integer >= 1, got {order!r}")
-        if order is not None and order < 1:
-            raise ValueError(f"{name}.xpic_order must be None or an integer >= 1, got {order!r}")
-        it = self.lr_max_iterations
-        if isinstance(it, bool) or not isinstance(it, int) or it < 1:
-            raise ValueError(f"{name}.lr_max_iterations must be an integer >= 1, got {it!r}")
-        for field_name, allow_none, low_open in (
-            ("mu", True, False),
-            ("cp_offset", False, False),
-            ("mass_fraction", False, False),
-            ("penalty", False, False),
-            ("lr_tol", False, True),
-            ("thin_cloud", False, False),
-        ):
-            value = getattr(self, field_name)
-            if value is None and allow_none:
-                continue
-            if isinstance(value, bool) or not isinstance(value, int | float):
-                raise ValueError(f"{name}.{field_name} must be a number, got {value!r}")
-            ok = value > 0.0 if low_open else value >= 0.0
-            if not (math.isfinite(value) and ok):
-                kind = "> 0" if low_open else ">= 0"
-                raise ValueError(f"{name}.{field_name} must be finite and {kind}, got {value!r}")
-            object.__setattr__(self, field_name, float(value))
+        self.check_integers("lr_max_iterations", low=1)
+        if self.xpic_order is not None:
+            self.check_integers("xpic_order", low=1)
+        self.check_numbers("mu", strict=False, none=True)
+        self.check_numbers("cp_offset", "mass_fraction", "penalty", "thin_cloud", strict=False)
+        self.check_numbers("lr_tol")
         if self.mass_fraction >= 0.5:
             raise ValueError(f"{name}.mass_fraction must be below 0.5, got {self.mass_fraction}")

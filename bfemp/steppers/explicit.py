@@ -109,13 +109,7 @@ class ExplicitOptions(StepperOptions):
     cfl_safety_mpm: float = field(default=0.4, metadata={"sweep": _CFL_SWEEP})
 
     def __post_init__(self) -> None:
-        for name in ("cfl_safety_fem", "cfl_safety_mpm"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int | float):
-                raise ValueError(f"{type(self).__name__}.{name} must be a number, got {value!r}")
-            if not (math.isfinite(value) and 0.0 < value <= 1.0):
-                raise ValueError(f"{type(self).__name__}.{name} must lie in (0, 1], got {value!r}")
-            object.__setattr__(self, name, float(value))
+        self.check_numbers("cfl_safety_fem", "cfl_safety_mpm", high=1.0, what="a safety factor")
 
 
 class ExplicitStepper:

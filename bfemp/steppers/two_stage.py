@@ -94,7 +94,6 @@ undamped elastic vibration modulates the normal force and friction never exceeds
 from __future__ import annotations
 
 import logging
-import math
 import time
 from dataclasses import dataclass, field, replace
 from typing import ClassVar
@@ -168,20 +167,10 @@ class TwoStageOptions(ExplicitOptions):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        name = type(self).__name__
-        tol = self.tol
-        if isinstance(tol, bool) or not isinstance(tol, int | float) or not math.isfinite(tol):
-            raise ValueError(f"{name}.tol must be a finite number of m/s, got {tol!r}")
-        if not tol > 0.0:
-            raise ValueError(f"{name}.tol must be > 0 (a Newton tolerance in m/s), got {tol!r}")
-        object.__setattr__(self, "tol", float(tol))
-        n = self.max_newton_iterations
-        if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
-            raise ValueError(f"{name}.max_newton_iterations must be an integer >= 1, got {n!r}")
+        self.check_numbers("tol", what="a Newton tolerance in m/s")
+        self.check_integers("max_newton_iterations", low=1)
         self.check_choices(
-            friction=FRICTION_LAGGING,
-            start=STARTS,
-            linear_solver=LINEAR_SOLVER_NAMES,
+            friction=FRICTION_LAGGING, start=STARTS, linear_solver=LINEAR_SOLVER_NAMES
         )
 
 
