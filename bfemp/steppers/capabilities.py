@@ -120,10 +120,6 @@ class Capabilities:
         return self.pairs.get(kind)
 
 
-def _fully_prescribed(model: object) -> list[bool]:
-    return [bool(model.fem_prescribed[b.nodes].all()) for b in model.fem_bodies]
-
-
 def pair_kind(a_is_mpm: bool, b_is_mpm: bool, a_fixed: bool, b_fixed: bool) -> str | None:
     """The kind of a pair of bodies (None for two fully scripted FEM bodies: never a pair)."""
     if a_is_mpm and b_is_mpm:
@@ -141,8 +137,7 @@ def scene_pairs(model: object) -> list[tuple[str, str, str]]:
 
     FEM bodies come first, in insertion order, then MPM bodies (``bfemp.diagnostics`` order).
     """
-    fixed = _fully_prescribed(model)
-    bodies = [(b.name, False, fixed[i]) for i, b in enumerate(model.fem_bodies)]
+    bodies = [(b.name, False, bool(model.fem_prescribed[b.nodes].all())) for b in model.fem_bodies]
     bodies += [(b.name, True, False) for b in model.mpm_bodies]
     out = []
     for i, (name_a, mpm_a, fixed_a) in enumerate(bodies):

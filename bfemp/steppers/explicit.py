@@ -339,10 +339,9 @@ class ExplicitStepper:
     def mpm_stresses(self, state: State) -> np.ndarray:
         """First Piola stresses P(F_p^n) ``(P, d, d)`` in Pa, law by law (for a P2G phase)."""
         F = state.mpm_F
-        if len(self._mpm_laws) == 1 and self._mpm_laws[0][1] is None:
-            out = self._pool.empty(F.shape)
-            return self._mpm_laws[0][0].first_piola(F, self._mpm_mu, self._mpm_lam, out=out)
         out = self._pool.empty(F.shape)
+        if len(self._mpm_laws) == 1 and self._mpm_laws[0][1] is None:
+            return self._mpm_laws[0][0].first_piola(F, self._mpm_mu, self._mpm_lam, out=out)
         for law, idx in self._mpm_laws:
             out[idx] = law.first_piola(F[idx], self._mpm_mu[idx], self._mpm_lam[idx])
         return out

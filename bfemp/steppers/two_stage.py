@@ -322,14 +322,8 @@ class TwoStageStepper(ExplicitStepper):
         x_start = nodes.start()
         setup = time.perf_counter() - started
         if layout.n_dof == 0:
-            y, nit, f_its, f_ok, status, free = (
-                pot.to_unknowns(x_start),
-                0,
-                0,
-                True,
-                "EXPLICIT",
-                False,
-            )
+            y, nit, f_its, f_ok, status = pot.to_unknowns(x_start), 0, 0, True, "EXPLICIT"
+            free = False
             pot.solution_changed(y)
             timings: dict[str, float] = {}
         else:
