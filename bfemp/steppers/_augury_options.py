@@ -38,12 +38,10 @@ class AuguryOptions(ExplicitOptions):
     Attributes:
         tau: augury time scale tau in s; None: tau = dt (AUG's choice). tau < dt / 2 is refused
             (the correction v-bar + (dt/tau) G v-bar is unstable beyond).
-        iterations: augury iterations N >= 0 (AUG: 1; N = 0 sticks). Measured (issue 14,
-            ``bfemp.contact.augury``): N = 1 leaves a fixed fraction of the tangential drag
-            every step, so a frictionless slide is held back whatever h; sliding needs
-            ``normals="facing"`` and N of about 30 (2D ramp at t = 0.05 s, error 5.1 / 4.8 /
-            3.8 % at h = 1 / 0.5 / 0.25 m; 3D ramp at 0.1 s: 9 / 15.5 % at h = 1 / 0.5),
-            which then lets a block at mu = 0.7 creep (no setting tried does both).
+        iterations: augury iterations N >= 0 (AUG: 1; N = 0 sticks). N = 1 leaves a fixed
+            fraction of the tangential drag every step, so a frictionless slide is held back
+            whatever h; sliding needs ``normals="facing"`` and N of about 30, which then lets a
+            block at mu = 0.7 creep (issue 14: design note ``measurements``, augury).
         mode: ``"friction"`` (AUG eqs. 40-46, Coulomb with ``mu``; mu = 0 is frictionless) or
             ``"separate"`` (AUG eq. 38: only tensile corrections removed).
         mu: Coulomb coefficient; None takes ``scene.set_contact(mu=...)`` (0 without contact).

@@ -38,19 +38,15 @@ class BarrierOptions(StepperOptions):
             (default): from the solved x^{n+1}, so that x^{n+1} - x^n = dt v^{n+1} holds
             exactly under backward Euler (``Integrator.acceleration``); ``"forces"``: the
             paper's Algorithm 2 line 14, a^{n+1} = -M^-1 dPsi/dx(x^{n+1}), which adds M^-1 times
-            the Newton residual. The residual is large where the Hessian is stiff: at static
-            friction it gave velocities of 1e-3 m/s to particles moving at 5e-6 m/s (a block
-            at rest, mu = 0.3), which ``"positions"`` removes. Internal forces cancel in the sum,
-            so ``"forces"`` keeps a very stiff body's centre-of-mass motion free of the Newton
-            tolerance: on the slope benchmark (E = 4e12 Pa, tol 1e-8 m/s at its round-off
-            floor, mu = 0.1999) the full-mode acceleration error is 3.4e-5 with ``"forces"``
-            and 4.0e-3 with ``"positions"`` (whose sticking case, mu = 0.2, creeps at 5e-16
-            m/s^2 instead of 1e-16); the benchmark uses the paper's ``"forces"``.
+            the Newton residual. The residual is large where the Hessian is stiff (at static
+            friction), which ``"positions"`` removes. Internal forces cancel in the sum, so
+            ``"forces"`` keeps a very stiff body's centre-of-mass motion free of the Newton
+            tolerance; the slope benchmark uses it (design note ``measurements``, barrier).
         friction_back_solve: the friction loop's stopping test (Algorithm 1: the Newton
             increment under refreshed friction data below ``tol``) by a back-solve with the last
-            factorisation (default) instead of a Newton iteration (assembly and factorisation);
-            measured on a sticking block, 284 -> 224 factorisations over 0.3 s, same answer
-            (``benchmarks.speed_knobs``).
+            factorisation (default) instead of a Newton iteration (assembly and factorisation):
+            fewer factorisations, same answer (``benchmarks.speed_knobs``; design note
+            ``measurements``, barrier).
     """
 
     strategy: ClassVar[str] = "barrier"
