@@ -94,7 +94,7 @@ from bfemp.steppers._scaffold import StepNodes, gather_nodes, nodes_of_step
 from bfemp.steppers.base import ContactView, StepError, finite_or_nan
 from bfemp.steppers.capabilities import BARRIER_PAIRS, Capabilities
 from bfemp.steppers.explicit import ExplicitOptions, ExplicitStepper, GridStep, Motion
-from bfemp.terms import InertiaTerm, StepContext
+from bfemp.terms import InertiaTerm
 from solvers.choice import LINEAR_SOLVER_NAMES, make_linear_solver
 from solvers.options import NewtonOptions
 
@@ -277,23 +277,14 @@ class TwoStageStepper(ExplicitStepper):
             return grid_v, fem_v
         self._solver.shifted_solves, self._solver.max_shift = 0, 0.0  # this step's note only
         started = time.perf_counter()
-        model, h, d, state = self.model, self.dt, self.model.dim, step.state
+        model, h, state = self.model, self.dt, step.state
         n_fem = model.n_fem_nodes
         grid_v = grid_v[0]
         nodes = self._nodes(step, state, grid_v)
         layout, pot = nodes.layout, self.potential
         v_star_all = np.concatenate([fem_v, grid_v]) if nodes.mpm is not None else fem_v
         x_hat_all = nodes.x + h * v_star_all
-        ctx = StepContext(
-            model=model,
-            state=state,
-            dt=h,
-            layout=layout,
-            fixed_positions=nodes.fixed,
-            x_hat=layout.restrict(x_hat_all),
-            dof_mass=np.repeat(nodes.mass[layout.free_nodes], d),
-            mpm=nodes.mpm,
-        )
+        ctx = nodes.context(model, state, x_hat_all)
         if self.friction is not None:  # sliding over the step: x - x^n on every node
             ctx.sliding = (1.0, -nodes.x)
         pot.begin_step(ctx, h * h, nodes.frames)
