@@ -343,16 +343,8 @@ class AuguryStepper(ExplicitStepper):
         if n_fem:
             normals[:n_fem] = points["fem_normals"]
             if self.options.normals == "facing":
-                normals[:n_fem] = facing_normals(
-                    points["fem_x"],
-                    st,
-                    m,
-                    body,
-                    normals,
-                    self.fem_foreground,
-                    self._facets,
-                    self._facet_opp,
-                )
+                faces = (self.fem_foreground, self._facets, self._facet_opp)
+                normals[:n_fem] = facing_normals(points["fem_x"], st, m, body, normals, *faces)
         if n_all > n_fem:
             normals[n_fem:] = mpm_normals(st, n_fem, m[n_fem:], body[n_fem:])
         node_shared, v_lo, v_hi = node_body_ranges(st.nodes, st.weights, body, v_bar, st.n_nodes)
@@ -371,17 +363,10 @@ class AuguryStepper(ExplicitStepper):
             t0 = time.perf_counter()
             sub = st if sel.size == n_all else subset(st, sel)
             op = ContactOperator(sub, x[sel], m[sel], apic=self.apic, kinematic=~movable[sel])
+            opts = self.options
+            start = (v_bar[sel], B_bar[sel], normals[sel], opts.iterations, opts.mode, self.mu)
             v_hat[sel], B_hat[sel] = augury_correction(
-                op,
-                v_bar[sel],
-                B_bar[sel],
-                normals[sel],
-                self.options.iterations,
-                self.options.mode,
-                self.mu,
-                movable[sel],
-                energy_guard=self.options.energy_guard,
-                stats=stats,
+                op, *start, movable[sel], energy_guard=opts.energy_guard, stats=stats
             )
             h_applications = op.applications
             timings["augury_H"] = time.perf_counter() - t0
@@ -459,12 +444,8 @@ class AuguryStepper(ExplicitStepper):
         if self._mpm_fg and model.n_particles:
             part_f[:] = model.mpm_mass[:, None] * a_hat[n_fem:]
         largest = float(np.sqrt(np.einsum("pd,pd->p", a_hat, a_hat)).max()) if a_hat.size else 0.0
-        self._last_contact = ContactView(
-            fem_f,
-            part_f,
-            pairs=shared_count,
-            parameters={"augury_max_correction": largest},
-        )
+        parameters = {"augury_max_correction": largest}
+        self._last_contact = ContactView(fem_f, part_f, pairs=shared_count, parameters=parameters)
 
     def contact(self) -> ContactView:
         """Augury forces m a^ of the last step on the foreground (no distance, no energy)."""
