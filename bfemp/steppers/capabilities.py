@@ -30,11 +30,9 @@ interface: they can separate, slide and, where the strategy has friction, stick)
 their stencils no longer overlap; measured in the conformance catalogue's MPM-MPM impacts,
 restitution 0.8-0.9 at 1 m/s).
 
-Penetration guarantee: ``penetration_bound_cells`` is 0 for the strategies that promise that no
-particle or FEM node ever ends inside another FEM body (``barrier``, ``two_stage``: a step that
-would is a named failure), else the deepest penetration the strategy is stated to keep, in cells
-of its grid (measured: see each strategy's declaration), or None where it couples nothing with a
-FEM body. ``bfemp strategies`` prints :func:`strategy_table`.
+Penetration guarantee: ``Capabilities.penetration_bound_cells`` (0 for ``barrier`` and
+``two_stage``: a step that would end inside a FEM body is a named failure; measured bounds in
+each strategy's declaration). ``bfemp strategies`` prints :func:`strategy_table`.
 """
 
 from __future__ import annotations
