@@ -45,7 +45,6 @@ from bfemp.errors import RunFolderError, SceneError, warn_user
 from bfemp.io.vtk import atomic_path
 
 __all__ = [
-    "ANIMATION_FORMATS",
     "LOCK_FILE",
     "RUN_FILES",
     "RunFolderLock",
@@ -76,8 +75,6 @@ RUN_FILES = (
 )
 #: files whose presence marks a folder as holding an earlier run
 _EVIDENCE = ("manifest.json", "metrics.csv", CHECKPOINT_FILE)
-#: animation formats of ``Simulation.run(animation=...)`` and ``bfemp run --animate``
-ANIMATION_FORMATS = ("gif", "mp4")
 
 
 def earlier_run_outputs(out: str | Path) -> list[Path]:

@@ -52,6 +52,7 @@ from matplotlib.figure import Figure
 from bfemp.io.vtk import atomic_path, read_pvd
 
 __all__ = [
+    "ANIMATION_FORMATS",
     "SHEET_PANELS",
     "STRESS_FLOOR_PA",
     "BodyView",
@@ -66,6 +67,8 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
+#: animation formats of ``Simulation.run(animation=...)`` and ``bfemp run --animate``
+ANIMATION_FORMATS = ("gif", "mp4")
 #: number of frames on the snapshot sheet (at most)
 SHEET_PANELS = 6
 #: least top of the von Mises colour scale in Pa: stresses below it are round-off (module notes)
@@ -385,7 +388,7 @@ def check_animation_format(fmt: str) -> str:
         ValueError: ``fmt`` is not ``"gif"`` or ``"mp4"``, or is ``"mp4"`` without ``ffmpeg`` on
             the ``PATH`` (a choice the user can change: the command line exits with 2).
     """
-    if fmt not in ("gif", "mp4"):
+    if fmt not in ANIMATION_FORMATS:
         raise ValueError(f"animation must be 'gif' or 'mp4', got {fmt!r}")
     if fmt == "mp4" and not mpl_animation.FFMpegWriter.isAvailable():
         raise ValueError(
