@@ -188,14 +188,8 @@ def _contacts(pos, cs, keys, mult, dhat, kappa, mu) -> FrictionContacts:  # noqa
         else:
             mu_lam = mu * lam
         keep = mu_lam > 0.0  # no normal force, or a frictionless pair
-        groups.append(
-            FrictionGroup(
-                np.ascontiguousarray(points[keep]),
-                np.ascontiguousarray(coef[keep]),
-                np.ascontiguousarray(T[keep]),
-                mu_lam[keep],
-            )
-        )
+        kept = (np.ascontiguousarray(a[keep]) for a in (points, coef, T))
+        groups.append(FrictionGroup(*kept, mu_lam[keep]))
     return FrictionContacts(tuple(groups))
 
 

@@ -204,12 +204,8 @@ class ExplicitStepper:
     ) -> StableStep:
         """The stable step of ``state`` under ``options``' safety factors, and who sets it."""
         options = cls.Options() if options is None else options
-        return stable_time_step(
-            model,
-            state,
-            fem_safety=options.cfl_safety_fem,
-            mpm_safety=options.cfl_safety_mpm,
-        )
+        safety = {"fem_safety": options.cfl_safety_fem, "mpm_safety": options.cfl_safety_mpm}
+        return stable_time_step(model, state, **safety)
 
     @classmethod
     def auto_dt(cls, model: Model, state: State | None = None, options: object = None) -> float:

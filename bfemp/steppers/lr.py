@@ -130,10 +130,8 @@ class LRStepper(ExplicitStepper):
         model, opts, transfer = self.model, self.options, self.transfer
         if model.n_particles == 0:
             raise ValueError("lr: the scene has no MPM body (LR couples MPM materials)")
-        if opts.mu is not None:
-            self.mu = opts.mu
-        else:
-            self.mu = float(getattr(model.contact, "mu", 0.0) or 0.0)
+        scene_mu = float(getattr(model.contact, "mu", 0.0) or 0.0)
+        self.mu = opts.mu if opts.mu is not None else scene_mu
         self.material = np.ascontiguousarray(model.mpm_particle_body, dtype=np.int64)
         self.n_materials = len(model.mpm_bodies) + len(model.fem_bodies)
         self._law = PairContact(model, opts, self.mu, self.n_materials)
