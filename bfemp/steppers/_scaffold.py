@@ -1,12 +1,8 @@
 """The scaffolding every grid-based step shares: gather all-node fields, write the new state.
 
 A step works on "all nodes": the FEM nodes ``[0, N)`` then the active MPM grid nodes of the step
-``[N, N + G)`` (``bfemp.dofs``). ``gather_nodes`` builds, from the state at t^n, the stencils and
-P2G of the step (Tables 1-3), the level-set constraints, and every node's position, velocity,
-acceleration, mass and scripted end position. ``write_state`` takes every node's end-of-step
-position, velocity and acceleration and returns the new ``State``: FEM nodes copied (scripted
-ones take their motion's velocity), particles by one G2P (positions, velocities, F, APIC C and,
-for Newmark, accelerations, in a single pass over the particles).
+``[N, N + G)`` (``bfemp.dofs``): ``gather_nodes`` (P2G, Tables 1-3) and ``write_state`` (one
+G2P) convert between those and ``State``.
 """
 
 from __future__ import annotations
