@@ -124,11 +124,7 @@ def mpm_normals(
     for b in np.unique(body):
         sel = np.flatnonzero(body == b)
         g = np.zeros((stencils.n_nodes, d))
-        np.add.at(
-            g,
-            nodes[sel].reshape(-1),
-            (mass[sel, None, None] * grads[sel]).reshape(-1, g.shape[1]),
-        )
+        np.add.at(g, nodes[sel].reshape(-1), (mass[sel, None, None] * grads[sel]).reshape(-1, d))
         out[sel] = np.einsum("pk,pkd->pd", w[sel], g[nodes[sel]])  # outward (docstring)
     return normalize(out)
 
@@ -209,13 +205,8 @@ def facet_edge_lengths(x: np.ndarray, facets: np.ndarray) -> np.ndarray:
 
 def subset(st: ContactStencils, sel: np.ndarray) -> ContactStencils:
     """The stencils of the particles ``sel`` (node indices unchanged)."""
-    return replace(
-        st,
-        nodes=np.ascontiguousarray(st.nodes[sel]),
-        weights=np.ascontiguousarray(st.weights[sel]),
-        grads=st.grads[sel],
-        D=st.D[sel],
-    )
+    nodes, weights = np.ascontiguousarray(st.nodes[sel]), np.ascontiguousarray(st.weights[sel])
+    return replace(st, nodes=nodes, weights=weights, grads=st.grads[sel], D=st.D[sel])
 
 
 def inside_other_cells(

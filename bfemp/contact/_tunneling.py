@@ -144,10 +144,6 @@ def _corner_cuts(
 
     ``chords``: the collision points' positions ``(C, d)`` at the start and the end of the
     step; ``states``: the step's start and end states (for the cells along the chord).
-
-    Measured at the sine boundary's quick mode (dt 5e-3 s): chords of 13-14 mm across the
-    strip's vertices cut up to 1.7 mm deep (d-hat 1 mm) through neighbouring edges, and 3.6 mm
-    over a crest of two vertices.
     """
     y0, y1 = chords
     x0, x1 = states[0].fem_x, states[1].fem_x

@@ -16,41 +16,20 @@ dv . n > 0 (a tensile correction, pulling the particle toward the other body), e
 dv^t = (I - n n^T) dv, s = min(|dv^t|, -mu dv.n), dv^u = dv^t - s dv^t/|dv^t| where
 dv . n <= 0, dv^u = dv otherwise; dB^u = dB always.
 
-Measured limits (issue 14; 2D probes, APIC, the 3D ramp behaves alike). With mu = 0 and a fixed
-set of tensile particles the undesirable part is P e (P: the per-particle tangential projection)
-and P e_{m+1} = P H P e_m. H is self-adjoint in the (generalised) mass inner product (checked
-numerically to 4e-13; not idempotent) with 0 <= H <= I (non-expansive), so this converges to 0
-(an eigenvector of P H P with eigenvalue 1 is fixed by H, and P e_0 = P (H - I) V-bar is
-orthogonal to every such field), but slowly where P H P has eigenvalues near 1. H acts on the
-whole V-bar, not on its increment, so every step re-mixes the full sliding velocity of the two
-bodies at their shared nodes and N iterations leave a fixed fraction of it: at fixed N, dt
-proportional to h and a surface mass fraction proportional to h, the loss per unit time does not
-fall with h. A block sliding frictionlessly at 1 m/s over a slab (grid_dx 0.05 m, 200 steps of
-1e-4 s) kept 0.839 / 0.876 / 0.938 / 0.980 / 0.999 m/s with N = 1 / 3 / 10 / 30 / 100 and
-averaged normals, 0.932 / 0.945 / 0.980 / 0.997 / 0.9994 m/s with ``normals="facing"`` (without
-the energy guard; with it averaged N = 30 keeps 0.974, the rest of N = 1 / 10 / 30 as before;
-``benchmarks/augury_probes.py`` reproduces these, the settled N = 1 / 30 and the energy-guard
-numbers below); with averaged normals it also rose at 0.10 m/s (the bottom corners' 45 degree
-normals turn the drag into a push; facing: 0.014 m/s). Static friction goes the other way: a
-settled block on a plate under gravity tilted 30 degrees (h = 0.5 m, mu = 0.7) crept 2.6e-3 m in
-0.05 s with N = 1 (accelerating; the carried B grew from 1e-3 to 0.047 m^2/s under the sustained
-load, i.e. C = B D^-1 of about 3 1/s; with B zeroed after every step the slip was 2.7e-4 m and
-stopped growing, at h = 0.25 m though 4.0e-3 m) and 1.4e-2 to 2.2e-2 m with N = 5 to 30 (B
-zeroed or not; PIC with N = 30: 1.3e-2 m): the iterations that free the sliding also free the
-sticking. Even mu = 3 with N = 30 (B zeroed) let the block's bottom move 1.8e-3 to 4.0e-3 m back
-and forth against the plate, against 8e-5 m with N = 1. A thick (equal-mass) plate, grid_dx from
-0.25 h to 2 h and the thin ramp's light nodes do not change the picture.
+Measured limits (issue 14; design note ``measurements``, augury, with the numbers). With
+mu = 0 and a fixed set of tensile particles the undesirable part is P e (P: the per-particle
+tangential projection) and P e_{m+1} = P H P e_m; H is self-adjoint in the (generalised) mass
+inner product with 0 <= H <= I, so this converges to 0, but slowly where P H P has eigenvalues
+near 1. H acts on the whole V-bar, not on its increment, so N iterations leave a fixed fraction
+of the sliding velocity every step: the loss per unit time does not fall with h. Static
+friction goes the other way: the iterations that free the sliding also free the sticking.
 
 Energy guard (bfemp's, ``energy_guard=True``): an iterate V^_{m+1} whose generalised kinetic
 energy 1/2 sum m (|v|^2 + B D^-1 : B) exceeds that of V-bar is not taken, the iterations stop at
-V^_m. Measured (2D block on a plate under gravity tilted 30 degrees, h = 0.5 m, mu = 0.7, N =
-10, "facing" normals): without it the correction added 6.9e6 J of kinetic energy over 4,000
-steps (1,255 steps gaining, up to 0.9 % of the predicted energy in one step) and the block left
-the plate (its centre rose 0.24 m in 0.1 s; N = 30: 0.35 m). Not explained; AUG eq. 44 keeps the
-normal part of a change outside the cone, so H W can add normal pushes that widen the cone (the
-orthogonal projection onto the cone instead gained more: 2.1e7 J). mu = 0 with N = 10 gained
-16 J (round-off level) and N = 1 never gained. Every partial sum V^_m conserves momentum,
-so the guard keeps the conservation.
+V^_m. Measured (design note ``measurements``, augury): without it the correction added
+kinetic energy with friction and N > 1 and a block on a 30 degree incline left the plate; not
+explained (AUG eq. 44 keeps the normal part of a change outside the cone, so H W can add normal
+pushes). Every partial sum V^_m conserves momentum, so the guard keeps the conservation.
 
 Every G = H - I term carries no net linear momentum (both transfers) and, with APIC and the B
 term, no net angular momentum (AUG eq. 36), so A^ carries none whatever N and the mode.

@@ -34,7 +34,7 @@ import numpy as np
 from bfemp.contact._assembly_kernels import _chain_hessian, _scatter_gradient
 from bfemp.contact.barrier import barrier_derivative
 from bfemp.contact.collision import CollisionSet
-from bfemp.contact.friction_kernels import friction_local, friction_local_psd
+from bfemp.contact.friction_kernels import friction_local
 from bfemp.contact.pair_friction import PairFriction
 from bfemp.contact.pairs import ContactPairs, find_pairs
 from bfemp.contact.term import BarrierTerm
@@ -188,14 +188,8 @@ def _contacts(pos, cs, keys, mult, dhat, kappa, mu) -> FrictionContacts:  # noqa
         else:
             mu_lam = mu * lam
         keep = mu_lam > 0.0  # no normal force, or a frictionless pair
-        groups.append(
-            FrictionGroup(
-                np.ascontiguousarray(points[keep]),
-                np.ascontiguousarray(coef[keep]),
-                np.ascontiguousarray(T[keep]),
-                mu_lam[keep],
-            )
-        )
+        kept = (np.ascontiguousarray(a[keep]) for a in (points, coef, T))
+        groups.append(FrictionGroup(*kept, mu_lam[keep]))
     return FrictionContacts(tuple(groups))
 
 
@@ -236,11 +230,10 @@ def friction_pair_hessians(
     """Per-contact Hessians scale (c c^T) (x) (T H_u T^T) with respect to the point slidings:
     ``[(points (n, m), hess (n, m d, m d))]`` in N/m; H_u projected to PSD when ``psd``."""
     out = []
-    local_fn = friction_local_psd if psd else friction_local
     for g in contacts.groups:
         if not g.points.size:
             continue
-        _, _, h_u = local_fn(_sliding(g, U), g.mu_lambda, eps)
+        _, _, h_u = friction_local(_sliding(g, U), g.mu_lambda, eps, psd)
         h_rel = np.einsum("nik,nkl,njl->nij", g.T, h_u, g.T)  # (n, d, d)
         m, d = g.coef.shape[1], g.T.shape[1]
         cc = scale * (g.coef[:, :, None, None, None] * g.coef[:, None, None, :, None])

@@ -27,7 +27,7 @@ across) and is used throughout: it has no ``1 / y^3``. As ``y -> 0`` in the stat
 ``f1(y) / y = 2 / eps - y / eps^2 -> 2 / eps = f1'(0)``, so the Hessian tends to
 ``mu_lambda 2 / eps I`` and ``uh`` is not needed (it is set to 0 at ``y = 0``). With this
 mollifier ``f1' >= 0`` everywhere, so the exact Hessian is already PSD for ``mu_lambda >= 0``;
-:func:`friction_local_psd` still clamps the eigenvalue along ``u`` to ``>= 0`` (closed form, no
+``friction_local(psd=True)`` still clamps the eigenvalue along ``u`` to ``>= 0`` (closed form, no
 ``eigh``), as IPC does, which guards round-off and keeps the contract explicit.
 """
 
@@ -37,7 +37,7 @@ import math
 
 import numpy as np
 
-__all__ = ["f0", "f1", "friction_local", "friction_local_psd"]
+__all__ = ["f0", "f1", "friction_local"]
 
 
 def _check_eps(eps: float) -> float:
@@ -113,9 +113,24 @@ def _check_local(u: np.ndarray, mu_lambda: np.ndarray) -> tuple[np.ndarray, np.n
     return u, mu_lambda
 
 
-def _local(
-    u: np.ndarray, mu_lambda: np.ndarray, eps: float, psd: bool
+def friction_local(
+    u: np.ndarray, mu_lambda: np.ndarray, eps: float, psd: bool = False
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Local friction pseudo-potential ``D = mu_lambda f0(|u|)``, exact derivatives (BFEMP eq. 37).
+
+    Args:
+        u: tangential relative displacements (n, k) in m, k = d - 1 (1 in 2D, 2 in 3D).
+        mu_lambda: lagged friction bounds ``mu lambda`` (n,) in N, >= 0.
+        eps: static-zone width ``eps_v dt`` in m.
+        psd: project the Hessian to PSD in closed form: the eigenvalue along ``u``
+            (``mu_lambda f1'(|u|)``) clamped to ``>= 0``; the ``k - 1`` across ``u``
+            (``mu_lambda f1(|u|) / |u|``) are positive.
+
+    Returns:
+        value (n,) in J, gradient (n, k) in N (its norm ``mu_lambda f1(|u|) <= mu_lambda``:
+        the friction force obeys the Coulomb bound), Hessian (n, k, k) in N/m (well defined at
+        ``u = 0`` where it equals ``mu_lambda 2 / eps I``).
+    """
     eps = _check_eps(eps)
     u, mu_lambda = _check_local(u, mu_lambda)
     k = u.shape[1]
@@ -134,32 +149,3 @@ def _local(
         along[:, None, None] * outer + f1y[:, None, None] * (eye - outer)
     )
     return value, grad, hess
-
-
-def friction_local(
-    u: np.ndarray, mu_lambda: np.ndarray, eps: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Local friction pseudo-potential ``D = mu_lambda f0(|u|)``, exact derivatives (BFEMP eq. 37).
-
-    Args:
-        u: tangential relative displacements (n, k) in m, k = d - 1 (1 in 2D, 2 in 3D).
-        mu_lambda: lagged friction bounds ``mu lambda`` (n,) in N, >= 0.
-        eps: static-zone width ``eps_v dt`` in m.
-
-    Returns:
-        value (n,) in J, gradient (n, k) in N (its norm ``mu_lambda f1(|u|) <= mu_lambda``:
-        the friction force obeys the Coulomb bound), Hessian (n, k, k) in N/m (unprojected;
-        well defined at ``u = 0`` where it equals ``mu_lambda 2 / eps I``).
-    """
-    return _local(u, mu_lambda, eps, psd=False)
-
-
-def friction_local_psd(
-    u: np.ndarray, mu_lambda: np.ndarray, eps: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """As :func:`friction_local`, with the Hessian (n, k, k) in N/m projected to PSD.
-
-    Closed-form projection: the eigenvalue along ``u`` (``mu_lambda f1'(|u|)``) is clamped to
-    ``>= 0``; the ``k - 1`` eigenvalues across ``u`` (``mu_lambda f1(|u|) / |u|``) are positive.
-    """
-    return _local(u, mu_lambda, eps, psd=True)

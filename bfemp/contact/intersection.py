@@ -32,17 +32,9 @@ Broad phase: the swept-box spatial hash of :mod:`geometry.broadphase` through
 ``bfemp.contact.pairs`` (the barrier's), inflation 0; narrow phase: :mod:`geometry.ccd` over the
 candidate pairs, vectorised, restarted where a round stops short (:func:`_certify`).
 
-Measured (2 shared cores, barrier; the whole check, inversion + end state + CCD, as timed in
-``StepReport.timings["intersection"]``, steps 3 on): rings demo
-(``bfemp.demo.colliding_rings_scene()``, 381 FEM nodes, 784 particles) at dt = 2e-3 s, 60 steps:
-4.0 ms mean (1.8 ms median) of a 65 ms step, 6.2 %; at dt = 1e-2 s, 30 steps: 5.2 ms (2.8 ms)
-of 157 ms, 3.3 %, the CCD part 0.6 ms median against 2.9 ms for the sampling it replaces on the
-same states; ``references/barrier_3d`` (MPM cube on a tet plate), 12 steps: 1.1 ms of 18.6 ms,
-6.1 %; two 3D FEM boxes in sliding contact (250 nodes, 768 tets, edge-edge pairs), 40 steps:
-4.5 ms (2.1 ms) of 95 ms, 4.8 %. None of these steps failed. Corner cuts do: the sine-boundary
-benchmark's quick mode (``benchmarks.sine_boundary``, dt = 5e-3 s) stops at step 69 as TUNNELED,
-a particle 0.78 mm from the strip (d-hat 1 mm) at both ends of a 13 mm move whose chord cuts a
-convex vertex of the strip 0.42 mm deep.
+Cost: a few per cent of a barrier step on the rings demo, the 3D barrier reference and 3D FEM
+boxes in sliding contact; corner cuts do fail the sine-boundary benchmark's quick mode as
+TUNNELED (measured: design note ``measurements``, intersection).
 """
 
 from __future__ import annotations

@@ -1,20 +1,9 @@
 """Contact normals, separations and the contact law of logistic-regression (LR) multimaterial MPM
-(Nairn et al., "LR"), physics only: the ``"lr"`` stepper
-builds the per-material grid and the point clouds and calls these.
-
-- ``contact_point_clouds``: the CSR point clouds that ``lr_planes`` takes, from the stencils.
-- ``lr_planes``: at each contact node, the most probable plane between the point cloud's two
-  classes by logistic regression (LR eqs. 19-21, LR App. eqs. 53-57), its unit normal from alpha to
-  beta, and the separation d_LR (LR eqs. 22-24) with the deformed particle radius (LR eq. 25).
-- ``deformed_radius``: LR eq. 25 alone.
-- ``mass_gradient_normals`` and ``ag_normals``: the grid "average gradient" normal (LR eqs. 11, 13)
-  that LR compares against.
-- ``material_mass_moments`` and ``cp_separation``: the grid "contact position" separation with a
-  constant offset (LR eq. 16), "CP = 0.8".
-- ``contact_momentum``: the two-material contact law (LR eqs. 7-10, 14-15, 24) with the detection
-  "approaching and touching".
-
-Units: SI throughout (m, kg, kg m/s).
+(Nairn et al., "LR"), physics only: the ``"lr"`` stepper builds the per-material grid and the
+point clouds and calls these. The LR plane, normal and separation (``lr_planes``, LR eqs. 19-25,
+App. eqs. 53-57) and the contact law (``contact_momentum``, LR eqs. 7-10, 14-15, 24) are here;
+the grid detectors LR compares against (AG normals, LR eqs. 11, 13; CP separation, LR eq. 16)
+are re-exported from ``bfemp.contact._lr_detectors``. Units: SI throughout (m, kg, kg m/s).
 """
 
 from __future__ import annotations

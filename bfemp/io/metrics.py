@@ -51,9 +51,7 @@ def _as_number(column: str, value: object) -> Number:
         return math.nan
     if isinstance(value, np.ndarray) and value.ndim == 0:
         value = value[()]
-    if isinstance(value, (bool, np.bool_)):
-        return int(value)
-    if isinstance(value, numbers.Integral):
+    if isinstance(value, (bool, np.bool_, numbers.Integral)):
         return int(value)
     if isinstance(value, numbers.Real):
         return float(value)
@@ -86,8 +84,7 @@ class MetricsLog:
     def __init__(self, rows: Iterable[Mapping[str, Number | None]] = ()) -> None:
         self._data: dict[str, list[Number]] = {}
         self._n = 0
-        for row in rows:
-            self.append(row)
+        self.extend(rows)
 
     def append(self, row: Mapping[str, Number | None]) -> None:
         """Append one row: column name -> ``int``/``float``/numpy scalar/``bool``/``None``.
@@ -189,12 +186,9 @@ class MetricsLog:
                 raise ValueError(
                     f"{path}, line {line_no}: {len(fields)} fields, header has {len(header)}"
                 )
-            where = f"{path}, line {line_no}"
+            where = f"{path}, line {line_no}, column"
             log.append(
-                {
-                    h: _parse(v, f"{where}, column {h!r}")
-                    for h, v in zip(header, fields, strict=True)
-                }
+                {h: _parse(v, f"{where} {h!r}") for h, v in zip(header, fields, strict=True)}
             )
         # Columns of a header-only file still exist.
         for h in header:

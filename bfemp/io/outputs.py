@@ -19,12 +19,9 @@ manifest) so that the manifest always ends ``completed``, ``interrupted`` or ``f
 ``KeyboardInterrupt`` raised in a write) skips what is left; either way the manifest records
 ``interrupted`` with what was not written, and ``KeyboardInterrupt`` is raised afterwards.
 
-One writer at a time: a run holds the folder's lock (:class:`RunFolderLock`, the file
-``.bfemp.lock``) from before it reads or deletes anything there until its manifest is final; a
-second run into the folder (a second ``--resume``, or a fresh run) is refused with the holder's
-pid, host and start time. A lock left by a killed run is taken over, with a warning naming the
-dead holder. While it holds the lock a run removes the temporary files (``.NAME.XXXXXXXX.tmp``
-of :func:`bfemp.io.vtk.atomic_path`) that a killed run left beside its outputs.
+One writer at a time: a run holds the folder's lock (:func:`lock_run_folder`,
+:class:`RunFolderLock`) from before it reads or deletes anything there until its manifest is
+final, and meanwhile removes the temporary files a killed run left (:func:`remove_temporary_files`).
 """
 
 from __future__ import annotations
@@ -45,7 +42,6 @@ from bfemp.errors import RunFolderError, SceneError, warn_user
 from bfemp.io.vtk import atomic_path
 
 __all__ = [
-    "ANIMATION_FORMATS",
     "LOCK_FILE",
     "RUN_FILES",
     "RunFolderLock",
@@ -76,8 +72,6 @@ RUN_FILES = (
 )
 #: files whose presence marks a folder as holding an earlier run
 _EVIDENCE = ("manifest.json", "metrics.csv", CHECKPOINT_FILE)
-#: animation formats of ``Simulation.run(animation=...)`` and ``bfemp run --animate``
-ANIMATION_FORMATS = ("gif", "mp4")
 
 
 def earlier_run_outputs(out: str | Path) -> list[Path]:

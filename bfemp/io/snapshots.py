@@ -15,16 +15,11 @@ Choices:
   plate that nothing touches, a scene at rest) is drawn in the colour of zero stress, and the
   colour bar's label says that the scale was floored and what the largest value was. No paper
   fixes this; the rule and its numbers are a choice, made from what the frames carry. The frames
-  hold von Mises stress, J, velocities and contact forces, but no material data, so a noise floor
-  tied to each body's modulus is not available here; an absolute floor is. Its size: round-off
-  in the stress of an unstrained body is about ``E * eps`` with a strain noise ``eps`` of a few
-  machine epsilons (measured: 4e-8 Pa and 4e-7 Pa for fixed 200 MPa plates, eps ~ 2e-16 to
-  2e-15), so even the stiffest solids (E ~ 1e12 Pa) give at most ~2e-3 Pa, below 1/256 of a
-  1 Pa scale: the lowest colour of the 256-level map. A relative floor needs no code: on the
-  linear scale anything below ``top / 512`` already gets the lowest colour, so round-off next to
-  real stress (a fixed plate beside a loaded body) is drawn as zero. The price: a run whose real
-  stresses all stay below 1 Pa (strains below ~1e-9 for E ~ 1 GPa, ~1e-3 for a 1 kPa gel) is
-  drawn pale on a 0 to 1 Pa scale, in proportion and with the label saying so;
+  hold no material data, so the floor is absolute: round-off of an unstrained body, E eps with
+  eps a few machine epsilons, stays below the lowest of the 256 colours even for E ~ 1e12 Pa,
+  and round-off next to real stress already gets the lowest colour on the linear scale. The
+  price: a run whose real stresses all stay below 1 Pa is drawn pale, with the label saying
+  so (sizing measured: design note ``measurements``, snapshots);
   ``stress_floor=0`` restores the bare 0-to-largest scale.
 
 - The sheet shows up to :data:`SHEET_PANELS` frames evenly spaced over the run (first and last
@@ -57,6 +52,7 @@ from matplotlib.figure import Figure
 from bfemp.io.vtk import atomic_path, read_pvd
 
 __all__ = [
+    "ANIMATION_FORMATS",
     "SHEET_PANELS",
     "STRESS_FLOOR_PA",
     "BodyView",
@@ -71,6 +67,8 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
+#: animation formats of ``Simulation.run(animation=...)`` and ``bfemp run --animate``
+ANIMATION_FORMATS = ("gif", "mp4")
 #: number of frames on the snapshot sheet (at most)
 SHEET_PANELS = 6
 #: least top of the von Mises colour scale in Pa: stresses below it are round-off (module notes)
@@ -390,7 +388,7 @@ def check_animation_format(fmt: str) -> str:
         ValueError: ``fmt`` is not ``"gif"`` or ``"mp4"``, or is ``"mp4"`` without ``ffmpeg`` on
             the ``PATH`` (a choice the user can change: the command line exits with 2).
     """
-    if fmt not in ("gif", "mp4"):
+    if fmt not in ANIMATION_FORMATS:
         raise ValueError(f"animation must be 'gif' or 'mp4', got {fmt!r}")
     if fmt == "mp4" and not mpl_animation.FFMpegWriter.isAvailable():
         raise ValueError(

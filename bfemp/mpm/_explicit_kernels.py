@@ -19,12 +19,8 @@ Why a fused P2G kernel rather than the terms for MPM: ``MpmElasticityTerm.begin_
 node-pair pattern of the Hessian (a serial neighbour table and (G 5^d d^2) row/column arrays)
 that an explicit step never uses, and the base ``ElasticityTerm`` route would build the
 (3^d d)^2-per-particle block pattern; the fused kernel reads every stencil once for mass,
-momentum and force. Measured (``benchmarks/records/perf_explicit.json``, 33k particles): the
-term route takes 0.104 s per step (0.090 s of it ``begin_step``), the fused stresses + P2G
-3.9 ms. FEM cells keep the term (fixed stencils, pattern built once).
-
-Compacting the stencils in numba instead of numpy was tried and dropped: 23 ms either way at
-131k particles, the cost is that of writing the fresh (P, 9) weight and gradient arrays.
+momentum and force, a few per cent of the term route's time (design note ``measurements``,
+mpm). FEM cells keep the term (fixed stencils, pattern built once).
 """
 
 from __future__ import annotations

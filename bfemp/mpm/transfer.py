@@ -233,23 +233,8 @@ def particles_to_grid(
     grid_mass = np.zeros(n_grid)
     grid_mom = np.zeros((n_grid, d))
     grid_ma = np.zeros((n_grid, d) if with_a else (0, d))
-    _p2g(
-        nodes,
-        weights,
-        grid_x,
-        mpm_x,
-        mpm_mass,
-        mpm_v,
-        mpm_C,
-        affine,
-        mpm_a,
-        with_a,
-        mpm_Ca,
-        affine_a,
-        grid_mass,
-        grid_mom,
-        grid_ma,
-    )
+    particles = (mpm_x, mpm_mass, mpm_v, mpm_C, affine, mpm_a, with_a, mpm_Ca, affine_a)
+    _p2g(nodes, weights, grid_x, *particles, grid_mass, grid_mom, grid_ma)
 
     # v_i = (m_i v_i) / m_i on nodes with mass; zero (and warn) where the weights vanished.
     floor = MASS_FLOOR_REL * (grid_mass.max() if n_grid else 0.0)
@@ -364,12 +349,7 @@ def grid_to_particles(
             f"{np.flatnonzero(singular)[:10]} (degenerate stencil weights or grid_x)"
         )
     return ParticleUpdate(
-        mpm_x=out_x,
-        mpm_v=out_v,
-        mpm_F=out_F,
-        mpm_C=out_C,
-        mpm_a=out_a if with_a else None,
-        mpm_Ca=out_Ca if affine_a else None,
+        out_x, out_v, out_F, out_C, out_a if with_a else None, out_Ca if affine_a else None
     )
 
 

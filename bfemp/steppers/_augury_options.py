@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import ClassVar
 
@@ -39,12 +38,10 @@ class AuguryOptions(ExplicitOptions):
     Attributes:
         tau: augury time scale tau in s; None: tau = dt (AUG's choice). tau < dt / 2 is refused
             (the correction v-bar + (dt/tau) G v-bar is unstable beyond).
-        iterations: augury iterations N >= 0 (AUG: 1; N = 0 sticks). Measured (issue 14,
-            ``bfemp.contact.augury``): N = 1 leaves a fixed fraction of the tangential drag
-            every step, so a frictionless slide is held back whatever h; sliding needs
-            ``normals="facing"`` and N of about 30 (2D ramp at t = 0.05 s, error 5.1 / 4.8 /
-            3.8 % at h = 1 / 0.5 / 0.25 m; 3D ramp at 0.1 s: 9 / 15.5 % at h = 1 / 0.5),
-            which then lets a block at mu = 0.7 creep (no setting tried does both).
+        iterations: augury iterations N >= 0 (AUG: 1; N = 0 sticks). N = 1 leaves a fixed
+            fraction of the tangential drag every step, so a frictionless slide is held back
+            whatever h; sliding needs ``normals="facing"`` and N of about 30, which then lets a
+            block at mu = 0.7 creep (issue 14: design note ``measurements``, augury).
         mode: ``"friction"`` (AUG eqs. 40-46, Coulomb with ``mu``; mu = 0 is frictionless) or
             ``"separate"`` (AUG eq. 38: only tensile corrections removed).
         mu: Coulomb coefficient; None takes ``scene.set_contact(mu=...)`` (0 without contact).
@@ -101,22 +98,9 @@ class AuguryOptions(ExplicitOptions):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        name = type(self).__name__
-        for field_name in ("tau", "mu", "grid_dx"):
-            value = getattr(self, field_name)
-            if value is None:
-                continue
-            if isinstance(value, bool) or not isinstance(value, int | float):
-                raise ValueError(f"{name}.{field_name} must be a number or None, got {value!r}")
-            low_ok = value >= 0.0 if field_name == "mu" else value > 0.0
-            if not (math.isfinite(value) and low_ok):
-                kind = ">= 0" if field_name == "mu" else "> 0"
-                raise ValueError(f"{name}.{field_name} must be finite and {kind}, got {value!r}")
-            object.__setattr__(self, field_name, float(value))
-        for field_name in ("iterations", "penetration_check_every"):
-            value = getattr(self, field_name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < 0:
-                raise ValueError(f"{name}.{field_name} must be an integer >= 0, got {value!r}")
+        self.check_numbers("tau", "grid_dx", none=True)
+        self.check_numbers("mu", strict=False, none=True)
+        self.check_integers("iterations", "penetration_check_every", low=0)
         self.check_choices(
             mode=MODES,
             kernel=tuple(KERNELS),
@@ -125,14 +109,7 @@ class AuguryOptions(ExplicitOptions):
             region=REGIONS,
             normals=NORMALS,
         )
-        for field_name in (
-            "kinematic_foreground",
-            "mpm_foreground",
-            "energy_guard",
-            "contact_strain",
-        ):
-            if not isinstance(getattr(self, field_name), bool):
-                raise ValueError(f"{name}.{field_name} must be True or False")
+        self.check_flags("kinematic_foreground", "mpm_foreground", "energy_guard", "contact_strain")
 
 
 def friction_coefficient(option: float | None, contact: object) -> float:

@@ -5,8 +5,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import ClassVar
 
-import numpy as np
-
 from bfemp.steppers.base import StepperOptions
 from solvers.choice import LINEAR_SOLVER_NAMES, make_linear_solver
 from solvers.linear import LinearSolver
@@ -40,19 +38,15 @@ class BarrierOptions(StepperOptions):
             (default): from the solved x^{n+1}, so that x^{n+1} - x^n = dt v^{n+1} holds
             exactly under backward Euler (``Integrator.acceleration``); ``"forces"``: the
             paper's Algorithm 2 line 14, a^{n+1} = -M^-1 dPsi/dx(x^{n+1}), which adds M^-1 times
-            the Newton residual. The residual is large where the Hessian is stiff: at static
-            friction it gave velocities of 1e-3 m/s to particles moving at 5e-6 m/s (a block
-            at rest, mu = 0.3), which ``"positions"`` removes. Internal forces cancel in the sum,
-            so ``"forces"`` keeps a very stiff body's centre-of-mass motion free of the Newton
-            tolerance: on the slope benchmark (E = 4e12 Pa, tol 1e-8 m/s at its round-off
-            floor, mu = 0.1999) the full-mode acceleration error is 3.4e-5 with ``"forces"``
-            and 4.0e-3 with ``"positions"`` (whose sticking case, mu = 0.2, creeps at 5e-16
-            m/s^2 instead of 1e-16); the benchmark uses the paper's ``"forces"``.
+            the Newton residual. The residual is large where the Hessian is stiff (at static
+            friction), which ``"positions"`` removes. Internal forces cancel in the sum, so
+            ``"forces"`` keeps a very stiff body's centre-of-mass motion free of the Newton
+            tolerance; the slope benchmark uses it (design note ``measurements``, barrier).
         friction_back_solve: the friction loop's stopping test (Algorithm 1: the Newton
             increment under refreshed friction data below ``tol``) by a back-solve with the last
-            factorisation (default) instead of a Newton iteration (assembly and factorisation);
-            measured on a sticking block, 284 -> 224 factorisations over 0.3 s, same answer
-            (``benchmarks.speed_knobs``).
+            factorisation (default) instead of a Newton iteration (assembly and factorisation):
+            fewer factorisations, same answer (``benchmarks.speed_knobs``; design note
+            ``measurements``, barrier).
     """
 
     strategy: ClassVar[str] = "barrier"
@@ -66,22 +60,15 @@ class BarrierOptions(StepperOptions):
     velocity_update: str = "positions"
     friction_back_solve: bool = True
 
+    def _named(self, name: str) -> str:
+        """The field alone: ``Simulation``'s flat keywords report these messages as its own."""
+        return name
+
     def __post_init__(self) -> None:
-        tol = self.tol
-        if isinstance(tol, bool) or not (isinstance(tol, int | float) and np.isfinite(tol)):
-            raise ValueError(f"tol must be a finite number of m/s, got {tol!r}")
-        if not tol > 0.0:
-            raise ValueError(f"tol must be > 0 (a Newton tolerance in m/s), got {tol!r}")
-        n = self.max_newton_iterations
-        if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
-            raise ValueError(f"max_newton_iterations must be an integer >= 1, got {n!r}")
-        for name in ("warm_start", "friction_back_solve"):
-            if not isinstance(getattr(self, name), bool | np.bool_):
-                raise ValueError(f"{name} must be true or false, got {getattr(self, name)!r}")
-        if self.velocity_update not in VELOCITY_UPDATES:
-            raise ValueError(
-                f"velocity_update must be one of {VELOCITY_UPDATES}, got {self.velocity_update!r}"
-            )
+        self.check_numbers("tol", what="a Newton tolerance in m/s")
+        self.check_integers("max_newton_iterations", low=1)
+        self.check_flags("warm_start", "friction_back_solve")
+        self.check_choices(velocity_update=VELOCITY_UPDATES)
         solver = self.linear_solver
         if isinstance(solver, str) and solver not in LINEAR_SOLVERS:
             raise ValueError(f"linear_solver must be one of {LINEAR_SOLVERS}, got {solver!r}")

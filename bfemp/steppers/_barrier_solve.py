@@ -217,12 +217,8 @@ class ScriptedSolve:
         The prediction (BFEMP eq. 21 with a^{n+1} = a^n; slip-normal coordinates stay fixed) is
         taken only when no contact pair is active at x^n, the whole move passes the line search's
         feasibility filter (no contact or det F = 0 before 1 / 0.9 of it, section 5) and it
-        lowers E; otherwise Newton starts at x^n. Measured (hence off by default): rings demo to
-        t = 0.1 s, 390 Newton iterations against 386 from x^n (free-flight steps far from
-        contact need 0 instead of 1, but steps where contact was lost at x^n need more; taken in
-        contact too, cut short at the filter, it cost 23 % more, as the prediction ignores the
-        contact forces); cantilever demo, 2 per step either way (the prediction is not within
-        the 1e-6 m/s tolerance).
+        lowers E; otherwise Newton starts at x^n. Off by default: no gain measured on the rings
+        and cantilever demos (design note ``measurements``, barrier).
         """
         pot, barrier = self.potential, self.barrier
         if predicted is None or x_n.size == 0:
@@ -389,10 +385,9 @@ class ScriptedSolve:
         Why it is taken: the step's velocity is v^{n+1} = (x^{n+1} - x^n) / dt under backward
         Euler (``Integrator.acceleration``), so a position left at the previous lag's solution
         carries that lag's friction error into the velocity every step, always in the same
-        direction. Measured on the slope benchmark (quick, velocities from positions): mu = 0.1
-        relative error 1.0e-5 without it, 2.5e-6 with it. With velocities from the forces (the
-        paper's Algorithm 2) it is not taken (y is returned): there it made the slope full run
-        worse (mu = 0.1: 2.3e-6 against 1.5e-9 without).
+        direction. With velocities from the forces (the paper's Algorithm 2) it is not taken (y
+        is returned): there it made the slope benchmark worse (design note ``measurements``,
+        barrier).
         """
         if not self.take_last_increment:
             return y
@@ -411,10 +406,8 @@ def stalled(moves: list[float], window: int, factor: float) -> bool:
     converges, its moves shrink by its contraction rate per re-lag. ``window`` moves with no
     ``factor`` reduction mean a rate above factor^(1/window) (0.79 for 3 and 0.5): from a first
     re-solve's move of 0.1 m to the tolerance of 1e-6 m that takes more than 50 re-lags, past the
-    default cap of 20. Measured (buckling ``plate_full``, mu = 0, the step after u = 4.20 m):
-    19 re-solves under the plate at mu = 10, each of 12 to 106 Newton iterations, moved the
-    outer ring's nodes at the edge of the plate's contact (0.9 to 1.0 mm below it, so d ~ d-hat)
-    by 0.84 to 1.51 mm each, with no trend, 902 Newton iterations in the step.
+    default cap of 20 (a stalled loop measured on the buckling ``plate_full``: design note
+    ``measurements``, barrier).
     """
     if len(moves) <= window:
         return False

@@ -38,9 +38,3 @@ class BufferPool:
             self._arrays.pop(0)
         self._arrays.append(array)
         return array
-
-    def zeros(self, shape: tuple[int, ...]) -> np.ndarray:
-        """``empty(shape)`` filled with 0."""
-        array = self.empty(shape)
-        array.fill(0.0)
-        return array

@@ -102,11 +102,8 @@ class PairContact:
                 max_iterations=opts.lr_max_iterations,
                 thin=opts.thin_cloud,
             )
-            planes.normal = fit.normal
-            planes.separation = fit.separation
-            planes.iterations = fit.iterations
-            planes.converged = fit.converged
-            planes.fallback = fit.fallback
+            for name in ("normal", "separation", "iterations", "converged", "fallback"):
+                setattr(planes, name, getattr(fit, name))
             return planes
         # the grid detectors compare two materials: a lumped pair takes the heaviest other
         partner = b.copy()

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import ClassVar
 
@@ -53,30 +52,12 @@ class LROptions(ExplicitOptions):
             default) or 2 (the paper's: after P2G and after the momentum update). Set 2 for
             ``interface="perfect"`` (only then is the run exactly the single-material one, eq.
             34) and for the paper's multimaterial XPIC(m) (LR eq. 37's dv term is the first
-            correction's; with 1 it is zero). Why 1 by default (measured for issue 40 under
-            FLIP, mass_fraction 0, fixed FEM bodies rigid; "c1" is 2 with f^{C,1})::
-
-                ============================  ========  ========  ========  ========
-                scene                         once      c1        c0        PIC
-                ============================  ========  ========  ========  ========
-                landing: disk on a deformable 2D plate (bottom row fixed, E 1 MPa),
-                lowest particle, cells        +0.025    -4.76     +0.048    +0.003
-                landing: slope box, accel.
-                error (lr_variants quick)     0.021     0.021     0.021     0.021
-                impact: quick rings, error    0.69      4.16      0.71      1.70
-                (particles inside FEM ring)   (0)       (214)     (0)       (7)
-                compression at 0.05 % c_K
-                (paper's rate) to 15 %        0.107 %   0.112 %   0.765 %   0.471 %
-                ============================  ========  ========  ========  ========
-
-            Under c1 neither the particles nor the FEM nodes ever receive the first correction
-            (f^{C,1}, LR eq. 33), so in a lasting contact the pair keeps approaching at its
-            centre-of-mass velocity: the disk sank through the deformable plate and ring
-            particles ended inside the FEM ring. Once is as good as c1 where c1 is at its best
-            (compression, the paper's Fig. 5 setting; LR reports its errors larger, which this
-            grid does not reproduce) and the best or tied elsewhere; c0 loses the compression
-            and PIC damps (the disk on a fixed plate stops rolling). XPIC(5) (with 2) sank
-            1.1 cells into the deformable plate and left 91 particles inside the ring.
+            correction's; with 1 it is zero). Why 1 by default (measured for issue 40: design
+            note ``measurements``, lr): under c1 neither the particles nor the FEM nodes ever
+            receive the first correction (f^{C,1}, LR eq. 33), so in a lasting contact the pair
+            keeps approaching at its centre-of-mass velocity (a disk sank through a deformable
+            plate, ring particles ended inside a FEM ring); once is as good as c1 where c1 is at
+            its best (compression, LR Fig. 5) and the best or tied elsewhere.
         contact_force: ``"c1"`` (the paper's f^{C,1}, LR eq. 33: only the second correction reaches
             the particles; exact for perfect interfaces, LR eq. 34) or ``"c0"`` (f^{C,0}: both
             corrections do; FLIP only). With one correction the two are the same. The
@@ -91,22 +72,19 @@ class LROptions(ExplicitOptions):
             fraction of the node's total mass. 0 (the default) is LR's contact node (section
             3.1: a node that sees two or more materials) and NairnMPM's (a material's field
             is active wherever one of its particles has weight). A positive value is Uintah's
-            choice (1e-8), kept as an option; it is not LR's. Why 0 (measured, issue 40, on
-            ``lr_compression`` at the paper's loading rate 0.05 % c_K to 3.5 % strain,
-            largest stress error against the single material): with 1e-8 a particle about
-            1.5 cells from a node keeps its material's field there uncorrected and nearly
-            massless, and the error steps near 2.8 % strain: LR-XPIC(5) 3.44 %, LR-FLIP
-            1.06 %; with every material counted 0.046 % and 0.007 %. ``interface="perfect"`` always
-            counts every material with mass (with the threshold the column drifted 8e-4 from
-            the single-material run).
+            choice (1e-8), kept as an option; it is not LR's. Why 0 (measured, issue 40: design
+            note ``measurements``, lr): with 1e-8 a particle about 1.5 cells from a node keeps
+            its material's field there uncorrected and nearly massless, and the stress error of
+            ``lr_compression`` steps up. ``interface="perfect"`` always counts every material
+            with mass.
         penalty: LR penalty on the normal components, times dx^2 (LR: 1e-7).
         lr_tol: LR stop criterion 1 - n_new . n_old (LR: 1e-5).
         lr_max_iterations: cap of the Gauss-Newton iterations (LR: 15).
         thin_cloud: in cells; the LR normal loses its components along directions in which the
             node's whole point cloud is thinner than this (standard deviation), 0 disables
-            (bfemp's, ``bfemp.contact.lr.lr_planes``: measured on ``lr_compression``, the nodes
-            beside the column saw one particle column per block and took sideways normals; the
-            column edges then interpenetrated and the stress error reached 1.1 % at 10 %).
+            (bfemp's, ``bfemp.contact.lr.lr_planes``: on ``lr_compression`` the nodes beside
+            the column saw one particle column per block and took sideways normals; design note
+            ``measurements``, lr).
         cfl_safety_fem, cfl_safety_mpm: as in ``ExplicitOptions``.
     """
 
@@ -136,43 +114,16 @@ class LROptions(ExplicitOptions):
         super().__post_init__()
         name = type(self).__name__
         self.check_choices(
-            law=LAWS,
-            interface=INTERFACES,
-            detector=DETECTORS,
-            lump=LUMPS,
-            xpic_variant=XPIC_VARIANTS,
-        )
-        if self.contact_force not in CONTACT_FORCES:
-            raise ValueError(
-                f"{name}.contact_force must be one of {CONTACT_FORCES}, got {self.contact_force!r}"
-            )
+            law=LAWS, interface=INTERFACES, detector=DETECTORS, lump=LUMPS,
+            xpic_variant=XPIC_VARIANTS, contact_force=CONTACT_FORCES,
+        )  # fmt: skip
         if self.corrections not in (1, 2) or isinstance(self.corrections, bool):
             raise ValueError(f"{name}.corrections must be 1 or 2, got {self.corrections!r}")
-        order = self.xpic_order
-        if order is not None and (isinstance(order, bool) or not isinstance(order, int)):
-            raise ValueError(f"{name}.xpic_order must be None or an integer >= 1, got {order!r}")
-        if order is not None and order < 1:
-            raise ValueError(f"{name}.xpic_order must be None or an integer >= 1, got {order!r}")
-        it = self.lr_max_iterations
-        if isinstance(it, bool) or not isinstance(it, int) or it < 1:
-            raise ValueError(f"{name}.lr_max_iterations must be an integer >= 1, got {it!r}")
-        for field_name, allow_none, low_open in (
-            ("mu", True, False),
-            ("cp_offset", False, False),
-            ("mass_fraction", False, False),
-            ("penalty", False, False),
-            ("lr_tol", False, True),
-            ("thin_cloud", False, False),
-        ):
-            value = getattr(self, field_name)
-            if value is None and allow_none:
-                continue
-            if isinstance(value, bool) or not isinstance(value, int | float):
-                raise ValueError(f"{name}.{field_name} must be a number, got {value!r}")
-            ok = value > 0.0 if low_open else value >= 0.0
-            if not (math.isfinite(value) and ok):
-                kind = "> 0" if low_open else ">= 0"
-                raise ValueError(f"{name}.{field_name} must be finite and {kind}, got {value!r}")
-            object.__setattr__(self, field_name, float(value))
+        self.check_integers("lr_max_iterations", low=1)
+        if self.xpic_order is not None:
+            self.check_integers("xpic_order", low=1)
+        self.check_numbers("mu", strict=False, none=True)
+        self.check_numbers("cp_offset", "mass_fraction", "penalty", "thin_cloud", strict=False)
+        self.check_numbers("lr_tol")
         if self.mass_fraction >= 0.5:
             raise ValueError(f"{name}.mass_fraction must be below 0.5, got {self.mass_fraction}")

@@ -142,12 +142,11 @@ class FemPoints:
         """``(M, G)`` bool: the fields whose whole grid mass at the node comes from scripted FEM
         nodes (None when no FEM node is scripted).
 
-        Why (issue 40, measured on the drop of ``tests/bfemp/test_lr_drop.py``: a disk at 1.4 m/s on
-        a fixed FEM plate): the plate's field holds only its boundary nodes' masses, so at the
-        contact nodes the disk had 0.5-0.8 of the pair's mass. The centre-of-mass law (eqs.
-        7-10) then took only m_b / (m_a + m_b) of the disk's approach velocity each step and
-        gave the rest to a plate whose script undoes it: the momentum left, the disk kept
-        moving down, and its lowest particle reached -0.53 m (the plate is 0.1 m thick).
+        Why (issue 40, the drop of ``tests/bfemp/test_lr_drop.py``; design note
+        ``measurements``, lr): the plate's field holds only its boundary nodes' masses, so the
+        centre-of-mass law (eqs. 7-10) took only m_b / (m_a + m_b) of the disk's approach
+        velocity each step and gave the rest to a plate whose script undoes it: the disk went
+        through the plate.
         A scripted field is therefore infinitely heavy in the contact law (NairnMPM's rigid
         materials; LR has none), which stops the approach at once (``_correct``). A field
         mixing free and scripted nodes is left finite (its free nodes take the kick)."""

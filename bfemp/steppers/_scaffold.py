@@ -1,17 +1,13 @@
 """The scaffolding every grid-based step shares: gather all-node fields, write the new state.
 
 A step works on "all nodes": the FEM nodes ``[0, N)`` then the active MPM grid nodes of the step
-``[N, N + G)`` (``bfemp.dofs``). ``gather_nodes`` builds, from the state at t^n, the stencils and
-P2G of the step (Tables 1-3), the level-set constraints, and every node's position, velocity,
-acceleration, mass and scripted end position. ``write_state`` takes every node's end-of-step
-position, velocity and acceleration and returns the new ``State``: FEM nodes copied (scripted
-ones take their motion's velocity), particles by one G2P (positions, velocities, F, APIC C and,
-for Newmark, accelerations, in a single pass over the particles).
+``[N, N + G)`` (``bfemp.dofs``): ``gather_nodes`` (P2G, Tables 1-3) and ``write_state`` (one
+G2P) convert between those and ``State``.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -70,6 +66,21 @@ class StepNodes:
         if self.mpm is not None and self.mpm.constraints.shift.any():
             return x_n + self.layout.restrict(self.shift)
         return x_n
+
+    def context(self, model: Model, state: State, x_hat_all: np.ndarray) -> StepContext:
+        """The terms' view of the step, predicting the all-node positions ``x_hat_all (n_all,
+        d)`` in m (BFEMP eq. 22's x_hat; two_stage: the free motion x*)."""
+        layout = self.layout
+        return StepContext(
+            model=model,
+            state=state,
+            dt=self.dt,
+            layout=layout,
+            fixed_positions=self.fixed,
+            x_hat=layout.restrict(x_hat_all),
+            dof_mass=np.repeat(self.mass[layout.free_nodes], model.dim),
+            mpm=self.mpm,
+        )
 
 
 @dataclass(frozen=True)
@@ -199,45 +210,26 @@ def write_state(
     v_scripted = model.prescribed_velocities(t_next)
     fem_a = a_end[:n_fem].copy()
     fem_a[prescribed] = (v_scripted[prescribed] - state.fem_v[prescribed]) / dt
-    new = State(
+    new = replace(
+        state,
         t=t_next,
         step=state.step + 1,
         fem_x=x_end[:n_fem].copy(),
         fem_v=np.where(prescribed[:, None], v_scripted, v_end[:n_fem]),
         fem_a=fem_a,
-        mpm_x=state.mpm_x,
-        mpm_v=state.mpm_v,
-        mpm_F=state.mpm_F,
-        mpm_C=state.mpm_C,
-        mpm_a=state.mpm_a,
-        mpm_Ca=state.mpm_Ca,
+        carried={},
     )
     if mpm is None:
         return new
     st = mpm.stencils
     with_a = mpm.acceleration is not None
+    grid = (st.nodes, st.weights, st.grads, st.active_x, x_end[n_fem:], mpm.fields.velocity)
     update = grid_to_particles(
-        transfer,
-        st.nodes,
-        st.weights,
-        st.grads,
-        st.active_x,
-        x_end[n_fem:],
-        mpm.fields.velocity,
-        v_end[n_fem:],
-        mpm_x=state.mpm_x,
-        mpm_v=state.mpm_v,
-        mpm_F=state.mpm_F,
-        grid_a_old=mpm.acceleration if with_a else None,
-        grid_a_new=a_end[n_fem:] if with_a else None,
-        mpm_a=state.mpm_a if with_a else None,
-    )
-    new.mpm_x, new.mpm_v, new.mpm_F, new.mpm_C = (
-        update.mpm_x,
-        update.mpm_v,
-        update.mpm_F,
-        update.mpm_C,
-    )
+        transfer, *grid, v_end[n_fem:], a_end[n_fem:] if with_a else None,
+        state.mpm_x, state.mpm_v, state.mpm_F,
+        grid_a_old=mpm.acceleration if with_a else None, mpm_a=state.mpm_a if with_a else None,
+    )  # fmt: skip
+    new.mpm_x, new.mpm_v, new.mpm_F, new.mpm_C = update[:4]
     if with_a:  # a^{n+1} crosses back like the velocity (FLIP increments, APIC affine)
         new.mpm_a, new.mpm_Ca = update.mpm_a, update.mpm_Ca
     return new

@@ -34,32 +34,24 @@ Scripted (prescribed) FEM boundary nodes are kinematic foreground by default
 (``ContactOperator(kinematic=...)``: a contact node one of them touches takes their velocity
 alone, so a fixed plate holds whatever its density) and their own correction is dropped. AUG has
 no scripted bodies (its ramp's fixed face is 0.25 below the free top face in contact), so this
-is a choice the paper leaves open; with their lumped mass instead (measured, issue 40) a fixed
-plate only damps: the drop below sank at 0.08 m/s for as long as it ran. The cost in
+is a choice the paper leaves open; with their lumped mass instead a fixed plate only damps
+(measured, issue 40: design note ``measurements``, augury stepper). The cost in
 conservation: the free bodies exchange momentum with the scripted nodes, which do not give it
 back. Every step reports it, ``StepReport.extra["kinematic_impulse_x"|"_y"|"_z"]`` in N s (N s/m
 in 2D): the impulse the scripted nodes deliver to the free foreground in the step (the free
 particles' summed m dt a^; H conserves momentum among them), and a ``SCRIPTED_FOREGROUND`` note.
-Measured on issue 40's drop (MPM disk r 0.1 m, 31.6 kg/m, E 1e5 Pa, thrown at (1, -1) m/s onto
-a fixed FEM plate of edge 0.025 m, mu 0.3, MPM dx 0.02 m, dt "auto" = 6.1e-4 s, grid_dx 0.05 m,
-0.3 s): the plate delivered (-30.8, 123.4) N s/m, up to 1.5 N s/m in one step, which is the
-disk's momentum change less gravity's impulse to round-off; the lowest particle never went below
-+0.050 m (1.0 grid_dx, 2.5 MPM cells above the plate top: augury stops a body about one contact
-cell short of a scripted one, the nodes both stencils share) and the disk stopped sliding and
-rolling (AUG's drag, ``bfemp.contact.augury``). 3D (a 0.2 m MPM cube at (1, 0, -1) m/s on a
-plate of edge 0.05 m, MPM dx 0.04 m, grid_dx 0.114 m, 0.3 s): lowest particle +0.035 m (0.31
-grid_dx). With ``False`` (the default before issue 40) scripted nodes are not in H and the body
-falls through a fixed plate (the drop: lowest particle -0.69 m at 0.3 s; the cube -0.35 m at 0.2
-s).
+On issue 40's drop that impulse is the disk's momentum change less gravity's, and augury
+stops a body about one contact cell short of a scripted one (the nodes both stencils share);
+with ``False`` (the default before issue 40) scripted nodes are not in H and a body falls
+through a fixed plate (measured: design note ``measurements``, augury stepper).
 
 MPM particles' F (``contact_strain=True``, bfemp's): section 1.4 item 3 leaves F_p as the
 engine's G2P made it from the free grid velocities, expecting contact to reach F through the
 next P2G. It does not: the next P2G sees the corrected velocities, but the F increment of the
 correction itself, dt grad(dt a^), is never applied, so under sustained contact the particles
-crowd together while F stays near I (the drop's disk, resting on the plate, had lost 14 % of its
-particle-cloud height at 0.3 s with mean det F 0.996). F_p^{n+1} += dt (sum_i dv_i grad w_ip^T)
-F_p^n, dv_i the correction's mass-weighted field on the engine's MPM grid per body
-(``_correction_gradient``): 5 % with it.
+crowd together while F stays near I (measured: design note ``measurements``, augury stepper).
+F_p^{n+1} += dt (sum_i dv_i grad w_ip^T) F_p^n, dv_i the correction's mass-weighted field on
+the engine's MPM grid per body (``_correction_gradient``).
 
 Named notes in every report where they apply: ``SCRIPTED_FOREGROUND``, ``AUGURY_REACH`` (tau
 times the velocity spread at shared contact nodes above grid_dx / 3, AUG eq. 50),
@@ -221,9 +213,7 @@ class AuguryStepper(ExplicitStepper):
     def _coarse_grid_note(self, model: Model) -> str | None:
         """A note when particles meet FEM bodies on a contact grid much coarser than the MPM
         grid: the stated penetration bound (``AUGURY_PENETRATION_CELLS`` MPM cells) is not
-        kept there. Measured (issue 40, the trade study's quick slope: FEM slope edge 0.22 m,
-        grid_dx 0.44 m = 88 MPM cells of 5 mm): the box went 6.9 mm (1.4 MPM cells) into the
-        slope; in the conformance catalogue (grid_dx 1-2.5 MPM cells) nothing went in."""
+        kept there (measured: design note ``measurements``, augury stepper)."""
         if not (self._mpm_fg and model.fem_bodies and model.grid is not None):
             return None
         ratio = self.grid_dx / model.grid.dx
@@ -353,16 +343,8 @@ class AuguryStepper(ExplicitStepper):
         if n_fem:
             normals[:n_fem] = points["fem_normals"]
             if self.options.normals == "facing":
-                normals[:n_fem] = facing_normals(
-                    points["fem_x"],
-                    st,
-                    m,
-                    body,
-                    normals,
-                    self.fem_foreground,
-                    self._facets,
-                    self._facet_opp,
-                )
+                faces = (self.fem_foreground, self._facets, self._facet_opp)
+                normals[:n_fem] = facing_normals(points["fem_x"], st, m, body, normals, *faces)
         if n_all > n_fem:
             normals[n_fem:] = mpm_normals(st, n_fem, m[n_fem:], body[n_fem:])
         node_shared, v_lo, v_hi = node_body_ranges(st.nodes, st.weights, body, v_bar, st.n_nodes)
@@ -381,17 +363,10 @@ class AuguryStepper(ExplicitStepper):
             t0 = time.perf_counter()
             sub = st if sel.size == n_all else subset(st, sel)
             op = ContactOperator(sub, x[sel], m[sel], apic=self.apic, kinematic=~movable[sel])
+            opts = self.options
+            start = (v_bar[sel], B_bar[sel], normals[sel], opts.iterations, opts.mode, self.mu)
             v_hat[sel], B_hat[sel] = augury_correction(
-                op,
-                v_bar[sel],
-                B_bar[sel],
-                normals[sel],
-                self.options.iterations,
-                self.options.mode,
-                self.mu,
-                movable[sel],
-                energy_guard=self.options.energy_guard,
-                stats=stats,
+                op, *start, movable[sel], energy_guard=opts.energy_guard, stats=stats
             )
             h_applications = op.applications
             timings["augury_H"] = time.perf_counter() - t0
@@ -469,12 +444,8 @@ class AuguryStepper(ExplicitStepper):
         if self._mpm_fg and model.n_particles:
             part_f[:] = model.mpm_mass[:, None] * a_hat[n_fem:]
         largest = float(np.sqrt(np.einsum("pd,pd->p", a_hat, a_hat)).max()) if a_hat.size else 0.0
-        self._last_contact = ContactView(
-            fem_f,
-            part_f,
-            pairs=shared_count,
-            parameters={"augury_max_correction": largest},
-        )
+        parameters = {"augury_max_correction": largest}
+        self._last_contact = ContactView(fem_f, part_f, pairs=shared_count, parameters=parameters)
 
     def contact(self) -> ContactView:
         """Augury forces m a^ of the last step on the foreground (no distance, no energy)."""

@@ -189,17 +189,7 @@ class BarrierStepper:
 
     def _context(self, state: State, nodes: StepNodes, x_hat_all: np.ndarray) -> StepContext:
         """The terms' view of the step; with friction, the sliding map of BFEMP eq. 37."""
-        layout, d = nodes.layout, self.model.dim
-        ctx = StepContext(
-            model=self.model,
-            state=state,
-            dt=self.dt,
-            layout=layout,
-            fixed_positions=nodes.fixed,
-            x_hat=layout.restrict(x_hat_all),
-            dof_mass=np.repeat(nodes.mass[layout.free_nodes], d),
-            mpm=nodes.mpm,
-        )
+        ctx = nodes.context(self.model, state, x_hat_all)
         if self.friction is not None:
             ctx.sliding = self._sliding_map(nodes, x_hat_all)
         return ctx
@@ -292,11 +282,7 @@ class BarrierStepper:
         setup_time = time.perf_counter() - started
         if layout.n_dof == 0:  # every node scripted: nothing to solve
             result = NewtonResult(
-                x=x_n,
-                success=True,
-                status=NewtonStatus.CONVERGED,
-                message="no unknowns",
-                step_inf_norm=0.0,
+                x_n, True, NewtonStatus.CONVERGED, "no unknowns", step_inf_norm=0.0
             )
             friction_its, friction_ok = 0, True
         else:
@@ -326,15 +312,8 @@ class BarrierStepper:
         v_next, a_next, boundary_forces = self._end_velocities(result, nodes, x_n, v_n, a_n, ctx)
         g2p_start = time.perf_counter()
         x_all = layout.positions(self.potential.to_positions(result.x), nodes.fixed)
-        new = write_state(
-            self.model,
-            state,
-            nodes,
-            transfer=self.transfer,
-            x_end=x_all,
-            v_end=layout.expand(v_next),
-            a_end=layout.expand(a_next),
-        )
+        ends = {"x_end": x_all, "v_end": layout.expand(v_next), "a_end": layout.expand(a_next)}
+        new = write_state(self.model, state, nodes, transfer=self.transfer, **ends)
         timings = dict(result.timings)
         timings["setup"] = setup_time
         timings.update(self._setup_parts)

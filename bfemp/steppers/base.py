@@ -58,14 +58,55 @@ class StepperOptions:
     #: the strategy these options belong to (set by each subclass)
     strategy: ClassVar[str] = ""
 
+    def _named(self, name: str) -> str:
+        """How messages name field ``name``: ``Class.name``."""
+        return f"{type(self).__name__}.{name}"
+
     def check_choices(self, **allowed: tuple) -> None:
         """``ValueError`` naming the field when a field's value is not one of its ``allowed``."""
         for name, choices in allowed.items():
             value = getattr(self, name)
             if value not in choices:
-                raise ValueError(
-                    f"{type(self).__name__}.{name} must be one of {choices}, got {value!r}"
+                raise ValueError(f"{self._named(name)} must be one of {choices}, got {value!r}")
+
+    def check_numbers(
+        self, *names: str, low: float = 0.0, strict: bool = True, high: float | None = None,
+        none: bool = False, what: str = "a finite number",
+    ) -> None:  # fmt: skip
+        """``ValueError`` naming the field unless each of ``names`` is a finite real number above
+        ``low`` (``strict``; else at least ``low``) and at most ``high`` (or None when ``none``);
+        each is stored as a float. ``what`` says what the value is in the message."""
+        for name in names:
+            value = getattr(self, name)
+            if value is None and none:
+                continue
+            ok = isinstance(value, int | float) and not isinstance(value, bool)
+            if not (ok and math.isfinite(value) and (value > low if strict else value >= low)
+                    and (high is None or value <= high)):  # fmt: skip
+                bound = (
+                    f"be {'>' if strict else '>='} {low:g}"
+                    if high is None
+                    else (f"lie in {'(' if strict else '['}{low:g}, {high:g}]")
                 )
+                raise ValueError(
+                    f"{self._named(name)} must {bound}{' or None' if none else ''} "
+                    f"({what}), got {value!r}"
+                )
+            object.__setattr__(self, name, float(value))
+
+    def check_integers(self, *names: str, low: int) -> None:
+        """``ValueError`` naming the field unless each of ``names`` is an integer >= ``low``."""
+        for name in names:
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < low:
+                raise ValueError(f"{self._named(name)} must be an integer >= {low}, got {value!r}")
+
+    def check_flags(self, *names: str) -> None:
+        """``ValueError`` naming the field unless each of ``names`` is True or False."""
+        for name in names:
+            value = getattr(self, name)
+            if not isinstance(value, bool | np.bool_):
+                raise ValueError(f"{self._named(name)} must be true or false, got {value!r}")
 
 
 def options_to_dict(options: StepperOptions) -> dict[str, Any]:

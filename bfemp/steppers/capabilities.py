@@ -30,11 +30,9 @@ interface: they can separate, slide and, where the strategy has friction, stick)
 their stencils no longer overlap; measured in the conformance catalogue's MPM-MPM impacts,
 restitution 0.8-0.9 at 1 m/s).
 
-Penetration guarantee: ``penetration_bound_cells`` is 0 for the strategies that promise that no
-particle or FEM node ever ends inside another FEM body (``barrier``, ``two_stage``: a step that
-would is a named failure), else the deepest penetration the strategy is stated to keep, in cells
-of its grid (measured: see each strategy's declaration), or None where it couples nothing with a
-FEM body. ``bfemp strategies`` prints :func:`strategy_table`.
+Penetration guarantee: ``Capabilities.penetration_bound_cells`` (0 for ``barrier`` and
+``two_stage``: a step that would end inside a FEM body is a named failure; measured bounds in
+each strategy's declaration). ``bfemp strategies`` prints :func:`strategy_table`.
 """
 
 from __future__ import annotations
@@ -120,10 +118,6 @@ class Capabilities:
         return self.pairs.get(kind)
 
 
-def _fully_prescribed(model: object) -> list[bool]:
-    return [bool(model.fem_prescribed[b.nodes].all()) for b in model.fem_bodies]
-
-
 def pair_kind(a_is_mpm: bool, b_is_mpm: bool, a_fixed: bool, b_fixed: bool) -> str | None:
     """The kind of a pair of bodies (None for two fully scripted FEM bodies: never a pair)."""
     if a_is_mpm and b_is_mpm:
@@ -141,8 +135,7 @@ def scene_pairs(model: object) -> list[tuple[str, str, str]]:
 
     FEM bodies come first, in insertion order, then MPM bodies (``bfemp.diagnostics`` order).
     """
-    fixed = _fully_prescribed(model)
-    bodies = [(b.name, False, fixed[i]) for i, b in enumerate(model.fem_bodies)]
+    bodies = [(b.name, False, bool(model.fem_prescribed[b.nodes].all())) for b in model.fem_bodies]
     bodies += [(b.name, True, False) for b in model.mpm_bodies]
     out = []
     for i, (name_a, mpm_a, fixed_a) in enumerate(bodies):

@@ -109,13 +109,7 @@ class ExplicitOptions(StepperOptions):
     cfl_safety_mpm: float = field(default=0.4, metadata={"sweep": _CFL_SWEEP})
 
     def __post_init__(self) -> None:
-        for name in ("cfl_safety_fem", "cfl_safety_mpm"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int | float):
-                raise ValueError(f"{type(self).__name__}.{name} must be a number, got {value!r}")
-            if not (math.isfinite(value) and 0.0 < value <= 1.0):
-                raise ValueError(f"{type(self).__name__}.{name} must lie in (0, 1], got {value!r}")
-            object.__setattr__(self, name, float(value))
+        self.check_numbers("cfl_safety_fem", "cfl_safety_mpm", high=1.0, what="a safety factor")
 
 
 class ExplicitStepper:
@@ -210,12 +204,8 @@ class ExplicitStepper:
     ) -> StableStep:
         """The stable step of ``state`` under ``options``' safety factors, and who sets it."""
         options = cls.Options() if options is None else options
-        return stable_time_step(
-            model,
-            state,
-            fem_safety=options.cfl_safety_fem,
-            mpm_safety=options.cfl_safety_mpm,
-        )
+        safety = {"fem_safety": options.cfl_safety_fem, "mpm_safety": options.cfl_safety_mpm}
+        return stable_time_step(model, state, **safety)
 
     @classmethod
     def auto_dt(cls, model: Model, state: State | None = None, options: object = None) -> float:
@@ -345,10 +335,9 @@ class ExplicitStepper:
     def mpm_stresses(self, state: State) -> np.ndarray:
         """First Piola stresses P(F_p^n) ``(P, d, d)`` in Pa, law by law (for a P2G phase)."""
         F = state.mpm_F
-        if len(self._mpm_laws) == 1 and self._mpm_laws[0][1] is None:
-            out = self._pool.empty(F.shape)
-            return self._mpm_laws[0][0].first_piola(F, self._mpm_mu, self._mpm_lam, out=out)
         out = self._pool.empty(F.shape)
+        if len(self._mpm_laws) == 1 and self._mpm_laws[0][1] is None:
+            return self._mpm_laws[0][0].first_piola(F, self._mpm_mu, self._mpm_lam, out=out)
         for law, idx in self._mpm_laws:
             out[idx] = law.first_piola(F[idx], self._mpm_mu[idx], self._mpm_lam[idx])
         return out

@@ -37,13 +37,11 @@ or more materials does not (the paper says so): its momentum change per step is 
 -dp to the others in proportion to their masses. ``interface="perfect"`` takes dp = dp(0) at every
 contact node: the multimaterial step then equals the single-material one (LR eq. 34, L1).
 
-Penetration (measured for issue 40, defaults, an MPM disk, box or cube dropped at (1, -1) m/s
-onto a fixed FEM plate, mu 0 and 0.3, dx 0.02 and 0.05 m, 2D and 3D, to 0.3 s): no particle
-centre went below the plate's top (the lowest stayed 0.19-0.23 cells above, about one particle
-radius: d_LR counts the deformed radius, LR eq. 25); a particle's undeformed extent (centre minus
-half its spacing) went at most 0.057 cells (1.14 mm at dx = 0.02 m, mu 0, 3D) below the top,
-about one step's travel at the impact speed (1.4 m/s x 0.6 ms). Against deformable FEM bodies
-contact is met through their boundary nodes only and nothing is guaranteed.
+Penetration (measured for issue 40 on drops onto a fixed FEM plate: design note
+``measurements``, lr): no particle centre went below the plate's top (d_LR counts the deformed
+radius, LR eq. 25); a particle's extent at most about one step's travel at the impact speed.
+Against deformable FEM bodies contact is met through their boundary nodes only and nothing is
+guaranteed.
 
 Transfers: ``"flip"`` (the default) and ``"pic"`` (= XPIC(1)); ``xpic_order`` m >= 1 selects
 XPIC(m). APIC is refused: LR's corrections and XPIC are written for FLIP-type updates.
@@ -132,10 +130,8 @@ class LRStepper(ExplicitStepper):
         model, opts, transfer = self.model, self.options, self.transfer
         if model.n_particles == 0:
             raise ValueError("lr: the scene has no MPM body (LR couples MPM materials)")
-        if opts.mu is not None:
-            self.mu = opts.mu
-        else:
-            self.mu = float(getattr(model.contact, "mu", 0.0) or 0.0)
+        scene_mu = float(getattr(model.contact, "mu", 0.0) or 0.0)
+        self.mu = opts.mu if opts.mu is not None else scene_mu
         self.material = np.ascontiguousarray(model.mpm_particle_body, dtype=np.int64)
         self.n_materials = len(model.mpm_bodies) + len(model.fem_bodies)
         self._law = PairContact(model, opts, self.mu, self.n_materials)
@@ -347,13 +343,10 @@ class LRStepper(ExplicitStepper):
         an impact) is removed from the grid again every step and is never lost by the
         particles. Over each window of ``FIRST_CORRECTION_WINDOW`` steps with contact, the
         note is given when sum ``|dp^a|`` of the first correction exceeds
-        ``FIRST_CORRECTION_RATIO`` times that of the second. Measured under FLIP with c1
-        (``benchmarks.lr_variants``, quick, ratio over the run): 0.011 on ``lr_compression``
-        (stress within 0.13 % of the single material, never flagged), 7.3 while the slope box
-        settles and 30 while it slides (friction lost) and 11 on the quick rings (213
-        particles inside the FEM ring), all flagged. Where the particles do get the first
-        correction (c0, PIC) a lasting contact gives 0.3-1.9 and the physics holds, so the note
-        is for c1 only.
+        ``FIRST_CORRECTION_RATIO`` times that of the second: measured under FLIP with c1 it
+        flags the landing, sliding and impact runs that lose their physics and not the
+        compression that keeps it; where the particles do get the first correction (c0, PIC)
+        the physics holds, so the note is for c1 only (design note ``measurements``, lr).
         """
         if touching:
             self.first_correction_impulse += impulse_1

@@ -141,15 +141,8 @@ def _fem_bound(model: Model, state: State, safety: float) -> StableStep:
     dt = safety * h / c
     k = int(np.argmin(dt))
     body = model.fem_bodies[int(model.fem_cell_body[cells[k]])]
-    return StableStep(
-        float(dt[k]),
-        body.name,
-        "fem",
-        int(cells[k] - body.cells.start),
-        float(h[k]),
-        float(c[k]),
-        safety,
-    )
+    index = int(cells[k] - body.cells.start)
+    return StableStep(float(dt[k]), body.name, "fem", index, float(h[k]), float(c[k]), safety)
 
 
 def _mpm_bound(model: Model, state: State, safety: float) -> StableStep:

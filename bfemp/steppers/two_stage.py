@@ -32,32 +32,19 @@ Choices (not in the notes):
   (normal forces and tangent bases of the contacts active at x^n), one minimisation; ``"loop"``
   runs the BFEMP friction loop (re-lag at the solution until a minimisation needs no Newton
   step, capped by ``scene.set_contact(friction_iterations=...)``). ``"once"`` stays the default
-  by measurement (issue 40's drop, Newton from x^n, 0.3 s): once 831 Newton iterations in
-  all, at most 14 per step; loop 1,076, at most 17. The drop's ``MAX_ITERATIONS`` came from
-  the Newton start, not from the lagging (next item).
+  by measurement: fewer Newton iterations on issue 40's drop (design note ``measurements``,
+  two_stage).
 - Newton starts at x* when the straight move x^n -> x* passes CCD and no scripted node moves
   in the step, else at x^n; by default (``start="auto"``) also at x^n when friction has a
   contact within d-hat at x^n. From x* the inertia gradient sums to zero and every barrier
   and friction block has translations in its kernel (also after PSD projection), so each
   Newton iterate keeps sum M (x - x*) = 0: linear momentum of free bodies is exact
-  (TS). From x^n it is so only to the Newton tolerance (measured: a
-  frictional MPM disk-FEM slab impact, 0.1 s, drifted 9e-13 kg m/s of 31.2; 2e-12 from x*).
-  Why x^n under friction (issue 40): x* is the frictionless free motion, so every contact
-  starts sliding a full step v* dt (6e-4 m on the drop below), thousands of times the
-  mollifier's stick width eps_v dt (6e-9 m at eps_v = 1e-5 m/s); the friction Hessian there
-  is that of sliding (none along the slip), and Newton crossed back into sticking in
-  backtracking steps (alpha down to 1e-3). From x^n every lagged contact starts at zero
-  sliding, in the stick regime, where its quadratic model is exact. Measured on issue 40's
-  drop (MPM disk r 0.1 m, E 1e5 Pa, at (1, -1) m/s onto a fixed FEM plate, mu 0.3, eps_v
-  1e-5 m/s, dt "auto" = 6.1e-4 s, 0.3 s), Newton iterations per contact step: from x*
-  (``"free"``, the default before) mean 22.6, max 75 of the cap 100 (max 86 at dt / 2; the
-  issue's run hit the cap: ``MAX_ITERATIONS`` at t = 0.058 s); ``"auto"`` mean 5.1, max 14;
-  ``friction="loop"`` from x* mean 24.7, max 63; raising eps_v to 1e-4 / 1e-3 m/s (from x*)
-  mean 17.9 / 15.0, max 43 / 29; frictionless 9.7, max 12. ``two_stage_slope`` (quick, box
-  sticking at mu = 0.3): 4.5 Newton iterations per step against 12.1 from x*, the same
-  motion (acceleration -1.29e-3 / -1.27e-3 m/s^2, top speed 1.6e-4 m/s both). The relative
-  stationarity residual of a frictional step reflects the stick stiffness mu N / (eps_v dt):
-  up to 8.7e-3 at the increment tolerance on this drop, either start.
+  (TS). From x^n it is so only to the Newton tolerance. Why x^n under friction (issue 40):
+  x* is the frictionless free motion, so every contact starts sliding a full step v* dt,
+  thousands of times the mollifier's stick width eps_v dt, where the friction Hessian is that
+  of sliding and Newton crossed back into sticking in backtracking steps; from x^n every lagged
+  contact starts at zero sliding, in the stick regime, where its quadratic model is exact
+  (measured: design note ``measurements``, two_stage).
 - ``StepReport.residual`` is the relative stationarity residual
   ||M (v - v*) - h J^T gamma||_inf / max(||M v*||_inf, ||h J^T gamma||_inf) at the returned
   step (dimensionless here; over the unknowns, slip-normal coordinates excluded).
@@ -68,8 +55,7 @@ Choices (not in the notes):
   contact solve, which finds the constraints already met: they are zero (not reported).
 - Newton runs without ``NewtonOptions``' near-solution acceptance (``near_solution_factor =
   0``): at static friction it took steps on a falling gradient norm that raised the energy, and
-  Armijo stepped back, a 2-cycle until MAX_ITERATIONS (the slope at mu = 0.2; a block at
-  mu = 0.21 failed at step 28).
+  Armijo stepped back, a 2-cycle until MAX_ITERATIONS.
 - An independent check after the step (``bfemp.contact.intersection``) fails the step as
   ``INVERTED`` if a FEM cell or particle ended with det F <= 0 (checked first), else as
   ``INTERSECTION`` or ``TUNNELED`` if anything ended inside or went through a FEM body along
@@ -77,24 +63,15 @@ Choices (not in the notes):
   of stage 1 is one of linear stability, and the explicit free motion x* of a soft cell crushed
   in an impact can be inverted; stage 2 holds no elasticity term, so neither its energy (+inf at
   J <= 0) nor its det F line-search filter (section 5) stops Newton following E toward x*
-  (issue 44: measured on a soft square at 89 m/s onto an MPM block, dt the CFL step: J* =
-  -0.0009 at x*, Newton from x^n (J > 0) to J = -0.0011 in 5 iterations, then CONVERGED).
+  (issue 44).
 
-Measured (``benchmarks/records/two_stage_*.json``; 2 shared cores; Newton from x*, before issue
-40): Newton takes 4-6 iterations per contact step on a block landing on a plate, 8.1 on the
-coarse rings and 5-17 at static friction (a guess of 1-3 is no target:
-TS states no count; the stick stiffness mu N / (eps_v dt) sets it: per step against eps_v and
-start in ``benchmarks/records/two_stage_slope_sticking.md``); rings quick: momentum drift
-2.3e-14, closest distance 8.8e-3 m; a block at rest on a plate sits 0.999e-3 m above it (dhat =
-1e-3 m). The stationarity residual is below 3e-6 (relative) at the Newton tolerance 1e-6 m/s.
-Near mu = tan(theta) the soft box of ``two_stage_slope`` creeps at 2-4 % of g sin(theta): its
-undamped elastic vibration modulates the normal force and friction never exceeds mu times it.
+Measured results (Newton iterations, momentum drift, residuals, creep at static friction):
+design note ``measurements``, two_stage.
 """
 
 from __future__ import annotations
 
 import logging
-import math
 import time
 from dataclasses import dataclass, field, replace
 from typing import ClassVar
@@ -117,7 +94,7 @@ from bfemp.steppers._scaffold import StepNodes, gather_nodes, nodes_of_step
 from bfemp.steppers.base import ContactView, StepError, finite_or_nan
 from bfemp.steppers.capabilities import BARRIER_PAIRS, Capabilities
 from bfemp.steppers.explicit import ExplicitOptions, ExplicitStepper, GridStep, Motion
-from bfemp.terms import InertiaTerm, StepContext
+from bfemp.terms import InertiaTerm
 from solvers.choice import LINEAR_SOLVER_NAMES, make_linear_solver
 from solvers.options import NewtonOptions
 
@@ -168,20 +145,10 @@ class TwoStageOptions(ExplicitOptions):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        name = type(self).__name__
-        tol = self.tol
-        if isinstance(tol, bool) or not isinstance(tol, int | float) or not math.isfinite(tol):
-            raise ValueError(f"{name}.tol must be a finite number of m/s, got {tol!r}")
-        if not tol > 0.0:
-            raise ValueError(f"{name}.tol must be > 0 (a Newton tolerance in m/s), got {tol!r}")
-        object.__setattr__(self, "tol", float(tol))
-        n = self.max_newton_iterations
-        if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
-            raise ValueError(f"{name}.max_newton_iterations must be an integer >= 1, got {n!r}")
+        self.check_numbers("tol", what="a Newton tolerance in m/s")
+        self.check_integers("max_newton_iterations", low=1)
         self.check_choices(
-            friction=FRICTION_LAGGING,
-            start=STARTS,
-            linear_solver=LINEAR_SOLVER_NAMES,
+            friction=FRICTION_LAGGING, start=STARTS, linear_solver=LINEAR_SOLVER_NAMES
         )
 
 
@@ -310,37 +277,22 @@ class TwoStageStepper(ExplicitStepper):
             return grid_v, fem_v
         self._solver.shifted_solves, self._solver.max_shift = 0, 0.0  # this step's note only
         started = time.perf_counter()
-        model, h, d, state = self.model, self.dt, self.model.dim, step.state
+        model, h, state = self.model, self.dt, step.state
         n_fem = model.n_fem_nodes
         grid_v = grid_v[0]
         nodes = self._nodes(step, state, grid_v)
         layout, pot = nodes.layout, self.potential
         v_star_all = np.concatenate([fem_v, grid_v]) if nodes.mpm is not None else fem_v
         x_hat_all = nodes.x + h * v_star_all
-        ctx = StepContext(
-            model=model,
-            state=state,
-            dt=h,
-            layout=layout,
-            fixed_positions=nodes.fixed,
-            x_hat=layout.restrict(x_hat_all),
-            dof_mass=np.repeat(nodes.mass[layout.free_nodes], d),
-            mpm=nodes.mpm,
-        )
+        ctx = nodes.context(model, state, x_hat_all)
         if self.friction is not None:  # sliding over the step: x - x^n on every node
             ctx.sliding = (1.0, -nodes.x)
         pot.begin_step(ctx, h * h, nodes.frames)
         x_start = nodes.start()
         setup = time.perf_counter() - started
         if layout.n_dof == 0:
-            y, nit, f_its, f_ok, status, free = (
-                pot.to_unknowns(x_start),
-                0,
-                0,
-                True,
-                "EXPLICIT",
-                False,
-            )
+            y, nit, f_its, f_ok, status = pot.to_unknowns(x_start), 0, 0, True, "EXPLICIT"
+            free = False
             pot.solution_changed(y)
             timings: dict[str, float] = {}
         else:

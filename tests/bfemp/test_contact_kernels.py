@@ -11,7 +11,7 @@ from bfemp.contact.barrier import (
     boundary_vertex_weights,
     particle_contact_weight,
 )
-from bfemp.contact.friction_kernels import f0, f1, friction_local, friction_local_psd
+from bfemp.contact.friction_kernels import f0, f1, friction_local
 
 DHAT = 1e-3
 KAPPA = 1e7
@@ -196,7 +196,7 @@ def test_friction_psd_and_coulomb_bound(k, rng):
     u = _samples(k, norms, rng)
     mu_lambda = rng.uniform(0.0, 5.0, u.shape[0])
     _, grad, hess = friction_local(u, mu_lambda, EPS)
-    _, grad_p, hess_p = friction_local_psd(u, mu_lambda, EPS)
+    _, grad_p, hess_p = friction_local(u, mu_lambda, EPS, psd=True)
     np.testing.assert_array_equal(grad, grad_p)
     eig = np.linalg.eigvalsh(hess_p)
     assert np.all(eig >= -1e-12 * mu_lambda.max() / EPS)
