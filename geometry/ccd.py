@@ -46,17 +46,12 @@ import numpy as np
 
 from geometry._ccd_kernels import _accd
 from geometry._distance_kernels import KIND_EE, KIND_PE, KIND_PT
-from geometry.distance import _stack_pairs
+from geometry.distance import _NAMES, _stack_pairs
 
 __all__ = ["earliest_impact", "edge_edge_ccd", "point_edge_ccd", "point_triangle_ccd"]
 
 logger = logging.getLogger(__name__)
 
-_NAMES = {
-    KIND_PE: ("p", "e0", "e1"),
-    KIND_PT: ("p", "t0", "t1", "t2"),
-    KIND_EE: ("ea0", "ea1", "eb0", "eb1"),
-}
 _N_SIDE_A = {KIND_PE: 1, KIND_PT: 1, KIND_EE: 2}
 
 

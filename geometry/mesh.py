@@ -208,7 +208,8 @@ class _SimplexMesh:
         return report
 
     def oriented(self) -> _SimplexMesh:
-        """Copy with every cell of negative signed volume flipped (last two vertices swapped)."""
+        """Copy with every cell of negative signed volume flipped (last two vertices swapped):
+        counter-clockwise triangles, right-handed tetrahedra."""
         return type(self)(
             self._points, mm.oriented_cells(self._cells, self._volumes), source=self._source
         )
@@ -300,12 +301,6 @@ class TriMesh(_SimplexMesh):
         """Smallest interior angle of each triangle, shape (m,), radians."""
         return mm.triangle_angles(self._points, self._cells).min(axis=1)
 
-    def oriented(self) -> TriMesh:
-        """Copy with every clockwise triangle flipped to counter-clockwise."""
-        return TriMesh(
-            self._points, mm.oriented_cells(self._cells, self._volumes), source=self._source
-        )
-
 
 class TetMesh(_SimplexMesh):
     """3D linear tetrahedron mesh: ``points`` (n, 3) in metres, ``cells`` (m, 4) int64."""
@@ -323,12 +318,6 @@ class TetMesh(_SimplexMesh):
         tri = self.boundary_facets
         edges = np.sort(tri[:, [[0, 1], [1, 2], [2, 0]]].reshape(-1, 2), axis=1)
         return _readonly(mm.unique_rows(edges)[0])
-
-    def oriented(self) -> TetMesh:
-        """Copy with every left-handed tetrahedron flipped to right-handed."""
-        return TetMesh(
-            self._points, mm.oriented_cells(self._cells, self._volumes), source=self._source
-        )
 
 
 def mesh_from_arrays(
