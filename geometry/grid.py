@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from geometry._checks import positive, vector
 from geometry._grid_kernels import _stencils
 
 __all__ = [
@@ -67,19 +68,8 @@ class Grid:
     origin: tuple[float, ...]
 
     def __post_init__(self) -> None:
-        try:
-            dx = float(self.dx)
-        except (TypeError, ValueError) as exc:
-            raise ValueError(f"Grid.dx must be a positive number, got {self.dx!r}") from exc
-        if not (np.isfinite(dx) and dx > 0.0):
-            raise ValueError(f"Grid.dx must be a finite number > 0, got {self.dx!r}")
-        try:
-            origin = np.asarray(self.origin, dtype=np.float64)
-        except (TypeError, ValueError) as exc:
-            raise ValueError(f"Grid.origin must be 2 or 3 numbers, got {self.origin!r}") from exc
-        if origin.shape not in ((2,), (3,)) or not np.all(np.isfinite(origin)):
-            raise ValueError(f"Grid.origin must be 2 or 3 finite numbers, got {self.origin!r}")
-        object.__setattr__(self, "dx", dx)
+        object.__setattr__(self, "dx", positive("Grid.dx", self.dx))
+        origin = vector("Grid.origin", self.origin)
         object.__setattr__(self, "origin", tuple(float(v) for v in origin))
 
     @classmethod

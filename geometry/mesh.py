@@ -241,19 +241,18 @@ class _SimplexMesh:
     def to_meshio(
         self,
         *,
-        pad_z: bool = True,
         point_data: dict[str, np.ndarray] | None = None,
         cell_data: dict[str, np.ndarray] | None = None,
     ) -> meshio.Mesh:
-        """Convert to a ``meshio.Mesh`` with one ``triangle`` / ``tetra`` cell block.
+        """Convert to a ``meshio.Mesh`` with one ``triangle`` / ``tetra`` cell block; 2D points
+        are stored as (n, 3) with z = 0 (what VTK and Gmsh expect).
 
         Args:
-            pad_z: in 2D, store points as (n, 3) with z = 0 (what VTK and Gmsh expect).
             point_data: arrays with leading dimension n to attach to the nodes.
             cell_data: arrays with leading dimension m to attach to the cells.
         """
         pts = self._points
-        if self._DIM == 2 and pad_z:
+        if self._DIM == 2:
             pts = np.hstack([pts, np.zeros((self.n_points, 1))])
         checks = (("point_data", point_data, self.n_points), ("cell_data", cell_data, self.n_cells))
         for label, data, size in checks:

@@ -76,19 +76,17 @@ def make_linear_solver(name: str, *, block_size: int = 1) -> LinearSolver:
         RuntimeError: the package the named solver needs is not installed (the message says
             how to install it).
     """
-    if name == "default":
-        return default_linear_solver()
-    if name == "cholmod":
-        return CholmodSolver()
-    if name == "scipy":
-        return ScipySolver()
-    if name == "pardiso":
-        return PardisoSolver()
-    if name == "cg_amg":
-        return CgAmgSolver(block_size=block_size)
-    if name == "auto":
-        return AutoSolver(block_size=block_size)
-    raise ValueError(f"linear solver must be one of {LINEAR_SOLVER_NAMES}, got {name!r}")
+    makers = {
+        "default": default_linear_solver,
+        "cholmod": CholmodSolver,
+        "scipy": ScipySolver,
+        "pardiso": PardisoSolver,
+        "cg_amg": lambda: CgAmgSolver(block_size=block_size),
+        "auto": lambda: AutoSolver(block_size=block_size),
+    }
+    if not isinstance(name, str) or name not in makers:
+        raise ValueError(f"linear solver must be one of {LINEAR_SOLVER_NAMES}, got {name!r}")
+    return makers[name]()
 
 
 class AutoSolver:
