@@ -31,23 +31,8 @@ point predicate (checked by the tests):
   the fcl objects and the callback are Python-level per box / per pair (python-fcl offers nothing
   else); this is the independent cross-check, not the production path.
 - ``"brute"``: O(P S) numpy broadcasting in chunks; the reference for small inputs.
-- ``"auto"``: ``"hash"``, the faster one by measurement (``benchmarks.perf_broadphase.run("full")``
-  writes ``results/perf_broadphase.json``; 2-core shared VM, seconds per call, hash = median of
-  5 calls, brute force extrapolated from 2000 points):
-
-  ======================================  ==========  =======  ======  ========
-  case (full mode)                        query       pairs    hash    fcl
-  ======================================  ==========  =======  ======  ========
-  2D: 100k points vs 5k segments          barrier      5732    0.034   1.35
-  2D: 100k points vs 5k segments          ccd          6172    0.007   0.52
-  3D: 100k points vs 20k triangles        barrier      4901    0.012   0.60
-  3D: 100k points vs 20k triangles        ccd          5118    0.013   0.61
-  ======================================  ==========  =======  ======  ========
-
-  (brute force: ~11 s in 2D, ~44 s in 3D). The machine is shared, so single numbers vary between
-  runs (over six full runs the hash took 0.006-0.066 s, fcl 0.5-1.3 s), but the hash was 10-100x
-  (typically ~50x) faster than fcl in every query of every run; fcl's time is dominated by
-  creating one Python fcl object per box and one Python callback per pair.
+- ``"auto"``: ``"hash"``, the faster one by measurement (``benchmarks.perf_broadphase``: 10-100x
+  faster than fcl in every query; the timings are in ``docs/guide/performance.md``).
 
 Output: (n, 2) int64 rows ``(index in the first set, index in the second set)``, unique and
 sorted lexicographically. Memory is proportional to the number of pairs: a huge inflation makes
