@@ -5,18 +5,7 @@ Names: ``"default"`` (CHOLMOD, the design's solver; scipy's SuperLU without scik
 (CG + smoothed-aggregation AMG, ``pyamg``) and ``"auto"`` (:class:`AutoSolver`).
 
 :class:`AutoSolver` picks on the first matrix it sees, by what was measured on the project's
-own Hessians (OpenBLAS under CHOLMOD, 2 shared and loaded cores, best of 3 numeric
-factorisations with the analysis reused; perf_fem/perf_mpm quick matrices):
-
-=====================  ======  ==========  =======  ==============================
-matrix                 DOFs    CHOLMOD     PARDISO  CG + AMG (hierarchy kept)
-=====================  ======  ==========  =======  ==============================
-3D FEM box             3,888   0.033 s     0.015 s  0.046 s
-2D FEM rectangle       13,120  0.022 s     0.012 s  0.381 s
-2D MPM block           5,618   0.042 s     0.026 s  0.088 s
-3D MPM block           8,670   0.326 s     0.695 s  0.321 s
-3D MPM block (100k p)  55,539  11.4 s      12.3 s   13.5 s (first solve 46 s)
-=====================  ======  ==========  =======  ==============================
+own Hessians (the timings are in ``docs/guide/performance.md``):
 
 - FEM meshes and 2D MPM grids (up to ~60 nonzeros per row): PARDISO where ``pypardiso`` is
   installed, else CHOLMOD;
@@ -24,9 +13,8 @@ matrix                 DOFs    CHOLMOD     PARDISO  CG + AMG (hierarchy kept)
   above ``cg_min_dofs`` (default 200,000, beyond what was measured: at 55,539 DOFs CHOLMOD still
   wins), where the direct factor's fill grows faster than the matrix.
 
-CHOLMOD's ordering on these matrices (default = AMD, METIS tried when AMD's fill is large):
-METIS 0.031 / 0.026 / 0.365 / 0.051 s and AMD 0.033 / 0.018 / 0.486 / 0.054 s on the first four
-rows, i.e. no ordering wins everywhere, so CHOLMOD's own default choice is kept.
+CHOLMOD keeps its own default ordering (AMD, METIS tried when AMD's fill is large): no ordering
+won on every matrix measured.
 """
 
 from __future__ import annotations
