@@ -128,18 +128,23 @@ class Scene:
         mesh = check_fem_mesh(mesh, where, rigid=bool(mask.all()))
         check_material(material, where)
         vel = initial_velocity(velocity, self.dim, n, where, numbering)
-        spec = _FemSpec(name, mesh, material, vel, prescribed, mask, numbering)
-        self._fem.append(spec)
-        nodes = sum(spec.mesh.points.shape[0] for spec in self._fem[:-1])
-        cells = sum(spec.mesh.cells.shape[0] for spec in self._fem[:-1])
-        boundary = mesh.boundary_edges if self.dim == 2 else mesh.boundary_faces
+        self._fem.append(_FemSpec(name, mesh, material, vel, prescribed, mask, numbering))
+        return self._fem_body(index)
+
+    def _fem_body(self, index: int) -> FemBody:
+        """The handle of FEM body ``index``: its slices of the concatenated node and cell arrays
+        and its boundary facets in the global node numbering."""
+        spec = self._fem[index]
+        nodes = sum(s.mesh.points.shape[0] for s in self._fem[:index])
+        cells = sum(s.mesh.cells.shape[0] for s in self._fem[:index])
+        boundary = spec.mesh.boundary_edges if self.dim == 2 else spec.mesh.boundary_faces
         return FemBody(
-            name=name,
+            name=spec.name,
             index=index,
-            material=material,
-            nodes=slice(nodes, nodes + n),
-            cells=slice(cells, cells + mesh.cells.shape[0]),
-            prescribed_motion=prescribed,
+            material=spec.material,
+            nodes=slice(nodes, nodes + spec.mesh.points.shape[0]),
+            cells=slice(cells, cells + spec.mesh.cells.shape[0]),
+            prescribed_motion=spec.motion,
             boundary=np.ascontiguousarray(boundary + nodes, dtype=np.int64),
         )
 
@@ -379,29 +384,15 @@ class Scene:
             raise ValueError("Scene has no bodies: add one with add_fem or add_mpm")
         if self._mpm and self._grid is None:
             raise ValueError("Scene has MPM bodies but no grid: call scene.set_grid(dx=...)")
-        points, cells, velocity, prescribed, cell_body, bodies = [], [], [], [], [], []
-        node_offset = cell_offset = 0
-        for index, spec in enumerate(self._fem):
-            n, m = spec.mesh.points.shape[0], spec.mesh.cells.shape[0]
-            points.append(spec.mesh.points)
-            cells.append(spec.mesh.cells + node_offset)
-            velocity.append(spec.velocity)
-            prescribed.append(spec.prescribed)
-            cell_body.append(np.full(m, index, dtype=np.int64))
-            boundary = spec.mesh.boundary_edges if d == 2 else spec.mesh.boundary_faces
-            bodies.append(
-                FemBody(
-                    name=spec.name,
-                    index=index,
-                    material=spec.material,
-                    nodes=slice(node_offset, node_offset + n),
-                    cells=slice(cell_offset, cell_offset + m),
-                    prescribed_motion=spec.motion,
-                    boundary=np.ascontiguousarray(boundary + node_offset, dtype=np.int64),
-                )
-            )
-            node_offset += n
-            cell_offset += m
+        bodies = [self._fem_body(index) for index in range(len(self._fem))]
+        points = [spec.mesh.points for spec in self._fem]
+        cells = [spec.mesh.cells + b.nodes.start for spec, b in zip(self._fem, bodies, strict=True)]
+        velocity = [spec.velocity for spec in self._fem]
+        prescribed = [spec.prescribed for spec in self._fem]
+        cell_body = [
+            np.full(spec.mesh.cells.shape[0], b.index, dtype=np.int64)
+            for spec, b in zip(self._fem, bodies, strict=True)
+        ]
         fem_X = np.ascontiguousarray(np.concatenate([np.zeros((0, d)), *points]), dtype=np.float64)
         fem_cells = np.ascontiguousarray(
             np.concatenate([np.zeros((0, d + 1), dtype=np.int64), *cells]), dtype=np.int64
