@@ -26,6 +26,7 @@ from bfemp.contact.parameters import ContactParameters
 from bfemp.materials import Material
 from bfemp.model import BOUNDARY_KINDS, Boundary, FemBody, Model, MpmBody, simplex_shape_gradients
 from bfemp.motion import Motion
+from geometry._checks import vector
 from geometry.grid import Grid, particles_per_cell
 from geometry.mesh import SourceNumbering, TetMesh, TriMesh
 
@@ -64,10 +65,7 @@ class Scene:
         if dim not in (2, 3):
             raise ValueError(f"Scene.dim must be 2 or 3, got {dim!r}")
         self.dim = int(dim)
-        g = np.zeros(dim) if gravity is None else np.asarray(gravity, dtype=np.float64)
-        if g.shape != (dim,) or not np.all(np.isfinite(g)):
-            raise ValueError(f"Scene.gravity must be {dim} finite numbers, got {gravity!r}")
-        self.gravity = g
+        self.gravity = np.zeros(dim) if gravity is None else vector("Scene.gravity", gravity, dim)
         self._fem: list[_FemSpec] = []
         self._loads: list[tuple[int, np.ndarray, np.ndarray]] = []
         self._mpm: list[_MpmSpec] = []
