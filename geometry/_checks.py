@@ -1,5 +1,5 @@
-"""Argument checks shared by the geometry builders: each returns the value as floats or raises
-ValueError naming the argument."""
+"""Argument checks shared by the geometry modules: each returns the value as an array or float
+or raises ValueError naming the argument."""
 
 from __future__ import annotations
 
@@ -27,4 +27,21 @@ def positive(name: str, value: object) -> float:
         raise ValueError(f"{name} must be a positive number, got {value!r}") from exc
     if not (np.isfinite(out) and out > 0.0):
         raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+    return out
+
+
+def indices(name: str, array: object, n_vertices: int, width: int | None = None) -> np.ndarray:
+    """``array`` as C-contiguous int64 rows ``(m, k)`` (k = ``width`` when given) of vertex
+    indices in ``[0, n_vertices)``, else ValueError naming ``name`` (and the bad rows)."""
+    out = np.asarray(array)
+    if out.ndim != 2 or out.shape[1] < 1 or width not in (None, out.shape[1]):
+        raise ValueError(f"{name} must have shape (m, {width or 'k'}), got {out.shape}")
+    if out.size and not np.issubdtype(out.dtype, np.integer):
+        raise ValueError(f"{name} must be an integer array, got dtype {out.dtype}")
+    out = np.ascontiguousarray(out, dtype=np.int64)
+    bad = np.flatnonzero(((out < 0) | (out >= n_vertices)).any(axis=1))
+    if bad.size:
+        raise ValueError(
+            f"{name} rows {bad[:10].tolist()} reference vertices outside [0, {n_vertices})"
+        )
     return out

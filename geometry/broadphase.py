@@ -47,6 +47,7 @@ import fcl
 import numpy as np
 
 from geometry import _hash_kernels as hk
+from geometry._checks import indices
 
 __all__ = ["METHODS", "box_overlap_pairs", "edge_edge_candidates", "point_simplex_candidates"]
 
@@ -92,7 +93,7 @@ def point_simplex_candidates(
     points = _positions("points", points)
     dim = points.shape[1]
     simplex_vertices = _positions("simplex_vertices", simplex_vertices, dim)
-    simplices = _indices("simplices", simplices, simplex_vertices.shape[0])
+    simplices = indices("simplices", simplices, simplex_vertices.shape[0])
     points_end = _end("points_end", points_end, "points", points)
     vertices_end = _end("vertices_end", vertices_end, "simplex_vertices", simplex_vertices)
     a = (points, points_end, None)
@@ -125,8 +126,8 @@ def edge_edge_candidates(
     method = _check_method(method)
     inflation = _check_inflation(inflation)
     vertices = _positions("vertices", vertices)
-    edges_a = _indices("edges_a", edges_a, vertices.shape[0], 2)
-    edges_b = _indices("edges_b", edges_b, vertices.shape[0], 2)
+    edges_a = indices("edges_a", edges_a, vertices.shape[0], 2)
+    edges_b = indices("edges_b", edges_b, vertices.shape[0], 2)
     vertices_end = _end("vertices_end", vertices_end, "vertices", vertices)
     a, b = (vertices, vertices_end, edges_a), (vertices, vertices_end, edges_b)
     return _swept_pairs(a, b, inflation, method)
@@ -200,23 +201,6 @@ def _end(name: str, array: np.ndarray | None, like_name: str, like: np.ndarray) 
     out = _positions(name, array, like.shape[1])
     if out.shape != like.shape:
         raise ValueError(f"{name} must have the shape of {like_name} {like.shape}, got {out.shape}")
-    return out
-
-
-def _indices(name: str, array: np.ndarray, n_vertices: int, width: int | None = None) -> np.ndarray:
-    out = np.asarray(array)
-    if out.ndim != 2 or out.shape[1] < 1:
-        raise ValueError(f"{name} must have shape (n, k), got {out.shape}")
-    if width is not None and out.shape[1] != width:
-        raise ValueError(f"{name} must have shape (n, {width}), got {out.shape}")
-    if out.size and not np.issubdtype(out.dtype, np.integer):
-        raise ValueError(f"{name} must be an integer array, got dtype {out.dtype}")
-    out = np.ascontiguousarray(out, dtype=np.int64)
-    if out.size and (out.min() < 0 or out.max() >= n_vertices):
-        bad = np.flatnonzero(np.any((out < 0) | (out >= n_vertices), axis=1))
-        raise ValueError(
-            f"{name} rows {bad[:10].tolist()} index outside [0, {n_vertices}) vertices"
-        )
     return out
 
 

@@ -45,6 +45,7 @@ import logging
 import numpy as np
 
 from geometry._ccd_kernels import _accd
+from geometry._checks import indices
 from geometry._distance_kernels import KIND_EE, KIND_PE, KIND_PT
 from geometry.distance import _NAMES, _stack_pairs
 
@@ -172,18 +173,6 @@ def edge_edge_ccd(
     return _ccd(KIND_EE, arrays, t_max, min_distance, tolerance, max_iterations)
 
 
-def _gather(name: str, pairs: np.ndarray, width: int, n_vertices: int) -> np.ndarray:
-    idx = np.asarray(pairs)
-    if idx.ndim != 2 or idx.shape[1] != width:
-        raise ValueError(f"{name} must have shape (m, {width}), got {idx.shape}")
-    if idx.size and not np.issubdtype(idx.dtype, np.integer):
-        raise ValueError(f"{name} must be an integer array, got {idx.dtype}")
-    bad = np.flatnonzero(((idx < 0) | (idx >= n_vertices)).any(axis=1))
-    if bad.size:
-        raise ValueError(f"{name} rows {bad[:10]} reference vertices outside [0, {n_vertices})")
-    return idx.astype(np.int64, copy=False)
-
-
 def earliest_impact(
     x: np.ndarray,
     dx: np.ndarray,
@@ -222,7 +211,7 @@ def earliest_impact(
     for name, pairs, width, ccd in groups:
         if pairs is None:
             continue
-        idx = _gather(name, pairs, width, x.shape[0])
+        idx = indices(name, pairs, x.shape[0], width)
         if width == 4 and x.shape[1] != 3:
             raise ValueError(f"{name} pairs need 3D positions, x has shape {x.shape}")
         if idx.shape[0] == 0:
