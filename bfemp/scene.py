@@ -19,6 +19,7 @@ from bfemp._scene_inputs import (
     check_material,
     check_translation,
     initial_velocity,
+    node_selection,
     prescribed_mask,
 )
 from bfemp.contact.pair_friction import body_code
@@ -330,23 +331,8 @@ class Scene:
         spec = self._fem[body]
         where = f"fem body '{spec.name}'"
         n, d = spec.mesh.points.shape
-        numbering = spec.numbering
-        if nodes is None:
-            idx = np.arange(n)
-        else:
-            nodes = np.asarray(nodes)
-            if nodes.dtype == bool:
-                if numbering is not None and nodes.shape == (numbering.n_source,):
-                    nodes = numbering.mask(nodes, f"{where}: load nodes mask")
-                if nodes.shape != (n,):
-                    raise ValueError(f"{where}: load nodes mask must have {n} entries")
-                idx = np.flatnonzero(nodes)
-            elif numbering is not None:
-                idx = numbering.nodes(nodes, f"{where}: load node indices")
-            else:
-                idx = nodes.astype(np.int64).ravel()
-                if idx.size and (idx.min() < 0 or idx.max() >= n):
-                    raise ValueError(f"{where}: load node indices must lie in [0, {n})")
+        field = f"{where}: load nodes"
+        idx = np.arange(n) if nodes is None else node_selection(nodes, n, field, spec.numbering)
         f = np.asarray(force, dtype=np.float64)
         if f.shape == (d,):
             f = np.broadcast_to(f, (idx.size, d))
