@@ -27,6 +27,7 @@ from bfemp.contact.parameters import ContactParameters
 from bfemp.materials import Material
 from bfemp.model import BOUNDARY_KINDS, Boundary, FemBody, Model, MpmBody, simplex_shape_gradients
 from bfemp.motion import Motion
+from geometry._checks import points as _points
 from geometry._checks import vector
 from geometry.grid import Grid, particles_per_cell
 from geometry.mesh import SourceNumbering, TetMesh, TriMesh
@@ -171,15 +172,9 @@ class Scene:
         if any(spec.name == name for spec in (*self._mpm, *self._fem)):
             raise ValueError(f"mpm body '{name}': name is already used by another body")
         where = f"mpm body '{name}'"
-        d = self.dim
-        x = np.asarray(particles, dtype=np.float64)
-        if x.ndim != 2 or x.shape[1] != d or x.shape[0] == 0:
-            raise ValueError(
-                f"{where}: particles must have shape (p, {d}) with p >= 1, got {x.shape}"
-            )
-        bad = np.flatnonzero(~np.all(np.isfinite(x), axis=1))
-        if bad.size:
-            raise ValueError(f"{where}: particles hold NaN or inf at rows {bad[:10].tolist()}")
+        x = _points(f"{where}: particles", particles, self.dim, "p")
+        if x.shape[0] == 0:
+            raise ValueError(f"{where}: no particles (shape {x.shape})")
         vol = np.asarray(volumes, dtype=np.float64)
         if vol.shape != (x.shape[0],):
             raise ValueError(f"{where}: volumes must have shape ({x.shape[0]},), got {vol.shape}")
