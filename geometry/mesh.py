@@ -38,6 +38,7 @@ import meshio
 import numpy as np
 
 from geometry import _meshing_metrics as mm
+from geometry._checks import points as check_points
 from geometry._mesh_source import SourceNumbering
 from geometry._meshing_report import MeshQualityReport, format_indices
 
@@ -70,14 +71,9 @@ class _SimplexMesh:
         self, points: np.ndarray, cells: np.ndarray, *, source: SourceNumbering | None = None
     ) -> None:
         d, cls = self._DIM, type(self).__name__
-        pts = np.array(points, dtype=np.float64, order="C", copy=True)
-        if pts.ndim != 2 or pts.shape[1] != d:
-            raise ValueError(f"{cls}.points must have shape (n, {d}), got {pts.shape}")
+        pts = np.array(check_points(f"{cls}.points", points, d), copy=True)  # owned, read-only
         if pts.shape[0] < d + 1:
             raise ValueError(f"{cls}.points needs at least {d + 1} points, got {pts.shape[0]}")
-        bad = np.flatnonzero(~np.isfinite(pts).all(axis=1))
-        if bad.size:
-            raise ValueError(f"{cls}.points has non-finite coordinates at {format_indices(bad)}")
         raw = np.asarray(cells)
         if raw.dtype.kind not in "iu":
             raise ValueError(f"{cls}.cells must be an integer array, got dtype {raw.dtype}")
