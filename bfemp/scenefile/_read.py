@@ -68,11 +68,8 @@ def _api_error(err: ValueError, t: Table, field: str | None, body: str | None) -
 
 
 def _materials(root: Table) -> dict:
-    out = {}
     mats = root.sub("materials", default_empty=True)
-    for name in mats.data:
-        out[name] = read_material(mats.sub(name))
-    return out
+    return {name: read_material(mats.sub(name)) for name in mats.data}
 
 
 def _material(t: Table, materials: dict) -> tuple[object, str | None]:
