@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from bfemp.errors import SceneError
+from bfemp.scenefile._fields import Table
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -111,70 +112,47 @@ class Reference:
         return np.unique(np.r_[np.arange(0, self.steps + 1, self.every), self.steps])
 
 
-def _positive_int(t: dict, key: str, file: str, default: int | None = None) -> int:
-    value = t.get(key, default)
-    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-        raise SceneError(
-            f"must be a positive integer, got {value!r}", file=file, field=f"regress.{key}"
-        )
-    return value
+def _read_toml(path: Path) -> dict:
+    """The TOML document of ``path``; ``SceneError`` naming the file when it cannot be read."""
+    try:
+        return tomllib.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as err:
+        raise SceneError(f"cannot read: {err}", file=str(path)) from None
 
 
 def load_reference(path: str | os.PathLike) -> Reference:
     """Read the ``[regress]`` table of the scene file ``path`` (the scene is read by the run)."""
     path = Path(path)
-    file = str(path)
     if not path.is_file():
         raise SceneError(f"reference scene file not found: {path}")
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as err:
-        raise SceneError(f"cannot read the reference: {err}", file=file) from None
-    t = data.get("regress")
-    if not isinstance(t, dict):
+    data = _read_toml(path).get("regress")
+    if not isinstance(data, dict):
         raise SceneError(
-            "missing table [regress]", file=file, hint="add [regress] with steps (and every)"
+            "missing table [regress]", file=str(path), hint="add [regress] with steps (and every)"
         )
-    unknown = set(t) - {"steps", "every", "quantities", "tolerances"}
-    if unknown:
-        raise SceneError(
-            f"unknown key(s) {sorted(unknown)}; known: steps, every, quantities, tolerances",
-            file=file,
-            field="regress",
-        )
-    steps = _positive_int(t, "steps", file)
-    every = _positive_int(t, "every", file, default=1)
-    quantities = t.get("quantities")
+    t = Table(data, file=str(path), path="regress")
+    t.check_keys({"steps", "every", "quantities", "tolerances"}, required={"steps"})
+    quantities = t.raw("quantities", None)
     if quantities is not None:
         if not (
             isinstance(quantities, list)
             and quantities
             and all(isinstance(q, str) for q in quantities)
         ):
-            raise SceneError(
-                f"must be a non-empty list of names, got {quantities!r}",
-                file=file,
-                field="regress.quantities",
-            )
+            raise t.error(f"must be a non-empty list of names, got {quantities!r}", "quantities")
         quantities = tuple(quantities)
     tolerances = {}
-    for name, tol in t.get("tolerances", {}).items():
-        where = f"regress.tolerances.{name}"
-        if not isinstance(tol, dict) or set(tol) - {"atol", "rtol"}:
-            raise SceneError(f"must be a table {{atol, rtol}}, got {tol!r}", file=file, field=where)
-        values = {}
-        for key, value in tol.items():
-            if isinstance(value, bool) or not isinstance(value, int | float) or not value >= 0:
-                raise SceneError(
-                    f"must be a number >= 0, got {value!r}", file=file, field=f"{where}.{key}"
-                )
-            values[key] = float(value)
+    given = t.sub("tolerances", default_empty=True)
+    for name in given.data:
+        tol = given.sub(name)
+        tol.check_keys({"atol", "rtol"})
+        values = {key: tol.number(key, minimum=0.0) for key in tol.data}
         tolerances[name] = Tolerance(**{"atol": 0.0, "rtol": 0.0, **values})
     return Reference(
         name=path.stem,
         scene_file=path,
-        steps=steps,
-        every=every,
+        steps=t.integer("steps", minimum=1),
+        every=t.integer("every", default=1, minimum=1),
         quantities=quantities,
         tolerances=tolerances,
     )
@@ -198,11 +176,7 @@ def find_references(
         raise SceneError(f"reference folder not found: {directory}", hint="give --dir DIR")
     found = {}
     for path in sorted(directory.glob("*.toml")):
-        try:
-            data = tomllib.loads(path.read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as err:
-            raise SceneError(f"cannot read: {err}", file=str(path)) from None
-        if "regress" in data:  # other scene files in the folder are not references
+        if "regress" in _read_toml(path):  # other scene files in the folder are not references
             found[path.stem] = path
     if not names:
         return [load_reference(p) for p in found.values()]

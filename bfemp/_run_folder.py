@@ -11,7 +11,7 @@ from bfemp.io import outputs
 from bfemp.io.metrics import MetricsLog
 from bfemp.io.snapshots import write_animation, write_snapshot_sheet
 from bfemp.io.vtk import FrameWriter
-from bfemp.manifest import RunManifest
+from bfemp.manifest import RunManifest, read_manifest
 from bfemp.plotting import plot_metrics
 
 __all__ = ["run_to_folder"]
@@ -37,7 +37,7 @@ def run_to_folder(
     metrics, plots and the last checkpoint (:func:`bfemp.io.outputs.finish_outputs`)."""
     if resume:
         # a corrupt manifest is refused before anything changes
-        earlier = RunManifest.read(out) or {}
+        earlier = read_manifest(out) or {}
         ckpt = restore_checkpoint(out, sim, every=every)
         check_t_end(t_end, sim.state.t, sim.dt, f"the checkpoint in {out}")
         if every is None:  # the continued run's frame interval

@@ -17,6 +17,7 @@ __all__ = [
     "check_material",
     "check_translation",
     "initial_velocity",
+    "node_selection",
     "prescribed_mask",
 ]
 
@@ -135,29 +136,38 @@ def prescribed_mask(
         )
     if nodes is None:
         return np.ones(n, dtype=bool)
-    nodes = np.asarray(nodes)
     field = f"{where}: prescribed_nodes"
-    if nodes.dtype == bool:
-        if numbering is not None and nodes.shape == (numbering.n_source,):
-            mask = numbering.mask(nodes, f"{field} mask")
-        elif nodes.shape != (n,):
-            raise ValueError(f"{field} mask must have {n} entries, got {nodes.shape}")
-        else:
-            mask = nodes.copy()
-    elif nodes.size == 0:
-        mask = np.zeros(n, dtype=bool)
-    else:
-        if nodes.ndim != 1 or not np.issubdtype(nodes.dtype, np.integer):
-            raise ValueError(f"{field} must be a bool mask or integer indices")
-        if numbering is not None:
-            nodes = numbering.nodes(nodes, f"{field} indices")
-        elif nodes.min() < 0 or nodes.max() >= n:
-            raise ValueError(f"{field} indices must lie in [0, {n})")
-        mask = np.zeros(n, dtype=bool)
-        mask[nodes] = True
+    mask = np.zeros(n, dtype=bool)
+    mask[node_selection(nodes, n, field, numbering)] = True
     if not mask.any():
         raise ValueError(
             f"{field} selects no node (a mask with no True entry or no indices): "
             "select at least one node, or leave out prescribed for a free body"
         )
     return mask
+
+
+def node_selection(
+    nodes: object, n: int, field: str, numbering: SourceNumbering | None = None
+) -> np.ndarray:
+    """The node indices ``(k,)`` int64 that ``nodes`` selects of a mesh of ``n`` nodes: a bool
+    mask ``(n,)``, or integer indices ``(k,)`` (order and repeats kept); with ``numbering``,
+    masks and indices may be in the numbering of the mesh file. ``ValueError`` naming ``field``.
+    """
+    nodes = np.asarray(nodes)
+    if nodes.dtype == bool:
+        if numbering is not None and nodes.shape == (numbering.n_source,):
+            nodes = numbering.mask(nodes, f"{field} mask")
+        if nodes.shape != (n,):
+            raise ValueError(f"{field} mask must have {n} entries, got {nodes.shape}")
+        return np.flatnonzero(nodes)
+    if nodes.size == 0:
+        return np.zeros(0, dtype=np.int64)
+    if nodes.ndim != 1 or not np.issubdtype(nodes.dtype, np.integer):
+        raise ValueError(f"{field} must be a bool mask or integer indices")
+    if numbering is not None:
+        return numbering.nodes(nodes, f"{field} indices")
+    bad = nodes[(nodes < 0) | (nodes >= n)]
+    if bad.size:
+        raise ValueError(f"{field} indices must lie in [0, {n}), got {bad[:10].tolist()}")
+    return nodes.astype(np.int64)

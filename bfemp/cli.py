@@ -337,19 +337,8 @@ def _strategies(args: argparse.Namespace) -> int:
     from bfemp.steppers import STRATEGIES, strategy_table
 
     if args.json:
-        table = {
-            name: {
-                "pairs": dict(cls.capabilities.pairs),
-                "friction": cls.capabilities.friction,
-                "needs_contact_settings": cls.capabilities.needs_contact_settings,
-                "penetration_bound_cells": cls.capabilities.penetration_bound_cells,
-                "penetration_note": cls.capabilities.penetration_note,
-                "inversion_free": cls.capabilities.inversion_free,
-                "needs_mpm_body": cls.capabilities.needs_mpm_body,
-            }
-            for name, cls in STRATEGIES.items()
-        }
-        print(json.dumps(table, indent=2))
+        table = {name: vars(cls.capabilities) for name, cls in STRATEGIES.items()}
+        print(json.dumps(table, indent=2, default=dict))  # default: the read-only pairs mapping
     else:
         print(strategy_table())
     return 0

@@ -66,9 +66,6 @@ class SceneError(ValueError):
             text += f" (hint: {self.hint})"
         return text
 
-    def __str__(self) -> str:
-        return self._format()
-
     def located(self, *, file: str | None = None) -> SceneError:
         """A copy with the file set (when it was not known where the error was raised)."""
         return SceneError(

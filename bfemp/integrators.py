@@ -16,12 +16,8 @@ Damped Newmark (``"newmark_damped"``, not in the paper): alpha = 1/2, gamma = 0.
 beta = (gamma + 1/2)^2 / 4, Newmark's own dissipative member (unconditionally stable for linear
 problems, damps modes with omega dt >> 1, first order in dt). Why: the trapezoidal rule is not
 energy-stable for nonlinear problems, and a stiff barrier that switches on within a step pumps
-energy into the contact zone's unresolved modes. Measured on two FEM Neo-Hookean rings (the
-paper's rings at h = 0.25 m, 40 m/s each, dt = 2e-4 s, the whole 0.3 s collision): the total
-energy peaks at 2.41 x its start under mid-point Newmark, at 1.054 x under damped Newmark (and
-ends at 0.967 x). It curbs the growth, it does not rule it out: a 40 m/s block hitting a plate
-with dhat = 1e-3 m at dt = 1e-4 s still gains 47 %; backward Euler never gains, and
-Newmark with implicit contact stayed below its start energy in every case measured (below).
+energy into the contact zone's unresolved modes. It curbs the growth, it does not rule it out
+(measured on colliding rings and a block hitting a plate: ``docs/guide/scenes.md``).
 
 Newmark with implicit contact (``"newmark_implicit_contact"``, not in the paper): mid-point
 Newmark for everything but contact; the barrier and friction forces enter as Newmark's
@@ -42,11 +38,7 @@ off at t^{n+1} (or the reverse) then pumps energy into the contact nodes' chatte
 Nyquist frequency. Without that memory the contact impulse is implicit and dissipative (at
 impact the contact nodes lose their normal approach speed, a share of the energy expected to
 shrink with the boundary nodes' mass as the mesh is refined) while elastic waves keep the
-trapezoidal rule's energy conservation. Measured on two FEM Neo-Hookean rings (the paper's
-rings at h = 0.5 m, 40 m/s each, dt = 1e-4 s, 0.05 s): the total energy peaks at 1.213 x its
-start under mid-point Newmark, 1.025 x under damped Newmark, and never exceeds it under
-implicit contact (ends at 0.983 x) or backward Euler (0.940 x); the linear momentum is kept to
-round-off by all four (``tests/bfemp/test_contact.py``).
+trapezoidal rule's energy conservation (measured: ``docs/guide/scenes.md``).
 
 Symplectic Euler (``"symplectic_euler"``, explicit strategies only): the explicit Newmark member
 beta = 0, gamma = 1/2 (central differences, AUG eq. 32) written with half-step velocities,

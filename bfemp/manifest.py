@@ -212,11 +212,6 @@ class RunManifest:
         """``{out}/manifest.json``."""
         return self.out / MANIFEST_FILE
 
-    @staticmethod
-    def read(out: str | Path) -> dict | None:
-        """:func:`read_manifest` (``RunFolderError`` for a corrupt one)."""
-        return read_manifest(out)
-
     @classmethod
     def start(
         cls,

@@ -18,6 +18,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from geometry._checks import vector
+
 __all__ = ["Motion", "Fixed", "Linear", "Rotation", "Sequence"]
 
 
@@ -54,11 +56,7 @@ class Linear(Motion):
     velocity: tuple[float, ...]
 
     def __post_init__(self) -> None:
-        v = np.asarray(self.velocity, dtype=np.float64)
-        if v.ndim != 1 or v.size not in (2, 3) or not np.all(np.isfinite(v)):
-            raise ValueError(
-                f"Linear.velocity must be 2 or 3 finite numbers, got {self.velocity!r}"
-            )
+        v = vector("Linear.velocity", self.velocity)
         object.__setattr__(self, "velocity", tuple(float(c) for c in v))
 
     def _v(self, x0: np.ndarray) -> np.ndarray:
@@ -105,9 +103,7 @@ class Rotation(Motion):
     axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
 
     def __post_init__(self) -> None:
-        c = np.asarray(self.center, dtype=np.float64)
-        if c.ndim != 1 or c.size not in (2, 3) or not np.all(np.isfinite(c)):
-            raise ValueError(f"Rotation.center must be 2 or 3 finite numbers, got {self.center!r}")
+        c = vector("Rotation.center", self.center)
         if not math.isfinite(self.angular_velocity):
             raise ValueError(
                 f"Rotation.angular_velocity must be finite, got {self.angular_velocity!r}"

@@ -35,28 +35,21 @@ from bfemp.io.vtk import atomic_path
 
 logger = logging.getLogger(__name__)
 
-DEFAULT_GROUPS: Mapping[str, tuple[str, ...]] = {
-    "energies": ("energy_*",),
-    "momenta": ("momentum_*",),
-    "iterations": ("iterations_*",),
-    "min_distance": ("min_distance",),
-    "contact_forces": ("contact_force.*",),
-    "body_energies": ("body.*.energy_*",),
-    "body_momenta": ("body.*.momentum_*",),
-    "timings": ("time_*",),
+#: group name -> (column patterns, y-axis label: quantity [unit]); 2D quantities are per unit
+#: thickness
+_GROUPS = {
+    "energies": (("energy_*",), "energy [J] (2D: J/m)"),
+    "momenta": (("momentum_*",), "momentum [kg m/s] (2D: per m)"),
+    "iterations": (("iterations_*",), "iterations per step"),
+    "min_distance": (("min_distance",), "distance [m]"),
+    "contact_forces": (("contact_force.*",), "force [N] (2D: N/m)"),
+    "body_energies": (("body.*.energy_*",), "energy [J] (2D: J/m)"),
+    "body_momenta": (("body.*.momentum_*",), "momentum [kg m/s] (2D: per m)"),
+    "timings": (("time_*",), "wall time per step [s]"),
 }
-
-#: y-axis label (quantity [unit]) of a group; 2D quantities are per unit thickness
-GROUP_UNITS: Mapping[str, str] = {
-    "energies": "energy [J] (2D: J/m)",
-    "momenta": "momentum [kg m/s] (2D: per m)",
-    "iterations": "iterations per step",
-    "min_distance": "distance [m]",
-    "contact_forces": "force [N] (2D: N/m)",
-    "body_energies": "energy [J] (2D: J/m)",
-    "body_momenta": "momentum [kg m/s] (2D: per m)",
-    "timings": "wall time per step [s]",
-}
+DEFAULT_GROUPS: Mapping[str, tuple[str, ...]] = {k: v[0] for k, v in _GROUPS.items()}
+#: y-axis label of a group
+GROUP_UNITS: Mapping[str, str] = {k: v[1] for k, v in _GROUPS.items()}
 #: x-axis label of a known abscissa column
 X_UNITS: Mapping[str, str] = {"t": "t [s]", "step": "step"}
 #: groups drawn on a logarithmic y axis (values spanning decades)

@@ -19,6 +19,7 @@ from bfemp._scene_inputs import (
     check_material,
     check_translation,
     initial_velocity,
+    node_selection,
     prescribed_mask,
 )
 from bfemp.contact.pair_friction import body_code
@@ -26,6 +27,8 @@ from bfemp.contact.parameters import ContactParameters
 from bfemp.materials import Material
 from bfemp.model import BOUNDARY_KINDS, Boundary, FemBody, Model, MpmBody, simplex_shape_gradients
 from bfemp.motion import Motion
+from geometry._checks import points as _points
+from geometry._checks import vector
 from geometry.grid import Grid, particles_per_cell
 from geometry.mesh import SourceNumbering, TetMesh, TriMesh
 
@@ -64,10 +67,7 @@ class Scene:
         if dim not in (2, 3):
             raise ValueError(f"Scene.dim must be 2 or 3, got {dim!r}")
         self.dim = int(dim)
-        g = np.zeros(dim) if gravity is None else np.asarray(gravity, dtype=np.float64)
-        if g.shape != (dim,) or not np.all(np.isfinite(g)):
-            raise ValueError(f"Scene.gravity must be {dim} finite numbers, got {gravity!r}")
-        self.gravity = g
+        self.gravity = np.zeros(dim) if gravity is None else vector("Scene.gravity", gravity, dim)
         self._fem: list[_FemSpec] = []
         self._loads: list[tuple[int, np.ndarray, np.ndarray]] = []
         self._mpm: list[_MpmSpec] = []
@@ -128,18 +128,23 @@ class Scene:
         mesh = check_fem_mesh(mesh, where, rigid=bool(mask.all()))
         check_material(material, where)
         vel = initial_velocity(velocity, self.dim, n, where, numbering)
-        spec = _FemSpec(name, mesh, material, vel, prescribed, mask, numbering)
-        self._fem.append(spec)
-        nodes = sum(spec.mesh.points.shape[0] for spec in self._fem[:-1])
-        cells = sum(spec.mesh.cells.shape[0] for spec in self._fem[:-1])
-        boundary = mesh.boundary_edges if self.dim == 2 else mesh.boundary_faces
+        self._fem.append(_FemSpec(name, mesh, material, vel, prescribed, mask, numbering))
+        return self._fem_body(index)
+
+    def _fem_body(self, index: int) -> FemBody:
+        """The handle of FEM body ``index``: its slices of the concatenated node and cell arrays
+        and its boundary facets in the global node numbering."""
+        spec = self._fem[index]
+        nodes = sum(s.mesh.points.shape[0] for s in self._fem[:index])
+        cells = sum(s.mesh.cells.shape[0] for s in self._fem[:index])
+        boundary = spec.mesh.boundary_edges if self.dim == 2 else spec.mesh.boundary_faces
         return FemBody(
-            name=name,
+            name=spec.name,
             index=index,
-            material=material,
-            nodes=slice(nodes, nodes + n),
-            cells=slice(cells, cells + mesh.cells.shape[0]),
-            prescribed_motion=prescribed,
+            material=spec.material,
+            nodes=slice(nodes, nodes + spec.mesh.points.shape[0]),
+            cells=slice(cells, cells + spec.mesh.cells.shape[0]),
+            prescribed_motion=spec.motion,
             boundary=np.ascontiguousarray(boundary + nodes, dtype=np.int64),
         )
 
@@ -167,15 +172,9 @@ class Scene:
         if any(spec.name == name for spec in (*self._mpm, *self._fem)):
             raise ValueError(f"mpm body '{name}': name is already used by another body")
         where = f"mpm body '{name}'"
-        d = self.dim
-        x = np.asarray(particles, dtype=np.float64)
-        if x.ndim != 2 or x.shape[1] != d or x.shape[0] == 0:
-            raise ValueError(
-                f"{where}: particles must have shape (p, {d}) with p >= 1, got {x.shape}"
-            )
-        bad = np.flatnonzero(~np.all(np.isfinite(x), axis=1))
-        if bad.size:
-            raise ValueError(f"{where}: particles hold NaN or inf at rows {bad[:10].tolist()}")
+        x = _points(f"{where}: particles", particles, self.dim, "p")
+        if x.shape[0] == 0:
+            raise ValueError(f"{where}: no particles (shape {x.shape})")
         vol = np.asarray(volumes, dtype=np.float64)
         if vol.shape != (x.shape[0],):
             raise ValueError(f"{where}: volumes must have shape ({x.shape[0]},), got {vol.shape}")
@@ -327,23 +326,8 @@ class Scene:
         spec = self._fem[body]
         where = f"fem body '{spec.name}'"
         n, d = spec.mesh.points.shape
-        numbering = spec.numbering
-        if nodes is None:
-            idx = np.arange(n)
-        else:
-            nodes = np.asarray(nodes)
-            if nodes.dtype == bool:
-                if numbering is not None and nodes.shape == (numbering.n_source,):
-                    nodes = numbering.mask(nodes, f"{where}: load nodes mask")
-                if nodes.shape != (n,):
-                    raise ValueError(f"{where}: load nodes mask must have {n} entries")
-                idx = np.flatnonzero(nodes)
-            elif numbering is not None:
-                idx = numbering.nodes(nodes, f"{where}: load node indices")
-            else:
-                idx = nodes.astype(np.int64).ravel()
-                if idx.size and (idx.min() < 0 or idx.max() >= n):
-                    raise ValueError(f"{where}: load node indices must lie in [0, {n})")
+        field = f"{where}: load nodes"
+        idx = np.arange(n) if nodes is None else node_selection(nodes, n, field, spec.numbering)
         f = np.asarray(force, dtype=np.float64)
         if f.shape == (d,):
             f = np.broadcast_to(f, (idx.size, d))
@@ -379,29 +363,15 @@ class Scene:
             raise ValueError("Scene has no bodies: add one with add_fem or add_mpm")
         if self._mpm and self._grid is None:
             raise ValueError("Scene has MPM bodies but no grid: call scene.set_grid(dx=...)")
-        points, cells, velocity, prescribed, cell_body, bodies = [], [], [], [], [], []
-        node_offset = cell_offset = 0
-        for index, spec in enumerate(self._fem):
-            n, m = spec.mesh.points.shape[0], spec.mesh.cells.shape[0]
-            points.append(spec.mesh.points)
-            cells.append(spec.mesh.cells + node_offset)
-            velocity.append(spec.velocity)
-            prescribed.append(spec.prescribed)
-            cell_body.append(np.full(m, index, dtype=np.int64))
-            boundary = spec.mesh.boundary_edges if d == 2 else spec.mesh.boundary_faces
-            bodies.append(
-                FemBody(
-                    name=spec.name,
-                    index=index,
-                    material=spec.material,
-                    nodes=slice(node_offset, node_offset + n),
-                    cells=slice(cell_offset, cell_offset + m),
-                    prescribed_motion=spec.motion,
-                    boundary=np.ascontiguousarray(boundary + node_offset, dtype=np.int64),
-                )
-            )
-            node_offset += n
-            cell_offset += m
+        bodies = [self._fem_body(index) for index in range(len(self._fem))]
+        points = [spec.mesh.points for spec in self._fem]
+        cells = [spec.mesh.cells + b.nodes.start for spec, b in zip(self._fem, bodies, strict=True)]
+        velocity = [spec.velocity for spec in self._fem]
+        prescribed = [spec.prescribed for spec in self._fem]
+        cell_body = [
+            np.full(spec.mesh.cells.shape[0], b.index, dtype=np.int64)
+            for spec, b in zip(self._fem, bodies, strict=True)
+        ]
         fem_X = np.ascontiguousarray(np.concatenate([np.zeros((0, d)), *points]), dtype=np.float64)
         fem_cells = np.ascontiguousarray(
             np.concatenate([np.zeros((0, d + 1), dtype=np.int64), *cells]), dtype=np.int64

@@ -1,12 +1,8 @@
 """The time loop users drive: ``Simulation(scene, ...)``, ``step()``, ``run()``.
 
-``run`` shows a tqdm progress bar (simulated time, Newton iterations, residual, time per step),
-records one metrics row per step (energies, momenta, Newton iterations, per-phase timings), and
-when given an output folder writes VTK frames of every body with a PVD time series for ParaView,
-``metrics.csv``, ``metrics.png``, a run manifest (:mod:`bfemp.manifest`) and checkpoints from which
-``run(..., resume=True)`` continues bit for bit (:mod:`bfemp.checkpoint`; Ctrl-C writes one), the
-snapshot sheet and animation (:mod:`bfemp.io.snapshots`) and ``scene.toml``; what a run folder
-holds and the final writes are :mod:`bfemp.io.outputs`.
+``run`` shows a tqdm progress bar, records one metrics row per step (energies, momenta, Newton
+iterations, per-phase timings) and, given an output folder, writes what :meth:`Simulation.run`
+lists; what a run folder holds and the final writes are :mod:`bfemp.io.outputs`.
 """
 
 from __future__ import annotations
@@ -299,11 +295,9 @@ class Simulation:
     def _notice(
         self, message: str, category: type[Warning] = StepNoteWarning, logger: object = log
     ) -> None:
-        """A named warning ``"NAME: text"`` of this simulation (:func:`bfemp.errors.warn_user`
-        sends those of the library here while the simulation works): counted in
-        ``note_counts``; the first of each name kept in ``diagnostics``, logged and issued
-        through Python's ``warnings`` (the command line shows it once, as its log line), later
-        ones logged at debug level only."""
+        """A named warning ``"NAME: text"`` of this simulation, counted and (the first of each
+        name) kept, logged and issued as the class docstring says; later ones logged at debug
+        level only."""
         name = note_name(message)
         self.note_counts[name] = self.note_counts.get(name, 0) + 1
         if self.note_counts[name] > 1:

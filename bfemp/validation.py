@@ -27,6 +27,7 @@ import numpy as np
 
 from bfemp.errors import SceneError
 from bfemp.model import Model
+from geometry._meshing_report import format_indices
 from geometry.broadphase import box_overlap_pairs, point_simplex_candidates
 from geometry.distance import point_edge_distance, point_triangle_distance
 from geometry.mesh import TetMesh, TriMesh
@@ -37,12 +38,6 @@ __all__ = ["check_clearance", "check_fem_clearance", "check_no_overlap", "valida
 log = logging.getLogger(__name__)
 
 
-def _indices(idx: np.ndarray) -> str:
-    idx = np.asarray(idx)
-    more = f" and {idx.size - 10} more" if idx.size > 10 else ""
-    return f"{idx[:10].tolist()}{more}"
-
-
 def _clearance_error(
     what: str, items: np.ndarray, d_min: float, dhat: float, body: str, field: str, other: str
 ) -> SceneError:
@@ -51,7 +46,7 @@ def _clearance_error(
     ``d_min`` (m)."""
     return SceneError(
         f"{items.size} {what}(s) start within dhat = {dhat:g} m of fem body '{other}' (closest "
-        f"{d_min:.3g} m; {what}s {_indices(items)})",
+        f"{d_min:.3g} m; {what}s {format_indices(items)})",
         body=body,
         field=field,
         hint=f"move the bodies at least {dhat - d_min:.3g} m further apart, or use a "
@@ -159,7 +154,7 @@ def check_no_overlap(
             if hit.size:
                 raise SceneError(
                     f"{hit.size} particle(s) start inside fem body '{body.name}' (particles "
-                    f"{_indices(hit)})",
+                    f"{format_indices(hit)})",
                     body=f"mpm body '{mpm_body.name}'",
                     field="particles",
                     hint="bodies in contact must start apart: move one of them, or sample the "
@@ -174,7 +169,7 @@ def check_no_overlap(
             if inside.size:
                 raise SceneError(
                     f"{inside.size} node(s) start inside fem body '{b.name}' (nodes "
-                    f"{_indices(inside)})",
+                    f"{format_indices(inside)})",
                     body=f"fem body '{a.name}'",
                     field="mesh",
                     hint="bodies in contact must start apart: move one of them",

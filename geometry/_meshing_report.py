@@ -41,16 +41,9 @@ class MeshQualityReport:
     inverted_cells: np.ndarray
     unused_points: np.ndarray
     nonmanifold_facets: np.ndarray
-    zero_volume_cells: np.ndarray | None = None
-    sliver_cells: np.ndarray | None = None
-    quality_tol: float = 0.0
-
-    def __post_init__(self) -> None:
-        empty = np.zeros(0, dtype=np.int64)
-        if self.zero_volume_cells is None:  # reports built without the split: all zero volume
-            object.__setattr__(self, "zero_volume_cells", self.degenerate_cells)
-        if self.sliver_cells is None:
-            object.__setattr__(self, "sliver_cells", empty)
+    zero_volume_cells: np.ndarray
+    sliver_cells: np.ndarray
+    quality_tol: float
 
     @property
     def min_quality(self) -> float:

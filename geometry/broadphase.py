@@ -31,23 +31,8 @@ point predicate (checked by the tests):
   the fcl objects and the callback are Python-level per box / per pair (python-fcl offers nothing
   else); this is the independent cross-check, not the production path.
 - ``"brute"``: O(P S) numpy broadcasting in chunks; the reference for small inputs.
-- ``"auto"``: ``"hash"``, the faster one by measurement (``benchmarks.perf_broadphase.run("full")``
-  writes ``results/perf_broadphase.json``; 2-core shared VM, seconds per call, hash = median of
-  5 calls, brute force extrapolated from 2000 points):
-
-  ======================================  ==========  =======  ======  ========
-  case (full mode)                        query       pairs    hash    fcl
-  ======================================  ==========  =======  ======  ========
-  2D: 100k points vs 5k segments          barrier      5732    0.034   1.35
-  2D: 100k points vs 5k segments          ccd          6172    0.007   0.52
-  3D: 100k points vs 20k triangles        barrier      4901    0.012   0.60
-  3D: 100k points vs 20k triangles        ccd          5118    0.013   0.61
-  ======================================  ==========  =======  ======  ========
-
-  (brute force: ~11 s in 2D, ~44 s in 3D). The machine is shared, so single numbers vary between
-  runs (over six full runs the hash took 0.006-0.066 s, fcl 0.5-1.3 s), but the hash was 10-100x
-  (typically ~50x) faster than fcl in every query of every run; fcl's time is dominated by
-  creating one Python fcl object per box and one Python callback per pair.
+- ``"auto"``: ``"hash"``, the faster one by measurement (``benchmarks.perf_broadphase``: 10-100x
+  faster than fcl in every query; the timings are in ``docs/guide/performance.md``).
 
 Output: (n, 2) int64 rows ``(index in the first set, index in the second set)``, unique and
 sorted lexicographically. Memory is proportional to the number of pairs: a huge inflation makes
@@ -62,6 +47,8 @@ import fcl
 import numpy as np
 
 from geometry import _hash_kernels as hk
+from geometry._checks import indices
+from geometry._checks import points as _positions
 
 __all__ = ["METHODS", "box_overlap_pairs", "edge_edge_candidates", "point_simplex_candidates"]
 
@@ -107,7 +94,7 @@ def point_simplex_candidates(
     points = _positions("points", points)
     dim = points.shape[1]
     simplex_vertices = _positions("simplex_vertices", simplex_vertices, dim)
-    simplices = _indices("simplices", simplices, simplex_vertices.shape[0])
+    simplices = indices("simplices", simplices, simplex_vertices.shape[0])
     points_end = _end("points_end", points_end, "points", points)
     vertices_end = _end("vertices_end", vertices_end, "simplex_vertices", simplex_vertices)
     a = (points, points_end, None)
@@ -140,8 +127,8 @@ def edge_edge_candidates(
     method = _check_method(method)
     inflation = _check_inflation(inflation)
     vertices = _positions("vertices", vertices)
-    edges_a = _indices("edges_a", edges_a, vertices.shape[0], 2)
-    edges_b = _indices("edges_b", edges_b, vertices.shape[0], 2)
+    edges_a = indices("edges_a", edges_a, vertices.shape[0], 2)
+    edges_b = indices("edges_b", edges_b, vertices.shape[0], 2)
     vertices_end = _end("vertices_end", vertices_end, "vertices", vertices)
     a, b = (vertices, vertices_end, edges_a), (vertices, vertices_end, edges_b)
     return _swept_pairs(a, b, inflation, method)
@@ -194,44 +181,12 @@ def _check_inflation(inflation: float) -> float:
     return value
 
 
-def _positions(name: str, array: np.ndarray, dim: int | None = None) -> np.ndarray:
-    try:
-        out = np.ascontiguousarray(array, dtype=np.float64)
-    except (TypeError, ValueError) as err:
-        raise ValueError(f"{name} must be a float array of shape (n, d): {err}") from None
-    if out.ndim != 2 or out.shape[1] not in (2, 3):
-        raise ValueError(f"{name} must have shape (n, 2) or (n, 3), got {out.shape}")
-    if dim is not None and out.shape[1] != dim:
-        raise ValueError(f"{name} has dimension {out.shape[1]}, expected {dim}")
-    if not np.isfinite(out).all():
-        bad = np.flatnonzero(~np.isfinite(out).all(axis=1))
-        raise ValueError(f"{name} has non-finite rows {bad[:10].tolist()}")
-    return out
-
-
 def _end(name: str, array: np.ndarray | None, like_name: str, like: np.ndarray) -> np.ndarray:
     if array is None:
         return like
     out = _positions(name, array, like.shape[1])
     if out.shape != like.shape:
         raise ValueError(f"{name} must have the shape of {like_name} {like.shape}, got {out.shape}")
-    return out
-
-
-def _indices(name: str, array: np.ndarray, n_vertices: int, width: int | None = None) -> np.ndarray:
-    out = np.asarray(array)
-    if out.ndim != 2 or out.shape[1] < 1:
-        raise ValueError(f"{name} must have shape (n, k), got {out.shape}")
-    if width is not None and out.shape[1] != width:
-        raise ValueError(f"{name} must have shape (n, {width}), got {out.shape}")
-    if out.size and not np.issubdtype(out.dtype, np.integer):
-        raise ValueError(f"{name} must be an integer array, got dtype {out.dtype}")
-    out = np.ascontiguousarray(out, dtype=np.int64)
-    if out.size and (out.min() < 0 or out.max() >= n_vertices):
-        bad = np.flatnonzero(np.any((out < 0) | (out >= n_vertices), axis=1))
-        raise ValueError(
-            f"{name} rows {bad[:10].tolist()} index outside [0, {n_vertices}) vertices"
-        )
     return out
 
 

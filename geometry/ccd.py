@@ -45,18 +45,14 @@ import logging
 import numpy as np
 
 from geometry._ccd_kernels import _accd
+from geometry._checks import indices
 from geometry._distance_kernels import KIND_EE, KIND_PE, KIND_PT
-from geometry.distance import _stack_pairs
+from geometry.distance import _NAMES, _stack_pairs
 
 __all__ = ["earliest_impact", "edge_edge_ccd", "point_edge_ccd", "point_triangle_ccd"]
 
 logger = logging.getLogger(__name__)
 
-_NAMES = {
-    KIND_PE: ("p", "e0", "e1"),
-    KIND_PT: ("p", "t0", "t1", "t2"),
-    KIND_EE: ("ea0", "ea1", "eb0", "eb1"),
-}
 _N_SIDE_A = {KIND_PE: 1, KIND_PT: 1, KIND_EE: 2}
 
 
@@ -177,18 +173,6 @@ def edge_edge_ccd(
     return _ccd(KIND_EE, arrays, t_max, min_distance, tolerance, max_iterations)
 
 
-def _gather(name: str, pairs: np.ndarray, width: int, n_vertices: int) -> np.ndarray:
-    idx = np.asarray(pairs)
-    if idx.ndim != 2 or idx.shape[1] != width:
-        raise ValueError(f"{name} must have shape (m, {width}), got {idx.shape}")
-    if idx.size and not np.issubdtype(idx.dtype, np.integer):
-        raise ValueError(f"{name} must be an integer array, got {idx.dtype}")
-    bad = np.flatnonzero(((idx < 0) | (idx >= n_vertices)).any(axis=1))
-    if bad.size:
-        raise ValueError(f"{name} rows {bad[:10]} reference vertices outside [0, {n_vertices})")
-    return idx.astype(np.int64, copy=False)
-
-
 def earliest_impact(
     x: np.ndarray,
     dx: np.ndarray,
@@ -227,7 +211,7 @@ def earliest_impact(
     for name, pairs, width, ccd in groups:
         if pairs is None:
             continue
-        idx = _gather(name, pairs, width, x.shape[0])
+        idx = indices(name, pairs, x.shape[0], width)
         if width == 4 and x.shape[1] != 3:
             raise ValueError(f"{name} pairs need 3D positions, x has shape {x.shape}")
         if idx.shape[0] == 0:

@@ -162,6 +162,11 @@ def edge_edge_closest_parameters(
 
 
 # --------------------------------------------------------------------------- bases
+def _first_axis(n: int, dim: int) -> np.ndarray:
+    """(n, dim) copies of the unit vector e_x: the fallback direction of degenerate pairs."""
+    return np.tile(np.eye(dim)[0], (n, 1))
+
+
 def _any_perpendicular(nh: np.ndarray) -> np.ndarray:
     """A unit vector (n, 3) orthogonal to the unit vectors nh (n, 3)."""
     axis = np.zeros_like(nh)
@@ -203,8 +208,7 @@ def point_point_tangent_basis(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """
     V = _stack((p, q), ("p", "q"), (2, 3))
     n, dim = V.shape[0], V.shape[2]
-    ex = np.zeros((n, dim))
-    ex[:, 0] = 1.0
+    ex = _first_axis(n, dim)
     nh = _unit_first([(V[:, 0] - V[:, 1], np.zeros(n))], ex)
     if dim == 2:
         return np.ascontiguousarray(np.stack([-nh[:, 1], nh[:, 0]], axis=1)[:, :, None])
@@ -223,8 +227,7 @@ def point_edge_tangent_basis(p: np.ndarray, e0: np.ndarray, e1: np.ndarray) -> n
     e = V[:, 2] - V[:, 1]
     normal = V[:, 0] - (V[:, 1] + beta[:, None] * e)
     tol = _REL_TOL * _size(V)
-    ex = np.zeros((n, dim))
-    ex[:, 0] = 1.0
+    ex = _first_axis(n, dim)
     if dim == 2:
         # Rotate the normal by -90 degrees; on the segment use the edge direction itself.
         rotated = np.stack([normal[:, 1], -normal[:, 0]], axis=1)
@@ -250,8 +253,7 @@ def point_triangle_tangent_basis(
     u, v = V[:, 2] - V[:, 1], V[:, 3] - V[:, 1]
     closest = V[:, 1] + bary[:, :1] * u + bary[:, 1:] * v
     tri_normal = np.cross(u, v)
-    ex = np.zeros((n, 3))
-    ex[:, 0] = 1.0
+    ex = _first_axis(n, 3)
     nh = _unit_first(
         [
             (V[:, 0] - closest, _REL_TOL * _size(V)),
@@ -275,8 +277,7 @@ def edge_edge_tangent_basis(
     st = _ee_parameters(V)
     a, b = V[:, 1] - V[:, 0], V[:, 3] - V[:, 2]
     gap = (V[:, 0] + st[:, :1] * a) - (V[:, 2] + st[:, 1:] * b)
-    ex = np.zeros((n, 3))
-    ex[:, 0] = 1.0
+    ex = _first_axis(n, 3)
     a_dir = _unit_first([(a, np.zeros(n)), (b, np.zeros(n))], ex)
     nh = _unit_first(
         [

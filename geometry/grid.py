@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from geometry._checks import points, positive, vector
 from geometry._grid_kernels import _stencils
 
 __all__ = [
@@ -67,19 +68,8 @@ class Grid:
     origin: tuple[float, ...]
 
     def __post_init__(self) -> None:
-        try:
-            dx = float(self.dx)
-        except (TypeError, ValueError) as exc:
-            raise ValueError(f"Grid.dx must be a positive number, got {self.dx!r}") from exc
-        if not (np.isfinite(dx) and dx > 0.0):
-            raise ValueError(f"Grid.dx must be a finite number > 0, got {self.dx!r}")
-        try:
-            origin = np.asarray(self.origin, dtype=np.float64)
-        except (TypeError, ValueError) as exc:
-            raise ValueError(f"Grid.origin must be 2 or 3 numbers, got {self.origin!r}") from exc
-        if origin.shape not in ((2,), (3,)) or not np.all(np.isfinite(origin)):
-            raise ValueError(f"Grid.origin must be 2 or 3 finite numbers, got {self.origin!r}")
-        object.__setattr__(self, "dx", dx)
+        object.__setattr__(self, "dx", positive("Grid.dx", self.dx))
+        origin = vector("Grid.origin", self.origin)
         object.__setattr__(self, "origin", tuple(float(v) for v in origin))
 
     @classmethod
@@ -113,7 +103,7 @@ class Grid:
 
         Cell ``c`` spans ``[origin + c dx, origin + (c + 1) dx)`` on each axis.
         """
-        pts = _points(x, self.dim)
+        pts = points("x", x, self.dim, "P")
         return np.floor((pts - np.asarray(self.origin)) / self.dx).astype(np.int64)
 
 
@@ -160,17 +150,6 @@ def stencil_offsets(dim: int) -> np.ndarray:
     return np.array(list(itertools.product(range(3), repeat=dim)), dtype=np.int64)
 
 
-def _points(x: np.ndarray, dim: int, name: str = "x") -> np.ndarray:
-    """``x`` as a finite C-contiguous float64 array of shape (P, dim), else ValueError."""
-    arr = np.ascontiguousarray(x, dtype=np.float64)
-    if arr.ndim != 2 or arr.shape[1] != dim:
-        raise ValueError(f"{name} must have shape (P, {dim}), got {arr.shape}")
-    bad = np.flatnonzero(~np.isfinite(arr).all(axis=1))
-    if bad.size:
-        raise ValueError(f"{name} has non-finite coordinates at rows {bad[:10].tolist()}")
-    return arr
-
-
 def _compact(lin: np.ndarray, box_size: int) -> tuple[np.ndarray, np.ndarray]:
     """Unique sorted values of ``lin`` (any shape, in [0, box_size)) and the inverse map."""
     if box_size <= _DENSE_LIMIT and box_size <= 8 * lin.size:
@@ -200,7 +179,7 @@ def particle_stencils(
         active_ijk (G, d) and active_x (G, d) in m.
     """
     dim = grid.dim
-    pts = _points(x, dim)
+    pts = points("x", x, dim, "P")
     offsets = stencil_offsets(dim)
     n_particles, n_stencil = pts.shape[0], offsets.shape[0]
     base = np.empty((n_particles, dim), dtype=np.int64)
@@ -287,7 +266,7 @@ def particles_per_cell(grid: Grid, x: np.ndarray, volume: np.ndarray | None = No
         ``(k dx / dx_s)^d``. Without ``volume``: the mean count over occupied cells, which is at
         least 1 by construction and measures how many particles share a cell. 0.0 for P = 0.
     """
-    pts = _points(x, grid.dim)
+    pts = points("x", x, grid.dim, "P")
     if pts.shape[0] == 0:
         return 0.0
     if volume is None:

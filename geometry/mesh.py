@@ -38,6 +38,7 @@ import meshio
 import numpy as np
 
 from geometry import _meshing_metrics as mm
+from geometry._checks import points as check_points
 from geometry._mesh_source import SourceNumbering
 from geometry._meshing_report import MeshQualityReport, format_indices
 
@@ -70,14 +71,9 @@ class _SimplexMesh:
         self, points: np.ndarray, cells: np.ndarray, *, source: SourceNumbering | None = None
     ) -> None:
         d, cls = self._DIM, type(self).__name__
-        pts = np.array(points, dtype=np.float64, order="C", copy=True)
-        if pts.ndim != 2 or pts.shape[1] != d:
-            raise ValueError(f"{cls}.points must have shape (n, {d}), got {pts.shape}")
+        pts = np.array(check_points(f"{cls}.points", points, d), copy=True)  # owned, read-only
         if pts.shape[0] < d + 1:
             raise ValueError(f"{cls}.points needs at least {d + 1} points, got {pts.shape[0]}")
-        bad = np.flatnonzero(~np.isfinite(pts).all(axis=1))
-        if bad.size:
-            raise ValueError(f"{cls}.points has non-finite coordinates at {format_indices(bad)}")
         raw = np.asarray(cells)
         if raw.dtype.kind not in "iu":
             raise ValueError(f"{cls}.cells must be an integer array, got dtype {raw.dtype}")
@@ -208,7 +204,8 @@ class _SimplexMesh:
         return report
 
     def oriented(self) -> _SimplexMesh:
-        """Copy with every cell of negative signed volume flipped (last two vertices swapped)."""
+        """Copy with every cell of negative signed volume flipped (last two vertices swapped):
+        counter-clockwise triangles, right-handed tetrahedra."""
         return type(self)(
             self._points, mm.oriented_cells(self._cells, self._volumes), source=self._source
         )
@@ -240,19 +237,18 @@ class _SimplexMesh:
     def to_meshio(
         self,
         *,
-        pad_z: bool = True,
         point_data: dict[str, np.ndarray] | None = None,
         cell_data: dict[str, np.ndarray] | None = None,
     ) -> meshio.Mesh:
-        """Convert to a ``meshio.Mesh`` with one ``triangle`` / ``tetra`` cell block.
+        """Convert to a ``meshio.Mesh`` with one ``triangle`` / ``tetra`` cell block; 2D points
+        are stored as (n, 3) with z = 0 (what VTK and Gmsh expect).
 
         Args:
-            pad_z: in 2D, store points as (n, 3) with z = 0 (what VTK and Gmsh expect).
             point_data: arrays with leading dimension n to attach to the nodes.
             cell_data: arrays with leading dimension m to attach to the cells.
         """
         pts = self._points
-        if self._DIM == 2 and pad_z:
+        if self._DIM == 2:
             pts = np.hstack([pts, np.zeros((self.n_points, 1))])
         checks = (("point_data", point_data, self.n_points), ("cell_data", cell_data, self.n_cells))
         for label, data, size in checks:
@@ -300,12 +296,6 @@ class TriMesh(_SimplexMesh):
         """Smallest interior angle of each triangle, shape (m,), radians."""
         return mm.triangle_angles(self._points, self._cells).min(axis=1)
 
-    def oriented(self) -> TriMesh:
-        """Copy with every clockwise triangle flipped to counter-clockwise."""
-        return TriMesh(
-            self._points, mm.oriented_cells(self._cells, self._volumes), source=self._source
-        )
-
 
 class TetMesh(_SimplexMesh):
     """3D linear tetrahedron mesh: ``points`` (n, 3) in metres, ``cells`` (m, 4) int64."""
@@ -323,12 +313,6 @@ class TetMesh(_SimplexMesh):
         tri = self.boundary_facets
         edges = np.sort(tri[:, [[0, 1], [1, 2], [2, 0]]].reshape(-1, 2), axis=1)
         return _readonly(mm.unique_rows(edges)[0])
-
-    def oriented(self) -> TetMesh:
-        """Copy with every left-handed tetrahedron flipped to right-handed."""
-        return TetMesh(
-            self._points, mm.oriented_cells(self._cells, self._volumes), source=self._source
-        )
 
 
 def mesh_from_arrays(

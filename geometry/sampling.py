@@ -22,6 +22,7 @@ Point location in meshes (:func:`locate_points`) is the barycentric test of
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 
 import numpy as np
@@ -179,16 +180,11 @@ def sample_levelset(
     """
     if not callable(getattr(levelset, "value", None)):
         raise ValueError("levelset must have a value(x) method")
-    return sample_inside(
-        lambda y: np.asarray(levelset.value(y)) < 0.0,
-        lower,
-        upper,
-        dx,
-        ppc,
-        jitter=jitter,
-        rng=rng,
-        origin=origin,
-    )
+
+    def inside(y: np.ndarray) -> np.ndarray:
+        return np.asarray(levelset.value(y)) < 0.0
+
+    return sample_inside(inside, lower, upper, dx, ppc, jitter=jitter, rng=rng, origin=origin)
 
 
 def locate_points(mesh: TriMesh | TetMesh, x: np.ndarray) -> np.ndarray:
@@ -260,14 +256,6 @@ def sample_mesh(
     """
     if not isinstance(mesh, (TriMesh, TetMesh)):
         raise ValueError(f"mesh must be a TriMesh or TetMesh, got {type(mesh).__name__}")
-    lo, hi = mesh.points.min(axis=0), mesh.points.max(axis=0)
-    return sample_inside(
-        lambda y: points_in_mesh(mesh, y),
-        tuple(lo),
-        tuple(hi),
-        dx,
-        ppc,
-        jitter=jitter,
-        rng=rng,
-        origin=origin,
-    )
+    lo, hi = tuple(mesh.points.min(axis=0)), tuple(mesh.points.max(axis=0))
+    inside = functools.partial(points_in_mesh, mesh)
+    return sample_inside(inside, lo, hi, dx, ppc, jitter=jitter, rng=rng, origin=origin)

@@ -6,12 +6,7 @@ glibc's malloc serves each request above its mmap threshold (32 MiB at most) wit
 ``mmap`` and returns it with ``munmap`` on free, so every iteration writes to pages the process
 has never touched. On a virtual machine whose balloon reports freed pages to the host
 (virtio-balloon free page reporting, as on Firecracker and many cloud VMs), each such page then
-costs a page fault on the host as well as in the guest.
-
-Measured on this project's 2-core VM (``perf_mpm`` 3D case, 100,800 particles, the same
-arithmetic both ways): with glibc's defaults the Hessian phase took 3.1-3.9 s per Newton
-iteration and a 144 MB masked copy 1.1 s on fresh pages (0.03 s on reused ones); with
-:func:`keep_freed_memory` the phase took 0.9-1.0 s and the copy 0.016 s.
+costs a page fault on the host as well as in the guest (measured: ``docs/guide/performance.md``).
 
 :func:`keep_freed_memory` sets glibc's ``M_MMAP_MAX`` to 0 (large blocks come from the heap and
 go back to it when freed, to be reused by the next iteration's arrays of the same sizes) and

@@ -218,12 +218,9 @@ def serial_wheel_blas() -> Iterator[None]:
 
     Newton's vector work (``np.dot``, ``np.linalg.norm`` on 1e4-1e5 entries) goes through the
     OpenBLAS inside the numpy/scipy wheels, whose worker threads then spin for about 0.1 s
-    (OpenBLAS's thread timeout) on the same cores as CHOLMOD's own OpenBLAS. Measured on
-    perf_fem's 3D mesh, 2 cores: the first back-solve after a gradient took 0.08-0.11 s
-    against 0.010 s, and a Newton step 1.19 s against 0.87 s with this on. One thread loses
-    nothing on vectors of that size. ``Simulation.step`` runs inside it too: its per-step
-    energies are dot products of 1e4-1e5 entries; on 2 loaded cores a 40k-entry ``np.dot``
-    took 7-21 ms against 0.006 ms on one thread, many times the explicit step it monitored.
+    (OpenBLAS's thread timeout) on the same cores as CHOLMOD's own OpenBLAS; ``Simulation.step``
+    runs inside it too (its per-step energies are dot products of that size). One thread loses
+    nothing on vectors of that size (measured: ``docs/guide/performance.md``).
     The previous thread counts come back on exit; without threadpoolctl, or without wheel BLAS
     loaded, this does nothing. Costs about 10 us.
     """

@@ -5,18 +5,7 @@ Names: ``"default"`` (CHOLMOD, the design's solver; scipy's SuperLU without scik
 (CG + smoothed-aggregation AMG, ``pyamg``) and ``"auto"`` (:class:`AutoSolver`).
 
 :class:`AutoSolver` picks on the first matrix it sees, by what was measured on the project's
-own Hessians (OpenBLAS under CHOLMOD, 2 shared and loaded cores, best of 3 numeric
-factorisations with the analysis reused; perf_fem/perf_mpm quick matrices):
-
-=====================  ======  ==========  =======  ==============================
-matrix                 DOFs    CHOLMOD     PARDISO  CG + AMG (hierarchy kept)
-=====================  ======  ==========  =======  ==============================
-3D FEM box             3,888   0.033 s     0.015 s  0.046 s
-2D FEM rectangle       13,120  0.022 s     0.012 s  0.381 s
-2D MPM block           5,618   0.042 s     0.026 s  0.088 s
-3D MPM block           8,670   0.326 s     0.695 s  0.321 s
-3D MPM block (100k p)  55,539  11.4 s      12.3 s   13.5 s (first solve 46 s)
-=====================  ======  ==========  =======  ==============================
+own Hessians (the timings are in ``docs/guide/performance.md``):
 
 - FEM meshes and 2D MPM grids (up to ~60 nonzeros per row): PARDISO where ``pypardiso`` is
   installed, else CHOLMOD;
@@ -24,9 +13,8 @@ matrix                 DOFs    CHOLMOD     PARDISO  CG + AMG (hierarchy kept)
   above ``cg_min_dofs`` (default 200,000, beyond what was measured: at 55,539 DOFs CHOLMOD still
   wins), where the direct factor's fill grows faster than the matrix.
 
-CHOLMOD's ordering on these matrices (default = AMD, METIS tried when AMD's fill is large):
-METIS 0.031 / 0.026 / 0.365 / 0.051 s and AMD 0.033 / 0.018 / 0.486 / 0.054 s on the first four
-rows, i.e. no ordering wins everywhere, so CHOLMOD's own default choice is kept.
+CHOLMOD keeps its own default ordering (AMD, METIS tried when AMD's fill is large): no ordering
+won on every matrix measured.
 """
 
 from __future__ import annotations
@@ -76,19 +64,17 @@ def make_linear_solver(name: str, *, block_size: int = 1) -> LinearSolver:
         RuntimeError: the package the named solver needs is not installed (the message says
             how to install it).
     """
-    if name == "default":
-        return default_linear_solver()
-    if name == "cholmod":
-        return CholmodSolver()
-    if name == "scipy":
-        return ScipySolver()
-    if name == "pardiso":
-        return PardisoSolver()
-    if name == "cg_amg":
-        return CgAmgSolver(block_size=block_size)
-    if name == "auto":
-        return AutoSolver(block_size=block_size)
-    raise ValueError(f"linear solver must be one of {LINEAR_SOLVER_NAMES}, got {name!r}")
+    makers = {
+        "default": default_linear_solver,
+        "cholmod": CholmodSolver,
+        "scipy": ScipySolver,
+        "pardiso": PardisoSolver,
+        "cg_amg": lambda: CgAmgSolver(block_size=block_size),
+        "auto": lambda: AutoSolver(block_size=block_size),
+    }
+    if not isinstance(name, str) or name not in makers:
+        raise ValueError(f"linear solver must be one of {LINEAR_SOLVER_NAMES}, got {name!r}")
+    return makers[name]()
 
 
 class AutoSolver:

@@ -5,14 +5,9 @@ compiled (``num_threads(CHOLMOD_OMP_NUM_THREADS)``, 4 by default), whatever the 
 the loops that zero each supernode of ``L`` before it is assembled, clear the row map, and so
 on. ``OMP_NUM_THREADS`` does not reach an explicit ``num_threads`` clause, so on 2 cores every
 supernode of a factorisation started 3 extra threads, and with ``OMP_WAIT_POLICY=PASSIVE`` (set
-by ``solvers/__init__.py`` for numba) each start is a futex wake-up and a sleep again.
-
-Measured on this project's 2-core VM, CHOLMOD from Debian's SuiteSparse 5.12 on OpenBLAS (2
-threads), on the Hessians of ``benchmarks/perf_fem.py``'s full cases (best of 5): 20,000 context
-switches per factorisation of the 2D case (101,248 DOFs) with the compiled-in 4 threads, 9 with
-one thread; factorisation 0.28-0.40 s -> 0.18-0.22 s (2D), 0.51-0.58 s -> 0.41-0.44 s (3D,
-27,744 DOFs). Two OpenMP threads were in between (0.23-0.25 s, 0.41-0.44 s); the dense BLAS
-work, which is where two cores pay, runs on OpenBLAS's own threads, untouched by this.
+by ``solvers/__init__.py`` for numba) each start is a futex wake-up and a sleep again
+(measured: ``docs/guide/performance.md``). The dense BLAS work, where two cores pay, runs on
+OpenBLAS's own threads, untouched by this.
 
 :func:`bounded_openmp` bounds the OpenMP regions started by the calling thread with the runtime
 calls ``omp_set_dynamic(1)`` and ``omp_set_num_threads(n)`` (dynamic adjustment caps even an

@@ -15,11 +15,17 @@ from dataclasses import dataclass
 __all__ = ["NewtonOptions"]
 
 
-def _check_positive_finite(name: str, value: float) -> None:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ValueError(f"NewtonOptions.{name} must be a real number, got {value!r}")
-    if not math.isfinite(value) or value <= 0.0:
-        raise ValueError(f"NewtonOptions.{name} must be finite and > 0, got {value!r}")
+#: the real-valued options: (lower, upper, lower bound included, upper bound included)
+_RANGES = {
+    "tol": (0.0, math.inf, False, False),
+    "step_scale": (0.0, math.inf, False, False),
+    "armijo_c": (0.0, 1.0, True, False),
+    "backtrack_factor": (0.0, 1.0, False, False),
+    "linear_rtol_max": (0.0, 1.0, False, False),
+    "chord_stop_factor": (0.0, 1.0, True, True),
+    "min_step": (0.0, 1.0, False, True),
+    "near_solution_factor": (0.0, math.inf, True, False),
+}
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -85,41 +91,19 @@ class NewtonOptions:
     near_solution_factor: float = 1e3
 
     def __post_init__(self) -> None:
-        _check_positive_finite("tol", self.tol)
-        _check_positive_finite("step_scale", self.step_scale)
+        for name, (low, high, low_in, high_in) in _RANGES.items():
+            value = getattr(self, name)
+            ok = not isinstance(value, bool) and isinstance(value, int | float)
+            ok = ok and math.isfinite(value) and (low <= value if low_in else low < value)
+            if not (ok and (value <= high if high_in else value < high)):
+                interval = f"{'[' if low_in else '('}{low:g}, {high:g}{']' if high_in else ')'}"
+                raise ValueError(
+                    f"NewtonOptions.{name} must be a finite number in {interval}, got {value!r}"
+                )
         if isinstance(self.max_iter, bool) or not isinstance(self.max_iter, int):
             raise ValueError(f"NewtonOptions.max_iter must be an int, got {self.max_iter!r}")
         if self.max_iter < 1:
             raise ValueError(f"NewtonOptions.max_iter must be >= 1, got {self.max_iter}")
-        if isinstance(self.armijo_c, bool) or not isinstance(self.armijo_c, (int, float)):
-            raise ValueError(f"NewtonOptions.armijo_c must be a real number, got {self.armijo_c!r}")
-        if not 0.0 <= self.armijo_c < 1.0:
-            raise ValueError(f"NewtonOptions.armijo_c must be in [0, 1), got {self.armijo_c!r}")
-        _check_positive_finite("backtrack_factor", self.backtrack_factor)
-        if self.backtrack_factor >= 1.0:
-            raise ValueError(
-                f"NewtonOptions.backtrack_factor must be in (0, 1), got {self.backtrack_factor!r}"
-            )
-        _check_positive_finite("linear_rtol_max", self.linear_rtol_max)
-        if self.linear_rtol_max >= 1.0:
-            raise ValueError(
-                f"NewtonOptions.linear_rtol_max must be in (0, 1), got {self.linear_rtol_max!r}"
-            )
-        c = self.chord_stop_factor
-        if isinstance(c, bool) or not isinstance(c, (int, float)) or not 0.0 <= c <= 1.0:
-            raise ValueError(f"NewtonOptions.chord_stop_factor must be in [0, 1], got {c!r}")
-        _check_positive_finite("min_step", self.min_step)
-        if self.min_step > 1.0:
-            raise ValueError(f"NewtonOptions.min_step must be in (0, 1], got {self.min_step!r}")
-        f = self.near_solution_factor
-        if (
-            isinstance(f, bool)
-            or not isinstance(f, (int, float))
-            or not (math.isfinite(f) and f >= 0)
-        ):
-            raise ValueError(
-                f"NewtonOptions.near_solution_factor must be finite and >= 0, got {f!r}"
-            )
         for name in ("project_psd", "exact_near_solution", "chord_steps"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(

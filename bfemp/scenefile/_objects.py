@@ -12,6 +12,7 @@ import numpy as np
 from bfemp import levelset as ls
 from bfemp import motion as mo
 from bfemp import sample, shapes
+from bfemp._scene_inputs import node_selection
 from bfemp.errors import SceneError
 from bfemp.materials import BulkShearHyperelastic, LinearElastic, Material, NeoHookean
 from bfemp.scenefile._fields import Table
@@ -224,18 +225,11 @@ def read_selection(
         idx = t.array(key, np.int64)
         if idx.size == 0:
             raise t.error("selects no node (an empty list)", key, "list at least one node")
-        if numbering is not None:
-            try:
-                nodes = numbering.nodes(idx, "node indices")
-            except ValueError as err:
-                raise t.error(str(err), key) from None
-        else:
-            bad = idx[(idx < 0) | (idx >= n)]
-            if bad.size:
-                raise t.error(f"node indices must lie in [0, {n}), got {bad[:10].tolist()}", key)
-            nodes = idx
         mask = np.zeros(n, dtype=bool)
-        mask[nodes] = True
+        try:
+            mask[node_selection(idx, n, "node", numbering)] = True
+        except ValueError as err:
+            raise t.error(str(err), key) from None
         return mask, idx.tolist()
     s = t.sub(key)
     s.check_keys({"box", "inside"})

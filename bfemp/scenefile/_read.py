@@ -68,11 +68,8 @@ def _api_error(err: ValueError, t: Table, field: str | None, body: str | None) -
 
 
 def _materials(root: Table) -> dict:
-    out = {}
     mats = root.sub("materials", default_empty=True)
-    for name in mats.data:
-        out[name] = read_material(mats.sub(name))
-    return out
+    return {name: read_material(mats.sub(name)) for name in mats.data}
 
 
 def _material(t: Table, materials: dict) -> tuple[object, str | None]:
@@ -222,25 +219,20 @@ def _simulation(root: Table) -> dict:
         "allow_uncoupled",
     )
     t.check_keys(keys)
-    out: dict = {}
-    if t.has("strategy"):
-        out["strategy"] = t.string("strategy", choices=STRATEGIES)
-    if t.has("integrator"):
-        out["integrator"] = t.string("integrator", choices=INTEGRATORS)
-    if t.has("transfer"):
-        out["transfer"] = t.string("transfer", choices=TRANSFERS)
-    if t.has("dt"):
-        hint = "dt is the time step in s, or 'auto' (an explicit strategy's stable step)"
-        auto = t.raw("dt") == "auto"
-        out["dt"] = "auto" if auto else t.number("dt", "time", positive=True, hint=hint)
-    if t.has("tol"):
-        out["tol"] = t.number("tol", "velocity", positive=True)
-    if t.has("max_newton_iterations"):
-        out["max_newton_iterations"] = t.integer("max_newton_iterations", minimum=1)
-    if t.has("warm_start"):
-        out["warm_start"] = t.boolean("warm_start")
-    if t.has("allow_uncoupled"):
-        out["allow_uncoupled"] = t.boolean("allow_uncoupled")
+    hint = "dt is the time step in s, or 'auto' (an explicit strategy's stable step)"
+    readers = {  # key -> its reader (each key optional)
+        "strategy": lambda k: t.string(k, choices=STRATEGIES),
+        "integrator": lambda k: t.string(k, choices=INTEGRATORS),
+        "transfer": lambda k: t.string(k, choices=TRANSFERS),
+        "dt": lambda k: (
+            "auto" if t.raw(k) == "auto" else t.number(k, "time", positive=True, hint=hint)
+        ),
+        "tol": lambda k: t.number(k, "velocity", positive=True),
+        "max_newton_iterations": lambda k: t.integer(k, minimum=1),
+        "warm_start": t.boolean,
+        "allow_uncoupled": t.boolean,
+    }
+    out = {key: read(key) for key, read in readers.items() if t.has(key)}
     if t.has("options"):
         out["options"] = _options(t.sub("options"), out.get("strategy", "barrier"))
     return out
@@ -268,16 +260,13 @@ def _run(root: Table, key: str) -> dict:
     t.check_keys(
         {"t_end", "every", "checkpoint_every", "out"} - ({"out"} if key == "quick" else set())
     )
-    out: dict = {}
-    if t.has("t_end"):
-        out["t_end"] = t.number("t_end", "time", positive=True)
-    if t.has("every"):
-        out["every"] = t.integer("every", minimum=1)
-    if t.has("checkpoint_every"):
-        out["checkpoint_every"] = t.integer("checkpoint_every", minimum=0)
-    if t.has("out"):
-        out["out"] = t.string("out")
-    return out
+    readers = {
+        "t_end": lambda k: t.number(k, "time", positive=True),
+        "every": lambda k: t.integer(k, minimum=1),
+        "checkpoint_every": lambda k: t.integer(k, minimum=0),
+        "out": t.string,
+    }
+    return {key: read(key) for key, read in readers.items() if t.has(key)}
 
 
 def parse_document(data: dict, *, file: str | None, base_dir: Path | None) -> dict:
@@ -315,19 +304,19 @@ def parse_document(data: dict, *, file: str | None, base_dir: Path | None) -> di
     if root.has("contact"):
         ct = root.sub("contact")
         ct.check_keys({"dhat", "kappa", "mu", "eps_v", "friction_iterations", "pairs"}, {"dhat"})
-        kw: dict = {"dhat": ct.number("dhat", "length", positive=True)}
-        if ct.has("kappa"):
-            auto = ct.raw("kappa") == "auto"
-            hint = 'kappa is the barrier stiffness in Pa (e.g. 1e7 or "10 MPa"), or "auto"'
-            kw["kappa"] = (
-                "auto" if auto else ct.number("kappa", "pressure", positive=True, hint=hint)
-            )
-        if ct.has("mu"):
-            kw["mu"] = ct.number("mu", minimum=0.0)
-        if ct.has("eps_v"):
-            kw["eps_v"] = ct.number("eps_v", "velocity", positive=True)
-        if ct.has("friction_iterations"):
-            kw["friction_iterations"] = ct.integer("friction_iterations", minimum=1)
+        hint = 'kappa is the barrier stiffness in Pa (e.g. 1e7 or "10 MPa"), or "auto"'
+        readers = {
+            "dhat": lambda k: ct.number(k, "length", positive=True),
+            "kappa": lambda k: (
+                "auto"
+                if ct.raw(k) == "auto"
+                else ct.number(k, "pressure", positive=True, hint=hint)
+            ),
+            "mu": lambda k: ct.number(k, minimum=0.0),
+            "eps_v": lambda k: ct.number(k, "velocity", positive=True),
+            "friction_iterations": lambda k: ct.integer(k, minimum=1),
+        }
+        kw = {key: read(key) for key, read in readers.items() if ct.has(key)}
         try:
             scene.set_contact(**kw)
         except ValueError as err:

@@ -175,13 +175,8 @@ def dumps(
         doc["grid"] = {"dx": scene._grid.dx, "origin": list(scene._grid.origin)}
     contact = scene._contact
     if contact is not None:
-        doc["contact"] = {
-            "dhat": contact.dhat,
-            "kappa": contact.kappa,
-            "mu": contact.mu,
-            "eps_v": contact.eps_v,
-            "friction_iterations": contact.friction_iterations,
-        }
+        keys = ("dhat", "kappa", "mu", "eps_v", "friction_iterations")  # set_contact's arguments
+        doc["contact"] = {key: getattr(contact, key) for key in keys}
         if scene._pair_mu:
             doc["contact"]["pairs"] = [
                 {"bodies": [a, b], "mu": mu} for (a, b), mu in scene._pair_mu.items()

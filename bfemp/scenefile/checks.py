@@ -135,6 +135,14 @@ def _column(metrics: object, name: str) -> np.ndarray:
     return metrics.column(name)
 
 
+#: the checks of one metrics column: key, measured value of the column, format, relation
+_COLUMN_CHECKS = (
+    ("drift_max", lambda c: np.nanmax(np.abs(c - c[0])), ".3g", "<="),
+    ("min", np.nanmin, ".6g", ">="),
+    ("max", np.nanmax, ".6g", "<="),
+)
+
+
 def evaluate_checks(check: dict, metrics: object, recorder: CheckRecorder) -> list[CheckResult]:
     """Evaluate a validated ``[check]`` table against a run's metrics log and recorder."""
     results = []
@@ -157,37 +165,22 @@ def evaluate_checks(check: dict, metrics: object, recorder: CheckRecorder) -> li
             float(np.nanmax(_column(metrics, "energy_elastic"))),
             1e-300,
         )
-        if "energy_drift_max" in check:
-            r = abs(e[-1] - e[0]) / scale
-            ok = bool(r <= check["energy_drift_max"])
-            results.append(
-                CheckResult("energy_drift_max", ok, f"{r:.3g} <= {check['energy_drift_max']:g}")
-            )
-        if "energy_growth_max" in check:
-            r = (float(np.nanmax(e)) - e[0]) / scale
-            ok = bool(r <= check["energy_growth_max"])
-            results.append(
-                CheckResult("energy_growth_max", ok, f"{r:.3g} <= {check['energy_growth_max']:g}")
-            )
-    for name, tol in check.get("drift_max", {}).items():
-        c = _column(metrics, name)
-        if undefined_column(c):
-            results.append(_skipped(f"drift_max.{name}", name))
-            continue
-        drift = float(np.nanmax(np.abs(c - c[0])))
-        results.append(CheckResult(f"drift_max.{name}", drift <= tol, f"{drift:.3g} <= {tol:g}"))
-    for name, v in check.get("min", {}).items():
-        if undefined_column(_column(metrics, name)):
-            results.append(_skipped(f"min.{name}", name))
-            continue
-        low = float(np.nanmin(_column(metrics, name)))
-        results.append(CheckResult(f"min.{name}", low >= v, f"{low:.6g} >= {v:g}"))
-    for name, v in check.get("max", {}).items():
-        if undefined_column(_column(metrics, name)):
-            results.append(_skipped(f"max.{name}", name))
-            continue
-        high = float(np.nanmax(_column(metrics, name)))
-        results.append(CheckResult(f"max.{name}", high <= v, f"{high:.6g} <= {v:g}"))
+        drift = abs(e[-1] - e[0]) / scale
+        growth = (float(np.nanmax(e)) - e[0]) / scale
+        for key, r in (("energy_drift_max", drift), ("energy_growth_max", growth)):
+            if key in check:
+                results.append(
+                    CheckResult(key, bool(r <= check[key]), f"{r:.3g} <= {check[key]:g}")
+                )
+    for key, measure, fmt, relation in _COLUMN_CHECKS:
+        for name, limit in check.get(key, {}).items():
+            c = _column(metrics, name)
+            if undefined_column(c):
+                results.append(_skipped(f"{key}.{name}", name))
+                continue
+            value = float(measure(c))
+            ok = value <= limit if relation == "<=" else value >= limit
+            results.append(CheckResult(f"{key}.{name}", ok, f"{value:{fmt}} {relation} {limit:g}"))
     if "bounds" in check:
         lo = np.array(check["bounds"].get("lower", [-math.inf] * 3))
         hi = np.array(check["bounds"].get("upper", [math.inf] * 3))
