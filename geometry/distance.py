@@ -35,8 +35,6 @@ subdifferential); the squared versions are smooth there.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import numpy as np
 
 from geometry._distance_kernels import (
@@ -48,6 +46,37 @@ from geometry._distance_kernels import (
     _evaluate,
     _types,
 )
+
+__all__ = [
+    "edge_edge_distance",
+    "edge_edge_distance_gradient",
+    "edge_edge_distance_hessian",
+    "edge_edge_distance_squared",
+    "edge_edge_distance_squared_gradient",
+    "edge_edge_distance_squared_hessian",
+    "edge_edge_parallel",
+    "edge_edge_type",
+    "point_edge_distance",
+    "point_edge_distance_gradient",
+    "point_edge_distance_hessian",
+    "point_edge_distance_squared",
+    "point_edge_distance_squared_gradient",
+    "point_edge_distance_squared_hessian",
+    "point_edge_type",
+    "point_point_distance",
+    "point_point_distance_gradient",
+    "point_point_distance_hessian",
+    "point_point_distance_squared",
+    "point_point_distance_squared_gradient",
+    "point_point_distance_squared_hessian",
+    "point_triangle_distance",
+    "point_triangle_distance_gradient",
+    "point_triangle_distance_hessian",
+    "point_triangle_distance_squared",
+    "point_triangle_distance_squared_gradient",
+    "point_triangle_distance_squared_hessian",
+    "point_triangle_type",
+]
 
 _NAMES = {
     KIND_PP: ("p", "q"),
@@ -91,50 +120,35 @@ def _run(kind: int, arrays: tuple[np.ndarray, ...], squared: bool, order: int) -
     return (value, grad, hess)[order]
 
 
-# The 24 public functions ``{pair}_distance[_squared][_gradient|_hessian](*vertices)`` are made
-# from these tables: the pair's kind, its vertices' dimension and what it measures; the result.
-_PAIRS = {
-    "point_point": (KIND_PP, "d", "points p and q"),
-    "point_edge": (KIND_PE, "d", "points p and segments e0-e1"),
-    "point_triangle": (KIND_PT, "3", "points p and triangles t0t1t2"),
-    "edge_edge": (KIND_EE, "3", "segments ea0-ea1 and eb0-eb1"),
-}
-_RESULTS = {  # (squared, order): what is returned, with its shape and unit
-    (False, 0): "Distance (n,) in m",
-    (False, 1): "Gradient (n, {kd}) of the distance",
-    (False, 2): "Hessian (n, {kd}, {kd}) in 1/m of the distance",
-    (True, 0): "Squared distance (n,) in m^2",
-    (True, 1): "Gradient (n, {kd}) in m of the squared distance",
-    (True, 2): "Hessian (n, {kd}, {kd}) of the squared distance",
-}
+# --------------------------------------------------------------------------- point-point
+def point_point_distance(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """|p - q| (n,) in m of points p, q (n, d)."""
+    return _run(KIND_PP, (p, q), False, 0)
 
 
-def _distance_function(pair: str, squared: bool, order: int) -> Callable[..., np.ndarray]:
-    """The public function of ``pair`` (a key of ``_PAIRS``) for ``squared`` and ``order``."""
-    kind, d, what = _PAIRS[pair]
-    names = _NAMES[kind]
-    name = (
-        f"{pair}_distance" + ("_squared" if squared else "") + ("", "_gradient", "_hessian")[order]
-    )
-
-    def function(*vertices: np.ndarray) -> np.ndarray:
-        if len(vertices) != len(names):
-            raise TypeError(f"{name} takes {len(names)} arrays {names}, got {len(vertices)}")
-        return _run(kind, vertices, squared, order)
-
-    kd = f"{len(names)}d" if d == "d" else str(3 * len(names))
-    result = _RESULTS[(squared, order)].format(kd=kd)
-    function.__name__ = function.__qualname__ = name
-    function.__doc__ = f"{result} between {what}, w.r.t. {names}; each (n, {d}) in m."
-    return function
+def point_point_distance_gradient(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Gradient (n, 2d) of |p - q| w.r.t. (p, q); p, q (n, d) in m."""
+    return _run(KIND_PP, (p, q), False, 1)
 
 
-_DISTANCES = [_distance_function(pair, *key) for pair in _PAIRS for key in _RESULTS]
-globals().update((f.__name__, f) for f in _DISTANCES)
-__all__ = sorted(
-    [f.__name__ for f in _DISTANCES]
-    + ["edge_edge_parallel", "edge_edge_type", "point_edge_type", "point_triangle_type"]
-)
+def point_point_distance_hessian(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Hessian (n, 2d, 2d) in 1/m of |p - q| w.r.t. (p, q); p, q (n, d) in m."""
+    return _run(KIND_PP, (p, q), False, 2)
+
+
+def point_point_distance_squared(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """|p - q|^2 (n,) in m^2 of points p, q (n, d) in m."""
+    return _run(KIND_PP, (p, q), True, 0)
+
+
+def point_point_distance_squared_gradient(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Gradient (n, 2d) in m of |p - q|^2 w.r.t. (p, q); p, q (n, d) in m."""
+    return _run(KIND_PP, (p, q), True, 1)
+
+
+def point_point_distance_squared_hessian(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Hessian (n, 2d, 2d) of |p - q|^2 w.r.t. (p, q); p, q (n, d) in m."""
+    return _run(KIND_PP, (p, q), True, 2)
 
 
 # --------------------------------------------------------------------------- point-edge
@@ -143,12 +157,88 @@ def point_edge_type(p: np.ndarray, e0: np.ndarray, e1: np.ndarray) -> np.ndarray
     return _types(_stack_pairs(KIND_PE, (p, e0, e1), _NAMES[KIND_PE]), KIND_PE)
 
 
+def point_edge_distance(p: np.ndarray, e0: np.ndarray, e1: np.ndarray) -> np.ndarray:
+    """Distance (n,) in m from points p to segments e0-e1; all (n, d) in m, d = 2 or 3."""
+    return _run(KIND_PE, (p, e0, e1), False, 0)
+
+
+def point_edge_distance_gradient(p: np.ndarray, e0: np.ndarray, e1: np.ndarray) -> np.ndarray:
+    """Gradient (n, 3d) of the point-segment distance w.r.t. (p, e0, e1); inputs (n, d) in m."""
+    return _run(KIND_PE, (p, e0, e1), False, 1)
+
+
+def point_edge_distance_hessian(p: np.ndarray, e0: np.ndarray, e1: np.ndarray) -> np.ndarray:
+    """Hessian (n, 3d, 3d) in 1/m of the point-segment distance; inputs (n, d) in m."""
+    return _run(KIND_PE, (p, e0, e1), False, 2)
+
+
+def point_edge_distance_squared(p: np.ndarray, e0: np.ndarray, e1: np.ndarray) -> np.ndarray:
+    """Squared distance (n,) in m^2 from points p to segments e0-e1; inputs (n, d) in m."""
+    return _run(KIND_PE, (p, e0, e1), True, 0)
+
+
+def point_edge_distance_squared_gradient(
+    p: np.ndarray, e0: np.ndarray, e1: np.ndarray
+) -> np.ndarray:
+    """Gradient (n, 3d) in m of the squared point-segment distance; inputs (n, d) in m."""
+    return _run(KIND_PE, (p, e0, e1), True, 1)
+
+
+def point_edge_distance_squared_hessian(
+    p: np.ndarray, e0: np.ndarray, e1: np.ndarray
+) -> np.ndarray:
+    """Hessian (n, 3d, 3d) of the squared point-segment distance; inputs (n, d) in m."""
+    return _run(KIND_PE, (p, e0, e1), True, 2)
+
+
 # --------------------------------------------------------------------------- point-triangle
 def point_triangle_type(
     p: np.ndarray, t0: np.ndarray, t1: np.ndarray, t2: np.ndarray
 ) -> np.ndarray:
     """Closest feature (n,) int8 of triangle t0t1t2 to p (codes in the module doc); (n, 3) in m."""
     return _types(_stack_pairs(KIND_PT, (p, t0, t1, t2), _NAMES[KIND_PT]), KIND_PT)
+
+
+def point_triangle_distance(
+    p: np.ndarray, t0: np.ndarray, t1: np.ndarray, t2: np.ndarray
+) -> np.ndarray:
+    """Distance (n,) in m from points p to triangles t0t1t2; all (n, 3) in m."""
+    return _run(KIND_PT, (p, t0, t1, t2), False, 0)
+
+
+def point_triangle_distance_gradient(
+    p: np.ndarray, t0: np.ndarray, t1: np.ndarray, t2: np.ndarray
+) -> np.ndarray:
+    """Gradient (n, 12) of the point-triangle distance w.r.t. (p, t0, t1, t2); (n, 3) in m."""
+    return _run(KIND_PT, (p, t0, t1, t2), False, 1)
+
+
+def point_triangle_distance_hessian(
+    p: np.ndarray, t0: np.ndarray, t1: np.ndarray, t2: np.ndarray
+) -> np.ndarray:
+    """Hessian (n, 12, 12) in 1/m of the point-triangle distance; inputs (n, 3) in m."""
+    return _run(KIND_PT, (p, t0, t1, t2), False, 2)
+
+
+def point_triangle_distance_squared(
+    p: np.ndarray, t0: np.ndarray, t1: np.ndarray, t2: np.ndarray
+) -> np.ndarray:
+    """Squared distance (n,) in m^2 from points p to triangles t0t1t2; (n, 3) in m."""
+    return _run(KIND_PT, (p, t0, t1, t2), True, 0)
+
+
+def point_triangle_distance_squared_gradient(
+    p: np.ndarray, t0: np.ndarray, t1: np.ndarray, t2: np.ndarray
+) -> np.ndarray:
+    """Gradient (n, 12) in m of the squared point-triangle distance; inputs (n, 3) in m."""
+    return _run(KIND_PT, (p, t0, t1, t2), True, 1)
+
+
+def point_triangle_distance_squared_hessian(
+    p: np.ndarray, t0: np.ndarray, t1: np.ndarray, t2: np.ndarray
+) -> np.ndarray:
+    """Hessian (n, 12, 12) of the squared point-triangle distance; inputs (n, 3) in m."""
+    return _run(KIND_PT, (p, t0, t1, t2), True, 2)
 
 
 # --------------------------------------------------------------------------- edge-edge
@@ -177,3 +267,45 @@ def edge_edge_type(
     Inputs (n, 3) in m. Parallel pairs get the type of their closest endpoint-segment pair.
     """
     return _types(_stack_pairs(KIND_EE, (ea0, ea1, eb0, eb1), _NAMES[KIND_EE]), KIND_EE)
+
+
+def edge_edge_distance(
+    ea0: np.ndarray, ea1: np.ndarray, eb0: np.ndarray, eb1: np.ndarray
+) -> np.ndarray:
+    """Distance (n,) in m between segments ea0-ea1 and eb0-eb1; all (n, 3) in m."""
+    return _run(KIND_EE, (ea0, ea1, eb0, eb1), False, 0)
+
+
+def edge_edge_distance_gradient(
+    ea0: np.ndarray, ea1: np.ndarray, eb0: np.ndarray, eb1: np.ndarray
+) -> np.ndarray:
+    """Gradient (n, 12) of the segment-segment distance w.r.t. (ea0, ea1, eb0, eb1); (n, 3) m."""
+    return _run(KIND_EE, (ea0, ea1, eb0, eb1), False, 1)
+
+
+def edge_edge_distance_hessian(
+    ea0: np.ndarray, ea1: np.ndarray, eb0: np.ndarray, eb1: np.ndarray
+) -> np.ndarray:
+    """Hessian (n, 12, 12) in 1/m of the segment-segment distance; inputs (n, 3) in m."""
+    return _run(KIND_EE, (ea0, ea1, eb0, eb1), False, 2)
+
+
+def edge_edge_distance_squared(
+    ea0: np.ndarray, ea1: np.ndarray, eb0: np.ndarray, eb1: np.ndarray
+) -> np.ndarray:
+    """Squared distance (n,) in m^2 between segments ea0-ea1 and eb0-eb1; (n, 3) in m."""
+    return _run(KIND_EE, (ea0, ea1, eb0, eb1), True, 0)
+
+
+def edge_edge_distance_squared_gradient(
+    ea0: np.ndarray, ea1: np.ndarray, eb0: np.ndarray, eb1: np.ndarray
+) -> np.ndarray:
+    """Gradient (n, 12) in m of the squared segment-segment distance; inputs (n, 3) in m."""
+    return _run(KIND_EE, (ea0, ea1, eb0, eb1), True, 1)
+
+
+def edge_edge_distance_squared_hessian(
+    ea0: np.ndarray, ea1: np.ndarray, eb0: np.ndarray, eb1: np.ndarray
+) -> np.ndarray:
+    """Hessian (n, 12, 12) of the squared segment-segment distance; inputs (n, 3) in m."""
+    return _run(KIND_EE, (ea0, ea1, eb0, eb1), True, 2)
