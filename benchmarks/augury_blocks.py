@@ -32,7 +32,7 @@ import numpy as np
 
 import bfemp
 from benchmarks._shared import falls_with_h
-from benchmarks.common import figure
+from benchmarks.common import figure, log_row
 from benchmarks.runner import Benchmark, register
 from bfemp import diagnostics
 from bfemp.steppers.augury import AuguryOptions, AuguryStepper
@@ -201,16 +201,8 @@ def measure(mode: str, cfg) -> dict:
     for h in MODES[mode]:
         for transfer, iterations in VARIANTS:
             r = run_variant(h, transfer, iterations)
-            log.info(
-                "augury_blocks h=%g %s N=%d: L drift %.2e, P drift %.2e, loss %.4f, %.1f s",
-                h,
-                transfer,
-                iterations,
-                r["L_drift_max"],
-                r["P_drift_max"],
-                r["energy_loss"],
-                r["wall_s"],
-            )
+            label = f"{NAME} h={h:g} {transfer} N={iterations}"
+            log_row(log, label, r, "L_drift_max P_drift_max energy_loss wall_s")
             runs.append(r)
     hs = MODES[mode]
     targets = {
@@ -314,19 +306,8 @@ def measure_long(
     runs = [] if runs is None else list(runs)
     for h, transfer, iterations in plan if ran else ():
         r = run_variant(h, transfer, iterations, t_end=t_end)
-        log.info(
-            "%s h=%g %s N=%d: E/E0 %.4f at %g s, contact steps %d / %d, separation %s s, %.1f s",
-            name,
-            h,
-            transfer,
-            iterations,
-            r["E_ratio_end"],
-            r["t_end"],
-            r["contact_steps"],
-            r["steps"],
-            r["separation_t"],
-            r["wall_s"],
-        )
+        keys = "E_ratio_end t_end contact_steps steps separation_t wall_s"
+        log_row(log, f"{name} h={h:g} {transfer} N={iterations}", r, keys)
         runs.append(r)
     # an observation, not a target (LONG_NOTES)
     observations = {"energy_loss_falls_with_h": _falls_with_h(runs, "energy_loss")}

@@ -36,7 +36,7 @@ import numpy as np
 
 import bfemp
 from benchmarks._shared import falls_with_h
-from benchmarks.common import figure, save
+from benchmarks.common import figure, log_row, save
 from benchmarks.runner import Benchmark, register
 from bfemp.steppers.augury import AuguryOptions, AuguryStepper
 
@@ -265,15 +265,7 @@ def measure(mode: str, cfg) -> dict:
         for mu in cfg["mus"]:
             for transfer in ("pic", "apic"):
                 c = run_case(h, mu, transfer, cfg["t_end"])
-                log.info(
-                    "augury_ramp h=%g mu=%g %s: s %.5g (exact %.5g), %.1f s",
-                    h,
-                    mu,
-                    transfer,
-                    c["s_end"],
-                    c["s_analytic"],
-                    c["wall_s"],
-                )
+                log_row(log, f"{NAME} h={h:g} mu={mu:g} {transfer}", c, "s_end s_analytic wall_s")
                 cases.append(c)
     control = run_case(cfg["hs"][0], MU_STICK, "apic", cfg["t_end"])
     # bfemp's variant (not the paper's settings): "facing" normals and N = 10, APIC
@@ -380,18 +372,8 @@ def measure_conforming(
     cases = [] if cases is None else list(cases)
     for placement, h, mu, transfer in plan if ran else ():
         c = run_case(h, mu, transfer, t_end, placement=placement)
-        log.info(
-            "%s %s h=%g mu=%g %s: s %.5g (exact %.5g), error %s, %.1f s",
-            name,
-            placement,
-            h,
-            mu,
-            transfer,
-            c["s_end"],
-            c["s_analytic"],
-            c["rel_error"],
-            c["wall_s"],
-        )
+        label = f"{name} {placement} h={h:g} mu={mu:g} {transfer}"
+        log_row(log, label, c, "s_end s_analytic rel_error wall_s")
         cases.append(c)
     for c in cases:  # audit_explicit.md's figure: s / s_exact at 0.05 s (the block stops after)
         exact = analytic_s(c["mu"], 0.05)

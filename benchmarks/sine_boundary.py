@@ -70,7 +70,7 @@ import numpy as np
 import bfemp
 from benchmarks import catalogue
 from benchmarks._penetration import penetration_summary
-from benchmarks.common import figure
+from benchmarks.common import figure, log_row
 from benchmarks.runner import Benchmark, register
 
 log = logging.getLogger(__name__)
@@ -458,14 +458,8 @@ def measure(mode: str, cfg: dict) -> dict:
             "partial run: the paper's scene, path and dt on a coarser grid (dx 0.04 m, ppc 4, "
             "2500 particles); full mode (dx 0.02 m, ppc 9, 22500 particles) takes hours on 2 cores"
         )
-    log.info(
-        "%s: BFEMP penetrations %d, tensile %.3g N/m; level set penetrations %d, tensile %.3g N/m",
-        NAME,
-        bf["penetrations"],
-        bf["max_tensile_force"],
-        ls["penetrations"],
-        ls["max_tensile_force"],
-    )
+    for name, r in runs.items():
+        log_row(log, f"{NAME} {name}", r, "penetrations max_tensile_force")
     return {**payload, "_runs": runs}
 
 
