@@ -80,7 +80,7 @@ def plot(record: dict, path: Path) -> None:
     ax.axvline(1e3 * record["t_c"], color="k", lw=0.6, ls="--")
     ax.set_xlabel("t (ms)")
     ax.set_ylabel("mean -sigma_yy (MPa)")
-    save(fig, path, [ax], legend=8)
+    save(fig, path, [ax])
 
 
 BENCHMARK = register(

@@ -139,7 +139,7 @@ def plot(payload: dict, png: Path) -> None:
     ax.axhline(payload["dx_m"], color="k", ls="--", lw=0.8, label="dx")
     ax.set(xlabel="t (s)", ylabel="lowest particle height (m)")
     ax.set_title(f"block at rest on a floor ({payload['mode']})", fontsize=9)
-    save(fig, png, [ax], legend=8)
+    save(fig, png, [ax])
 
 
 BENCHMARK = register(Benchmark(NAME, __doc__, MODES, measure, plot=plot))
