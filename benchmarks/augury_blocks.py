@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import logging
 import time
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -103,7 +104,7 @@ def run_variant(h: float, transfer: str, iterations: int, t_end: float = T_END) 
     every = max(1, steps // SAMPLES)
     series = {"t": [], "L_drift": [], "P_drift": [], "E": [], "E_with_B": []}
     mech = contact = 0.0
-    notes: dict[str, int] = {}
+    notes: Counter[str] = Counter()  # note code -> steps that reported it
     contact_steps = 0
     last_contact_step = 0
     started = time.perf_counter()
@@ -115,24 +116,14 @@ def run_variant(h: float, transfer: str, iterations: int, t_end: float = T_END) 
         contact_steps += report.contact_pairs > 0
         if report.contact_pairs > 0:
             last_contact_step = k
-        for note in report.notes:
-            key = note.split(":")[0]
-            notes[key] = notes.get(key, 0) + 1
+        notes.update(note.split(":")[0] for note in report.notes)
         if k % every == 0 or k == steps:
             e, eb = energies(state)
             series["t"].append(state.t)
-            series["L_drift"].append(
-                float(
-                    np.linalg.norm(diagnostics.angular_momentum(model, state) - L0)
-                    / np.linalg.norm(L0)
-                )
-            )
-            series["P_drift"].append(
-                float(
-                    np.linalg.norm(diagnostics.linear_momentum(model, state) - P0)
-                    / np.linalg.norm(P0)
-                )
-            )
+            for key, of, start in (("L_drift", diagnostics.angular_momentum, L0),
+                                   ("P_drift", diagnostics.linear_momentum, P0)):  # fmt: skip
+                drift = np.linalg.norm(of(model, state) - start) / np.linalg.norm(start)
+                series[key].append(float(drift))
             series["E"].append(e)
             series["E_with_B"].append(eb)
     wall = time.perf_counter() - started
@@ -160,7 +151,7 @@ def run_variant(h: float, transfer: str, iterations: int, t_end: float = T_END) 
         "separation_t": (last_contact_step + 1) * dt if last_contact_step < steps else None,
         "t_end": steps * dt,
         "E_ratio_end": series["E"][-1] / e0,
-        "notes": notes,
+        "notes": dict(notes),
         "wall_s": wall,
         "mechanics_s_per_step": mech / steps,
         "contact_s_per_step": contact / steps,
