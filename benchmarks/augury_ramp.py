@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import logging
 import time
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -175,13 +176,11 @@ def run_case(
     steps = int(round(t_end / dt))
     every = max(1, steps // 50)
     t_s, s_s = [0.0], [0.0]
-    notes: dict[str, int] = {}
+    notes: Counter[str] = Counter()  # note code -> steps that reported it
     started = time.perf_counter()
     for k in range(1, steps + 1):
         state, report = stepper.step(state)
-        for note in report.notes:
-            key = note.split(":")[0]
-            notes[key] = notes.get(key, 0) + 1
+        notes.update(note.split(":")[0] for note in report.notes)
         if k % every == 0 or k == steps:
             com = m @ state.fem_x[block.nodes] / m.sum()
             t_s.append(state.t)
@@ -210,7 +209,7 @@ def run_case(
         "s_analytic": exact,
         "rel_error": float(abs(s_end - exact) / exact) if exact > 0 else None,
         "abs_error": abs(s_end - exact),
-        "notes": notes,
+        "notes": dict(notes),
         "max_penetration_depth_m": stepper.max_penetration_depth,
         "n_end": float((com - com0) @ normal),
         "energy_guard": opts.energy_guard,
