@@ -404,11 +404,7 @@ def measure(mode: str, cfg: dict) -> dict:
     payload = {
         "penetrations": bf["penetrations"],
         "max_tensile_force": bf["max_tensile_force"],
-        "levelset": {
-            "penetrations": ls["penetrations"],
-            "max_tensile_force": ls["max_tensile_force"],
-            **public(ls),
-        },
+        "levelset": public(ls),  # its penetrations and max_tensile_force among the rest
         "bfemp": public(bf),
         "steps": bf["steps"],
         "steps_total": bf["steps"] + ls["steps"],
