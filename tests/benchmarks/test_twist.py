@@ -86,7 +86,9 @@ result = record_fixture("twist", mus=QUICK_MUS)
 
 
 def test_writes_json_and_plot(result):
-    data = check_written(result, "twist_quick", "slip_angle_pi wall_s peak_memory_mb parameters paper")
+    data = check_written(
+        result, "twist_quick", "slip_angle_pi wall_s peak_memory_mb parameters paper"
+    )
     assert [case["mu"] for case in data["cases"]] == list(QUICK_MUS)
 
 
