@@ -320,8 +320,7 @@ def _plot(runs: list[dict], path: Path, title: str) -> None:
             label += f" (buckles at u = {run['u_buckle_m']:.2f} m)"
         ax.plot(s["u_m"], s["detachment_m"], color=f"C{k}", label=label)
     ax.axhline(threshold, color="k", ls=":", lw=0.8, label="buckling threshold")
-    ax.set_xlabel("plate displacement u [m]")
-    ax.set_ylabel("detachment of the inner ring [m]")
+    ax.set(xlabel="plate displacement u [m]", ylabel="detachment of the inner ring [m]")
     for k, run in enumerate(runs):
         sub = fig.add_subplot(grid[1, k])
         fem, mpm = np.array(run["final_fem_x"]), np.array(run["final_mpm_x"])

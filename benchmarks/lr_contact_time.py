@@ -78,8 +78,7 @@ def plot(record: dict, path: Path) -> None:
     for key, case in record["cases"].items():
         ax.plot(1e3 * np.asarray(case["t"]), -1e-6 * np.asarray(case["stress"]), label=key)
     ax.axvline(1e3 * record["t_c"], color="k", lw=0.6, ls="--")
-    ax.set_xlabel("t (ms)")
-    ax.set_ylabel("mean -sigma_yy (MPa)")
+    ax.set(xlabel="t (ms)", ylabel="mean -sigma_yy (MPa)")
     save(fig, path, [ax])
 
 

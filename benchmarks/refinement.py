@@ -206,8 +206,7 @@ def _plot(series: dict, path: Path, title: str) -> None:
         anchor = np.nanmax(all_err) if np.isfinite(all_err).any() else 1.0
         for order, style in ((1, "k:"), (2, "k--")):
             ax.loglog(x, anchor * (x / x.max()) ** order, style, lw=0.8, label=f"order {order}")
-    ax.set_xlabel("dx = 1/N [m]")
-    ax.set_ylabel("|y_com(N) - y_com(N_ref)| [m]")
+    ax.set(xlabel="dx = 1/N [m]", ylabel="|y_com(N) - y_com(N_ref)| [m]")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize="small")
     ax.set_title(title, fontsize="medium")

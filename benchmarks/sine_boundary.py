@@ -340,8 +340,7 @@ def _plot(runs: dict, geo: Geometry, path_png: Path, title: str) -> None:
         ax.plot(s["t"], s["fy"], "C0-", lw=1.0, label="F_y on the box (> 0: pulling = adhesion)")
         ax.axhline(0.0, color="k", lw=0.6)
         ax.set_ylim(fmin - pad, fmax + pad)
-        ax.set_xlabel("t [s]")
-        ax.set_ylabel("vertical force of the boundary on the box [N/m]")
+        ax.set(xlabel="t [s]", ylabel="vertical force of the boundary on the box [N/m]")
         for edge in (geo.t_down, geo.t_up):
             ax.axvline(edge, color="0.5", ls="--", lw=0.8)
         twin = ax.twinx()
