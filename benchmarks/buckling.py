@@ -463,7 +463,8 @@ def _with_shapes(path: Path, case: dict) -> dict:
 
 def _arguments(group: argparse._ActionsContainer) -> None:
     """``--mu`` (repeatable), ``--budget-s`` and ``--resumable`` (see ``measure``)."""
-    group.add_argument("--mu", type=float, action="append", dest="mus", help="mu (repeatable)")
+    friction = "friction between the rings (repeatable)"
+    group.add_argument("--mu", type=float, action="append", dest="mus", help=friction)
     group.add_argument("--budget-s", type=float, help="wall-time budget of each case in s")
     group.add_argument(
         "--resumable",
