@@ -26,13 +26,14 @@ from __future__ import annotations
 
 import logging
 import time
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
 
 import bfemp
 from benchmarks._shared import falls_with_h
-from benchmarks.common import figure
+from benchmarks.common import figure, log_row
 from benchmarks.runner import Benchmark, register
 from bfemp import diagnostics
 from bfemp.steppers.augury import AuguryOptions, AuguryStepper
@@ -103,7 +104,7 @@ def run_variant(h: float, transfer: str, iterations: int, t_end: float = T_END) 
     every = max(1, steps // SAMPLES)
     series = {"t": [], "L_drift": [], "P_drift": [], "E": [], "E_with_B": []}
     mech = contact = 0.0
-    notes: dict[str, int] = {}
+    notes: Counter[str] = Counter()  # note code -> steps that reported it
     contact_steps = 0
     last_contact_step = 0
     started = time.perf_counter()
@@ -115,24 +116,14 @@ def run_variant(h: float, transfer: str, iterations: int, t_end: float = T_END) 
         contact_steps += report.contact_pairs > 0
         if report.contact_pairs > 0:
             last_contact_step = k
-        for note in report.notes:
-            key = note.split(":")[0]
-            notes[key] = notes.get(key, 0) + 1
+        notes.update(note.split(":")[0] for note in report.notes)
         if k % every == 0 or k == steps:
             e, eb = energies(state)
             series["t"].append(state.t)
-            series["L_drift"].append(
-                float(
-                    np.linalg.norm(diagnostics.angular_momentum(model, state) - L0)
-                    / np.linalg.norm(L0)
-                )
-            )
-            series["P_drift"].append(
-                float(
-                    np.linalg.norm(diagnostics.linear_momentum(model, state) - P0)
-                    / np.linalg.norm(P0)
-                )
-            )
+            for key, of, start in (("L_drift", diagnostics.angular_momentum, L0),
+                                   ("P_drift", diagnostics.linear_momentum, P0)):  # fmt: skip
+                drift = np.linalg.norm(of(model, state) - start) / np.linalg.norm(start)
+                series[key].append(float(drift))
             series["E"].append(e)
             series["E_with_B"].append(eb)
     wall = time.perf_counter() - started
@@ -160,7 +151,7 @@ def run_variant(h: float, transfer: str, iterations: int, t_end: float = T_END) 
         "separation_t": (last_contact_step + 1) * dt if last_contact_step < steps else None,
         "t_end": steps * dt,
         "E_ratio_end": series["E"][-1] / e0,
-        "notes": notes,
+        "notes": dict(notes),
         "wall_s": wall,
         "mechanics_s_per_step": mech / steps,
         "contact_s_per_step": contact / steps,
@@ -201,16 +192,8 @@ def measure(mode: str, cfg) -> dict:
     for h in MODES[mode]:
         for transfer, iterations in VARIANTS:
             r = run_variant(h, transfer, iterations)
-            log.info(
-                "augury_blocks h=%g %s N=%d: L drift %.2e, P drift %.2e, loss %.4f, %.1f s",
-                h,
-                transfer,
-                iterations,
-                r["L_drift_max"],
-                r["P_drift_max"],
-                r["energy_loss"],
-                r["wall_s"],
-            )
+            label = f"{NAME} h={h:g} {transfer} N={iterations}"
+            log_row(log, label, r, "L_drift_max P_drift_max energy_loss wall_s")
             runs.append(r)
     hs = MODES[mode]
     targets = {
@@ -314,19 +297,8 @@ def measure_long(
     runs = [] if runs is None else list(runs)
     for h, transfer, iterations in plan if ran else ():
         r = run_variant(h, transfer, iterations, t_end=t_end)
-        log.info(
-            "%s h=%g %s N=%d: E/E0 %.4f at %g s, contact steps %d / %d, separation %s s, %.1f s",
-            name,
-            h,
-            transfer,
-            iterations,
-            r["E_ratio_end"],
-            r["t_end"],
-            r["contact_steps"],
-            r["steps"],
-            r["separation_t"],
-            r["wall_s"],
-        )
+        keys = "E_ratio_end t_end contact_steps steps separation_t wall_s"
+        log_row(log, f"{name} h={h:g} {transfer} N={iterations}", r, keys)
         runs.append(r)
     # an observation, not a target (LONG_NOTES)
     observations = {"energy_loss_falls_with_h": _falls_with_h(runs, "energy_loss")}

@@ -30,13 +30,14 @@ from __future__ import annotations
 
 import logging
 import time
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
 
 import bfemp
 from benchmarks._shared import falls_with_h
-from benchmarks.common import figure, save
+from benchmarks.common import figure, log_row, save
 from benchmarks.runner import Benchmark, register
 from bfemp.steppers.augury import AuguryOptions, AuguryStepper
 
@@ -175,13 +176,11 @@ def run_case(
     steps = int(round(t_end / dt))
     every = max(1, steps // 50)
     t_s, s_s = [0.0], [0.0]
-    notes: dict[str, int] = {}
+    notes: Counter[str] = Counter()  # note code -> steps that reported it
     started = time.perf_counter()
     for k in range(1, steps + 1):
         state, report = stepper.step(state)
-        for note in report.notes:
-            key = note.split(":")[0]
-            notes[key] = notes.get(key, 0) + 1
+        notes.update(note.split(":")[0] for note in report.notes)
         if k % every == 0 or k == steps:
             com = m @ state.fem_x[block.nodes] / m.sum()
             t_s.append(state.t)
@@ -210,7 +209,7 @@ def run_case(
         "s_analytic": exact,
         "rel_error": float(abs(s_end - exact) / exact) if exact > 0 else None,
         "abs_error": abs(s_end - exact),
-        "notes": notes,
+        "notes": dict(notes),
         "max_penetration_depth_m": stepper.max_penetration_depth,
         "n_end": float((com - com0) @ normal),
         "energy_guard": opts.energy_guard,
@@ -265,15 +264,7 @@ def measure(mode: str, cfg) -> dict:
         for mu in cfg["mus"]:
             for transfer in ("pic", "apic"):
                 c = run_case(h, mu, transfer, cfg["t_end"])
-                log.info(
-                    "augury_ramp h=%g mu=%g %s: s %.5g (exact %.5g), %.1f s",
-                    h,
-                    mu,
-                    transfer,
-                    c["s_end"],
-                    c["s_analytic"],
-                    c["wall_s"],
-                )
+                log_row(log, f"{NAME} h={h:g} mu={mu:g} {transfer}", c, "s_end s_analytic wall_s")
                 cases.append(c)
     control = run_case(cfg["hs"][0], MU_STICK, "apic", cfg["t_end"])
     # bfemp's variant (not the paper's settings): "facing" normals and N = 10, APIC
@@ -380,18 +371,8 @@ def measure_conforming(
     cases = [] if cases is None else list(cases)
     for placement, h, mu, transfer in plan if ran else ():
         c = run_case(h, mu, transfer, t_end, placement=placement)
-        log.info(
-            "%s %s h=%g mu=%g %s: s %.5g (exact %.5g), error %s, %.1f s",
-            name,
-            placement,
-            h,
-            mu,
-            transfer,
-            c["s_end"],
-            c["s_analytic"],
-            c["rel_error"],
-            c["wall_s"],
-        )
+        label = f"{name} {placement} h={h:g} mu={mu:g} {transfer}"
+        log_row(log, label, c, "s_end s_analytic rel_error wall_s")
         cases.append(c)
     for c in cases:  # audit_explicit.md's figure: s / s_exact at 0.05 s (the block stops after)
         exact = analytic_s(c["mu"], 0.05)

@@ -72,7 +72,7 @@ from matplotlib.figure import Figure
 import bfemp
 from benchmarks import catalogue
 from benchmarks._case_checkpoint import CaseCheckpoint
-from benchmarks.common import cases_by_mu, environment, note_merge, peak_memory_mb
+from benchmarks.common import cases_by_mu, environment, log_row, note_merge, peak_memory_mb, save
 from benchmarks.runner import Benchmark, name_unless, register, write_record
 
 log = logging.getLogger(__name__)
@@ -267,16 +267,7 @@ def _run_one(
         p["angle"].append(a)
         elapsed = time.perf_counter() - started
         if (k + 1) % PROGRESS_EVERY == 0:
-            log.info(
-                "buckling mu=%g: step %d/%d, u = %.2f m, detachment %.4f m, %d Newton, %.0f s",
-                mu,
-                k + 1,
-                steps,
-                p["u"][-1],
-                d,
-                p["newton"],
-                elapsed,
-            )
+            log_row(log, f"buckling mu={mu:g} step {k + 1}/{steps}", {**p, "d": d}, "d newton")
         if elapsed > budget_s and k + 1 < steps:
             cut = True
             log.warning(
@@ -292,14 +283,7 @@ def _run_one(
     wall = sum(segments)
     threshold = BUCKLE_FRACTION * (INNER_RADII[1] - INNER_RADII[0])
     over = np.flatnonzero(np.array(detach) > threshold)
-    log.info(
-        "buckling mu=%g: detachment %.4f m at u = %.2f m, %d steps, %.1f s",
-        mu,
-        detach[-1],
-        u[-1],
-        len(u) - 1,
-        wall,
-    )
+    log.info("buckling mu=%g: detachment %.4f m at u = %.2f m", mu, detach[-1], u[-1])
     return {
         "mu": mu,
         "error": error,
@@ -336,10 +320,7 @@ def _plot(runs: list[dict], path: Path, title: str) -> None:
             label += f" (buckles at u = {run['u_buckle_m']:.2f} m)"
         ax.plot(s["u_m"], s["detachment_m"], color=f"C{k}", label=label)
     ax.axhline(threshold, color="k", ls=":", lw=0.8, label="buckling threshold")
-    ax.set_xlabel("plate displacement u [m]")
-    ax.set_ylabel("detachment of the inner ring [m]")
-    ax.grid(True, alpha=0.3)
-    ax.legend(fontsize="small")
+    ax.set(xlabel="plate displacement u [m]", ylabel="detachment of the inner ring [m]")
     for k, run in enumerate(runs):
         sub = fig.add_subplot(grid[1, k])
         fem, mpm = np.array(run["final_fem_x"]), np.array(run["final_mpm_x"])
@@ -347,8 +328,7 @@ def _plot(runs: list[dict], path: Path, title: str) -> None:
         sub.plot(mpm[:, 0], mpm[:, 1], ".", ms=1.0, color="C1")
         sub.set_aspect("equal")
         sub.set_title(f"mu = {run['mu']:g}, u = {run['u_end_m']:.2f} m", fontsize="medium")
-    fig.suptitle(title)
-    fig.savefig(path, dpi=110)
+    save(fig, path, [ax], title)
 
 
 def measure(
@@ -378,6 +358,8 @@ def measure(
         The payload; ``payload["cases"]`` per mu. The record and the figure are written after
         every case, so a stopped run keeps the cases done.
     """
+    if not budget_s >= 0.0:
+        raise ValueError(f"budget_s / --budget-s must be >= 0, got {budget_s}")
     mus = MUS if mus is None else tuple(float(m) for m in mus)
     stem, env = BENCHMARK.stem(mode), environment()
     out.mkdir(parents=True, exist_ok=True)
@@ -479,15 +461,11 @@ def _with_shapes(path: Path, case: dict) -> dict:
         return {**case, "final_mpm_x": shapes[f"mpm_{key}"], "final_fem_x": shapes[f"fem_{key}"]}
 
 
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--mu`` (repeatable), ``--budget-s`` and ``--resumable`` (see ``run``)."""
-    group = parser.add_argument_group("buckling")
-    group.add_argument(
-        "--mu", type=float, action="append", help="friction between the rings (repeatable)"
-    )
-    group.add_argument(
-        "--budget-s", type=float, default=math.inf, help="wall-time budget of each case in s"
-    )
+def _arguments(group: argparse._ActionsContainer) -> None:
+    """``--mu`` (repeatable), ``--budget-s`` and ``--resumable`` (see ``measure``)."""
+    friction = "friction between the rings (repeatable)"
+    group.add_argument("--mu", type=float, action="append", dest="mus", help=friction)
+    group.add_argument("--budget-s", type=float, help="wall-time budget of each case in s")
     group.add_argument(
         "--resumable",
         action="store_true",
@@ -495,22 +473,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def main_from_args(args: argparse.Namespace) -> int:
-    if not args.budget_s >= 0.0:
-        raise ValueError(f"--budget-s must be >= 0, got {args.budget_s}")
-    summary = BENCHMARK.run(
-        args.mode or "full",
-        args.out,
-        mus=tuple(args.mu) if args.mu else None,
-        budget_s=args.budget_s,
-        resumable=args.resumable,
-    )
-    print(f"buckling: wrote {summary['json']}")
-    return 0
-
-
 # the committed records of modes other than full carry the mode in their names
 BENCHMARK = register(
-    Benchmark(NAME, __doc__, MODES, measure, plot, record=name_unless("full", NAME), needs_out=True)
-)
+    Benchmark(NAME, __doc__, MODES, measure, plot, record=name_unless("full", NAME),
+              arguments=_arguments, needs_out=True)
+)  # fmt: skip
 run = BENCHMARK.run

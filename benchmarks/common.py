@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import json
+import logging
 import math
 import os
 import platform
 import resource
 import subprocess
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import numpy as np
@@ -144,3 +145,12 @@ def note_merge(payload: dict, records: list[str | Path], loaded: list[dict]) -> 
     ]
     payload["peak_memory_mb"] = max(r["peak_memory_mb"] for r in loaded)
     return payload
+
+
+def log_row(logger: logging.Logger, label: str, row: Mapping, keys: str) -> None:
+    """Log ``label: key=value ...`` of the space-separated ``keys`` of ``row`` (floats to 6
+    significant digits): the progress line of a step or a finished case."""
+    text = (
+        f"{k}={row[k]:.6g}" if isinstance(row[k], float) else f"{k}={row[k]}" for k in keys.split()
+    )
+    logger.info("%s: %s", label, " ".join(text))

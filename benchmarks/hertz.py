@@ -36,7 +36,7 @@ Choices where the paper is silent or the library forces a change (recorded in th
 - The disk centre is a quarter cell right of a grid node (``grid_offset_cells``): centred on a
   node, both edges pass the knots at once and a jumps by a cell; staggered, the edges jump in
   turn (same mean, half the scatter).
-- Top plate (``_scene(..., top_plate="rigid")``: fully scripted, as in the paper): only the plate's
+- Top plate (the paper's is fully scripted, a rigid plate): only the plate's
   top face (2 of its 4 vertices) is scripted; its contact face is made of the 2 free vertices
   (unknowns, CCD-checked) and the plate is linear elastic with 1000 x the disk's E (it shortens
   ~1e-6 m under the largest load). The bottom plate is fixed and fully scripted.
@@ -63,7 +63,7 @@ import bfemp
 from benchmarks import catalogue
 from benchmarks._penetration import penetration_summary
 from benchmarks._shared import check_settings
-from benchmarks.common import figure
+from benchmarks.common import figure, log_row, save
 from benchmarks.runner import Benchmark, register
 
 log = logging.getLogger(__name__)
@@ -214,7 +214,7 @@ def _plate(
     return np.ascontiguousarray(points), np.concatenate([lower, upper]).astype(np.int64)
 
 
-def _scene(cfg: dict, material: str, top_plate: str = "elastic") -> tuple[bfemp.Scene, dict]:
+def _scene(cfg: dict, material: str) -> tuple[bfemp.Scene, dict]:
     """The disk between the plates; returns the scene and geometry facts for the measurement.
 
     ``cfg`` may also set (``SOFT``; absent: the paper's scene) ``E_Pa`` and ``kappa_Pa`` (the
@@ -244,24 +244,20 @@ def _scene(cfg: dict, material: str, top_plate: str = "elastic") -> tuple[bfemp.
         points, cells, material=rigid, prescribed=bfemp.motion.Fixed(), name="bottom_plate"
     )
     points, cells = _plate(-w, w, y_top, y_top + PLATE_THICKNESS, plate_h)
-    push = bfemp.motion.Linear(velocity=(0.0, -SPEED))
-    if top_plate == "rigid":  # every vertex scripted, as in the paper (see the docstring)
-        top = scene.add_fem(points, cells, material=rigid, prescribed=push, name="top_plate")
-    else:
-        ratio = cfg.get("plate_stiffness_ratio", PLATE_STIFFNESS_RATIO)
-        density = RHO * cfg.get("plate_density_factor", 1.0)
-        stiff = bfemp.LinearElastic(E=ratio * young, nu=NU, density=density)
-        # SOFT: the plate starts at the push velocity (no wave from a plate set moving at once)
-        start = (0.0, -SPEED) if cfg.get("plate_moving_start", False) else (0.0, 0.0)
-        top = scene.add_fem(
-            points,
-            cells,
-            material=stiff,
-            velocity=start,
-            prescribed=push,
-            prescribed_nodes=points[:, 1] > y_top + 0.5 * PLATE_THICKNESS,
-            name="top_plate",
-        )
+    ratio = cfg.get("plate_stiffness_ratio", PLATE_STIFFNESS_RATIO)
+    density = RHO * cfg.get("plate_density_factor", 1.0)
+    stiff = bfemp.LinearElastic(E=ratio * young, nu=NU, density=density)
+    # SOFT: the plate starts at the push velocity (no wave from a plate set moving at once)
+    start = (0.0, -SPEED) if cfg.get("plate_moving_start", False) else (0.0, 0.0)
+    top = scene.add_fem(
+        points,
+        cells,
+        material=stiff,
+        velocity=start,
+        prescribed=bfemp.motion.Linear(velocity=(0.0, -SPEED)),
+        prescribed_nodes=points[:, 1] > y_top + 0.5 * PLATE_THICKNESS,
+        name="top_plate",
+    )
     scene.set_grid(dx=cfg["dx"])
     kappa = cfg.get("kappa_Pa", KAPPA)
     scene.set_contact(dhat=dhat, kappa=kappa, mu=cfg["mu"], eps_v=cfg["eps_v"])
@@ -332,7 +328,7 @@ def stress_force(deformation: np.ndarray, geo: dict, t: float) -> float:
 SAMPLE_KEYS = ("t", "F", "F_top", "F_particles", "lowest_gap", "F_stress", "a", "a_interpolated")
 
 
-def run_material(cfg: dict, material: str, top_plate: str = "elastic") -> dict:
+def run_material(cfg: dict, material: str) -> dict:
     """Compress the disk of one material; F and a after every step, and the fits.
 
     ``cfg["options"]`` (an options object; with ``strategy`` and ``integrator``) runs any
@@ -342,7 +338,7 @@ def run_material(cfg: dict, material: str, top_plate: str = "elastic") -> dict:
     half's particle contact forces), ``F_stress`` (``stress_force``) and ``lowest_gap`` (m, the
     lowest particle above the plate; < 0: inside it).
     """
-    scene, geo = _scene(cfg, material, cfg.get("top_plate", top_plate))
+    scene, geo = _scene(cfg, material)
     strategy = cfg.get("strategy", "barrier")
     sim = catalogue.simulation(
         scene, cfg, strategy, cfg.get("tol"), cfg.get("max_newton_iterations")
@@ -382,15 +378,8 @@ def run_material(cfg: dict, material: str, top_plate: str = "elastic") -> dict:
         )
         rows["newton"].append(report.newton_iterations)
         rows["friction_iterations"].append(report.friction_iterations)
-        log.info(
-            "hertz/%s t=%.3f F=%.4e a=%.4f a_int=%.4f newton=%d",
-            material,
-            sim.state.t,
-            rows["F"][-1],
-            rows["a"][-1],
-            rows["a_interpolated"][-1],
-            report.newton_iterations,
-        )
+        log_row(log, f"hertz/{material} t={sim.state.t:.3f}", {k: v[-1] for k, v in rows.items()},
+                "F a a_interpolated newton")  # fmt: skip
     wall = time.perf_counter() - start
     s = {k: np.asarray(v, dtype=np.float64) for k, v in rows.items()}
     c_h = hertz_constant(E=cfg.get("E_Pa", E))
@@ -476,19 +465,13 @@ def _grid_sweep() -> dict:
     rows = []
     for dx in SWEEP_DX:
         r = run_material(dict(_FAST, dx=dx, spacing=0.5 * dx, dt=SWEEP_DT), "linear")
-        rows.append(
-            {
-                "dx": dx,
-                "C_fit_over_C_hertz": r["C_fit_over_C_hertz"],
-                "C_fit_interpolated_over_C_hertz": r["C_fit_interpolated"] / r["C_hertz"],
-                "fit_samples": r["fit_samples"],
-                "particles": r["particles"],
-                "steps": r["steps"],
-                "newton_iterations": r["newton_iterations"],
-                "wall_s": r["wall_s"],
-                "error": r["error"],
-            }
-        )
+        keys = ("fit_samples", "particles", "steps", "newton_iterations", "wall_s", "error")
+        rows.append({
+            "dx": dx,
+            "C_fit_over_C_hertz": r["C_fit_over_C_hertz"],
+            "C_fit_interpolated_over_C_hertz": r["C_fit_interpolated"] / r["C_hertz"],
+            **{k: r[k] for k in keys},
+        })  # fmt: skip
     dx = np.array([row["dx"] for row in rows])
     ratio = np.array([row["C_fit_over_C_hertz"] for row in rows])
     ok = np.isfinite(ratio)
@@ -540,10 +523,7 @@ def _plot(runs: dict, cfg: dict, path: Path, title: str, sweep: dict | None = No
     for ax, (xlabel, ylabel, name) in zip(axes, labels, strict=False):
         ax.set(xlabel=xlabel, ylabel=ylabel)
         ax.set_title(name, fontsize="medium")
-        ax.grid(True, alpha=0.3)
-        ax.legend(fontsize="x-small", loc="upper left")
-    fig.suptitle(title)
-    fig.savefig(path, dpi=110)
+    save(fig, path, axes, title, legend="x-small")
 
 
 def measure(mode: str, cfg: dict) -> dict:

@@ -485,9 +485,7 @@ def plot(record: dict, path: Path) -> None:
         ax.plot(100 * np.asarray(run["strain"]), run["error_percent"], label=name, c=color[name])
     ax.axhline(TOL_LR, color="k", lw=0.6, ls="--")
     ax.axhline(-TOL_LR, color="k", lw=0.6, ls="--")
-    ax.set_ylim(-15, 15)
-    ax.set_xlabel("strain (%)")
-    ax.set_ylabel("stress error vs single material (%)")
+    ax.set(xlabel="strain (%)", ylabel="stress error vs single material (%)", ylim=(-15, 15))
     ax.legend(fontsize=8)
     for name in ("lr_flip", "lr_once", "lr_xpic5", "lr_once_xpic5", FORCED):
         run = comp["runs"][name]
@@ -505,14 +503,12 @@ def plot(record: dict, path: Path) -> None:
         )  # fmt: skip
     zx.axhline(TOL_XPIC, color="k", lw=0.6, ls="--")
     zx.axhline(-TOL_XPIC, color="k", lw=0.6, ls="--")
-    zx.set_ylim(-1.6, 0.6)
-    zx.set_xlabel("strain (%)")
+    zx.set(xlabel="strain (%)", ylim=(-1.6, 0.6))
     zx.set_title("LR runs; dotted: LR-XPIC(5)'s d_LR releases", fontsize=9)
     zx.legend(fontsize=6.5, loc="lower right")
     for name, run_ in comp["runs"].items():
         bx.plot(100 * np.asarray(run_["strain"]), -1e-6 * np.asarray(run_["stress"]), label=name)
-    bx.set_xlabel("strain (%)")
-    bx.set_ylabel("mean -sigma_yy (MPa)")
+    bx.set(xlabel="strain (%)", ylabel="mean -sigma_yy (MPa)")
     bx.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=110)

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.common import figure
+from benchmarks.common import figure, save
 from benchmarks.lr_compression import C_K, DX, MODES, column_scene, run_case
 from benchmarks.runner import Benchmark, name_unless, register
 
@@ -74,15 +74,12 @@ def contact_time(mode: str) -> dict:
 
 def plot(record: dict, path: Path) -> None:
     """Fig. 2B: the mean stress against time per case, t_c dashed."""
-    fig, ax = figure((6, 4.2))
+    fig, ax = figure((6, 4.2), layout="tight")
     for key, case in record["cases"].items():
         ax.plot(1e3 * np.asarray(case["t"]), -1e-6 * np.asarray(case["stress"]), label=key)
     ax.axvline(1e3 * record["t_c"], color="k", lw=0.6, ls="--")
-    ax.set_xlabel("t (ms)")
-    ax.set_ylabel("mean -sigma_yy (MPa)")
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    ax.set(xlabel="t (ms)", ylabel="mean -sigma_yy (MPa)")
+    save(fig, path, [ax])
 
 
 BENCHMARK = register(

@@ -36,7 +36,7 @@ import numpy as np
 import bfemp
 from benchmarks._ellipse_bodies import add_ellipse_classes
 from benchmarks._shared import StepCost
-from benchmarks.common import figure
+from benchmarks.common import figure, save
 from benchmarks.runner import Benchmark, name_unless, register
 from bfemp.materials import BulkShearHyperelastic
 from bfemp.motion import Linear
@@ -148,19 +148,15 @@ def run_detector(cfg: dict, name: str, samples: int = 40) -> dict:
 
 def plot(record: dict, path: Path) -> None:
     """Stress and interpenetration against compression, per detector."""
-    fig, (ax, bx) = figure((10, 4), 1, 2)
+    fig, (ax, bx) = figure((10, 4), 1, 2, layout="tight")
     cfg = record["setup"]
     for name, run_ in record["runs"].items():
         comp = 100 * PISTON_SPEED * np.asarray(run_["history"]["t"]) / cfg["height"]
         ax.plot(comp, 1e-9 * np.asarray(run_["history"]["stress"]), label=name)
         bx.plot(comp, run_["history"]["interpenetrating"], label=name)
-    ax.set_xlabel("compression (%)")
-    ax.set_ylabel("piston stress (GPa)")
-    bx.set_xlabel("compression (%)")
-    bx.set_ylabel("interpenetrating particles")
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    ax.set(xlabel="compression (%)", ylabel="piston stress (GPa)")
+    bx.set(xlabel="compression (%)", ylabel="interpenetrating particles")
+    save(fig, path, [ax])
 
 
 def measure(mode: str, cfg) -> dict:

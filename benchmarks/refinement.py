@@ -48,7 +48,7 @@ import numpy as np
 
 import bfemp
 from benchmarks import catalogue
-from benchmarks.common import figure
+from benchmarks.common import figure, log_row
 from benchmarks.runner import Benchmark, name_unless, register
 
 log = logging.getLogger(__name__)
@@ -147,17 +147,7 @@ def settle(n: int, ppc: int, settings: dict = SETTINGS) -> dict:
         calm = calm + 1 if abs(history[-1] - history[-2]) < settings["rest_tol_m"] else 0
     y_all, y_mpm = heights()
     wall = time.perf_counter() - started
-    log.info(
-        "refinement N=%d PPC=%d: y_all %.9f m, y_mpm %.9f m, %d steps, %d Newton its, %.1f s",
-        n,
-        ppc,
-        y_all,
-        y_mpm,
-        len(history) - 1,
-        iterations,
-        wall,
-    )
-    return {
+    out = {
         "n": n,
         "ppc": ppc,
         "dx_m": 1.0 / n,
@@ -173,6 +163,8 @@ def settle(n: int, ppc: int, settings: dict = SETTINGS) -> dict:
         "error": error,
         "y_mpm_history": history,
     }
+    log_row(log, f"{NAME} N={n} PPC={ppc}", out, "y_all y_mpm steps newton_iterations wall_s")
+    return out
 
 
 def fit_order(dx: np.ndarray, err: np.ndarray) -> float:
@@ -214,8 +206,7 @@ def _plot(series: dict, path: Path, title: str) -> None:
         anchor = np.nanmax(all_err) if np.isfinite(all_err).any() else 1.0
         for order, style in ((1, "k:"), (2, "k--")):
             ax.loglog(x, anchor * (x / x.max()) ** order, style, lw=0.8, label=f"order {order}")
-    ax.set_xlabel("dx = 1/N [m]")
-    ax.set_ylabel("|y_com(N) - y_com(N_ref)| [m]")
+    ax.set(xlabel="dx = 1/N [m]", ylabel="|y_com(N) - y_com(N_ref)| [m]")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize="small")
     ax.set_title(title, fontsize="medium")

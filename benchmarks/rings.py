@@ -72,6 +72,7 @@ import numpy as np
 
 import bfemp
 from benchmarks._rings_probe import measure_probe
+from benchmarks._shared import check_settings
 from benchmarks.catalogue import (
     DHAT,
     GAP,
@@ -88,7 +89,7 @@ from benchmarks.catalogue import (
     rings_scene,
     window_energies,
 )
-from benchmarks.common import figure
+from benchmarks.common import figure, log_row, save
 from benchmarks.runner import Benchmark, register
 
 log = logging.getLogger(__name__)
@@ -200,6 +201,9 @@ def run_transfer(cfg: dict, transfer: str, keep: dict | None = None) -> dict:
 
 #: the keys of a ``run_point`` settings dict (the trade study's knobs and fixed settings)
 POINT_KEYS = ("dx", "ppc", "fem_h", "dt", "t_end", "dhat", "tol", "strategy", "transfer")
+#: the entries of ``run_transfer``'s result a ``run_point`` result copies
+POINT_RESULTS = ("steps", "newton_iterations", "newton_iterations_max", "momentum_drift_rel",
+                 "min_distance", "penetrations", "particles", "fem_vertices")  # fmt: skip
 
 
 def run_point(settings: dict) -> dict:
@@ -217,24 +221,14 @@ def run_point(settings: dict) -> dict:
         ``momentum_drift_rel``, ``min_distance`` (m), ``penetrations``, ``particles`` and the
         ``StepError`` message in ``failure`` (None when every step converged).
     """
-    missing = [key for key in POINT_KEYS if key not in settings]
-    unknown = sorted(set(settings) - set(POINT_KEYS))
-    if missing or unknown:
-        raise ValueError(f"rings.run_point: missing settings {missing}, unknown {unknown}")
+    check_settings("rings.run_point", settings, POINT_KEYS)
     run = run_transfer(dict(settings), settings["transfer"])
     window = run["contact_window_s"]
     return {
         "energy_loss_pct": run["energy_loss_pct"],
         "contact_window_s": window,
         "contact_duration_s": window[1] - window[0] if window else None,
-        "steps": run["steps"],
-        "newton_iterations": run["newton_iterations"],
-        "newton_iterations_max": run["newton_iterations_max"],
-        "momentum_drift_rel": run["momentum_drift_rel"],
-        "min_distance": run["min_distance"],
-        "penetrations": run["penetrations"],
-        "particles": run["particles"],
-        "fem_vertices": run["fem_vertices"],
+        **{k: run[k] for k in POINT_RESULTS},
         "failure": run["error"],
     }
 
@@ -285,27 +279,17 @@ def _plot(runs: dict, path: Path, title: str, compared: dict | None = None) -> N
         for k, edge in enumerate(window or ()):
             label = "first / last step with contact" if k == 0 else None
             ax.axvline(edge, color="0.3", ls="--", lw=0.8, label=label)
-        ax.grid(True, alpha=0.3)
-        ax.legend(fontsize="small", loc="best")
-    fig.suptitle(title)
-    fig.savefig(path, dpi=110)
+    save(fig, path, axes, title)
 
 
-def add_arguments(parser: argparse.ArgumentParser) -> None:
+def _arguments(group: argparse._ActionsContainer) -> None:
     """``--no-compare``: skip ``COMPARED_INTEGRATORS`` (the two transfers alone, half the time)."""
-    parser.add_argument(
+    group.add_argument(
         "--no-compare",
         dest="compare",
         action="store_false",
         help="run the two transfers only, without the compared integrators",
     )
-
-
-def main_from_args(args: argparse.Namespace) -> int:
-    """``python -m benchmarks rings [--quick | --full | --mode M] [--no-compare] [--out D]``."""
-    summary = run(args.mode or "full", args.out, compare=args.compare)
-    print(f"rings: wrote {summary['json']}")
-    return 0
 
 
 def measure(mode: str, cfg: dict, compare: bool = True) -> dict:
@@ -382,12 +366,7 @@ def measure(mode: str, cfg: dict, compare: bool = True) -> dict:
             "runs": {k: _for_json(r) for k, r in by_transfer.items()},
         }
         payload["wall_s"] += payload["compared_integrators"][name]["wall_s"]
-    log.info(
-        "rings: drift %.2e, min distance %.3e m, energy loss %s",
-        payload["momentum_drift_rel"],
-        payload["min_distance"],
-        payload["energy_loss_pct"],
-    )
+    log_row(log, NAME, payload, "momentum_drift_rel min_distance energy_loss_pct")
     return payload
 
 
@@ -410,5 +389,7 @@ def record(mode: str, options: dict) -> str:
     return f"{NAME}_{mode}" if mode == "full_probe" else NAME
 
 
-BENCHMARK = register(Benchmark(NAME, __doc__, MODES, measure, plot=plot, record=record))
+BENCHMARK = register(
+    Benchmark(NAME, __doc__, MODES, measure, plot=plot, record=record, arguments=_arguments)
+)
 run = BENCHMARK.run

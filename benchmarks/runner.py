@@ -51,15 +51,13 @@ class Benchmark:
         name: the command-line name (``python -m benchmarks NAME``).
         title: one line: what is measured (a docstring given is cut to its first line).
         modes: mode -> its parameters (passed to ``measure`` as ``cfg``).
-        measure: ``measure(mode, cfg, **options) -> payload`` (a JSON-ready dict); None for
-            a benchmark that still writes its own record through ``own_run``.
+        measure: ``measure(mode, cfg, **options) -> payload`` (a JSON-ready dict).
         plot: ``plot(payload, png_path)``, or None for a record without a figure.
         report: ``report(payload) -> str``: Markdown written beside the JSON, or None.
         record: ``record(mode, options) -> stem`` of the files written (default: the name).
         timings: a regular expression of the record's keys that hold times or ratios of times
             (beside ``TIMING_KEY``), left out by ``verify``: e.g. ``"_s$"`` for a timing
             benchmark whose every ``*_s`` is a measured time.
-        own_run: ``own_run(mode, out) -> summary`` of a benchmark not yet on the runner.
         aliases: other names that run this entry (old names of merged benchmarks), each with
             the options it implies: ``{alias: {option: value}}``.
         arguments: ``arguments(group)`` adds the benchmark's own command-line options to an
@@ -72,12 +70,11 @@ class Benchmark:
     name: str
     title: str
     modes: Mapping[str, Mapping]
-    measure: Callable[..., dict] | None
+    measure: Callable[..., dict]
     plot: Callable[[dict, Path], None] | None = None
     report: Callable[[dict], str] | None = None
     record: Callable[[str, Mapping], str] | None = None
     timings: str = ""
-    own_run: Callable[[str, str | Path], dict] | None = None
     aliases: Mapping[str, Mapping] = field(default_factory=dict)
     arguments: Callable[[argparse._ActionsContainer], None] | None = None
     needs_out: bool = False
@@ -88,7 +85,7 @@ class Benchmark:
     @property
     def module(self) -> str:
         """The module that defines the benchmark."""
-        return (self.measure or self.own_run).__module__
+        return self.measure.__module__
 
     def stem(self, mode: str, options: Mapping | None = None) -> str:
         """The file stem of the record of ``mode`` run with ``options``."""
@@ -105,8 +102,6 @@ class Benchmark:
         path (with a plot), "md": path (with a report), **record}``. Keys of the measured
         payload that start with an underscore (per-step series, snapshots) reach the plot and
         the report but not the record."""
-        if self.measure is None:
-            return self.own_run(mode, out, **options)
         cfg = self.check_mode(mode)
         env = environment()  # before the run: the commit that ran, not the one at the end
         started = time.perf_counter()
@@ -159,7 +154,7 @@ def mode_options(parser: argparse.ArgumentParser) -> None:
         dest="mode",
         help="another mode of the benchmark (rings: partial; hertz: refined; "
         "buckling: partial, plate_quick, plate_partial, plate_full; "
-        "twist: partial, partial_probe, full_probe; extremes: coarse)",
+        "twist: partial, partial_probe, full_probe, partial_solvers; extremes: coarse)",
     )
     parser.add_argument("--out", default="results", help="output folder (default results/)")
 

@@ -42,7 +42,7 @@ import numpy as np
 import bfemp
 from benchmarks import catalogue as cat
 from benchmarks import rings, slope
-from benchmarks.common import figure
+from benchmarks.common import figure, save
 from benchmarks.runner import Benchmark, register
 from bfemp.steppers.augury import AuguryOptions
 from bfemp.steppers.lr import LROptions
@@ -253,15 +253,13 @@ def _two_stage_rings(mode: str) -> dict:
 
 
 def _plot_two_stage_rings(payload: dict, png: Path) -> None:
-    fig, ax = figure((6.0, 4.0))
+    fig, ax = figure((6.0, 4.0), layout="tight")
     for tr, series in payload["series"].items():
         ax.plot(series["t"], series["total"], label=f"two_stage {tr}")
     ax.set(xlabel="t (s)", ylabel="kinetic + elastic energy (J/m)")
     title = f"rings under two_stage ({payload['mode']}); drift {payload['momentum_drift_rel']:.1e}"
     ax.set_title(title, fontsize=9)
-    ax.legend()
-    fig.tight_layout()
-    fig.savefig(png, dpi=110)
+    save(fig, png, [ax], legend="medium")
 
 
 # ----------------------------------------------------------------------------- slope
@@ -527,10 +525,7 @@ def _plot_sticking(payload: dict, path: Path) -> None:
             ylabel="|speed along slope| / eps_v",
             title=f"mu = {f} tan(theta), from rest",
         )
-        ax.grid(True, alpha=0.3)
-        ax.legend(fontsize="xx-small")
-    fig.suptitle("two_stage_slope sticking (dotted: start='free')")
-    fig.savefig(path, dpi=110)
+    save(fig, path, axes, "two_stage_slope sticking (dotted: start='free')", legend="xx-small")
 
 
 # ----------------------------------------------------------------------------- entry

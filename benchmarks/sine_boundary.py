@@ -70,7 +70,7 @@ import numpy as np
 import bfemp
 from benchmarks import catalogue
 from benchmarks._penetration import penetration_summary
-from benchmarks.common import figure
+from benchmarks.common import figure, log_row
 from benchmarks.runner import Benchmark, register
 
 log = logging.getLogger(__name__)
@@ -340,8 +340,7 @@ def _plot(runs: dict, geo: Geometry, path_png: Path, title: str) -> None:
         ax.plot(s["t"], s["fy"], "C0-", lw=1.0, label="F_y on the box (> 0: pulling = adhesion)")
         ax.axhline(0.0, color="k", lw=0.6)
         ax.set_ylim(fmin - pad, fmax + pad)
-        ax.set_xlabel("t [s]")
-        ax.set_ylabel("vertical force of the boundary on the box [N/m]")
+        ax.set(xlabel="t [s]", ylabel="vertical force of the boundary on the box [N/m]")
         for edge in (geo.t_down, geo.t_up):
             ax.axvline(edge, color="0.5", ls="--", lw=0.8)
         twin = ax.twinx()
@@ -404,11 +403,7 @@ def measure(mode: str, cfg: dict) -> dict:
     payload = {
         "penetrations": bf["penetrations"],
         "max_tensile_force": bf["max_tensile_force"],
-        "levelset": {
-            "penetrations": ls["penetrations"],
-            "max_tensile_force": ls["max_tensile_force"],
-            **public(ls),
-        },
+        "levelset": public(ls),  # its penetrations and max_tensile_force among the rest
         "bfemp": public(bf),
         "steps": bf["steps"],
         "steps_total": bf["steps"] + ls["steps"],
@@ -458,14 +453,8 @@ def measure(mode: str, cfg: dict) -> dict:
             "partial run: the paper's scene, path and dt on a coarser grid (dx 0.04 m, ppc 4, "
             "2500 particles); full mode (dx 0.02 m, ppc 9, 22500 particles) takes hours on 2 cores"
         )
-    log.info(
-        "%s: BFEMP penetrations %d, tensile %.3g N/m; level set penetrations %d, tensile %.3g N/m",
-        NAME,
-        bf["penetrations"],
-        bf["max_tensile_force"],
-        ls["penetrations"],
-        ls["max_tensile_force"],
-    )
+    for name, r in runs.items():
+        log_row(log, f"{NAME} {name}", r, "penetrations max_tensile_force")
     return {**payload, "_runs": runs}
 
 

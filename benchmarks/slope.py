@@ -56,7 +56,7 @@ from benchmarks._shared import check_settings
 from benchmarks.catalogue import SLOPE_PHYSICS as PHYSICS
 from benchmarks.catalogue import SLOPE_VARIANTS as VARIANTS
 from benchmarks.catalogue import release_slope, settle_slope
-from benchmarks.common import figure
+from benchmarks.common import figure, log_row
 from benchmarks.runner import Benchmark, register
 
 log = logging.getLogger(__name__)
@@ -130,24 +130,11 @@ def plot_cases(results: dict, path: Path, title: str) -> None:
 def _run_variant(variant: str, mus: tuple[float, ...], cfg: dict) -> dict:
     """Settle once, release at each mu; the variant's settle record and cases."""
     settled, settle = settle_slope(variant, cfg["settle_steps"])
-    log.info(
-        "%s: settled in %.1f s, COM speed %.2e m/s",
-        variant,
-        settle["wall_s"],
-        settle["com_speed_at_release_m_s"],
-    )
+    log_row(log, f"{variant} settled", settle, "wall_s com_speed_at_release_m_s")
     cases = []
     for mu in mus:
         case = release_slope(variant, mu, settled, cfg["release_steps"], cfg["fit_start_s"])
-        log.info(
-            "%s mu=%g: accel %.8g (analytic %.8g), max speed %.3g m/s, %.1f s",
-            variant,
-            mu,
-            case["accel"],
-            case["accel_analytic"],
-            case["max_speed"],
-            case["wall_s"],
-        )
+        log_row(log, f"{variant} mu={mu:g}", case, "accel accel_analytic max_speed wall_s")
         cases.append(case)
     frame, slope_h = VARIANTS[variant]
     return {"frame": frame, "slope_h_m": slope_h, "settle": settle, "cases": cases}

@@ -86,13 +86,11 @@ import time
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 import bfemp
 from benchmarks import catalogue
-from benchmarks.common import cases_by_mu, environment, note_merge, peak_memory_mb, write_json
-from benchmarks.runner import Benchmark, name_unless, register
+from benchmarks.common import cases_by_mu, figure, note_merge, save
+from benchmarks.runner import Benchmark, name_unless, register, write_record
 from geometry.mesh import TetMesh
 from solvers.choice import make_linear_solver
 
@@ -150,6 +148,8 @@ MODES = {
     "partial": _mode(0.125, 8, 0.1, 2e-2),
     "quick": _mode(0.25, 8, 0.15, 5e-2, speed=2.0),
 }
+#: the timing probes, modes of the runner beside ``MODES``: mode -> the mode probed
+PROBES = {"partial_probe": "partial", "full_probe": "full", "partial_solvers": "partial"}
 #: where the full mode's wall-time estimate is (the probe's numbers change with the code)
 FULL_ESTIMATE = "see benchmarks/records/twist_full_probe.md (from the full timing probe)"
 
@@ -177,8 +177,9 @@ def shell_motion(omega: float) -> bfemp.motion.Motion:
     )
 
 
-def _scene(cfg: dict, mu: float) -> bfemp.Scene:
-    """Cube on a sticky floor, the shell d-hat above it with its upper hemisphere scripted."""
+def _simulation(cfg: dict, mu: float, solver: str = "default") -> bfemp.Simulation:
+    """Cube on a sticky floor, the shell d-hat above it with its upper hemisphere scripted;
+    ``solver``: a ``solvers.choice`` linear-solver name."""
     scene = bfemp.Scene(dim=3, gravity=(0.0, 0.0, GRAVITY))
     half = 0.5 * CUBE_EDGE
     x, vol = bfemp.sample.box(
@@ -197,7 +198,10 @@ def _scene(cfg: dict, mu: float) -> bfemp.Scene:
     floor = bfemp.levelset.Box(lower=(-2.0, -2.0, -1.0), upper=(2.0, 2.0, 0.0))
     scene.add_boundary(floor, kind="sticky")
     scene.set_contact(dhat=DHAT, kappa=KAPPA, mu=mu, eps_v=EPS_V)
-    return scene
+    linear_solver = make_linear_solver(solver, block_size=3)
+    return catalogue.paper_simulation(
+        scene, cfg["dt"], TOL, MAX_NEWTON, linear_solver=linear_solver
+    )
 
 
 class TopTwist:
@@ -252,23 +256,17 @@ def _run_one(
     ``budget_s``: stop after the step that ends past this wall time in s, ``max_steps``: after
     that many steps (timing probes); ``solver``: a ``solvers.choice`` linear-solver name.
     """
-    linear_solver = make_linear_solver(solver, block_size=3)
-    sim = catalogue.paper_simulation(
-        _scene(cfg, mu), cfg["dt"], TOL, MAX_NEWTON, linear_solver=linear_solver
-    )
-    spacing = cfg["dx"] / round(cfg["ppc"] ** (1.0 / 3.0))
-    measure = TopTwist(sim.state.mpm_x, spacing)
+    sim = _simulation(cfg, mu, solver)
+    measure = TopTwist(sim.state.mpm_x, cfg["dx"] / round(cfg["ppc"] ** (1.0 / 3.0)))
     steps = round((PRESS_TIME + cfg["twist_time"]) / cfg["dt"])
-    if max_steps is not None:
-        steps = min(steps, max_steps)
+    steps = steps if max_steps is None else min(steps, max_steps)
     t, cube = [0.0], [0.0]
-    newton, friction_max, friction_unconverged, min_d, error = 0, 0, 0, math.inf, None
+    friction_max, friction_unconverged, min_d, error = 0, 0, math.inf, None
     slip_t = slip_angle = None
     cut = False  # stopped by budget_s before the end of the run
-    step_wall, step_cpu, step_newton, step_pairs = [], [], [], []
+    series = {k: [] for k in ("step_wall_s", "step_cpu_s", "newton", "pairs", "split")}
     phases: dict[str, float] = {}
     step_phases: dict[str, list[float]] = {k: [] for k in STEP_PHASES}
-    hessian_split: list[dict[str, float]] = []  # per step, by term (see _hessian_split)
     started = time.perf_counter()
     for _ in range(steps):
         tick, cpu = time.perf_counter(), time.process_time()
@@ -276,17 +274,16 @@ def _run_one(
         report, error = catalogue.step(sim, f"twist mu={mu:g}")
         if error is not None:
             break
-        step_wall.append(time.perf_counter() - tick)
-        step_cpu.append(time.process_time() - cpu)
-        step_newton.append(report.newton_iterations)
-        step_pairs.append(report.contact_pairs)
+        series["step_wall_s"].append(time.perf_counter() - tick)
+        series["step_cpu_s"].append(time.process_time() - cpu)
+        series["newton"].append(report.newton_iterations)
+        series["pairs"].append(report.contact_pairs)
         for name, seconds in report.timings.items():
             phases[name] = phases.get(name, 0.0) + seconds
-        for name, series in step_phases.items():
-            series.append(report.timings.get(name, 0.0))
-        after = sim.stepper.potential.hessian_seconds()
-        hessian_split.append({k: v - before.get(k, 0.0) for k, v in after.items()})
-        newton += report.newton_iterations
+        for name, values in step_phases.items():
+            values.append(report.timings.get(name, 0.0))
+        after = sim.stepper.potential.hessian_seconds()  # the Hessian split by term
+        series["split"].append({k: v - before.get(k, 0.0) for k, v in after.items()})
         friction_max = max(friction_max, report.friction_iterations)
         friction_unconverged += int(not report.friction_converged)
         if np.isfinite(report.min_distance):
@@ -300,28 +297,14 @@ def _run_one(
         elif cfg["stop_after_slip"] and sim.state.t >= slip_t + STOP_AFTER_SLIP_S - 1e-9:
             break
         if len(t) % PROGRESS_EVERY == 1:
-            log.info(
-                "twist mu=%g: t = %.2f s, cube %.3f pi, %d Newton iterations, %.0f s",
-                mu,
-                t[-1],
-                cube[-1] / math.pi,
-                newton,
-                time.perf_counter() - started,
-            )
+            log.info("twist mu=%g: t = %.2f s, cube %.3f pi, %.0f s", mu, t[-1],
+                     cube[-1] / math.pi, time.perf_counter() - started)  # fmt: skip
         if time.perf_counter() - started > budget_s:
             cut = True
             break
     wall = time.perf_counter() - started
-    log.info(
-        "twist mu=%g: slip angle %s, cube %.3f pi at t = %.2f s, %d steps, %.1f s",
-        mu,
-        "none" if slip_angle is None else f"{slip_angle / math.pi:.3f} pi",
-        cube[-1] / math.pi,
-        t[-1],
-        len(t) - 1,
-        wall,
-    )
-    shell = [cfg["omega"] * max(0.0, s - PRESS_TIME) for s in t]
+    log.info("twist mu=%g: slip angle %s, %d steps, %.1f s", mu, slip_angle, len(t) - 1, wall)
+    step_wall = series["step_wall_s"]
     return {
         "mu": mu,
         "error": error,
@@ -335,7 +318,7 @@ def _run_one(
             None if slip_t is None else cfg["omega"] * (slip_t - PRESS_TIME) / math.pi
         ),
         "max_cube_angle_pi": max(cube) / math.pi,
-        "newton_iterations": newton,
+        "newton_iterations": sum(series["newton"]),
         "friction_iterations_max": friction_max,
         "friction_unconverged_steps": friction_unconverged,
         "min_distance_m": min_d if math.isfinite(min_d) else None,
@@ -353,13 +336,13 @@ def _run_one(
         "series": {
             "t_s": t,
             "cube_angle_rad": cube,
-            "shell_angle_rad": shell,
+            "shell_angle_rad": [cfg["omega"] * max(0.0, s - PRESS_TIME) for s in t],
             "step_wall_s": step_wall,
-            "step_cpu_s": step_cpu,
-            "step_newton_iterations": step_newton,
-            "step_contact_pairs": step_pairs,
+            "step_cpu_s": series["step_cpu_s"],
+            "step_newton_iterations": series["newton"],
+            "step_contact_pairs": series["pairs"],
             "step_phase_s": step_phases,
-            "step_hessian_phases_s": hessian_split,
+            "step_hessian_phases_s": series["split"],
         },
     }
 
@@ -376,30 +359,25 @@ def slip_ordered(angles: list[float | None]) -> bool:
     return all(a < b for a, b in zip(key[:-1], key[1:], strict=True))
 
 
-def _plot(runs: list[dict], path: Path, title: str) -> None:
+def plot(payload: dict, path: Path) -> None:
     """Figure 17: the cube top's twist angle against time per mu, the shell's dashed."""
-    fig = Figure(figsize=(8.0, 5.0), layout="constrained")
-    FigureCanvasAgg(fig)
-    ax = fig.add_subplot()
+    if "_runs" not in payload:  # a timing probe: nothing to draw
+        return
+    runs = payload["_runs"]
+    fig, ax = figure((8.0, 5.0), layout="constrained")
     longest = max(runs, key=lambda r: r["t_end_s"])["series"]
     ax.plot(longest["t_s"], longest["shell_angle_rad"], "k--", lw=1.0, label="shell")
     for k, run in enumerate(runs):
-        s = run["series"]
-        label = f"mu = {run['mu']:g}"
-        label += (
-            " (no slip)"
-            if run["slip_angle_pi"] is None
-            else f" (slips at {run['slip_angle_pi']:.2f} pi)"
+        slip = run["slip_angle_pi"]
+        label = f"mu = {run['mu']:g}" + (
+            " (no slip)" if slip is None else f" (slips at {slip:.2f} pi)"
         )
-        ax.plot(s["t_s"], s["cube_angle_rad"], color=f"C{k}", label=label)
+        ax.plot(run["series"]["t_s"], run["series"]["cube_angle_rad"], color=f"C{k}", label=label)
         if run["slip_time_s"] is not None:
             ax.plot(run["slip_time_s"], run["slip_angle_rad"], "o", color=f"C{k}", ms=5)
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("twist angle of the cube's top centre [rad]")
-    ax.grid(True, alpha=0.3)
-    ax.legend(fontsize="small", loc="upper left")
-    ax.set_title(title)
-    fig.savefig(path, dpi=110)
+    ax.set(xlabel="time [s]", ylabel="twist angle of the cube's top centre [rad]")
+    ax.set_title(f"Shell pressed and twisted on an MPM cube ({payload['mode']} mode)")
+    save(fig, path, [ax])
 
 
 def per_newton_iteration(series: dict, steps: np.ndarray) -> tuple[dict, dict]:
@@ -427,14 +405,7 @@ def _warm_up(mu: float) -> float:
     first contact step; see ``records/twist_full_probe.md``). Returns the wall time in s."""
     started = time.perf_counter()
     cfg = MODES["quick"]
-    sim = catalogue.paper_simulation(
-        _scene(cfg, mu),
-        cfg["dt"],
-        TOL,
-        MAX_NEWTON,
-        linear_solver=make_linear_solver("default", block_size=3),
-    )
-    in_contact = 0
+    sim, in_contact = _simulation(cfg, mu), 0
     for _ in range(round(PRESS_TIME / cfg["dt"])):
         report, error = catalogue.step(sim, f"twist warm-up mu={mu:g}")
         in_contact += error is None and report.contact_pairs > 0
@@ -443,16 +414,10 @@ def _warm_up(mu: float) -> float:
     return time.perf_counter() - started
 
 
-def probe(
-    mode: str,
-    out: str | Path = "results",
-    mu: float = 0.5,
-    max_steps: int | None = None,
-    budget_s: float | None = None,
-) -> dict:
+def probe(mode: str, mu: float = 0.5, max_steps: int | None = None, budget_s=None) -> dict:
     """Timing probe (not a result): the first ``PROBE_BUDGET_S[mode]`` s of wall time of ``mode``'s
     ``mu`` case (or its first ``max_steps`` steps, whichever ends first: a shorter probe of the
-    same scene); writes ``twist_<mode>_probe.json`` with the per-step wall time, Newton
+    same scene); the record (``twist_<mode>_probe.json``) holds the per-step wall time, Newton
     iterations, contact pairs, Hessian and factorisation time per Newton iteration (the Hessian
     split by term and the elasticity terms' dP/dF projection), the peak memory, and a naive
     estimate of the whole mode. ``budget_s`` replaces the mode's wall budget (a loaded machine).
@@ -469,10 +434,10 @@ def probe(
         for k in ("step_wall_s", "step_cpu_s", "step_newton_iterations", "step_contact_pairs")
     )
     steps_per_case = round((PRESS_TIME + cfg["twist_time"]) / cfg["dt"])
-    t_end = np.array(s["t_s"][1:])
     # the first step builds what later steps reuse: it is left out of the rates
     later = np.arange(wall.size) > 0
-    contact, twisting = later & (pairs > 0), later & (t_end > PRESS_TIME + 1e-9)
+    contact = later & (pairs > 0)
+    twisting = later & (np.array(s["t_s"][1:]) > PRESS_TIME + 1e-9)
 
     def mean(values: np.ndarray, mask: np.ndarray) -> float | None:
         return float(np.mean(values[mask])) if np.any(mask) else None
@@ -480,9 +445,7 @@ def probe(
     rate = mean(wall, contact)
     per_iteration, hessian_split = per_newton_iteration(s, contact)
     hessian, factorize = per_iteration["hessian"], per_iteration["factorize"]
-    payload = {
-        "benchmark": NAME,
-        "mode": f"{mode}_probe",
+    return {
         "kind": "TIMING PROBE, not a result: the first steps of one case, cut at the wall budget",
         "probe_mu": mu,
         "budget_s": budget,
@@ -491,9 +454,7 @@ def probe(
         "t_reached_s": case["t_end_s"],
         "steps_per_case": steps_per_case,
         "cases": len(cfg["mus"]),
-        "particles": case["particles"],
-        "shell_vertices": case["shell_vertices"],
-        "shell_tetrahedra": case["shell_tetrahedra"],
+        **{k: case[k] for k in ("particles", "shell_vertices", "shell_tetrahedra")},
         "warm_up_s": warm_up_s,
         "first_step_s": float(wall[0]) if wall.size else None,
         "phase_s": case["phase_s"],
@@ -527,23 +488,18 @@ def probe(
             "iterations than sticking ones in quick mode"
         ),
         "wall_s": time.perf_counter() - started,
-        "peak_memory_mb": peak_memory_mb(),
         "parameters": dict(cfg),
-        "environment": environment(),
     }
-    path = write_json(out, f"{NAME}_{mode}_probe", payload)
-    return {"json": str(path), **payload}
 
 
-def solver_probe(out: str | Path = "results", mu: float = 0.5) -> dict:
+def solver_probe(out: Path, mu: float = 0.5) -> dict:
     """Timing probe (not a result) of the linear solvers of the speed issue (``perf_3d``): the
     first ``SOLVER_PROBE_STEPS`` steps of the partial mode's ``mu`` case with each installed
-    solver, each cut after ``SOLVER_PROBE_BUDGET_S`` of wall time; writes
-    ``twist_partial_solvers.json`` (after every solver) with the wall time of the steps that
-    every solver reached, Newton iterations, phases, and the largest particle-position difference
-    from CHOLMOD's run where both reached the same step."""
+    solver, each cut after ``SOLVER_PROBE_BUDGET_S`` of wall time; the record
+    (``twist_partial_solvers.json``, written after every solver) holds the wall time of the
+    steps that every solver reached, Newton iterations, phases, and the largest
+    particle-position difference from CHOLMOD's run where both reached the same step."""
     cfg = MODES["partial"]
-    started = time.perf_counter()
     results, reference, payload = {}, None, {}
     for name in ("cholmod", "pardiso", "cg_amg"):
         try:
@@ -554,26 +510,22 @@ def solver_probe(out: str | Path = "results", mu: float = 0.5) -> dict:
         case = _run_one(
             cfg, mu, budget_s=SOLVER_PROBE_BUDGET_S, max_steps=SOLVER_PROBE_STEPS, solver=name
         )
-        x = case["final_mpm_x"]
-        if reference is None:
-            reference = (case["steps"], x)
-        same = reference[0] == case["steps"]
+        x, s = case["final_mpm_x"], case["series"]
+        reference = reference or (case["steps"], x)
         results[name] = {
             "steps": case["steps"],
             "wall_s": case["wall_s"],
-            "step_wall_s": case["series"]["step_wall_s"],
-            "step_newton_iterations": case["series"]["step_newton_iterations"],
+            "step_wall_s": s["step_wall_s"],
+            "step_newton_iterations": s["step_newton_iterations"],
             "newton_iterations": case["newton_iterations"],
             "phase_s": case["phase_s"],
-            "contact_pairs_end": case["series"]["step_contact_pairs"][-1],
+            "contact_pairs_end": s["step_contact_pairs"][-1],
             "max_position_difference_from_cholmod_m": (
-                float(np.abs(x - reference[1]).max()) if same else None
+                float(np.abs(x - reference[1]).max()) if reference[0] == case["steps"] else None
             ),
         }
         common = min(r["steps"] for r in results.values() if "steps" in r)
         payload = {
-            "benchmark": NAME,
-            "mode": "partial_solvers",
             "kind": "TIMING PROBE, not a result: the first steps of the partial mode per solver",
             "probe_mu": mu,
             "max_steps": SOLVER_PROBE_STEPS,
@@ -584,57 +536,40 @@ def solver_probe(out: str | Path = "results", mu: float = 0.5) -> dict:
                 k: float(sum(r["step_wall_s"][:common])) for k, r in results.items() if "steps" in r
             },
             "solvers": results,
-            "wall_s": time.perf_counter() - started,
-            "peak_memory_mb": peak_memory_mb(),
             "parameters": dict(cfg),
-            "environment": environment(),
         }
-        path = write_json(out, f"{NAME}_partial_solvers", payload)
-    return {"json": str(path), **payload}
+        _checkpoint(out, "partial_solvers", payload)
+    return payload
 
 
-def run(
-    mode: str = "full",
-    out: str | Path = "results",
-    mus: tuple[float, ...] | None = None,
-    budget_s: float = math.inf,
-) -> dict:
-    """Press and twist at each mu; write ``twist.json`` and ``twist.png`` to ``out``.
+def _checkpoint(out: Path, mode: str, payload: dict) -> None:
+    """The record of ``mode`` so far (and its plot), written before the runner's final one: a
+    long run that is stopped keeps what it finished."""
+    write_record(out, BENCHMARK.stem(mode), {"benchmark": NAME, "mode": mode, **payload}, plot)
+
+
+def measure(mode: str, cfg: dict, out: Path, mus=None, budget_s=None, **probe_options) -> dict:
+    """Press and twist at each mu of ``mode`` (``"full"``: the paper's resolution, ``"partial"``
+    or ``"quick"``), or a timing probe (``PROBES``: ``probe``, ``solver_probe``).
 
     Args:
-        mode: ``"full"`` (the paper's resolution), ``"partial"`` or ``"quick"``; or a timing
-            probe of one of them, ``"full_probe"`` / ``"partial_probe"`` (see ``probe``).
-        out: output folder.
         mus: friction coefficients to run instead of the mode's (the quick-mode test runs two).
         budget_s: wall time in s after which each case stops (its record then says
-            ``cut_at_budget_s`` and ends at ``t_end_s``: "no slip" means none up to there).
-
-    Returns:
-        ``{"json": path, "png": path, **payload}``; ``payload["cases"]`` per mu.
+            ``cut_at_budget_s`` and ends at ``t_end_s``: "no slip" means none up to there); in a
+            probe, its wall budget.
+        probe_options: ``mu`` and ``max_steps`` of ``probe``.
     """
     if mode == "partial_solvers":
-        return solver_probe(out)
-    if mode.endswith("_probe") and mode[: -len("_probe")] in MODES:
-        return probe(mode[: -len("_probe")], out)
-    if mode not in MODES:
-        modes = sorted(MODES) + ["full_probe", "partial_probe", "partial_solvers"]
-        raise ValueError(f"mode must be one of {modes}, got {mode!r}")
-    cfg = dict(MODES[mode])
-    if mus is not None:
-        cfg["mus"] = tuple(float(m) for m in mus)
-    env = environment()
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    started = time.perf_counter()
-    runs: list[dict] = []
+        return solver_probe(out, **probe_options)
+    if mode in PROBES:
+        return probe(PROBES[mode], budget_s=budget_s, **probe_options)
+    cfg = dict(cfg, mus=cfg["mus"] if mus is None else tuple(float(m) for m in mus))
+    started, runs = time.perf_counter(), []
     for mu in cfg["mus"]:
-        runs.append(_run_one(cfg, mu, budget_s=budget_s))
-        # written after every case, so a long run that is stopped keeps the cases it finished
-        payload = _payload(mode, cfg, runs, time.perf_counter() - started, env)
-        path = write_json(out, NAME, payload)
-        png = out / f"{NAME}.png"
-        _plot(runs, png, f"Shell pressed and twisted on an MPM cube ({mode} mode)")
-    return {"json": str(path), "png": str(png), **payload}
+        runs.append(_run_one(cfg, mu, budget_s=math.inf if budget_s is None else budget_s))
+        payload = {**_payload(cfg, runs, time.perf_counter() - started), "_runs": runs}
+        _checkpoint(out, mode, payload)
+    return payload
 
 
 #: per-step series of ``_run_one`` kept by the timing probes only (not in a mode's record)
@@ -648,21 +583,19 @@ def _case_record(run: dict) -> dict:
     return out
 
 
-def _payload(mode: str, cfg: dict, runs: list[dict], wall_s: float, env: dict) -> dict:
-    """The record of ``mode`` after the finished ``runs`` (one per mu, in ``cfg["mus"]`` order)."""
-    angles = [r["slip_angle_rad"] for r in runs]
+def _payload(cfg: dict, runs: list[dict], wall_s: float) -> dict:
+    """The record of a mode after the finished ``runs`` (one per mu, in ``cfg["mus"]`` order)."""
     complete = all(r["error"] is None for r in runs)
-    payload = {
-        "benchmark": NAME,
-        "mode": mode,
+    return {
         "cases_done": len(runs),
         "cases_planned": len(cfg["mus"]),
         "slip_angle_pi": {str(r["mu"]): r["slip_angle_pi"] for r in runs},
-        "slip_increases_with_mu": bool(complete and slip_ordered(angles)),
+        "slip_increases_with_mu": bool(
+            complete and slip_ordered([r["slip_angle_rad"] for r in runs])
+        ),
         "failed_cases": [r["mu"] for r in runs if r["error"] is not None],
         "cases": [_case_record(r) for r in runs],
         "wall_s": wall_s,
-        "peak_memory_mb": peak_memory_mb(),
         "paper": PAPER,
         "targets": {
             "full": "slip angle within 0.1 pi of the paper's per mu; no slip at mu = 1",
@@ -694,34 +627,27 @@ def _payload(mode: str, cfg: dict, runs: list[dict], wall_s: float, env: dict) -
             "slip_window_s": SLIP_WINDOW_S,
             "slip_rate": SLIP_RATE,
             "stop_after_slip_s": STOP_AFTER_SLIP_S if cfg["stop_after_slip"] else None,
-            "particles": runs[0]["particles"],
-            "shell_vertices": runs[0]["shell_vertices"],
-            "shell_tetrahedra": runs[0]["shell_tetrahedra"],
+            **{k: runs[0][k] for k in ("particles", "shell_vertices", "shell_tetrahedra")},
         },
-        "environment": env,
     }
-    return payload
 
 
 def merge(records: list[str | Path], out: str | Path = "results") -> dict:
-    """One record (``twist.json`` and ``twist.png`` in ``out``) from records of the same mode
-    whose cases ran in separate processes (one mu each, run side by side to fit a slot), cases
-    sorted by mu; ``wall_s`` is the sum of the cases' wall times, ``merged_from`` lists the
-    inputs with their own wall time."""
+    """One record (``twist_MODE.json`` and ``.png`` in ``out``, ``twist.json`` in full mode) from
+    records of the same mode whose cases ran in separate processes (one mu each, run side by
+    side to fit a slot), cases sorted by mu; ``wall_s`` is the sum of the cases' wall times,
+    ``merged_from`` lists the inputs with their own wall time."""
     mode, loaded, runs = cases_by_mu(records)
-    cfg = dict(MODES[mode])
-    cfg["mus"] = tuple(r["mu"] for r in runs)
-    payload = _payload(mode, cfg, runs, sum(r["wall_s"] for r in runs), loaded[0]["environment"])
-    note_merge(payload, records, loaded)
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    path = write_json(out, NAME, payload)
-    png = out / f"{NAME}.png"
-    _plot(runs, png, f"Shell pressed and twisted on an MPM cube ({mode} mode)")
-    return {"json": str(path), "png": str(png), **payload}
+    cfg = dict(MODES[mode], mus=tuple(r["mu"] for r in runs))
+    payload = _payload(cfg, runs, sum(r["wall_s"] for r in runs))
+    payload = {"benchmark": NAME, "mode": mode, **note_merge(payload, records, loaded)}
+    payload["environment"] = loaded[0]["environment"]
+    return write_record(out, BENCHMARK.stem(mode), {**payload, "_runs": runs}, plot)
 
 
-# the committed records of modes other than full carry the mode in their names
+# the records of modes other than full carry the mode in their names
 BENCHMARK = register(
-    Benchmark(NAME, __doc__, MODES, None, record=name_unless("full", NAME), own_run=run)
-)
+    Benchmark(NAME, __doc__, {**MODES, **{m: {} for m in PROBES}}, measure, plot=plot,
+              record=name_unless("full", NAME), needs_out=True)
+)  # fmt: skip
+run = BENCHMARK.run

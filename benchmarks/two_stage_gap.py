@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 import bfemp
-from benchmarks.common import figure
+from benchmarks.common import figure, save
 from benchmarks.runner import Benchmark, register
 from bfemp.steppers.augury import AuguryOptions
 
@@ -132,16 +132,14 @@ def measure(mode: str, cfg: dict) -> dict:
 
 def plot(payload: dict, png: Path) -> None:
     """The lowest particle's height against time, per case, beside dhat and dx."""
-    fig, ax = figure((6.0, 4.0))
+    fig, ax = figure((6.0, 4.0), layout="tight")
     for c, series in payload["series"].items():
         ax.plot(series["t"], series["lowest_m"], label=c)
     ax.axhline(DHAT, color="k", ls=":", lw=0.8, label="dhat")
     ax.axhline(payload["dx_m"], color="k", ls="--", lw=0.8, label="dx")
     ax.set(xlabel="t (s)", ylabel="lowest particle height (m)")
     ax.set_title(f"block at rest on a floor ({payload['mode']})", fontsize=9)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(png, dpi=110)
+    save(fig, png, [ax])
 
 
 BENCHMARK = register(Benchmark(NAME, __doc__, MODES, measure, plot=plot))

@@ -59,7 +59,7 @@ def test_rings_no_compare_option_reaches_run():
     from benchmarks.__main__ import _parser
 
     parser = _parser()
-    rings.add_arguments(parser)
+    rings.BENCHMARK.arguments(parser)
     assert parser.parse_args(["rings", "--full"]).compare is True
     args = parser.parse_args(["rings", "--full", "--no-compare"])
     assert args.compare is False and args.mode == "full"

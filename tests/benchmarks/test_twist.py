@@ -86,7 +86,9 @@ result = record_fixture("twist", mus=QUICK_MUS)
 
 
 def test_writes_json_and_plot(result):
-    data = check_written(result, "twist", "slip_angle_pi wall_s peak_memory_mb parameters paper")
+    data = check_written(
+        result, "twist_quick", "slip_angle_pi wall_s peak_memory_mb parameters paper"
+    )
     assert [case["mu"] for case in data["cases"]] == list(QUICK_MUS)
 
 
@@ -144,7 +146,7 @@ def test_records_of_cases_run_apart_merge_into_the_record_of_one_run(result, tmp
     assert merged["slip_angle_pi"] == data["slip_angle_pi"]
     assert merged["slip_increases_with_mu"] == data["slip_increases_with_mu"]
     assert merged["wall_s"] == pytest.approx(sum(c["wall_s"] for c in data["cases"]))
-    assert (tmp_path / "merged" / "twist.png").stat().st_size > 0
+    assert (tmp_path / "merged" / "twist_quick.png").stat().st_size > 0
     with pytest.raises(ValueError, match="one mode"):
         twist.merge([paths[0], _with_mode(tmp_path, data, "partial")], tmp_path / "bad")
 
