@@ -19,6 +19,8 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from benchmarks.common import table_head
+
 #: a log-log slope needs the time to change by at least this factor along the sweep
 MIN_TIME_RATIO = 1.05
 #: refining a knob counts as a gain when the error drops by at least this factor
@@ -419,7 +421,6 @@ def markdown(payload: dict) -> str:
     the points by ``winners``), per strategy what each knob buys per second, and every point."""
     ex = payload["executor"]
     cost, words = payload["cost"], COSTS[payload["cost"]]
-    where = f"Dask scheduler {ex['scheduler']}" if ex["kind"] == "dask" else f"{ex['workers']}"
     merged = {scene for part in payload.get("merged", []) for scene in part["scenes"]}
     first = [r for r in payload["points"] if r["scene"] not in merged]
     lines = [
@@ -431,8 +432,7 @@ def markdown(payload: dict) -> str:
             if payload.get("merged") and "first_run_points" in payload["merged"][0]
             else ""
         )
-        + f" on {where} "
-        f"{'' if ex['kind'] == 'dask' else 'local worker processes '}"
+        + f" on {_executor_words(payload)} "
         f"({ex['threads_per_point']} thread(s) per point); elapsed {payload['wall_s']:.1f} s, "
         f"sum of its point wall times {payload['point_wall_s_total']:.1f} s, "
         f"commit `{payload['environment']['commit'][:10]}`.",
@@ -488,14 +488,9 @@ def markdown(payload: dict) -> str:
             + ".",
         ]
         for s, effects in payload["knob_effects"][scene].items():
-            lines += [
-                "",
-                f"### {s}: what each knob buys",
-                "",
-                f"| knob | coarse -> fine | error | {words} [s] | d log(error) / d log(time) "
-                "| error drop per extra s | verdict |",
-                "|---|---|---|---|---|---|---|",
-            ]
+            lines += ["", f"### {s}: what each knob buys", ""]
+            lines += table_head("knob", "coarse -> fine", "error", f"{words} [s]", "d log(error) "
+                                "/ d log(time)", "error drop per extra s", "verdict")  # fmt: skip
             for knob, e in effects.items():
                 if e["coarse"] is None:
                     lines.append(f"| {knob} | - | - | - | - | - | {e['verdict']} |")
@@ -509,14 +504,9 @@ def markdown(payload: dict) -> str:
                 )
             best = payload["best_knob"][scene][s]
             lines += ["", f"Most accuracy per second ({s}): {best or 'no knob lowered the error'}."]
-        lines += [
-            "",
-            "### Points",
-            "",
-            "| strategy | point | error | wall [s] | CPU [s] | iterations | peak memory [MiB] | "
-            "penetration / bound [m] | failure |",
-            "|---|---|---|---|---|---|---|---|---|",
-        ]
+        lines += ["", "### Points", ""]
+        lines += table_head("strategy", "point", "error", "wall [s]", "CPU [s]", "iterations",
+                            "peak memory [MiB]", "penetration / bound [m]", "failure")  # fmt: skip
         for r in records:
             failure = (r["failure"] or "").replace("|", "\\|")[:120]
             mark = " (front)" if r["pareto"] else ""
