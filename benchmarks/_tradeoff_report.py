@@ -19,8 +19,6 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from benchmarks.common import table_head
-
 #: a log-log slope needs the time to change by at least this factor along the sweep
 MIN_TIME_RATIO = 1.05
 #: refining a knob counts as a gain when the error drops by at least this factor
@@ -488,9 +486,14 @@ def markdown(payload: dict) -> str:
             + ".",
         ]
         for s, effects in payload["knob_effects"][scene].items():
-            lines += ["", f"### {s}: what each knob buys", ""]
-            lines += table_head("knob", "coarse -> fine", "error", f"{words} [s]", "d log(error) "
-                                "/ d log(time)", "error drop per extra s", "verdict")  # fmt: skip
+            lines += [
+                "",
+                f"### {s}: what each knob buys",
+                "",
+                f"| knob | coarse -> fine | error | {words} [s] | d log(error) / d log(time) "
+                "| error drop per extra s | verdict |",
+                "|---|---|---|---|---|---|---|",
+            ]
             for knob, e in effects.items():
                 if e["coarse"] is None:
                     lines.append(f"| {knob} | - | - | - | - | - | {e['verdict']} |")
@@ -504,9 +507,14 @@ def markdown(payload: dict) -> str:
                 )
             best = payload["best_knob"][scene][s]
             lines += ["", f"Most accuracy per second ({s}): {best or 'no knob lowered the error'}."]
-        lines += ["", "### Points", ""]
-        lines += table_head("strategy", "point", "error", "wall [s]", "CPU [s]", "iterations",
-                            "peak memory [MiB]", "penetration / bound [m]", "failure")  # fmt: skip
+        lines += [
+            "",
+            "### Points",
+            "",
+            "| strategy | point | error | wall [s] | CPU [s] | iterations | peak memory [MiB] | "
+            "penetration / bound [m] | failure |",
+            "|---|---|---|---|---|---|---|---|---|",
+        ]
         for r in records:
             failure = (r["failure"] or "").replace("|", "\\|")[:120]
             mark = " (front)" if r["pareto"] else ""
