@@ -149,14 +149,8 @@ class _Checks:
         model, state = self.model, self.sim.state
         problems = []
         self.n_checks += 1
-        arrays = {
-            "fem_x": state.fem_x,
-            "fem_v": state.fem_v,
-            "mpm_x": state.mpm_x,
-            "mpm_v": state.mpm_v,
-            "mpm_F": state.mpm_F,
-        }
-        bad = [name for name, a in arrays.items() if not np.all(np.isfinite(a))]
+        fields = ("fem_x", "fem_v", "mpm_x", "mpm_v", "mpm_F")
+        bad = [name for name in fields if not np.all(np.isfinite(getattr(state, name)))]
         if bad:
             return [f"non-finite {', '.join(bad)} after a converged step"]
         F = np.einsum("mai,maj->mij", state.fem_x[model.fem_cells], model.fem_cell_grad)
@@ -356,22 +350,9 @@ def _run(
         )
         if warnings:
             outcome += f"; the library warned: {warnings[0]}"
-    drift = None
-    if cfg.geometry == "resting" and len(heights) >= 4:
-        half = heights[len(heights) // 2 - 1 :]
-        drift = float(max(half) - min(half))
-        why = drift_reason(strategy)
-        if outcome is None and drift > DRIFT_TOL * cfg.dhat and why is not None:
-            speed = float(sim.state.mpm_v[block, 1].mean())
-            status = "DRIFT"
-            outcome = (
-                f"DRIFT: the resting block's mean height varied by {drift:.3g} m over the "
-                f"second half (> {DRIFT_TOL} dhat; mean vertical velocity {speed:.3g} m/s at the "
-                f"end): {why}"
-            )
-        if outcome is None and drift > DRIFT_TOL * cfg.dhat:
-            status = "UNEXPLAINED"
-            outcome = f"UNEXPLAINED: the resting block drifted {drift:.3g} m (> {DRIFT_TOL} dhat)"
+    drift = _drift(heights) if cfg.geometry == "resting" else None
+    if outcome is None and drift is not None and drift > DRIFT_TOL * cfg.dhat:
+        status, outcome = _drifted(drift, strategy, float(sim.state.mpm_v[block, 1].mean()))
     if outcome is None and friction_bad:
         status = "FRICTION_NOT_CONVERGED"
         outcome = (
@@ -418,6 +399,31 @@ def _run(
         outcome,
     )
     return row
+
+
+def _drift(heights: list[float]) -> float | None:
+    """How far (m) the resting block's mean height ``heights`` (one per step) varied over the
+    run's second half (None: fewer than 4 steps)."""
+    if len(heights) < 4:
+        return None
+    half = heights[len(heights) // 2 - 1 :]
+    return float(max(half) - min(half))
+
+
+def _drifted(drift: float, strategy: str, speed: float) -> tuple[str, str]:
+    """``(status, outcome)`` of a resting block that drifted ``drift`` m (more than
+    ``DRIFT_TOL`` dhat), its mean vertical velocity ``speed`` m/s at the end: a named ``DRIFT``
+    where the strategy explains it (``drift_reason``), else a bug."""
+    why = drift_reason(strategy)
+    if why is None:
+        return (
+            "UNEXPLAINED",
+            f"UNEXPLAINED: the resting block drifted {drift:.3g} m (> {DRIFT_TOL} dhat)",
+        )
+    return "DRIFT", (
+        f"DRIFT: the resting block's mean height varied by {drift:.3g} m over the second half "
+        f"(> {DRIFT_TOL} dhat; mean vertical velocity {speed:.3g} m/s at the end): {why}"
+    )
 
 
 def _stopped(
