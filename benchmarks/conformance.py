@@ -49,7 +49,7 @@ from pathlib import Path
 import numpy as np
 
 import bfemp
-from benchmarks._conformance_scenes import Case, body_mass_arrays, body_positions, cases
+from benchmarks._conformance_scenes import CASES, Case, body_mass_arrays, body_positions
 from benchmarks.common import figure, table_head
 from benchmarks.runner import Benchmark, name_unless, register
 from bfemp.steppers import STRATEGIES, StepError
@@ -261,12 +261,10 @@ def run_cell(case: Case, strategy: str, mode: str) -> dict:
     return row
 
 
-def measure(
-    mode: str, cfg: object, strategies: list[str] | None = None, case_names: list[str] | None = None
-) -> dict:
-    """Every case (``case_names``, None: all) of ``mode`` under each strategy (None: all)."""
-    strategies = list(STRATEGIES) if strategies is None else strategies
-    rows = [run_cell(c, s, mode) for c in cases(case_names) for s in strategies]
+def measure(mode: str, cfg: object) -> dict:
+    """Every case of ``mode`` under each registered strategy."""
+    strategies = list(STRATEGIES)
+    rows = [run_cell(c, s, mode) for c in CASES for s in strategies]
     capabilities = {s: STRATEGIES[s].capabilities for s in strategies}
     return {
         "strategies": strategies,
