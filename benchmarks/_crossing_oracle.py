@@ -162,11 +162,7 @@ def _closest_on_simplices(p: np.ndarray, corners: np.ndarray) -> np.ndarray:
 
     inside = (area(q, b, c) >= 0) & (area(a, q, c) >= 0) & (area(a, b, q) >= 0)
     edges = np.stack(
-        [
-            _closest_on_segments(p, a, b),
-            _closest_on_segments(p, b, c),
-            _closest_on_segments(p, c, a),
-        ]
+        [_closest_on_segments(p, u, v) for u, v in ((a, b), (b, c), (c, a))]
     )  # (3, F, d)
     d_edge = np.linalg.norm(p[None, None] - edges, axis=2)
     best = edges[d_edge.argmin(axis=0), np.arange(a.shape[0])]

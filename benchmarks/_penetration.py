@@ -2,26 +2,17 @@
 
 The trade study (``benchmarks.tradeoff``) judges every point against its strategy's declared
 penetration guarantee (``bfemp.steppers.capabilities``): a point whose deepest penetration
-exceeds the bound is infeasible. The two numbers are taken here, in the point's own process:
+(``max_penetration_m``: the largest ``penetration_depth`` of the run's metrics,
+``bfemp.contact.penetration``) exceeds the bound (``penetration_bound``) is infeasible.
 
-- ``max_penetration_m``: the largest value of the ``penetration_depth`` metrics column over the
-  run (m; ``bfemp.contact.penetration``: the deepest any FEM node or particle lies inside
-  another FEM body after a step, the same geometric check for every strategy), None where the
-  run has no such column (no FEM body, or a FEM body alone);
-- ``penetration_bound_m``: ``capabilities.penetration_bound_cells`` of the stepper's class, read
-  when the point runs (the values are measured and change), times ``penetration_grid_dx_m``.
-  Which grid's cells is a choice the declaration leaves open ("dx of the MPM grid, or of the
-  strategy's contact grid"); taken here: the MPM background grid of the scene (the point's
-  ``dx``: lr's multi-material nodes, LR sec. 3.1, and the grid augury's MPM foreground comes
-  from), and the strategy's own contact grid only where the scene has no MPM grid (augury on
-  FEM bodies alone, ``augury_blocks``: ``grid_dx``, the grid of AUG's contact operator H).
-  Measured why not augury's contact grid always: on the quick slope it is 0.442 m (2 x the
-  mean FEM boundary edge of the coarse slope mesh) where the MPM grid is 5 mm, a bound 88 x
-  looser than the scene's resolution that no penetration of the box could exceed. Both
-  spacings are recorded (``penetration_mpm_grid_dx_m``, ``penetration_contact_grid_dx_m``),
-  so that a report can be rerendered under the other reading without running the point again.
-  A bound of 0 cells (barrier, two_stage: nothing may end inside a FEM body) is 0 m whatever
-  the grid; a strategy that couples nothing with a FEM body (``single_field``) has none (None).
+Which grid's cells the bound counts is a choice the declaration leaves open ("dx of the MPM
+grid, or of the strategy's contact grid"); taken here: the MPM background grid of the scene
+(lr's multi-material nodes, LR sec. 3.1, and the grid augury's MPM foreground comes from), and
+the strategy's own contact grid only where the scene has no MPM grid (augury on FEM bodies
+alone, ``augury_blocks``: ``grid_dx``, the grid of AUG's contact operator H). Measured why not
+augury's contact grid always: on the quick slope it is 0.442 m where the MPM grid is 5 mm, a
+bound 88 x looser than the scene's resolution. Both spacings are recorded, so that a report
+can be rerendered under the other reading without running the point again.
 """
 
 from __future__ import annotations
@@ -51,17 +42,16 @@ def penetration_bound(stepper: object) -> dict:
     """The penetration bound of ``stepper``'s strategy on its grid.
 
     Args:
-        stepper: a built stepper (``Simulation.stepper``, or one built directly); its class
-            carries ``capabilities``, its ``model.grid`` the MPM grid (None without particles)
-            and, for augury, ``grid_dx`` its own contact grid (module docstring).
+        stepper: a built stepper; its class carries ``capabilities`` (read when the point runs:
+            the values are measured and change), its ``model.grid`` the MPM grid (None without
+            particles) and, for augury, ``grid_dx`` its own contact grid (module docstring).
 
     Returns:
-        ``penetration_bound_cells`` (the class's declaration, None: no bound),
-        ``penetration_mpm_grid_dx_m`` and ``penetration_contact_grid_dx_m`` (m, None where
-        there is no such grid), ``penetration_grid_dx_m`` (m, the one the cells are counted
-        on: the MPM grid, else the contact grid; None where the bound needs none: 0 or None
-        cells) and ``penetration_bound_m`` (m; None where the strategy states no bound, or a
-        bound in cells without a grid to count them on).
+        ``penetration_bound_cells`` (None: no bound, single_field), ``penetration_mpm_grid_dx_m``
+        and ``penetration_contact_grid_dx_m`` (m, None where there is no such grid),
+        ``penetration_grid_dx_m`` (m, the one the cells are counted on; None where the bound
+        needs none: 0 or None cells) and ``penetration_bound_m`` (m; 0 for a bound of 0 cells,
+        barrier and two_stage; None without a bound or a grid to count it on).
     """
     cells = type(stepper).capabilities.penetration_bound_cells
     grid = getattr(getattr(stepper, "model", None), "grid", None)

@@ -1,24 +1,15 @@
 """Measured points of a trade study kept on disk, so that a stopped sweep resumes (``--resume``).
 
-A full sweep runs for many hours; a machine that goes down, a killed job or a Dask worker lost
-would otherwise throw away every point measured so far, since the record is written once at the
-end. Each point's measurement is therefore written as soon as it arrives, one JSON file per
-point in ``<out>/tradeoff_points/`` (or ``--points DIR``), named by a hash of what the point
-runs: its benchmark module, its settings, its thread count and the code that computes it
-(``code_version``: the content of every Python file of ``bfemp``, ``solvers`` and ``geometry``,
-and of the ``benchmarks`` modules a point's process can import: ``_tradeoff_point``,
-``_tradeoff_runs`` and, followed through every import statement, function bodies included, the
-scene modules and helpers they use). ``sweep(..., resume=True)`` takes the points found there
-instead of running them again; a point of other code, other settings or other threads has
-another name and runs again. Keying on the code rather than the commit lets a sweep that takes
-several sessions go on across commits that touch only documentation, tests, records or the
-benchmarks a point does not run (the report, the sweep's driver, other benchmarks; the folder
-can be committed); each kept point names the commit that measured it. A point whose run ended
-in a named step failure (``StepError``: TUNNELED, MAX_ITERATIONS, ...; its metrics say where)
-is kept like any measurement, since the same code and settings end the same way (a full
-sine_boundary point took 26 min to reach its TUNNELED step); points that gave no metrics (a
-crash, a timeout, a refusal raised before the run) are not kept: a resumed sweep runs them
-again.
+Each point's measurement is written as soon as it arrives, one JSON file per point in
+``<out>/tradeoff_points/`` (or ``--points DIR``), named by a hash of its benchmark module, its
+settings, its thread count and the code that computes it (``code_version``: every Python file of
+``bfemp``, ``solvers`` and ``geometry``, and the ``benchmarks`` modules a point's process
+imports, followed through every import statement). Keying on the code rather than the commit
+lets a sweep that takes several sessions go on across commits that touch only documentation,
+tests, records or benchmarks a point does not run; each kept point names the commit that
+measured it. A run that ended in a named step failure (``StepError``) is kept like any
+measurement (the same code and settings end the same way); points that gave no metrics (a
+crash, a timeout, a refusal) are not: a resumed sweep runs them again.
 """
 
 from __future__ import annotations

@@ -1,23 +1,17 @@
 """Running the points of the trade study (``benchmarks.tradeoff``), each in a fresh process.
 
-``execute_point(point)`` is the pure function that both executors run (a local thread pool and a
-Dask cluster): it starts ``python -m benchmarks._tradeoff_point SPEC RESULT`` with the point's
-settings in ``SPEC`` and reads the measurement back from ``RESULT``. A fresh process per point
-makes the peak resident memory (``ru_maxrss``) that point's own and keeps numba and BLAS thread
-counts identical wherever the point runs: the child's ``NUMBA_NUM_THREADS``,
-``OMP_NUM_THREADS``, ``OPENBLAS_NUM_THREADS`` and ``MKL_NUM_THREADS`` are the point's
-``threads`` (Dask workers set some of these to 1 for their own tasks).
+``execute_point(point)`` is the pure function that both executors run (``execute_local``, a pool
+of local processes, and ``execute_dask``, a Dask cluster): it starts ``python -m
+benchmarks._tradeoff_point SPEC RESULT`` with the point's settings in ``SPEC`` and reads the
+measurement back from ``RESULT``. A fresh process makes the peak resident memory the point's own
+and fixes the numba and BLAS thread counts (``THREAD_VARIABLES``) to the point's ``threads``
+wherever it runs.
 
-``execute_local`` runs a list of points on a pool of local processes, ``execute_dask`` on a Dask
-cluster; both return the measurements in the order of the points.
-
-The measurement (JSON): ``metrics`` (what the scene's ``run_point`` returns), ``wall_s`` (s, the
-``run_point`` call: scene build and time loop, without interpreter start and imports),
-``cpu_s`` (s, the CPU time of the process over that call, all its threads: with one thread per
-point it is the wall time without the waits for a busy machine's cores),
-``process_wall_s`` (s, the whole child process, measured by the parent), ``peak_memory_mb``
-(MiB, the child's peak resident memory) and ``failure`` (None, or why the child produced no
-metrics: an exception, a crash, a timeout).
+The measurement (JSON): ``metrics`` (what the scene's ``run_point`` returns), ``wall_s`` and
+``cpu_s`` (s, the ``run_point`` call: scene build and time loop; the CPU time of all the
+process's threads), ``process_wall_s`` (s, the whole child process, measured by the parent),
+``peak_memory_mb`` (MiB) and ``failure`` (None, or why the child produced no metrics: an
+exception, a crash, a timeout).
 """
 
 from __future__ import annotations

@@ -419,7 +419,6 @@ def markdown(payload: dict) -> str:
     the points by ``winners``), per strategy what each knob buys per second, and every point."""
     ex = payload["executor"]
     cost, words = payload["cost"], COSTS[payload["cost"]]
-    where = f"Dask scheduler {ex['scheduler']}" if ex["kind"] == "dask" else f"{ex['workers']}"
     merged = {scene for part in payload.get("merged", []) for scene in part["scenes"]}
     first = [r for r in payload["points"] if r["scene"] not in merged]
     lines = [
@@ -431,8 +430,7 @@ def markdown(payload: dict) -> str:
             if payload.get("merged") and "first_run_points" in payload["merged"][0]
             else ""
         )
-        + f" on {where} "
-        f"{'' if ex['kind'] == 'dask' else 'local worker processes '}"
+        + f" on {_executor_words(payload)} "
         f"({ex['threads_per_point']} thread(s) per point); elapsed {payload['wall_s']:.1f} s, "
         f"sum of its point wall times {payload['point_wall_s_total']:.1f} s, "
         f"commit `{payload['environment']['commit'][:10]}`.",

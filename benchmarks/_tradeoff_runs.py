@@ -29,6 +29,7 @@ import bfemp
 from benchmarks import catalogue
 from benchmarks._penetration import KEYS as PENETRATION_KEYS
 from benchmarks._penetration import penetration_bound, penetration_summary
+from benchmarks._shared import check_settings
 from bfemp.steppers import stepper_class
 
 log = logging.getLogger(__name__)
@@ -40,13 +41,6 @@ def _options(strategy: str, options: dict) -> object:
     return stepper_class(strategy).Options(**options)
 
 
-def _check(settings: dict, keys: tuple[str, ...], scene: str) -> None:
-    missing = [k for k in keys if k not in settings]
-    unknown = sorted(set(settings) - set(keys))
-    if missing or unknown:
-        raise ValueError(f"{scene} point: missing settings {missing}, unknown {unknown}")
-
-
 # ----------------------------------------------------------------------------- rings
 RINGS_KEYS = ("strategy", "dt", "options", "transfer", "dx", "ppc", "dhat", "fem_h", "t_end")
 
@@ -55,7 +49,7 @@ def rings_point(s: dict, on_done: Callable[[bfemp.Simulation], None] | None = No
     """One rings point; ``on_done(sim)`` is called after the run (``benchmarks.lr_variants``)."""
     from benchmarks import rings
 
-    _check(s, RINGS_KEYS, "rings")
+    check_settings("rings point", s, RINGS_KEYS)
     strategy = s["strategy"]
     cfg = dict(s)
     if strategy == "lr":  # lr sees the FEM ring through its boundary nodes: h = dx / 2
@@ -110,7 +104,7 @@ def slope_physics(s: dict) -> tuple[dict, str]:
 
     strategy = s["strategy"]
     keys = SLOPE_KEYS + (("transfer",) if strategy == "lr" else ())
-    _check(s, keys, "slope")
+    check_settings("slope point", s, keys)
     options = dict(s["options"])
     point = {k: s[k] for k in ("dt", "dx", "ppc", "dhat", "eps_v")} | {"strategy": strategy}
     point["tol"] = options.get("tol", slope.PHYSICS["tol_m_s"])
@@ -184,7 +178,7 @@ def _hertz_soft(s: dict) -> dict:
     the explicit strategies by symplectic Euler at ``dt`` (``"auto"``: the stable step)."""
     from benchmarks import hertz
 
-    _check(s, HERTZ_SOFT_KEYS, "hertz_soft")
+    check_settings("hertz_soft point", s, HERTZ_SOFT_KEYS)
     strategy = s["strategy"]
     cfg = {k: v for k, v in s.items() if k != "options"} | hertz.SOFT
     cfg["plate_h"] = 0.5 * s["dx"]
@@ -225,7 +219,7 @@ SINE_KEYS = ("strategy", "dt", "options", "scale", "dx", "ppc", "strip_h", "t_st
 def _sine_boundary(s: dict) -> dict:
     from benchmarks import sine_boundary
 
-    _check(s, SINE_KEYS, "sine_boundary")
+    check_settings("sine_boundary point", s, SINE_KEYS)
     cfg = {k: s[k] for k in ("scale", "dx", "ppc", "strip_h", "dt", "t_stop")}
     cfg["strip_density_factor"] = SINE_STRIP_DENSITY_FACTOR
     if s["strategy"] == "barrier":
@@ -249,7 +243,7 @@ def _augury_blocks(s: dict) -> dict:
     from benchmarks import augury_blocks
     from bfemp.contact.penetration import PenetrationCheck
 
-    _check(s, BLOCKS_KEYS, "augury_blocks")
+    check_settings("augury_blocks point", s, BLOCKS_KEYS)
     if s["strategy"] in ("barrier", "two_stage"):
         return _blocks_barrier(s)
     if s["strategy"] != "augury":
@@ -350,7 +344,7 @@ COMPRESSION_KEYS = ("strategy", "dt", "options", "transfer", "v0_over_cK", "stra
 def _lr_compression(s: dict) -> dict:
     from benchmarks import lr_compression as lc
 
-    _check(s, COMPRESSION_KEYS, "lr_compression")
+    check_settings("lr_compression point", s, COMPRESSION_KEYS)
     if s["strategy"] != "lr" or s["dt"] != "auto":
         raise ValueError("lr_compression: strategy 'lr' at dt = 'auto' only (lr_compression)")
     v0 = s["v0_over_cK"] * lc.C_K

@@ -59,10 +59,6 @@ _HERTZ_SOFT = (
 # the strip is scripted whole: no FEM cell takes part in the explicit stable step, so the FEM
 # fraction changes nothing (measured: cfl_safety_fem = 0.25 took the base's steps, 1468 at the
 # quick base and 42 per 0.01 s at the full base, with the base's error in the quick sweep)
-# the full reference at tol = 1e-5 and dt = 5e-4 s ran past 31 min beside a base point still
-# running at 31 min: over the 2 h a point may take, and more than a session. The quick sweep
-# measured what tol buys there: 1e-4 -> 1e-5 moved the force's error from 0.0018116 to
-# 0.0018135 (2e-6) at 2.3x the time, while dt 5e-3 -> 2.5e-3 moved it by 6e-4.
 _SINE_REFERENCE_TOL = (
     "the reference keeps barrier's base tol = 1e-4 m/s: in the quick sweep tol 1e-5 changed "
     "the error by 2e-6 (dt by 6e-4) at 2.3x the time, and at full resolution with tol 1e-5 "
@@ -260,13 +256,8 @@ SCENES = {
                 "options": {"tol": 1e-4, "max_newton_iterations": 1000},
                 "note": "backward Euler, the FEM strip (sine_boundary's 'bfemp' treatment)",
             },
-            # the strip is scripted whole (sine_boundary.STRIP_PRESCRIBED = "all"): its cells
-            # take no part in the stable step, the box's E = 1e6 Pa sets it (6e-4 s at dx =
-            # 0.05 m, ~1,700 steps in quick mode): no softened variant is needed
-            # Newton cap: barrier's 1000, not two_stage's default 100, at which the full base
-            # stopped with MAX_ITERATIONS at step 3664 (t = 0.879 s, ||p|| / scale 3.2e-3
-            # against tol 1e-4, 352 s in; measured at d578db5), as the quick cfl_safety_mpm =
-            # 0.2 point did (2.6e-4 at t = 0.782 s; the quick record keeps its cap of 100)
+            # the box's E sets the stable step (6e-4 s at dx = 0.05 m): no softened variant;
+            # the Newton cap of 100 stopped the full base at step 3664 (measured at d578db5)
             "two_stage": {
                 "dt": {"quick": "auto", "full": "auto"},
                 "options": {"tol": 1e-4, "max_newton_iterations": 1000},
@@ -300,7 +291,6 @@ SCENES = {
         "errors are their difference from augury's loss, not an accuracy",
         "reference_keys": ("energy_loss",),
         "reference_strategy": "augury",
-        # barrier's and two_stage's errors are their difference from augury's reference loss
         "warmup": {"t_end": 0.002},  # the blocks share contact nodes from t = 0
         "scene_knobs": ("dx",),
         "modes": {

@@ -49,7 +49,7 @@ from pathlib import Path
 import numpy as np
 
 import bfemp
-from benchmarks._conformance_scenes import Case, body_mass_arrays, body_positions, cases
+from benchmarks._conformance_scenes import CASES, Case, body_mass_arrays, body_positions
 from benchmarks.common import figure, table_head
 from benchmarks.runner import Benchmark, name_unless, register
 from bfemp.steppers import STRATEGIES, StepError
@@ -108,6 +108,11 @@ def _result(value: float, limit: float, passed: bool, text: str) -> dict:
     return {"value": float(value), "limit": float(limit), "passed": bool(passed), "text": text}
 
 
+def _within(check: str, value: float, text: str) -> dict:
+    """The result of an accuracy check: ``value`` at most its limit ``LIMITS[check]``."""
+    return _result(value, LIMITS[check], value <= LIMITS[check], text)
+
+
 def check_case(case: Case, strategy: str, sim: bfemp.Simulation, rec: dict, mode: str) -> dict:
     """Evaluate ``case.checks`` on a finished run; returns ``{check: result}``."""
     caps = STRATEGIES[strategy].capabilities
@@ -158,27 +163,20 @@ def check_case(case: Case, strategy: str, sim: bfemp.Simulation, rec: dict, mode
             if name == "acceleration":
                 a_fit = float(np.polyfit(t[late], vel["body"][late, 0], 1)[0])
                 err = abs(a_fit - p["a_exact"]) / p["a_free"]
-                out[name] = _result(
-                    err,
-                    LIMITS[name],
-                    err <= LIMITS[name],
-                    f"a = {a_fit:.3f} m/s^2 against {p['a_exact']:.3f} (error {err:.3f} g sin)",
-                )
+                text = f"a = {a_fit:.3f} m/s^2 against {p['a_exact']:.3f} (error {err:.3f} g sin)"
+                out[name] = _within(name, err, text)
             else:
                 slip = abs(com["body"][-1, 0] - com["body"][late][0, 0])
                 free = 0.5 * p["a_free"] * (t[-1] - t[late][0]) ** 2
                 text = f"slid {slip:.3g} m, {100 * slip / free:.1f} % of frictionless {free:.3g} m"
                 for check in ("friction", "sticks"):
-                    ok = slip / free <= LIMITS[check]
-                    out[check] = _result(slip / free, LIMITS[check], ok, text)
+                    out[check] = _within(check, slip / free, text)
         elif name in ("momentum", "angular_momentum"):
             out[name] = _conservation(name, sim, com, vel, rec)
         elif name == "drift":
             half = t >= 0.5 * t[-1]
             rms = float(np.sqrt(np.mean(np.sum(vel["body"][half] ** 2, axis=1))))
-            out[name] = _result(
-                rms, LIMITS[name], rms <= LIMITS[name], f"upper block rms speed {rms:.3g} m/s"
-            )
+            out[name] = _within(name, rms, f"upper block rms speed {rms:.3g} m/s")
         else:
             raise ValueError(f"unknown check {name!r}")
     return out
@@ -214,7 +212,7 @@ def _conservation(name: str, sim: bfemp.Simulation, com: dict, vel: dict, rec: d
         scale = sum(masses[n] * abs(float(cross[n])) for n in masses)
         err = float(np.max(np.abs(L - L[0]))) / scale
         text = f"max |L - L0| / sum m|x0 x v0| = {err:.2e}"
-    return _result(err, LIMITS[name], err <= LIMITS[name], text)
+    return _within(name, err, text)
 
 
 def run_cell(case: Case, strategy: str, mode: str) -> dict:
@@ -263,12 +261,10 @@ def run_cell(case: Case, strategy: str, mode: str) -> dict:
     return row
 
 
-def measure(
-    mode: str, cfg: object, strategies: list[str] | None = None, case_names: list[str] | None = None
-) -> dict:
-    """Every case (``case_names``, None: all) of ``mode`` under each strategy (None: all)."""
-    strategies = list(STRATEGIES) if strategies is None else strategies
-    rows = [run_cell(c, s, mode) for c in cases(case_names) for s in strategies]
+def measure(mode: str, cfg: object) -> dict:
+    """Every case of ``mode`` under each registered strategy."""
+    strategies = list(STRATEGIES)
+    rows = [run_cell(c, s, mode) for c in CASES for s in strategies]
     capabilities = {s: STRATEGIES[s].capabilities for s in strategies}
     return {
         "strategies": strategies,

@@ -1,11 +1,8 @@
 """Stability at the extremes: one base impact scene, one knob pushed to its limit per case.
 
-The cases (``benchmarks/_extreme_cases.py``): E from 1e3 to 1e12 Pa, nu up to 0.499, dt from
-1e-5 to 1e-1 s for a 40 m/s impact, dhat from 1e-2 down to 1e-6 of the scene size, density ratios
-1e-4 to 1e4 between the bodies, grazing contact, corner-first contact (MPM corner and FEM corner),
-particles exactly over mesh vertices, particles on grid-cell centres, kappa far too small (1 Pa)
-and far too large (1e16 Pa) and "auto", a block resting on a fixed slab under gravity for many
-steps (drift), Newmark (at the mode's and at the coarse resolution), and grazing with friction.
+The cases (``benchmarks/_extreme_cases.CASES``) push stiffness, Poisson ratio, dt, dhat, the
+density ratio, the contact geometry, kappa, friction and the integrator, and rest a block on a
+fixed slab for many steps (drift).
 Quick mode runs the subset marked ``quick`` (the tests assert its expected outcomes); full mode
 runs every case on the finer discretisation for longer; ``--mode coarse`` runs every case at the
 quick discretisation and duration (the whole table under every strategy in minutes).
@@ -33,15 +30,10 @@ raised something other than ``StepError``): those are bugs. Each case records it
 energy growth, Newton iterations (sum, max), steps, wall time and outcome.
 
 Every strategy (``--strategy NAME``, repeatable, or ``all``, the default) runs the same cases;
-``benchmarks/_extreme_strategies.py`` says how each case maps to each strategy and what each
-promises. Outcomes beside those above: ``"NOT_APPLICABLE: <why>"`` (a barrier knob under a
-strategy without a barrier, Newmark under an explicit one); ``"REFUSED: dt = ... exceeds the
-explicit stable step ..."`` (the construction refusal of an explicit strategy, with an extra
-run at ``dt = "auto"`` beside it in ``row["auto"]``); ``"TOO_MANY_STEPS: ..."`` (the stable step
-would need more than ``MAX_STEPS`` steps: not run); ``"PENETRATION: ..."`` for a strategy that
-does not promise to keep particles out of FEM bodies (augury, lr, single_field; for barrier and
-two_stage a particle inside is UNEXPLAINED). Such a strategy runs to the end after a
-penetration (the other checks go on); the count is the most particles inside at once.
+``benchmarks/_extreme_strategies.py`` says how each case maps to each strategy, what each
+promises and the outcomes beside those above (``NOT_APPLICABLE``, a refused dt with an extra run
+at ``dt = "auto"`` in ``row["auto"]``, ``TOO_MANY_STEPS``, ``PENETRATION``, ``INVERTED``,
+``DRIFT``).
 
 Energy allowance per integrator (``ENERGY_TOL``): backward Euler 1e-2 (it only dissipates; the
 allowance is round-off and Newton tolerance), Newmark 2e-2, symplectic Euler 5e-2: its
@@ -50,11 +42,8 @@ full-step one, and the energy of symplectic Euler oscillates (bounded) at that o
 conserved modified energy; at the CFL numbers of ``dt = "auto"`` (0.4-0.5) that is a few
 per cent of the elastic energy of a vibrating body.
 
-The table goes to ``extremes.json`` (``extremes_quick.json`` in quick mode; top level: counts,
-``table`` (case -> strategy -> status), ``by_strategy`` counts and ``cases``, one row per case
-and strategy) and ``extremes.md`` (one column per strategy: outcome, min distance,
-penetrations, min J, energy growth; then one detailed table per strategy); ``extremes.png``
-shows the outcome grid and per-case values of every strategy.
+The table goes to ``extremes.json`` (``extremes_quick.json`` in quick mode; one row per case and
+strategy), ``extremes.md`` and ``extremes.png`` (``_extreme_report``).
 """
 
 from __future__ import annotations
@@ -160,14 +149,8 @@ class _Checks:
         model, state = self.model, self.sim.state
         problems = []
         self.n_checks += 1
-        arrays = {
-            "fem_x": state.fem_x,
-            "fem_v": state.fem_v,
-            "mpm_x": state.mpm_x,
-            "mpm_v": state.mpm_v,
-            "mpm_F": state.mpm_F,
-        }
-        bad = [name for name, a in arrays.items() if not np.all(np.isfinite(a))]
+        fields = ("fem_x", "fem_v", "mpm_x", "mpm_v", "mpm_F")
+        bad = [name for name in fields if not np.all(np.isfinite(getattr(state, name)))]
         if bad:
             return [f"non-finite {', '.join(bad)} after a converged step"]
         F = np.einsum("mai,maj->mij", state.fem_x[model.fem_cells], model.fem_cell_grad)
@@ -256,6 +239,7 @@ def _is_stable_step_refusal(err: ValueError) -> bool:
 def run_case(case: Case, mode: str, strategy: str = "barrier") -> dict:
     """Run one case under one strategy; returns its table row (see the module docstring)."""
     cfg = case.config
+    planned = n_steps(cfg, mode, duration=duration(case, mode, strategy))
     row: dict = {
         "name": case.name,
         "strategy": strategy,
@@ -263,22 +247,19 @@ def run_case(case: Case, mode: str, strategy: str = "barrier") -> dict:
         "knob": case.knob,
         "config": cfg.as_dict(),
         "dhat_m": cfg.dhat,
-        "steps_planned": n_steps(cfg, mode, duration=duration(case, mode, strategy)),
+        "steps_planned": planned,
         "expect_quick": case.expect,
     }
     reason = not_applicable(case, strategy)
     if reason is not None:
-        row.update(
-            outcome=f"NOT_APPLICABLE: {reason}", status="NOT_APPLICABLE", steps=0, wall_s=0.0
-        )
-        return row
+        return row | _not_run("NOT_APPLICABLE", reason)
     scene, info = build_scene(cfg, mode)
     row.update(info)
     try:
         with _WarningLog() as warned:
             sim = _simulation(scene, cfg, strategy, cfg.dt)
     except ValueError as err:  # the library refused the input and said why
-        row.update(outcome=f"REFUSED: {err}", status="REFUSED", steps=0, wall_s=0.0)
+        row.update(_not_run("REFUSED", err))
         if strategy in EXPLICIT and _is_stable_step_refusal(err) and case.group != "dt":
             # the extra run at the stable step (the dt cases would repeat the base case's)
             try:
@@ -286,18 +267,20 @@ def run_case(case: Case, mode: str, strategy: str = "barrier") -> dict:
                     sim = _simulation(build_scene(cfg, mode)[0], cfg, strategy, "auto")
             except ValueError as auto_err:  # refused for another reason (two_stage: kappa auto)
                 row["auto"] = {
-                    "outcome": f"REFUSED: {auto_err}",
-                    "status": "REFUSED",
+                    **_not_run("REFUSED", auto_err),
                     "dt": "auto",
-                    "steps": 0,
-                    "steps_planned": row["steps_planned"],
-                    "wall_s": 0.0,
+                    "steps_planned": planned,
                 }
                 return row
             row["auto"] = _run(sim, case, mode, strategy, info, warned.messages)
         return row
     row.update(_run(sim, case, mode, strategy, info, warned.messages))
     return row
+
+
+def _not_run(status: str, why: object) -> dict:
+    """The outcome of a case that does not step: ``STATUS: why``, no step, no time."""
+    return {"outcome": f"{status}: {why}", "status": status, "steps": 0, "wall_s": 0.0}
 
 
 def _run(
@@ -314,17 +297,11 @@ def _run(
         "warnings": list(warnings),
     }
     if planned > MAX_STEPS[mode]:
-        span = planned * sim.dt
-        row.update(
-            outcome=(
-                f"TOO_MANY_STEPS: the stable dt {sim.dt:.3g} s needs {planned} steps for "
-                f"{span:.3g} s (cap {MAX_STEPS[mode]} in {mode} mode): not run"
-            ),
-            status="TOO_MANY_STEPS",
-            steps=0,
-            wall_s=0.0,
+        why = (
+            f"the stable dt {sim.dt:.3g} s needs {planned} steps for {planned * sim.dt:.3g} s "
+            f"(cap {MAX_STEPS[mode]} in {mode} mode): not run"
         )
-        return row
+        return row | _not_run("TOO_MANY_STEPS", why)
     started, cpu_started = time.perf_counter(), time.process_time()
     energy0 = float(sim.metrics.column("energy_total")[0])
     energy_ref = info["energy_ref_J"] if info["energy_ref_J"] else abs(energy0)
@@ -334,7 +311,7 @@ def _run(
     )
     iters, distances, heights = [], [], []
     notes: dict[str, int] = {}
-    outcome = status = None
+    ended = None  # (status, outcome) of a run stopped before its last step
     friction_bad = 0
     block = sim.model.mpm_bodies[0].particles
     for k in range(1, planned + 1):
@@ -343,13 +320,11 @@ def _run(
         except bfemp.StepError as err:
             rep = err.report
             iters.append(rep.newton_iterations)
-            status = rep.status
-            outcome = f"{rep.status} at step {k}: {rep.message}"
+            ended = rep.status, f"{rep.status} at step {k}: {rep.message}"
             break
         except Exception as err:  # noqa: BLE001 - any other exception is a bug to report
             log.error("%s: %s", case.name, traceback.format_exc())
-            status = "UNEXPLAINED"
-            outcome = f"UNEXPLAINED: {type(err).__name__} at step {k}: {err}"
+            ended = "UNEXPLAINED", f"UNEXPLAINED: {type(err).__name__} at step {k}: {err}"
             break
         iters.append(report.newton_iterations)
         distances.append(report.min_distance)
@@ -360,34 +335,12 @@ def _run(
         if not report.friction_converged:
             friction_bad += 1
             last_friction = (k, report.friction_iterations)
-        problems = checks()
-        named = [d for d in sim.diagnostics if d.startswith("ENERGY_GROWTH")]
-        if problems and named and all(p.startswith("energy grew") for p in problems):
-            # the simulation itself named the energy gain (Newmark with stiff contact)
-            status = "ENERGY_GROWTH"
-            outcome = f"{named[0]} (step {k})"
-            if strategy in EXPLICIT:  # the library's advice is for Newmark: say what was seen
-                outcome += (
-                    f"; {strategy} with symplectic Euler: growth {checks.energy_growth:.3g} of "
-                    f"E_ref > its allowance {ENERGY_TOL[sim.integrator.name]}"
-                )
-            break
-        if problems and strategy in EXPLICIT and all(p.startswith("inverted") for p in problems):
-            # explicit elasticity has no det F > 0 filter (the barrier's line search has)
-            status = "INVERTED"
-            outcome = f"INVERTED: {'; '.join(problems)} at step {k} ({INVERSION_REASON})"
-            if checks.max_penetrations:
-                outcome += (
-                    f"; before it, up to {checks.max_penetrations} particles inside the FEM "
-                    f"body (first at step {checks.first_penetration})"
-                )
-            break
-        if problems:
-            status = "UNEXPLAINED"
-            outcome = f"UNEXPLAINED: {'; '.join(problems)} at step {k}"
+        ended = _stopped(checks(), sim, strategy, checks, k)
+        if ended is not None:
             break
     row["wall_s"] = time.perf_counter() - started
     row["cpu_s"] = time.process_time() - cpu_started
+    status, outcome = ended or (None, None)
     if outcome is None and checks.max_penetrations:
         # (only where crossing is allowed: else the check above ended the run)
         status = "PENETRATION"
@@ -397,22 +350,9 @@ def _run(
         )
         if warnings:
             outcome += f"; the library warned: {warnings[0]}"
-    drift = None
-    if cfg.geometry == "resting" and len(heights) >= 4:
-        half = heights[len(heights) // 2 - 1 :]
-        drift = float(max(half) - min(half))
-        why = drift_reason(strategy)
-        if outcome is None and drift > DRIFT_TOL * cfg.dhat and why is not None:
-            speed = float(sim.state.mpm_v[block, 1].mean())
-            status = "DRIFT"
-            outcome = (
-                f"DRIFT: the resting block's mean height varied by {drift:.3g} m over the "
-                f"second half (> {DRIFT_TOL} dhat; mean vertical velocity {speed:.3g} m/s at the "
-                f"end): {why}"
-            )
-        if outcome is None and drift > DRIFT_TOL * cfg.dhat:
-            status = "UNEXPLAINED"
-            outcome = f"UNEXPLAINED: the resting block drifted {drift:.3g} m (> {DRIFT_TOL} dhat)"
+    drift = _drift(heights) if cfg.geometry == "resting" else None
+    if outcome is None and drift is not None and drift > DRIFT_TOL * cfg.dhat:
+        status, outcome = _drifted(drift, strategy, float(sim.state.mpm_v[block, 1].mean()))
     if outcome is None and friction_bad:
         status = "FRICTION_NOT_CONVERGED"
         outcome = (
@@ -422,6 +362,7 @@ def _run(
     if outcome is None:
         status = outcome = "pass"
     dist = np.asarray(distances, dtype=np.float64)
+    closest = np.nanmin(dist) if np.isfinite(dist).any() else None
     it = np.asarray(iters, dtype=np.int64)
     energy = np.asarray(sim.metrics.column("energy_total"), dtype=np.float64)
     row.update(
@@ -429,10 +370,8 @@ def _run(
         status=status,
         steps=len(distances),
         t_end=float(sim.state.t),
-        min_distance=_finite(np.nanmin(dist)) if np.isfinite(dist).any() else None,
-        min_distance_over_dhat=(
-            _finite(np.nanmin(dist) / cfg.dhat) if np.isfinite(dist).any() else None
-        ),
+        min_distance=_finite(closest),
+        min_distance_over_dhat=None if closest is None else _finite(closest / cfg.dhat),
         min_distance_geometric=_finite(checks.min_geometric),
         contact_steps=int(np.count_nonzero(np.isfinite(dist))),
         penetrations=checks.max_penetrations,
@@ -460,6 +399,60 @@ def _run(
         outcome,
     )
     return row
+
+
+def _drift(heights: list[float]) -> float | None:
+    """How far (m) the resting block's mean height ``heights`` (one per step) varied over the
+    run's second half (None: fewer than 4 steps)."""
+    if len(heights) < 4:
+        return None
+    half = heights[len(heights) // 2 - 1 :]
+    return float(max(half) - min(half))
+
+
+def _drifted(drift: float, strategy: str, speed: float) -> tuple[str, str]:
+    """``(status, outcome)`` of a resting block that drifted ``drift`` m (more than
+    ``DRIFT_TOL`` dhat), its mean vertical velocity ``speed`` m/s at the end: a named ``DRIFT``
+    where the strategy explains it (``drift_reason``), else a bug."""
+    why = drift_reason(strategy)
+    if why is None:
+        return (
+            "UNEXPLAINED",
+            f"UNEXPLAINED: the resting block drifted {drift:.3g} m (> {DRIFT_TOL} dhat)",
+        )
+    return "DRIFT", (
+        f"DRIFT: the resting block's mean height varied by {drift:.3g} m over the second half "
+        f"(> {DRIFT_TOL} dhat; mean vertical velocity {speed:.3g} m/s at the end): {why}"
+    )
+
+
+def _stopped(
+    problems: list[str], sim: bfemp.Simulation, strategy: str, checks: _Checks, k: int
+) -> tuple[str, str] | None:
+    """``(status, outcome)`` that ends the run at step ``k`` for the checks' ``problems``
+    (None: no problem, the run goes on)."""
+    if not problems:
+        return None
+    named = [d for d in sim.diagnostics if d.startswith("ENERGY_GROWTH")]
+    if named and all(p.startswith("energy grew") for p in problems):
+        # the simulation itself named the energy gain (Newmark with stiff contact)
+        outcome = f"{named[0]} (step {k})"
+        if strategy in EXPLICIT:  # the library's advice is for Newmark: say what was seen
+            outcome += (
+                f"; {strategy} with symplectic Euler: growth {checks.energy_growth:.3g} of "
+                f"E_ref > its allowance {ENERGY_TOL[sim.integrator.name]}"
+            )
+        return "ENERGY_GROWTH", outcome
+    if strategy in EXPLICIT and all(p.startswith("inverted") for p in problems):
+        # explicit elasticity has no det F > 0 filter (the barrier's line search has)
+        outcome = f"INVERTED: {'; '.join(problems)} at step {k} ({INVERSION_REASON})"
+        if checks.max_penetrations:
+            outcome += (
+                f"; before it, up to {checks.max_penetrations} particles inside the FEM "
+                f"body (first at step {checks.first_penetration})"
+            )
+        return "INVERTED", outcome
+    return "UNEXPLAINED", f"UNEXPLAINED: {'; '.join(problems)} at step {k}"
 
 
 def _runs(row: dict) -> list[dict]:
@@ -528,7 +521,7 @@ def measure(mode: str, cfg: dict, strategy: list[str] | None = None) -> dict:
                 for run in _runs(r)
             )
             for s in strategies
-        },
+        },  # fmt: skip
         "min_J": min((run["min_J"] for run in every if run.get("min_J") is not None), default=None),
         "newton_iterations": int(sum(run.get("newton_iterations", 0) for run in every)),
         "table": {

@@ -98,17 +98,12 @@ def pair_kind(case: dict) -> str:
 def _simulation(scene, case: dict):
     import bfemp
 
-    if _is_explicit(case["strategy"]):  # its own Newton cap (TwoStageOptions: 200)
+    if STRATEGIES[case["strategy"]].explicit:  # its own Newton cap (TwoStageOptions: 200)
         cfl = dict(zip(("cfl_safety_fem", "cfl_safety_mpm"), case["cfl"], strict=True))
         options = STRATEGIES[case["strategy"]].Options(**cfl)
         return bfemp.Simulation(scene, strategy=case["strategy"], dt="auto", options=options)
     return bfemp.Simulation(scene, strategy=case["strategy"], integrator=case["integrator"],
                             dt=case["dt"], max_newton_iterations=NEWTON_CAP)  # fmt: skip
-
-
-def _is_explicit(strategy: str) -> bool:
-    """Whether the strategy steps at an explicit stable step."""
-    return STRATEGIES[strategy].explicit
 
 
 def _closing_speed(case: dict) -> float:
@@ -131,7 +126,7 @@ def run_case(case: dict) -> dict:
         scene, min_feature = scenes.build(case)
         sim = _simulation(scene, case)
         n_steps = IMPLICIT_STEPS
-        if _is_explicit(case["strategy"]):  # explicit stage: place the body a few steps away
+        if STRATEGIES[case["strategy"]].explicit:  # explicit stage: place the body a few steps away
             dt = float(sim.dt)
             gap = case["gap_steps"] * _closing_speed(case) * dt
             scene, min_feature = scenes.build(case, gap=gap)

@@ -8,61 +8,31 @@ options. Replay one point:
 ``python -m benchmarks tradeoff --replay tradeoff.json --id ID`` or ``--point '<record as
 JSON>'``.
 
-Strategies go by the registry's names (``bfemp.steppers.STRATEGIES``). The scenes (``rings``,
-``slope``, ``hertz`` and its softened ``hertz_soft``, ``sine_boundary``, ``augury_blocks``,
-``lr_compression``) are declared in ``_tradeoff_scenes.SCENES``: what each point's error is
-against (an analytic value, or the scene's reference run: its reference strategy at the finest
-value of every swept knob at once), which strategies run it and how, and why the others do not
-(``not_applicable``); the record and its report repeat each of these per scene.
-
-Knobs. The scene's discretisation knobs (``dx``, ``ppc``, ``spacing``, ``dhat``, ``eps_v``, less
-those a strategy does not have) take the mode's values; each strategy's own knobs are the fields
-of its options dataclass that declare ``sweep`` metadata (``benchmarks._tradeoff_knobs``: e.g.
-``tol`` of barrier and two_stage, ``iterations`` and ``tau`` of augury, ``corrections`` and
-``xpic_order`` of lr, the CFL fractions of every explicit strategy), swept on a ladder around
-the base value: quick mode one step finer, full mode one coarser and one finer. dt is a knob at
-a fixed step; at ``dt="auto"`` the CFL fractions are. The sweeps are one at a time around each
-strategy's base (every point differs from it in one knob); points with equal settings run once.
-
-Every point runs in a fresh Python process (``benchmarks._tradeoff_point`` running
-``benchmarks._tradeoff_runs.run_point``) with ``threads`` numba/BLAS threads
-(``--threads-per-point``, default 1): its wall time (scene build and time loop), CPU time,
-peak memory and iterations (Newton, summed over the run; 0 for the purely explicit
-strategies) are its own. The cost axis is the wall time (``--cost cpu``: the CPU time, which a
-busy machine inflates less). Local runs use ``--workers`` processes at once (default: the
-number of cores); with ``--scheduler`` the same pure function ``execute_point`` is submitted to
-a Dask cluster (``distributed.Client``). Before the timed points a few steps of each scene and
-strategy (``warmup``) fill numba's on-disk cache.
-
-Each point's measurement is kept in ``<out>/tradeoff_points/`` (``--points DIR``) as it arrives
-(``benchmarks._tradeoff_cache``): ``--resume`` takes the points an earlier sweep of the same
-code kept there (same settings and threads; points that gave no metrics run again), so a
-stopped sweep goes on where it stopped, in a later session too when the folder is committed.
-A later run of some scenes merges into a record with ``merge(record, rerun)``.
-
-Feasibility (issue 40): every point records ``max_penetration_m`` and the bound it is judged
-against, ``penetration_bound_m`` (``benchmarks._penetration``); a point beyond its bound is
-infeasible (``_tradeoff_report.infeasible``): drawn as a cross, named in the report, never on a
-Pareto front and never the winner of an error range.
+Where each part lives: the scenes, what each point's error is against and which strategies run
+them (``_tradeoff_scenes.SCENES``); the knobs and their ladders (``_tradeoff_knobs``: quick mode
+one step finer than each strategy's base, full mode one coarser and one finer, one knob at a time,
+points with equal settings run once); one point per fresh process, locally or on a Dask cluster
+(``_tradeoff_point``, running ``_tradeoff_runs.run_point``; ``--cost cpu`` takes the points' CPU
+time instead of their wall time); the points kept as they arrive for ``--resume``
+(``_tradeoff_cache``); the fronts, winners, knob effects, feasibility (issue 40: a point deeper
+inside a FEM body than its strategy's bound is infeasible, never on a front nor a winner) and the
+report (``_tradeoff_report``). Before the timed points a few steps of each scene and strategy
+(``warmup``) fill numba's on-disk cache. A later run of some scenes merges into a record with
+``merge(record, rerun)``.
 
 Outputs in ``--out`` (default ``results/``): ``tradeoff.json`` (every point's record, the
 fronts, the winners per error range and the crossovers, the knob effects, the infeasible points),
 ``tradeoff_<scene>.png`` (error against cost, log-log, one colour per strategy, the scene's
-non-dominated front) and ``tradeoff.md`` (per scene: what the error is against, the strategies
-run and why the others are not, the winner in each error range and the crossovers, computed by
-``_tradeoff_report.winners`` from the points, what each knob of each strategy buys per second,
-a table of the points).
+non-dominated front) and ``tradeoff.md``.
 
 Modes: ``quick`` (coarse settings, seconds to a minute per point) only shows the harness and
 the coarse end of each trade-off; ``full`` sweeps around the papers' settings (hours of CPU per
 point for the rings and hertz: meant for a Dask cluster).
 
-A point's record holds everything to run it again: ``scene``, ``settings`` (``strategy``,
-``dt``, ``options``, the scene's settings), ``mode``, ``threads``, for scenes with a reference
-run the ``reference`` (its settings and the metrics the error is taken against), and the
-``commit`` that ran it. Replaying a record re-runs the point and recomputes the error; the runs
-are deterministic (one process per point, fixed thread counts), so at the same commit the
-error is reproduced exactly (the wall time is not).
+A point's record holds everything to run it again (``scene``, ``settings``, ``mode``,
+``threads``, the ``reference`` metrics its error is taken against, the ``commit``); the runs are
+deterministic (one process per point, fixed thread counts), so at the same commit replaying a
+record reproduces its error exactly (the wall time is not).
 """
 
 from __future__ import annotations
@@ -676,7 +646,6 @@ def _measure(
             f"python -m benchmarks tradeoff --replay {json_path} --id {shlex.quote(record['id'])}"
         )
         finished.append(done)
-    analysis = analyse(finished, scene_names, cost_key)
 
     def not_run(scene: str) -> dict:
         chosen = strategies.get(scene) if isinstance(strategies, dict) else strategies
@@ -687,42 +656,51 @@ def _measure(
             if (scene, st) not in pairs
         }
 
-    return {
-        "scenes": scene_names,
-        "strategies": {
-            s: list(dict.fromkeys(st for sc, st in pairs if sc == s)) for s in scene_names
-        },
-        "strategy_notes": {
-            s: {st: SCENES[s]["strategies"][st].get("note") for sc, st in pairs if sc == s}
-            for s in scene_names
-        },
-        "not_run": {s: not_run(s) for s in scene_names},
-        "knobs": {s: swept_knobs(finished, s) for s in scene_names},
-        "errors": {s: SCENES[s]["error"] for s in scene_names},
-        "executor": {
-            "kind": "dask" if scheduler else "local",
-            "workers": None if scheduler else workers,
-            "scheduler": scheduler,
-            "threads_per_point": threads,
-            "timeout_s": timeout_s,
-        },
-        "cost": cost_key,
-        "sweeps_override": sweeps,  # what replaced the mode's values (None: none)
-        "strategies_chosen": strategies,
-        "knobs_chosen": knobs,
-        "warmup_s": warmup_s,
-        "warmup_failures": [w["failure"] for w in warmed if w.get("failure")],
-        "wall_s": elapsed,
-        "resumed": list(measured_by),
-        "point_wall_s_total": sum(r["wall_s"] or 0.0 for r in finished),
-        "failed": [r["id"] for r in finished if r["failure"]],
-        "pareto": {
-            s: [r["id"] for r in finished if r["scene"] == s and r["pareto"]] for s in scene_names
-        },
-        **analysis,
-        "references": references,
-        "points": finished,
+    return _analysed(
+        {
+            "scenes": scene_names,
+            "strategies": {
+                s: list(dict.fromkeys(st for sc, st in pairs if sc == s)) for s in scene_names
+            },
+            "strategy_notes": {
+                s: {st: SCENES[s]["strategies"][st].get("note") for sc, st in pairs if sc == s}
+                for s in scene_names
+            },
+            "not_run": {s: not_run(s) for s in scene_names},
+            "errors": {s: SCENES[s]["error"] for s in scene_names},
+            "executor": {
+                "kind": "dask" if scheduler else "local",
+                "workers": None if scheduler else workers,
+                "scheduler": scheduler,
+                "threads_per_point": threads,
+                "timeout_s": timeout_s,
+            },
+            "cost": cost_key,
+            "sweeps_override": sweeps,  # what replaced the mode's values (None: none)
+            "strategies_chosen": strategies,
+            "knobs_chosen": knobs,
+            "warmup_s": warmup_s,
+            "warmup_failures": [w["failure"] for w in warmed if w.get("failure")],
+            "wall_s": elapsed,
+            "resumed": list(measured_by),
+            "point_wall_s_total": sum(r["wall_s"] or 0.0 for r in finished),
+            "failed": [r["id"] for r in finished if r["failure"]],
+            "references": references,
+            "points": finished,
+        }
+    )
+
+
+def _analysed(payload: dict) -> dict:
+    """``payload`` (a trade study's record) with its analysis (``analyse``), each scene's swept
+    knobs (``swept_knobs``) and Pareto point ids taken again from its points; returns it."""
+    points, scenes = payload["points"], payload["scenes"]
+    payload.update(analyse(points, scenes, payload["cost"]))
+    payload["knobs"] = {s: swept_knobs(points, s) for s in scenes}
+    payload["pareto"] = {
+        s: [r["id"] for r in points if r["scene"] == s and r["pareto"]] for s in scenes
     }
+    return payload
 
 
 def _plot(payload: dict, png: Path) -> None:
@@ -740,13 +718,7 @@ def rerender(path: str | Path) -> dict:
     ``tradeoff.json`` (its points as recorded: the fronts, winners and knob effects are
     recomputed from them)."""
     path = Path(path)
-    payload = json.loads(path.read_text())
-    points, scenes = payload["points"], payload["scenes"]
-    payload.update(analyse(points, scenes, payload["cost"]))
-    payload["knobs"] = {s: swept_knobs(points, s) for s in scenes}
-    payload["pareto"] = {
-        s: [r["id"] for r in points if r["scene"] == s and r["pareto"]] for s in scenes
-    }
+    payload = _analysed(json.loads(path.read_text()))
     path.write_text(json.dumps(payload, indent=2, default=float))
     path.with_suffix(".md").write_text(markdown(payload))
     _plot(payload, path.with_suffix(".png"))
