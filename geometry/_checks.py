@@ -59,5 +59,6 @@ def points(name: str, x: object, dim: int | None = None, rows: str = "n") -> np.
         raise ValueError(f"{name} must have shape ({rows}, {want}), got {out.shape}")
     if not np.isfinite(out).all():  # the rows only on failure: 20x faster on 1e5 points
         bad = np.flatnonzero(~np.isfinite(out).all(axis=1))
-        raise ValueError(f"{name} has non-finite (NaN or inf) coordinates at rows {bad[:10].tolist()}")
+        rows_bad = bad[:10].tolist()
+        raise ValueError(f"{name} has non-finite (NaN or inf) coordinates at rows {rows_bad}")
     return out
