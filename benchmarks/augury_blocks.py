@@ -120,8 +120,10 @@ def run_variant(h: float, transfer: str, iterations: int, t_end: float = T_END) 
         if k % every == 0 or k == steps:
             e, eb = energies(state)
             series["t"].append(state.t)
-            for key, of, start in (("L_drift", diagnostics.angular_momentum, L0),
-                                   ("P_drift", diagnostics.linear_momentum, P0)):  # fmt: skip
+            for key, of, start in (
+                ("L_drift", diagnostics.angular_momentum, L0),
+                ("P_drift", diagnostics.linear_momentum, P0),
+            ):
                 drift = np.linalg.norm(of(model, state) - start) / np.linalg.norm(start)
                 series[key].append(float(drift))
             series["E"].append(e)

@@ -475,7 +475,15 @@ def _arguments(group: argparse._ActionsContainer) -> None:
 
 # the committed records of modes other than full carry the mode in their names
 BENCHMARK = register(
-    Benchmark(NAME, __doc__, MODES, measure, plot, record=name_unless("full", NAME),
-              arguments=_arguments, needs_out=True)
-)  # fmt: skip
+    Benchmark(
+        NAME,
+        __doc__,
+        MODES,
+        measure,
+        plot,
+        record=name_unless("full", NAME),
+        arguments=_arguments,
+        needs_out=True,
+    )
+)
 run = BENCHMARK.run

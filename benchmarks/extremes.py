@@ -521,7 +521,7 @@ def measure(mode: str, cfg: dict, strategy: list[str] | None = None) -> dict:
                 for run in _runs(r)
             )
             for s in strategies
-        },  # fmt: skip
+        },
         "min_J": min((run["min_J"] for run in every if run.get("min_J") is not None), default=None),
         "newton_iterations": int(sum(run.get("newton_iterations", 0) for run in every)),
         "table": {

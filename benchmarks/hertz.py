@@ -378,8 +378,12 @@ def run_material(cfg: dict, material: str) -> dict:
         )
         rows["newton"].append(report.newton_iterations)
         rows["friction_iterations"].append(report.friction_iterations)
-        log_row(log, f"hertz/{material} t={sim.state.t:.3f}", {k: v[-1] for k, v in rows.items()},
-                "F a a_interpolated newton")  # fmt: skip
+        log_row(
+            log,
+            f"hertz/{material} t={sim.state.t:.3f}",
+            {k: v[-1] for k, v in rows.items()},
+            "F a a_interpolated newton",
+        )
     wall = time.perf_counter() - start
     s = {k: np.asarray(v, dtype=np.float64) for k, v in rows.items()}
     c_h = hertz_constant(E=cfg.get("E_Pa", E))
@@ -466,12 +470,14 @@ def _grid_sweep() -> dict:
     for dx in SWEEP_DX:
         r = run_material(dict(_FAST, dx=dx, spacing=0.5 * dx, dt=SWEEP_DT), "linear")
         keys = ("fit_samples", "particles", "steps", "newton_iterations", "wall_s", "error")
-        rows.append({
-            "dx": dx,
-            "C_fit_over_C_hertz": r["C_fit_over_C_hertz"],
-            "C_fit_interpolated_over_C_hertz": r["C_fit_interpolated"] / r["C_hertz"],
-            **{k: r[k] for k in keys},
-        })  # fmt: skip
+        rows.append(
+            {
+                "dx": dx,
+                "C_fit_over_C_hertz": r["C_fit_over_C_hertz"],
+                "C_fit_interpolated_over_C_hertz": r["C_fit_interpolated"] / r["C_hertz"],
+                **{k: r[k] for k in keys},
+            }
+        )
     dx = np.array([row["dx"] for row in rows])
     ratio = np.array([row["C_fit_over_C_hertz"] for row in rows])
     ok = np.isfinite(ratio)

@@ -202,8 +202,16 @@ def run_transfer(cfg: dict, transfer: str, keep: dict | None = None) -> dict:
 #: the keys of a ``run_point`` settings dict (the trade study's knobs and fixed settings)
 POINT_KEYS = ("dx", "ppc", "fem_h", "dt", "t_end", "dhat", "tol", "strategy", "transfer")
 #: the entries of ``run_transfer``'s result a ``run_point`` result copies
-POINT_RESULTS = ("steps", "newton_iterations", "newton_iterations_max", "momentum_drift_rel",
-                 "min_distance", "penetrations", "particles", "fem_vertices")  # fmt: skip
+POINT_RESULTS = (
+    "steps",
+    "newton_iterations",
+    "newton_iterations_max",
+    "momentum_drift_rel",
+    "min_distance",
+    "penetrations",
+    "particles",
+    "fem_vertices",
+)
 
 
 def run_point(settings: dict) -> dict:

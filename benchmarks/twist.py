@@ -297,8 +297,13 @@ def _run_one(
         elif cfg["stop_after_slip"] and sim.state.t >= slip_t + STOP_AFTER_SLIP_S - 1e-9:
             break
         if len(t) % PROGRESS_EVERY == 1:
-            log.info("twist mu=%g: t = %.2f s, cube %.3f pi, %.0f s", mu, t[-1],
-                     cube[-1] / math.pi, time.perf_counter() - started)  # fmt: skip
+            log.info(
+                "twist mu=%g: t = %.2f s, cube %.3f pi, %.0f s",
+                mu,
+                t[-1],
+                cube[-1] / math.pi,
+                time.perf_counter() - started,
+            )
         if time.perf_counter() - started > budget_s:
             cut = True
             break
@@ -647,7 +652,14 @@ def merge(records: list[str | Path], out: str | Path = "results") -> dict:
 
 # the records of modes other than full carry the mode in their names
 BENCHMARK = register(
-    Benchmark(NAME, __doc__, {**MODES, **{m: {} for m in PROBES}}, measure, plot=plot,
-              record=name_unless("full", NAME), needs_out=True)
-)  # fmt: skip
+    Benchmark(
+        NAME,
+        __doc__,
+        {**MODES, **{m: {} for m in PROBES}},
+        measure,
+        plot=plot,
+        record=name_unless("full", NAME),
+        needs_out=True,
+    )
+)
 run = BENCHMARK.run

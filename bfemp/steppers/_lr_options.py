@@ -114,9 +114,13 @@ class LROptions(ExplicitOptions):
         super().__post_init__()
         name = type(self).__name__
         self.check_choices(
-            law=LAWS, interface=INTERFACES, detector=DETECTORS, lump=LUMPS,
-            xpic_variant=XPIC_VARIANTS, contact_force=CONTACT_FORCES,
-        )  # fmt: skip
+            law=LAWS,
+            interface=INTERFACES,
+            detector=DETECTORS,
+            lump=LUMPS,
+            xpic_variant=XPIC_VARIANTS,
+            contact_force=CONTACT_FORCES,
+        )
         if self.corrections not in (1, 2) or isinstance(self.corrections, bool):
             raise ValueError(f"{name}.corrections must be 1 or 2, got {self.corrections!r}")
         self.check_integers("lr_max_iterations", low=1)

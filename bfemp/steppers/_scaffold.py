@@ -225,10 +225,16 @@ def write_state(
     with_a = mpm.acceleration is not None
     grid = (st.nodes, st.weights, st.grads, st.active_x, x_end[n_fem:], mpm.fields.velocity)
     update = grid_to_particles(
-        transfer, *grid, v_end[n_fem:], a_end[n_fem:] if with_a else None,
-        state.mpm_x, state.mpm_v, state.mpm_F,
-        grid_a_old=mpm.acceleration if with_a else None, mpm_a=state.mpm_a if with_a else None,
-    )  # fmt: skip
+        transfer,
+        *grid,
+        v_end[n_fem:],
+        a_end[n_fem:] if with_a else None,
+        state.mpm_x,
+        state.mpm_v,
+        state.mpm_F,
+        grid_a_old=mpm.acceleration if with_a else None,
+        mpm_a=state.mpm_a if with_a else None,
+    )
     new.mpm_x, new.mpm_v, new.mpm_F, new.mpm_C = update[:4]
     if with_a:  # a^{n+1} crosses back like the velocity (FLIP increments, APIC affine)
         new.mpm_a, new.mpm_Ca = update.mpm_a, update.mpm_Ca

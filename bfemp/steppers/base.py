@@ -70,9 +70,14 @@ class StepperOptions:
                 raise ValueError(f"{self._named(name)} must be one of {choices}, got {value!r}")
 
     def check_numbers(
-        self, *names: str, low: float = 0.0, strict: bool = True, high: float | None = None,
-        none: bool = False, what: str = "a finite number",
-    ) -> None:  # fmt: skip
+        self,
+        *names: str,
+        low: float = 0.0,
+        strict: bool = True,
+        high: float | None = None,
+        none: bool = False,
+        what: str = "a finite number",
+    ) -> None:
         """``ValueError`` naming the field unless each of ``names`` is a finite real number above
         ``low`` (``strict``; else at least ``low``) and at most ``high`` (or None when ``none``);
         each is stored as a float. ``what`` says what the value is in the message."""
@@ -81,8 +86,12 @@ class StepperOptions:
             if value is None and none:
                 continue
             ok = isinstance(value, int | float) and not isinstance(value, bool)
-            if not (ok and math.isfinite(value) and (value > low if strict else value >= low)
-                    and (high is None or value <= high)):  # fmt: skip
+            if not (
+                ok
+                and math.isfinite(value)
+                and (value > low if strict else value >= low)
+                and (high is None or value <= high)
+            ):
                 bound = (
                     f"be {'>' if strict else '>='} {low:g}"
                     if high is None
