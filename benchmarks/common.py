@@ -16,6 +16,7 @@ import numpy as np
 
 from solvers.allocator import allocator_report
 from solvers.choice import linear_algebra
+from solvers.numba_threads import numba_threads_report
 from solvers.openmp import openmp_report
 
 
@@ -59,6 +60,8 @@ def environment() -> dict:
         "allocator": allocator_report(),
         # CHOLMOD's own OpenMP loops bounded (solvers.openmp)
         "openmp": openmp_report(),
+        # numba's threading layer: TBB where the wheel is installed (solvers.numba_threads)
+        "numba_threads": numba_threads_report(),
         "load_average_1min": os.getloadavg()[0],
     }
 

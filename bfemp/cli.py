@@ -55,11 +55,12 @@ class _VersionAction(argparse.Action):
         import bfemp
         from solvers.allocator import format_allocator
         from solvers.choice import format_linear_algebra, linear_algebra
+        from solvers.numba_threads import format_numba_threads
         from solvers.openmp import format_openmp
 
         print(
             f"bfemp {bfemp.__version__}\n{format_linear_algebra(linear_algebra())}\n"
-            f"{format_openmp()}\n{format_allocator()}"
+            f"{format_openmp()}\n{format_allocator()}\n{format_numba_threads()}"
         )
         parser.exit()
 

@@ -87,11 +87,15 @@ def _grid_units(x, o0, o1, inv_dx, n_chunks, xi):  # noqa: ANN001, ANN201
                 l0, l1 = b0, b1
         lo[c, 0], lo[c, 1], hi[c, 0], hi[c, 1] = mn0, mn1, mx0, mx1
         first[c, 0], first[c, 1], last[c, 0], last[c, 1] = f0, f1, l0, l1
+    # scalar loops: in a parallel function an array reduction such as lo[:, 0].min() is a
+    # parallel region of its own (four of them cost 0.2 ms a step at 33k particles)
     out = np.empty(4, dtype=np.int64)
-    out[0] = lo[:, 0].min()
-    out[1] = lo[:, 1].min()
-    out[2] = hi[:, 0].max()
-    out[3] = hi[:, 1].max()
+    out[0], out[1], out[2], out[3] = lo[0, 0], lo[0, 1], hi[0, 0], hi[0, 1]
+    for c in range(1, n_chunks):
+        out[0] = min(out[0], lo[c, 0])
+        out[1] = min(out[1], lo[c, 1])
+        out[2] = max(out[2], hi[c, 0])
+        out[3] = max(out[3], hi[c, 1])
     return out, first, last
 
 
