@@ -21,7 +21,7 @@ from bfemp.demo import colliding_rings_scene
 from solvers.numba_threads import numba_threads_report
 
 digest = hashlib.sha256()
-for strategy, dt, steps in (("augury", "auto", 12), ("barrier", 2e-3, 2)):
+for strategy, dt, steps in (("augury", "auto", 6), ("barrier", 2e-3, 1)):
     sim = bfemp.Simulation(colliding_rings_scene(), strategy=strategy, dt=dt)
     for _ in range(steps):
         sim.step()
