@@ -44,7 +44,7 @@ import numpy as np
 
 from bfemp.errors import RunFolderError, SceneError, warn_user
 from bfemp.io.metrics import MetricsLog
-from bfemp.io.vtk import atomic_path
+from bfemp.io.vtk import atomic_path, atomic_write_text
 from bfemp.state import State
 
 __all__ = [
@@ -94,18 +94,6 @@ def model_fingerprint(model: object) -> str:
     h = hashlib.sha256()
     _feed(h, model)
     return h.hexdigest()
-
-
-def _metrics_json(metrics: MetricsLog) -> str:
-    columns = metrics.columns
-    rows = [[row[c] for c in columns] for row in metrics.rows]
-    return json.dumps({"columns": columns, "rows": rows})
-
-
-def _metrics_from_json(text: str) -> MetricsLog:
-    data = json.loads(text)
-    columns = data["columns"]
-    return MetricsLog(dict(zip(columns, row, strict=True)) for row in data["rows"])
 
 
 @dataclass(frozen=True)
@@ -162,13 +150,14 @@ def write_checkpoint(out: str | Path, sim: object, *, every: int | None = None) 
         "pvd": sorted(pvd),
     }
     arrays["meta"] = np.array(json.dumps(meta))
-    arrays["metrics"] = np.array(_metrics_json(sim.metrics))
+    columns = sim.metrics.columns
+    rows = [[row[c] for c in columns] for row in sim.metrics.rows]
+    arrays["metrics"] = np.array(json.dumps({"columns": columns, "rows": rows}))
     path = out / CHECKPOINT_FILE
     with atomic_path(path) as tmp, tmp.open("wb") as fh:
         np.savez(fh, **arrays)
     sidecar = {**meta, "metrics_rows": len(sim.metrics), "file": CHECKPOINT_FILE}
-    with atomic_path(out / SIDECAR_FILE) as tmp:
-        tmp.write_text(json.dumps(sidecar, indent=2) + "\n", encoding="utf-8")
+    atomic_write_text(out / SIDECAR_FILE, json.dumps(sidecar, indent=2) + "\n")
     log.info("checkpoint at step %d (t = %.6g s) written to %s", state.step, state.t, path)
     return path
 
@@ -197,6 +186,11 @@ _CORRUPT_HINT = (
 )
 
 
+def _corrupt(path: Path, what: str) -> RunFolderError:
+    """The refusal of a corrupt checkpoint ``path``: ``what`` is wrong with it."""
+    return RunFolderError(f"corrupt checkpoint: {what}", file=str(path), hint=_CORRUPT_HINT)
+
+
 def read_checkpoint(out: str | Path) -> Checkpoint:
     """Read ``{out}/checkpoint.npz``.
 
@@ -214,19 +208,15 @@ def read_checkpoint(out: str | Path) -> Checkpoint:
         raise _no_checkpoint(out)
     if not zipfile.is_zipfile(path):  # np.load would try it as a pickle: a misleading message
         size = path.stat().st_size
-        raise RunFolderError(
-            f"corrupt checkpoint: not a complete zip archive ({size} bytes; truncated or "
-            "overwritten)",
-            file=str(path),
-            hint=_CORRUPT_HINT,
-        )
+        raise _corrupt(path, f"not a complete zip archive ({size} bytes; truncated or overwritten)")
     try:
         with np.load(path, allow_pickle=False) as data:
             contents = {key: data[key] for key in data.files}
         if "meta" not in contents or "metrics" not in contents:
             raise KeyError("no 'meta' or 'metrics' record")
         meta = json.loads(str(contents.pop("meta")))
-        metrics = _metrics_from_json(str(contents.pop("metrics")))
+        table = json.loads(str(contents.pop("metrics")))
+        metrics = MetricsLog(dict(zip(table["columns"], r, strict=True)) for r in table["rows"])
         if not isinstance(meta, dict):
             raise TypeError("the 'meta' record is not a JSON object")
     except (
@@ -240,9 +230,7 @@ def read_checkpoint(out: str | Path) -> Checkpoint:
         zipfile.BadZipFile,
         zlib.error,
     ) as err:
-        raise RunFolderError(
-            f"corrupt checkpoint: {type(err).__name__}: {err}", file=str(path), hint=_CORRUPT_HINT
-        ) from None
+        raise _corrupt(path, f"{type(err).__name__}: {err}") from None
     if meta.get("format") != FORMAT_VERSION:
         raise RunFolderError(
             f"checkpoint of format {meta.get('format')}, not {FORMAT_VERSION} (written by "
@@ -252,11 +240,7 @@ def read_checkpoint(out: str | Path) -> Checkpoint:
         )
     missing = [k for k in ("scalars", "fingerprint", "settings") if k not in meta]
     if missing:
-        raise RunFolderError(
-            f"corrupt checkpoint: its meta record lacks {', '.join(missing)}",
-            file=str(path),
-            hint=_CORRUPT_HINT,
-        )
+        raise _corrupt(path, f"its meta record lacks {', '.join(missing)}")
     state_arrays = {k[6:]: v for k, v in contents.items() if k.startswith("state.")}
     carried = {k[8:]: state_arrays.pop(k) for k in list(state_arrays) if k.startswith("carried.")}
     for name in ("aug_B", "aug_Bp"):  # written as State fields before they moved to carried
@@ -265,11 +249,7 @@ def read_checkpoint(out: str | Path) -> Checkpoint:
     try:
         state = State(**meta["scalars"], **state_arrays, carried=carried)
     except TypeError as err:
-        raise RunFolderError(
-            f"corrupt checkpoint: its state does not match a State ({err})",
-            file=str(path),
-            hint=_CORRUPT_HINT,
-        ) from None
+        raise _corrupt(path, f"its state does not match a State ({err})") from None
     pvd = {k[4:]: str(v) for k, v in contents.items() if k.startswith("pvd.")}
     stepper = {k[8:]: v for k, v in contents.items() if k.startswith("stepper.")}
     return Checkpoint(state=state, metrics=metrics, meta=meta, pvd=pvd, stepper=stepper)
@@ -303,10 +283,8 @@ def check_frames(out: str | Path, pvd: dict[str, str]) -> int:
         try:
             root = ET.fromstring(text)
         except ET.ParseError as err:
-            raise RunFolderError(
-                f"corrupt checkpoint: its copy of {block}.pvd does not parse ({err})",
-                file=str(out / CHECKPOINT_FILE),
-                hint=_CORRUPT_HINT,
+            raise _corrupt(
+                out / CHECKPOINT_FILE, f"its copy of {block}.pvd does not parse ({err})"
             ) from None
         for dataset in root.iter("DataSet"):
             rel, t = dataset.get("file", ""), f"{float(dataset.get('timestep', 'nan')):.9g}"
@@ -374,8 +352,7 @@ def restore_checkpoint(out: str | Path, sim: object, *, every: int | None = None
     sim.state = ckpt.state
     sim.metrics = ckpt.metrics
     for name, text in ckpt.pvd.items():
-        with atomic_path(out / f"{name}.pvd") as tmp:
-            tmp.write_text(text, encoding="utf-8")
+        atomic_write_text(out / f"{name}.pvd", text)
     log.info(
         "resumed from step %d (t = %.6g s) of %s", ckpt.state.step, ckpt.state.t, out / "checkpoint"
     )

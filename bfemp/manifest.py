@@ -38,7 +38,7 @@ from bfemp.checkpoint import SIDECAR_FILE, model_fingerprint
 from bfemp.errors import RunFolderError, SceneError
 from bfemp.io.metrics import MetricsLog
 from bfemp.io.outputs import lock_holder
-from bfemp.io.vtk import atomic_path, read_pvd
+from bfemp.io.vtk import atomic_write_text, read_pvd
 from bfemp.materials import BulkShearHyperelastic
 
 __all__ = [
@@ -153,8 +153,7 @@ def model_summary(model: object) -> dict:
 
 
 def _write(path: Path, data: dict) -> None:
-    with atomic_path(path) as tmp:
-        tmp.write_text(json.dumps(data, indent=2, allow_nan=False, default=str) + "\n")
+    atomic_write_text(path, json.dumps(data, indent=2, allow_nan=False, default=str) + "\n")
 
 
 def _finite(value: float) -> float | None:

@@ -362,7 +362,7 @@ def update(ref: Reference, trajectory: Trajectory | None = None) -> dict[str, fl
     import hashlib
 
     import bfemp
-    from bfemp.io.vtk import atomic_path
+    from bfemp.io.vtk import atomic_path, atomic_write_text
 
     trajectory = run_reference(ref) if trajectory is None else trajectory
     changes: dict[str, float | str] = {}
@@ -426,7 +426,6 @@ def update(ref: Reference, trajectory: Trajectory | None = None) -> dict[str, fl
         with atomic_path(ref.npz_path) as tmp:
             with open(tmp, "wb") as fh:
                 np.savez_compressed(fh, step=trajectory.steps, **trajectory.data)
-    with atomic_path(ref.meta_path) as tmp:
-        tmp.write_text(json.dumps(meta, indent=2) + "\n", encoding="utf-8")
+    atomic_write_text(ref.meta_path, json.dumps(meta, indent=2) + "\n")
     log.info("reference %s written: %s", ref.name, changes or "no change")
     return changes
