@@ -208,11 +208,7 @@ def check_clearance(
     pairs = point_simplex_candidates(mpm_x, fem_x, facets, inflation=dhat)
     if pairs.size == 0:
         return
-    p, f = mpm_x[pairs[:, 0]], fem_x[facets[pairs[:, 1]]]
-    if model.dim == 2:
-        dist = point_edge_distance(p, f[:, 0], f[:, 1])
-    else:
-        dist = point_triangle_distance(p, f[:, 0], f[:, 1], f[:, 2])
+    dist = _facet_distance(model.dim, mpm_x[pairs[:, 0]], fem_x[facets[pairs[:, 1]]])
     close = dist < dhat
     if not close.any():
         return
