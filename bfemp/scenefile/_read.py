@@ -207,18 +207,6 @@ def _simulation(root: Table) -> dict:
     if not root.has("simulation"):
         return {}
     t = root.sub("simulation")
-    keys = (
-        "strategy",
-        "integrator",
-        "transfer",
-        "dt",
-        "options",
-        "tol",
-        "max_newton_iterations",
-        "warm_start",
-        "allow_uncoupled",
-    )
-    t.check_keys(keys)
     hint = "dt is the time step in s, or 'auto' (an explicit strategy's stable step)"
     readers = {  # key -> its reader (each key optional)
         "strategy": lambda k: t.string(k, choices=STRATEGIES),
@@ -232,6 +220,7 @@ def _simulation(root: Table) -> dict:
         "warm_start": t.boolean,
         "allow_uncoupled": t.boolean,
     }
+    t.check_keys({*readers, "options"})
     out = {key: read(key) for key, read in readers.items() if t.has(key)}
     if t.has("options"):
         out["options"] = _options(t.sub("options"), out.get("strategy", "barrier"))
@@ -257,15 +246,13 @@ def _run(root: Table, key: str) -> dict:
     if not root.has(key):
         return {}
     t = root.sub(key)
-    t.check_keys(
-        {"t_end", "every", "checkpoint_every", "out"} - ({"out"} if key == "quick" else set())
-    )
     readers = {
         "t_end": lambda k: t.number(k, "time", positive=True),
         "every": lambda k: t.integer(k, minimum=1),
         "checkpoint_every": lambda k: t.integer(k, minimum=0),
         "out": t.string,
     }
+    t.check_keys(set(readers) - ({"out"} if key == "quick" else set()))
     return {key: read(key) for key, read in readers.items() if t.has(key)}
 
 
