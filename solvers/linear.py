@@ -90,12 +90,8 @@ def cholmod_available() -> bool:
 
 
 #: Machine epsilons of a row's absolute sum that :func:`rounding_shift` adds to its diagonal.
-#: A choice (no paper fixes it), by measurement on MPM-FEM barrier systems that CHOLMOD refused
-#: (pair distances 1e-14 to 1e-9 m at d-hat 1.5e-5 m, random orientations, B-spline weights and
-#: masses, the library's kernels and assembly): the smallest multiple that made them factorise
-#: was at most 1 on 162 2D systems, and 0.25 / 0.5 / 1 / 2 / 4 on 86 / 26 / 11 / 5 / 1 of 129
-#: 3D ones (27-node stencils); 16 leaves a factor 4 above the worst. The issue's scene (before
-#: the CCD change 454b0d4) factorised with the shift at every multiple tried, 0.5 to 16.
+#: A choice (no paper fixes it): a factor 4 above the largest multiple that MPM-FEM barrier
+#: systems CHOLMOD refused needed (design note ``measurements``, rounding shift).
 ROUNDING_SHIFT_ULPS = 16.0
 
 
@@ -109,8 +105,7 @@ def rounding_shift(A: sp.spmatrix, ulps: float = ROUNDING_SHIFT_ULPS) -> np.ndar
     grows like ``kappa / d^2`` (IPC / BFEMP eq. 27), so at ``d ~ 1e-9 d-hat`` a pair's block
     reaches ``1e17`` N/m and its rounding (``eps x 1e17 ~ 27``) exceeds the masses of the grid
     nodes it touches (``2e-5`` to a few kg): the computed sum is indefinite although no term is
-    (issue 44 defect 5: non-positive pivots down to ``-37``; rebuilt from the library's kernels,
-    ``tests/bfemp/test_psd_rounding.py``, smallest eigenvalues ``-4`` to ``-34``).
+    (issue 44; ``tests/bfemp/test_psd_rounding.py``).
 
     With ``A = A_exact + E`` and ``|E_ij| <= c eps |a_ij|`` (the entrywise model of a rounded
     sum without cancellation), Gershgorin's theorem bounds every eigenvalue of ``E`` below by

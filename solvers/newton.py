@@ -108,9 +108,8 @@ def _accept_near_solution(
     ``NewtonOptions.near_solution_factor`` of the tolerance (``near``), or |g.p| below
     ``_ROUND_OFF_ULPS`` eps |E| - the full step is taken when the gradient norm falls below
     both its value at x and ``g_best``, the least norm of the iterates so far; otherwise None
-    (use Armijo). Without ``g_best`` two iterates can take turns (measured, frictional
-    ``buckling`` at dt = 2e-2 s: A -> B on B's smaller gradient while E rose by 1.4e-6 J,
-    B -> A by Armijo, 500 times over).
+    (use Armijo). Without ``g_best`` two iterates can take turns (design note ``measurements``,
+    newton).
     """
     round_off = abs(slope) * alpha0 <= _ROUND_OFF_ULPS * np.finfo(float).eps * abs(energy)
     if not (near or round_off):
