@@ -151,12 +151,7 @@ class MetricsLog:
         }
 
     def to_csv(self, path: str | Path) -> Path:
-        """Write the table as CSV (format in the module docstring), atomically.
-
-        Returns:
-            the path written.
-        """
-        path = Path(path)
+        """Write the table as CSV (format in the module docstring), atomically; returns the path."""
         buffer = io.StringIO()
         writer = csv.writer(buffer, lineterminator="\n")
         writer.writerow(self.columns)

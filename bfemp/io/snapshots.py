@@ -50,6 +50,7 @@ from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 
 from bfemp.io.vtk import atomic_path, read_pvd
+from geometry._meshing_metrics import facets
 
 __all__ = [
     "ANIMATION_FORMATS",
@@ -74,7 +75,6 @@ SHEET_PANELS = 6
 #: least top of the von Mises colour scale in Pa: stresses below it are round-off (module notes)
 STRESS_FLOOR_PA = 1.0
 _CMAP = "viridis"
-_FACES = np.array([[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]])
 
 
 @dataclass(frozen=True)
@@ -168,12 +168,9 @@ def read_snapshots(out: str | Path, count: int | None = SHEET_PANELS) -> list[Sn
 
 def _boundary_faces(cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Boundary triangles ``(f, 3)`` of a tetrahedral mesh and the cell of each ``(f,)``."""
-    faces = cells[:, _FACES].reshape(-1, 3)
-    owner = np.repeat(np.arange(cells.shape[0]), 4)
-    key = np.sort(faces, axis=1)
-    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    once = counts[inverse.reshape(-1)] == 1
-    return faces[once], owner[once]
+    faces, inverse, counts = facets(cells)  # the cells' faces, cell by cell
+    once = counts[inverse] == 1
+    return faces[once], np.repeat(np.arange(cells.shape[0]), 4)[once]
 
 
 def _limits(snapshots: Sequence[Snapshot], dim: int) -> np.ndarray:
