@@ -373,12 +373,6 @@ def _fmt(value: object, unit: str = "") -> str:
     return f"{value}{unit}" if value is not None else "?"
 
 
-def _running_note(holder: dict) -> str:
-    pid, host, since = (holder.get(k, "?") for k in ("pid", "host", "started"))
-    where = "" if holder.get("alive") else ", not checked: another host"
-    return f"pid {pid} on {host}{where}, since {since}"
-
-
 def format_info(info: dict) -> str:
     """The text ``bfemp info`` prints for :func:`run_info`."""
     lines = [f"result folder: {info['folder']}"]
@@ -387,7 +381,10 @@ def format_info(info: dict) -> str:
         status = info.get("status", man.get("status", "?"))
         note = info.get("status_note") or man.get("message")
         if "running" in info:
-            note = _running_note(info["running"])
+            holder = info["running"]
+            pid, host, since = (holder.get(k, "?") for k in ("pid", "host", "started"))
+            where = "" if holder.get("alive") else ", not checked: another host"
+            note = f"pid {pid} on {host}{where}, since {since}"
         lines.append(f"status:        {status}" + (f" ({note})" if note else ""))
         params = man.get("parameters", {})
         if "scene_file" in params:

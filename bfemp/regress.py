@@ -157,14 +157,11 @@ def run_reference(ref: Reference) -> Trajectory:
         if q not in STATE_QUANTITIES and q not in sim.metrics.columns:
             _unknown_quantity(ref, sim, q)
     data = {k: np.stack([s[k] for s in samples]) for k in samples[0]}
-    return Trajectory(steps=ref.stored_steps(), data=data, settings=_jsonable(sim.settings))
-
-
-def _jsonable(settings: dict) -> dict:
-    return {
+    settings = {
         k: v if isinstance(v, int | float | str | bool) or v is None else str(v)
-        for k, v in settings.items()
+        for k, v in sim.settings.items()
     }
+    return Trajectory(steps=ref.stored_steps(), data=data, settings=settings)
 
 
 # ------------------------------------------------------------------------------- comparing

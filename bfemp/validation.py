@@ -54,12 +54,6 @@ def _clearance_error(
     )
 
 
-def _body_mesh(model: Model, body: object, fem_x: np.ndarray) -> TriMesh | TetMesh:
-    cells = model.fem_cells[body.cells] - body.nodes.start
-    cls = TriMesh if model.dim == 2 else TetMesh
-    return cls(fem_x[body.nodes], cells)
-
-
 def _positions(model: Model, fem_x: np.ndarray | None, mpm_x: np.ndarray | None) -> tuple:
     fem_x = model.fem_X if fem_x is None else np.asarray(fem_x, dtype=np.float64)
     mpm_x = model.mpm_X if mpm_x is None else np.asarray(mpm_x, dtype=np.float64)
@@ -144,7 +138,10 @@ def check_no_overlap(
         mpm_x: particle positions ``(P, d)`` in m (default: the initial positions).
     """
     fem_x, mpm_x = _positions(model, fem_x, mpm_x)
-    meshes = [_body_mesh(model, body, fem_x) for body in model.fem_bodies]
+    mesh_cls = TriMesh if model.dim == 2 else TetMesh
+    meshes = [
+        mesh_cls(fem_x[b.nodes], model.fem_cells[b.cells] - b.nodes.start) for b in model.fem_bodies
+    ]
     for body, mesh in zip(model.fem_bodies, meshes, strict=True):
         if model.n_particles == 0:
             break

@@ -206,15 +206,12 @@ def _norm(
     return Normalize(vmin=0.0, vmax=top), label
 
 
-def _dot_size(n_points: int) -> float:
-    return float(np.clip(2000.0 / max(n_points, 1), 0.3, 8.0))
-
-
 def _draw(ax: object, snap: Snapshot, norm: Normalize, limits: np.ndarray) -> None:
     """Draw the bodies of ``snap`` on ``ax`` (2D axes or mplot3d axes)."""
     cmap = _CMAP
     dim = limits.shape[0]
     n_particles = sum(len(b.points) for b in snap.bodies if b.cells is None)
+    dot_size = float(np.clip(2000.0 / max(n_particles, 1), 0.3, 8.0))
     if dim == 3:
         ax.computed_zorder = False  # particles over the meshes, not hidden behind their faces
     meshes = [b for b in snap.bodies if b.cells is not None]
@@ -250,7 +247,7 @@ def _draw(ax: object, snap: Snapshot, norm: Normalize, limits: np.ndarray) -> No
             c=body.von_mises,
             cmap=cmap,
             norm=norm,
-            s=_dot_size(n_particles),
+            s=dot_size,
             edgecolors="white" if dim == 3 else "none",  # unstressed dots stay visible on a mesh
             linewidths=0.3,
             zorder=2,

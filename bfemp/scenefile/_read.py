@@ -67,11 +67,6 @@ def _api_error(err: ValueError, t: Table, field: str | None, body: str | None) -
     return SceneError(msg, file=t.file, body=body, field=field, hint=hint)
 
 
-def _materials(root: Table) -> dict:
-    mats = root.sub("materials", default_empty=True)
-    return {name: read_material(mats.sub(name)) for name in mats.data}
-
-
 def _material(t: Table, materials: dict) -> tuple[object, str | None]:
     value = t.raw("material")
     if isinstance(value, str):
@@ -272,7 +267,8 @@ def parse_document(data: dict, *, file: str | None, base_dir: Path | None) -> di
     if dim not in (2, 3):
         raise st.error(f"must be 2 or 3, got {dim}", "dim")
     scene = Scene(dim=dim, gravity=st.vector("gravity", dim, default=None))
-    materials = _materials(root)
+    mats = root.sub("materials", default_empty=True)
+    materials = {name: read_material(mats.sub(name)) for name in mats.data}
     grid = None
     if root.has("grid"):
         gt = root.sub("grid")
