@@ -162,23 +162,6 @@ def write_checkpoint(out: str | Path, sim: object, *, every: int | None = None) 
     return path
 
 
-def _no_checkpoint(out: Path) -> RunFolderError:
-    """The refusal of ``--resume`` in a folder without a checkpoint, with a hint that works:
-    a folder holding an earlier run's outputs (a run killed before its first checkpoint) is
-    refused by a fresh run unless it overwrites them."""
-    # the evidence of an earlier run that bfemp.io.outputs (which imports this module) refuses
-    # to write over: its manifest, its metrics or a frame collection
-    earlier = any((out / name).is_file() for name in ("manifest.json", "metrics.csv"))
-    if earlier or any(out.glob("*.pvd")):
-        hint = (
-            f"the run in {out} stopped before its first checkpoint: start it again from t = 0 "
-            "with --overwrite instead of --resume (overwrite=True instead of resume=True)"
-        )
-    else:
-        hint = "run without --resume (resume=False) to start from t = 0"
-    return RunFolderError(f"no checkpoint in {out} ({CHECKPOINT_FILE} is missing)", hint=hint)
-
-
 #: how to go on when a checkpoint cannot be read
 _CORRUPT_HINT = (
     "the run cannot continue from it: put back a good copy, or start again from t = 0 with "
@@ -205,7 +188,19 @@ def read_checkpoint(out: str | Path) -> Checkpoint:
         raise RunFolderError("is a file, not a run folder", file=str(out))
     path = out / CHECKPOINT_FILE
     if not path.is_file():
-        raise _no_checkpoint(out)
+        # a hint that works: a folder with the evidence of an earlier run that bfemp.io.outputs
+        # (which imports this module) refuses to write over (its manifest, its metrics or a
+        # frame collection: a run killed before its first checkpoint) needs --overwrite
+        earlier = any((out / name).is_file() for name in ("manifest.json", "metrics.csv"))
+        if earlier or any(out.glob("*.pvd")):
+            hint = (
+                f"the run in {out} stopped before its first checkpoint: start it again from "
+                "t = 0 with --overwrite instead of --resume (overwrite=True instead of "
+                "resume=True)"
+            )
+        else:
+            hint = "run without --resume (resume=False) to start from t = 0"
+        raise RunFolderError(f"no checkpoint in {out} ({CHECKPOINT_FILE} is missing)", hint=hint)
     if not zipfile.is_zipfile(path):  # np.load would try it as a pickle: a misleading message
         size = path.stat().st_size
         raise _corrupt(path, f"not a complete zip archive ({size} bytes; truncated or overwritten)")
