@@ -222,43 +222,37 @@ class CholmodSolver:
         if A.shape[0] == 0:
             return np.zeros(0)
         with bounded_openmp():  # CHOLMOD's compiled-in 4 OpenMP threads cost 1.3-1.8x on 2 cores
-            return self._analyse_factorise_solve(A, b, pattern_version)
-
-    def _analyse_factorise_solve(
-        self, A: sp.csc_matrix, b: np.ndarray, pattern_version: int | None
-    ) -> np.ndarray:
-        """:meth:`solve` on a checked, non-empty system."""
-        timings = {"analyze": 0.0, "factorize": 0.0, "solve": 0.0}
-        self.last_timings = timings
-        t0 = time.perf_counter()
-        if self._factor is None or not self._pattern.matches(A, pattern_version):
-            self._factor = self._cholmod.analyze(
-                A, mode=self.mode, ordering_method=self.ordering_method
-            )
-            self._pattern.remember(A)
-            self.n_symbolic += 1
-            logger.debug("CHOLMOD symbolic analysis of a %d x %d matrix", *A.shape)
-        self._pattern.version = pattern_version
-        t1 = time.perf_counter()
-        timings["analyze"] = t1 - t0
-        try:
-            self._factor.cholesky_inplace(A)
-            self.n_numeric += 1
-            _check_pivots(self._factor.D())
-        except (self._cholmod.CholmodError, LinearSolveError) as err:
-            # A failed numeric factorisation may leave the factor unusable: analyse afresh.
-            self._factor = None
-            timings["factorize"] = time.perf_counter() - t1
-            if isinstance(err, LinearSolveError):
-                raise
-            raise LinearSolveError(f"CHOLMOD factorisation failed: {err}") from err
-        t2 = time.perf_counter()
-        timings["factorize"] = t2 - t1
-        x = np.asarray(self._factor.solve_A(b), dtype=np.float64).reshape(-1)
-        timings["solve"] = time.perf_counter() - t2
-        if not np.all(np.isfinite(x)):
-            raise LinearSolveError("CHOLMOD solution has non-finite entries")
-        return x
+            timings = {"analyze": 0.0, "factorize": 0.0, "solve": 0.0}
+            self.last_timings = timings
+            t0 = time.perf_counter()
+            if self._factor is None or not self._pattern.matches(A, pattern_version):
+                self._factor = self._cholmod.analyze(
+                    A, mode=self.mode, ordering_method=self.ordering_method
+                )
+                self._pattern.remember(A)
+                self.n_symbolic += 1
+                logger.debug("CHOLMOD symbolic analysis of a %d x %d matrix", *A.shape)
+            self._pattern.version = pattern_version
+            t1 = time.perf_counter()
+            timings["analyze"] = t1 - t0
+            try:
+                self._factor.cholesky_inplace(A)
+                self.n_numeric += 1
+                _check_pivots(self._factor.D())
+            except (self._cholmod.CholmodError, LinearSolveError) as err:
+                # A failed numeric factorisation may leave the factor unusable: analyse afresh.
+                self._factor = None
+                timings["factorize"] = time.perf_counter() - t1
+                if isinstance(err, LinearSolveError):
+                    raise
+                raise LinearSolveError(f"CHOLMOD factorisation failed: {err}") from err
+            t2 = time.perf_counter()
+            timings["factorize"] = t2 - t1
+            x = np.asarray(self._factor.solve_A(b), dtype=np.float64).reshape(-1)
+            timings["solve"] = time.perf_counter() - t2
+            if not np.all(np.isfinite(x)):
+                raise LinearSolveError("CHOLMOD solution has non-finite entries")
+            return x
 
     def solve_again(self, b: np.ndarray) -> np.ndarray | None:
         """Solve with the last numeric factorisation (a back-solve, no new factorisation).
