@@ -264,11 +264,7 @@ class CholmodSolver:
             x ``(n,)``, or None when no factorisation is kept, b has another size or x is not
             finite.
         """
-        if (
-            self._factor is None
-            or self._pattern.shape is None
-            or b.shape != (self._pattern.shape[0],)
-        ):
+        if self._factor is None or not self._pattern.fits(b):
             return None
         with bounded_openmp():
             x = self._factor.solve_A(np.asarray(b, dtype=np.float64))
