@@ -290,18 +290,6 @@ def _first_det_root_kernel(F: np.ndarray, D: np.ndarray, alpha_max: float, out: 
         out[s] = alpha_max if b >= b_max else min(math.ldexp(b, ef - ed), alpha_max)
 
 
-def _validate(F: np.ndarray, D: np.ndarray, alpha_max: float) -> tuple[np.ndarray, np.ndarray]:
-    F = np.ascontiguousarray(F, dtype=np.float64)
-    D = np.ascontiguousarray(D, dtype=np.float64)
-    if F.ndim != 3 or F.shape[1] != F.shape[2] or F.shape[1] not in (2, 3):
-        raise ValueError(f"F must have shape (S, d, d) with d in (2, 3), got {F.shape}")
-    if D.shape != F.shape:
-        raise ValueError(f"D must have the shape of F {F.shape}, got {D.shape}")
-    if not (math.isfinite(alpha_max) and alpha_max > 0.0):
-        raise ValueError(f"alpha_max must be finite and > 0, got {alpha_max}")
-    return F, D
-
-
 def first_det_root(F: np.ndarray, D: np.ndarray, alpha_max: float = 1.0) -> np.ndarray:
     """Per point, the first step at which det(F + alpha D) reaches 0, capped at alpha_max.
 
@@ -319,7 +307,14 @@ def first_det_root(F: np.ndarray, D: np.ndarray, alpha_max: float = 1.0) -> np.n
         ValueError: bad shapes, alpha_max not finite and > 0, non-finite entries, det F <= 0
             (the message lists the offending points).
     """
-    F, D = _validate(F, D, alpha_max)
+    F = np.ascontiguousarray(F, dtype=np.float64)
+    D = np.ascontiguousarray(D, dtype=np.float64)
+    if F.ndim != 3 or F.shape[1] != F.shape[2] or F.shape[1] not in (2, 3):
+        raise ValueError(f"F must have shape (S, d, d) with d in (2, 3), got {F.shape}")
+    if D.shape != F.shape:
+        raise ValueError(f"D must have the shape of F {F.shape}, got {D.shape}")
+    if not (math.isfinite(alpha_max) and alpha_max > 0.0):
+        raise ValueError(f"alpha_max must be finite and > 0, got {alpha_max}")
     out = np.empty(F.shape[0])
     _first_det_root_kernel(F, D, float(alpha_max), out)
     if F.shape[0] and out.min() < 0.0:
@@ -337,15 +332,9 @@ def first_det_root(F: np.ndarray, D: np.ndarray, alpha_max: float = 1.0) -> np.n
 def max_step_det_positive(F: np.ndarray, D: np.ndarray, *, alpha_max: float = 1.0) -> float:
     """Largest step t in [0, alpha_max] such that det(F_s + a D_s) > 0 for all s and a < t.
 
-    Args:
-        F: deformation gradients (S, d, d), d = 2 or 3, dimensionless, det F > 0 required.
-        D: their derivative along the step (S, d, d), dimensionless per unit step.
-        alpha_max: largest step of interest (> 0, dimensionless).
-
-    Returns:
-        min(alpha_max, first positive root over all points), as a certified lower bound
-        (see ``first_det_root``); alpha_max when S = 0 or no point reaches det = 0.
-        The caller starts its line search at 0.9 times this value.
+    Arguments as in :func:`first_det_root`. Returns min(alpha_max, first positive root over all
+    points), a certified lower bound; alpha_max when S = 0 or no point reaches det = 0. The
+    caller starts its line search at 0.9 times this value.
     """
     roots = first_det_root(F, D, alpha_max)
     return float(roots.min()) if roots.size else float(alpha_max)

@@ -69,15 +69,15 @@ class EnergyWatch:
         of the gravitational energy from t = 0 at any row so far, and a floor, the elastic
         energy of every body at a uniform strain of ``ENERGY_FLOOR_STRAIN`` (sum mu V e^2, J;
         J/m in 2D). The floor is this module's choice (no paper sets one): it keeps round-off
-        of a scene at rest (measured 1.8e-19 J in a block at rest far from the origin, E(0) =
-        0) from reading as growth, and lies far below any energy a run resolves.
+        of a scene at rest from reading as growth, and lies far below any energy a run resolves
+        (design note ``measurements``, energy watch).
 
         Backward Euler only dissipates; Newmark's trapezoidal rule conserves energy for linear
         problems but can gain it when a stiff barrier switches on and off within steps (known for
-        the trapezoidal rule with contact; measured +62 % for a 40 m/s impact at dt = 1e-4 s and
-        h = 0.05 m, none at h = 0.025 m). The remedies are ``"newmark_implicit_contact"``
-        (contact forces without the trapezoidal rule's memory), a smaller dt (resolving the
-        approach through dhat in a few steps), ``"newmark_damped"`` or backward Euler.
+        the trapezoidal rule with contact; design note ``measurements``, energy watch). The
+        remedies are ``"newmark_implicit_contact"`` (contact forces without the trapezoidal
+        rule's memory), a smaller dt (resolving the approach through dhat in a few steps),
+        ``"newmark_damped"`` or backward Euler.
 
         Args:
             row: this row's energies (``energy_total``, ``energy_kinetic``, ...; J).

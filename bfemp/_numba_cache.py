@@ -9,11 +9,8 @@ falls back to a per-user cache folder where that one is not writable). The Makef
 test`` share one cache and ``make clean`` removes it. bfemp sets no default of its own: numba's
 rule always finds a writable place that every later run of the same install finds again, and a
 default inside the package would be an environment change made behind the user's back (and
-unwritable for a system-wide install).
-
-Measured: ``bfemp demo`` (rings, 150 steps) took 318 s with an empty cache and 40 s with a warm
-one, on a shared 2-core machine under load (the issue that asked for the notice reports about
-40 s of compilation elsewhere); hence "a minute or more" in the notice, no exact figure.
+unwritable for a system-wide install). The notice says "a minute or more", no exact figure
+(measured: design note ``measurements``, numba cache).
 """
 
 from __future__ import annotations

@@ -70,13 +70,6 @@ DEFAULT_TOLERANCES = {
 _EXPLICIT = ("single_field", "augury", "lr")
 
 
-def _default_tolerance(strategy: str, quantity: str) -> Tolerance:
-    if quantity == "contact_pairs":
-        return DEFAULT_TOLERANCES["contact_pairs"]
-    key = "explicit" if strategy in _EXPLICIT else strategy
-    return DEFAULT_TOLERANCES.get(key, DEFAULT_TOLERANCES["barrier"])
-
-
 @dataclass(frozen=True)
 class Reference:
     """A regression reference: a scene file with a ``[regress]`` table.
@@ -174,10 +167,9 @@ def find_references(
     directory = Path(directory)
     if not directory.is_dir():
         raise SceneError(f"reference folder not found: {directory}", hint="give --dir DIR")
-    found = {}
-    for path in sorted(directory.glob("*.toml")):
-        if "regress" in _read_toml(path):  # other scene files in the folder are not references
-            found[path.stem] = path
+    found = {  # other scene files in the folder are not references
+        p.stem: p for p in sorted(directory.glob("*.toml")) if "regress" in _read_toml(p)
+    }
     if not names:
         return [load_reference(p) for p in found.values()]
     unknown = [n for n in names if n not in found]
@@ -194,4 +186,9 @@ def find_references(
 
 def tolerance_of(ref: Reference, strategy: str, quantity: str) -> Tolerance:
     """The tolerance of ``quantity``: the reference's override, else the strategy's default."""
-    return ref.tolerances.get(quantity, _default_tolerance(strategy, quantity))
+    if quantity in ref.tolerances:
+        return ref.tolerances[quantity]
+    if quantity == "contact_pairs":
+        return DEFAULT_TOLERANCES["contact_pairs"]
+    key = "explicit" if strategy in _EXPLICIT else strategy
+    return DEFAULT_TOLERANCES.get(key, DEFAULT_TOLERANCES["barrier"])

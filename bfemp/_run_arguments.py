@@ -44,18 +44,11 @@ def check_run_args(
     t_end: object, every: object, checkpoint_every: object, resume: bool, out: object
 ) -> None:
     """Validate the arguments of ``Simulation.run`` (errors name the argument)."""
-    if every is not None and (
-        isinstance(every, bool) or not isinstance(every, numbers.Integral) or every < 1
-    ):
-        raise ValueError(f"Simulation.run: every must be an integer >= 1, got {every!r}")
-    if checkpoint_every is not None and (
-        isinstance(checkpoint_every, bool)
-        or not isinstance(checkpoint_every, numbers.Integral)
-        or checkpoint_every < 0
-    ):
-        raise ValueError(
-            f"Simulation.run: checkpoint_every must be an integer >= 0, got {checkpoint_every!r}"
-        )
+    for name, value, least in (("every", every, 1), ("checkpoint_every", checkpoint_every, 0)):
+        if value is not None and (
+            isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < least
+        ):
+            raise ValueError(f"Simulation.run: {name} must be an integer >= {least}, got {value!r}")
     if not (isinstance(t_end, numbers.Real) and math.isfinite(t_end)):
         raise ValueError(f"Simulation.run: t_end must be a finite time in s, got {t_end!r}")
     if resume and out is None:

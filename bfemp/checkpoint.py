@@ -44,7 +44,7 @@ import numpy as np
 
 from bfemp.errors import RunFolderError, SceneError, warn_user
 from bfemp.io.metrics import MetricsLog
-from bfemp.io.vtk import atomic_path
+from bfemp.io.vtk import atomic_path, atomic_write_text
 from bfemp.state import State
 
 __all__ = [
@@ -94,18 +94,6 @@ def model_fingerprint(model: object) -> str:
     h = hashlib.sha256()
     _feed(h, model)
     return h.hexdigest()
-
-
-def _metrics_json(metrics: MetricsLog) -> str:
-    columns = metrics.columns
-    rows = [[row[c] for c in columns] for row in metrics.rows]
-    return json.dumps({"columns": columns, "rows": rows})
-
-
-def _metrics_from_json(text: str) -> MetricsLog:
-    data = json.loads(text)
-    columns = data["columns"]
-    return MetricsLog(dict(zip(columns, row, strict=True)) for row in data["rows"])
 
 
 @dataclass(frozen=True)
@@ -162,32 +150,16 @@ def write_checkpoint(out: str | Path, sim: object, *, every: int | None = None) 
         "pvd": sorted(pvd),
     }
     arrays["meta"] = np.array(json.dumps(meta))
-    arrays["metrics"] = np.array(_metrics_json(sim.metrics))
+    columns = sim.metrics.columns
+    rows = [[row[c] for c in columns] for row in sim.metrics.rows]
+    arrays["metrics"] = np.array(json.dumps({"columns": columns, "rows": rows}))
     path = out / CHECKPOINT_FILE
     with atomic_path(path) as tmp, tmp.open("wb") as fh:
         np.savez(fh, **arrays)
     sidecar = {**meta, "metrics_rows": len(sim.metrics), "file": CHECKPOINT_FILE}
-    with atomic_path(out / SIDECAR_FILE) as tmp:
-        tmp.write_text(json.dumps(sidecar, indent=2) + "\n", encoding="utf-8")
+    atomic_write_text(out / SIDECAR_FILE, json.dumps(sidecar, indent=2) + "\n")
     log.info("checkpoint at step %d (t = %.6g s) written to %s", state.step, state.t, path)
     return path
-
-
-def _no_checkpoint(out: Path) -> RunFolderError:
-    """The refusal of ``--resume`` in a folder without a checkpoint, with a hint that works:
-    a folder holding an earlier run's outputs (a run killed before its first checkpoint) is
-    refused by a fresh run unless it overwrites them."""
-    # the evidence of an earlier run that bfemp.io.outputs (which imports this module) refuses
-    # to write over: its manifest, its metrics or a frame collection
-    earlier = any((out / name).is_file() for name in ("manifest.json", "metrics.csv"))
-    if earlier or any(out.glob("*.pvd")):
-        hint = (
-            f"the run in {out} stopped before its first checkpoint: start it again from t = 0 "
-            "with --overwrite instead of --resume (overwrite=True instead of resume=True)"
-        )
-    else:
-        hint = "run without --resume (resume=False) to start from t = 0"
-    return RunFolderError(f"no checkpoint in {out} ({CHECKPOINT_FILE} is missing)", hint=hint)
 
 
 #: how to go on when a checkpoint cannot be read
@@ -195,6 +167,11 @@ _CORRUPT_HINT = (
     "the run cannot continue from it: put back a good copy, or start again from t = 0 with "
     "--overwrite (overwrite=True)"
 )
+
+
+def _corrupt(path: Path, what: str) -> RunFolderError:
+    """The refusal of a corrupt checkpoint ``path``: ``what`` is wrong with it."""
+    return RunFolderError(f"corrupt checkpoint: {what}", file=str(path), hint=_CORRUPT_HINT)
 
 
 def read_checkpoint(out: str | Path) -> Checkpoint:
@@ -211,22 +188,30 @@ def read_checkpoint(out: str | Path) -> Checkpoint:
         raise RunFolderError("is a file, not a run folder", file=str(out))
     path = out / CHECKPOINT_FILE
     if not path.is_file():
-        raise _no_checkpoint(out)
+        # a hint that works: a folder with the evidence of an earlier run that bfemp.io.outputs
+        # (which imports this module) refuses to write over (its manifest, its metrics or a
+        # frame collection: a run killed before its first checkpoint) needs --overwrite
+        earlier = any((out / name).is_file() for name in ("manifest.json", "metrics.csv"))
+        if earlier or any(out.glob("*.pvd")):
+            hint = (
+                f"the run in {out} stopped before its first checkpoint: start it again from "
+                "t = 0 with --overwrite instead of --resume (overwrite=True instead of "
+                "resume=True)"
+            )
+        else:
+            hint = "run without --resume (resume=False) to start from t = 0"
+        raise RunFolderError(f"no checkpoint in {out} ({CHECKPOINT_FILE} is missing)", hint=hint)
     if not zipfile.is_zipfile(path):  # np.load would try it as a pickle: a misleading message
         size = path.stat().st_size
-        raise RunFolderError(
-            f"corrupt checkpoint: not a complete zip archive ({size} bytes; truncated or "
-            "overwritten)",
-            file=str(path),
-            hint=_CORRUPT_HINT,
-        )
+        raise _corrupt(path, f"not a complete zip archive ({size} bytes; truncated or overwritten)")
     try:
         with np.load(path, allow_pickle=False) as data:
             contents = {key: data[key] for key in data.files}
         if "meta" not in contents or "metrics" not in contents:
             raise KeyError("no 'meta' or 'metrics' record")
         meta = json.loads(str(contents.pop("meta")))
-        metrics = _metrics_from_json(str(contents.pop("metrics")))
+        table = json.loads(str(contents.pop("metrics")))
+        metrics = MetricsLog(dict(zip(table["columns"], r, strict=True)) for r in table["rows"])
         if not isinstance(meta, dict):
             raise TypeError("the 'meta' record is not a JSON object")
     except (
@@ -240,9 +225,7 @@ def read_checkpoint(out: str | Path) -> Checkpoint:
         zipfile.BadZipFile,
         zlib.error,
     ) as err:
-        raise RunFolderError(
-            f"corrupt checkpoint: {type(err).__name__}: {err}", file=str(path), hint=_CORRUPT_HINT
-        ) from None
+        raise _corrupt(path, f"{type(err).__name__}: {err}") from None
     if meta.get("format") != FORMAT_VERSION:
         raise RunFolderError(
             f"checkpoint of format {meta.get('format')}, not {FORMAT_VERSION} (written by "
@@ -252,11 +235,7 @@ def read_checkpoint(out: str | Path) -> Checkpoint:
         )
     missing = [k for k in ("scalars", "fingerprint", "settings") if k not in meta]
     if missing:
-        raise RunFolderError(
-            f"corrupt checkpoint: its meta record lacks {', '.join(missing)}",
-            file=str(path),
-            hint=_CORRUPT_HINT,
-        )
+        raise _corrupt(path, f"its meta record lacks {', '.join(missing)}")
     state_arrays = {k[6:]: v for k, v in contents.items() if k.startswith("state.")}
     carried = {k[8:]: state_arrays.pop(k) for k in list(state_arrays) if k.startswith("carried.")}
     for name in ("aug_B", "aug_Bp"):  # written as State fields before they moved to carried
@@ -265,11 +244,7 @@ def read_checkpoint(out: str | Path) -> Checkpoint:
     try:
         state = State(**meta["scalars"], **state_arrays, carried=carried)
     except TypeError as err:
-        raise RunFolderError(
-            f"corrupt checkpoint: its state does not match a State ({err})",
-            file=str(path),
-            hint=_CORRUPT_HINT,
-        ) from None
+        raise _corrupt(path, f"its state does not match a State ({err})") from None
     pvd = {k[4:]: str(v) for k, v in contents.items() if k.startswith("pvd.")}
     stepper = {k[8:]: v for k, v in contents.items() if k.startswith("stepper.")}
     return Checkpoint(state=state, metrics=metrics, meta=meta, pvd=pvd, stepper=stepper)
@@ -303,10 +278,8 @@ def check_frames(out: str | Path, pvd: dict[str, str]) -> int:
         try:
             root = ET.fromstring(text)
         except ET.ParseError as err:
-            raise RunFolderError(
-                f"corrupt checkpoint: its copy of {block}.pvd does not parse ({err})",
-                file=str(out / CHECKPOINT_FILE),
-                hint=_CORRUPT_HINT,
+            raise _corrupt(
+                out / CHECKPOINT_FILE, f"its copy of {block}.pvd does not parse ({err})"
             ) from None
         for dataset in root.iter("DataSet"):
             rel, t = dataset.get("file", ""), f"{float(dataset.get('timestep', 'nan')):.9g}"
@@ -374,8 +347,7 @@ def restore_checkpoint(out: str | Path, sim: object, *, every: int | None = None
     sim.state = ckpt.state
     sim.metrics = ckpt.metrics
     for name, text in ckpt.pvd.items():
-        with atomic_path(out / f"{name}.pvd") as tmp:
-            tmp.write_text(text, encoding="utf-8")
+        atomic_write_text(out / f"{name}.pvd", text)
     log.info(
         "resumed from step %d (t = %.6g s) of %s", ckpt.state.step, ckpt.state.t, out / "checkpoint"
     )

@@ -62,13 +62,11 @@ def run_cantilever_demo(
         times.append(s.state.t)
         deflection.append(float(s.state.fem_x[tip, 1]) - tip_y0)
 
-    n_steps = int(round(t_end / dt))
     metrics = sim.run(
         t_end, out=out, every=5, progress=progress, callback=record_tip, overwrite=True
     )
-    t = metrics.column("t")
     plot_series(
-        t,
+        metrics.column("t"),
         {
             k: metrics.column(k)
             for k in ("energy_kinetic", "energy_elastic", "energy_gravity", "energy_total")
@@ -87,7 +85,7 @@ def run_cantilever_demo(
         title="Cantilever tip deflection",
     )
     summary = {
-        "steps": n_steps,
+        "steps": int(round(t_end / dt)),
         "newton_iterations_total": int(np.nansum(metrics.column("iterations_newton"))),
         "min_tip_deflection_m": float(min(deflection)),
         "energy_total_first": float(metrics.column("energy_total")[0]),

@@ -110,10 +110,7 @@ def fem_elastic_energy(model: Model, state: State, groups: list | None = None) -
 def mpm_elastic_energy(model: Model, state: State, per_body: list[float] | None = None) -> float:
     """sum_p V_p^0 psi(F_p) in J over the particles (``per_body``: the bodies' shares from
     :func:`mpm_body_elastic_energies`, computed here when None)."""
-    total = 0.0
-    for energy in mpm_body_elastic_energies(model, state) if per_body is None else per_body:
-        total += energy
-    return total
+    return sum(mpm_body_elastic_energies(model, state) if per_body is None else per_body, 0.0)
 
 
 def mpm_body_elastic_energies(model: Model, state: State) -> list[float]:
@@ -281,9 +278,7 @@ def body_metrics(
         return row
     names = body_names(model)
     nf = len(model.fem_bodies)
-    forces = body_forces
-    if forces is None:
-        forces = np.zeros((len(names), len(names), model.dim))
+    forces = np.zeros((len(names), len(names), model.dim)) if body_forces is None else body_forces
     for a, name_a in enumerate(names):
         for b, name_b in enumerate(names):
             if a != b and (a < nf or b < nf):

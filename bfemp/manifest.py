@@ -38,7 +38,7 @@ from bfemp.checkpoint import SIDECAR_FILE, model_fingerprint
 from bfemp.errors import RunFolderError, SceneError
 from bfemp.io.metrics import MetricsLog
 from bfemp.io.outputs import lock_holder
-from bfemp.io.vtk import atomic_path, read_pvd
+from bfemp.io.vtk import atomic_write_text, read_pvd
 from bfemp.materials import BulkShearHyperelastic
 
 __all__ = [
@@ -153,8 +153,7 @@ def model_summary(model: object) -> dict:
 
 
 def _write(path: Path, data: dict) -> None:
-    with atomic_path(path) as tmp:
-        tmp.write_text(json.dumps(data, indent=2, allow_nan=False, default=str) + "\n")
+    atomic_write_text(path, json.dumps(data, indent=2, allow_nan=False, default=str) + "\n")
 
 
 def _finite(value: float) -> float | None:
@@ -374,12 +373,6 @@ def _fmt(value: object, unit: str = "") -> str:
     return f"{value}{unit}" if value is not None else "?"
 
 
-def _running_note(holder: dict) -> str:
-    pid, host, since = (holder.get(k, "?") for k in ("pid", "host", "started"))
-    where = "" if holder.get("alive") else ", not checked: another host"
-    return f"pid {pid} on {host}{where}, since {since}"
-
-
 def format_info(info: dict) -> str:
     """The text ``bfemp info`` prints for :func:`run_info`."""
     lines = [f"result folder: {info['folder']}"]
@@ -388,7 +381,10 @@ def format_info(info: dict) -> str:
         status = info.get("status", man.get("status", "?"))
         note = info.get("status_note") or man.get("message")
         if "running" in info:
-            note = _running_note(info["running"])
+            holder = info["running"]
+            pid, host, since = (holder.get(k, "?") for k in ("pid", "host", "started"))
+            where = "" if holder.get("alive") else ", not checked: another host"
+            note = f"pid {pid} on {host}{where}, since {since}"
         lines.append(f"status:        {status}" + (f" ({note})" if note else ""))
         params = man.get("parameters", {})
         if "scene_file" in params:

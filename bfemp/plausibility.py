@@ -61,12 +61,10 @@ MIN_GRID_CELLS_ACROSS_BODY = 1.0
 #: bar, f = c / 2 L) and the duration of an impact of two equal bars (St. Venant). A step longer
 #: than ``T / 2`` cannot represent even that slowest axial vibration (fewer than two steps per
 #: period, the Nyquist limit), and an impact lasts about two steps or less: implicit integrators
-#: then dissipate (backward Euler) or misplace (Newmark) its energy. Measured: two 0.2 m
-#: NeoHookean blocks (E = 1 MPa, nu = 0.3, T = 0.0109 s) meeting at 2 m/s under
-#: ``newmark_implicit_contact`` lose 15-16 % of their energy at dt = 1e-3 and 5e-3 s
-#: (dt / T = 0.09, 0.46), 70 % at dt = 0.01 s (0.92), 62 % at 0.02 s and 74 % at 0.1 s (9.2).
-#: Quasi-static solves with backward Euler take such steps on purpose (BFEMP sec. 6.5; the note
-#: says so). (Our choice: two steps per period, where the measured loss jumps.)
+#: then dissipate (backward Euler) or misplace (Newmark) its energy (measured: design note
+#: ``measurements``, plausibility). Quasi-static solves with backward Euler take such steps on
+#: purpose (BFEMP sec. 6.5; the note says so). (Our choice: two steps per period, where the
+#: measured loss jumps.)
 MAX_DT_OVER_WAVE_PERIOD = 0.5
 
 #: Fraction of the energy scale (below) lost since t = 0 above which a closed scene gets an

@@ -25,15 +25,10 @@ per-quantity scale: positions near zero or velocities at rest are not judged on 
 alone). NaN matches NaN only (``min_distance`` is NaN without contact pairs).
 
 The defaults (:data:`DEFAULT_TOLERANCES`, rtol 1e-9 for the explicit strategies, 1e-6 for
-``barrier`` and ``two_stage``) come from measurements on the shipped references
-(``tools/regress_drift.py``): rerun with 1 and with 2 threads (numba, OpenMP, OpenBLAS), the
-explicit strategies and the 2D barrier scenes were bit-identical, the 3D barrier scene differed by
-1.3e-14 relative (energy_elastic); a 1 % change of E, of kappa or of mu moved the most sensitive
-quantity of every reference by 2e-5 to 1.5e-1 relative (kappa of barrier_3d: min_distance 2.1e-5,
-of barrier_friction_2d: 2.2e-5), and with these defaults every 0.1 % change of E, kappa or mu
-tried on every reference is reported (the closest: kappa of barrier_3d, min_distance 2.1e-6
-relative against rtol 1e-6). The implicit tolerance leaves room for a Newton path that ends
-one iteration apart (a difference up to the Newton tolerance, 1e-7 m/s, on velocities of ~1 m/s).
+``barrier`` and ``two_stage``) lie between the drift of a rerun on another thread count and the
+change a 0.1 % change of E, kappa or mu makes (``tools/regress_drift.py``; design note
+``measurements``, regress); the implicit one leaves room for a Newton path that ends one
+iteration apart (a difference up to the Newton tolerance, 1e-7 m/s, on velocities of ~1 m/s).
 """
 
 from __future__ import annotations
@@ -162,14 +157,11 @@ def run_reference(ref: Reference) -> Trajectory:
         if q not in STATE_QUANTITIES and q not in sim.metrics.columns:
             _unknown_quantity(ref, sim, q)
     data = {k: np.stack([s[k] for s in samples]) for k in samples[0]}
-    return Trajectory(steps=ref.stored_steps(), data=data, settings=_jsonable(sim.settings))
-
-
-def _jsonable(settings: dict) -> dict:
-    return {
+    settings = {
         k: v if isinstance(v, int | float | str | bool) or v is None else str(v)
-        for k, v in settings.items()
+        for k, v in sim.settings.items()
     }
+    return Trajectory(steps=ref.stored_steps(), data=data, settings=settings)
 
 
 # ------------------------------------------------------------------------------- comparing
@@ -362,7 +354,7 @@ def update(ref: Reference, trajectory: Trajectory | None = None) -> dict[str, fl
     import hashlib
 
     import bfemp
-    from bfemp.io.vtk import atomic_path
+    from bfemp.io.vtk import atomic_path, atomic_write_text
 
     trajectory = run_reference(ref) if trajectory is None else trajectory
     changes: dict[str, float | str] = {}
@@ -426,7 +418,6 @@ def update(ref: Reference, trajectory: Trajectory | None = None) -> dict[str, fl
         with atomic_path(ref.npz_path) as tmp:
             with open(tmp, "wb") as fh:
                 np.savez_compressed(fh, step=trajectory.steps, **trajectory.data)
-    with atomic_path(ref.meta_path) as tmp:
-        tmp.write_text(json.dumps(meta, indent=2) + "\n", encoding="utf-8")
+    atomic_write_text(ref.meta_path, json.dumps(meta, indent=2) + "\n")
     log.info("reference %s written: %s", ref.name, changes or "no change")
     return changes

@@ -135,73 +135,55 @@ class Simulation:
         self.diagnostics: list[str] = []
         #: how many times each named note (``StepReport.notes``) or warning was reported
         self.note_counts: dict[str, int] = {}
-        with collect_warnings(self._notice):
-            self._build(
-                scene, stepper_cls, strategy, integrator, transfer, dt, options, allow_uncoupled
+        with collect_warnings(self._notice):  # warn_user reaches diagnostics
+            self.model = scene.build() if isinstance(scene, Scene) else scene
+            for message in check_scene(
+                self.model, strategy, STRATEGIES, allow_uncoupled=allow_uncoupled
+            ):
+                warn_user(message, category=StepNoteWarning, logger=log)
+            #: the report of the step that failed last (None after a step that succeeded)
+            self.failed_report: StepReport | None = None
+            #: the scene this simulation was built from (written to ``out/scene.toml`` by runs)
+            self.scene = scene if isinstance(scene, Scene) else None
+            #: the text of the scene file this simulation was read from (``from_file``), or None
+            self.scene_text: str | None = None
+            if integrator is None:
+                integrator = getattr(stepper_cls, "default_integrator", "backward_euler")
+            self.integrator = integrator_from_name(integrator)
+            initial = self.model.initial_state()
+            self.dt = resolve_dt(dt, stepper_cls, self.model, initial, options)
+            if self.model.contact is not None:
+                # the barrier is finite only for bodies that start apart (and beyond d-hat)
+                validate_initial(self.model)
+            self.strategy = strategy
+            self.transfer = transfer
+            self.options = options
+            #: the settings of this simulation (recorded in manifests and checkpoints)
+            self.settings = {
+                "strategy": strategy,
+                "integrator": self.integrator.name,
+                "transfer": transfer,
+                "dt": self.dt,
+                **options_to_dict(options),  # the strategy's options, one key per field
+            }
+            if allow_uncoupled:
+                self.settings["allow_uncoupled"] = True
+            self.stepper = stepper_cls(
+                self.model,
+                integrator=self.integrator,
+                transfer=transfer,
+                dt=self.dt,
+                options=options,
             )
-
-    def _build(
-        self,
-        scene: Scene | Model,
-        stepper_cls: type,
-        strategy: str,
-        integrator: str | Integrator | None,
-        transfer: str,
-        dt: float | str,
-        options: StepperOptions,
-        allow_uncoupled: bool,
-    ) -> None:
-        """The body of ``__init__``, within which :func:`bfemp.errors.warn_user` reaches
-        ``diagnostics``."""
-        self.model = scene.build() if isinstance(scene, Scene) else scene
-        for message in check_scene(
-            self.model, strategy, STRATEGIES, allow_uncoupled=allow_uncoupled
-        ):
-            warn_user(message, category=StepNoteWarning, logger=log)
-        #: the report of the step that failed last (None after a step that succeeded)
-        self.failed_report: StepReport | None = None
-        #: the scene this simulation was built from (written to ``out/scene.toml`` by runs)
-        self.scene = scene if isinstance(scene, Scene) else None
-        #: the text of the scene file this simulation was read from (``from_file``), or None
-        self.scene_text: str | None = None
-        if integrator is None:
-            integrator = getattr(stepper_cls, "default_integrator", "backward_euler")
-        self.integrator = integrator_from_name(integrator)
-        initial = self.model.initial_state()
-        dt = resolve_dt(dt, stepper_cls, self.model, initial, options)
-        if self.model.contact is not None:
-            # the barrier is finite only for bodies that start apart (and beyond d-hat)
-            validate_initial(self.model)
-        self.dt = dt
-        self.strategy = strategy
-        self.transfer = transfer
-        self.options = options
-        #: the settings of this simulation (recorded in manifests and checkpoints)
-        self.settings = {
-            "strategy": strategy,
-            "integrator": self.integrator.name,
-            "transfer": transfer,
-            "dt": self.dt,
-            **options_to_dict(options),  # the strategy's options, one key per field
-        }
-        if allow_uncoupled:
-            self.settings["allow_uncoupled"] = True
-        self.stepper = stepper_cls(
-            self.model,
-            integrator=self.integrator,
-            transfer=transfer,
-            dt=self.dt,
-            options=options,
-        )
-        self.state: State = self.stepper.initialize(initial)
-        for note in discretisation_notes(self.model, self.dt, self.integrator):
-            self._notice(note, PlausibilityWarning, log)
-        self.metrics = MetricsLog()
-        self._energy = EnergyWatch(self.model, self.integrator, dissipation(self), self._notice)
-        self._fem_groups = fem_elastic_groups(self.model)
-        self._contact_columns = self.model.contact is not None
-        self._penetration = PenetrationCheck.for_model(self.model)
-        self.metrics.append(self._metrics_row(None))
+            self.state: State = self.stepper.initialize(initial)
+            for note in discretisation_notes(self.model, self.dt, self.integrator):
+                self._notice(note, PlausibilityWarning, log)
+            self.metrics = MetricsLog()
+            self._energy = EnergyWatch(self.model, self.integrator, dissipation(self), self._notice)
+            self._fem_groups = fem_elastic_groups(self.model)
+            self._contact_columns = self.model.contact is not None
+            self._penetration = PenetrationCheck.for_model(self.model)
+            self.metrics.append(self._metrics_row(None))
 
     @classmethod
     def from_file(cls, source: str | Path | scenefile.SceneFile, **overrides: object) -> Simulation:

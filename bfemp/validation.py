@@ -54,12 +54,6 @@ def _clearance_error(
     )
 
 
-def _body_mesh(model: Model, body: object, fem_x: np.ndarray) -> TriMesh | TetMesh:
-    cells = model.fem_cells[body.cells] - body.nodes.start
-    cls = TriMesh if model.dim == 2 else TetMesh
-    return cls(fem_x[body.nodes], cells)
-
-
 def _positions(model: Model, fem_x: np.ndarray | None, mpm_x: np.ndarray | None) -> tuple:
     fem_x = model.fem_X if fem_x is None else np.asarray(fem_x, dtype=np.float64)
     mpm_x = model.mpm_X if mpm_x is None else np.asarray(mpm_x, dtype=np.float64)
@@ -144,7 +138,10 @@ def check_no_overlap(
         mpm_x: particle positions ``(P, d)`` in m (default: the initial positions).
     """
     fem_x, mpm_x = _positions(model, fem_x, mpm_x)
-    meshes = [_body_mesh(model, body, fem_x) for body in model.fem_bodies]
+    mesh_cls = TriMesh if model.dim == 2 else TetMesh
+    meshes = [
+        mesh_cls(fem_x[b.nodes], model.fem_cells[b.cells] - b.nodes.start) for b in model.fem_bodies
+    ]
     for body, mesh in zip(model.fem_bodies, meshes, strict=True):
         if model.n_particles == 0:
             break
@@ -208,11 +205,7 @@ def check_clearance(
     pairs = point_simplex_candidates(mpm_x, fem_x, facets, inflation=dhat)
     if pairs.size == 0:
         return
-    p, f = mpm_x[pairs[:, 0]], fem_x[facets[pairs[:, 1]]]
-    if model.dim == 2:
-        dist = point_edge_distance(p, f[:, 0], f[:, 1])
-    else:
-        dist = point_triangle_distance(p, f[:, 0], f[:, 1], f[:, 2])
+    dist = _facet_distance(model.dim, mpm_x[pairs[:, 0]], fem_x[facets[pairs[:, 1]]])
     close = dist < dhat
     if not close.any():
         return

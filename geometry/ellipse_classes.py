@@ -160,11 +160,8 @@ def class_particles(
             f"got {classes.shape}"
         )
     of_particle = classes[particles.ellipse]
-    out = []
-    for k in range(int(classes.max()) + 1 if classes.size else 0):  # classes, not particles
-        mask = of_particle == k
-        out.append((particles.x[mask], particles.volume[mask]))
-    return out
+    masks = [of_particle == k for k in range(int(classes.max()) + 1 if classes.size else 0)]
+    return [(particles.x[mask], particles.volume[mask]) for mask in masks]
 
 
 def interpenetrating(

@@ -101,16 +101,9 @@ def _pt_barycentric(V: np.ndarray) -> np.ndarray:
     l12 = _projection(p, t1, t2)
     l20 = _projection(p, t2, t0)
     zero, one = np.zeros_like(l01), np.ones_like(l01)
-    b1 = np.select(
-        [typ == 0, typ == 1, typ == 2, typ == 3, typ == 4, typ == 5],
-        [zero, one, zero, l01, 1.0 - l12, zero],
-        face[:, 0],
-    )
-    b2 = np.select(
-        [typ == 0, typ == 1, typ == 2, typ == 3, typ == 4, typ == 5],
-        [zero, zero, one, zero, l12, 1.0 - l20],
-        face[:, 1],
-    )
+    conds = [typ == k for k in range(6)]
+    b1 = np.select(conds, [zero, one, zero, l01, 1.0 - l12, zero], face[:, 0])
+    b2 = np.select(conds, [zero, zero, one, zero, l12, 1.0 - l20], face[:, 1])
     return np.stack([b1, b2], axis=1)
 
 

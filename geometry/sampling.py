@@ -59,10 +59,6 @@ def _per_axis(ppc: object, dim: int) -> int:
     raise ValueError(f"ppc must be k**{dim} in {dim}D ({valid}, ...), got {ppc}")
 
 
-def _generator(rng: np.random.Generator | int | None) -> np.random.Generator:
-    return rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng or 0)
-
-
 def _lattice(
     lower: object,
     upper: object,
@@ -97,7 +93,8 @@ def _lattice(
     mesh = np.meshgrid(*axes, indexing="ij")
     pts = np.ascontiguousarray(np.stack([g.ravel() for g in mesh], axis=1))
     if jitter > 0.0 and pts.shape[0]:
-        pts += (_generator(rng).random(pts.shape) - 0.5) * (jitter * s)
+        gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng or 0)
+        pts += (gen.random(pts.shape) - 0.5) * (jitter * s)
     return pts, s
 
 

@@ -78,6 +78,10 @@ class SparsityPattern:
         self._indptr = A.indptr.copy()
         self._indices = A.indices.copy()
 
+    def fits(self, b: np.ndarray) -> bool:
+        """Whether ``b`` has shape ``(n,)`` of the remembered matrix (n, n)."""
+        return self.shape is not None and b.shape == (self.shape[0],)
+
     def forget(self) -> None:
         """Match no matrix until the next :meth:`remember` (analyse afresh)."""
         self._indptr = None

@@ -175,16 +175,11 @@ def _chord_step_predicted_to_converge(p_chord: float, p_last: float, chord_tol: 
     Hessian is off by H' p_last), so the chord increment after the step is about ``2 ||p_chord||^2
     / p_last``. The step is taken when twice that, ``4 ||p_chord||^2 / p_last``, is below the
     chord test's tolerance: then one back-solve and one line search replace a factorisation.
-    Measured on perf_fem 2D (chord tolerance 2.5e-7 m): after a step of 4.50e-4 m the chord
-    increment was 3.34e-6 m and the one after the chord step 1.29e-7 m (the estimate 5.0e-8).
 
     It is also asked that the stale factorisation shrank the increment at least 20-fold
     (``p_chord <= 0.05 p_last``): the estimate holds in Newton's quadratic regime, not where
-    the iterates creep at a linear rate. In the head-on disks of ``tests/bfemp/
-    test_intersection.py`` (dt = 0.5 s) increments fell 0.07-fold per iteration; a chord step
-    there at ratio 0.21 sent the solve along another path to an end state the step's
-    straight-line motion reaches only through the other disk (TUNNELED). All norms in the
-    units of x.
+    the iterates creep at a linear rate (a chord step there tunnelled: design note
+    ``measurements``, newton). All norms in the units of x.
     """
     if not (p_last > 0.0 and math.isfinite(p_last)):
         return False

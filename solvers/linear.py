@@ -90,12 +90,8 @@ def cholmod_available() -> bool:
 
 
 #: Machine epsilons of a row's absolute sum that :func:`rounding_shift` adds to its diagonal.
-#: A choice (no paper fixes it), by measurement on MPM-FEM barrier systems that CHOLMOD refused
-#: (pair distances 1e-14 to 1e-9 m at d-hat 1.5e-5 m, random orientations, B-spline weights and
-#: masses, the library's kernels and assembly): the smallest multiple that made them factorise
-#: was at most 1 on 162 2D systems, and 0.25 / 0.5 / 1 / 2 / 4 on 86 / 26 / 11 / 5 / 1 of 129
-#: 3D ones (27-node stencils); 16 leaves a factor 4 above the worst. The issue's scene (before
-#: the CCD change 454b0d4) factorised with the shift at every multiple tried, 0.5 to 16.
+#: A choice (no paper fixes it): a factor 4 above the largest multiple that MPM-FEM barrier
+#: systems CHOLMOD refused needed (design note ``measurements``, rounding shift).
 ROUNDING_SHIFT_ULPS = 16.0
 
 
@@ -109,8 +105,7 @@ def rounding_shift(A: sp.spmatrix, ulps: float = ROUNDING_SHIFT_ULPS) -> np.ndar
     grows like ``kappa / d^2`` (IPC / BFEMP eq. 27), so at ``d ~ 1e-9 d-hat`` a pair's block
     reaches ``1e17`` N/m and its rounding (``eps x 1e17 ~ 27``) exceeds the masses of the grid
     nodes it touches (``2e-5`` to a few kg): the computed sum is indefinite although no term is
-    (issue 44 defect 5: non-positive pivots down to ``-37``; rebuilt from the library's kernels,
-    ``tests/bfemp/test_psd_rounding.py``, smallest eigenvalues ``-4`` to ``-34``).
+    (issue 44; ``tests/bfemp/test_psd_rounding.py``).
 
     With ``A = A_exact + E`` and ``|E_ij| <= c eps |a_ij|`` (the entrywise model of a rounded
     sum without cancellation), Gershgorin's theorem bounds every eigenvalue of ``E`` below by
@@ -227,43 +222,37 @@ class CholmodSolver:
         if A.shape[0] == 0:
             return np.zeros(0)
         with bounded_openmp():  # CHOLMOD's compiled-in 4 OpenMP threads cost 1.3-1.8x on 2 cores
-            return self._analyse_factorise_solve(A, b, pattern_version)
-
-    def _analyse_factorise_solve(
-        self, A: sp.csc_matrix, b: np.ndarray, pattern_version: int | None
-    ) -> np.ndarray:
-        """:meth:`solve` on a checked, non-empty system."""
-        timings = {"analyze": 0.0, "factorize": 0.0, "solve": 0.0}
-        self.last_timings = timings
-        t0 = time.perf_counter()
-        if self._factor is None or not self._pattern.matches(A, pattern_version):
-            self._factor = self._cholmod.analyze(
-                A, mode=self.mode, ordering_method=self.ordering_method
-            )
-            self._pattern.remember(A)
-            self.n_symbolic += 1
-            logger.debug("CHOLMOD symbolic analysis of a %d x %d matrix", *A.shape)
-        self._pattern.version = pattern_version
-        t1 = time.perf_counter()
-        timings["analyze"] = t1 - t0
-        try:
-            self._factor.cholesky_inplace(A)
-            self.n_numeric += 1
-            _check_pivots(self._factor.D())
-        except (self._cholmod.CholmodError, LinearSolveError) as err:
-            # A failed numeric factorisation may leave the factor unusable: analyse afresh.
-            self._factor = None
-            timings["factorize"] = time.perf_counter() - t1
-            if isinstance(err, LinearSolveError):
-                raise
-            raise LinearSolveError(f"CHOLMOD factorisation failed: {err}") from err
-        t2 = time.perf_counter()
-        timings["factorize"] = t2 - t1
-        x = np.asarray(self._factor.solve_A(b), dtype=np.float64).reshape(-1)
-        timings["solve"] = time.perf_counter() - t2
-        if not np.all(np.isfinite(x)):
-            raise LinearSolveError("CHOLMOD solution has non-finite entries")
-        return x
+            timings = {"analyze": 0.0, "factorize": 0.0, "solve": 0.0}
+            self.last_timings = timings
+            t0 = time.perf_counter()
+            if self._factor is None or not self._pattern.matches(A, pattern_version):
+                self._factor = self._cholmod.analyze(
+                    A, mode=self.mode, ordering_method=self.ordering_method
+                )
+                self._pattern.remember(A)
+                self.n_symbolic += 1
+                logger.debug("CHOLMOD symbolic analysis of a %d x %d matrix", *A.shape)
+            self._pattern.version = pattern_version
+            t1 = time.perf_counter()
+            timings["analyze"] = t1 - t0
+            try:
+                self._factor.cholesky_inplace(A)
+                self.n_numeric += 1
+                _check_pivots(self._factor.D())
+            except (self._cholmod.CholmodError, LinearSolveError) as err:
+                # A failed numeric factorisation may leave the factor unusable: analyse afresh.
+                self._factor = None
+                timings["factorize"] = time.perf_counter() - t1
+                if isinstance(err, LinearSolveError):
+                    raise
+                raise LinearSolveError(f"CHOLMOD factorisation failed: {err}") from err
+            t2 = time.perf_counter()
+            timings["factorize"] = t2 - t1
+            x = np.asarray(self._factor.solve_A(b), dtype=np.float64).reshape(-1)
+            timings["solve"] = time.perf_counter() - t2
+            if not np.all(np.isfinite(x)):
+                raise LinearSolveError("CHOLMOD solution has non-finite entries")
+            return x
 
     def solve_again(self, b: np.ndarray) -> np.ndarray | None:
         """Solve with the last numeric factorisation (a back-solve, no new factorisation).
@@ -275,11 +264,7 @@ class CholmodSolver:
             x ``(n,)``, or None when no factorisation is kept, b has another size or x is not
             finite.
         """
-        if (
-            self._factor is None
-            or self._pattern.shape is None
-            or b.shape != (self._pattern.shape[0],)
-        ):
+        if self._factor is None or not self._pattern.fits(b):
             return None
         with bounded_openmp():
             x = self._factor.solve_A(np.asarray(b, dtype=np.float64))

@@ -108,9 +108,8 @@ def _accept_near_solution(
     ``NewtonOptions.near_solution_factor`` of the tolerance (``near``), or |g.p| below
     ``_ROUND_OFF_ULPS`` eps |E| - the full step is taken when the gradient norm falls below
     both its value at x and ``g_best``, the least norm of the iterates so far; otherwise None
-    (use Armijo). Without ``g_best`` two iterates can take turns (measured, frictional
-    ``buckling`` at dt = 2e-2 s: A -> B on B's smaller gradient while E rose by 1.4e-6 J,
-    B -> A by Armijo, 500 times over).
+    (use Armijo). Without ``g_best`` two iterates can take turns (design note ``measurements``,
+    newton).
     """
     round_off = abs(slope) * alpha0 <= _ROUND_OFF_ULPS * np.finfo(float).eps * abs(energy)
     if not (near or round_off):
@@ -163,70 +162,50 @@ def minimize(
     which made the back-solve after every gradient 8x slower (issue 13).
     """
     with serial_wheel_blas():
-        return _minimize(
-            objective,
-            x0,
-            options=options,
-            linear_solver=linear_solver,
-            callback=callback,
-            assembler=assembler,
-        )
-
-
-def _minimize(
-    objective: Objective,
-    x0: np.ndarray,
-    *,
-    options: NewtonOptions | None,
-    linear_solver: LinearSolver | None,
-    callback: Callable[[NewtonIteration], bool | None] | None,
-    assembler: TripletAssembler | None,
-) -> NewtonResult:
-    """:func:`minimize` itself (the same arguments), with the BLAS pools already set."""
-    t_start = time.perf_counter()
-    if options is None:
-        options = NewtonOptions()
-    elif not isinstance(options, NewtonOptions):
-        raise ValueError(f"options must be NewtonOptions, got {type(options).__name__}")
-    x = _check_x0(x0)
-    free = _free_mask(objective, x.size)
-    solver = default_linear_solver() if linear_solver is None else linear_solver
-    if assembler is None or not assembler.fits(x.size, free):
-        assembler = TripletAssembler(x.size, free=free)
-    res = NewtonResult(x=x, success=False, status=NewtonStatus.MAX_ITERATIONS, message="")
-    run = _Run(objective, options, solver, assembler, free, res)
-    try:
-        with _timed(res.timings, "line_search"):
-            objective.solution_changed(x)
-            energy = float(objective.value(x))
-        res.nfev += 1
-        res.fun = energy
-        if not math.isfinite(energy):
-            raise _Finish(NewtonStatus.NON_FINITE, f"energy at x0 is {energy}")
-        while True:
-            g_free = run.gradient(x)
-            p_free, p_inf = run.chord_step(g_free, energy) or run.newton_step(x, g_free, energy)
-            if res.nit >= options.max_iter:
-                raise _Finish(
-                    NewtonStatus.MAX_ITERATIONS,
-                    f"max_iter = {options.max_iter}, ||p||_inf / step_scale = "
-                    f"{p_inf / options.step_scale:.3e} >= tol = {options.tol:.3e}",
-                )
-            search, alpha0 = run.line_search(x, energy, g_free, p_free, p_inf)
-            x, energy = search.x, search.fun
-            run.accept(search, p_inf, alpha0)
-            if callback is not None and _callback_stops(
-                callback, NewtonIteration(x.copy(), energy, res.nit, p_inf, search.alpha)
-            ):
-                raise _Finish(NewtonStatus.CALLBACK_STOP, f"at iteration {res.nit}")
-    except _Finish as end:
-        res.status = end.status
-        res.success = end.status == NewtonStatus.CONVERGED
-        res.message = f"{end.status.description}: {end.detail}"
-        res.timings["total"] = time.perf_counter() - t_start
-        log = logger.debug if res.success else logger.info
-        log("newton %s after %d iterations (%s)", end.status.name, res.nit, end.detail)
-        return res
+        t_start = time.perf_counter()
+        if options is None:
+            options = NewtonOptions()
+        elif not isinstance(options, NewtonOptions):
+            raise ValueError(f"options must be NewtonOptions, got {type(options).__name__}")
+        x = _check_x0(x0)
+        free = _free_mask(objective, x.size)
+        solver = default_linear_solver() if linear_solver is None else linear_solver
+        if assembler is None or not assembler.fits(x.size, free):
+            assembler = TripletAssembler(x.size, free=free)
+        res = NewtonResult(x=x, success=False, status=NewtonStatus.MAX_ITERATIONS, message="")
+        run = _Run(objective, options, solver, assembler, free, res)
+        try:
+            with _timed(res.timings, "line_search"):
+                objective.solution_changed(x)
+                energy = float(objective.value(x))
+            res.nfev += 1
+            res.fun = energy
+            if not math.isfinite(energy):
+                raise _Finish(NewtonStatus.NON_FINITE, f"energy at x0 is {energy}")
+            while True:
+                g_free = run.gradient(x)
+                p_free, p_inf = run.chord_step(g_free, energy) or run.newton_step(x, g_free, energy)
+                if res.nit >= options.max_iter:
+                    raise _Finish(
+                        NewtonStatus.MAX_ITERATIONS,
+                        f"max_iter = {options.max_iter}, ||p||_inf / step_scale = "
+                        f"{p_inf / options.step_scale:.3e} >= tol = {options.tol:.3e}",
+                    )
+                search, alpha0 = run.line_search(x, energy, g_free, p_free, p_inf)
+                x, energy = search.x, search.fun
+                run.accept(search, p_inf, alpha0)
+                if callback is not None and _callback_stops(
+                    callback, NewtonIteration(x.copy(), energy, res.nit, p_inf, search.alpha)
+                ):
+                    raise _Finish(NewtonStatus.CALLBACK_STOP, f"at iteration {res.nit}")
+        except _Finish as end:
+            res.status = end.status
+            res.success = end.status == NewtonStatus.CONVERGED
+            res.message = f"{end.status.description}: {end.detail}"
+            res.timings["total"] = time.perf_counter() - t_start
+            log = logger.debug if res.success else logger.info
+            log("newton %s after %d iterations (%s)", end.status.name, res.nit, end.detail)
+            return res
 
 
 def _callback_stops(

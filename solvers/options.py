@@ -71,10 +71,8 @@ class NewtonOptions:
         near_solution_factor: within this factor of the tolerance (``||p||_inf <= factor tol
             step_scale``) a step the energy cannot judge is taken when the gradient norm falls
             (``newton._accept_near_solution``), >= 0; 0 leaves only the round-off test. Where
-            the energy is not smooth at that scale this can cycle: the ``two_stage`` slope at
-            static friction (sliding eps_v dt = 5e-10 m, increments of 4.5e-9 m) alternated
-            between a step accepted on the gradient norm (the energy rising by 3.7e-22 J/m)
-            and an Armijo step back, until MAX_ITERATIONS.
+            the energy is not smooth at that scale this can cycle (design note
+            ``measurements``, newton).
     """
 
     tol: float = 1e-6

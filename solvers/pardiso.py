@@ -131,11 +131,7 @@ class PardisoSolver:
     def solve_again(self, b: np.ndarray) -> np.ndarray | None:
         """Solve with the last numeric factorisation; see
         :meth:`solvers.linear.CholmodSolver.solve_again`."""
-        if (
-            not self._factorised
-            or self._pattern.shape is None
-            or b.shape != (self._pattern.shape[0],)
-        ):
+        if not (self._factorised and self._pattern.fits(b)):
             return None
         try:
             x = self._call(_SOLVE, np.asarray(b, dtype=np.float64)).reshape(-1)

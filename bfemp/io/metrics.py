@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bfemp.io.vtk import atomic_path
+from bfemp.io.vtk import atomic_write_text
 
 _INT_RE = re.compile(r"[+-]?\d+")
 
@@ -151,20 +151,13 @@ class MetricsLog:
         }
 
     def to_csv(self, path: str | Path) -> Path:
-        """Write the table as CSV (format in the module docstring), atomically.
-
-        Returns:
-            the path written.
-        """
-        path = Path(path)
+        """Write the table as CSV (format in the module docstring), atomically; returns the path."""
         buffer = io.StringIO()
         writer = csv.writer(buffer, lineterminator="\n")
         writer.writerow(self.columns)
         columns = list(self._data.values())
         writer.writerows([_format(col[i]) for col in columns] for i in range(self._n))
-        with atomic_path(path) as tmp:
-            tmp.write_text(buffer.getvalue(), encoding="utf-8")
-        return path
+        return atomic_write_text(path, buffer.getvalue())
 
     @classmethod
     def from_csv(cls, path: str | Path) -> MetricsLog:

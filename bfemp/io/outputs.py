@@ -39,7 +39,7 @@ from pathlib import Path
 
 from bfemp.checkpoint import CHECKPOINT_FILE, SIDECAR_FILE, InterruptGuard, write_checkpoint
 from bfemp.errors import RunFolderError, SceneError, warn_user
-from bfemp.io.vtk import atomic_path
+from bfemp.io.vtk import atomic_write_text
 
 __all__ = [
     "LOCK_FILE",
@@ -370,10 +370,7 @@ def lock_run_folder(out: str | Path) -> Iterator[RunFolderLock]:
 def write_scene_file(out: str | Path, text: str) -> Path:
     """Write ``{out}/scene.toml`` (atomically): the scene file of the run (``Simulation.run``
     makes it from the scene file it was read from, or writes its ``Scene``)."""
-    path = Path(out) / "scene.toml"
-    with atomic_path(path) as tmp:
-        tmp.write_text(text, encoding="utf-8")
-    return path
+    return atomic_write_text(Path(out) / "scene.toml", text)
 
 
 def finish_outputs(

@@ -50,6 +50,7 @@ from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 
 from bfemp.io.vtk import atomic_path, read_pvd
+from geometry._meshing_metrics import facets
 
 __all__ = [
     "ANIMATION_FORMATS",
@@ -74,7 +75,6 @@ SHEET_PANELS = 6
 #: least top of the von Mises colour scale in Pa: stresses below it are round-off (module notes)
 STRESS_FLOOR_PA = 1.0
 _CMAP = "viridis"
-_FACES = np.array([[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]])
 
 
 @dataclass(frozen=True)
@@ -168,12 +168,9 @@ def read_snapshots(out: str | Path, count: int | None = SHEET_PANELS) -> list[Sn
 
 def _boundary_faces(cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Boundary triangles ``(f, 3)`` of a tetrahedral mesh and the cell of each ``(f,)``."""
-    faces = cells[:, _FACES].reshape(-1, 3)
-    owner = np.repeat(np.arange(cells.shape[0]), 4)
-    key = np.sort(faces, axis=1)
-    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    once = counts[inverse.reshape(-1)] == 1
-    return faces[once], owner[once]
+    faces, inverse, counts = facets(cells)  # the cells' faces, cell by cell
+    once = counts[inverse] == 1
+    return faces[once], np.repeat(np.arange(cells.shape[0]), 4)[once]
 
 
 def _limits(snapshots: Sequence[Snapshot], dim: int) -> np.ndarray:
@@ -209,15 +206,12 @@ def _norm(
     return Normalize(vmin=0.0, vmax=top), label
 
 
-def _dot_size(n_points: int) -> float:
-    return float(np.clip(2000.0 / max(n_points, 1), 0.3, 8.0))
-
-
 def _draw(ax: object, snap: Snapshot, norm: Normalize, limits: np.ndarray) -> None:
     """Draw the bodies of ``snap`` on ``ax`` (2D axes or mplot3d axes)."""
     cmap = _CMAP
     dim = limits.shape[0]
     n_particles = sum(len(b.points) for b in snap.bodies if b.cells is None)
+    dot_size = float(np.clip(2000.0 / max(n_particles, 1), 0.3, 8.0))
     if dim == 3:
         ax.computed_zorder = False  # particles over the meshes, not hidden behind their faces
     meshes = [b for b in snap.bodies if b.cells is not None]
@@ -253,7 +247,7 @@ def _draw(ax: object, snap: Snapshot, norm: Normalize, limits: np.ndarray) -> No
             c=body.von_mises,
             cmap=cmap,
             norm=norm,
-            s=_dot_size(n_particles),
+            s=dot_size,
             edgecolors="white" if dim == 3 else "none",  # unstressed dots stay visible on a mesh
             linewidths=0.3,
             zorder=2,

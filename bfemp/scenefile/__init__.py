@@ -108,7 +108,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bfemp.errors import SceneError
-from bfemp.io.vtk import atomic_path
+from bfemp.io.vtk import atomic_write_text as write_text
 from bfemp.scenefile._read import TOP_LEVEL, parse_document
 from bfemp.scenefile._write import dumps
 from bfemp.scenefile.checks import validate_checks
@@ -216,14 +216,6 @@ def load(path: str | os.PathLike) -> SceneFile:
     except (OSError, UnicodeDecodeError) as err:
         raise SceneError(f"cannot read the scene file: {err}", file=str(path)) from None
     return loads(text, file=str(path), base_dir=path.resolve().parent)
-
-
-def write_text(path: str | os.PathLike, text: str) -> Path:
-    """Write ``text`` to ``path`` atomically; returns the path."""
-    path = Path(path)
-    with atomic_path(path) as tmp:
-        tmp.write_text(text, encoding="utf-8")
-    return path
 
 
 def save(

@@ -67,11 +67,6 @@ def _api_error(err: ValueError, t: Table, field: str | None, body: str | None) -
     return SceneError(msg, file=t.file, body=body, field=field, hint=hint)
 
 
-def _materials(root: Table) -> dict:
-    mats = root.sub("materials", default_empty=True)
-    return {name: read_material(mats.sub(name)) for name in mats.data}
-
-
 def _material(t: Table, materials: dict) -> tuple[object, str | None]:
     value = t.raw("material")
     if isinstance(value, str):
@@ -207,18 +202,6 @@ def _simulation(root: Table) -> dict:
     if not root.has("simulation"):
         return {}
     t = root.sub("simulation")
-    keys = (
-        "strategy",
-        "integrator",
-        "transfer",
-        "dt",
-        "options",
-        "tol",
-        "max_newton_iterations",
-        "warm_start",
-        "allow_uncoupled",
-    )
-    t.check_keys(keys)
     hint = "dt is the time step in s, or 'auto' (an explicit strategy's stable step)"
     readers = {  # key -> its reader (each key optional)
         "strategy": lambda k: t.string(k, choices=STRATEGIES),
@@ -232,6 +215,7 @@ def _simulation(root: Table) -> dict:
         "warm_start": t.boolean,
         "allow_uncoupled": t.boolean,
     }
+    t.check_keys({*readers, "options"})
     out = {key: read(key) for key, read in readers.items() if t.has(key)}
     if t.has("options"):
         out["options"] = _options(t.sub("options"), out.get("strategy", "barrier"))
@@ -257,15 +241,13 @@ def _run(root: Table, key: str) -> dict:
     if not root.has(key):
         return {}
     t = root.sub(key)
-    t.check_keys(
-        {"t_end", "every", "checkpoint_every", "out"} - ({"out"} if key == "quick" else set())
-    )
     readers = {
         "t_end": lambda k: t.number(k, "time", positive=True),
         "every": lambda k: t.integer(k, minimum=1),
         "checkpoint_every": lambda k: t.integer(k, minimum=0),
         "out": t.string,
     }
+    t.check_keys(set(readers) - ({"out"} if key == "quick" else set()))
     return {key: read(key) for key, read in readers.items() if t.has(key)}
 
 
@@ -285,7 +267,8 @@ def parse_document(data: dict, *, file: str | None, base_dir: Path | None) -> di
     if dim not in (2, 3):
         raise st.error(f"must be 2 or 3, got {dim}", "dim")
     scene = Scene(dim=dim, gravity=st.vector("gravity", dim, default=None))
-    materials = _materials(root)
+    mats = root.sub("materials", default_empty=True)
+    materials = {name: read_material(mats.sub(name)) for name in mats.data}
     grid = None
     if root.has("grid"):
         gt = root.sub("grid")

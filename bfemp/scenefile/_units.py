@@ -29,13 +29,6 @@ _QUANTITY = re.compile(
 )
 
 
-def _kind_of(unit: str) -> str | None:
-    for kind, units in UNITS.items():
-        if unit in units:
-            return kind
-    return None
-
-
 def parse_quantity(value: object, kind: str | None) -> float:
     """The SI value of a number or of a ``"<number> <unit>"`` string.
 
@@ -67,7 +60,7 @@ def parse_quantity(value: object, kind: str | None) -> float:
     if unit in UNITS[kind]:
         return number * UNITS[kind][unit]
     allowed = ", ".join(UNITS[kind])
-    other = _kind_of(unit)
+    other = next((other for other, units in UNITS.items() if unit in units), None)
     if other is not None:
         raise ValueError(f"unit {unit!r} is a {other}, but this is a {kind} ({allowed})")
     raise ValueError(f"unknown unit {unit!r} for a {kind}; use one of {allowed}")

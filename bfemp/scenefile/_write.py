@@ -181,10 +181,6 @@ def dumps(
             doc["contact"]["pairs"] = [
                 {"bodies": [a, b], "mu": mu} for (a, b), mu in scene._pair_mu.items()
             ]
-    if fem:
-        doc["fem"] = fem
-    if mpm:
-        doc["mpm"] = mpm
     boundaries = []
     for k, b in enumerate(scene._boundaries):
         boundary = {
@@ -194,8 +190,6 @@ def dumps(
         if getattr(b, "motion", None) is not None:
             boundary["motion"] = motion_dict(b.motion, f"boundary[{k}].motion")
         boundaries.append(boundary)
-    if boundaries:
-        doc["boundary"] = boundaries
     loads = []
     for body, idx, force in scene._loads:
         spec = scene._fem[body]
@@ -204,8 +198,9 @@ def dumps(
             numbering = _file_numbering(scene, spec)
             load["nodes"] = (idx if numbering is None else numbering[idx]).tolist()
         loads.append(load)
-    if loads:
-        doc["load"] = loads
+    for key, tables in (("fem", fem), ("mpm", mpm), ("boundary", boundaries), ("load", loads)):
+        if tables:  # [[fem]], [[mpm]], [[boundary]], [[load]] after [contact], in this order
+            doc[key] = tables
     if check:
         doc["check"] = dict(check)
     return dumps_toml(doc, header_comment="bfemp scene file (format: bfemp.scenefile)")

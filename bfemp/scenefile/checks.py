@@ -120,21 +120,14 @@ class CheckResult:
         return f"{mark} {self.name}: {self.detail}"
 
 
-def _skipped(name: str, column: str) -> CheckResult:
-    return CheckResult(
-        name,
-        True,
-        f"{column} is not defined in this run (NaN in every row: the strategy does not compute it)",
-        skipped=True,
-    )
-
-
 def _column(metrics: object, name: str) -> np.ndarray:
     if name not in metrics.columns:
         raise ValueError(f"check: metrics have no column '{name}'; columns are {metrics.columns}")
     return metrics.column(name)
 
 
+#: why a check of a column the run does not define is skipped
+_UNDEFINED = "is not defined in this run (NaN in every row: the strategy does not compute it)"
 #: the checks of one metrics column: key, measured value of the column, format, relation
 _COLUMN_CHECKS = (
     ("drift_max", lambda c: np.nanmax(np.abs(c - c[0])), ".3g", "<="),
@@ -176,7 +169,8 @@ def evaluate_checks(check: dict, metrics: object, recorder: CheckRecorder) -> li
         for name, limit in check.get(key, {}).items():
             c = _column(metrics, name)
             if undefined_column(c):
-                results.append(_skipped(f"{key}.{name}", name))
+                detail = f"{name} {_UNDEFINED}"
+                results.append(CheckResult(f"{key}.{name}", True, detail, skipped=True))
                 continue
             value = float(measure(c))
             ok = value <= limit if relation == "<=" else value >= limit
