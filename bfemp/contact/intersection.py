@@ -84,7 +84,7 @@ def step_intersection(model: Model, start: State, end: State) -> Intersection | 
     cells, cell_body = model.fem_cells, model.fem_cell_body
     y1, body = _points(model, end)
     v1 = end.fem_x
-    hits = _hits(y1, y1, body, v1, v1, cells, cell_body, 1.0)
+    hits = _hits(y1, body, v1, cells, cell_body)[0]
     if hits.shape[0]:
         n = np.unique(hits[:, 0]).size
         return _describe(model, int(hits[0, 0]), int(hits[0, 1]), "INTERSECTION", 1.0, n)
