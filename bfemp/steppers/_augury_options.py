@@ -74,8 +74,7 @@ class AuguryOptions(ExplicitOptions):
             kinetic energy than the prediction V-bar (bfemp's; ``bfemp.contact.augury``: with
             friction and N > 1 the iterations were measured to inject energy, a block at
             mu = 0.7 then left a 30 degree incline; N = 1 was measured never to gain).
-        cfl_safety_fem: safety factor on the FEM bound h_min / c_p, in (0, 1].
-        cfl_safety_mpm: safety factor on the MPM bound ``dx / (c_p + |v_p|)``, in (0, 1].
+        cfl_safety_fem, cfl_safety_mpm: as in ``ExplicitOptions``.
     """
 
     strategy: ClassVar[str] = "augury"

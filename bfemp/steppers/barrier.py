@@ -11,9 +11,9 @@ One step:
    loop of Algorithm 1: ``bfemp.steppers._barrier_solve``), then a^{n+1} from BFEMP eq. 21 and the
    solved x^{n+1} (equal to Algorithm 2 line 14's -M^-1 dPsi/dx at the exact minimiser;
    ``Integrator.acceleration`` says why) and the velocity update of BFEMP eq. 21; constrained
-   components get zero
-   velocity and acceleration. Under an integrator with ``implicit_contact`` the contact forces
-   are kept out of a^{n+1} and added to the velocity as an impulse (``bfemp.integrators``).
+   components get zero velocity and acceleration. Under an integrator with ``implicit_contact``
+   the contact forces are kept out of a^{n+1} and added to the velocity as an impulse
+   (``bfemp.integrators``).
 4. MPM: one G2P of positions, velocities, F (and APIC C, Newmark a) per Tables 1-3 (line 12)
    (``bfemp.steppers._scaffold.write_state``).
 5. An independent check (``bfemp.contact.intersection``): no FEM cell or particle inverted
@@ -26,6 +26,8 @@ One step:
 
 from __future__ import annotations
 
+import dataclasses
+import json
 import logging
 import time
 from collections.abc import Mapping
@@ -437,15 +439,10 @@ class BarrierStepper:
         """The adaptive-kappa state (``kappa = "auto"``), as a JSON string array."""
         if self.adaptive is None:
             return {}
-        import dataclasses
-        import json
-
         return {"adaptive": np.array(json.dumps(dataclasses.asdict(self.adaptive)))}
 
     def restore_checkpoint_data(self, data: Mapping[str, np.ndarray]) -> None:
         """Take back ``checkpoint_data``'s arrays."""
-        import json
-
         unknown = sorted(set(data) - {"adaptive"})
         if unknown:
             raise ValueError(f"barrier stepper: unknown checkpoint data {unknown}")

@@ -145,7 +145,12 @@ class ExplicitStepper:
         options: StepperOptions | None = None,
     ) -> None:
         self.model = model
-        self.integrator = self._explicit_integrator(integrator)
+        self.integrator = integrator_from_name(integrator)
+        if not getattr(self.integrator, "explicit", False):
+            raise ValueError(
+                f"strategy {self.name!r} is explicit: integrator must be "
+                f"{SYMPLECTIC_EULER.name!r}, got {self.integrator.name!r} (an implicit integrator)"
+            )
         transfer = self.default_transfer if transfer is None else transfer
         if transfer not in self.transfers:
             raise ValueError(
@@ -189,15 +194,6 @@ class ExplicitStepper:
         """A strategy's own construction, after the engine's (default: nothing)."""
 
     # ------------------------------------------------------------------ construction
-    def _explicit_integrator(self, integrator: object) -> ExplicitIntegrator:
-        integ = integrator_from_name(integrator)
-        if not getattr(integ, "explicit", False):
-            raise ValueError(
-                f"strategy {self.name!r} is explicit: integrator must be "
-                f"{SYMPLECTIC_EULER.name!r}, got {integ.name!r} (an implicit integrator)"
-            )
-        return integ
-
     @classmethod
     def auto_dt_bound(
         cls, model: Model, state: State, options: StepperOptions | None = None
@@ -232,7 +228,6 @@ class ExplicitStepper:
             )
             for term in self._fem_terms:
                 term.begin_step(ctx)
-            self._fem_layout = layout
             self._fem_free = ~model.fem_prescribed
             self._fem_inv_mass = np.zeros(model.n_fem_nodes)
             heavy = model.fem_mass > 0.0

@@ -128,9 +128,7 @@ class TwoStageOptions(ExplicitOptions):
             ``"start"`` (always x^n).
         linear_solver: the linear solver of the contact solve (names of
             ``BarrierOptions.linear_solver``).
-        cfl_safety_fem: safety factor on the FEM bound h_min / c_p, in (0, 1] (default 0.5).
-        cfl_safety_mpm: safety factor on the MPM bound ``dx / (c_p + |v_p|)``, in (0, 1]
-            (default 0.4).
+        cfl_safety_fem, cfl_safety_mpm: as in ``ExplicitOptions``.
     """
 
     strategy: ClassVar[str] = "two_stage"
