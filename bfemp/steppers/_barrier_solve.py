@@ -107,10 +107,9 @@ class ScriptedSolve:
         what is in the way), and so on until the targets are reached; the last solve, with every
         scripted node at its target, is the step's result. Where the unknowns held at x^n are
         in the way, they move along (``_carry``): held, every sub-step ends with the scripted
-        body at a tenth of its gap and Newton creeps back from there (hertz example: 13-16
-        sub-steps of about 3 solves each, 435 Newton iterations per step; carried, 1-2
-        sub-steps, 52). The sub-steps before the last lag friction once instead of running the
-        friction loop: they only start the next.
+        body at a tenth of its gap (hertz example: 435 Newton iterations per step; carried, 52).
+        The sub-steps before the last lag friction once instead of running the friction loop:
+        they only start the next.
 
         Args:
             state: the state at t^n.
@@ -402,12 +401,10 @@ def stalled(moves: list[float], window: int, factor: float) -> bool:
     unknowns by more than ``factor`` x the least move of the re-solves before them.
 
     ``moves``: the increment norm (m) of every re-solve so far, in order. The loop is a
-    fixed-point iteration on the lagged normal forces and tangent bases (Algorithm 1); while it
-    converges, its moves shrink by its contraction rate per re-lag. ``window`` moves with no
-    ``factor`` reduction mean a rate above factor^(1/window) (0.79 for 3 and 0.5): from a first
-    re-solve's move of 0.1 m to the tolerance of 1e-6 m that takes more than 50 re-lags, past the
-    default cap of 20 (a stalled loop measured on the buckling ``plate_full``: design note
-    ``measurements``, barrier).
+    fixed-point iteration on the lagged normal forces and tangent bases (Algorithm 1): ``window``
+    moves with no ``factor`` reduction mean a contraction rate above factor^(1/window) (0.79 for
+    3 and 0.5), more than 50 re-lags from 0.1 m to 1e-6 m, past the default cap of 20 (design
+    note ``measurements``, barrier).
     """
     if len(moves) <= window:
         return False

@@ -142,13 +142,10 @@ class FemPoints:
         """``(M, G)`` bool: the fields whose whole grid mass at the node comes from scripted FEM
         nodes (None when no FEM node is scripted).
 
-        Why (issue 40, the drop of ``tests/bfemp/test_lr_drop.py``; design note
-        ``measurements``, lr): the plate's field holds only its boundary nodes' masses, so the
-        centre-of-mass law (eqs. 7-10) took only m_b / (m_a + m_b) of the disk's approach
-        velocity each step and gave the rest to a plate whose script undoes it: the disk went
-        through the plate.
-        A scripted field is therefore infinitely heavy in the contact law (NairnMPM's rigid
-        materials; LR has none), which stops the approach at once (``_correct``). A field
+        A scripted field is infinitely heavy in the contact law (NairnMPM's rigid materials; LR
+        has none), which stops the approach at once: with its finite grid mass the law (LR eqs.
+        7-10) gave part of the approach to a plate whose script undid it, and a disk went through
+        (issue 40, ``tests/bfemp/test_lr_drop.py``; design note ``measurements``, lr). A field
         mixing free and scripted nodes is left finite (its free nodes take the kick)."""
         if not self.n_nodes or self.node_free.all():
             return None

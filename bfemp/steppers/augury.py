@@ -40,18 +40,16 @@ conservation: the free bodies exchange momentum with the scripted nodes, which d
 back. Every step reports it, ``StepReport.extra["kinematic_impulse_x"|"_y"|"_z"]`` in N s (N s/m
 in 2D): the impulse the scripted nodes deliver to the free foreground in the step (the free
 particles' summed m dt a^; H conserves momentum among them), and a ``SCRIPTED_FOREGROUND`` note.
-On issue 40's drop that impulse is the disk's momentum change less gravity's, and augury
-stops a body about one contact cell short of a scripted one (the nodes both stencils share);
-with ``False`` (the default before issue 40) scripted nodes are not in H and a body falls
-through a fixed plate (measured: design note ``measurements``, augury stepper).
+With ``False`` scripted nodes are not in H and a body falls through a fixed plate (measured on
+issue 40's drop, with and without: design note ``measurements``, augury stepper).
 
 MPM particles' F (``contact_strain=True``, bfemp's): section 1.4 item 3 leaves F_p as the
 engine's G2P made it from the free grid velocities, expecting contact to reach F through the
 next P2G. It does not: the next P2G sees the corrected velocities, but the F increment of the
-correction itself, dt grad(dt a^), is never applied, so under sustained contact the particles
-crowd together while F stays near I (measured: design note ``measurements``, augury stepper).
-F_p^{n+1} += dt (sum_i dv_i grad w_ip^T) F_p^n, dv_i the correction's mass-weighted field on
-the engine's MPM grid per body (``_correction_gradient``).
+correction itself, dt grad(dt a^), is never applied (measured: particles crowd together under
+sustained contact while F stays near I; design note ``measurements``, augury stepper). F_p^{n+1}
++= dt (sum_i dv_i grad w_ip^T) F_p^n, dv_i the correction's mass-weighted field on the engine's
+MPM grid per body (``bfemp.contact._augury_geometry.correction_gradient``).
 
 Named notes in every report where they apply: ``SCRIPTED_FOREGROUND``, ``AUGURY_REACH`` (tau
 times the velocity spread at shared contact nodes above grid_dx / 3, AUG eq. 50),
