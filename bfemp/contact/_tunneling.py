@@ -17,7 +17,7 @@ from bfemp.contact._end_state import (
     end_of_step_points,
     points_inside,
 )
-from bfemp.contact.collision import CollisionSet
+from bfemp.contact.collision import CollisionSet, facet_edge_lengths
 from bfemp.contact.pairs import candidate_pairs, edge_edge_active, edge_edge_pairs
 from bfemp.errors import warn_user
 from bfemp.model import Model
@@ -219,11 +219,7 @@ def _mean_boundary_edge(model: Model) -> np.ndarray:
     """Mean rest boundary-edge length of each FEM body ``(n_fem_bodies,)`` in m."""
     out = np.zeros(len(model.fem_bodies))
     for b in model.fem_bodies:
-        f = b.boundary
-        edges = f if f.shape[1] == 2 else np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
-        out[b.index] = np.linalg.norm(
-            model.fem_X[edges[:, 1]] - model.fem_X[edges[:, 0]], axis=1
-        ).mean()
+        out[b.index] = facet_edge_lengths(model.fem_X, b.boundary).mean()
     return out
 
 

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bfemp.contact.collision import facet_edge_lengths
 from bfemp.errors import warn_user
 from bfemp.model import Model
 from bfemp.state import State
@@ -81,11 +82,8 @@ class FemPoints:
         facet_material = cat(facet_mat) if facet_mat else np.zeros(0, np.int64)
         dx = model.grid.dx
         if facets_all.shape[0]:
-            ends = model.fem_X[facets_all]  # (F, d, d)
-            edge = np.linalg.norm(ends[:, 1] - ends[:, 0], axis=1)
-            if d == 3:
-                edge = np.maximum(edge, np.linalg.norm(ends[:, 2] - ends[:, 1], axis=1))
-                edge = np.maximum(edge, np.linalg.norm(ends[:, 0] - ends[:, 2], axis=1))
+            # the longest edge of each facet
+            edge = facet_edge_lengths(model.fem_X, facets_all).reshape(-1, len(facets_all)).max(0)
             if dx < 2.0 * edge.max() * (1.0 - 1e-9):
                 warn_user(
                     f"LR_GRID_FINE: the MPM grid (dx = {dx:.4g} m) is finer than twice the FEM "

@@ -71,7 +71,6 @@ from bfemp.contact._augury_geometry import (
     cell_faces,
     correction_gradient,
     face_key,
-    facet_edge_lengths,
     facing_normals,
     fem_normals,
     inside_other_cells,
@@ -85,6 +84,7 @@ from bfemp.contact.augury import (
     augury_correction,
     contact_stencils,
 )
+from bfemp.contact.collision import facet_edge_lengths
 from bfemp.contact.parameters import refuse_pair_friction
 from bfemp.errors import warn_user
 from bfemp.model import Model
