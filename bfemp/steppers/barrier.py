@@ -450,14 +450,11 @@ class BarrierStepper:
             self.adaptive = AdaptiveKappa(**json.loads(str(data["adaptive"])))
 
 
-def _zero_mass_notes(nodes: object) -> tuple[str, ...]:
-    """``P2G_ZERO_MASS`` when the step's P2G left grid nodes of (near) zero mass (round-off
-    weights of particles a hair off a cell-centre line; ``bfemp.mpm.transfer``): they start the
-    step at zero velocity (the lightest are pinned, ``bfemp.mpm.step``), which the particles do
-    not feel. A named note, so that a run warns once and counts the steps (it was a log warning
-    in every step)."""
-    mpm = getattr(nodes, "mpm", None)
-    light = 0 if mpm is None else int(mpm.fields.zero_mass_nodes)
+def _zero_mass_notes(nodes: StepNodes) -> tuple[str, ...]:
+    """The ``P2G_ZERO_MASS`` note when the step's P2G left grid nodes of (near) zero mass
+    (``bfemp.mpm.transfer``; the lightest are pinned, ``bfemp.mpm.step``): a named note, so that
+    a run warns once and counts the steps (it was a log warning in every step)."""
+    light = 0 if nodes.mpm is None else int(nodes.mpm.fields.zero_mass_nodes)
     if not light:
         return ()
     return (

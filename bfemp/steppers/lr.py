@@ -331,13 +331,11 @@ class LRStepper(ExplicitStepper):
 
         Under f^{C,1} (LR eq. 33) the first correction's dp^a reaches neither V_p nor the FEM
         nodes, so an approach velocity the particles carry into a lasting contact (a landing,
-        an impact) is removed from the grid again every step and is never lost by the
-        particles. Over each window of ``FIRST_CORRECTION_WINDOW`` steps with contact, the
-        note is given when sum ``|dp^a|`` of the first correction exceeds
-        ``FIRST_CORRECTION_RATIO`` times that of the second: measured under FLIP with c1 it
-        flags the landing, sliding and impact runs that lose their physics and not the
-        compression that keeps it; where the particles do get the first correction (c0, PIC)
-        the physics holds, so the note is for c1 only (design note ``measurements``, lr).
+        an impact) is removed from the grid again every step. Over each window of
+        ``FIRST_CORRECTION_WINDOW`` steps with contact, the note is given when sum ``|dp^a|`` of
+        the first correction exceeds ``FIRST_CORRECTION_RATIO`` times that of the second:
+        measured, that flags the c1 runs that lose their physics and not those that keep it;
+        with c0 or PIC the physics holds (design note ``measurements``, lr).
         """
         if touching:
             self.first_correction_impulse += impulse_1
