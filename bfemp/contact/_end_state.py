@@ -207,18 +207,13 @@ def end_of_step_points(model: Model) -> CollisionSet:
     cached = _POINTS_CACHE.get(id(model))
     if cached is not None and cached[0]() is model:
         return cached[1]
-    cs = _build_points(model)
+    n_fem, n_mpm = model.n_fem_nodes, model.n_particles
+    particles = None
+    if n_mpm:  # particle p is all-node N + p, weight 1
+        nodes = (n_fem + np.arange(n_mpm, dtype=np.int64))[:, None]
+        particles = PointStencils(nodes, np.ones((n_mpm, 1)))
+    cs = build_collision_set(model, particles)
     for key in [k for k, (ref, _) in _POINTS_CACHE.items() if ref() is None]:
         del _POINTS_CACHE[key]
     _POINTS_CACHE[id(model)] = (weakref.ref(model), cs)
     return cs
-
-
-def _build_points(model: Model) -> CollisionSet:
-    n_fem, n_mpm = model.n_fem_nodes, model.n_particles
-    particles = None
-    if n_mpm:
-        particles = PointStencils(
-            (n_fem + np.arange(n_mpm, dtype=np.int64))[:, None], np.ones((n_mpm, 1))
-        )
-    return build_collision_set(model, particles)

@@ -179,7 +179,10 @@ class BarrierStepper:
             t_next=t_next,
         )
         gathered = time.perf_counter()
-        ctx = self._context(state, nodes, integ.predict(nodes.x, nodes.v, nodes.a, dt))
+        x_hat_all = integ.predict(nodes.x, nodes.v, nodes.a, dt)
+        ctx = nodes.context(self.model, state, x_hat_all)
+        if self.friction is not None:  # the sliding map of BFEMP eq. 37
+            ctx.sliding = self._sliding_map(nodes, x_hat_all)
         weights = integ.weight(dt), nodes.frames if frames else None
         self.potential.begin_step(ctx, *weights, contact_weight=integ.contact_weight(dt))
         # the parts of the step's "setup" phase: P2G and stencils, then the terms' begin_step
@@ -188,13 +191,6 @@ class BarrierStepper:
             "setup_terms": time.perf_counter() - gathered,
         }
         return nodes, ctx
-
-    def _context(self, state: State, nodes: StepNodes, x_hat_all: np.ndarray) -> StepContext:
-        """The terms' view of the step; with friction, the sliding map of BFEMP eq. 37."""
-        ctx = nodes.context(self.model, state, x_hat_all)
-        if self.friction is not None:
-            ctx.sliding = self._sliding_map(nodes, x_hat_all)
-        return ctx
 
     def _sliding_map(self, nodes: StepNodes, x_hat_all: np.ndarray) -> tuple[float, np.ndarray]:
         """U = s y + c: each node's sliding dt v^{n+1} over the step, affine in its position y.
