@@ -338,24 +338,6 @@ class ScriptedSolve:
             f"with a rounding-level diagonal shift (at most {self.max_shift:.3e})"
         ]
 
-    def _back_solve(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-        """The Newton increment p ``(n,)`` at y with the last factorisation and the gradient at
-        y ``(n,)`` in N (None when the solver cannot back-solve)."""
-        solve_again = getattr(self.linear_solver, "solve_again", None)
-        if solve_again is None:
-            return None
-        pot = self.potential
-        pot.solution_changed(y)
-        grad = pot.gradient(y)
-        free = None if pot.fixed_dofs is None else ~pot.fixed_dofs
-        p_free = solve_again(-(grad if free is None else grad[free]))
-        if p_free is None:
-            return None
-        p = p_free if free is None else np.zeros(grad.size)
-        if free is not None:
-            p[free] = p_free
-        return p, grad
-
     def _increment_below_tol(
         self, y: np.ndarray, result: NewtonResult | None = None
     ) -> np.ndarray | None:
@@ -367,14 +349,27 @@ class ScriptedSolve:
         fresh gradient; a cheap test that only decides when to stop: when it says no (None),
         Newton runs. On success it returns p ``(n,)`` and stores the gradient in ``result.jac``
         (boundary reactions use it) when a ``result`` is given; without one it is the last
-        increment of a solve that needed no Newton step.
+        increment of a solve that needed no Newton step. None too when the solver cannot
+        back-solve.
         """
-        out = self._back_solve(y)
-        if out is None or not self.potential.increment_norm(out[0]) < self.newton.tol * self.dt:
+        solve_again = getattr(self.linear_solver, "solve_again", None)
+        if solve_again is None:
+            return None
+        pot = self.potential
+        pot.solution_changed(y)
+        grad = pot.gradient(y)  # (n,) in N
+        free = None if pot.fixed_dofs is None else ~pot.fixed_dofs
+        p_free = solve_again(-(grad if free is None else grad[free]))
+        if p_free is None:
+            return None
+        p = p_free if free is None else np.zeros(grad.size)
+        if free is not None:
+            p[free] = p_free
+        if not pot.increment_norm(p) < self.newton.tol * self.dt:
             return None
         if result is not None:
-            result.jac = out[1]
-        return out[0]
+            result.jac = grad
+        return p
 
     def _take(self, y: np.ndarray, p: np.ndarray) -> np.ndarray:
         """y + alpha p with the freshly lagged friction's last increment p (below tolerance),
