@@ -453,6 +453,3 @@ class AuguryStepper(ExplicitStepper):
                 m.n_fem_nodes, m.n_particles, m.dim, parameters={"augury_max_correction": 0.0}
             )
         return self._last_contact
-
-
-# ---------------------------------------------------------------------- helpers
