@@ -88,7 +88,7 @@ from bfemp.potential import IncrementalPotential
 from bfemp.state import State
 from bfemp.steppers._barrier_potential import contact_view, has_contact
 from bfemp.steppers._barrier_solve import ScriptedSolve
-from bfemp.steppers._scaffold import StepNodes, gather_nodes, nodes_of_step
+from bfemp.steppers._scaffold import StepNodes, nodes_of_step
 from bfemp.steppers.base import ContactView, StepError, finite_or_nan
 from bfemp.steppers.capabilities import BARRIER_PAIRS, Capabilities
 from bfemp.steppers.explicit import ExplicitOptions, ExplicitStepper, GridStep, Motion
@@ -326,10 +326,7 @@ class TwoStageStepper(ExplicitStepper):
         ``prepare_mpm_step``."""
         model = self.model
         if model.n_particles == 0:
-            return gather_nodes(
-                model, state, transfer=self.transfer, with_acceleration=False, dt=self.dt,
-                t_next=step.t_next,
-            )  # fmt: skip
+            return nodes_of_step(model, state, None, dt=self.dt, t_next=step.t_next)
         stencils = step.stencils()
         if stencils.n_nodes != step.grid_x.shape[0] or not np.array_equal(
             stencils.active_x, step.grid_x
