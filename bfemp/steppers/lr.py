@@ -370,7 +370,7 @@ class LRStepper(ExplicitStepper):
     def _fem_velocities(self, step: GridStep, dp: np.ndarray, inv_mass: np.ndarray) -> np.ndarray:
         """FEM velocities at t^{n+1} ``(N, d)`` m/s (section 2.6 of the spec): the mechanical
         update, plus on the boundary nodes the G2P of the contact velocity change ``dp / m``
-        ``(M, G, d)``; scripted nodes their script (the engine moves the nodes)."""
+        ``(M, G, d)`` (the engine then gives scripted nodes their script and moves the nodes)."""
         model, dt, state = self.model, self.dt, step.state
         fem_v = state.fem_v + dt * step.fem_force * self._fem_inv_mass[:, None]
         if self._fem.n_nodes:
@@ -381,8 +381,6 @@ class LRStepper(ExplicitStepper):
             )
             free = self._fem.node_free
             fem_v[self._fem.nodes[free]] += kick[free]
-        scripted = ~self._fem_free
-        fem_v[scripted] = model.prescribed_velocities(step.t_next)[scripted]
         return fem_v
 
     def _store_contact(
