@@ -148,7 +148,7 @@ class AuguryStepper(ExplicitStepper):
     def _setup_foreground(self) -> None:
         model, opts, d = self.model, self.options, self.model.dim
         n = model.n_fem_nodes
-        facets, opposite, owners = [], [], []
+        facets, opposite = [], []
         cell_keys, cell_opp = cell_faces(model.fem_cells, n, d)
         for body in model.fem_bodies:
             f = np.asarray(body.boundary, dtype=np.int64).reshape(-1, d)
@@ -163,7 +163,6 @@ class AuguryStepper(ExplicitStepper):
                 )
             facets.append(f)
             opposite.append(cell_opp[pos])
-            owners.append(np.full(f.shape[0], body.index))
         self._facets = np.concatenate(facets) if facets else np.zeros((0, d), np.int64)
         self._facet_opp = np.concatenate(opposite) if opposite else np.zeros(0, np.int64)
         on_boundary = np.zeros(n, dtype=bool)
@@ -176,10 +175,9 @@ class AuguryStepper(ExplicitStepper):
         self.fem_foreground = np.flatnonzero((on_boundary & ~scripted) | kin)
         self._fem_movable = ~scripted[self.fem_foreground]
         self._n_kinematic = int(kin.sum())
-        fem_node_body = np.zeros(n, dtype=np.int64)
+        self._fem_node_body = np.zeros(n, dtype=np.int64)
         for body in model.fem_bodies:
-            fem_node_body[body.nodes] = body.index
-        self._fem_node_body = fem_node_body
+            self._fem_node_body[body.nodes] = body.index
         self._mpm_fg = bool(opts.mpm_foreground and model.n_particles)
         n_fem_bodies = len(model.fem_bodies)
         self._mpm_body = (
@@ -188,9 +186,7 @@ class AuguryStepper(ExplicitStepper):
         # contact-grid spacing (section 1.5 item 4, A8)
         edges = facet_edge_lengths(model.fem_X, self._facets)
         mean_edge = float(edges.mean()) if edges.size else 0.0
-        spacing = 0.0
-        if self._mpm_fg:
-            spacing = float(np.mean(model.mpm_volume) ** (1.0 / d))
+        spacing = float(np.mean(model.mpm_volume) ** (1.0 / d)) if self._mpm_fg else 0.0
         if opts.grid_dx is not None:
             self.grid_dx = opts.grid_dx
         else:
