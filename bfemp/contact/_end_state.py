@@ -105,7 +105,14 @@ def cells_containing(
     """
     found = np.full(points.shape[0], -1, dtype=np.int64)
     depth = np.zeros(points.shape[0])
-    hits, hit_depth = _hits(points, point_body, vertices, cells, cell_body, tol)
+    # candidates of different bodies, unique and sorted by (point, cell) (the broad phase's order)
+    cand = point_simplex_candidates(points, vertices, cells)
+    cand = cand[point_body[cand[:, 0]] != cell_body[cand[:, 1]]]
+    if cand.shape[0] == 0:  # no parallel region for nothing
+        return found, depth
+    cand_depth = _pair_depths(points, vertices, cells, cand)
+    keep = cand_depth > tol
+    hits, hit_depth = cand[keep], cand_depth[keep]
     if hits.shape[0]:
         first = np.concatenate(([True], hits[1:, 0] != hits[:-1, 0]))
         found[hits[first, 0]] = hits[first, 1]
@@ -126,26 +133,6 @@ def _pair_depths(
             v[a] = vertices[cells[pairs[i, 1], a]]
         out[i] = simplex_depth(points[pairs[i, 0]], v)
     return out
-
-
-def _hits(
-    points: np.ndarray,
-    point_body: np.ndarray,
-    vertices: np.ndarray,
-    cells: np.ndarray,
-    cell_body: np.ndarray,
-    tol: float = _BARY_EPS,
-) -> tuple[np.ndarray, np.ndarray]:
-    """(point, cell) rows ``(n, 2)`` of different bodies, sorted (the broad phase's order),
-    with every barycentric coordinate of the point in the cell above ``tol``, and that smallest
-    coordinate ``(n,)`` (arguments as :func:`points_inside`)."""
-    cand = point_simplex_candidates(points, vertices, cells)
-    cand = cand[point_body[cand[:, 0]] != cell_body[cand[:, 1]]]
-    if cand.shape[0] == 0:
-        return cand, np.zeros(0)
-    depth = _pair_depths(points, vertices, cells, cand)
-    keep = depth > tol
-    return cand[keep], depth[keep]
 
 
 def _points(model: Model, state: State) -> tuple[np.ndarray, np.ndarray]:

@@ -43,7 +43,6 @@ import numpy as np
 from bfemp.contact._end_state import (
     Intersection,
     _describe,
-    _hits,
     _points,
     end_of_step_points,
     points_inside,
@@ -83,8 +82,9 @@ def step_intersection(model: Model, start: State, end: State) -> Intersection | 
     cells, cell_body = model.fem_cells, model.fem_cell_body
     y1, body = _points(model, end)
     v1 = end.fem_x
-    hits = _hits(y1, body, v1, cells, cell_body)[0]
-    if hits.shape[0]:
-        n = np.unique(hits[:, 0]).size
-        return _describe(model, int(hits[0, 0]), int(hits[0, 1]), "INTERSECTION", 1.0, n)
+    cell = points_inside(y1, body, v1, cells, cell_body)
+    inside = np.flatnonzero(cell >= 0)
+    if inside.size:  # the first point inside, in its first cell
+        p = int(inside[0])
+        return _describe(model, p, int(cell[p]), "INTERSECTION", 1.0, inside.size)
     return trajectory_crossing(model, start, end)
