@@ -61,7 +61,7 @@ class FemPoints:
 
     def __init__(self, model: Model, radius0: np.ndarray, material: np.ndarray) -> None:
         self.model, self.radius0, self.material = model, radius0, material
-        """Boundary nodes and facet samples of the FEM bodies (section 2.6 of the spec)."""
+        # boundary nodes and facet samples of the FEM bodies (section 2.6 of the spec)
         d = model.dim
         n_mpm = len(model.mpm_bodies)
         nodes, node_mat, facets, facet_mat = [], [], [], []
@@ -100,7 +100,7 @@ class FemPoints:
         self.n_samples = self.samples[0].shape[0]
 
     def points(self, state: State) -> Points:
-        """Every point of the step (``_Points``), with stencils at their positions."""
+        """Every point of the step (``Points``), with stencils at their positions."""
         model, d = self.model, self.model.dim
         if self.n_nodes == 0:
             st = particle_stencils(model.grid, state.mpm_x)
