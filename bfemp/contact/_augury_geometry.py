@@ -18,7 +18,6 @@ __all__ = [
     "correction_gradient",
     "depth_in_cell",
     "face_key",
-    "facet_edge_lengths",
     "facing_normals",
     "fem_normals",
     "inside_other_cells",
@@ -190,17 +189,6 @@ def cell_faces(cells: np.ndarray, n: int, d: int) -> tuple[np.ndarray, np.ndarra
     opp = np.concatenate(opp) if opp else np.zeros(0, np.int64)
     order = np.argsort(keys, kind="stable")
     return keys[order], opp[order]
-
-
-def facet_edge_lengths(x: np.ndarray, facets: np.ndarray) -> np.ndarray:
-    if facets.size == 0:
-        return np.zeros(0)
-    p = x[facets]
-    k = facets.shape[1]
-    lengths = [
-        np.linalg.norm(p[:, (j + 1) % k] - p[:, j], axis=1) for j in range(k if k > 2 else 1)
-    ]
-    return np.concatenate(lengths)
 
 
 def subset(st: ContactStencils, sel: np.ndarray) -> ContactStencils:

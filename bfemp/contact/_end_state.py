@@ -63,39 +63,6 @@ class Intersection:
         )
 
 
-# ---------------------------------------------------------------------------- kernels
-
-
-@njit(cache=True, parallel=True)
-def _inside_pairs(
-    y0: np.ndarray,
-    y1: np.ndarray,
-    v0: np.ndarray,
-    v1: np.ndarray,
-    cells: np.ndarray,
-    pairs: np.ndarray,
-    s: float,
-) -> np.ndarray:
-    """Whether point ``pairs[i, 0]`` lies strictly inside cell ``pairs[i, 1]`` at time s.
-
-    Points move y0 -> y1 ``(P, d)``, cell vertices v0 -> v1 ``(V, d)`` (positions (1-s) a + s b).
-    """
-    n = pairs.shape[0]
-    d = y0.shape[1]
-    out = np.zeros(n, dtype=np.bool_)
-    for i in prange(n):
-        q, c = pairs[i, 0], pairs[i, 1]
-        y = (1.0 - s) * y0[q] + s * y1[q]
-        v = np.empty((d + 1, d))
-        for a in range(d + 1):
-            v[a] = (1.0 - s) * v0[cells[c, a]] + s * v1[cells[c, a]]
-        out[i] = simplex_depth(y, v) > _BARY_EPS
-    return out
-
-
-# ---------------------------------------------------------------------------- drivers
-
-
 def points_inside(
     points: np.ndarray,
     point_body: np.ndarray,
@@ -117,12 +84,7 @@ def points_inside(
         ``(P,)`` int64: the smallest index of a containing cell of a body other than the
         point's own, -1 where there is none.
     """
-    hits = _hits(points, points, point_body, vertices, vertices, cells, cell_body, 1.0)
-    out = np.full(points.shape[0], -1, dtype=np.int64)
-    if hits.shape[0]:
-        first = np.concatenate(([True], hits[1:, 0] != hits[:-1, 0]))
-        out[hits[first, 0]] = hits[first, 1]
-    return out
+    return cells_containing(points, point_body, vertices, cells, cell_body)[0]
 
 
 def cells_containing(
@@ -143,19 +105,18 @@ def cells_containing(
     """
     found = np.full(points.shape[0], -1, dtype=np.int64)
     depth = np.zeros(points.shape[0])
-    cand = _candidates(points, points, point_body, vertices, vertices, cells, cell_body)
-    if cand.shape[0] == 0:
+    # candidates of different bodies, unique and sorted by (point, cell) (the broad phase's order)
+    cand = point_simplex_candidates(points, vertices, cells)
+    cand = cand[point_body[cand[:, 0]] != cell_body[cand[:, 1]]]
+    if cand.shape[0] == 0:  # no parallel region for nothing
         return found, depth
     cand_depth = _pair_depths(points, vertices, cells, cand)
     keep = cand_depth > tol
-    if not keep.any():
-        return found, depth
     hits, hit_depth = cand[keep], cand_depth[keep]
-    order = np.lexsort((hits[:, 1], hits[:, 0]))
-    hits, hit_depth = hits[order], hit_depth[order]
-    first = np.concatenate(([True], hits[1:, 0] != hits[:-1, 0]))
-    found[hits[first, 0]] = hits[first, 1]
-    depth[hits[first, 0]] = hit_depth[first]
+    if hits.shape[0]:
+        first = np.concatenate(([True], hits[1:, 0] != hits[:-1, 0]))
+        found[hits[first, 0]] = hits[first, 1]
+        depth[hits[first, 0]] = hit_depth[first]
     return found, depth
 
 
@@ -172,54 +133,6 @@ def _pair_depths(
             v[a] = vertices[cells[pairs[i, 1], a]]
         out[i] = simplex_depth(points[pairs[i, 0]], v)
     return out
-
-
-def _candidates(
-    y0: np.ndarray,
-    y1: np.ndarray,
-    point_body: np.ndarray,
-    v0: np.ndarray,
-    v1: np.ndarray,
-    simplices: np.ndarray,
-    simplex_body: np.ndarray,
-    inflation: float = 0.0,
-) -> np.ndarray:
-    """(point, simplex) pairs of different bodies whose boxes swept y0 -> y1 / v0 -> v1 overlap."""
-    swept = y1 is not y0
-    cand = point_simplex_candidates(
-        y0,
-        v0,
-        simplices,
-        inflation=inflation,
-        points_end=y1 if swept else None,
-        vertices_end=v1 if swept else None,
-    )
-    return cand[point_body[cand[:, 0]] != simplex_body[cand[:, 1]]]
-
-
-def _hits(
-    y0: np.ndarray,
-    y1: np.ndarray,
-    point_body: np.ndarray,
-    v0: np.ndarray,
-    v1: np.ndarray,
-    cells: np.ndarray,
-    cell_body: np.ndarray,
-    s: float,
-    cand: np.ndarray | None = None,
-) -> np.ndarray:
-    """Candidate (point, cell) rows ``(n, 2)`` with the point strictly inside at time s.
-
-    Points move y0 -> y1 ``(P, d)``, cell vertices v0 -> v1 ``(V, d)``; ``cand`` (pairs of
-    different bodies whose boxes contain the time-s positions) defaults to a static broad phase
-    at time s.
-    """
-    if cand is None:
-        ys, vs = (1.0 - s) * y0 + s * y1, (1.0 - s) * v0 + s * v1
-        cand = _candidates(ys, ys, point_body, vs, vs, cells, cell_body)
-    if cand.shape[0] == 0:
-        return cand
-    return cand[_inside_pairs(y0, y1, v0, v1, cells, cand, s)]
 
 
 def _points(model: Model, state: State) -> tuple[np.ndarray, np.ndarray]:
@@ -281,18 +194,13 @@ def end_of_step_points(model: Model) -> CollisionSet:
     cached = _POINTS_CACHE.get(id(model))
     if cached is not None and cached[0]() is model:
         return cached[1]
-    cs = _build_points(model)
+    n_fem, n_mpm = model.n_fem_nodes, model.n_particles
+    particles = None
+    if n_mpm:  # particle p is all-node N + p, weight 1
+        nodes = (n_fem + np.arange(n_mpm, dtype=np.int64))[:, None]
+        particles = PointStencils(nodes, np.ones((n_mpm, 1)))
+    cs = build_collision_set(model, particles)
     for key in [k for k, (ref, _) in _POINTS_CACHE.items() if ref() is None]:
         del _POINTS_CACHE[key]
     _POINTS_CACHE[id(model)] = (weakref.ref(model), cs)
     return cs
-
-
-def _build_points(model: Model) -> CollisionSet:
-    n_fem, n_mpm = model.n_fem_nodes, model.n_particles
-    particles = None
-    if n_mpm:
-        particles = PointStencils(
-            (n_fem + np.arange(n_mpm, dtype=np.int64))[:, None], np.ones((n_mpm, 1))
-        )
-    return build_collision_set(model, particles)

@@ -17,7 +17,7 @@ from bfemp.contact._end_state import (
     end_of_step_points,
     points_inside,
 )
-from bfemp.contact.collision import CollisionSet
+from bfemp.contact.collision import CollisionSet, facet_edge_lengths
 from bfemp.contact.pairs import candidate_pairs, edge_edge_active, edge_edge_pairs
 from bfemp.errors import warn_user
 from bfemp.model import Model
@@ -151,7 +151,8 @@ def _corner_cuts(
     out = np.zeros(pairs.shape[0], dtype=bool)
     kind = "pe" if model.dim == 2 else "pt"
     dist = _CCD[kind][1]
-    edge = _mean_boundary_edge(model)
+    # each body's mean rest boundary-edge length in m, by body index
+    edge = [facet_edge_lengths(model.fem_X, b.boundary).mean() for b in model.fem_bodies]
     reach = model.contact.dhat if model.contact is not None else None
     for i, (point, facet) in enumerate(pairs):  # crossings: a handful per failing step
         body = int(cs.facet_body[facet])
@@ -213,18 +214,6 @@ def _boundary_path(facets: np.ndarray, y: np.ndarray, a: int, b: int, limit: flo
     graph = coo_matrix((weight, (touching.row, touching.col)), shape=(k, k)).tocsr()
     ends = 0.5 * (size[a] + size[b])
     return max(0.0, float(dijkstra(graph, indices=a, limit=limit + ends)[b]) - ends)
-
-
-def _mean_boundary_edge(model: Model) -> np.ndarray:
-    """Mean rest boundary-edge length of each FEM body ``(n_fem_bodies,)`` in m."""
-    out = np.zeros(len(model.fem_bodies))
-    for b in model.fem_bodies:
-        f = b.boundary
-        edges = f if f.shape[1] == 2 else np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
-        out[b.index] = np.linalg.norm(
-            model.fem_X[edges[:, 1]] - model.fem_X[edges[:, 0]], axis=1
-        ).mean()
-    return out
 
 
 def trajectory_crossing(model: Model, start: State, end: State) -> Intersection | None:

@@ -27,7 +27,7 @@ from numba import njit, prange
 from bfemp.contact.barrier import boundary_vertex_weights, particle_contact_weight
 from bfemp.model import Model
 
-__all__ = ["CollisionSet", "PointStencils", "build_collision_set"]
+__all__ = ["CollisionSet", "PointStencils", "build_collision_set", "facet_edge_lengths"]
 
 
 @dataclass(frozen=True)
@@ -127,6 +127,19 @@ def _facet_topology(facets: np.ndarray, n_vertices: int, dim: int):  # noqa: ANN
     np.add.at(excess, edges.ravel(), np.repeat(eta_e - 1.0, 2))
     vertex_coef = (1.0 - t_v + excess) * (t_v > 0)
     return edges.astype(np.int64), edge_coef, vertex_coef
+
+
+def facet_edge_lengths(x: np.ndarray, facets: np.ndarray) -> np.ndarray:
+    """Edge lengths in m of boundary ``facets (F, d)`` at node positions ``x (N, d)``: ``(F,)``
+    segments in 2D; in 3D ``(3 F,)``, the edges v0 v1 of every triangle, then v1 v2, then v2 v0."""
+    if facets.size == 0:
+        return np.zeros(0)
+    p = x[facets]
+    k = facets.shape[1]
+    lengths = [
+        np.linalg.norm(p[:, (j + 1) % k] - p[:, j], axis=1) for j in range(k if k > 2 else 1)
+    ]
+    return np.concatenate(lengths)
 
 
 def build_collision_set(model: Model, particles: PointStencils | None) -> CollisionSet:

@@ -36,11 +36,6 @@ __all__ = ["barrier_energy", "barrier_pair_gradients", "barrier_pair_hessians"]
 KERNEL_KIND = {"pp": KIND_PP, "pe": KIND_PE, "pt": KIND_PT}
 
 
-def _scale(pairs: ContactPairs, omega: np.ndarray, kind: str) -> np.ndarray:
-    """omega_q c of each pair of ``kind`` ``(n,)``."""
-    return omega[pairs.points[kind][:, 0]] * pairs.coef[kind]
-
-
 def _corners(pairs: ContactPairs, positions: np.ndarray, kind: str) -> list[np.ndarray]:
     """The positions ``(n, d)`` of each of the pair's points, in pair order."""
     pts = pairs.points[kind]
@@ -48,10 +43,12 @@ def _corners(pairs: ContactPairs, positions: np.ndarray, kind: str) -> list[np.n
 
 
 def _active_kinds(pairs: ContactPairs, omega: np.ndarray) -> Iterator[tuple]:
-    """``(kind, distances (n,), points (n, m), scale (n,))`` of every kind with active pairs."""
+    """``(kind, distances (n,), points (n, m), scale (n,))`` of every kind with active pairs, the
+    scale omega_q c of each pair."""
     for kind, d in pairs.distance.items():
         if d.size:
-            yield kind, d, pairs.points[kind], _scale(pairs, omega, kind)
+            pts = pairs.points[kind]
+            yield kind, d, pts, omega[pts[:, 0]] * pairs.coef[kind]
 
 
 def barrier_energy(

@@ -22,15 +22,14 @@ barrier's pairs or distances):
   reaches the end of the step; one that comes within ``2 FLOOR_REL max|x|`` of touching is a
   crossing, ``"TUNNELED"``. Exact up to that floor: a pass through a body of any thickness is
   found, and so is a chord that cuts a convex corner of another body (the straight-line motion
-  does enter it; the earlier depth-thresholded sampling let cuts shallower than d-hat through,
-  and with them any body thinner than 2 d-hat: issue 44, defect 1).
+  does enter it; issue 44, defect 1: a depth-thresholded sampling missed such cuts).
 - inversion (:func:`step_inversion`): a FEM cell with J = det F <= 0, or a particle with
   det F_p <= 0, at the end of the step is ``"INVERTED"`` (reported before any crossing: an
   inverted cell's nodes may stick out into another body).
 
 Broad phase: the swept-box spatial hash of :mod:`geometry.broadphase` through
 ``bfemp.contact.pairs`` (the barrier's), inflation 0; narrow phase: :mod:`geometry.ccd` over the
-candidate pairs, vectorised, restarted where a round stops short (:func:`_certify`).
+candidate pairs, vectorised, restarted where a round stops short (``_tunneling._certify``).
 
 Cost: a few per cent of a barrier step on the rings demo, the 3D barrier reference and 3D FEM
 boxes in sliding contact; corner cuts do fail the sine-boundary benchmark's quick mode as
@@ -44,7 +43,6 @@ import numpy as np
 from bfemp.contact._end_state import (
     Intersection,
     _describe,
-    _hits,
     _points,
     end_of_step_points,
     points_inside,
@@ -84,8 +82,9 @@ def step_intersection(model: Model, start: State, end: State) -> Intersection | 
     cells, cell_body = model.fem_cells, model.fem_cell_body
     y1, body = _points(model, end)
     v1 = end.fem_x
-    hits = _hits(y1, y1, body, v1, v1, cells, cell_body, 1.0)
-    if hits.shape[0]:
-        n = np.unique(hits[:, 0]).size
-        return _describe(model, int(hits[0, 0]), int(hits[0, 1]), "INTERSECTION", 1.0, n)
+    cell = points_inside(y1, body, v1, cells, cell_body)
+    inside = np.flatnonzero(cell >= 0)
+    if inside.size:  # the first point inside, in its first cell
+        p = int(inside[0])
+        return _describe(model, p, int(cell[p]), "INTERSECTION", 1.0, inside.size)
     return trajectory_crossing(model, start, end)

@@ -99,20 +99,18 @@ def find_pairs(cs: CollisionSet, pos: np.ndarray, dhat: float) -> ContactPairs:
     facet_kind = "pe" if dim == 2 else "pt"
     out_pts, out_coef, out_dist = {}, {}, {}
 
-    def add(kind: str, pts: np.ndarray, coef: np.ndarray) -> None:
+    def add(kind: str, pts: np.ndarray, coef: np.ndarray) -> np.ndarray:
+        """Keep the pairs ``pts`` of ``kind`` within ``dhat``; their distances ``(n,)``."""
         d = _distance(kind, pos, pts)
         active = d < dhat
         out_pts[kind] = np.ascontiguousarray(pts[active])
         out_coef[kind] = np.ascontiguousarray(coef[active])
         out_dist[kind] = np.ascontiguousarray(d[active])
+        return d
 
     q = cand[:, 0]
     facets = cs.facets[cand[:, 1]]
-    pts = np.column_stack([q, facets])
-    d = _distance(facet_kind, pos, pts)
-    out_pts[facet_kind] = np.ascontiguousarray(pts[d < dhat])
-    out_coef[facet_kind] = np.ones(out_pts[facet_kind].shape[0])
-    out_dist[facet_kind] = np.ascontiguousarray(d[d < dhat])
+    d = add(facet_kind, np.column_stack([q, facets]), np.ones(q.size))
     # Vertex and edge terms only of facets within dhat (a vertex or an edge of a facet is no
     # closer than the facet itself; the margin covers the round-off of the two formulas).
     near = d < dhat * (1.0 + 1e-9)

@@ -30,7 +30,7 @@ from bfemp.contact.pairs import (
     find_pairs,
 )
 from bfemp.terms.base import StepContext
-from geometry.ccd import edge_edge_ccd, point_edge_ccd, point_triangle_ccd
+from geometry.ccd import earliest_impact
 from solvers.assembly import Triplets
 
 __all__ = ["BarrierTerm", "CCD_FRACTION"]
@@ -109,10 +109,7 @@ class BarrierTerm:
     # ------------------------------------------------------------------ feasibility
     def max_step_size(self, x: np.ndarray, p: np.ndarray) -> float:
         """0.9 x the earliest time of impact along x -> x + p (CCD, section 5); at most 1."""
-        if self.collisions.facets.shape[0] == 0:
-            return 1.0
-        t = self._earliest_impact(self._pos, self.collision_positions(x + p))
-        return 1.0 if t >= 1.0 else CCD_FRACTION * t
+        return self._step_fraction(self._pos, self.collision_positions(x + p))
 
     def scripted_step(
         self,
@@ -125,33 +122,25 @@ class BarrierTerm:
         positions ``(n_all, d)``) while the unknowns move from ``x`` toward ``x_to`` (``(n_dof,)``
         in m; held at ``x`` when None), both linearly: 1 when nothing is in the way, else 0.9 x
         the earliest time of impact (the stepper moves them part-way and re-solves)."""
-        if self.collisions.facets.shape[0] == 0:
-            return 1.0
         cs, layout = self.collisions, self._layout
         start = cs.positions(layout.positions(x, fixed_from))
         end = cs.positions(layout.positions(x if x_to is None else x_to, fixed_to))
-        t = self._earliest_impact(start, end)
-        return 1.0 if t >= 1.0 else CCD_FRACTION * t
+        return self._step_fraction(start, end)
 
-    def _earliest_impact(self, start: np.ndarray, end: np.ndarray) -> float:
-        """Earliest time of impact in [0, 1] of collision points moving linearly start -> end."""
+    def _step_fraction(self, start: np.ndarray, end: np.ndarray) -> float:
+        """1 when collision points moving linearly start -> end meet no facet (or edge), else
+        ``CCD_FRACTION`` x the earliest time of impact in [0, 1]."""
         cs = self.collisions
+        if cs.facets.shape[0] == 0:
+            return 1.0
         cand = candidate_pairs(cs, start, 0.0, end)
-        motion = end - start
-        t = 1.0
-        if cand.shape[0]:
-            q = cand[:, 0]
-            f = cs.facets[cand[:, 1]]
-            pts = [start[q]] + [start[f[:, a]] for a in range(f.shape[1])]
-            mot = [motion[q]] + [motion[f[:, a]] for a in range(f.shape[1])]
-            ccd = point_edge_ccd if f.shape[1] == 2 else point_triangle_ccd
-            t = float(ccd(*pts, *mot, t_max=1.0).min())
+        rows = np.column_stack([cand[:, 0], cs.facets[cand[:, 1]]])  # point, facet vertices
+        kind = "point_edge" if rows.shape[1] == 3 else "point_triangle"
+        ee = None
         if start.shape[1] == 3 and edge_edge_active(cs):
-            ee, _ = edge_edge_pairs(cs, start, 0.0, end)
-            if ee.shape[0]:
-                args = [start[ee[:, a]] for a in range(4)] + [motion[ee[:, a]] for a in range(4)]
-                t = min(t, float(edge_edge_ccd(*args, t_max=1.0).min()))
-        return t
+            ee = edge_edge_pairs(cs, start, 0.0, end)[0]
+        t = earliest_impact(start, end - start, **{kind: rows}, edge_edge=ee)
+        return 1.0 if t >= 1.0 else CCD_FRACTION * t
 
     # ------------------------------------------------------------------ reporting
     def pair_point_forces(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:

@@ -57,22 +57,18 @@ def prepare_mpm_step(
     """Quadratic B-spline stencils of the particles at x^n, P2G (Tables 1-3), constraints."""
     stencils = particle_stencils(model.grid, state.mpm_x)
     apic = transfer == "apic"
-    args = (
+    fields = particles_to_grid(
         transfer,
         stencils.nodes,
         stencils.weights,
         stencils.active_x,
         state.mpm_x,
         model.mpm_mass,
-    )
-    fields = particles_to_grid(
-        *args,
         state.mpm_v,
         state.mpm_C if apic else None,
         state.mpm_a if with_acceleration else None,
         mpm_Ca=state.mpm_Ca if apic and with_acceleration else None,
     )
-    accel = fields.acceleration
     constraints = grid_constraints(
         model.boundaries, stencils.active_x, fields.velocity, state.t + dt, dt
     )
@@ -82,4 +78,4 @@ def prepare_mpm_step(
     light = fields.mass < LIGHT_NODE_REL * fields.mass.max()
     if light.any():
         constraints = replace(constraints, sticky=constraints.sticky | light)
-    return MpmStep(stencils, fields, constraints, model.n_fem_nodes, accel)
+    return MpmStep(stencils, fields, constraints, model.n_fem_nodes, fields.acceleration)

@@ -38,10 +38,9 @@ class AuguryOptions(ExplicitOptions):
     Attributes:
         tau: augury time scale tau in s; None: tau = dt (AUG's choice). tau < dt / 2 is refused
             (the correction v-bar + (dt/tau) G v-bar is unstable beyond).
-        iterations: augury iterations N >= 0 (AUG: 1; N = 0 sticks). N = 1 leaves a fixed
-            fraction of the tangential drag every step, so a frictionless slide is held back
-            whatever h; sliding needs ``normals="facing"`` and N of about 30, which then lets a
-            block at mu = 0.7 creep (issue 14: design note ``measurements``, augury).
+        iterations: augury iterations N >= 0 (AUG: 1; N = 0 sticks). N = 1 holds a frictionless
+            slide back whatever h; N of about 30 with ``normals="facing"`` lets a block at
+            mu = 0.7 creep (issue 14: design note ``measurements``, augury).
         mode: ``"friction"`` (AUG eqs. 40-46, Coulomb with ``mu``; mu = 0 is frictionless) or
             ``"separate"`` (AUG eq. 38: only tensile corrections removed).
         mu: Coulomb coefficient; None takes ``scene.set_contact(mu=...)`` (0 without contact).
@@ -64,18 +63,15 @@ class AuguryOptions(ExplicitOptions):
         normals: FEM foreground normals, ``"own"`` (AUG section 2.3: the area-weighted normal
             of the node's facets) or ``"facing"`` (bfemp's option: of the node's facets, the one
             whose normal is most opposed to the other bodies' mean normal on the node's stencil;
-            at corners and edges the averaged normal is tilted, so that the normal part of a
-            sliding drag is kept as a push: measured, a block on a 30 degree ramp at mu = 0
-            then barely slides).
+            at corners and edges the averaged normal is tilted and keeps the normal part of a
+            sliding drag as a push: a block on a 30 degree ramp at mu = 0 barely slid).
         contact_strain: MPM particles' F takes the gradient of their contact correction (bfemp's;
             module docstring: without it a body resting on another crowds together while F
             stays near I).
         energy_guard: stop the augury iterations before an iterate with more generalised
             kinetic energy than the prediction V-bar (bfemp's; ``bfemp.contact.augury``: with
-            friction and N > 1 the iterations were measured to inject energy, a block at
-            mu = 0.7 then left a 30 degree incline; N = 1 was measured never to gain).
-        cfl_safety_fem: safety factor on the FEM bound h_min / c_p, in (0, 1].
-        cfl_safety_mpm: safety factor on the MPM bound ``dx / (c_p + |v_p|)``, in (0, 1].
+            friction and N > 1 the iterations were measured to inject energy, N = 1 never).
+        cfl_safety_fem, cfl_safety_mpm: as in ``ExplicitOptions``.
     """
 
     strategy: ClassVar[str] = "augury"

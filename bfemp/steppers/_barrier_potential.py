@@ -28,17 +28,13 @@ from bfemp.terms import (
 __all__ = ["build_potential", "contact_view", "has_contact"]
 
 
-def _laws(bodies: tuple) -> dict[int, object]:
-    return {id(b.material.law): b.material.law for b in bodies}
-
-
 def build_potential(model: Model) -> IncrementalPotential:
     """The terms this model needs, and nothing else (a scene pays only for what it has)."""
     potentials = [
         ElasticityTerm(law, stencils, name=f"elasticity[{law.name}]")
         for law, stencils in fem_elastic_groups(model)
     ]
-    for law in _laws(model.mpm_bodies).values():
+    for law in {id(b.material.law): b.material.law for b in model.mpm_bodies}.values():
         bodies = [b for b in model.mpm_bodies if b.material.law is law]
         particles = np.concatenate([np.arange(b.particles.start, b.particles.stop) for b in bodies])
         owner = model.mpm_particle_body[particles]

@@ -107,10 +107,9 @@ class ScriptedSolve:
         what is in the way), and so on until the targets are reached; the last solve, with every
         scripted node at its target, is the step's result. Where the unknowns held at x^n are
         in the way, they move along (``_carry``): held, every sub-step ends with the scripted
-        body at a tenth of its gap and Newton creeps back from there (hertz example: 13-16
-        sub-steps of about 3 solves each, 435 Newton iterations per step; carried, 1-2
-        sub-steps, 52). The sub-steps before the last lag friction once instead of running the
-        friction loop: they only start the next.
+        body at a tenth of its gap (hertz example: 435 Newton iterations per step; carried, 52).
+        The sub-steps before the last lag friction once instead of running the friction loop:
+        they only start the next.
 
         Args:
             state: the state at t^n.
@@ -339,24 +338,6 @@ class ScriptedSolve:
             f"with a rounding-level diagonal shift (at most {self.max_shift:.3e})"
         ]
 
-    def _back_solve(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-        """The Newton increment p ``(n,)`` at y with the last factorisation and the gradient at
-        y ``(n,)`` in N (None when the solver cannot back-solve)."""
-        solve_again = getattr(self.linear_solver, "solve_again", None)
-        if solve_again is None:
-            return None
-        pot = self.potential
-        pot.solution_changed(y)
-        grad = pot.gradient(y)
-        free = None if pot.fixed_dofs is None else ~pot.fixed_dofs
-        p_free = solve_again(-(grad if free is None else grad[free]))
-        if p_free is None:
-            return None
-        p = p_free if free is None else np.zeros(grad.size)
-        if free is not None:
-            p[free] = p_free
-        return p, grad
-
     def _increment_below_tol(
         self, y: np.ndarray, result: NewtonResult | None = None
     ) -> np.ndarray | None:
@@ -368,14 +349,27 @@ class ScriptedSolve:
         fresh gradient; a cheap test that only decides when to stop: when it says no (None),
         Newton runs. On success it returns p ``(n,)`` and stores the gradient in ``result.jac``
         (boundary reactions use it) when a ``result`` is given; without one it is the last
-        increment of a solve that needed no Newton step.
+        increment of a solve that needed no Newton step. None too when the solver cannot
+        back-solve.
         """
-        out = self._back_solve(y)
-        if out is None or not self.potential.increment_norm(out[0]) < self.newton.tol * self.dt:
+        solve_again = getattr(self.linear_solver, "solve_again", None)
+        if solve_again is None:
+            return None
+        pot = self.potential
+        pot.solution_changed(y)
+        grad = pot.gradient(y)  # (n,) in N
+        free = None if pot.fixed_dofs is None else ~pot.fixed_dofs
+        p_free = solve_again(-(grad if free is None else grad[free]))
+        if p_free is None:
+            return None
+        p = p_free if free is None else np.zeros(grad.size)
+        if free is not None:
+            p[free] = p_free
+        if not pot.increment_norm(p) < self.newton.tol * self.dt:
             return None
         if result is not None:
-            result.jac = out[1]
-        return out[0]
+            result.jac = grad
+        return p
 
     def _take(self, y: np.ndarray, p: np.ndarray) -> np.ndarray:
         """y + alpha p with the freshly lagged friction's last increment p (below tolerance),
@@ -402,12 +396,10 @@ def stalled(moves: list[float], window: int, factor: float) -> bool:
     unknowns by more than ``factor`` x the least move of the re-solves before them.
 
     ``moves``: the increment norm (m) of every re-solve so far, in order. The loop is a
-    fixed-point iteration on the lagged normal forces and tangent bases (Algorithm 1); while it
-    converges, its moves shrink by its contraction rate per re-lag. ``window`` moves with no
-    ``factor`` reduction mean a rate above factor^(1/window) (0.79 for 3 and 0.5): from a first
-    re-solve's move of 0.1 m to the tolerance of 1e-6 m that takes more than 50 re-lags, past the
-    default cap of 20 (a stalled loop measured on the buckling ``plate_full``: design note
-    ``measurements``, barrier).
+    fixed-point iteration on the lagged normal forces and tangent bases (Algorithm 1): ``window``
+    moves with no ``factor`` reduction mean a contraction rate above factor^(1/window) (0.79 for
+    3 and 0.5), more than 50 re-lags from 0.1 m to 1e-6 m, past the default cap of 20 (design
+    note ``measurements``, barrier).
     """
     if len(moves) <= window:
         return False

@@ -52,12 +52,9 @@ class LROptions(ExplicitOptions):
             default) or 2 (the paper's: after P2G and after the momentum update). Set 2 for
             ``interface="perfect"`` (only then is the run exactly the single-material one, eq.
             34) and for the paper's multimaterial XPIC(m) (LR eq. 37's dv term is the first
-            correction's; with 1 it is zero). Why 1 by default (measured for issue 40: design
-            note ``measurements``, lr): under c1 neither the particles nor the FEM nodes ever
-            receive the first correction (f^{C,1}, LR eq. 33), so in a lasting contact the pair
-            keeps approaching at its centre-of-mass velocity (a disk sank through a deformable
-            plate, ring particles ended inside a FEM ring); once is as good as c1 where c1 is at
-            its best (compression, LR Fig. 5) and the best or tied elsewhere.
+            correction's; with 1 it is zero). 1 by default: under c1 the first correction reaches
+            neither particles nor FEM nodes (LR eq. 33), so a lasting contact keeps approaching
+            (measured, issue 40: design note ``measurements``, lr).
         contact_force: ``"c1"`` (the paper's f^{C,1}, LR eq. 33: only the second correction reaches
             the particles; exact for perfect interfaces, LR eq. 34) or ``"c0"`` (f^{C,0}: both
             corrections do; FLIP only). With one correction the two are the same. The
@@ -72,19 +69,16 @@ class LROptions(ExplicitOptions):
             fraction of the node's total mass. 0 (the default) is LR's contact node (section
             3.1: a node that sees two or more materials) and NairnMPM's (a material's field
             is active wherever one of its particles has weight). A positive value is Uintah's
-            choice (1e-8), kept as an option; it is not LR's. Why 0 (measured, issue 40: design
-            note ``measurements``, lr): with 1e-8 a particle about 1.5 cells from a node keeps
-            its material's field there uncorrected and nearly massless, and the stress error of
-            ``lr_compression`` steps up. ``interface="perfect"`` always counts every material
-            with mass.
+            choice (1e-8), an option, not LR's: it leaves nearly massless fields uncorrected
+            (measured, issue 40: design note ``measurements``, lr). ``interface="perfect"``
+            always counts every material with mass.
         penalty: LR penalty on the normal components, times dx^2 (LR: 1e-7).
         lr_tol: LR stop criterion 1 - n_new . n_old (LR: 1e-5).
         lr_max_iterations: cap of the Gauss-Newton iterations (LR: 15).
         thin_cloud: in cells; the LR normal loses its components along directions in which the
             node's whole point cloud is thinner than this (standard deviation), 0 disables
-            (bfemp's, ``bfemp.contact.lr.lr_planes``: on ``lr_compression`` the nodes beside
-            the column saw one particle column per block and took sideways normals; design note
-            ``measurements``, lr).
+            (bfemp's, ``bfemp.contact.lr.lr_planes``: one particle column per block gave sideways
+            normals on ``lr_compression``; design note ``measurements``, lr).
         cfl_safety_fem, cfl_safety_mpm: as in ``ExplicitOptions``.
     """
 

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bfemp.contact.collision import facet_edge_lengths
 from bfemp.errors import warn_user
 from bfemp.model import Model
 from bfemp.state import State
@@ -60,7 +61,7 @@ class FemPoints:
 
     def __init__(self, model: Model, radius0: np.ndarray, material: np.ndarray) -> None:
         self.model, self.radius0, self.material = model, radius0, material
-        """Boundary nodes and facet samples of the FEM bodies (section 2.6 of the spec)."""
+        # boundary nodes and facet samples of the FEM bodies (section 2.6 of the spec)
         d = model.dim
         n_mpm = len(model.mpm_bodies)
         nodes, node_mat, facets, facet_mat = [], [], [], []
@@ -81,11 +82,8 @@ class FemPoints:
         facet_material = cat(facet_mat) if facet_mat else np.zeros(0, np.int64)
         dx = model.grid.dx
         if facets_all.shape[0]:
-            ends = model.fem_X[facets_all]  # (F, d, d)
-            edge = np.linalg.norm(ends[:, 1] - ends[:, 0], axis=1)
-            if d == 3:
-                edge = np.maximum(edge, np.linalg.norm(ends[:, 2] - ends[:, 1], axis=1))
-                edge = np.maximum(edge, np.linalg.norm(ends[:, 0] - ends[:, 2], axis=1))
+            # the longest edge of each facet
+            edge = facet_edge_lengths(model.fem_X, facets_all).reshape(-1, len(facets_all)).max(0)
             if dx < 2.0 * edge.max() * (1.0 - 1e-9):
                 warn_user(
                     f"LR_GRID_FINE: the MPM grid (dx = {dx:.4g} m) is finer than twice the FEM "
@@ -102,7 +100,7 @@ class FemPoints:
         self.n_samples = self.samples[0].shape[0]
 
     def points(self, state: State) -> Points:
-        """Every point of the step (``_Points``), with stencils at their positions."""
+        """Every point of the step (``Points``), with stencils at their positions."""
         model, d = self.model, self.model.dim
         if self.n_nodes == 0:
             st = particle_stencils(model.grid, state.mpm_x)
@@ -142,13 +140,10 @@ class FemPoints:
         """``(M, G)`` bool: the fields whose whole grid mass at the node comes from scripted FEM
         nodes (None when no FEM node is scripted).
 
-        Why (issue 40, the drop of ``tests/bfemp/test_lr_drop.py``; design note
-        ``measurements``, lr): the plate's field holds only its boundary nodes' masses, so the
-        centre-of-mass law (eqs. 7-10) took only m_b / (m_a + m_b) of the disk's approach
-        velocity each step and gave the rest to a plate whose script undoes it: the disk went
-        through the plate.
-        A scripted field is therefore infinitely heavy in the contact law (NairnMPM's rigid
-        materials; LR has none), which stops the approach at once (``_correct``). A field
+        A scripted field is infinitely heavy in the contact law (NairnMPM's rigid materials; LR
+        has none), which stops the approach at once: with its finite grid mass the law (LR eqs.
+        7-10) gave part of the approach to a plate whose script undid it, and a disk went through
+        (issue 40, ``tests/bfemp/test_lr_drop.py``; design note ``measurements``, lr). A field
         mixing free and scripted nodes is left finite (its free nodes take the kick)."""
         if not self.n_nodes or self.node_free.all():
             return None

@@ -121,29 +121,29 @@ def gather_nodes(
     t_next: float,
 ) -> StepNodes:
     """All-node fields of the step from ``state`` to ``t_next`` (P2G included)."""
+    mpm = None
+    if model.n_particles:
+        mpm = prepare_mpm_step(
+            model, state, transfer, with_acceleration=with_acceleration, dt=t_next - state.t
+        )
+    return nodes_of_step(model, state, mpm, dt=dt, t_next=t_next)
+
+
+def nodes_of_step(
+    model: Model, state: State, mpm: MpmStep | None, *, dt: float, t_next: float
+) -> StepNodes:
+    """All-node fields of a step whose grid part (stencils, P2G, constraints) is ``mpm`` (None
+    without particles): the FEM nodes of ``state`` then the grid nodes (``gather_nodes`` after
+    its P2G; ``two_stage`` with the explicit engine's P2G)."""
     d, n_fem = model.dim, model.n_fem_nodes
     fem_fixed = model.prescribed_positions(t_next)
-    if model.n_particles == 0:
+    if mpm is None:
         layout = DofLayout(d, ~model.fem_prescribed, n_fem)
         zeros = np.zeros_like(state.fem_x)
         return StepNodes(
             t_next, dt, layout, None, state.fem_x, state.fem_v, state.fem_a, model.fem_mass,
             fem_fixed, zeros, None,
         )  # fmt: skip
-    mpm = prepare_mpm_step(
-        model, state, transfer, with_acceleration=with_acceleration, dt=t_next - state.t
-    )
-    return nodes_of_step(model, state, mpm, dt=dt, t_next=t_next)
-
-
-def nodes_of_step(
-    model: Model, state: State, mpm: MpmStep, *, dt: float, t_next: float
-) -> StepNodes:
-    """All-node fields of a step whose grid part (stencils, P2G, constraints) is ``mpm``: the
-    FEM nodes of ``state`` then the grid nodes (``gather_nodes`` after its P2G; ``two_stage``
-    with the explicit engine's P2G)."""
-    d, n_fem = model.dim, model.n_fem_nodes
-    fem_fixed = model.prescribed_positions(t_next)
     grid_x = mpm.stencils.active_x
     grid_a = mpm.acceleration if mpm.acceleration is not None else 0.0 * grid_x
     free = np.concatenate([~model.fem_prescribed, ~mpm.constraints.sticky])

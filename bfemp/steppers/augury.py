@@ -40,18 +40,16 @@ conservation: the free bodies exchange momentum with the scripted nodes, which d
 back. Every step reports it, ``StepReport.extra["kinematic_impulse_x"|"_y"|"_z"]`` in N s (N s/m
 in 2D): the impulse the scripted nodes deliver to the free foreground in the step (the free
 particles' summed m dt a^; H conserves momentum among them), and a ``SCRIPTED_FOREGROUND`` note.
-On issue 40's drop that impulse is the disk's momentum change less gravity's, and augury
-stops a body about one contact cell short of a scripted one (the nodes both stencils share);
-with ``False`` (the default before issue 40) scripted nodes are not in H and a body falls
-through a fixed plate (measured: design note ``measurements``, augury stepper).
+With ``False`` scripted nodes are not in H and a body falls through a fixed plate (measured on
+issue 40's drop, with and without: design note ``measurements``, augury stepper).
 
 MPM particles' F (``contact_strain=True``, bfemp's): section 1.4 item 3 leaves F_p as the
 engine's G2P made it from the free grid velocities, expecting contact to reach F through the
 next P2G. It does not: the next P2G sees the corrected velocities, but the F increment of the
-correction itself, dt grad(dt a^), is never applied, so under sustained contact the particles
-crowd together while F stays near I (measured: design note ``measurements``, augury stepper).
-F_p^{n+1} += dt (sum_i dv_i grad w_ip^T) F_p^n, dv_i the correction's mass-weighted field on
-the engine's MPM grid per body (``_correction_gradient``).
+correction itself, dt grad(dt a^), is never applied (measured: particles crowd together under
+sustained contact while F stays near I; design note ``measurements``, augury stepper). F_p^{n+1}
++= dt (sum_i dv_i grad w_ip^T) F_p^n, dv_i the correction's mass-weighted field on the engine's
+MPM grid per body (``bfemp.contact._augury_geometry.correction_gradient``).
 
 Named notes in every report where they apply: ``SCRIPTED_FOREGROUND``, ``AUGURY_REACH`` (tau
 times the velocity spread at shared contact nodes above grid_dx / 3, AUG eq. 50),
@@ -73,7 +71,6 @@ from bfemp.contact._augury_geometry import (
     cell_faces,
     correction_gradient,
     face_key,
-    facet_edge_lengths,
     facing_normals,
     fem_normals,
     inside_other_cells,
@@ -87,6 +84,7 @@ from bfemp.contact.augury import (
     augury_correction,
     contact_stencils,
 )
+from bfemp.contact.collision import facet_edge_lengths
 from bfemp.contact.parameters import refuse_pair_friction
 from bfemp.errors import warn_user
 from bfemp.model import Model
@@ -150,7 +148,7 @@ class AuguryStepper(ExplicitStepper):
     def _setup_foreground(self) -> None:
         model, opts, d = self.model, self.options, self.model.dim
         n = model.n_fem_nodes
-        facets, opposite, owners = [], [], []
+        facets, opposite = [], []
         cell_keys, cell_opp = cell_faces(model.fem_cells, n, d)
         for body in model.fem_bodies:
             f = np.asarray(body.boundary, dtype=np.int64).reshape(-1, d)
@@ -165,7 +163,6 @@ class AuguryStepper(ExplicitStepper):
                 )
             facets.append(f)
             opposite.append(cell_opp[pos])
-            owners.append(np.full(f.shape[0], body.index))
         self._facets = np.concatenate(facets) if facets else np.zeros((0, d), np.int64)
         self._facet_opp = np.concatenate(opposite) if opposite else np.zeros(0, np.int64)
         on_boundary = np.zeros(n, dtype=bool)
@@ -178,10 +175,9 @@ class AuguryStepper(ExplicitStepper):
         self.fem_foreground = np.flatnonzero((on_boundary & ~scripted) | kin)
         self._fem_movable = ~scripted[self.fem_foreground]
         self._n_kinematic = int(kin.sum())
-        fem_node_body = np.zeros(n, dtype=np.int64)
+        self._fem_node_body = np.zeros(n, dtype=np.int64)
         for body in model.fem_bodies:
-            fem_node_body[body.nodes] = body.index
-        self._fem_node_body = fem_node_body
+            self._fem_node_body[body.nodes] = body.index
         self._mpm_fg = bool(opts.mpm_foreground and model.n_particles)
         n_fem_bodies = len(model.fem_bodies)
         self._mpm_body = (
@@ -190,9 +186,7 @@ class AuguryStepper(ExplicitStepper):
         # contact-grid spacing (section 1.5 item 4, A8)
         edges = facet_edge_lengths(model.fem_X, self._facets)
         mean_edge = float(edges.mean()) if edges.size else 0.0
-        spacing = 0.0
-        if self._mpm_fg:
-            spacing = float(np.mean(model.mpm_volume) ** (1.0 / d))
+        spacing = float(np.mean(model.mpm_volume) ** (1.0 / d)) if self._mpm_fg else 0.0
         if opts.grid_dx is not None:
             self.grid_dx = opts.grid_dx
         else:
@@ -455,6 +449,3 @@ class AuguryStepper(ExplicitStepper):
                 m.n_fem_nodes, m.n_particles, m.dim, parameters={"augury_max_correction": 0.0}
             )
         return self._last_contact
-
-
-# ---------------------------------------------------------------------- helpers

@@ -11,9 +11,9 @@ One step:
    loop of Algorithm 1: ``bfemp.steppers._barrier_solve``), then a^{n+1} from BFEMP eq. 21 and the
    solved x^{n+1} (equal to Algorithm 2 line 14's -M^-1 dPsi/dx at the exact minimiser;
    ``Integrator.acceleration`` says why) and the velocity update of BFEMP eq. 21; constrained
-   components get zero
-   velocity and acceleration. Under an integrator with ``implicit_contact`` the contact forces
-   are kept out of a^{n+1} and added to the velocity as an impulse (``bfemp.integrators``).
+   components get zero velocity and acceleration. Under an integrator with ``implicit_contact``
+   the contact forces are kept out of a^{n+1} and added to the velocity as an impulse
+   (``bfemp.integrators``).
 4. MPM: one G2P of positions, velocities, F (and APIC C, Newmark a) per Tables 1-3 (line 12)
    (``bfemp.steppers._scaffold.write_state``).
 5. An independent check (``bfemp.contact.intersection``): no FEM cell or particle inverted
@@ -26,6 +26,8 @@ One step:
 
 from __future__ import annotations
 
+import dataclasses
+import json
 import logging
 import time
 from collections.abc import Mapping
@@ -177,7 +179,10 @@ class BarrierStepper:
             t_next=t_next,
         )
         gathered = time.perf_counter()
-        ctx = self._context(state, nodes, integ.predict(nodes.x, nodes.v, nodes.a, dt))
+        x_hat_all = integ.predict(nodes.x, nodes.v, nodes.a, dt)
+        ctx = nodes.context(self.model, state, x_hat_all)
+        if self.friction is not None:  # the sliding map of BFEMP eq. 37
+            ctx.sliding = self._sliding_map(nodes, x_hat_all)
         weights = integ.weight(dt), nodes.frames if frames else None
         self.potential.begin_step(ctx, *weights, contact_weight=integ.contact_weight(dt))
         # the parts of the step's "setup" phase: P2G and stencils, then the terms' begin_step
@@ -186,13 +191,6 @@ class BarrierStepper:
             "setup_terms": time.perf_counter() - gathered,
         }
         return nodes, ctx
-
-    def _context(self, state: State, nodes: StepNodes, x_hat_all: np.ndarray) -> StepContext:
-        """The terms' view of the step; with friction, the sliding map of BFEMP eq. 37."""
-        ctx = nodes.context(self.model, state, x_hat_all)
-        if self.friction is not None:
-            ctx.sliding = self._sliding_map(nodes, x_hat_all)
-        return ctx
 
     def _sliding_map(self, nodes: StepNodes, x_hat_all: np.ndarray) -> tuple[float, np.ndarray]:
         """U = s y + c: each node's sliding dt v^{n+1} over the step, affine in its position y.
@@ -437,15 +435,10 @@ class BarrierStepper:
         """The adaptive-kappa state (``kappa = "auto"``), as a JSON string array."""
         if self.adaptive is None:
             return {}
-        import dataclasses
-        import json
-
         return {"adaptive": np.array(json.dumps(dataclasses.asdict(self.adaptive)))}
 
     def restore_checkpoint_data(self, data: Mapping[str, np.ndarray]) -> None:
         """Take back ``checkpoint_data``'s arrays."""
-        import json
-
         unknown = sorted(set(data) - {"adaptive"})
         if unknown:
             raise ValueError(f"barrier stepper: unknown checkpoint data {unknown}")
@@ -453,14 +446,11 @@ class BarrierStepper:
             self.adaptive = AdaptiveKappa(**json.loads(str(data["adaptive"])))
 
 
-def _zero_mass_notes(nodes: object) -> tuple[str, ...]:
-    """``P2G_ZERO_MASS`` when the step's P2G left grid nodes of (near) zero mass (round-off
-    weights of particles a hair off a cell-centre line; ``bfemp.mpm.transfer``): they start the
-    step at zero velocity (the lightest are pinned, ``bfemp.mpm.step``), which the particles do
-    not feel. A named note, so that a run warns once and counts the steps (it was a log warning
-    in every step)."""
-    mpm = getattr(nodes, "mpm", None)
-    light = 0 if mpm is None else int(mpm.fields.zero_mass_nodes)
+def _zero_mass_notes(nodes: StepNodes) -> tuple[str, ...]:
+    """The ``P2G_ZERO_MASS`` note when the step's P2G left grid nodes of (near) zero mass
+    (``bfemp.mpm.transfer``; the lightest are pinned, ``bfemp.mpm.step``): a named note, so that
+    a run warns once and counts the steps (it was a log warning in every step)."""
+    light = 0 if nodes.mpm is None else int(nodes.mpm.fields.zero_mass_nodes)
     if not light:
         return ()
     return (

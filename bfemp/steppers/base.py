@@ -174,18 +174,13 @@ def options_from_mapping(
                 f"{where}: unknown option {key!r} for strategy {cls.strategy!r} "
                 f"(its options: {', '.join(names)})"
             )
-        if not _matches(value, hints[key]):
+        hint = hints[key]
+        if not _matches(value, hint):
+            name = hint.__name__ if isinstance(hint, type) else str(hint).replace("typing.", "")
             raise ValueError(
-                f"{where}.{key}: expected {_hint_name(hints[key])}, got {value!r} "
-                f"({type(value).__name__})"
+                f"{where}.{key}: expected {name}, got {value!r} ({type(value).__name__})"
             )
     return cls(**dict(values))
-
-
-def _hint_name(hint: object) -> str:
-    if isinstance(hint, type):
-        return hint.__name__
-    return str(hint).replace("typing.", "")
 
 
 @dataclass(frozen=True, kw_only=True)

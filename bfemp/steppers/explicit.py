@@ -21,9 +21,8 @@ One step (symplectic Euler, ``bfemp.integrators.SYMPLECTIC_EULER``; USL for MPM)
    ``StepReport.boundary_forces`` (sticky nodes included).
 5. FEM: x += dt v (scripted nodes: their scripted positions); MPM: phase ``g2p`` (default: the
    transfer of ``bfemp.mpm.transfer.grid_to_particles`` with x~_i = x_i + dt v_i, which gives
-   x_p += dt v_p and F_p <- (I + dt grad v) F_p by linear completeness, in an allocation-free
-   kernel: ``bfemp.mpm.transfer.g2p_explicit``, the same arithmetic; ``grid_to_particles``'
-   kernel allocates four d x d matrices per particle).
+   x_p += dt v_p and F_p <- (I + dt grad v) F_p by linear completeness; allocation-free,
+   ``bfemp.mpm.transfer.g2p_explicit``).
 6. Phase ``after_g2p(step, motion)`` (default: nothing): a strategy corrects the end values
    (augury's contact correction); then ``Motion.commit`` writes the new state, the one place a
    step writes positions.
@@ -32,10 +31,9 @@ The phases exchange one value, ``GridStep`` (start state, grid fields with a fie
 constraints, and the report's iterations, notes, timings and extra), from which the engine
 builds the ``StepReport``.
 
-Two kernel paths, one result (tested to round-off; ``bfemp.mpm._explicit_kernels`` says why a
-fused P2G): the 2D dense-box kernels (``bfemp.mpm._dense2d_kernels``, no stored stencils;
-``GridStep.stencils()`` builds them for a strategy that needs them) and, in 3D or for a sparse
-box, the general kernels on ``geometry.grid.particle_stencils``.
+Two kernel paths, one result (tested to round-off): the 2D dense-box kernels
+(``bfemp.mpm._dense2d_kernels``; ``GridStep.stencils()`` builds stencils for a strategy that
+needs them) and, in 3D or for a sparse box, ``bfemp.mpm._explicit_kernels``.
 
 Stable step: ``bfemp.steppers.stable_dt``. The constructor refuses a dt above the bound (with
 the safety factors of the options) with a ``ValueError`` naming the bound, body and cell or
@@ -145,7 +143,12 @@ class ExplicitStepper:
         options: StepperOptions | None = None,
     ) -> None:
         self.model = model
-        self.integrator = self._explicit_integrator(integrator)
+        self.integrator = integrator_from_name(integrator)
+        if not getattr(self.integrator, "explicit", False):
+            raise ValueError(
+                f"strategy {self.name!r} is explicit: integrator must be "
+                f"{SYMPLECTIC_EULER.name!r}, got {self.integrator.name!r} (an implicit integrator)"
+            )
         transfer = self.default_transfer if transfer is None else transfer
         if transfer not in self.transfers:
             raise ValueError(
@@ -189,15 +192,6 @@ class ExplicitStepper:
         """A strategy's own construction, after the engine's (default: nothing)."""
 
     # ------------------------------------------------------------------ construction
-    def _explicit_integrator(self, integrator: object) -> ExplicitIntegrator:
-        integ = integrator_from_name(integrator)
-        if not getattr(integ, "explicit", False):
-            raise ValueError(
-                f"strategy {self.name!r} is explicit: integrator must be "
-                f"{SYMPLECTIC_EULER.name!r}, got {integ.name!r} (an implicit integrator)"
-            )
-        return integ
-
     @classmethod
     def auto_dt_bound(
         cls, model: Model, state: State, options: StepperOptions | None = None
@@ -232,7 +226,6 @@ class ExplicitStepper:
             )
             for term in self._fem_terms:
                 term.begin_step(ctx)
-            self._fem_layout = layout
             self._fem_free = ~model.fem_prescribed
             self._fem_inv_mass = np.zeros(model.n_fem_nodes)
             heavy = model.fem_mass > 0.0

@@ -8,15 +8,14 @@ engine's constraints (5), ``g2p`` (6):
 
 1. Stencils at X_p^n; P2G per material (LR eq. 5): m^a, p^a0, f^a0 (LR eq. 29, gravity included).
    Level-set boundaries act on every field (``bfemp.mpm.boundaries``).
-2. Contact nodes: nodes where two or more materials have mass, however little (LR section 3.1:
-   nodes that "see" two or more materials; NairnMPM activates a material's field wherever one
-   of its particles contributes). ``mass_fraction`` > 0 (Uintah's 1e-8) leaves out a material
-   whose mass there is below that fraction of the node's total: an option, not LR's rule.
-   At a node with two materials one pair (a, b), a the lower
-   index; at a node with three or more, one pair per material a against the lumped others
-   (LR eq. 50). Each pair's point cloud is every particle whose stencil weight at the node is
-   positive; one logistic-regression fit per pair and step gives the normal n (from a to b)
-   and the separation d_LR with the deformed particle radius (LR eqs. 19-25,
+2. Contact nodes: nodes where two or more materials have mass, however little (LR section 3.1: nodes
+   that "see" two or more materials; NairnMPM activates a material's field wherever one of its
+   particles contributes). ``mass_fraction`` > 0 (Uintah's 1e-8) leaves out a material whose mass
+   there is below that fraction of the node's total: an option, not LR's rule. At a node with two
+   materials one pair (a, b), a the lower index; at a node with three or more, one pair per material
+   a against the lumped others (LR eq. 50). Each pair's point cloud is every particle whose stencil
+   weight at the node is positive; one logistic-regression fit per pair and step gives the normal n
+   (from a to b) and the separation d_LR with the deformed particle radius (LR eqs. 19-25,
    ``bfemp.contact.lr.lr_planes``).
 3. First correction (LR eqs. 7-10), with ``corrections=2`` (the paper's; the default is 1, "LR
    once", chosen by measurement: ``LROptions.corrections``): the contact law
@@ -37,29 +36,26 @@ or more materials does not (the paper says so): its momentum change per step is 
 -dp to the others in proportion to their masses. ``interface="perfect"`` takes dp = dp(0) at every
 contact node: the multimaterial step then equals the single-material one (LR eq. 34, L1).
 
-Penetration (measured for issue 40 on drops onto a fixed FEM plate: design note
-``measurements``, lr): no particle centre went below the plate's top (d_LR counts the deformed
-radius, LR eq. 25); a particle's extent at most about one step's travel at the impact speed.
-Against deformable FEM bodies contact is met through their boundary nodes only and nothing is
-guaranteed.
+Penetration: none below a fixed FEM plate's top beyond about one step's travel (measured, issue
+40: design note ``measurements``, lr); against deformable FEM bodies nothing is guaranteed.
 
 Transfers: ``"flip"`` (the default) and ``"pic"`` (= XPIC(1)); ``xpic_order`` m >= 1 selects
-XPIC(m). APIC is refused: LR's corrections and XPIC are written for FLIP-type updates.
-FEM bodies take part as one material each (bfemp's design;
-LR has no FEM): their boundary nodes are the material's points in P2G (mass m_n, velocity v_n^n,
-force m_n a_n^mech; the internal force stays on the mesh), and the point cloud holds the boundary
-nodes plus facet samples at spacing <= dx / 2, all of radius 0 (they lie on the surface). The
-boundary nodes then move like FLIP particles, v_n^{n+1} = v_n^n + dt a_n^mech + sum_i w_in
-dp_i^{F+} / m_i^F, which conserves momentum since m_i^F = sum_n w_in m_n; interior nodes take the
-mechanical update. Scripted nodes enter with their mass and velocity, and with the force that
-takes them to their script at t^{n+1}; they keep their script. Where a FEM material's grid mass
-at a node comes from scripted nodes alone, that field is rigid in the contact law (infinite mass,
-NairnMPM's rigid materials; LR has none): the other material takes its velocity along the normal
-(``_kinematic_fields`` says why: with its finite grid mass a fixed plate let bodies through).
-The momentum such a field takes is the support's reaction, not applied and not conserved among
-the bodies; it is reported per step as ``StepReport.extra["scripted_impulse"]`` (|sum|, kg m/s)
-and in the contact view's FEM forces. A grid finer than twice the FEM boundary edge is warned
-about (the FEM material's grid mass then has holes between its nodes).
+XPIC(m). APIC is refused: LR's corrections and XPIC are written for FLIP-type updates. FEM bodies
+take part as one material each (bfemp's design; LR has no FEM): their boundary nodes are the
+material's points in P2G (mass m_n, velocity v_n^n, force m_n a_n^mech; the internal force stays on
+the mesh), and the point cloud holds the boundary nodes plus facet samples at spacing <= dx / 2, all
+of radius 0 (they lie on the surface). The boundary nodes then move like FLIP particles, v_n^{n+1} =
+v_n^n + dt a_n^mech + sum_i w_in dp_i^{F+} / m_i^F, which conserves momentum since m_i^F = sum_n
+w_in m_n; interior nodes take the mechanical update. Scripted nodes enter with their mass and
+velocity, and with the force that takes them to their script at t^{n+1}; they keep their script.
+Where a FEM material's grid mass at a node comes from scripted nodes alone, that field is rigid in
+the contact law (infinite mass, NairnMPM's rigid materials; LR has none): the other material takes
+its velocity along the normal (``_kinematic_fields`` says why: with its finite grid mass a fixed
+plate let bodies through). The momentum such a field takes is the support's reaction, not applied
+and not conserved among the bodies; it is reported per step as
+``StepReport.extra["scripted_impulse"]`` (|sum|, kg m/s) and in the contact view's FEM forces. A
+grid finer than twice the FEM boundary edge is warned about (the FEM material's grid mass then has
+holes between its nodes).
 """
 
 from __future__ import annotations
@@ -93,7 +89,7 @@ from bfemp.steppers._lr_options import (
 from bfemp.steppers._lr_points import FemPoints, Pairs, Points
 from bfemp.steppers.base import ContactView
 from bfemp.steppers.capabilities import Capabilities
-from bfemp.steppers.explicit import ExplicitStepper, GridStep, Motion
+from bfemp.steppers.explicit import ExplicitStepper, GridStep, Motion, _inverse
 
 __all__ = ["LROptions", "LRStepper"]
 
@@ -143,7 +139,12 @@ class LRStepper(ExplicitStepper):
         self.xpic_order = (
             opts.xpic_order if opts.xpic_order is not None else (1 if transfer == "pic" else None)
         )
-        self.contact_force = self._resolve_contact_force(opts)
+        if opts.contact_force == "c0" and self.xpic_order is not None:
+            raise ValueError(
+                "lr: contact_force='c0' is a FLIP rule; XPIC(m) (xpic_order or transfer='pic') "
+                "takes the first correction through v* (LR eq. 37): use contact_force='c1'"
+            )
+        self.contact_force = opts.contact_force
         if self.mu > 0.0 and opts.law == "frictionless":
             log.info("lr: law='frictionless' ignores mu = %g", self.mu)
         #: steps with at least one node in contact, and the LR fits that hit the cap
@@ -159,15 +160,6 @@ class LRStepper(ExplicitStepper):
         self.first_correction_impulse = 0.0
         self.second_correction_impulse = 0.0
         self.first_correction_windows = 0
-
-    def _resolve_contact_force(self, opts: LROptions) -> str:
-        """``LROptions.contact_force``, refused where it does not apply (c0 under XPIC)."""
-        if opts.contact_force == "c0" and self.xpic_order is not None:
-            raise ValueError(
-                "lr: contact_force='c0' is a FLIP rule; XPIC(m) (xpic_order or transfer='pic') "
-                "takes the first correction through v* (LR eq. 37): use contact_force='c1'"
-            )
-        return opts.contact_force
 
     # ------------------------------------------------------------------ FEM as a material
     def _pairs(self, pts: Points, grid_x: np.ndarray, mass: np.ndarray) -> Pairs:
@@ -205,8 +197,7 @@ class LRStepper(ExplicitStepper):
                 model.fem_mass[b], state.fem_v[b], self._fem.scripted_force(state, fem_force, dt),
                 mass, mom0, force,
             )  # fmt: skip
-        inv_mass = np.zeros_like(mass)
-        np.divide(1.0, mass, out=inv_mass, where=mass > 0.0)
+        inv_mass = _inverse(mass)
         v0 = mom0 * inv_mass[..., None]
         t_next = state.t + dt
         cons = material_constraints(model.boundaries, grid_x, v0, t_next, dt)
@@ -340,13 +331,11 @@ class LRStepper(ExplicitStepper):
 
         Under f^{C,1} (LR eq. 33) the first correction's dp^a reaches neither V_p nor the FEM
         nodes, so an approach velocity the particles carry into a lasting contact (a landing,
-        an impact) is removed from the grid again every step and is never lost by the
-        particles. Over each window of ``FIRST_CORRECTION_WINDOW`` steps with contact, the
-        note is given when sum ``|dp^a|`` of the first correction exceeds
-        ``FIRST_CORRECTION_RATIO`` times that of the second: measured under FLIP with c1 it
-        flags the landing, sliding and impact runs that lose their physics and not the
-        compression that keeps it; where the particles do get the first correction (c0, PIC)
-        the physics holds, so the note is for c1 only (design note ``measurements``, lr).
+        an impact) is removed from the grid again every step. Over each window of
+        ``FIRST_CORRECTION_WINDOW`` steps with contact, the note is given when sum ``|dp^a|`` of
+        the first correction exceeds ``FIRST_CORRECTION_RATIO`` times that of the second:
+        measured, that flags the c1 runs that lose their physics and not those that keep it;
+        with c0 or PIC the physics holds (design note ``measurements``, lr).
         """
         if touching:
             self.first_correction_impulse += impulse_1
@@ -381,7 +370,7 @@ class LRStepper(ExplicitStepper):
     def _fem_velocities(self, step: GridStep, dp: np.ndarray, inv_mass: np.ndarray) -> np.ndarray:
         """FEM velocities at t^{n+1} ``(N, d)`` m/s (section 2.6 of the spec): the mechanical
         update, plus on the boundary nodes the G2P of the contact velocity change ``dp / m``
-        ``(M, G, d)``; scripted nodes their script (the engine moves the nodes)."""
+        ``(M, G, d)`` (the engine then gives scripted nodes their script and moves the nodes)."""
         model, dt, state = self.model, self.dt, step.state
         fem_v = state.fem_v + dt * step.fem_force * self._fem_inv_mass[:, None]
         if self._fem.n_nodes:
@@ -392,8 +381,6 @@ class LRStepper(ExplicitStepper):
             )
             free = self._fem.node_free
             fem_v[self._fem.nodes[free]] += kick[free]
-        scripted = ~self._fem_free
-        fem_v[scripted] = model.prescribed_velocities(step.t_next)[scripted]
         return fem_v
 
     def _store_contact(

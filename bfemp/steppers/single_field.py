@@ -9,12 +9,14 @@ normals). What that does, measured on soft Neo-Hookean blocks (E = 1e4 Pa, dx = 
   at once, both then vibrate about v0 / 2 (frictionless contact would keep 0 and v0);
 - the normal approach is stopped when the stencils overlap, up to ~2 cells before the particles
   meet (contact at a distance);
-- nothing holds bodies together in tension once their stencils part: blocks meeting head-on
-  rebound (restitution 0.86 at 0.2 m/s each), and with a vertical offset the no-slip interface
-  turns part of the motion into opposite vertical velocities. FEM bodies interact with
-nothing but the level-set boundaries (and only through their scripted motions or free flight:
-level sets act on grid nodes). It is the baseline of the trade study, what a user gets with no
-contact algorithm; the engine is :class:`bfemp.steppers.explicit.ExplicitStepper` unchanged.
+- nothing holds bodies together in tension once their stencils part: blocks meeting head-on rebound
+  (restitution 0.86 at 0.2 m/s each), and with a vertical offset the no-slip interface turns part of
+  the motion into opposite vertical velocities.
+
+FEM bodies interact with nothing but the level-set boundaries (and only through their scripted
+motions or free flight: level sets act on grid nodes). It is the baseline of the trade study, what
+a user gets with no contact algorithm; the engine is
+:class:`bfemp.steppers.explicit.ExplicitStepper` unchanged.
 
 Linear momentum of free bodies is conserved to round-off (every internal force sums to zero over
 the shared grid), APIC also conserves angular momentum to round-off for laws with a symmetric
@@ -37,9 +39,7 @@ class SingleFieldOptions(ExplicitOptions):
     """Options of ``"single_field"``.
 
     Attributes:
-        cfl_safety_fem: safety factor on the FEM bound h_min / c_p, in (0, 1] (default 0.5).
-        cfl_safety_mpm: safety factor on the MPM bound ``dx / (c_p + |v_p|)``, in (0, 1]
-            (default 0.4).
+        cfl_safety_fem, cfl_safety_mpm: as in ``ExplicitOptions``.
     """
 
     strategy: ClassVar[str] = "single_field"

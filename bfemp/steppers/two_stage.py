@@ -31,20 +31,18 @@ Choices (not in the notes):
 - Friction is semi-implicit by default (``friction="once"``): lagged once per step at x^n
   (normal forces and tangent bases of the contacts active at x^n), one minimisation; ``"loop"``
   runs the BFEMP friction loop (re-lag at the solution until a minimisation needs no Newton
-  step, capped by ``scene.set_contact(friction_iterations=...)``). ``"once"`` stays the default
-  by measurement: fewer Newton iterations on issue 40's drop (design note ``measurements``,
-  two_stage).
+  step, capped by ``scene.set_contact(friction_iterations=...)``). ``"once"`` is the default:
+  fewer Newton iterations on issue 40's drop (design note ``measurements``, two_stage).
 - Newton starts at x* when the straight move x^n -> x* passes CCD and no scripted node moves
   in the step, else at x^n; by default (``start="auto"``) also at x^n when friction has a
   contact within d-hat at x^n. From x* the inertia gradient sums to zero and every barrier
   and friction block has translations in its kernel (also after PSD projection), so each
   Newton iterate keeps sum M (x - x*) = 0: linear momentum of free bodies is exact
-  (TS). From x^n it is so only to the Newton tolerance. Why x^n under friction (issue 40):
-  x* is the frictionless free motion, so every contact starts sliding a full step v* dt,
-  thousands of times the mollifier's stick width eps_v dt, where the friction Hessian is that
-  of sliding and Newton crossed back into sticking in backtracking steps; from x^n every lagged
-  contact starts at zero sliding, in the stick regime, where its quadratic model is exact
-  (measured: design note ``measurements``, two_stage).
+  (TS). From x^n it is so only to the Newton tolerance. x^n under friction (issue 40): from x*
+  every contact starts sliding a full step v* dt, far beyond the mollifier's stick width
+  eps_v dt, and Newton crossed back into sticking in backtracking steps; from x^n every lagged
+  contact starts in the stick regime, where its quadratic model is exact (measured: design note
+  ``measurements``, two_stage).
 - ``StepReport.residual`` is the relative stationarity residual
   ||M (v - v*) - h J^T gamma||_inf / max(||M v*||_inf, ||h J^T gamma||_inf) at the returned
   step (dimensionless here; over the unknowns, slip-normal coordinates excluded).
@@ -90,7 +88,7 @@ from bfemp.potential import IncrementalPotential
 from bfemp.state import State
 from bfemp.steppers._barrier_potential import contact_view, has_contact
 from bfemp.steppers._barrier_solve import ScriptedSolve
-from bfemp.steppers._scaffold import StepNodes, gather_nodes, nodes_of_step
+from bfemp.steppers._scaffold import StepNodes, nodes_of_step
 from bfemp.steppers.base import ContactView, StepError, finite_or_nan
 from bfemp.steppers.capabilities import BARRIER_PAIRS, Capabilities
 from bfemp.steppers.explicit import ExplicitOptions, ExplicitStepper, GridStep, Motion
@@ -119,18 +117,15 @@ class TwoStageOptions(ExplicitOptions):
         tol: Newton tolerance in m/s: the contact solve has converged when its increment moves
             no FEM node, particle position or (times dx) particle deformation gradient by more
             than ``tol * dt`` (as ``BarrierOptions.tol``).
-        max_newton_iterations: Newton iteration cap per minimisation (200, as ``barrier``'s;
-            measured: a frictional stack (conformance catalogue's ``stack``, mu 0.3) took 133
-            iterations in its hardest step, past the earlier cap of 100).
+        max_newton_iterations: Newton iteration cap per minimisation (200, as ``barrier``'s: the
+            conformance catalogue's frictional ``stack`` took 133 in its hardest step).
         start: Newton's start, ``"auto"`` (as ``"free"``, but x^n when friction has a contact
             within d-hat at x^n: module docstring, issue 40), ``"free"`` (the free motion x*,
             when the move there passes CCD and no scripted node moves; else x^n) or
             ``"start"`` (always x^n).
         linear_solver: the linear solver of the contact solve (names of
             ``BarrierOptions.linear_solver``).
-        cfl_safety_fem: safety factor on the FEM bound h_min / c_p, in (0, 1] (default 0.5).
-        cfl_safety_mpm: safety factor on the MPM bound ``dx / (c_p + |v_p|)``, in (0, 1]
-            (default 0.4).
+        cfl_safety_fem, cfl_safety_mpm: as in ``ExplicitOptions``.
     """
 
     strategy: ClassVar[str] = "two_stage"
@@ -331,10 +326,7 @@ class TwoStageStepper(ExplicitStepper):
         ``prepare_mpm_step``."""
         model = self.model
         if model.n_particles == 0:
-            return gather_nodes(
-                model, state, transfer=self.transfer, with_acceleration=False, dt=self.dt,
-                t_next=step.t_next,
-            )  # fmt: skip
+            return nodes_of_step(model, state, None, dt=self.dt, t_next=step.t_next)
         stencils = step.stencils()
         if stencils.n_nodes != step.grid_x.shape[0] or not np.array_equal(
             stencils.active_x, step.grid_x
