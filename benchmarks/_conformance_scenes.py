@@ -175,8 +175,18 @@ def _all_cases() -> tuple[Case, ...]:
     for dim, dx, t_end, dt in ((2, DX_2D, (0.1, 0.4), 2e-3), (3, DX_3D, (0.06, 0.3), 4e-3)):
         for mu in (0.0, 0.3):
             params = {"mu": mu, "up": dim - 1, "plate_top": 0.0}
-            out.append(Case(f"drop_{dim}d_mu{mu:g}", "drop", dim, _modes(*t_end), dt, dx,
-                            ("held", "penetration"), params))  # fmt: skip
+            out.append(
+                Case(
+                    f"drop_{dim}d_mu{mu:g}",
+                    "drop",
+                    dim,
+                    _modes(*t_end),
+                    dt,
+                    dx,
+                    ("held", "penetration"),
+                    params,
+                )
+            )
     a_free = G * math.sin(THETA)
     for body in ("mpm", "fem"):
         for label, mu in (("mu0", 0.0), ("mu0.5tan", 0.25), ("mu1.5tan", 0.75)):
@@ -184,20 +194,66 @@ def _all_cases() -> tuple[Case, ...]:
             exact = 0.0 if sticks else G * (math.sin(THETA) - mu * math.cos(THETA))
             checks = ("held", "penetration", "sticks" if sticks else "acceleration")
             # the block lands within 25 ms; the fit skips the landing's ringing
-            params = {"mu": mu, "body": body, "up": 1, "plate_top": 0.0, "a_exact": exact,
-                      "a_free": a_free, "fit_from": _modes(0.06, 0.1)}  # fmt: skip
-            out.append(Case(f"incline_{body}_{label}", "incline", 2, _modes(0.15, 0.5), 2e-3,
-                            DX_2D, checks, params))  # fmt: skip
+            params = {
+                "mu": mu,
+                "body": body,
+                "up": 1,
+                "plate_top": 0.0,
+                "a_exact": exact,
+                "a_free": a_free,
+                "fit_from": _modes(0.06, 0.1),
+            }
+            out.append(
+                Case(
+                    f"incline_{body}_{label}",
+                    "incline",
+                    2,
+                    _modes(0.15, 0.5),
+                    2e-3,
+                    DX_2D,
+                    checks,
+                    params,
+                )
+            )
     for kinds in (("mpm", "mpm"), ("mpm", "fem"), ("fem", "fem")):
         for label, offset in (("head_on", 0.0), ("oblique", 0.1)):
             checks = ("momentum", "rebound", "penetration") + (("angular_momentum",) * bool(offset))
-            out.append(Case(f"impact_{kinds[0]}_{kinds[1]}_{label}", "impact", 2,
-                            _modes(0.1, 0.25), 1e-3, DX_2D, checks,
-                            {"kinds": kinds, "offset": offset}))  # fmt: skip
-    out.append(Case("stack", "stack", 2, _modes(0.15, 0.5), 2e-3, DX_2D,
-                    ("stacked", "penetration", "drift"), {"up": 1, "plate_top": 0.0}))  # fmt: skip
-    out.append(Case("thin_plate", "thin_plate", 2, _modes(0.02, 0.04), 1e-3, DX_2D,
-                    ("no_pass", "penetration"), {"up": 1, "plate_bottom": -DX_2D / 2}))  # fmt: skip
+            out.append(
+                Case(
+                    f"impact_{kinds[0]}_{kinds[1]}_{label}",
+                    "impact",
+                    2,
+                    _modes(0.1, 0.25),
+                    1e-3,
+                    DX_2D,
+                    checks,
+                    {"kinds": kinds, "offset": offset},
+                )
+            )
+    out.append(
+        Case(
+            "stack",
+            "stack",
+            2,
+            _modes(0.15, 0.5),
+            2e-3,
+            DX_2D,
+            ("stacked", "penetration", "drift"),
+            {"up": 1, "plate_top": 0.0},
+        )
+    )
+    out.append(
+        Case(
+            "thin_plate",
+            "thin_plate",
+            2,
+            _modes(0.02, 0.04),
+            1e-3,
+            DX_2D,
+            ("no_pass", "penetration"),
+            {"up": 1, "plate_bottom": -DX_2D / 2},
+        )
+    )
     return tuple(out)
 
 

@@ -358,19 +358,32 @@ def plot_scene(
             sweep = [r for r in mine if knob in r["sweeps"]]
             if len(sweep) > 1:
                 sweep.sort(key=lambda r: r[cost])
-                ax.plot([r[cost] for r in sweep], [shown(r) for r in sweep], "-",
-                        color=colors[s], lw=0.7, alpha=0.5)  # fmt: skip
+                ax.plot(
+                    [r[cost] for r in sweep],
+                    [shown(r) for r in sweep],
+                    "-",
+                    color=colors[s],
+                    lw=0.7,
+                    alpha=0.5,
+                )
         for r in mine:
             marker = {"base": "s", "reference": "*"}.get(r["role"], "o")
             size = 11 if r["role"] == "reference" else 6
             if infeasible(r):  # a cross: drawn, but never on the front nor a winner
                 marker, size = "X", 9
-            ax.plot(r[cost], shown(r), linestyle="none", marker=marker, color=colors[s],
-                    markersize=size)  # fmt: skip
+            ax.plot(
+                r[cost], shown(r), linestyle="none", marker=marker, color=colors[s], markersize=size
+            )
             text = r["label"] + (" (error 0)" if r["error"] == 0 else "")
             text += " (infeasible)" if infeasible(r) else ""
-            ax.annotate(text, (r[cost], shown(r)), xytext=(4, 3), textcoords="offset points",
-                        fontsize=6, color=colors[s])  # fmt: skip
+            ax.annotate(
+                text,
+                (r[cost], shown(r)),
+                xytext=(4, 3),
+                textcoords="offset points",
+                fontsize=6,
+                color=colors[s],
+            )
         ax.plot([], [], "o", color=colors[s], label=s if mine else f"{s} (no finished point)")
     front = sorted((r for r in done if r["pareto"]), key=lambda r: r[cost])
     if front:
@@ -381,13 +394,24 @@ def plot_scene(
     if any(r["role"] == "reference" for r in done):
         ax.plot([], [], "k*", markersize=11, label="reference run")
     if any(infeasible(r) for r in done):
-        ax.plot([], [], "kX", markersize=9,
-                label="infeasible: deeper inside a FEM body than its strategy's bound")  # fmt: skip
+        ax.plot(
+            [],
+            [],
+            "kX",
+            markersize=9,
+            label="infeasible: deeper inside a FEM body than its strategy's bound",
+        )
     if done:
         ax.set(xscale="log", yscale="log")
     else:  # nothing to place on log axes (the reference run failed, or every point did)
-        ax.text(0.5, 0.5, "no finished point with an error", ha="center", va="center",
-                transform=ax.transAxes)  # fmt: skip
+        ax.text(
+            0.5,
+            0.5,
+            "no finished point with an error",
+            ha="center",
+            va="center",
+            transform=ax.transAxes,
+        )
     ax.set(xlabel=f"{COSTS[cost]} of the point [s]", ylabel=error_label)
     ax.set_title(title, fontsize="medium")
     ax.grid(True, which="both", alpha=0.3)
@@ -482,7 +506,7 @@ def markdown(payload: dict) -> str:
             f"Non-dominated front (error against {words}): "
             + ", ".join(
                 f"{r['strategy']}/{r['label']} ({r['error']:.3g}, {r[cost]:.2f} s)" for r in front
-            )  # fmt: skip
+            )
             + ".",
         ]
         for s, effects in payload["knob_effects"][scene].items():

@@ -267,8 +267,13 @@ def _augury_blocks(s: dict) -> dict:
             break
         done += 1
         deepest = max(deepest, check.depth(state))
-    return {**ledger.end(state, done), "iterations": 0, "max_penetration_m": deepest,
-            **penetration_bound(stepper), "failure": failure}  # fmt: skip
+    return {
+        **ledger.end(state, done),
+        "iterations": 0,
+        "max_penetration_m": deepest,
+        **penetration_bound(stepper),
+        "failure": failure,
+    }
 
 
 class _BlocksLedger:
@@ -294,9 +299,12 @@ class _BlocksLedger:
 
     def end(self, state: bfemp.State, steps: int) -> dict:
         drift = np.linalg.norm(self.momentum(state) - self.p0) / np.linalg.norm(self.p0)
-        return {"energy_loss": 1.0 - self.energy(state) / self.e0,
-                "momentum_drift_rel": float(drift), "steps": steps,
-                "nodes_per_block": int(self.model.fem_bodies[0].n_nodes)}  # fmt: skip
+        return {
+            "energy_loss": 1.0 - self.energy(state) / self.e0,
+            "momentum_drift_rel": float(drift),
+            "steps": steps,
+            "nodes_per_block": int(self.model.fem_bodies[0].n_nodes),
+        }
 
 
 #: barrier contact of the blocks (m, Pa): the rotated block's nearest edge starts 0.07 m away
@@ -315,8 +323,13 @@ def _blocks_barrier(s: dict) -> dict:
     scene = augury_blocks.blocks_scene(s["dx"])
     scene.set_contact(dhat=BLOCKS_DHAT, kappa=BLOCKS_KAPPA, mu=0.0)
     integrator = BLOCKS_INTEGRATOR if strategy == "barrier" else EXPLICIT_INTEGRATOR
-    sim = bfemp.Simulation(scene, strategy=strategy, integrator=integrator, dt=s["dt"],
-                           options=_options(strategy, s["options"]))  # fmt: skip
+    sim = bfemp.Simulation(
+        scene,
+        strategy=strategy,
+        integrator=integrator,
+        dt=s["dt"],
+        options=_options(strategy, s["options"]),
+    )
     ledger = _BlocksLedger(sim.model, sim.state)
     failure, done, iterations = None, 0, 0
     for _ in range(int(round(s["t_end"] / sim.dt))):
@@ -333,8 +346,14 @@ def _blocks_barrier(s: dict) -> dict:
         if "min_distance" in m.columns and done
         else None
     )
-    return {**ledger.end(sim.state, done), "dt_s": float(sim.dt), "iterations": int(iterations),
-            "min_distance": closest, **penetration_summary(sim), "failure": failure}  # fmt: skip
+    return {
+        **ledger.end(sim.state, done),
+        "dt_s": float(sim.dt),
+        "iterations": int(iterations),
+        "min_distance": closest,
+        **penetration_summary(sim),
+        "failure": failure,
+    }
 
 
 # ----------------------------------------------------------------------------- lr_compression

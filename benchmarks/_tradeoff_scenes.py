@@ -33,8 +33,13 @@ from benchmarks.catalogue import RINGS_DISCRETISATION, SLOPE_PHYSICS, SLOPE_TIME
 SCENE_FINER = {"dx": -1, "ppc": 1, "spacing": -1, "dhat": -1, "eps_v": -1}
 _HERTZ_PAPER_SPACING = math.sqrt(math.pi / 42920)  # m: the paper's particle count in the disk
 #: the slope's discretisation (the paper's) and friction of every point
-_SLOPE_BASE = dict(dx=SLOPE_PHYSICS["dx_m"], ppc=4, dhat=SLOPE_PHYSICS["dhat_m"],
-                   eps_v=SLOPE_PHYSICS["eps_v_m_s"], mu=0.1)  # fmt: skip
+_SLOPE_BASE = dict(
+    dx=SLOPE_PHYSICS["dx_m"],
+    ppc=4,
+    dhat=SLOPE_PHYSICS["dhat_m"],
+    eps_v=SLOPE_PHYSICS["eps_v_m_s"],
+    mu=0.1,
+)
 _SOFT = "the softened slope of two_stage_slope (E = 1e5 Pa instead of 4e12, kappa 1e6 Pa)"
 # the hertz and hertz_soft scenes share their discretisation (hertz_soft changes the material)
 _HERTZ_QUICK_BASE = dict(dx=0.05, spacing=0.035, dhat=1e-4, eps_v=1e-3, material="linear") | dict(

@@ -64,8 +64,15 @@ def paper_simulation(scene: bfemp.Scene, dt: float, tol: float, max_newton: int,
     """The papers' implicit setting: barrier by backward Euler with APIC, step ``dt`` (s),
     Newton tolerance ``tol`` (m/s) and cap ``max_newton``; ``kwargs`` go to
     ``bfemp.Simulation`` (``linear_solver``)."""
-    return bfemp.Simulation(scene, integrator="backward_euler", transfer="apic", dt=dt, tol=tol,
-                            max_newton_iterations=max_newton, **kwargs)  # fmt: skip
+    return bfemp.Simulation(
+        scene,
+        integrator="backward_euler",
+        transfer="apic",
+        dt=dt,
+        tol=tol,
+        max_newton_iterations=max_newton,
+        **kwargs,
+    )
 
 
 # ----------------------------------------------------------------------------- rings
@@ -448,8 +455,9 @@ def fem_block_scene(dim: int, n: tuple[int, ...]) -> bfemp.Scene:
     mesh = shape((0.0,) * dim, tuple(k * h for k in n), h=h)
     scene = bfemp.Scene(dim=dim, gravity=(0.0,) * (dim - 1) + (-9.81,))
     fixed = mesh.points[:, 0] < 1e-9
-    scene.add_fem(mesh, material=_BLOCK, prescribed=bfemp.motion.Fixed(), prescribed_nodes=fixed,
-                  name="block")  # fmt: skip
+    scene.add_fem(
+        mesh, material=_BLOCK, prescribed=bfemp.motion.Fixed(), prescribed_nodes=fixed, name="block"
+    )
     return scene
 
 

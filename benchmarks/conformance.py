@@ -275,7 +275,7 @@ def measure(mode: str, cfg: object) -> dict:
                 "penetration_bound_cells": c.penetration_bound_cells,
             }
             for s, c in capabilities.items()
-        },  # fmt: skip
+        },
         "limits": LIMITS,
         "rows": rows,
         "n_fail": sum(r["verdict"] == "FAIL" for r in rows),
@@ -412,7 +412,14 @@ def plot_table(payload: dict, path: Path) -> None:
 
 
 BENCHMARK = register(
-    Benchmark("conformance", __doc__, {"quick": {}, "full": {}}, measure, plot_table,
-              report_markdown, record=name_unless("full", "conformance"))
-)  # fmt: skip
+    Benchmark(
+        "conformance",
+        __doc__,
+        {"quick": {}, "full": {}},
+        measure,
+        plot_table,
+        report_markdown,
+        record=name_unless("full", "conformance"),
+    )
+)
 run = BENCHMARK.run

@@ -566,7 +566,15 @@ def _plot(payload: dict, png: Path) -> None:
 
 
 BENCHMARK = register(
-    Benchmark(NAME, __doc__, MODES, measure, _plot, markdown_table,
-              record=name_unless("full", NAME), arguments=_arguments)
-)  # fmt: skip
+    Benchmark(
+        NAME,
+        __doc__,
+        MODES,
+        measure,
+        _plot,
+        markdown_table,
+        record=name_unless("full", NAME),
+        arguments=_arguments,
+    )
+)
 run = BENCHMARK.run

@@ -102,8 +102,13 @@ def _simulation(scene, case: dict):
         cfl = dict(zip(("cfl_safety_fem", "cfl_safety_mpm"), case["cfl"], strict=True))
         options = STRATEGIES[case["strategy"]].Options(**cfl)
         return bfemp.Simulation(scene, strategy=case["strategy"], dt="auto", options=options)
-    return bfemp.Simulation(scene, strategy=case["strategy"], integrator=case["integrator"],
-                            dt=case["dt"], max_newton_iterations=NEWTON_CAP)  # fmt: skip
+    return bfemp.Simulation(
+        scene,
+        strategy=case["strategy"],
+        integrator=case["integrator"],
+        dt=case["dt"],
+        max_newton_iterations=NEWTON_CAP,
+    )
 
 
 def _closing_speed(case: dict) -> float:
@@ -348,7 +353,15 @@ def _arguments(parser: argparse._ActionsContainer) -> None:
 
 
 BENCHMARK = register(
-    Benchmark("fuzz", __doc__, dict.fromkeys(CASES, {}), measure, report=markdown,
-              record=name_unless("full", "fuzz"), arguments=_arguments, needs_out=True)
-)  # fmt: skip
+    Benchmark(
+        "fuzz",
+        __doc__,
+        dict.fromkeys(CASES, {}),
+        measure,
+        report=markdown,
+        record=name_unless("full", "fuzz"),
+        arguments=_arguments,
+        needs_out=True,
+    )
+)
 run = BENCHMARK.run

@@ -184,9 +184,13 @@ def material() -> object:
 
 
 def column_scene(
-    *, v0: float, interface_y: float = 0.050, gap: float = 0.0, moving_top: bool = False,
+    *,
+    v0: float,
+    interface_y: float = 0.050,
+    gap: float = 0.0,
+    moving_top: bool = False,
     single: bool = False,
-) -> bfemp.Scene:  # fmt: skip
+) -> bfemp.Scene:
     """The two blocks (or one body when ``single``) with the fixed bottom and the moving top."""
     scene = bfemp.Scene(dim=2)
     law = material()
@@ -377,23 +381,28 @@ def release_cause(runs: dict, errors: dict) -> dict:
         j = int(np.searchsorted(steps, ev["step"]))  # first sample at or after the release
         j = min(max(j, 1), steps.size - 1)
         pick = np.flatnonzero(rel)
-        releases.append({
-            "step": ev["step"],
-            "strain": ev["strain"],
-            "nodes": int(rel.sum()),
-            "node_x_mm": [ev["node_x_mm"][k] for k in pick],
-            "d_lr_cells_before": [ev["d_lr_cells_before"][k] for k in pick],
-            "d_lr_cells": [ev["d_lr_cells"][k] for k in pick],
-            "overlap_when_contact_resumes_cells": back,
-            "v_n_m_s": [ev["v_n_m_s"][k] for k in pick],
-            "d_n_kg_m_s": [ev["d_n_kg_m_s"][k] for k in pick],
-            "sample_before": {"strain": float(strain[j - 1]), "error_percent": float(err[j - 1])},
-            "sample_after": {"strain": float(strain[j]), "error_percent": float(err[j])},
-            "error_change_percent": float(err[j] - err[j - 1]),
-            "estimated_error_change_percent": float(
-                100.0 * (d_mean[j] - d_mean[j - 1]) * DX / (strain[j] * HEIGHT)
-            ),
-        })  # fmt: skip
+        releases.append(
+            {
+                "step": ev["step"],
+                "strain": ev["strain"],
+                "nodes": int(rel.sum()),
+                "node_x_mm": [ev["node_x_mm"][k] for k in pick],
+                "d_lr_cells_before": [ev["d_lr_cells_before"][k] for k in pick],
+                "d_lr_cells": [ev["d_lr_cells"][k] for k in pick],
+                "overlap_when_contact_resumes_cells": back,
+                "v_n_m_s": [ev["v_n_m_s"][k] for k in pick],
+                "d_n_kg_m_s": [ev["d_n_kg_m_s"][k] for k in pick],
+                "sample_before": {
+                    "strain": float(strain[j - 1]),
+                    "error_percent": float(err[j - 1]),
+                },
+                "sample_after": {"strain": float(strain[j]), "error_percent": float(err[j])},
+                "error_change_percent": float(err[j] - err[j - 1]),
+                "estimated_error_change_percent": float(
+                    100.0 * (d_mean[j] - d_mean[j - 1]) * DX / (strain[j] * HEIGHT)
+                ),
+            }
+        )
     drift = {}
     for name in ("lr_xpic5", "lr_once_xpic5", FORCED):
         sw = runs[name]["switches"]
@@ -450,9 +459,15 @@ def compression(mode: str) -> dict:
         scene = column_scene(v0=v0, **scene_kw)
         results[name] = run_case(scene, strain=strain, v0=v0, transfer=transfer, **opts)
     errors = {}
-    for name, ref in (("lr_flip", "smm_flip"), ("lr_once", "smm_flip"), ("velocity", "smm_flip"),
-                      ("cp_0.8", "smm_flip"), ("lr_xpic5", "smm_xpic5"),
-                      ("lr_once_xpic5", "smm_xpic5"), (FORCED, "smm_xpic5")):  # fmt: skip
+    for name, ref in (
+        ("lr_flip", "smm_flip"),
+        ("lr_once", "smm_flip"),
+        ("velocity", "smm_flip"),
+        ("cp_0.8", "smm_flip"),
+        ("lr_xpic5", "smm_xpic5"),
+        ("lr_once_xpic5", "smm_xpic5"),
+        (FORCED, "smm_xpic5"),
+    ):
         series, worst = stress_error(results[name], results[ref])
         results[name]["error_percent"] = series
         errors[name] = worst
@@ -498,9 +513,12 @@ def plot(record: dict, path: Path) -> None:
             f"{max(rel['d_lr_cells']):+.1e} cells;\nerror {rel['error_change_percent']:+.2f} %, "
             f"overlap {rel['overlap_when_contact_resumes_cells'] or 0.0:.3f} cells",
             (100 * rel["strain"], rel["sample_after"]["error_percent"]),
-            xytext=(0.03, 0.52 - 0.12 * (k % 4)), textcoords="axes fraction", fontsize=6.5,
-            color="r", arrowprops={"arrowstyle": "->", "color": "r", "lw": 0.5},
-        )  # fmt: skip
+            xytext=(0.03, 0.52 - 0.12 * (k % 4)),
+            textcoords="axes fraction",
+            fontsize=6.5,
+            color="r",
+            arrowprops={"arrowstyle": "->", "color": "r", "lw": 0.5},
+        )
     zx.axhline(TOL_XPIC, color="k", lw=0.6, ls="--")
     zx.axhline(-TOL_XPIC, color="k", lw=0.6, ls="--")
     zx.set(xlabel="strain (%)", ylim=(-1.6, 0.6))
@@ -528,7 +546,7 @@ def measure(mode: str, cfg: tuple) -> dict:
             "mu": MU,
             "c_K": C_K,
             "min_strain_for_error": MIN_STRAIN,
-        },  # fmt: skip
+        },
         "compression": compression(mode),
     }
 

@@ -41,9 +41,14 @@ def contact_time(mode: str) -> dict:
         for detector in ("lr", "velocity"):
             scene = column_scene(v0=v0, interface_y=y, gap=GAP, moving_top=True)
             case = run_case(
-                scene, strain=0.0, v0=v0, stop_at_contact=1.2 * t_c, samples=50,
-                detector=detector, corrections=2,  # the paper's two corrections
-            )  # fmt: skip
+                scene,
+                strain=0.0,
+                v0=v0,
+                stop_at_contact=1.2 * t_c,
+                samples=50,
+                detector=detector,
+                corrections=2,  # the paper's two corrections
+            )
             t_det = case["t_detect"]
             cases[f"{where}/{detector}"] = {
                 "t_detect": t_det,
@@ -83,7 +88,13 @@ def plot(record: dict, path: Path) -> None:
 
 
 BENCHMARK = register(
-    Benchmark(NAME, __doc__, MODES, lambda mode, cfg: contact_time(mode), plot=plot,
-              record=name_unless("full", NAME))
-)  # fmt: skip
+    Benchmark(
+        NAME,
+        __doc__,
+        MODES,
+        lambda mode, cfg: contact_time(mode),
+        plot=plot,
+        record=name_unless("full", NAME),
+    )
+)
 run = BENCHMARK.run

@@ -52,16 +52,41 @@ K_BULK, G_SHEAR, RHO = 78_090e6, 27_600e6, 2780.0
 MU = 0.2
 PISTON_SPEED = 100.0  # m/s
 MODES = {
-    "quick": dict(width=1e-3, height=1e-3, dx=1e-3 / 35, semi=(0.08e-3, 0.2e-3), classes=6,
-                  compression=0.5, seed=0),
-    "full": dict(width=1e-3, height=2e-3, dx=1e-3 / 70, semi=(0.05e-3, 0.2e-3), classes=20,
-                 compression=0.75, seed=0),
+    "quick": dict(
+        width=1e-3,
+        height=1e-3,
+        dx=1e-3 / 35,
+        semi=(0.08e-3, 0.2e-3),
+        classes=6,
+        compression=0.5,
+        seed=0,
+    ),
+    "full": dict(
+        width=1e-3,
+        height=2e-3,
+        dx=1e-3 / 70,
+        semi=(0.05e-3, 0.2e-3),
+        classes=20,
+        compression=0.75,
+        seed=0,
+    ),
     # what tests/benchmarks/test_lr_benchmarks.py runs: the quick box to 35 %, LR and CP only
-    "smoke": dict(width=1e-3, height=1e-3, dx=1e-3 / 35, semi=(0.08e-3, 0.2e-3), classes=6,
-                  compression=0.35, seed=0, detectors=("lr", "cp_0.8")),
-}  # fmt: skip
-DETECTORS = {"lr": {}, "cp_0.8": {"detector": "cp", "cp_offset": 0.8},
-             "velocity": {"detector": "velocity"}}  # fmt: skip
+    "smoke": dict(
+        width=1e-3,
+        height=1e-3,
+        dx=1e-3 / 35,
+        semi=(0.08e-3, 0.2e-3),
+        classes=6,
+        compression=0.35,
+        seed=0,
+        detectors=("lr", "cp_0.8"),
+    ),
+}
+DETECTORS = {
+    "lr": {},
+    "cp_0.8": {"detector": "cp", "cp_offset": 0.8},
+    "velocity": {"detector": "velocity"},
+}
 TARGET_FRACTION = 1e-3
 
 
@@ -69,9 +94,14 @@ def build(cfg: dict) -> tuple[bfemp.Scene, dict]:
     """The packed, coloured box with its walls and piston, and a description of the packing."""
     width, height, dx = cfg["width"], cfg["height"], cfg["dx"]
     packing = pack_ellipses(
-        (0.0, 0.0), (width, height), min_semi_axis=cfg["semi"][0],
-        max_semi_axis=cfg["semi"][1], fraction=0.6, min_gap=0.25 * dx, rng=cfg["seed"],
-    )  # fmt: skip
+        (0.0, 0.0),
+        (width, height),
+        min_semi_axis=cfg["semi"][0],
+        max_semi_axis=cfg["semi"][1],
+        fraction=0.6,
+        min_gap=0.25 * dx,
+        rng=cfg["seed"],
+    )
     classes = colour_ellipses(packing, 2.0 * dx, cfg["classes"])
     particles = sample_ellipses(packing, dx, ppc=4)
     scene = bfemp.Scene(dim=2)
@@ -171,7 +201,7 @@ def measure(mode: str, cfg) -> dict:
             "rho": RHO,
             "mu": MU,
             "piston_speed": PISTON_SPEED,
-        },  # fmt: skip
+        },
         "runs": runs,
         "stress_ratio_lr_over_cp": lr["final_stress_Pa"] / cp["final_stress_Pa"],
         "lr_over_velocity_time_per_step": (

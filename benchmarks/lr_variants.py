@@ -255,8 +255,9 @@ def plot(payload: dict, path: Path) -> None:
         label = "stress error (fraction)" if scene == "compression" else "relative error"
         ax.set_ylabel(label)
         ax.set_title(_title(scene, payload), fontsize=9)
-    fig.suptitle("lr variants: error (bars) and first/second correction impulse (labels)",
-                 fontsize=9)  # fmt: skip
+    fig.suptitle(
+        "lr variants: error (bars) and first/second correction impulse (labels)", fontsize=9
+    )
     fig.tight_layout()
     fig.savefig(path, dpi=110)
 

@@ -93,8 +93,12 @@ def time_tree(tree: Path, cfg: dict) -> dict:
     env = {**os.environ, "PYTHONPATH": str(tree), "NUMBA_CACHE_DIR": str(tree / ".numba_cache")}
     job = subprocess.run(
         [sys.executable, "-c", _SCRIPT, json.dumps(cfg)],
-        cwd=tree, env=env, capture_output=True, text=True, check=False,
-    )  # fmt: skip
+        cwd=tree,
+        env=env,
+        capture_output=True,
+        text=True,
+        check=False,
+    )
     lines = [line for line in job.stdout.splitlines() if line.startswith("RESULT ")]
     if job.returncode != 0 or not lines:
         raise RuntimeError(f"{NAME}: the run on {tree} failed:\n{job.stderr[-3000:]}")

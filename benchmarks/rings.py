@@ -384,8 +384,10 @@ def plot(payload: dict, png: Path) -> None:
         return
 
     def arrays(runs: dict) -> dict:
-        return {k: {**r, "series": {s: np.asarray(v, dtype=float) for s, v in r["series"].items()}}
-                for k, r in runs.items()}  # fmt: skip
+        return {
+            k: {**r, "series": {s: np.asarray(v, dtype=float) for s, v in r["series"].items()}}
+            for k, r in runs.items()
+        }
 
     compared = {k: arrays(c["runs"]) for k, c in payload["compared_integrators"].items()}
     title = f"Colliding rings, MPM (left) vs FEM (right), {payload['mode']} mode"

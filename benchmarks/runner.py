@@ -216,8 +216,11 @@ def differences(old: object, new: object, path: str = "", timings: str = "") -> 
     if isinstance(old, list) and isinstance(new, list):
         if len(old) != len(new):
             return [f"{path}: {len(old)} items, now {len(new)}"]
-        return [d for k, (a, b) in enumerate(zip(old, new, strict=True)) for d in
-                differences(a, b, f"{path}[{k}]", timings)]  # fmt: skip
+        return [
+            d
+            for k, (a, b) in enumerate(zip(old, new, strict=True))
+            for d in differences(a, b, f"{path}[{k}]", timings)
+        ]
     both_nan = (
         isinstance(old, float) and isinstance(new, float) and math.isnan(old) and math.isnan(new)
     )

@@ -91,16 +91,29 @@ PHYSICS.pop("velocity_update")
 KAPPAS = {"kappa_scaled": PHYSICS["kappa_Pa"], "kappa_paper": cat.SLOPE_PHYSICS["kappa_Pa"]}
 _ALL_MUS = (0.0, 0.1, 0.1999, 0.2)
 SLOPE_MODES = {
-    "full": dict(settle_s=0.1, release_s=0.5, fit_start_s=0.1, mus=_ALL_MUS,
-                 kappas=("kappa_scaled", "kappa_paper")),
+    "full": dict(
+        settle_s=0.1,
+        release_s=0.5,
+        fit_start_s=0.1,
+        mus=_ALL_MUS,
+        kappas=("kappa_scaled", "kappa_paper"),
+    ),
     # what the 2-core machine ran (full: 84,000 steps at ~24 ms, over half an hour)
     "partial": dict(**cat.SLOPE_TIMES["partial"], mus=_ALL_MUS, kappas=("kappa_paper",)),
     "quick": dict(**cat.SLOPE_TIMES["quick"], mus=(0.0, 0.2), kappas=("kappa_paper",)),
-}  # fmt: skip
+}
 TARGET_REL = {"full": 2e-3, "partial": 2e-3, "quick": 2e-2}
 STICK_FACTOR = 10.0  # mu = 0.2: max speed after the fit start below this many eps_v
-_SLOPE_KEYS = ("mu", "accel", "accel_analytic", "accel_rel_error", "max_speed_after_fit_start",
-               "error", "steps", "wall_s")  # fmt: skip
+_SLOPE_KEYS = (
+    "mu",
+    "accel",
+    "accel_analytic",
+    "accel_rel_error",
+    "max_speed_after_fit_start",
+    "error",
+    "steps",
+    "wall_s",
+)
 
 
 def _strip(run: Mapping) -> dict:
@@ -125,9 +138,14 @@ def _run_rings(sim: bfemp.Simulation, t_end: float, callback: object = None) -> 
     energy = m.column("energy_kinetic") + m.column("energy_elastic")
     e0, e1 = cat.window_energies(t, energy)
     reached = t[-1] >= cat.WINDOW[1] - 1e-9
-    common = {"error": error, "dt_s": sim.dt, "steps": int(len(t) - 1), "wall_s": wall,
-              "particles": int(sim.model.n_particles),
-              "energy_loss_pct": 100.0 * (e0 - e1) / e0 if reached else None}  # fmt: skip
+    common = {
+        "error": error,
+        "dt_s": sim.dt,
+        "steps": int(len(t) - 1),
+        "wall_s": wall,
+        "particles": int(sim.model.n_particles),
+        "energy_loss_pct": 100.0 * (e0 - e1) / e0 if reached else None,
+    }
     return common, t, energy
 
 
@@ -180,16 +198,20 @@ def _run_mpm_rings(cfg: dict) -> dict:
     """Both rings as MPM bodies under lr (frictionless, ``dt="auto"``)."""
     from scipy.spatial import cKDTree
 
-    sim = bfemp.Simulation(cat.mpm_rings_scene(cfg), strategy="lr", dt="auto",
-                           options=LROptions(law="frictionless"))  # fmt: skip
+    sim = bfemp.Simulation(
+        cat.mpm_rings_scene(cfg), strategy="lr", dt="auto", options=LROptions(law="frictionless")
+    )
     common, _, _ = _run_rings(sim, cfg["t_end"])
     model, x = sim.model, sim.state.mpm_x
     scale = float(np.abs(model.mpm_mass[:, None] * model.mpm_v0).sum())
     # closest approach of the two rings' particles at the end (a crude overlap measure)
     left = model.mpm_particle_body == 0
     gap = float(cKDTree(x[~left]).query(x[left])[0].min())
-    return {**common, "momentum_drift_rel": _drift(sim.metrics, scale),
-            "closest_particles_end_m": gap}  # fmt: skip
+    return {
+        **common,
+        "momentum_drift_rel": _drift(sim.metrics, scale),
+        "closest_particles_end_m": gap,
+    }
 
 
 def _compared_rings(mode: str, strategy: str) -> dict:
@@ -237,8 +259,14 @@ def _two_stage_rings(mode: str) -> dict:
         "no_penetration": all(r["penetrations"] == 0 and r["error"] is None for r in runs.values()),
     }
     met = all(targets[k] for k in ("momentum_met", "min_distance_positive", "no_penetration"))
-    parameters = {**cfg, "strategy": "two_stage", "dt": "auto", "dhat": cat.DHAT,
-                  "kappa": cat.KAPPA, "material": cat.MATERIAL}  # fmt: skip
+    parameters = {
+        **cfg,
+        "strategy": "two_stage",
+        "dt": "auto",
+        "dhat": cat.DHAT,
+        "kappa": cat.KAPPA,
+        "material": cat.MATERIAL,
+    }
     return {
         "momentum_drift_rel": drift,
         "min_distance": min(dists) if dists else None,
@@ -288,8 +316,14 @@ def run_cases(
         after = v[tau >= cfg["fit_start_s"]]
         case["max_speed_after_fit_start"] = float(after.max()) if after.size else None
         case["kappa"] = kappa
-        log.info("%s mu=%g: accel %s (analytic %.6g), %.1f s", kappa, mu, case["accel"],
-                 case["accel_analytic"], case["wall_s"])  # fmt: skip
+        log.info(
+            "%s mu=%g: accel %s (analytic %.6g), %.1f s",
+            kappa,
+            mu,
+            case["accel"],
+            case["accel_analytic"],
+            case["wall_s"],
+        )
         cases.append(case)
     return {"settle": settle, "cases": cases}
 
@@ -303,8 +337,12 @@ def _compared_slope(mode: str, strategy: str) -> dict | None:
         options = AuguryOptions(kinematic_foreground=True, penetration_check_every=0)
         physics, variant = {"strategy": "augury", "options": options}, "tilted_gravity"
     else:
-        physics = {"strategy": "lr", "options": LROptions(), "transfer": "flip",
-                   "slope_lower_upper_m": cat.LR_SLOPE}  # fmt: skip
+        physics = {
+            "strategy": "lr",
+            "options": LROptions(),
+            "transfer": "flip",
+            "slope_lower_upper_m": cat.LR_SLOPE,
+        }
         variant = "dense_slope"
     out = {}
     for name, p, v in ((strategy, physics, variant), ("two_stage", None, "tilted_gravity")):
@@ -384,10 +422,13 @@ def _two_stage_slope(mode: str) -> dict:
 
 def _plot_two_stage_slope(payload: dict, png: Path) -> None:
     mode, kappa = payload["mode"], SLOPE_MODES[payload["mode"]]["kappas"][-1]
-    title = (f"two_stage: soft MPM box on a FEM slope, tan theta = 0.2 ({mode}, dt = {DT:g} s, "
-             f"{kappa})")  # fmt: skip
-    cases = [{**c, "series": payload["series"][f"{c['kappa']} {c['mu']}"]}
-             for c in payload["variants"][kappa]["cases"]]  # fmt: skip
+    title = (
+        f"two_stage: soft MPM box on a FEM slope, tan theta = 0.2 ({mode}, dt = {DT:g} s, {kappa})"
+    )
+    cases = [
+        {**c, "series": payload["series"][f"{c['kappa']} {c['mu']}"]}
+        for c in payload["variants"][kappa]["cases"]
+    ]
     slope.plot_cases({"tilted_gravity": {"cases": cases}}, png, title)
 
 
@@ -398,13 +439,21 @@ STICKING_MODES = {
     "full": dict(
         plan=tuple(
             (start, eps_v, f)
-            for start, eps_v in (("auto", 1e-5), ("free", 1e-5), ("auto", 1e-4), ("auto", 1e-3),
-                                 ("free", 1e-3))
+            for start, eps_v in (
+                ("auto", 1e-5),
+                ("free", 1e-5),
+                ("auto", 1e-4),
+                ("auto", 1e-3),
+                ("free", 1e-3),
+            )
             for f in (1.05, 1.5)
         ),
-        release_from="initial", release_s=0.1, fit_start_s=0.05, settle_s=0.02,
+        release_from="initial",
+        release_s=0.1,
+        fit_start_s=0.05,
+        settle_s=0.02,
     )
-}  # fmt: skip
+}
 
 
 def sticking(mode: str, cfg: Mapping, release_from: str | None = None) -> dict:
@@ -444,9 +493,15 @@ def sticking(mode: str, cfg: Mapping, release_from: str | None = None) -> dict:
         case = cat.release_slope("tilted_gravity", mu, rest, steps, fit_start_s, p)
         case.update(start=start, eps_v=eps_v, mu_over_tan_theta=f)
         sticking_metrics(case, fit_start_s)
-        log.info("start=%s eps_v=%g mu=%.3g: %.2f Newton/step, mean speed %s m/s, %.1f s", start,
-                 eps_v, mu, case["newton_per_step"], case["mean_speed_after_fit_start"],
-                 case["wall_s"])  # fmt: skip
+        log.info(
+            "start=%s eps_v=%g mu=%.3g: %.2f Newton/step, mean speed %s m/s, %.1f s",
+            start,
+            eps_v,
+            mu,
+            case["newton_per_step"],
+            case["mean_speed_after_fit_start"],
+            case["wall_s"],
+        )
         cases.append(case)
     return {
         "settle": settle,
@@ -545,8 +600,9 @@ def _modes_of(strategy: str, scene: str) -> Mapping:
     return RINGS_MODES if scene == "rings" else {**SLOPE_MODES, "sticking": {}}
 
 
-def measure(mode: str, cfg: Mapping, strategy: str = "two_stage", scene: str | None = None,
-            **_: object) -> dict:  # fmt: skip
+def measure(
+    mode: str, cfg: Mapping, strategy: str = "two_stage", scene: str | None = None, **_: object
+) -> dict:
     """The record of ``strategy`` on ``scene`` (see the module docstring)."""
     scene = _scene_of(strategy, scene)
     modes = _modes_of(strategy, scene)
@@ -616,5 +672,8 @@ BENCHMARK = register(
     )
 )
 run = BENCHMARK.run
-register(Benchmark("two_stage_slope_sticking", sticking.__doc__, STICKING_MODES, sticking,
-                   _plot_sticking))  # fmt: skip
+register(
+    Benchmark(
+        "two_stage_slope_sticking", sticking.__doc__, STICKING_MODES, sticking, _plot_sticking
+    )
+)

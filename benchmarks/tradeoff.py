@@ -709,8 +709,13 @@ def _plot(payload: dict, png: Path) -> None:
         recs = [r for r in payload["points"] if r["scene"] == scene]
         title = f"{scene}: error against {COSTS[payload['cost']]} ({payload['mode']} mode)"
         kind = "reference run" if "reference_keys" in SCENES[scene] else "analytic"
-        plot_scene(recs, png.with_name(f"{png.stem}_{scene}.png"), title, f"error vs {kind}",
-                   payload["cost"])  # fmt: skip
+        plot_scene(
+            recs,
+            png.with_name(f"{png.stem}_{scene}.png"),
+            title,
+            f"error vs {kind}",
+            payload["cost"],
+        )
 
 
 def rerender(path: str | Path) -> dict:
@@ -806,9 +811,14 @@ def _kept_points(old: dict, new: dict) -> list[dict]:
                 continue
             error, parts = point_error(scene, p, reference)
             kept.append(
-                {**p, "error": error, "error_parts": parts, "reference": reference,
-                 "error_against": f"reference run at {commit}" if reference else None}
-            )  # fmt: skip
+                {
+                    **p,
+                    "error": error,
+                    "error_parts": parts,
+                    "reference": reference,
+                    "error_against": f"reference run at {commit}" if reference else None,
+                }
+            )
     return kept
 
 
@@ -903,19 +913,37 @@ def replay(record: dict, timeout_s: float | None = None) -> dict:
 OPTIONS = {
     "--scenes": ("scenes", dict(help=f"comma-separated scenes (default: {', '.join(SCENES)})")),
     "--knobs": ("knobs", dict(help="comma-separated knobs (default: every knob of each strategy)")),
-    "--strategies": ("strategies", dict(help="comma-separated strategies (default: every one "
-                                             "that applies to each scene)")),
+    "--strategies": (
+        "strategies",
+        dict(help="comma-separated strategies (default: every one that applies to each scene)"),
+    ),
     "--workers": ("workers", dict(type=int, help="local point processes at once (default: cores)")),
     "--scheduler": ("scheduler", dict(help="run the points on a Dask scheduler (tcp://host:port)")),
     "--threads-per-point": ("threads", dict(type=int, default=1, help="threads of each point")),
     "--point-timeout": ("timeout_s", dict(type=float, help="wall-time limit of one point in s")),
-    "--resume": ("resume", dict(action="store_true", help="take the points an earlier sweep of "
-                                "the same code kept in the points folder")),
-    "--points": ("points", dict(metavar="DIR", help="where each point is kept as it finishes "
-                                "(default OUT/tradeoff_points/)")),
-    "--cost": ("cost", dict(choices=("wall", "cpu"), default="wall", help="cost axis: the "
-                            "points' wall time (default) or CPU time (steadier when busy)")),
-}  # fmt: skip
+    "--resume": (
+        "resume",
+        dict(
+            action="store_true",
+            help="take the points an earlier sweep of the same code kept in the points folder",
+        ),
+    ),
+    "--points": (
+        "points",
+        dict(
+            metavar="DIR",
+            help="where each point is kept as it finishes (default OUT/tradeoff_points/)",
+        ),
+    ),
+    "--cost": (
+        "cost",
+        dict(
+            choices=("wall", "cpu"),
+            default="wall",
+            help="cost axis: the points' wall time (default) or CPU time (steadier when busy)",
+        ),
+    ),
+}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -961,6 +989,14 @@ def main_from_args(args: argparse.Namespace) -> int:
 #: settings, metrics and error
 TIMINGS = r"^(pareto|strategy_pareto|winners|crossovers|knob_effects|best_knob|warmup_s)$"
 BENCHMARK = register(
-    Benchmark(NAME, __doc__, dict.fromkeys(MODES, {}), _measure, _plot, markdown,
-              timings=TIMINGS, needs_out=True)
-)  # fmt: skip
+    Benchmark(
+        NAME,
+        __doc__,
+        dict.fromkeys(MODES, {}),
+        _measure,
+        _plot,
+        markdown,
+        timings=TIMINGS,
+        needs_out=True,
+    )
+)

@@ -106,6 +106,10 @@ def n_steps(t: float, t_end: float, dt: float) -> int:
         log.info(
             "the run ends at t = %.9g s, %.3g s after t_end = %.9g s: %d whole steps of "
             "dt = %.9g s (the last step is not shortened; Simulation.run says why)",
-            end, end - t_end, t_end, n, dt,
-        )  # fmt: skip
+            end,
+            end - t_end,
+            t_end,
+            n,
+            dt,
+        )
     return n

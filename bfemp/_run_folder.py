@@ -89,7 +89,14 @@ def run_to_folder(
         if animation is not None:
             plots.append((f"animation.{animation}", lambda: write_animation(out, animation)))
         outputs.finish_outputs(
-            out, sim, manifest, status, message, hard=guard.hard, every=every,
-            frames=writer.frame_index, writes=plots,
-        )  # fmt: skip
+            out,
+            sim,
+            manifest,
+            status,
+            message,
+            hard=guard.hard,
+            every=every,
+            frames=writer.frame_index,
+            writes=plots,
+        )
     return sim.metrics

@@ -369,9 +369,19 @@ class Simulation:
         # one writer per folder: RunFolderError if in use
         with collect_warnings(self._notice), outputs.lock_run_folder(out):
             return run_to_folder(
-                self, Path(out), t_end, every, progress, callback, checkpoint_every, resume,
-                metadata, overwrite, animation, scene_toml,
-            )  # fmt: skip
+                self,
+                Path(out),
+                t_end,
+                every,
+                progress,
+                callback,
+                checkpoint_every,
+                resume,
+                metadata,
+                overwrite,
+                animation,
+                scene_toml,
+            )
 
     def _loop(
         self,

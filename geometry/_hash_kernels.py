@@ -233,9 +233,21 @@ def _query(
     for i in prange(n_query):
         if a_active[i]:
             counts[i] = _query_one(
-                i, a_lo, a_hi, a_cell_lo, a_cell_hi, b_lo, b_hi, b_cell_lo,
-                bucket_start, bucket_items, mask, dummy, 0, False,
-            )  # fmt: skip
+                i,
+                a_lo,
+                a_hi,
+                a_cell_lo,
+                a_cell_hi,
+                b_lo,
+                b_hi,
+                b_cell_lo,
+                bucket_start,
+                bucket_items,
+                mask,
+                dummy,
+                0,
+                False,
+            )
     offsets = np.zeros(n_query + 1, dtype=np.int64)
     for i in range(n_query):
         offsets[i + 1] = offsets[i] + counts[i]
@@ -243,7 +255,19 @@ def _query(
     for i in prange(n_query):
         if counts[i] > 0:
             _query_one(
-                i, a_lo, a_hi, a_cell_lo, a_cell_hi, b_lo, b_hi, b_cell_lo,
-                bucket_start, bucket_items, mask, out_b, offsets[i], True,
-            )  # fmt: skip
+                i,
+                a_lo,
+                a_hi,
+                a_cell_lo,
+                a_cell_hi,
+                b_lo,
+                b_hi,
+                b_cell_lo,
+                bucket_start,
+                bucket_items,
+                mask,
+                out_b,
+                offsets[i],
+                True,
+            )
     return counts, out_b

@@ -236,9 +236,15 @@ class ContactOperator:
         if self.kinematic is not None:  # infinite inertia: the scripted velocity alone
             k = self.kinematic
             mass_k, mom_k = p2g(
-                st.nodes[k], st.weights[k], st.node_x, self.x[k], self.mass[k], v[k], C[k],
+                st.nodes[k],
+                st.weights[k],
+                st.node_x,
+                self.x[k],
+                self.mass[k],
+                v[k],
+                C[k],
                 self.apic,
-            )  # fmt: skip
+            )
             held = mass_k > 0.0
             grid_v[held] = mom_k[held] / mass_k[held, None]
         out_v, out_B = g2p(st.nodes, st.weights, st.node_x, self.x, grid_v)

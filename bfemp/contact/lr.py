@@ -196,10 +196,21 @@ def lr_planes(
         has_start = np.linalg.norm(start, axis=1) > 0.0
 
     normal, phi, sep, iters, conv, fb, code = lr_planes_kernel(
-        node_x, cloud_ptr, cloud_idx, cloud_side, points_x, points_F, points_R0,
-        float(penalty) * float(dx) ** 2, float(tol), int(max_iterations), float(linear_scale),
-        (float(thin) * float(dx)) ** 2, start, has_start,
-    )  # fmt: skip
+        node_x,
+        cloud_ptr,
+        cloud_idx,
+        cloud_side,
+        points_x,
+        points_F,
+        points_R0,
+        float(penalty) * float(dx) ** 2,
+        float(tol),
+        int(max_iterations),
+        float(linear_scale),
+        (float(thin) * float(dx)) ** 2,
+        start,
+        has_start,
+    )
     if np.any(code == ONE_CLASS):
         bad = np.flatnonzero(code == ONE_CLASS)
         raise ValueError(

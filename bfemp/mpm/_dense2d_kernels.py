@@ -331,9 +331,22 @@ def dense_p2g(
     affine = mpm_C is not None
     C = mpm_C if affine else np.zeros((0, 2, 2))
     _p2g_2d(
-        xi, dx, int(lo[0]), int(lo[1]), stride, mpm_mass, mpm_v, C, affine, piola, mpm_F,
-        volume, ranges[0], offset, scratch,
-    )  # fmt: skip
+        xi,
+        dx,
+        int(lo[0]),
+        int(lo[1]),
+        stride,
+        mpm_mass,
+        mpm_v,
+        C,
+        affine,
+        piola,
+        mpm_F,
+        volume,
+        ranges[0],
+        offset,
+        scratch,
+    )
     out = np.empty((size, 5))
     _reduce_slabs(scratch, ranges[0], ranges[1], offset, out)
     origin = np.asarray(origin, dtype=np.float64)
@@ -404,10 +417,23 @@ def dense_g2p(
     out_C = alloc((n_p, 2, 2))
     box_v_old = box.scatter(grid_v_old) if flip else np.zeros((0, 2))
     _g2p_2d(
-        box.xi, dx, int(box.lo[0]), int(box.lo[1]), int(box.extent[1]), box_v_old,
-        box.scatter(grid_v), float(dt), mpm_x, mpm_v, mpm_F, flip,
-        out_x, out_v, out_F, out_C,
-    )  # fmt: skip
+        box.xi,
+        dx,
+        int(box.lo[0]),
+        int(box.lo[1]),
+        int(box.extent[1]),
+        box_v_old,
+        box.scatter(grid_v),
+        float(dt),
+        mpm_x,
+        mpm_v,
+        mpm_F,
+        flip,
+        out_x,
+        out_v,
+        out_F,
+        out_C,
+    )
     if scheme != "apic":
         out_C[:] = 0.0
     return out_x, out_v, out_F, out_C

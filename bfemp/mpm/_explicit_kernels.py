@@ -175,9 +175,22 @@ def p2g_with_forces(
     affine = mpm_C is not None
     C = mpm_C if affine else np.zeros((0, d, d))
     _p2g_force(
-        nodes, weights, grads, grid_x, mpm_x, mpm_mass, mpm_v, C, affine, piola, mpm_F, volume,
-        lo, offset, scratch,
-    )  # fmt: skip
+        nodes,
+        weights,
+        grads,
+        grid_x,
+        mpm_x,
+        mpm_mass,
+        mpm_v,
+        C,
+        affine,
+        piola,
+        mpm_F,
+        volume,
+        lo,
+        offset,
+        scratch,
+    )
     out = np.empty((n_grid, 1 + 2 * d))
     _reduce_slabs(scratch, lo, hi, offset, out)
     return out[:, 0].copy(), out[:, 1 : 1 + d].copy(), out[:, 1 + d :].copy()
@@ -295,10 +308,25 @@ def g2p_explicit(
     out_C.fill(0.0)
     singular = np.zeros(n_p, dtype=np.bool_)
     _g2p_explicit(
-        nodes, weights, grads, grid_x, grid_v_old, grid_v, float(dt), mpm_x, mpm_v, mpm_F,
-        scheme == "flip", scheme == "apic", max(1, min(int(n_chunks), n_p)),
-        out_x, out_v, out_F, out_C, singular,
-    )  # fmt: skip
+        nodes,
+        weights,
+        grads,
+        grid_x,
+        grid_v_old,
+        grid_v,
+        float(dt),
+        mpm_x,
+        mpm_v,
+        mpm_F,
+        scheme == "flip",
+        scheme == "apic",
+        max(1, min(int(n_chunks), n_p)),
+        out_x,
+        out_v,
+        out_F,
+        out_C,
+        singular,
+    )
     if singular.any():
         raise ValueError(
             "APIC inertia D_p = sum_i w_ip (x_i - x_p)(x_i - x_p)^T is singular at particles "

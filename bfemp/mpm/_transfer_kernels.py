@@ -17,9 +17,15 @@ _PIVOT_REL = 1e-12
 
 @njit(cache=True)
 def _affine_value(
-    v: np.ndarray, C: np.ndarray, affine: bool, p: int, r: int, node_x: np.ndarray, i: int,
+    v: np.ndarray,
+    C: np.ndarray,
+    affine: bool,
+    p: int,
+    r: int,
+    node_x: np.ndarray,
+    i: int,
     x: np.ndarray,
-) -> float:  # fmt: skip
+) -> float:
     """Component r of v_p + C_p (x_i - x_p) (the APIC affine extrapolation of a particle value
     ``v (P, d)`` to node i; ``v[p, r]`` alone unless ``affine``)."""
     val = v[p, r]

@@ -122,9 +122,16 @@ class PairContact:
                 st.nodes, st.weights, pts.mass, pts.x, pts.material, grid_x.shape[0], M
             )
             planes.separation = lr_contact.cp_separation(
-                grid_x[node], node, a, partner, mass, moments, planes.normal,
-                opts.cp_offset, self.model.grid.dx,
-            )  # fmt: skip
+                grid_x[node],
+                node,
+                a,
+                partner,
+                mass,
+                moments,
+                planes.normal,
+                opts.cp_offset,
+                self.model.grid.dx,
+            )
         return planes
 
     # ------------------------------------------------------------------ the contact law
@@ -172,9 +179,18 @@ class PairContact:
                 rigid_b[rows] = True
         if opts.interface == "perfect":
             dp, touching = lr_contact.contact_momentum(
-                m_a, m_b, p_a, p_b, np.zeros_like(p_a), None, mu=0.0, law="perfect",
-                detector="velocity", rigid_a=rigid_a, rigid_b=rigid_b,
-            )  # fmt: skip
+                m_a,
+                m_b,
+                p_a,
+                p_b,
+                np.zeros_like(p_a),
+                None,
+                mu=0.0,
+                law="perfect",
+                detector="velocity",
+                rigid_a=rigid_a,
+                rigid_b=rigid_b,
+            )
         else:
             most = self.mu if self.mu_table is None else float(self.mu_table.max())
             law = "frictionless" if opts.law == "frictionless" or most == 0.0 else "coulomb"
@@ -182,10 +198,18 @@ class PairContact:
             if opts.detector == "velocity":  # no separation measured; the law ignores it
                 sep = np.zeros_like(sep)
             dp, touching = lr_contact.contact_momentum(
-                m_a, m_b, p_a, p_b, planes.normal, sep,
-                mu=self.pair_mu(a, b, mass[:, node]), law=law, detector=opts.detector,
-                rigid_a=rigid_a, rigid_b=rigid_b,
-            )  # fmt: skip
+                m_a,
+                m_b,
+                p_a,
+                p_b,
+                planes.normal,
+                sep,
+                mu=self.pair_mu(a, b, mass[:, node]),
+                law=law,
+                detector=opts.detector,
+                rigid_a=rigid_a,
+                rigid_b=rigid_b,
+            )
         if rigid_a is not None:
             stays = lumped & rigid_a  # a scripted a keeps its script (LR eq. 50 corrects a alone)
             dp[stays] = 0.0

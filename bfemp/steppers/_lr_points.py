@@ -104,8 +104,7 @@ class FemPoints:
         model, d = self.model, self.model.dim
         if self.n_nodes == 0:
             st = particle_stencils(model.grid, state.mpm_x)
-            return Points(st, state.mpm_x, state.mpm_F, self.radius0, self.material,
-                           model.mpm_mass)  # fmt: skip
+            return Points(st, state.mpm_x, state.mpm_F, self.radius0, self.material, model.mpm_mass)
         s_nodes, s_bary, s_mat = self.samples
         sample_x = np.einsum("sk,skd->sd", s_bary, state.fem_x[s_nodes])
         n_extra = self.n_nodes + self.n_samples

@@ -141,9 +141,18 @@ def nodes_of_step(
         layout = DofLayout(d, ~model.fem_prescribed, n_fem)
         zeros = np.zeros_like(state.fem_x)
         return StepNodes(
-            t_next, dt, layout, None, state.fem_x, state.fem_v, state.fem_a, model.fem_mass,
-            fem_fixed, zeros, None,
-        )  # fmt: skip
+            t_next,
+            dt,
+            layout,
+            None,
+            state.fem_x,
+            state.fem_v,
+            state.fem_a,
+            model.fem_mass,
+            fem_fixed,
+            zeros,
+            None,
+        )
     grid_x = mpm.stencils.active_x
     grid_a = mpm.acceleration if mpm.acceleration is not None else 0.0 * grid_x
     free = np.concatenate([~model.fem_prescribed, ~mpm.constraints.sticky])

@@ -113,13 +113,17 @@ class AuguryStepper(ExplicitStepper):
     #: FEM boundary nodes and particles meet on the contact grid (AUG; particles: bfemp's
     #: extension, section 1.4); MPM bodies also share the engine's MPM grid velocity field
     capabilities: ClassVar[Capabilities] = Capabilities(
-        pairs={"mpm-mpm": "grid", "mpm-fem": "contact", "mpm-prescribed": "contact",
-               "fem-fem": "contact"},
+        pairs={
+            "mpm-mpm": "grid",
+            "mpm-fem": "contact",
+            "mpm-prescribed": "contact",
+            "fem-fem": "contact",
+        },
         friction=True,
         needs_contact_settings=False,
         penetration_bound_cells=AUGURY_PENETRATION_CELLS,
         penetration_note=AUGURY_PENETRATION_NOTE,
-    )  # fmt: skip
+    )
 
     def _setup(self) -> None:
         """The strategy's own construction, after the engine's (module docstring)."""

@@ -87,7 +87,7 @@ class BarrierStepper:
         "and node outside FEM bodies; a step that would cross is a named failure (TUNNELED, "
         "INTERSECTION)",
         inversion_free=True,
-    )  # fmt: skip
+    )
 
     def __init__(
         self,

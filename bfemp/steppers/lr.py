@@ -111,7 +111,7 @@ class LRStepper(ExplicitStepper):
         penetration_bound_cells=LR_PENETRATION_CELLS,
         penetration_note=LR_PENETRATION_NOTE,
         needs_mpm_body=True,
-    )  # fmt: skip
+    )
     #: the transfer ``Simulation`` takes when none is given
     default_transfer: ClassVar[str] = "flip"
     transfers: ClassVar[tuple[str, ...]] = TRANSFERS
@@ -183,9 +183,18 @@ class LRStepper(ExplicitStepper):
         nodes, weights, grads = st.nodes[:n_p], st.weights[:n_p], st.grads[:n_p]
         grid_x = st.active_x
         mass, mom0, force = p2g_materials(
-            nodes, weights, grads, self.material, model.mpm_mass, state.mpm_v,
-            piola, state.mpm_F, model.mpm_volume, self.n_materials, grid_x.shape[0],
-        )  # fmt: skip
+            nodes,
+            weights,
+            grads,
+            self.material,
+            model.mpm_mass,
+            state.mpm_v,
+            piola,
+            state.mpm_F,
+            model.mpm_volume,
+            self.n_materials,
+            grid_x.shape[0],
+        )
         force += mass[..., None] * model.gravity
         fem_force = np.zeros((0, model.dim))
         if self._fem.n_nodes:
@@ -193,10 +202,16 @@ class LRStepper(ExplicitStepper):
             rows = slice(n_p, n_p + self._fem.n_nodes)
             b = self._fem.nodes
             p2g_nodal(
-                st.nodes[rows], st.weights[rows], self._fem.node_material,
-                model.fem_mass[b], state.fem_v[b], self._fem.scripted_force(state, fem_force, dt),
-                mass, mom0, force,
-            )  # fmt: skip
+                st.nodes[rows],
+                st.weights[rows],
+                self._fem.node_material,
+                model.fem_mass[b],
+                state.fem_v[b],
+                self._fem.scripted_force(state, fem_force, dt),
+                mass,
+                mom0,
+                force,
+            )
         inv_mass = _inverse(mass)
         v0 = mom0 * inv_mass[..., None]
         t_next = state.t + dt
@@ -204,11 +219,20 @@ class LRStepper(ExplicitStepper):
         v0 = cons.apply(v0, dt)
         work = {"pts": pts, "inv_mass": inv_mass, "kinematic": self._fem.kinematic_fields(st, mass)}
         return GridStep(
-            state=state, t_next=t_next, dt=dt, grid_x=grid_x, mass=mass, velocity=v0,
-            force=force, fem_force=fem_force, constraints=cons, message="explicit step (lr)",
-            timings={"fem_forces": 0.0, "p2g": time.perf_counter() - t0}, work=work,
+            state=state,
+            t_next=t_next,
+            dt=dt,
+            grid_x=grid_x,
+            mass=mass,
+            velocity=v0,
+            force=force,
+            fem_force=fem_force,
+            constraints=cons,
+            message="explicit step (lr)",
+            timings={"fem_forces": 0.0, "p2g": time.perf_counter() - t0},
+            work=work,
             _grid=model.grid,
-        )  # fmt: skip
+        )
 
     def after_p2g(self, step: GridStep) -> None:
         """The pairs and their planes (docstring step 2), the first correction (step 3)."""
@@ -278,9 +302,14 @@ class LRStepper(ExplicitStepper):
             t1 = time.perf_counter()
             dv = work["dp1"] * inv_mass[..., None]
             v_star = xpic_grid_velocity(
-                self.xpic_order, self.options.xpic_variant, v, step.velocity, dv, apply_A,
+                self.xpic_order,
+                self.options.xpic_variant,
+                v,
+                step.velocity,
+                dv,
+                apply_A,
                 step.constraints.project,
-            )  # fmt: skip
+            )
             step.timings["xpic"] = time.perf_counter() - t1
             new_v = g2p_field(nodes, weights, self.material, v_star + dt * accel)
             new_x = state.mpm_x + dt * (sv + 0.5 * (new_v - state.mpm_v))
@@ -305,8 +334,10 @@ class LRStepper(ExplicitStepper):
                 log.warning(
                     "lr: %d LR fits hit the cap of %d iterations at step %d (the last iterate "
                     "is used; counted in StepReport.extra['lr_unconverged'] from now on)",
-                    unconverged, opts.lr_max_iterations, new_step,
-                )  # fmt: skip
+                    unconverged,
+                    opts.lr_max_iterations,
+                    new_step,
+                )
         self._store_contact(planes, work["dp_kick"] + absorbed, work["pts"], work["inv_mass"])
         step.extra.update(
             contact_nodes=float(np.unique(planes.node).size),
@@ -363,8 +394,10 @@ class LRStepper(ExplicitStepper):
                 "grid every step (measured on a landing box: friction lost; on impacting rings: "
                 "particles inside the FEM ring); corrections=1, transfer='pic' or "
                 "contact_force='c0' remove it (benchmarks.lr_variants)",
-                FIRST_CORRECTION_WINDOW, step, ratio,
-            )  # fmt: skip
+                FIRST_CORRECTION_WINDOW,
+                step,
+                ratio,
+            )
         return [f"LR_FIRST_CORRECTION: first/second correction impulse ratio {ratio:.3g}"]
 
     def _fem_velocities(self, step: GridStep, dp: np.ndarray, inv_mass: np.ndarray) -> np.ndarray:

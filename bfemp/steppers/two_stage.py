@@ -171,7 +171,7 @@ class TwoStageStepper(ExplicitStepper):
         penetration_bound_cells=0.0,
         penetration_note="none: the contact stage is the barrier's CCD-filtered solve; a step "
         "that would cross is a named failure (TUNNELED, INTERSECTION)",
-    )  # fmt: skip
+    )
 
     def _setup(self) -> None:
         """The strategy's own construction, after the engine's (module docstring)."""

@@ -89,12 +89,28 @@ def test_a_disabled_end_of_step_check_is_caught_as_a_silent_crossing(monkeypatch
     library's end-of-step check switched off converges through the bar; the fuzz case runner
     reports it as a silent crossing. With the check on, it is a named failure."""
     case = {
-        "cls": "thin_bar_2d", "seed": -1, "strategy": "barrier", "dim": 2, "mpm": False,
-        "target_fixed": False, "target_moving": 0.0, "dhat": 0.1, "speed": 16.0,
-        "angle": [0.0], "spin": 0.0, "gap": 0.0, "E": [1e6, 1e6], "nu": [0.3, 0.3],
-        "thickness": 0.088, "radius": 0.08, "offset": 0.05, "dt": 1.45,
-        "integrator": "backward_euler", "cfl": [0.5, 0.4], "gap_steps": 1.0,
-    }  # fmt: skip
+        "cls": "thin_bar_2d",
+        "seed": -1,
+        "strategy": "barrier",
+        "dim": 2,
+        "mpm": False,
+        "target_fixed": False,
+        "target_moving": 0.0,
+        "dhat": 0.1,
+        "speed": 16.0,
+        "angle": [0.0],
+        "spin": 0.0,
+        "gap": 0.0,
+        "E": [1e6, 1e6],
+        "nu": [0.3, 0.3],
+        "thickness": 0.088,
+        "radius": 0.08,
+        "offset": 0.05,
+        "dt": 1.45,
+        "integrator": "backward_euler",
+        "cfl": [0.5, 0.4],
+        "gap_steps": 1.0,
+    }
     kept = fuzz.run_case(case)
     assert kept["outcome"] == "failed" and kept["status"] == "TUNNELED"
     monkeypatch.setattr("bfemp.steppers.barrier.step_intersection", lambda *a, **k: None)

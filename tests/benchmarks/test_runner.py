@@ -60,10 +60,18 @@ def test_a_name_registered_twice_is_refused():
 
 
 def test_differences_skip_timings_and_find_everything_else():
-    old = {"wall_s": 1.0, "a": {"x": [1.0, 2.0], "dt_s": 0.1, "phase_s": {"solve": 3.0}},
-           "environment": {"commit": "abc"}, "nan": math.nan}  # fmt: skip
-    new = {"wall_s": 9.0, "a": {"x": [1.0, 2.0], "dt_s": 0.1, "phase_s": {"solve": 4.0}},
-           "environment": {"commit": "def"}, "nan": math.nan}  # fmt: skip
+    old = {
+        "wall_s": 1.0,
+        "a": {"x": [1.0, 2.0], "dt_s": 0.1, "phase_s": {"solve": 3.0}},
+        "environment": {"commit": "abc"},
+        "nan": math.nan,
+    }
+    new = {
+        "wall_s": 9.0,
+        "a": {"x": [1.0, 2.0], "dt_s": 0.1, "phase_s": {"solve": 4.0}},
+        "environment": {"commit": "def"},
+        "nan": math.nan,
+    }
     assert differences(old, new) == []
     new["a"]["x"][1] = 2.0000000000000004  # one ulp: not the same record
     new["a"]["dt_s"] = 0.2  # a physical time, not a timing

@@ -671,9 +671,15 @@ def test_a_sweep_shows_its_progress_point_by_point(monkeypatch, tmp_path, capsys
 
     monkeypatch.setattr(tradeoff, "execute_local", fake_local)
     summary = tradeoff.sweep(
-        "quick", tmp_path, scenes="slope", strategies=MINIMAL_STRATEGIES, knobs=MINIMAL_KNOBS,
-        workers=1, sweeps=MINIMAL, progress=True,
-    )  # fmt: skip
+        "quick",
+        tmp_path,
+        scenes="slope",
+        strategies=MINIMAL_STRATEGIES,
+        knobs=MINIMAL_KNOBS,
+        workers=1,
+        sweeps=MINIMAL,
+        progress=True,
+    )
     err = capsys.readouterr().err
     n = len(summary["points"])
     assert n >= 2 and "tradeoff points: 100%" in err and f"{n}/{n}" in err
@@ -693,10 +699,15 @@ def test_verify_compares_the_points_not_what_their_times_decide():
     from benchmarks.runner import differences
 
     point = {"id": "slope/barrier/base", "error": 0.1, "wall_s": 2.0, "pareto": True}
-    old = {"points": [point], "pareto": {"slope": ["slope/barrier/base"]}, "warmup_s": 3.0,
-           "winners": {"slope": [{"winner": "barrier", "cost_s": 2.0}]}, "crossovers": {},
-           "knob_effects": {"slope": {"barrier": {"dt": {"loglog_slope": -1.0}}}},
-           "best_knob": {"slope": {"barrier": "dt"}}}  # fmt: skip
+    old = {
+        "points": [point],
+        "pareto": {"slope": ["slope/barrier/base"]},
+        "warmup_s": 3.0,
+        "winners": {"slope": [{"winner": "barrier", "cost_s": 2.0}]},
+        "crossovers": {},
+        "knob_effects": {"slope": {"barrier": {"dt": {"loglog_slope": -1.0}}}},
+        "best_knob": {"slope": {"barrier": "dt"}},
+    }
     new = json.loads(json.dumps(old))
     new["points"][0].update(wall_s=1.0, pareto=False)
     new.update(pareto={"slope": []}, warmup_s=9.0, winners={"slope": []}, best_knob={})

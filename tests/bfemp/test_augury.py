@@ -578,8 +578,12 @@ def test_two_friction_coefficients_are_refused_one_is_taken():
     # issue 42: AuguryOptions(mu=0.8) beside set_contact(mu=0.3) ran with 0.8, silently
     def scene(mu):
         s = bfemp.Scene(dim=2)
-        s.add_fem(bfemp.shapes.rectangle((-0.5, -0.1), (1.0, 0.0), h=0.1), material=MAT,
-                  prescribed=bfemp.motion.Fixed(), name="plate")  # fmt: skip
+        s.add_fem(
+            bfemp.shapes.rectangle((-0.5, -0.1), (1.0, 0.0), h=0.1),
+            material=MAT,
+            prescribed=bfemp.motion.Fixed(),
+            name="plate",
+        )
         x, vol = bfemp.sample.box((0.0, 0.05), (0.2, 0.25), dx=0.05, ppc=4)
         s.add_mpm(x, vol, material=MAT, name="block")
         s.set_grid(dx=0.05)

@@ -154,9 +154,15 @@ def test_fused_p2g_equals_transfer_and_minus_elasticity_gradient(rng):
     term.solution_changed(x_n)
     reference = -term.gradient(x_n).reshape(-1, 2)  # grid forces at the start positions
     fields = particles_to_grid(
-        "apic", st.nodes, st.weights, st.active_x, state.mpm_x, model.mpm_mass, state.mpm_v,
+        "apic",
+        st.nodes,
+        st.weights,
+        st.active_x,
+        state.mpm_x,
+        model.mpm_mass,
+        state.mpm_v,
         state.mpm_C,
-    )  # fmt: skip
+    )
     piola = SOFT.law.first_piola(state.mpm_F, SOFT.mu, SOFT.lam)
     args = (st.nodes, st.weights, st.grads, st.active_x, state.mpm_x, model.mpm_mass)
     for chunks in (1, 7):
@@ -352,9 +358,19 @@ def test_explicit_g2p_equals_grid_to_particles(transfer, rng):
     mpm_v, mpm_F = rng.standard_normal((n, 2)), np.eye(2) + 0.1 * rng.standard_normal((n, 2, 2))
     dt = 1e-3
     ref = grid_to_particles(
-        transfer, st.nodes, st.weights, st.grads, st.active_x, st.active_x + dt * v_new, v_old,
-        v_new, None, x, mpm_v, mpm_F,
-    )  # fmt: skip
+        transfer,
+        st.nodes,
+        st.weights,
+        st.grads,
+        st.active_x,
+        st.active_x + dt * v_new,
+        v_old,
+        v_new,
+        None,
+        x,
+        mpm_v,
+        mpm_F,
+    )
     out = g2p_explicit(
         transfer, st.nodes, st.weights, st.grads, st.active_x, v_old, v_new, dt, x, mpm_v, mpm_F, 3
     )

@@ -93,8 +93,19 @@ def _transfer_operators(model, x):
     m = model.mpm_mass
     G = st.active_x.shape[0]
     zeros = np.zeros((x.shape[0], 2, 2))
-    mass_mm = p2g_materials(st.nodes, st.weights, st.grads, mat, m, np.zeros_like(x), zeros,
-                            zeros, model.mpm_volume, len(model.mpm_bodies), G)[0]  # fmt: skip
+    mass_mm = p2g_materials(
+        st.nodes,
+        st.weights,
+        st.grads,
+        mat,
+        m,
+        np.zeros_like(x),
+        zeros,
+        zeros,
+        model.mpm_volume,
+        len(model.mpm_bodies),
+        G,
+    )[0]
     inv_mm = np.where(mass_mm > 0, 1.0 / np.where(mass_mm > 0, mass_mm, 1.0), 0.0)
     inv_sm = 1.0 / mass_mm.sum(axis=0, keepdims=True)
 
@@ -190,8 +201,9 @@ def test_lr_is_registered_and_refuses_apic_no_mpm_and_bad_options():
     model = scene.build()
     for transfer, options in (("flip", {"xpic_order": 2}), ("pic", {})):
         with pytest.raises(ValueError, match="contact_force='c0' is a FLIP rule"):
-            LRStepper(model, dt=1e-3, transfer=transfer,
-                      options=LROptions(contact_force="c0", **options))  # fmt: skip
+            LRStepper(
+                model, dt=1e-3, transfer=transfer, options=LROptions(contact_force="c0", **options)
+            )
 
 
 # ---------------------------------------------------------------- FEM bodies as a material
@@ -336,8 +348,9 @@ def test_coulomb_friction_slows_the_slide_and_frictionless_keeps_it():
         upper = bfemp.sample.box((0.2, 0.1), (0.4, 0.2), dx=DX, ppc=4)
         scene.add_mpm(*lower, material=SOFT, name="lower")
         scene.add_mpm(*upper, material=SOFT, velocity=(0.5, 0.0), name="upper")
-        scene.add_boundary(bfemp.levelset.HalfPlane(point=(0.0, 0.0), normal=(0.0, 1.0)),
-                           kind="sticky")  # fmt: skip
+        scene.add_boundary(
+            bfemp.levelset.HalfPlane(point=(0.0, 0.0), normal=(0.0, 1.0)), kind="sticky"
+        )
         scene.set_grid(dx=DX)
         model = scene.build()
         stepper = LRStepper(model, dt=1e-3, options=LROptions(mu=mu))

@@ -28,8 +28,13 @@ def _drop(dim, shape, dx, *, plate="fixed", plate_material=STIFF, h=0.025, mu=0.
     else:
         mesh = bfemp.shapes.box((-0.3, -0.1, -0.3), (0.5, 0.0, 0.3), h=h)
     nodes = None if plate == "fixed" else np.flatnonzero(mesh.points[:, 1] < -0.1 + 1e-9)
-    scene.add_fem(mesh, material=plate_material, prescribed=bfemp.motion.Fixed(),
-                  prescribed_nodes=nodes, name="plate")  # fmt: skip
+    scene.add_fem(
+        mesh,
+        material=plate_material,
+        prescribed=bfemp.motion.Fixed(),
+        prescribed_nodes=nodes,
+        name="plate",
+    )
     if shape == "disk":
         x, vol = bfemp.sample.mesh(bfemp.shapes.disk((0.0, 0.15), 0.1, h=0.02), dx=dx, ppc=4)
     elif shape == "box":
@@ -89,8 +94,9 @@ def test_scripted_side_is_infinitely_heavy_in_the_contact_law():
     dp, hit = contact_momentum(m_b, m_a, m_b * v_b, m_a * v_a, -n, sep, rigid_a=yes, **kw)
     assert hit[0] and (v_a - dp / m_a)[0, 1] == pytest.approx(v_b[0, 1], abs=1e-15)
     # both rigid: nothing is exchanged
-    dp, hit = contact_momentum(m_a, m_b, m_a * v_a, m_b * v_b, n, sep, rigid_a=yes, rigid_b=yes,
-                               **kw)  # fmt: skip
+    dp, hit = contact_momentum(
+        m_a, m_b, m_a * v_a, m_b * v_b, n, sep, rigid_a=yes, rigid_b=yes, **kw
+    )
     assert not hit[0] and np.all(dp == 0.0)
     with pytest.raises(ValueError, match="rigid_b"):
         contact_momentum(m_a, m_b, m_a * v_a, m_b * v_b, n, sep, rigid_b=np.array([1]), **kw)
@@ -104,8 +110,9 @@ def test_a_scripted_piston_carries_the_block_at_its_speed():
     dx = 0.05
     scene = bfemp.Scene(dim=2, gravity=(0.0, -9.81))
     piston = bfemp.shapes.rectangle((-0.3, -0.1), (0.3, 0.0), h=0.025)
-    scene.add_fem(piston, material=SOFT, prescribed=bfemp.motion.Linear(velocity=(0.0, 0.5)),
-                  name="piston")  # fmt: skip
+    scene.add_fem(
+        piston, material=SOFT, prescribed=bfemp.motion.Linear(velocity=(0.0, 0.5)), name="piston"
+    )
     x, vol = bfemp.sample.box((-0.1, 0.006), (0.1, 0.106), dx=dx, ppc=4)
     scene.add_mpm(x, vol, material=SOFT, name="block")
     scene.set_grid(dx=dx)
@@ -129,8 +136,7 @@ def _two_particles(offset_cells):
     scene = bfemp.Scene(dim=2)
     vol = np.array([dx * dx / 4])
     scene.add_mpm(np.array([[0.5, 0.5]]), vol, material=SOFT, name="a")
-    scene.add_mpm(np.array([[0.5 + dx * (1.5 - offset_cells), 0.5]]), vol, material=SOFT,
-                  name="b")  # fmt: skip
+    scene.add_mpm(np.array([[0.5 + dx * (1.5 - offset_cells), 0.5]]), vol, material=SOFT, name="b")
     scene.set_grid(dx=dx)
     return scene
 

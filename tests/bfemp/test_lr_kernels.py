@@ -137,8 +137,9 @@ def radial_distance_brute_force(F, R0, n):
 
     grid = base + np.linspace(-1.5, 1.5, 301)
     a0 = grid[np.argmin([ratio(a) for a in grid])]
-    best = minimize_scalar(ratio, bounds=(a0 - 0.011, a0 + 0.011), method="bounded",
-                           options={"xatol": 1e-13})  # fmt: skip
+    best = minimize_scalar(
+        ratio, bounds=(a0 - 0.011, a0 + 0.011), method="bounded", options={"xatol": 1e-13}
+    )
 
     # cross-check: the boundary point in the direction n (a root of its cross product with n)
     def cross(t):
@@ -412,9 +413,14 @@ def test_point_clouds_from_stencils_against_a_direct_construction():
 def law(p_a, p_b, sep, m_a=2.0, m_b=3.0, n=(0.0, 1.0), **kw):
     one = np.ones(1)
     return lr.contact_momentum(
-        m_a * one, m_b * one, np.atleast_2d(p_a), np.atleast_2d(p_b),
-        np.atleast_2d(n), None if sep is None else sep * one, **kw,
-    )  # fmt: skip
+        m_a * one,
+        m_b * one,
+        np.atleast_2d(p_a),
+        np.atleast_2d(p_b),
+        np.atleast_2d(n),
+        None if sep is None else sep * one,
+        **kw,
+    )
 
 
 @pytest.mark.parametrize("name", ["frictionless", "coulomb"])
@@ -528,14 +534,33 @@ def test_bad_input_names_the_argument_or_node():
         lr.lr_planes(node[:1], ptr1, idx1, side, bad_x, F, R0, DX)
     one = np.ones(1)
     with pytest.raises(ValueError, match="frictionless"):
-        lr.contact_momentum(one, one, np.zeros((1, 2)), np.zeros((1, 2)), np.eye(2)[:1], one,
-                            mu=0.2, law="sticky")  # fmt: skip
+        lr.contact_momentum(
+            one, one, np.zeros((1, 2)), np.zeros((1, 2)), np.eye(2)[:1], one, mu=0.2, law="sticky"
+        )
     with pytest.raises(ValueError, match="velocity"):
-        lr.contact_momentum(one, one, np.zeros((1, 2)), np.zeros((1, 2)), np.eye(2)[:1], one,
-                            mu=0.2, law="coulomb", detector="grid")  # fmt: skip
+        lr.contact_momentum(
+            one,
+            one,
+            np.zeros((1, 2)),
+            np.zeros((1, 2)),
+            np.eye(2)[:1],
+            one,
+            mu=0.2,
+            law="coulomb",
+            detector="grid",
+        )
     with pytest.raises(ValueError, match="separation"):
-        lr.contact_momentum(one, one, np.zeros((1, 2)), np.zeros((1, 2)), np.eye(2)[:1], None,
-                            mu=0.2, law="coulomb", detector="lr")  # fmt: skip
+        lr.contact_momentum(
+            one,
+            one,
+            np.zeros((1, 2)),
+            np.zeros((1, 2)),
+            np.eye(2)[:1],
+            None,
+            mu=0.2,
+            law="coulomb",
+            detector="lr",
+        )
 
 
 def test_thin_cloud_normal_keeps_only_directions_the_cloud_spans():
@@ -561,6 +586,14 @@ def test_thin_cloud_normal_keeps_only_directions_the_cloud_spans():
     grid = np.array([[ix, iy] for ix in (-1.25e-3, 1.25e-3) for iy in ys])
     side2 = np.where(grid[:, 1] < 0.05, -1, 1).astype(np.int8)
     F2 = np.broadcast_to(np.eye(2), (12, 2, 2)).copy()
-    args2 = (np.array([[0.0, 0.05]]), np.array([0, 12]), np.arange(12), side2, grid, F2,
-             np.full((12, 2), 1.25e-3), dx)  # fmt: skip
+    args2 = (
+        np.array([[0.0, 0.05]]),
+        np.array([0, 12]),
+        np.arange(12),
+        side2,
+        grid,
+        F2,
+        np.full((12, 2), 1.25e-3),
+        dx,
+    )
     assert np.allclose(lr.lr_planes(*args2).normal, lr.lr_planes(*args2, thin=0.05).normal, atol=0)

@@ -112,10 +112,14 @@ def test_an_inelastic_contact_by_design_gets_no_energy_note():
 
     scene = bfemp.Scene(dim=2)
     mat = bfemp.NeoHookean(E=1e5, nu=0.3, density=1000.0)
-    scene.add_fem(bfemp.shapes.rectangle((0, 0), (0.2, 0.2), h=0.05), material=mat,
-                  velocity=(1.0, 0.0))  # fmt: skip
-    scene.add_fem(bfemp.shapes.rectangle((0.25, 0.05), (0.45, 0.25), h=0.05), material=mat,
-                  velocity=(-1.0, 0.0))  # fmt: skip
+    scene.add_fem(
+        bfemp.shapes.rectangle((0, 0), (0.2, 0.2), h=0.05), material=mat, velocity=(1.0, 0.0)
+    )
+    scene.add_fem(
+        bfemp.shapes.rectangle((0.25, 0.05), (0.45, 0.25), h=0.05),
+        material=mat,
+        velocity=(-1.0, 0.0),
+    )
     opts = AuguryOptions(iterations=0)
     sim = bfemp.Simulation(scene, strategy="augury", options=opts, dt="auto")
     sim.run(0.1, progress=False)

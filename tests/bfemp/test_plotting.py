@@ -155,9 +155,19 @@ def test_plot_bars_writes_a_png_and_rejects_mismatched_groups(tmp_path):
 def test_metrics_figure_is_readable_at_a_glance():
     """Every curve of a panel has its own colour, every axis a unit, legends beside the axes."""
     phases = [f"time_{p}" for p in "abcdefghijkl"]  # 12 timing curves, as a contact run has
-    rows = [{"t": 0.01 * i, "energy_kinetic": 1.0, "energy_elastic": 2.0, "energy_total": 3.0,
-             "momentum_x": 0.1 * i, "momentum_y": 0.0, "min_distance": 1e-3,
-             **{p: 1e-3 * (k + 1) for k, p in enumerate(phases)}} for i in range(20)]  # fmt: skip
+    rows = [
+        {
+            "t": 0.01 * i,
+            "energy_kinetic": 1.0,
+            "energy_elastic": 2.0,
+            "energy_total": 3.0,
+            "momentum_x": 0.1 * i,
+            "momentum_y": 0.0,
+            "min_distance": 1e-3,
+            **{p: 1e-3 * (k + 1) for k, p in enumerate(phases)},
+        }
+        for i in range(20)
+    ]
     fig = metrics_figure(MetricsLog(rows))
     fig.canvas.draw()
     renderer = fig.canvas.get_renderer()

@@ -284,17 +284,27 @@ def test_hessian_output_shapes_and_empty_batches():
 @pytest.mark.parametrize(
     ("call", "match"),
     [
-        (lambda: gd.point_edge_distance(np.zeros((2, 4)), np.zeros((2, 4)), np.zeros((2, 4))),
-         r"p must have shape \(n, 2 or 3\)"),
-        (lambda: gd.point_edge_distance(np.zeros((2, 2)), np.zeros((3, 2)), np.zeros((2, 2))),
-         r"e0 must have shape \(2, 2\)"),
-        (lambda: gd.point_triangle_distance(*(np.zeros((2, 2)),) * 4),
-         r"p must have shape \(n, 3\)"),
+        (
+            lambda: gd.point_edge_distance(np.zeros((2, 4)), np.zeros((2, 4)), np.zeros((2, 4))),
+            r"p must have shape \(n, 2 or 3\)",
+        ),
+        (
+            lambda: gd.point_edge_distance(np.zeros((2, 2)), np.zeros((3, 2)), np.zeros((2, 2))),
+            r"e0 must have shape \(2, 2\)",
+        ),
+        (
+            lambda: gd.point_triangle_distance(*(np.zeros((2, 2)),) * 4),
+            r"p must have shape \(n, 3\)",
+        ),
         (lambda: gd.edge_edge_type(*(np.zeros(3),) * 4), r"ea0 must have shape"),
-        (lambda: gd.point_point_distance(np.zeros((3, 2)), np.array([[0, 0], [np.nan, 0], [0, 0]])),
-         r"q has non-finite entries in rows \[1\]"),
+        (
+            lambda: gd.point_point_distance(
+                np.zeros((3, 2)), np.array([[0, 0], [np.nan, 0], [0, 0]])
+            ),
+            r"q has non-finite entries in rows \[1\]",
+        ),
     ],
-)  # fmt: skip
+)
 def test_bad_input_raises_naming_the_argument(call, match):
     with pytest.raises(ValueError, match=match):
         call()
