@@ -33,7 +33,7 @@ import math
 import numpy as np
 from numba import njit
 
-from bfemp._material_kernels import MaterialLaw, _det_inv_t, _h_invariants, _prepare
+from bfemp._material_kernels import MaterialLaw, _adj_t, _det_inv_t, _h_invariants, _prepare
 
 __all__ = ["BULK_SHEAR", "BulkShearLaw"]
 
@@ -101,14 +101,6 @@ def _bs_energy(F: np.ndarray, mu: np.ndarray, lam: np.ndarray, out: np.ndarray) 
         # 1/2 (J^2 - 1) - ln J = (J - 1)^2 / 2 + (J - 1) - ln J.
         bulk = 0.5 * jm1 * jm1 + _x_minus_log1p(jm1)
         out[s] = 0.5 * mu[s] * shear + 0.5 * K * bulk
-
-
-@njit(cache=True)
-def _adj_t(H: np.ndarray, i: int, j: int) -> float:
-    """adj(H)^T_ij = the cofactor of H at (i, j) (3 x 3 only)."""
-    i1, i2 = (i + 1) % 3, (i + 2) % 3
-    j1, j2 = (j + 1) % 3, (j + 2) % 3
-    return H[i1, j1] * H[i2, j2] - H[i1, j2] * H[i2, j1]
 
 
 @njit(cache=True)

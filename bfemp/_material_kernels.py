@@ -117,6 +117,14 @@ def _h_invariants(F: np.ndarray, s: int, H: np.ndarray) -> tuple[float, float, f
     return tr, tr + m2 + det_h, m2 + det_h
 
 
+@njit(cache=True)
+def _adj_t(H: np.ndarray, i: int, j: int) -> float:
+    """adj(H)^T_ij = the cofactor of H at (i, j) (3 x 3 only)."""
+    i1, i2 = (i + 1) % 3, (i + 2) % 3
+    j1, j2 = (j + 1) % 3, (j + 2) % 3
+    return H[i1, j1] * H[i2, j2] - H[i1, j2] * H[i2, j1]
+
+
 @njit(cache=True, parallel=True)
 def _nh_energy(F: np.ndarray, mu: np.ndarray, lam: np.ndarray, out: np.ndarray) -> None:
     d = F.shape[1]
@@ -187,12 +195,7 @@ def _nh_piola_range(F, mu, lam, out, start, stop, d):  # noqa: ANN001, ANN202
         # (- adj(H)^T in 3D) is formed from small quantities only.
         for i in range(d):
             for j in range(d):
-                adj_t = 0.0
-                if d == 3:
-                    # adj(H)^T_ij = cofactor of H at (i, j)
-                    i1, i2 = (i + 1) % 3, (i + 2) % 3
-                    j1, j2 = (j + 1) % 3, (j + 2) % 3
-                    adj_t = H[i1, j1] * H[i2, j2] - H[i1, j2] * H[i2, j1]
+                adj_t = _adj_t(H, i, j) if d == 3 else 0.0
                 eye = 1.0 if i == j else 0.0
                 cof = (1.0 + tr) * eye - H[j, i] + adj_t
                 diff = rest * eye + H[i, j] + H[j, i] + jm1 * H[i, j] - adj_t

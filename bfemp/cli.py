@@ -279,20 +279,14 @@ def _run(args: argparse.Namespace, argv: list[str]) -> int:
     except KeyboardInterrupt:
         from bfemp.checkpoint import CHECKPOINT_FILE
 
-        where = f"interrupted at t = {sim.state.t:.6g} s (step {sim.state.step})"
         if (out / CHECKPOINT_FILE).is_file():
-            print(
-                f"bfemp: {where}; checkpoint in {out}\n"
-                f"  continue with: bfemp run {scene_path} --out {out} --resume"
-                + _repeated_options(args),
-                file=sys.stderr,
-            )
+            how = f"checkpoint in {out}\n  continue with: bfemp run {scene_path} --out {out}"
+            how += " --resume" + _repeated_options(args)
         else:  # stopped before any checkpoint: --resume would be refused
-            print(
-                f"bfemp: {where}; no checkpoint was written to {out}\n"
-                f"  start again with: bfemp run {scene_path} --out {out} --overwrite",
-                file=sys.stderr,
-            )
+            how = f"no checkpoint was written to {out}\n  start again with: bfemp run {scene_path}"
+            how += f" --out {out} --overwrite"
+        where = f"interrupted at t = {sim.state.t:.6g} s (step {sim.state.step})"
+        print(f"bfemp: {where}; {how}", file=sys.stderr)
         return EXIT_INTERRUPTED
     print(f"run finished: t = {sim.state.t:.6g} s, step {sim.state.step}; output in {out}")
     for pvd in sorted(out.glob("*.pvd")):

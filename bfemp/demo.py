@@ -94,10 +94,7 @@ def run_cantilever_demo(
             "frames": str(out / "beam.pvd"),
             "metrics": str(out / "metrics.csv"),
             "plots": [
-                str(out / "demo.png"),
-                str(out / "tip.png"),
-                str(out / "metrics.png"),
-                str(out / "snapshots.png"),
+                str(out / name) for name in ("demo.png", "tip.png", "metrics.png", "snapshots.png")
             ],
             "scene": str(out / "scene.toml"),
         },
@@ -218,8 +215,7 @@ def _plot_rings(t: np.ndarray, metrics: MetricsLog, drift: np.ndarray, path: Pat
     ax_p.set_ylabel("|P(t) - P(0)| / sum |P_ring(0)|")
     ax_d.semilogy(t, metrics.column("min_distance"), ".", ms=3)
     ax_d.axhline(1e-2, color="0.5", ls=":", label="dhat")
-    ax_d.set_ylabel("closest particle-boundary distance [m]")
-    ax_d.set_xlabel("t [s]")
+    ax_d.set(xlabel="t [s]", ylabel="closest particle-boundary distance [m]")
     for ax in (ax_e, ax_p, ax_d):
         ax.grid(True, alpha=0.3)
     ax_e.legend(fontsize="small")

@@ -173,13 +173,12 @@ class Sequence(Motion):
         """Start positions, local time and motion of the segment active at ``tau``."""
         x = np.asarray(x0, dtype=np.float64)
         start = 0.0
-        for k, (duration, motion) in enumerate(self.segments):
-            last = k == len(self.segments) - 1
-            if last or tau <= start + duration:
+        for duration, motion in self.segments[:-1]:
+            if tau <= start + duration:
                 return x, tau - start, motion
             x = motion.positions(x, duration)
             start += duration
-        raise AssertionError("unreachable")
+        return x, tau - start, self.segments[-1][1]  # the last segment continues forever
 
     def positions(self, x0: np.ndarray, tau: float) -> np.ndarray:
         """Positions ``(n, d)`` at elapsed time ``tau``."""

@@ -83,11 +83,6 @@ ENERGY_LOSS_STEP_FRACTION = 0.25
 ENERGY_NOISE_REL = 1e-6
 
 
-def _extent(x: np.ndarray) -> np.ndarray:
-    """Axis-aligned extent ``(d,)`` in m of points ``x (n, d)``."""
-    return x.max(axis=0) - x.min(axis=0)
-
-
 def wave_periods(model: Model) -> list[tuple[str, float, float, float]]:
     """``(body description, T in s, L in m, c_p in m/s)`` of every deformable body.
 
@@ -100,14 +95,14 @@ def wave_periods(model: Model) -> list[tuple[str, float, float, float]]:
     for body in model.fem_bodies:
         if prescribed[body.nodes].all():
             continue
-        length = float(_extent(model.fem_X[body.nodes]).max())
+        length = float(np.ptp(model.fem_X[body.nodes], axis=0).max())
         c = float(body.material.p_wave_speed)
         if length > 0.0 and c > 0.0:
             out.append((f"fem body '{body.name}'", 2.0 * length / c, length, c))
     for body in model.mpm_bodies:
         sl = body.particles
         spacing = float(np.mean(model.mpm_volume[sl])) ** (1.0 / model.dim)
-        length = float(_extent(model.mpm_X[sl]).max()) + spacing
+        length = float(np.ptp(model.mpm_X[sl], axis=0).max()) + spacing
         c = float(body.material.p_wave_speed)
         if c > 0.0:
             out.append((f"mpm body '{body.name}'", 2.0 * length / c, length, c))
@@ -152,14 +147,13 @@ def discretisation_notes(model: Model, dt: float, integrator: object) -> list[st
                 f"{grid.dx * 2.0 / per_edge:.3g} m for 2 particles per edge) or fewer particles"
             )
         spacing = float(np.mean(vol)) ** (1.0 / d)
-        across = (float(_extent(x).min()) + spacing) / grid.dx
+        across = (float(np.ptp(x, axis=0).min()) + spacing) / grid.dx
         if across < MIN_GRID_CELLS_ACROSS_BODY:
             notes.append(
                 f"IMPLAUSIBLE_GRID: mpm body '{body.name}' is {across:.3g} grid cells across its "
                 f"thinnest side (below {MIN_GRID_CELLS_ACROSS_BODY:g}; dx = {grid.dx:g} m): no "
                 "more than one row of grid nodes lies inside it, so the grid cannot represent its "
-                "deformation; use a "
-                "grid dx smaller than the body"
+                "deformation; use a grid dx smaller than the body"
             )
     impacts = model.contact is not None
     periods = wave_periods(model) if impacts and not damps_by_design(integrator) else []
@@ -276,7 +270,6 @@ class EnergyLossCheck:
             f"ENERGY_LOSS: at t = {t:.6g} s {what} of the largest kinetic + elastic + contact "
             f"energy ({scale:.4g} J), although nothing external works on the scene and nothing "
             "in it dissipates by design (barrier contact, no friction, a mid-point integrator); "
-            "a time step "
-            "longer than the bodies' wave period loses impacts' energy: try a smaller dt (a "
-            "note, not a failure)"
+            "a time step longer than the bodies' wave period loses impacts' energy: try a "
+            "smaller dt (a note, not a failure)"
         )

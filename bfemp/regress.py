@@ -107,16 +107,9 @@ def _sample(sim: object, quantities: tuple[str, ...]) -> dict[str, np.ndarray]:
 def _quantities(ref: Reference, sim: object) -> tuple[str, ...]:
     """The quantities to store; state arrays the scene lacks are refused here, metrics columns
     after the run (some appear only with the first step's report)."""
-    model = sim.model
-    has = {
-        "fem_x": model.n_fem_nodes > 0,
-        "fem_v": model.n_fem_nodes > 0,
-        "mpm_x": model.n_particles > 0,
-        "mpm_v": model.n_particles > 0,
-        "mpm_F": model.n_particles > 0,
-    }
+    has = {q: _has_state(sim.model, q) for q in STATE_QUANTITIES}
     if ref.quantities is None:
-        contact = model.contact is not None
+        contact = sim.model.contact is not None
         return tuple(
             q
             for q in DEFAULT_QUANTITIES
@@ -128,11 +121,13 @@ def _quantities(ref: Reference, sim: object) -> tuple[str, ...]:
     return ref.quantities
 
 
+def _has_state(model: object, q: str) -> bool:
+    """Whether the scene has the bodies of state array ``q`` (FEM nodes or particles)."""
+    return (model.n_fem_nodes if q.startswith("fem") else model.n_particles) > 0
+
+
 def _unknown_quantity(ref: Reference, sim: object, q: str) -> None:
-    model = sim.model
-    state = [
-        n for n in STATE_QUANTITIES if (model.n_fem_nodes if n[0] == "f" else model.n_particles)
-    ]
+    state = [n for n in STATE_QUANTITIES if _has_state(sim.model, n)]
     raise SceneError(
         f"unknown quantity {q!r} for this scene; known: {', '.join(state + sim.metrics.columns)}",
         file=str(ref.scene_file),

@@ -163,24 +163,22 @@ def check_no_overlap(
             if i == j:
                 continue
             inside = np.flatnonzero(locate_points(meshes[j], fem_x[a.nodes]) >= 0)
+            problem = ""
             if inside.size:
+                problem = f"{inside.size} node(s) start inside fem body '{b.name}' (nodes "
+                problem += f"{format_indices(inside)})"
+            elif j > i or model.dim == 3:  # 3D: edges of a through faces of b, and back
+                crossing = _fem_pair_crossing(model, a, b, fem_x)
+                if crossing.size:
+                    problem = f"{crossing.size} boundary edge(s) cross the boundary of fem body "
+                    problem += f"'{b.name}'"
+            if problem:
                 raise SceneError(
-                    f"{inside.size} node(s) start inside fem body '{b.name}' (nodes "
-                    f"{format_indices(inside)})",
+                    problem,
                     body=f"fem body '{a.name}'",
                     field="mesh",
                     hint="bodies in contact must start apart: move one of them",
                 )
-            if j > i or model.dim == 3:  # 3D: edges of a through faces of b, and back
-                crossing = _fem_pair_crossing(model, a, b, fem_x)
-                if crossing.size:
-                    raise SceneError(
-                        f"{crossing.size} boundary edge(s) cross the boundary of fem body "
-                        f"'{b.name}'",
-                        body=f"fem body '{a.name}'",
-                        field="mesh",
-                        hint="bodies in contact must start apart: move one of them",
-                    )
 
 
 def check_clearance(

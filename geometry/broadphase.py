@@ -240,10 +240,6 @@ def _overlapping(
     return np.all((a_lo <= b_hi) & (b_lo <= a_hi), axis=-1)
 
 
-def _empty_pairs() -> np.ndarray:
-    return np.empty((0, 2), dtype=np.int64)
-
-
 def _sorted_unique(ia: np.ndarray, ib: np.ndarray, n_b: int) -> np.ndarray:
     # sort + mask: numpy 2's np.unique hashes first, 30x slower on these int64 keys
     keys = np.sort(ia.astype(np.int64) * n_b + ib)
@@ -256,7 +252,7 @@ def _pairs(
     a_lo: np.ndarray, a_hi: np.ndarray, b_lo: np.ndarray, b_hi: np.ndarray, method: str
 ) -> np.ndarray:
     if a_lo.shape[0] == 0 or b_lo.shape[0] == 0:
-        return _empty_pairs()
+        return np.empty((0, 2), dtype=np.int64)
     impl = {"hash": _hash_pairs, "fcl": _fcl_pairs, "brute": _brute_pairs}[method]
     return impl(a_lo, a_hi, b_lo, b_hi)
 
@@ -372,7 +368,7 @@ def _fcl_pairs(
     manager_b = _fcl_manager(b_c, b_h)
     manager_a.collide(manager_b, None, collect)
     if not found:
-        return _empty_pairs()
+        return np.empty((0, 2), dtype=np.int64)
     ga, gb = np.array(found, dtype=np.int64).T
     # expand each group pair to all member pairs (groups are singletons unless centres repeat)
     a_off, a_order = _members(a_group, a_c.shape[0])

@@ -20,16 +20,12 @@ direction and ``t`` the step length). Each function returns, per pair, a time of
   it (issue 44, defect 3).
 
 Method: additive CCD (ACCD, Li, Kaufman & Jiang 2021) on certified lower bounds of the distance,
-plus a separating-plane step, see :mod:`geometry._ccd_kernels`. ACCD steps by ``(1 - tolerance)
-* gap / l_p`` (``l_p`` bounds the relative speed) and stops once the gap has shrunk below
-``tolerance`` times the initial gap, so with the default ``tolerance = 0.1`` a head-on approach
-reports roughly 90 % of the true time. The plane step (this module's choice) advances as far as
-the separation along the closest-point direction or the feature normal certifies, so motion
-parallel to a segment, face or edge finishes in one step whatever the gap (issue 44, defect 4:
-1e6 steps, 43 ms and toi 9e-4 for a 1e-9 m slide before). For 2D point-edge pairs a line step
-(also this module's choice) advances to the first root of the certified quadratic "distance from
-the segment's line = min_distance + tolerance * g0", so an edge turning near a point finishes in
-one step too (issue 44: 1e6 steps, ~200 ms and toi 9e-4 for a 1e-9 m gap before). In 3D, motion
+plus a separating-plane step and, for 2D point-edge pairs, a line step (both this module's
+choices; the steps and the issue 44 figures are in :mod:`geometry._ccd_kernels`). ACCD steps by
+``(1 - tolerance) * gap / l_p`` (``l_p`` bounds the relative speed) and stops once the gap has
+shrunk below ``tolerance`` times the initial gap, so with the default ``tolerance = 0.1`` a
+head-on approach reports roughly 90 % of the true time. Motion parallel to a segment, face or
+edge, and in 2D an edge turning near a point, finish in one step whatever the gap. In 3D, motion
 with a turning separating direction (a triangle or edge tilting close to a point or edge) still
 takes about ``l_p / gap`` steps; ``max_iterations`` caps them and returns the current, still
 safe, time (with a logged warning).

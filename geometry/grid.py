@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import itertools
 import logging
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -203,9 +204,7 @@ def particle_stencils(
     # the order of the linear index is the lexicographic order of ijk.
     lo = base.min(axis=0)
     extent = base.max(axis=0) - lo + 3
-    box_size = 1
-    for e in extent.tolist():
-        box_size *= int(e)
+    box_size = math.prod(extent.tolist())
     if box_size >= 2**62:
         raise ValueError("particles are spread over more than 2^62 grid nodes: dx too small?")
     stride = np.ones(dim, dtype=np.int64)
@@ -219,11 +218,7 @@ def particle_stencils(
             centre = lin[:, (n_stencil - 1) // 2]
             lin = np.where(zero, centre[:, None], lin)
     unique, nodes = _compact(lin, box_size)
-    active_ijk = np.empty((unique.size, dim), dtype=np.int64)
-    rest = unique
-    for a in range(dim):
-        active_ijk[:, a] = rest // stride[a] + lo[a]
-        rest = rest % stride[a]
+    active_ijk = np.stack(np.unravel_index(unique, extent), axis=1) + lo
     return ParticleStencils(
         nodes=np.ascontiguousarray(nodes),
         weights=weights,

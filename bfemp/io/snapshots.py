@@ -253,13 +253,9 @@ def _draw(ax: object, snap: Snapshot, norm: Normalize, limits: np.ndarray) -> No
             zorder=2,
             **kw,
         )
-    ax.set_xlim(*limits[0])
-    ax.set_ylim(*limits[1])
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
+    ax.set(xlim=limits[0], ylim=limits[1], xlabel="x [m]", ylabel="y [m]")
     if dim == 3:
-        ax.set_zlim(*limits[2])
-        ax.set_zlabel("z [m]")
+        ax.set(zlim=limits[2], zlabel="z [m]")
         ax.set_box_aspect(tuple(np.maximum(limits[:, 1] - limits[:, 0], 1e-12)))
     else:
         ax.set_aspect("equal")

@@ -194,16 +194,8 @@ def loads(text: str, *, file: str | None = None, base_dir: str | Path | None = N
         raise SceneError(f"not valid TOML: {err}", file=file) from None
     base = None if base_dir is None else Path(base_dir)
     parsed = parse_document(data, file=file, base_dir=base)
-    check = validate_checks(parsed["check"], file=file, dim=parsed["scene"].dim)
-    return SceneFile(
-        scene=parsed["scene"],
-        simulation=parsed["simulation"],
-        run=parsed["run"],
-        quick=parsed["quick"],
-        check=check,
-        file=file,
-        text=text,
-    )
+    parsed["check"] = validate_checks(parsed["check"], file=file, dim=parsed["scene"].dim)
+    return SceneFile(**parsed, file=file, text=text)  # parsed: the fields of the scene file
 
 
 def load(path: str | os.PathLike) -> SceneFile:

@@ -43,7 +43,6 @@ TOP_LEVEL = (
     "check",
     "regress",  # a regression reference's settings, read by bfemp.regress
 )
-INTEGRATORS = INTEGRATOR_NAMES
 TRANSFERS = ("apic", "pic", "flip")
 _INIT_HINTS = {
     "inverted": "cells must be counter-clockwise (2D) / right-handed (3D); flip the last two "
@@ -205,7 +204,7 @@ def _simulation(root: Table) -> dict:
     hint = "dt is the time step in s, or 'auto' (an explicit strategy's stable step)"
     readers = {  # key -> its reader (each key optional)
         "strategy": lambda k: t.string(k, choices=STRATEGIES),
-        "integrator": lambda k: t.string(k, choices=INTEGRATORS),
+        "integrator": lambda k: t.string(k, choices=INTEGRATOR_NAMES),
         "transfer": lambda k: t.string(k, choices=TRANSFERS),
         "dt": lambda k: (
             "auto" if t.raw(k) == "auto" else t.number(k, "time", positive=True, hint=hint)
@@ -308,9 +307,8 @@ def parse_document(data: dict, *, file: str | None, base_dir: Path | None) -> di
             pt = Table(spec, file=file, path=f"contact.pairs[{k}]")
             pt.check_keys({"bodies", "mu"}, required={"bodies", "mu"})
             bodies = pt.raw("bodies")
-            if not (isinstance(bodies, list) and len(bodies) == 2):
-                raise pt.error(f"must be a list of two body names, got {bodies!r}", "bodies")
-            if not all(isinstance(b, str) for b in bodies):
+            pair = isinstance(bodies, list) and len(bodies) == 2
+            if not (pair and all(isinstance(b, str) for b in bodies)):
                 raise pt.error(f"must be a list of two body names, got {bodies!r}", "bodies")
             try:
                 scene.set_friction(bodies[0], bodies[1], pt.number("mu", minimum=0.0))

@@ -25,6 +25,10 @@ _BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")
 _WRAP = 96  # inline arrays longer than this many characters are written one item per line
 _ESCAPES = {'"': '\\"', "\\": "\\\\", "\b": "\\b", "\t": "\\t", "\n": "\\n", "\f": "\\f"}
 _ESCAPES["\r"] = "\\r"
+#: ``str.translate`` table of basic strings: the escapes above, ``\\uXXXX`` for other controls
+_TRANSLATE = {c: f"\\u{c:04x}" for c in (*range(0x20), 0x7F)} | {
+    ord(k): v for k, v in _ESCAPES.items()
+}
 
 
 def _key(key: object) -> str:
@@ -34,15 +38,7 @@ def _key(key: object) -> str:
 
 
 def _string(text: str) -> str:
-    out = []
-    for ch in text:
-        if ch in _ESCAPES:
-            out.append(_ESCAPES[ch])
-        elif ord(ch) < 0x20 or ord(ch) == 0x7F:
-            out.append(f"\\u{ord(ch):04x}")
-        else:
-            out.append(ch)
-    return '"' + "".join(out) + '"'
+    return '"' + text.translate(_TRANSLATE) + '"'
 
 
 def _float(value: float) -> str:
