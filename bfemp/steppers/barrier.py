@@ -127,13 +127,8 @@ class BarrierStepper:
         self._contact: ContactView | None = None  # contact() of the last step, once asked
         self._setup_parts: dict[str, float] = {}  # seconds of the last _begin, by part
         self._solver = ScriptedSolve(
-            model,
-            self.potential,
-            self.barrier,
-            self.friction,
-            self.newton,
+            self,
             options.make_linear_solver(model.dim),
-            self.dt,
             take_last_increment=options.velocity_update == "positions",
             back_solve_stop=options.friction_back_solve,
         )

@@ -209,13 +209,8 @@ class TwoStageStepper(ExplicitStepper):
             near_solution_factor=0.0,
         )
         self._solver = ScriptedSolve(
-            model,
-            self.potential,
-            self.barrier,
-            self.friction,
-            self.newton,
+            self,
             make_linear_solver(opts.linear_solver, block_size=model.dim),
-            self.dt,
             take_last_increment=True,
             friction_loop=opts.friction == "loop",
         )
