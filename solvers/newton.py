@@ -284,7 +284,7 @@ class _Run:
         p_chord = _chord_increment(self.solver, g_free, self.timings)
         if p_chord is None:
             return None
-        p_inf = _increment_norm(self.objective, p_chord, self.free, self.n)
+        p_inf = _increment_norm(self, p_chord)
         if p_inf / o.step_scale < o.chord_stop_factor * o.tol:
             res.step_inf_norm = p_inf
             raise _Finish(
@@ -311,17 +311,7 @@ class _Run:
         self, x: np.ndarray, exact: bool, g_free: np.ndarray, rtol: float | None = None
     ) -> np.ndarray:
         try:
-            return _newton_direction(
-                self.objective,
-                x,
-                exact,
-                self.solver,
-                self.assembler,
-                g_free,
-                self.timings,
-                self.res,
-                rtol,
-            )
+            return _newton_direction(self, x, exact, g_free, rtol)
         except _NonFiniteHessian:
             raise _Finish(
                 NewtonStatus.NON_FINITE, f"non-finite Hessian at iteration {self.res.nit}"
@@ -365,13 +355,13 @@ class _Run:
             raise _Finish(
                 NewtonStatus.LINEAR_SOLVE_FAILED, f"non-finite Newton step at iteration {res.nit}"
             )
-        p_inf = _increment_norm(self.objective, p_free, self.free, self.n)
+        p_inf = _increment_norm(self, p_free)
         if rtol is not None and p_inf / o.step_scale < o.tol:
             # The increment that decides convergence is solved to the solver's own tolerance,
             # so that an inexact solve never stops Newton early.
             exact = (exact and not self.exact_failed) or not o.project_psd
             p_free = self._direction_or_finish(x, exact, g_free)
-            p_inf = _increment_norm(self.objective, p_free, self.free, self.n)
+            p_inf = _increment_norm(self, p_free)
         res.step_inf_norm = p_inf
         if p_inf / o.step_scale < o.tol:
             raise _Finish(
