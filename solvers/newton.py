@@ -308,21 +308,23 @@ class _Run:
         return p_chord, p_inf
 
     def _direction(
-        self, x: np.ndarray, exact: bool, g_free: np.ndarray, rtol: float | None = None
+        self,
+        x: np.ndarray,
+        exact: bool,
+        g_free: np.ndarray,
+        rtol: float | None,
+        finish: bool = True,
     ) -> np.ndarray:
+        """``_newton_direction``; a failed solve ends the run too unless ``finish`` is False."""
         try:
             return _newton_direction(self, x, exact, g_free, rtol)
         except _NonFiniteHessian:
             raise _Finish(
                 NewtonStatus.NON_FINITE, f"non-finite Hessian at iteration {self.res.nit}"
             ) from None
-
-    def _direction_or_finish(
-        self, x: np.ndarray, exact: bool, g_free: np.ndarray, rtol: float | None = None
-    ) -> np.ndarray:
-        try:
-            return self._direction(x, exact, g_free, rtol)
         except LinearSolveError as err:
+            if not finish:
+                raise
             raise _Finish(
                 NewtonStatus.LINEAR_SOLVE_FAILED, f"{err} (iteration {self.res.nit})"
             ) from err
@@ -338,19 +340,15 @@ class _Run:
             self.eta = forcing_term(g_norm, self.g_norm_prev, self.eta, o.linear_rtol_max)
             self.g_norm_prev, rtol = g_norm, self.eta
         exact = self.try_exact and not self.exact_failed
-        try:
-            p_free = self._direction(x, exact or not o.project_psd, g_free, rtol)
+        try:  # a projected Hessian's failed solve ends the run (``_direction``)
+            p_free = self._direction(x, exact or not o.project_psd, g_free, rtol, not exact)
             if exact and not float(g_free @ p_free) < 0.0:
                 raise LinearSolveError("exact Hessian gives no descent direction")
         except LinearSolveError as err:
-            if not exact:
-                raise _Finish(
-                    NewtonStatus.LINEAR_SOLVE_FAILED, f"{err} (iteration {res.nit})"
-                ) from err
             # The exact Hessian is indefinite here: projected Newton for the rest of the solve.
             logger.debug("newton it %d: exact Hessian rejected (%s), projecting", res.nit, err)
             self.exact_failed = True
-            p_free = self._direction_or_finish(x, False, g_free, rtol)
+            p_free = self._direction(x, False, g_free, rtol)
         if not np.all(np.isfinite(p_free)):
             raise _Finish(
                 NewtonStatus.LINEAR_SOLVE_FAILED, f"non-finite Newton step at iteration {res.nit}"
@@ -360,7 +358,7 @@ class _Run:
             # The increment that decides convergence is solved to the solver's own tolerance,
             # so that an inexact solve never stops Newton early.
             exact = (exact and not self.exact_failed) or not o.project_psd
-            p_free = self._direction_or_finish(x, exact, g_free)
+            p_free = self._direction(x, exact, g_free, None)
             p_inf = _increment_norm(self, p_free)
         res.step_inf_norm = p_inf
         if p_inf / o.step_scale < o.tol:
