@@ -97,7 +97,7 @@ from bfemp.steppers._augury_options import (
     friction_coefficient,
 )
 from bfemp.steppers.base import ContactView
-from bfemp.steppers.capabilities import Capabilities
+from bfemp.steppers.capabilities import BARRIER_PAIRS, Capabilities
 from bfemp.steppers.explicit import ExplicitStepper, GridStep, Motion
 
 __all__ = ["AuguryOptions", "AuguryStepper"]
@@ -111,14 +111,10 @@ class AuguryStepper(ExplicitStepper):
     name: ClassVar[str] = "augury"
     Options: ClassVar[type[AuguryOptions]] = AuguryOptions
     #: FEM boundary nodes and particles meet on the contact grid (AUG; particles: bfemp's
-    #: extension, section 1.4); MPM bodies also share the engine's MPM grid velocity field
+    #: extension, section 1.4); MPM bodies also share the engine's MPM grid velocity field:
+    #: the barrier's couplings, kind by kind
     capabilities: ClassVar[Capabilities] = Capabilities(
-        pairs={
-            "mpm-mpm": "grid",
-            "mpm-fem": "contact",
-            "mpm-prescribed": "contact",
-            "fem-fem": "contact",
-        },
+        pairs=BARRIER_PAIRS,
         friction=True,
         needs_contact_settings=False,
         penetration_bound_cells=AUGURY_PENETRATION_CELLS,
