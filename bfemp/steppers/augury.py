@@ -262,7 +262,7 @@ class AuguryStepper(ExplicitStepper):
             a_hat, B_new, shared_count, h_applications, kinematic_impulse = self._correction(
                 step, points, stats
             )
-            self._correct_motion(step, motion, a_hat, B_new, n_fem, n_mpm)
+            self._correct_motion(step, motion, a_hat, B_new)
             if kinematic_impulse is not None:
                 step.notes.append(
                     f"SCRIPTED_FOREGROUND: {self._n_kinematic} scripted nodes in H delivered an "
@@ -375,17 +375,12 @@ class AuguryStepper(ExplicitStepper):
         return a_hat, B_bar + dt * Bdot, int(shared.sum()), h_applications, kinematic_impulse
 
     def _correct_motion(
-        self,
-        step: GridStep,
-        motion: Motion,
-        a_hat: np.ndarray,
-        B_new: np.ndarray,
-        n_fem: int,
-        n_mpm: int,
+        self, step: GridStep, motion: Motion, a_hat: np.ndarray, B_new: np.ndarray
     ) -> None:
         """v^{n+1} = v^free + dt a^, x^{n+1} = x^free + dt^2 a^, B^{n+1} (module docstring step
-        3) on the end values, before the engine commits them."""
-        dt, state = self.dt, step.state
+        3) on the end values of the foreground (``a_hat``'s rows: FEM nodes, then particles),
+        before the engine commits them."""
+        dt, state, n_fem = self.dt, step.state, self.fem_foreground.size
         if n_fem:
             fg, mov = self.fem_foreground, self._fem_movable
             idx = fg[mov]
@@ -394,7 +389,7 @@ class AuguryStepper(ExplicitStepper):
             B_fem = motion.carried["aug_B"].copy()
             B_fem[fg] = B_new[:n_fem]
             motion.carried["aug_B"] = B_fem
-        if n_mpm:
+        if a_hat.shape[0] > n_fem:  # the particles are foreground
             motion.mpm_v = motion.mpm_v + dt * a_hat[n_fem:]
             motion.mpm_x = motion.mpm_x + dt * dt * a_hat[n_fem:]
             motion.carried["aug_Bp"] = B_new[n_fem:]
