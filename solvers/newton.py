@@ -86,48 +86,6 @@ def _free_mask(objective: Objective, n: int) -> np.ndarray | None:
 _ROUND_OFF_ULPS = 1e4
 
 
-def _accept_near_solution(
-    objective: Objective,
-    x: np.ndarray,
-    p: np.ndarray,
-    alpha0: float,
-    energy: float,
-    slope: float,
-    near: bool,
-    g_free: np.ndarray,
-    free: np.ndarray | None,
-    res: NewtonResult,
-    g_best: float = math.inf,
-) -> LineSearchResult | None:
-    """Accept ``x + alpha0 p`` on a falling gradient norm where the energy cannot judge the step.
-
-    Close to a minimiser a Newton step predicts an energy decrease ~ |g.p| that can be smaller
-    than the round-off of E (the terms of E are evaluated with errors ~ eps times their own
-    scale, e.g. eps mu V for elasticity, much larger than eps |E|). Armijo then rejects good steps
-    or accepts tiny noisy ones and the iteration stalls. In that regime - the increment within
-    ``NewtonOptions.near_solution_factor`` of the tolerance (``near``), or |g.p| below
-    ``_ROUND_OFF_ULPS`` eps |E| - the full step is taken when the gradient norm falls below
-    both its value at x and ``g_best``, the least norm of the iterates so far; otherwise None
-    (use Armijo). Without ``g_best`` two iterates can take turns (design note ``measurements``,
-    newton).
-    """
-    round_off = abs(slope) * alpha0 <= _ROUND_OFF_ULPS * np.finfo(float).eps * abs(energy)
-    if not (near or round_off):
-        return None
-    trial = x + alpha0 * p
-    objective.solution_changed(trial)
-    fun = float(objective.value(trial))
-    grad = np.asarray(objective.gradient(trial), dtype=np.float64)
-    res.njev += 1
-    g_trial = grad if free is None else grad[free]
-    if not (math.isfinite(fun) and np.all(np.isfinite(g_trial))):
-        return None
-    if np.linalg.norm(g_trial) >= min(float(np.linalg.norm(g_free)), g_best):
-        return None
-    logger.debug("newton: near the solution, full step accepted on the gradient norm")
-    return LineSearchResult(success=True, alpha=alpha0, x=trial, fun=fun, nfev=1, n_nonfinite=0)
-
-
 def minimize(
     objective: Objective,
     x0: np.ndarray,
@@ -257,6 +215,45 @@ class _Run:
         self.chord_ready = False  # the last factorisation is this solve's, its step was full
         self.factor_stepped = False  # the last factorisation has already made a chord step
         self.last_p_inf = math.inf  # the increment of the last accepted step
+
+    def near_solution_step(
+        self,
+        x: np.ndarray,
+        p: np.ndarray,
+        alpha0: float,
+        energy: float,
+        slope: float,
+        near: bool,
+        g_free: np.ndarray,
+        g_best: float = math.inf,
+    ) -> LineSearchResult | None:
+        """Accept ``x + alpha0 p`` on a falling gradient norm where the energy cannot judge it.
+
+        Close to a minimiser a Newton step predicts an energy decrease ~ |g.p| that can be
+        smaller than the round-off of E (the terms of E are evaluated with errors ~ eps times
+        their own scale, e.g. eps mu V for elasticity, much larger than eps |E|). Armijo then
+        rejects good steps or accepts tiny noisy ones and the iteration stalls. In that regime -
+        the increment within ``NewtonOptions.near_solution_factor`` of the tolerance (``near``),
+        or |g.p| below ``_ROUND_OFF_ULPS`` eps |E| - the full step is taken when the gradient
+        norm falls below both its value at x and ``g_best``, the least norm of the iterates so
+        far; otherwise None (use Armijo). Without ``g_best`` two iterates can take turns (design
+        note ``measurements``, newton).
+        """
+        round_off = abs(slope) * alpha0 <= _ROUND_OFF_ULPS * np.finfo(float).eps * abs(energy)
+        if not (near or round_off):
+            return None
+        trial = x + alpha0 * p
+        self.objective.solution_changed(trial)
+        fun = float(self.objective.value(trial))
+        grad = np.asarray(self.objective.gradient(trial), dtype=np.float64)
+        self.res.njev += 1
+        g_trial = grad if self.free is None else grad[self.free]
+        if not (math.isfinite(fun) and np.all(np.isfinite(g_trial))):
+            return None
+        if np.linalg.norm(g_trial) >= min(float(np.linalg.norm(g_free)), g_best):
+            return None
+        logger.debug("newton: near the solution, full step accepted on the gradient norm")
+        return LineSearchResult(success=True, alpha=alpha0, x=trial, fun=fun, nfev=1, n_nonfinite=0)
 
     def gradient(self, x: np.ndarray) -> np.ndarray:
         """The gradient on the free DOFs at x (checked finite)."""
@@ -401,9 +398,7 @@ class _Run:
         alpha0 = min(1.0, bound)
         with _timed(self.timings, "line_search"):
             near = p_inf <= o.near_solution_factor * o.tol * o.step_scale
-            search = _accept_near_solution(
-                objective, x, p, alpha0, energy, slope, near, g_free, free, res, self.g_best
-            )
+            search = self.near_solution_step(x, p, alpha0, energy, slope, near, g_free, self.g_best)
             if search is None:
                 search = backtracking_line_search(
                     objective,
@@ -420,9 +415,7 @@ class _Run:
         if not search.success:
             # Armijo found no decrease: where the energy is at round-off (stiff materials, tight
             # tolerances) the full step may still be good; judge it by the gradient norm.
-            rescue = _accept_near_solution(
-                objective, x, p, alpha0, energy, slope, True, g_free, free, res
-            )
+            rescue = self.near_solution_step(x, p, alpha0, energy, slope, True, g_free)
             if rescue is not None:
                 search = rescue
         if not search.success:
