@@ -136,7 +136,6 @@ class AuguryStepper(ExplicitStepper):
         self.apic = opts.contact_transfer == "apic"
         self._tau_predict = self.tau + (0.5 * self.dt if opts.predictor == "paper" else 0.0)
         self._setup_foreground()
-        self._last_contact = None
         self._steps = 0
         #: steps whose foreground shared a contact node between bodies
         self.steps_with_contact = 0
