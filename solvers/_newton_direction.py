@@ -13,15 +13,14 @@ import math
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
 
 from solvers._linear_base import LinearSolveError
-from solvers.assembly import TripletAssembler, Triplets
+from solvers.assembly import Triplets
 from solvers.linear import ROUNDING_SHIFT_ULPS, LinearSolver, rounding_shift, shift_diagonal
-from solvers.objective import Objective
-from solvers.result import NewtonResult
 
 __all__ = ["forcing_term"]
 
@@ -35,59 +34,6 @@ def _timed(timings: dict[str, float], key: str) -> Iterator[None]:
         yield
     finally:
         timings[key] += time.perf_counter() - start
-
-
-def _solve(
-    solver: LinearSolver,
-    assembler: TripletAssembler,
-    triplets: Triplets,
-    rhs: np.ndarray,
-    timings: dict[str, float],
-    rtol: float | None = None,
-    res: NewtonResult | None = None,
-) -> np.ndarray:
-    """Assemble and solve ``H p = rhs`` on the free DOFs.
-
-    ``res`` given: H is PSD-projected, positive definite by construction (BFEMP sec. 5), and a
-    failed factorisation is retried once with the rounding-level diagonal shift of
-    :func:`solvers.linear.rounding_shift` (its floating-point sum can be indefinite by the
-    rounding of a barrier block near ``d = 0``); a success counts in ``res.shifted_solves``, a
-    second failure raises :class:`LinearSolveError` with both messages. ``res`` None: no retry
-    (the exact Hessian may be indefinite for real).
-    """
-    with _timed(timings, "assemble"):
-        matrix = assembler.assemble(triplets)
-    timings["assemble"] -= assembler.last_pattern_s  # reported apart
-    timings["pattern"] += assembler.last_pattern_s
-    if rhs.size == 0:
-        return np.zeros(0)
-    kwargs = {"rtol": rtol} if rtol is not None else {}
-    try:
-        return _timed_solve(solver, matrix, rhs, assembler.pattern_version, timings, kwargs)
-    except LinearSolveError as err:
-        if res is None:
-            raise
-        with _timed(timings, "assemble"):
-            shift = rounding_shift(matrix)
-            shifted, same = shift_diagonal(matrix, shift)
-        version = assembler.pattern_version if same else None
-        try:
-            p = _timed_solve(solver, shifted, rhs, version, timings, kwargs)
-        except LinearSolveError as err2:
-            raise LinearSolveError(
-                f"{err}; again with the rounding shift ({ROUNDING_SHIFT_ULPS:g} eps x the row's "
-                f"absolute sum on the diagonal, at most {shift.max():.3e}): {err2}"
-            ) from err2
-        res.shifted_solves += 1
-        res.max_shift = max(res.max_shift, float(shift.max()))
-        logger.info(
-            "newton: the projected Hessian's factorisation failed (%s); solved with the "
-            "rounding-level diagonal shift (at most %.3e, %g eps x the row's absolute sum)",
-            err,
-            shift.max(),
-            ROUNDING_SHIFT_ULPS,
-        )
-        return p
 
 
 def _timed_solve(
@@ -188,42 +134,76 @@ def _chord_step_predicted_to_converge(p_chord: float, p_last: float, chord_tol: 
     )
 
 
-def _increment_norm(
-    objective: Objective, p_free: np.ndarray, free: np.ndarray | None, n: int
-) -> float:
-    """The stopping rule's size of the increment: ``objective.increment_norm`` or ||p||_inf."""
-    norm = getattr(objective, "increment_norm", None)
+def _increment_norm(run: Any, p_free: np.ndarray) -> float:
+    """The stopping rule's size of the increment on the free DOFs of ``run`` (the
+    ``solvers.newton._Run`` of the call): ``objective.increment_norm`` or ||p||_inf."""
+    norm = getattr(run.objective, "increment_norm", None)
     if norm is None:
         return float(np.abs(p_free).max()) if p_free.size else 0.0
-    if free is None:
+    if run.free is None:
         return float(norm(p_free))
-    p = np.zeros(n)
-    p[free] = p_free
+    p = np.zeros(run.n)
+    p[run.free] = p_free
     return float(norm(p))
 
 
 def _newton_direction(
-    objective: Objective,
-    x: np.ndarray,
-    exact: bool,
-    solver: LinearSolver,
-    assembler: TripletAssembler,
-    g_free: np.ndarray,
-    timings: dict[str, float],
-    res: NewtonResult,
-    rtol: float | None = None,
+    run: Any, x: np.ndarray, exact: bool, g_free: np.ndarray, rtol: float | None = None
 ) -> np.ndarray:
-    """Solve ``H p = -g`` on the free DOFs with the exact (or per-stencil projected) Hessian;
-    ``rtol``: the relative residual an inexact solver may stop at (None: its own). A projected
-    Hessian that fails to factorise is retried with the rounding shift (:func:`_solve`)."""
+    """Assemble and solve ``H p = -g`` on the free DOFs with the exact (or per-stencil
+    projected) Hessian, with the objective, linear solver, assembler, timings and result of
+    ``run`` (the ``solvers.newton._Run`` of the call); ``rtol``: the relative residual an
+    inexact solver may stop at (None: its own).
+
+    The projected H is positive definite by construction (BFEMP sec. 5), and a failed
+    factorisation is retried once with the rounding-level diagonal shift of
+    :func:`solvers.linear.rounding_shift` (its floating-point sum can be indefinite by the
+    rounding of a barrier block near ``d = 0``); a success counts in ``res.shifted_solves``, a
+    second failure raises :class:`LinearSolveError` with both messages. The exact Hessian gets
+    no retry (it may be indefinite for real).
+    """
+    solver, assembler, timings, res = run.solver, run.assembler, run.timings, run.res
     with _timed(timings, "hessian"):
-        triplets = objective.hessian(x, psd=not exact)
+        triplets = run.objective.hessian(x, psd=not exact)
     res.nhev += 1
     if not isinstance(triplets, Triplets):
         raise ValueError(f"objective.hessian must return Triplets, got {type(triplets)}")
     if not np.all(np.isfinite(triplets.vals)):
         raise _NonFiniteHessian
+    rhs = -g_free
     try:
-        return _solve(solver, assembler, triplets, -g_free, timings, rtol, None if exact else res)
+        with _timed(timings, "assemble"):
+            matrix = assembler.assemble(triplets)
+        timings["assemble"] -= assembler.last_pattern_s  # reported apart
+        timings["pattern"] += assembler.last_pattern_s
+        if rhs.size == 0:
+            return np.zeros(0)
+        kwargs = {"rtol": rtol} if rtol is not None else {}
+        try:
+            return _timed_solve(solver, matrix, rhs, assembler.pattern_version, timings, kwargs)
+        except LinearSolveError as err:
+            if exact:
+                raise
+            with _timed(timings, "assemble"):
+                shift = rounding_shift(matrix)
+                shifted, same = shift_diagonal(matrix, shift)
+            version = assembler.pattern_version if same else None
+            try:
+                p = _timed_solve(solver, shifted, rhs, version, timings, kwargs)
+            except LinearSolveError as err2:
+                raise LinearSolveError(
+                    f"{err}; again with the rounding shift ({ROUNDING_SHIFT_ULPS:g} eps x the "
+                    f"row's absolute sum on the diagonal, at most {shift.max():.3e}): {err2}"
+                ) from err2
+            res.shifted_solves += 1
+            res.max_shift = max(res.max_shift, float(shift.max()))
+            logger.info(
+                "newton: the projected Hessian's factorisation failed (%s); solved with the "
+                "rounding-level diagonal shift (at most %.3e, %g eps x the row's absolute sum)",
+                err,
+                shift.max(),
+                ROUNDING_SHIFT_ULPS,
+            )
+            return p
     finally:
         res.linear_iterations += int(getattr(solver, "last_iterations", 0) or 0)

@@ -144,11 +144,9 @@ def cholmod_blas(maps_path: str = "/proc/self/maps") -> BlasInfo:
     """
     try:
         from sksparse import cholmod  # noqa: F401  (loads libcholmod and its BLAS)
-    except ImportError:
-        return BlasInfo("unknown", "", None)
-    try:
+
         text = Path(maps_path).read_text()
-    except OSError:
+    except (ImportError, OSError):
         return BlasInfo("unknown", "", None)
     hit = _mapped_blas(text)
     if hit is None:

@@ -86,48 +86,6 @@ def _free_mask(objective: Objective, n: int) -> np.ndarray | None:
 _ROUND_OFF_ULPS = 1e4
 
 
-def _accept_near_solution(
-    objective: Objective,
-    x: np.ndarray,
-    p: np.ndarray,
-    alpha0: float,
-    energy: float,
-    slope: float,
-    near: bool,
-    g_free: np.ndarray,
-    free: np.ndarray | None,
-    res: NewtonResult,
-    g_best: float = math.inf,
-) -> LineSearchResult | None:
-    """Accept ``x + alpha0 p`` on a falling gradient norm where the energy cannot judge the step.
-
-    Close to a minimiser a Newton step predicts an energy decrease ~ |g.p| that can be smaller
-    than the round-off of E (the terms of E are evaluated with errors ~ eps times their own
-    scale, e.g. eps mu V for elasticity, much larger than eps |E|). Armijo then rejects good steps
-    or accepts tiny noisy ones and the iteration stalls. In that regime - the increment within
-    ``NewtonOptions.near_solution_factor`` of the tolerance (``near``), or |g.p| below
-    ``_ROUND_OFF_ULPS`` eps |E| - the full step is taken when the gradient norm falls below
-    both its value at x and ``g_best``, the least norm of the iterates so far; otherwise None
-    (use Armijo). Without ``g_best`` two iterates can take turns (design note ``measurements``,
-    newton).
-    """
-    round_off = abs(slope) * alpha0 <= _ROUND_OFF_ULPS * np.finfo(float).eps * abs(energy)
-    if not (near or round_off):
-        return None
-    trial = x + alpha0 * p
-    objective.solution_changed(trial)
-    fun = float(objective.value(trial))
-    grad = np.asarray(objective.gradient(trial), dtype=np.float64)
-    res.njev += 1
-    g_trial = grad if free is None else grad[free]
-    if not (math.isfinite(fun) and np.all(np.isfinite(g_trial))):
-        return None
-    if np.linalg.norm(g_trial) >= min(float(np.linalg.norm(g_free)), g_best):
-        return None
-    logger.debug("newton: near the solution, full step accepted on the gradient norm")
-    return LineSearchResult(success=True, alpha=alpha0, x=trial, fun=fun, nfev=1, n_nonfinite=0)
-
-
 def minimize(
     objective: Objective,
     x0: np.ndarray,
@@ -258,6 +216,45 @@ class _Run:
         self.factor_stepped = False  # the last factorisation has already made a chord step
         self.last_p_inf = math.inf  # the increment of the last accepted step
 
+    def near_solution_step(
+        self,
+        x: np.ndarray,
+        p: np.ndarray,
+        alpha0: float,
+        energy: float,
+        slope: float,
+        near: bool,
+        g_free: np.ndarray,
+        g_best: float = math.inf,
+    ) -> LineSearchResult | None:
+        """Accept ``x + alpha0 p`` on a falling gradient norm where the energy cannot judge it.
+
+        Close to a minimiser a Newton step predicts an energy decrease ~ |g.p| that can be
+        smaller than the round-off of E (the terms of E are evaluated with errors ~ eps times
+        their own scale, e.g. eps mu V for elasticity, much larger than eps |E|). Armijo then
+        rejects good steps or accepts tiny noisy ones and the iteration stalls. In that regime -
+        the increment within ``NewtonOptions.near_solution_factor`` of the tolerance (``near``),
+        or |g.p| below ``_ROUND_OFF_ULPS`` eps |E| - the full step is taken when the gradient
+        norm falls below both its value at x and ``g_best``, the least norm of the iterates so
+        far; otherwise None (use Armijo). Without ``g_best`` two iterates can take turns (design
+        note ``measurements``, newton).
+        """
+        round_off = abs(slope) * alpha0 <= _ROUND_OFF_ULPS * np.finfo(float).eps * abs(energy)
+        if not (near or round_off):
+            return None
+        trial = x + alpha0 * p
+        self.objective.solution_changed(trial)
+        fun = float(self.objective.value(trial))
+        grad = np.asarray(self.objective.gradient(trial), dtype=np.float64)
+        self.res.njev += 1
+        g_trial = grad if self.free is None else grad[self.free]
+        if not (math.isfinite(fun) and np.all(np.isfinite(g_trial))):
+            return None
+        if np.linalg.norm(g_trial) >= min(float(np.linalg.norm(g_free)), g_best):
+            return None
+        logger.debug("newton: near the solution, full step accepted on the gradient norm")
+        return LineSearchResult(success=True, alpha=alpha0, x=trial, fun=fun, nfev=1, n_nonfinite=0)
+
     def gradient(self, x: np.ndarray) -> np.ndarray:
         """The gradient on the free DOFs at x (checked finite)."""
         res = self.res
@@ -284,7 +281,7 @@ class _Run:
         p_chord = _chord_increment(self.solver, g_free, self.timings)
         if p_chord is None:
             return None
-        p_inf = _increment_norm(self.objective, p_chord, self.free, self.n)
+        p_inf = _increment_norm(self, p_chord)
         if p_inf / o.step_scale < o.chord_stop_factor * o.tol:
             res.step_inf_norm = p_inf
             raise _Finish(
@@ -308,31 +305,23 @@ class _Run:
         return p_chord, p_inf
 
     def _direction(
-        self, x: np.ndarray, exact: bool, g_free: np.ndarray, rtol: float | None = None
+        self,
+        x: np.ndarray,
+        exact: bool,
+        g_free: np.ndarray,
+        rtol: float | None,
+        finish: bool = True,
     ) -> np.ndarray:
+        """``_newton_direction``; a failed solve ends the run too unless ``finish`` is False."""
         try:
-            return _newton_direction(
-                self.objective,
-                x,
-                exact,
-                self.solver,
-                self.assembler,
-                g_free,
-                self.timings,
-                self.res,
-                rtol,
-            )
+            return _newton_direction(self, x, exact, g_free, rtol)
         except _NonFiniteHessian:
             raise _Finish(
                 NewtonStatus.NON_FINITE, f"non-finite Hessian at iteration {self.res.nit}"
             ) from None
-
-    def _direction_or_finish(
-        self, x: np.ndarray, exact: bool, g_free: np.ndarray, rtol: float | None = None
-    ) -> np.ndarray:
-        try:
-            return self._direction(x, exact, g_free, rtol)
         except LinearSolveError as err:
+            if not finish:
+                raise
             raise _Finish(
                 NewtonStatus.LINEAR_SOLVE_FAILED, f"{err} (iteration {self.res.nit})"
             ) from err
@@ -348,30 +337,26 @@ class _Run:
             self.eta = forcing_term(g_norm, self.g_norm_prev, self.eta, o.linear_rtol_max)
             self.g_norm_prev, rtol = g_norm, self.eta
         exact = self.try_exact and not self.exact_failed
-        try:
-            p_free = self._direction(x, exact or not o.project_psd, g_free, rtol)
+        try:  # a projected Hessian's failed solve ends the run (``_direction``)
+            p_free = self._direction(x, exact or not o.project_psd, g_free, rtol, not exact)
             if exact and not float(g_free @ p_free) < 0.0:
                 raise LinearSolveError("exact Hessian gives no descent direction")
         except LinearSolveError as err:
-            if not exact:
-                raise _Finish(
-                    NewtonStatus.LINEAR_SOLVE_FAILED, f"{err} (iteration {res.nit})"
-                ) from err
             # The exact Hessian is indefinite here: projected Newton for the rest of the solve.
             logger.debug("newton it %d: exact Hessian rejected (%s), projecting", res.nit, err)
             self.exact_failed = True
-            p_free = self._direction_or_finish(x, False, g_free, rtol)
+            p_free = self._direction(x, False, g_free, rtol)
         if not np.all(np.isfinite(p_free)):
             raise _Finish(
                 NewtonStatus.LINEAR_SOLVE_FAILED, f"non-finite Newton step at iteration {res.nit}"
             )
-        p_inf = _increment_norm(self.objective, p_free, self.free, self.n)
+        p_inf = _increment_norm(self, p_free)
         if rtol is not None and p_inf / o.step_scale < o.tol:
             # The increment that decides convergence is solved to the solver's own tolerance,
             # so that an inexact solve never stops Newton early.
             exact = (exact and not self.exact_failed) or not o.project_psd
-            p_free = self._direction_or_finish(x, exact, g_free)
-            p_inf = _increment_norm(self.objective, p_free, self.free, self.n)
+            p_free = self._direction(x, exact, g_free, None)
+            p_inf = _increment_norm(self, p_free)
         res.step_inf_norm = p_inf
         if p_inf / o.step_scale < o.tol:
             raise _Finish(
@@ -413,9 +398,7 @@ class _Run:
         alpha0 = min(1.0, bound)
         with _timed(self.timings, "line_search"):
             near = p_inf <= o.near_solution_factor * o.tol * o.step_scale
-            search = _accept_near_solution(
-                objective, x, p, alpha0, energy, slope, near, g_free, free, res, self.g_best
-            )
+            search = self.near_solution_step(x, p, alpha0, energy, slope, near, g_free, self.g_best)
             if search is None:
                 search = backtracking_line_search(
                     objective,
@@ -432,9 +415,7 @@ class _Run:
         if not search.success:
             # Armijo found no decrease: where the energy is at round-off (stiff materials, tight
             # tolerances) the full step may still be good; judge it by the gradient norm.
-            rescue = _accept_near_solution(
-                objective, x, p, alpha0, energy, slope, True, g_free, free, res
-            )
+            rescue = self.near_solution_step(x, p, alpha0, energy, slope, True, g_free)
             if rescue is not None:
                 search = rescue
         if not search.success:

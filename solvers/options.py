@@ -70,7 +70,7 @@ class NewtonOptions:
             factorise.
         near_solution_factor: within this factor of the tolerance (``||p||_inf <= factor tol
             step_scale``) a step the energy cannot judge is taken when the gradient norm falls
-            (``newton._accept_near_solution``), >= 0; 0 leaves only the round-off test. Where
+            (``newton._Run.near_solution_step``), >= 0; 0 leaves only the round-off test. Where
             the energy is not smooth at that scale this can cycle (design note
             ``measurements``, newton).
     """

@@ -153,8 +153,7 @@ def _points(model: Model, state: State) -> tuple[np.ndarray, np.ndarray]:
 def _describe(model: Model, point: int, cell: int, status: str, s: float, n: int) -> Intersection:
     n_fem, n_mpm = model.n_fem_nodes, model.n_particles
     if point < n_fem:
-        owner = next(b for b in model.fem_bodies if b.nodes.start <= point < b.nodes.stop)
-        what = f"FEM node {point - owner.nodes.start} of body {owner.name!r}"
+        what = _node_name(model, point)[0]
     elif point < n_fem + n_mpm:
         p = point - n_fem
         owner = model.mpm_bodies[int(model.mpm_particle_body[p])]

@@ -8,6 +8,7 @@ import numpy as np
 __all__ = [
     "check_F_R0",
     "check_clouds",
+    "check_fit_options",
     "contact_rows",
     "dimension",
     "float_array",
@@ -126,3 +127,20 @@ def check_clouds(
     if np.any((cloud_side != -1) & (cloud_side != 1)):
         raise ValueError("cloud_side must hold -1 (alpha) or +1 (beta) only")
     return cloud_ptr, cloud_idx, cloud_side
+
+
+def check_fit_options(
+    dx: float, penalty: float, tol: float, linear_scale: float, thin: float, max_iterations: int
+) -> None:
+    """The scalar options of ``lr_planes`` (its Args), or a ``ValueError`` naming the bad one."""
+    if not (np.isfinite(dx) and dx > 0.0):
+        raise ValueError(f"dx must be a positive grid spacing in m, got {dx}")
+    for name, val in (("penalty", penalty), ("tol", tol), ("linear_scale", linear_scale)):
+        if not (np.isfinite(val) and val >= 0.0):
+            raise ValueError(f"{name} must be finite and >= 0, got {val}")
+    if linear_scale == 0.0:
+        raise ValueError("linear_scale must be > 0")
+    if not (np.isfinite(thin) and thin >= 0.0):
+        raise ValueError(f"thin must be finite and >= 0 (cells), got {thin}")
+    if int(max_iterations) != max_iterations or max_iterations < 0:
+        raise ValueError(f"max_iterations must be an integer >= 0, got {max_iterations}")

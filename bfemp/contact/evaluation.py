@@ -114,34 +114,17 @@ def barrier_pair_hessians(
             local = _barrier_hessians(
                 positions, pts, KERNEL_KIND[kind], scale * b1, scale * b2, psd
             )
-        else:
-            local = _edge_edge_hessians(
-                _corners(pairs, positions, kind), pairs.eps_x, d, scale, b1, b2, dhat, kappa, psd
-            )
+        else:  # mollified edge-edge m(x) c b(d(x)): (m b)'' = m'' b + m' b'^T + b' m'^T + m b''
+            args, eps_x = _corners(pairs, positions, kind), pairs.eps_x
+            grad = dist.edge_edge_distance_gradient(*args)
+            local = (scale * b2)[:, None, None] * grad[:, :, None] * grad[:, None, :]
+            local += (scale * b1)[:, None, None] * dist.edge_edge_distance_hessian(*args)
+            mol = edge_edge_mollifier(*args, eps_x)
+            g_m = edge_edge_mollifier_gradient(*args, eps_x)
+            b0 = barrier(d, dhat, kappa)
+            cross = (scale * b1)[:, None, None] * g_m[:, :, None] * grad[:, None, :]
+            local = mol[:, None, None] * local + cross + np.swapaxes(cross, 1, 2)
+            local += (scale * b0)[:, None, None] * edge_edge_mollifier_hessian(*args, eps_x)
+            local = project_psd(local) if psd else local
         out[kind] = (pts, local)
     return out
-
-
-def _edge_edge_hessians(
-    args: list[np.ndarray],
-    eps_x: np.ndarray,
-    d: np.ndarray,
-    scale: np.ndarray,
-    b1: np.ndarray,
-    b2: np.ndarray,
-    dhat: float,
-    kappa: float,
-    psd: bool,
-) -> np.ndarray:
-    """Local Hessians ``(n, 12, 12)`` of the mollified edge-edge terms m(x) c b(d(x))."""
-    grad = dist.edge_edge_distance_gradient(*args)
-    local = (scale * b2)[:, None, None] * grad[:, :, None] * grad[:, None, :]
-    local += (scale * b1)[:, None, None] * dist.edge_edge_distance_hessian(*args)
-    # (m b)'' = m'' b + m' b'^T + b' m'^T + m b''
-    mol = edge_edge_mollifier(*args, eps_x)
-    g_m = edge_edge_mollifier_gradient(*args, eps_x)
-    b0 = barrier(d, dhat, kappa)
-    cross = (scale * b1)[:, None, None] * g_m[:, :, None] * grad[:, None, :]
-    local = mol[:, None, None] * local + cross + np.swapaxes(cross, 1, 2)
-    local += (scale * b0)[:, None, None] * edge_edge_mollifier_hessian(*args, eps_x)
-    return project_psd(local) if psd else local

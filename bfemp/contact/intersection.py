@@ -79,10 +79,8 @@ def step_intersection(model: Model, start: State, end: State) -> Intersection | 
     """
     if len(model.fem_bodies) == 0:
         return None
-    cells, cell_body = model.fem_cells, model.fem_cell_body
     y1, body = _points(model, end)
-    v1 = end.fem_x
-    cell = points_inside(y1, body, v1, cells, cell_body)
+    cell = points_inside(y1, body, end.fem_x, model.fem_cells, model.fem_cell_body)
     inside = np.flatnonzero(cell >= 0)
     if inside.size:  # the first point inside, in its first cell
         p = int(inside[0])

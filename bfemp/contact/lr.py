@@ -16,6 +16,7 @@ import numpy as np
 from bfemp.contact._lr_args import (
     check_clouds,
     check_F_R0,
+    check_fit_options,
     contact_rows,
     dimension,
     float_array,
@@ -177,13 +178,11 @@ def lr_planes(
             f"[{cloud_idx.min()}, {cloud_idx.max()}]"
         )
     check_F_R0(points_F, points_R0, "lr_planes")
-    _check_fit_settings(dx, penalty, tol, max_iterations, linear_scale, thin)
-    if normal_start is None:
-        start = np.zeros((n_c, d))
-        has_start = np.zeros(n_c, dtype=np.bool_)
-    else:
+    check_fit_options(dx, penalty, tol, linear_scale, thin, max_iterations)
+    start = np.zeros((n_c, d))  # rows of zeros: the linear start
+    if normal_start is not None:
         start = float_array("normal_start", normal_start, (n_c, d))
-        has_start = np.linalg.norm(start, axis=1) > 0.0
+    has_start = np.linalg.norm(start, axis=1) > 0.0
 
     normal, phi, sep, iters, conv, fb, code = lr_planes_kernel(
         node_x,
@@ -201,38 +200,6 @@ def lr_planes(
         start,
         has_start,
     )
-    _refuse_bad_clouds(code)
-    capped = ~conv & ~fb & (sep < 0.0)
-    if max_iterations > 0 and np.any(capped):  # NairnMPM warns on these; the stepper counts them
-        log.debug(
-            "lr_planes: %d of %d touching contact nodes hit the cap of %d iterations",
-            int(capped.sum()),
-            n_c,
-            max_iterations,
-        )
-    return LRPlanes(normal, sep, iters, conv, fb, phi)
-
-
-def _check_fit_settings(
-    dx: float, penalty: float, tol: float, max_iterations: int, linear_scale: float, thin: float
-) -> None:
-    """``ValueError`` naming the first of ``lr_planes``' fit settings out of range."""
-    if not (np.isfinite(dx) and dx > 0.0):
-        raise ValueError(f"dx must be a positive grid spacing in m, got {dx}")
-    for name, val in (("penalty", penalty), ("tol", tol), ("linear_scale", linear_scale)):
-        if not (np.isfinite(val) and val >= 0.0):
-            raise ValueError(f"{name} must be finite and >= 0, got {val}")
-    if linear_scale == 0.0:
-        raise ValueError("linear_scale must be > 0")
-    if not (np.isfinite(thin) and thin >= 0.0):
-        raise ValueError(f"thin must be finite and >= 0 (cells), got {thin}")
-    if int(max_iterations) != max_iterations or max_iterations < 0:
-        raise ValueError(f"max_iterations must be an integer >= 0, got {max_iterations}")
-
-
-def _refuse_bad_clouds(code: np.ndarray) -> None:
-    """``ValueError`` naming the contact nodes whose cloud the kernel refused (``code (C,)``:
-    ``ONE_CLASS``, ``DEGENERATE``)."""
     if np.any(code == ONE_CLASS):
         bad = np.flatnonzero(code == ONE_CLASS)
         raise ValueError(
@@ -246,6 +213,15 @@ def _refuse_bad_clouds(code: np.ndarray) -> None:
             f"lr_planes: the point cloud of contact node {int(bad[0])} (nodes "
             f"{bad[:10].tolist()}) is degenerate: the linear regression has no normal"
         )
+    capped = ~conv & ~fb & (sep < 0.0)
+    if max_iterations > 0 and np.any(capped):  # NairnMPM warns on these; the stepper counts them
+        log.debug(
+            "lr_planes: %d of %d touching contact nodes hit the cap of %d iterations",
+            int(capped.sum()),
+            n_c,
+            max_iterations,
+        )
+    return LRPlanes(normal, sep, iters, conv, fb, phi)
 
 
 def contact_point_clouds(

@@ -23,7 +23,7 @@ from bfemp.mpm.transfer import GridFields, particles_to_grid
 from bfemp.state import State
 from geometry.grid import ParticleStencils, particle_stencils
 
-__all__ = ["LIGHT_NODE_REL", "MpmStep", "prepare_mpm_step"]
+__all__ = ["LIGHT_NODE_REL", "MpmStep", "constrained_mpm_step", "prepare_mpm_step"]
 
 #: Grid nodes lighter than this fraction of the heaviest node are pinned (no unknowns): only
 #: round-off weights (~1e-33) fall below it; real light nodes stay unknowns, since pinning them
@@ -69,9 +69,15 @@ def prepare_mpm_step(
         state.mpm_a if with_acceleration else None,
         mpm_Ca=state.mpm_Ca if apic and with_acceleration else None,
     )
-    constraints = grid_constraints(
-        model.boundaries, stencils.active_x, fields.velocity, state.t + dt, dt
-    )
+    return constrained_mpm_step(model, stencils, fields, fields.velocity, state.t + dt, dt)
+
+
+def constrained_mpm_step(
+    model: Model, stencils: ParticleStencils, fields: GridFields, v: np.ndarray, t: float, dt: float
+) -> MpmStep:
+    """The step's grid with its level-set constraints decided on ``v (G, d)`` in m/s (P2G's,
+    or ``two_stage``'s free motion v*) for the step of ``dt`` s to ``t``."""
+    constraints = grid_constraints(model.boundaries, stencils.active_x, v, t, dt)
     # Nodes that only round-off weights reach (a particle exactly on a cell-centre line gets
     # w ~ 1e-33 for the far node) carry no mass and no stiffness: as unknowns they would make
     # the Newton system singular. Pin them where they are; the particles do not feel them.

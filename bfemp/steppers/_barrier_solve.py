@@ -14,20 +14,16 @@ from __future__ import annotations
 
 import logging
 import time
+from typing import Any
 
 import numpy as np
 
-from bfemp.contact.friction import FrictionTerm
-from bfemp.contact.term import BarrierTerm
-from bfemp.model import Model
-from bfemp.potential import IncrementalPotential
 from bfemp.state import State
 from bfemp.steppers._scaffold import StepNodes
 from bfemp.steppers.base import StepError
 from solvers.assembly import TripletAssembler
 from solvers.linear import LinearSolver
 from solvers.newton import minimize
-from solvers.options import NewtonOptions
 from solvers.result import TIMING_KEYS, NewtonResult, add_timings
 
 __all__ = ["ScriptedSolve"]
@@ -40,13 +36,10 @@ class ScriptedSolve:
     triplet assembler (the Hessian's sparsity pattern) from step to step.
 
     Args:
-        model: the static model.
-        potential: the step's incremental potential (begun for the step by the caller).
-        barrier: its barrier term, or None.
-        friction: its friction term, or None.
-        newton: Newton options (``step_scale`` = dt).
+        owner: the stepper it solves for (``barrier``, ``two_stage``); taken from it: ``model``,
+            ``potential`` (begun for each step by the owner), the ``barrier`` and ``friction``
+            terms (or None), the ``newton`` options (``step_scale`` = dt) and ``dt`` in s.
         linear_solver: the linear solver.
-        dt: the time step in s.
         take_last_increment: end a converged friction loop at the solution of the friction data
             it stopped on (``_take``); for velocities from positions.
         friction_loop: run the outer friction loop on the step's last solve (Algorithm 1);
@@ -64,25 +57,21 @@ class ScriptedSolve:
 
     def __init__(
         self,
-        model: Model,
-        potential: IncrementalPotential,
-        barrier: BarrierTerm | None,
-        friction: FrictionTerm | None,
-        newton: NewtonOptions,
+        owner: Any,
         linear_solver: LinearSolver,
-        dt: float,
+        *,
         take_last_increment: bool = True,
         friction_loop: bool = True,
         back_solve_stop: bool = True,
     ) -> None:
-        self.model, self.potential = model, potential
-        self.barrier, self.friction = barrier, friction
-        self.newton, self.linear_solver, self.dt = newton, linear_solver, dt
+        self.model, self.potential = owner.model, owner.potential
+        self.barrier, self.friction = owner.barrier, owner.friction
+        self.newton, self.linear_solver, self.dt = owner.newton, linear_solver, owner.dt
         self.take_last_increment = take_last_increment
         self.friction_loop, self.back_solve_stop = friction_loop, back_solve_stop
         # the phases every step reports (0 when a step has none: the same metrics columns)
-        self.phases = TIMING_KEYS + ("friction",) * (friction is not None)
-        self.phases += ("scripted_ccd",) * (barrier is not None)
+        self.phases = TIMING_KEYS + ("friction",) * (self.friction is not None)
+        self.phases += ("scripted_ccd",) * (self.barrier is not None)
         # kept across steps so an unchanged Hessian pattern is not rebuilt every step
         self._assembler: TripletAssembler | None = None
         #: over the minimisations of the last ``solve``: Newton systems solved only with the

@@ -178,38 +178,28 @@ class PairContact:
                 partner[rows] = heavy
                 rigid_b[rows] = True
         if opts.interface == "perfect":
-            dp, touching = lr_contact.contact_momentum(
-                m_a,
-                m_b,
-                p_a,
-                p_b,
-                np.zeros_like(p_a),
-                None,
-                mu=0.0,
-                law="perfect",
-                detector="velocity",
-                rigid_a=rigid_a,
-                rigid_b=rigid_b,
-            )
+            normal, sep, mu = np.zeros_like(p_a), None, 0.0
+            law, detector = "perfect", "velocity"
         else:
             most = self.mu if self.mu_table is None else float(self.mu_table.max())
             law = "frictionless" if opts.law == "frictionless" or most == 0.0 else "coulomb"
-            sep = planes.separation
-            if opts.detector == "velocity":  # no separation measured; the law ignores it
+            normal, sep, detector = planes.normal, planes.separation, opts.detector
+            if detector == "velocity":  # no separation measured; the law ignores it
                 sep = np.zeros_like(sep)
-            dp, touching = lr_contact.contact_momentum(
-                m_a,
-                m_b,
-                p_a,
-                p_b,
-                planes.normal,
-                sep,
-                mu=self.pair_mu(a, b, mass[:, node]),
-                law=law,
-                detector=opts.detector,
-                rigid_a=rigid_a,
-                rigid_b=rigid_b,
-            )
+            mu = self.pair_mu(a, b, mass[:, node])
+        dp, touching = lr_contact.contact_momentum(
+            m_a,
+            m_b,
+            p_a,
+            p_b,
+            normal,
+            sep,
+            mu=mu,
+            law=law,
+            detector=detector,
+            rigid_a=rigid_a,
+            rigid_b=rigid_b,
+        )
         if rigid_a is not None:
             stays = lumped & rigid_a  # a scripted a keeps its script (LR eq. 50 corrects a alone)
             dp[stays] = 0.0

@@ -97,7 +97,7 @@ from bfemp.steppers._augury_options import (
     friction_coefficient,
 )
 from bfemp.steppers.base import ContactView
-from bfemp.steppers.capabilities import Capabilities
+from bfemp.steppers.capabilities import BARRIER_PAIRS, Capabilities
 from bfemp.steppers.explicit import ExplicitStepper, GridStep, Motion
 
 __all__ = ["AuguryOptions", "AuguryStepper"]
@@ -111,14 +111,10 @@ class AuguryStepper(ExplicitStepper):
     name: ClassVar[str] = "augury"
     Options: ClassVar[type[AuguryOptions]] = AuguryOptions
     #: FEM boundary nodes and particles meet on the contact grid (AUG; particles: bfemp's
-    #: extension, section 1.4); MPM bodies also share the engine's MPM grid velocity field
+    #: extension, section 1.4); MPM bodies also share the engine's MPM grid velocity field:
+    #: the barrier's couplings, kind by kind
     capabilities: ClassVar[Capabilities] = Capabilities(
-        pairs={
-            "mpm-mpm": "grid",
-            "mpm-fem": "contact",
-            "mpm-prescribed": "contact",
-            "fem-fem": "contact",
-        },
+        pairs=BARRIER_PAIRS,
         friction=True,
         needs_contact_settings=False,
         penetration_bound_cells=AUGURY_PENETRATION_CELLS,
@@ -140,7 +136,6 @@ class AuguryStepper(ExplicitStepper):
         self.apic = opts.contact_transfer == "apic"
         self._tau_predict = self.tau + (0.5 * self.dt if opts.predictor == "paper" else 0.0)
         self._setup_foreground()
-        self._last_contact = None
         self._steps = 0
         #: steps whose foreground shared a contact node between bodies
         self.steps_with_contact = 0
@@ -266,7 +261,7 @@ class AuguryStepper(ExplicitStepper):
             a_hat, B_new, shared_count, h_applications, kinematic_impulse = self._correction(
                 step, points, stats
             )
-            self._correct_motion(step, motion, a_hat, B_new, n_fem, n_mpm)
+            self._correct_motion(step, motion, a_hat, B_new)
             if kinematic_impulse is not None:
                 step.notes.append(
                     f"SCRIPTED_FOREGROUND: {self._n_kinematic} scripted nodes in H delivered an "
@@ -379,17 +374,12 @@ class AuguryStepper(ExplicitStepper):
         return a_hat, B_bar + dt * Bdot, int(shared.sum()), h_applications, kinematic_impulse
 
     def _correct_motion(
-        self,
-        step: GridStep,
-        motion: Motion,
-        a_hat: np.ndarray,
-        B_new: np.ndarray,
-        n_fem: int,
-        n_mpm: int,
+        self, step: GridStep, motion: Motion, a_hat: np.ndarray, B_new: np.ndarray
     ) -> None:
         """v^{n+1} = v^free + dt a^, x^{n+1} = x^free + dt^2 a^, B^{n+1} (module docstring step
-        3) on the end values, before the engine commits them."""
-        dt, state = self.dt, step.state
+        3) on the end values of the foreground (``a_hat``'s rows: FEM nodes, then particles),
+        before the engine commits them."""
+        dt, state, n_fem = self.dt, step.state, self.fem_foreground.size
         if n_fem:
             fg, mov = self.fem_foreground, self._fem_movable
             idx = fg[mov]
@@ -398,7 +388,7 @@ class AuguryStepper(ExplicitStepper):
             B_fem = motion.carried["aug_B"].copy()
             B_fem[fg] = B_new[:n_fem]
             motion.carried["aug_B"] = B_fem
-        if n_mpm:
+        if a_hat.shape[0] > n_fem:  # the particles are foreground
             motion.mpm_v = motion.mpm_v + dt * a_hat[n_fem:]
             motion.mpm_x = motion.mpm_x + dt * dt * a_hat[n_fem:]
             motion.carried["aug_Bp"] = B_new[n_fem:]

@@ -127,13 +127,8 @@ class BarrierStepper:
         self._contact: ContactView | None = None  # contact() of the last step, once asked
         self._setup_parts: dict[str, float] = {}  # seconds of the last _begin, by part
         self._solver = ScriptedSolve(
-            model,
-            self.potential,
-            self.barrier,
-            self.friction,
-            self.newton,
+            self,
             options.make_linear_solver(model.dim),
-            self.dt,
             take_last_increment=options.velocity_update == "positions",
             back_solve_stop=options.friction_back_solve,
         )
@@ -289,6 +284,9 @@ class BarrierStepper:
             result, friction_its, friction_ok = self._solver.solve(
                 state, nodes, nodes.start(), ctx.x_hat, predicted
             )
+        iterations = {"newton": int(result.nit)}  # and lagged-friction updates with friction
+        if self.friction is not None:
+            iterations["friction"] = friction_its
         report_args = dict(
             friction_converged=friction_ok,
             step=state.step + 1,
@@ -296,7 +294,7 @@ class BarrierStepper:
             success=bool(result.success),
             status=result.status.name,
             message=result.message,
-            iterations=self._iterations(int(result.nit), friction_its),
+            iterations=iterations,
             residual=float(result.step_inf_norm) / dt,
             notes=(
                 *(self._solver.rounding_notes() if layout.n_dof else ()),
@@ -344,12 +342,6 @@ class BarrierStepper:
         report = StepReport(**report_args, timings=timings)
         log.debug("step %d: %d Newton iterations", report.step, report.newton_iterations)
         return new, report
-
-    def _iterations(self, newton: int, friction: int) -> dict[str, int]:
-        """The step's iteration counts: Newton, and lagged-friction updates with friction."""
-        if self.friction is None:
-            return {"newton": newton}
-        return {"newton": newton, "friction": friction}
 
     def _end_velocities(
         self,

@@ -146,12 +146,6 @@ def scene_pairs(model: object) -> list[tuple[str, str, str]]:
     return out
 
 
-def _serving(kind: str, registry: Mapping[str, type]) -> list[str]:
-    """Strategies that couple ``kind`` through contact (else through the grid)."""
-    contact = [n for n, c in registry.items() if c.capabilities.couples(kind) == "contact"]
-    return contact or [n for n, c in registry.items() if c.capabilities.couples(kind)]
-
-
 def check_scene(
     model: object, strategy: str, registry: Mapping[str, type], *, allow_uncoupled: bool = False
 ) -> list[str]:
@@ -184,7 +178,10 @@ def check_scene(
     warnings: list[str] = []
     for kind, a, b in pairs:
         if caps.couples(kind) is None:
-            serving = ", ".join(repr(s) for s in _serving(kind, registry)) or "none"
+            # the strategies that couple the kind through contact, else through the grid
+            how = {n: c.capabilities.couples(kind) for n, c in registry.items()}
+            couplers = [n for n, h in how.items() if h == "contact"] or [n for n in how if how[n]]
+            serving = ", ".join(repr(n) for n in couplers) or "none"
             message = (
                 f"strategy {strategy!r} does not couple bodies {a!r} and {b!r} "
                 f"({_KIND_TEXT[kind]}): they would pass through each other; strategies that "

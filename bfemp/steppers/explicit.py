@@ -227,9 +227,7 @@ class ExplicitStepper:
             for term in self._fem_terms:
                 term.begin_step(ctx)
             self._fem_free = ~model.fem_prescribed
-            self._fem_inv_mass = np.zeros(model.n_fem_nodes)
-            heavy = model.fem_mass > 0.0
-            self._fem_inv_mass[heavy] = 1.0 / model.fem_mass[heavy]
+            self._fem_inv_mass = _inverse(model.fem_mass)
         # MPM: per-particle Lame parameters and the particles of each law
         self._mpm_laws = []
         self._n_chunks = min(P2G_MAX_CHUNKS, max(1, model.n_particles // P2G_CHUNK))

@@ -71,7 +71,7 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
@@ -81,8 +81,7 @@ from bfemp.contact.intersection import step_intersection, step_inversion
 from bfemp.contact.pairs import find_pairs
 from bfemp.contact.parameters import warn_mpm_pairs
 from bfemp.contact.term import BarrierTerm
-from bfemp.mpm.boundaries import grid_constraints
-from bfemp.mpm.step import LIGHT_NODE_REL, MpmStep
+from bfemp.mpm.step import constrained_mpm_step
 from bfemp.mpm.transfer import GridFields
 from bfemp.potential import IncrementalPotential
 from bfemp.state import State
@@ -209,13 +208,8 @@ class TwoStageStepper(ExplicitStepper):
             near_solution_factor=0.0,
         )
         self._solver = ScriptedSolve(
-            model,
-            self.potential,
-            self.barrier,
-            self.friction,
-            self.newton,
+            self,
             make_linear_solver(opts.linear_solver, block_size=model.dim),
-            self.dt,
             take_last_increment=True,
             friction_loop=opts.friction == "loop",
         )
@@ -322,8 +316,7 @@ class TwoStageStepper(ExplicitStepper):
 
     def _nodes(self, step: GridStep, state: State, grid_v: np.ndarray) -> StepNodes:
         """All-node fields of the step from the engine's P2G (``nodes_of_step``); level-set
-        constraints decided on v* as the engine does next; round-off-light nodes pinned as in
-        ``prepare_mpm_step``."""
+        constraints decided on v* as the engine does next (``constrained_mpm_step``)."""
         model = self.model
         if model.n_particles == 0:
             return nodes_of_step(model, state, None, dt=self.dt, t_next=step.t_next)
@@ -332,18 +325,8 @@ class TwoStageStepper(ExplicitStepper):
             stencils.active_x, step.grid_x
         ):
             raise RuntimeError("two_stage: the engine's grid nodes differ from the stencils'")
-        cons = grid_constraints(model.boundaries, step.grid_x, grid_v, step.t_next, self.dt)
-        mass = step.mass[0]
-        light = mass < LIGHT_NODE_REL * mass.max()
-        if light.any():
-            cons = replace(cons, sticky=cons.sticky | light)
-        mpm = MpmStep(
-            stencils,
-            GridFields(mass=mass, velocity=step.velocity[0]),
-            cons,
-            model.n_fem_nodes,
-            None,
-        )
+        fields = GridFields(mass=step.mass[0], velocity=step.velocity[0])
+        mpm = constrained_mpm_step(model, stencils, fields, grid_v, step.t_next, self.dt)
         return nodes_of_step(model, state, mpm, dt=self.dt, t_next=step.t_next)
 
     def _newton_start(

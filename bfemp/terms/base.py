@@ -24,7 +24,7 @@ from bfemp.model import Model
 from bfemp.state import State
 from solvers.assembly import Triplets
 
-__all__ = ["StepContext", "Term", "block_pattern", "empty_triplets"]
+__all__ = ["StepContext", "Term", "block_pattern"]
 
 
 @dataclass
@@ -94,9 +94,3 @@ def block_pattern(stencil_dofs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.
         np.ascontiguousarray(cols[keep]),
         keep,
     )
-
-
-def empty_triplets() -> Triplets:
-    """Triplets with no entries."""
-    empty_i = np.zeros(0, dtype=np.int64)
-    return Triplets(empty_i, empty_i.copy(), np.zeros(0))

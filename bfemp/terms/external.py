@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bfemp.terms.base import StepContext, empty_triplets
+from bfemp.terms.base import StepContext
 from solvers.assembly import Triplets
 
 __all__ = ["ConstantForceTerm", "ExternalForceTerm"]
@@ -39,7 +39,7 @@ class ConstantForceTerm:
 
     def hessian(self, x: np.ndarray, psd: bool) -> Triplets:
         """Zero (linear potential)."""
-        return empty_triplets()
+        return Triplets.empty()
 
     def max_step_size(self, x: np.ndarray, p: np.ndarray) -> float:
         """No feasibility constraint."""
