@@ -1,22 +1,17 @@
 """numba's parallel kernels on Intel TBB's thread pool where the ``tbb`` wheel is installed.
 
-numba runs ``prange`` loops on the first threading layer it can load, in the order TBB, OpenMP,
-workqueue. With OpenMP the package sets ``OMP_WAIT_POLICY=PASSIVE`` (``solvers/__init__``):
-spinning OpenMP threads made kernels take milliseconds when processes shared the cores (2
-test workers on 2 cores: 176-234 s for six test files against 26-31 s passive, with libgomp
-spinning 30,000 times before it sleeps). Passive waiting costs a futex wake-up per parallel
-region instead, about 45 us on this 2-core VM against 2-10 us on TBB's pool, and an explicit
-MPM step starts four regions: at 33k particles ``single_field`` took 1.73 ms a step on OpenMP
-and 1.39-1.50 ms on TBB, and the six test files above 22 s (measured:
-``docs/guide/performance.md``). TBB's workers spin briefly, then yield, so they also share
-cores with other processes.
+numba runs ``prange`` loops on the first threading layer it can load: TBB, OpenMP, workqueue.
+On OpenMP the package's ``OMP_WAIT_POLICY=PASSIVE`` (``solvers/__init__``; spinning threads
+starved other processes on the same cores) makes every parallel region wake its threads from
+sleep, about 45 us against 2-10 us on TBB, whose workers spin briefly and then yield: an
+explicit MPM step starts four regions (measured: ``docs/guide/performance.md``).
 
-pip puts the ``tbb`` wheel's ``libtbb.so.12`` in ``<prefix>/lib``, where the dynamic loader
-does not look, so numba's TBB layer does not load from a virtual environment (numba issues
-6108, 7148, 9740). :func:`prefer_tbb` loads that file by its path before numba starts its
-threads; numba's own lookup by name then finds it. ``NUMBA_THREADING_LAYER`` set by the user
-is left alone. The layers give the same results: every kernel splits its work into chunks
-fixed by the thread count, never by the scheduler (the regression references hold on both).
+pip puts the wheel's ``libtbb.so.12`` in ``<prefix>/lib``, where the dynamic loader does not
+look, so numba's TBB layer does not load from a virtual environment (numba issues 6108, 7148,
+9740). :func:`prefer_tbb` loads that file by its path before numba starts its threads; numba's
+own lookup by name then finds it. ``NUMBA_THREADING_LAYER`` set by the user is left alone. The
+layers give the same results: every kernel splits its work into chunks fixed by the thread
+count, never by the scheduler.
 """
 
 from __future__ import annotations
