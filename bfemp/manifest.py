@@ -23,7 +23,6 @@ the step of the checkpoint it was resumed from. A manifest that is not a JSON ob
 
 from __future__ import annotations
 
-import datetime
 import importlib.metadata
 import json
 import os
@@ -37,7 +36,7 @@ import numpy as np
 from bfemp.checkpoint import SIDECAR_FILE, model_fingerprint
 from bfemp.errors import RunFolderError, SceneError
 from bfemp.io.metrics import MetricsLog
-from bfemp.io.outputs import lock_holder
+from bfemp.io.outputs import _now, lock_holder
 from bfemp.io.vtk import atomic_write_text, read_pvd
 from bfemp.materials import BulkShearHyperelastic
 
@@ -64,10 +63,6 @@ _PACKAGES = (
     "tqdm",
     "matplotlib",
 )
-
-
-def _now() -> str:
-    return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
 
 
 def versions() -> dict[str, str | None]:

@@ -95,9 +95,7 @@ def _finish(
     """Label, grid (``ax.grid`` options ``grid``), legend and write the one-axes figure."""
     if logy:
         ax.set_yscale("log")
-    ax.set_ylabel(ylabel)
-    if title:
-        ax.set_title(title)
+    ax.set(ylabel=ylabel, title=title or "")
     ax.grid(True, alpha=0.3, **grid)
     ax.legend(fontsize="small")
     return _save_png(fig, path)

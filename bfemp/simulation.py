@@ -158,14 +158,10 @@ class Simulation:
             self.strategy = strategy
             self.transfer = transfer
             self.options = options
-            #: the settings of this simulation (recorded in manifests and checkpoints)
-            self.settings = {
-                "strategy": strategy,
-                "integrator": self.integrator.name,
-                "transfer": transfer,
-                "dt": self.dt,
-                **options_to_dict(options),  # the strategy's options, one key per field
-            }
+            #: the settings of this simulation (recorded in manifests and checkpoints): the
+            #: [simulation] table with the strategy's options one key per field
+            self.settings = {k: v for k, v in self.scene_settings().items() if k != "options"}
+            self.settings.update(options_to_dict(options))
             if allow_uncoupled:
                 self.settings["allow_uncoupled"] = True
             self.stepper = stepper_cls(

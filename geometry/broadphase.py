@@ -228,9 +228,8 @@ def _inflate(lo: np.ndarray, hi: np.ndarray, inflation: float) -> tuple[np.ndarr
 
 
 def _pad3(a: np.ndarray) -> np.ndarray:
-    if a.shape[1] == 3:
-        return np.ascontiguousarray(a)
-    return np.ascontiguousarray(np.column_stack([a, np.zeros((a.shape[0], 3 - a.shape[1]))]))
+    """Checked corners ``a (n, d)`` (C-contiguous float64) with zero columns up to d = 3."""
+    return a if a.shape[1] == 3 else np.pad(a, ((0, 0), (0, 3 - a.shape[1])))
 
 
 def _overlapping(

@@ -190,9 +190,8 @@ def spherical_shell(
     nodes, inverse, _ = unique_rows(lattice)
     local = np.arange(n * n)
     pi, qi = local // n, local % n
-    corner = [pi * (n + 1) + qi, (pi + 1) * (n + 1) + qi, (pi + 1) * (n + 1) + qi + 1]
-    corner.append(pi * (n + 1) + qi + 1)
-    face_quads = np.stack(corner, axis=1)  # cycle (p,q) (p+1,q) (p+1,q+1) (p,q+1)
+    at = pi * (n + 1) + qi  # each quad's corners cycle (p,q) (p+1,q) (p+1,q+1) (p,q+1)
+    face_quads = np.stack([at, at + n + 1, at + n + 2, at + 1], axis=1)
     quads = inverse[(np.arange(6)[:, None, None] * p.size + face_quads).reshape(-1, 4)]
     direction = np.tan(0.25 * np.pi * (2.0 * nodes / n - 1.0))
     direction /= np.linalg.norm(direction, axis=1, keepdims=True)

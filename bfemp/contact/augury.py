@@ -112,15 +112,9 @@ def _compact_sorted(
     ijk: np.ndarray, lo: np.ndarray, span: np.ndarray, dx: float
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`compact_dense`'s result by a sort, for boxes too large for a dense map."""
-    d = ijk.shape[2]
-    strides = np.cumprod(np.concatenate([[1], span[:0:-1]]))[::-1]
-    lin = ((ijk - lo) * strides).sum(axis=-1)
+    lin = np.ravel_multi_index(tuple(np.moveaxis(ijk - lo, -1, 0)), tuple(span))
     uniq, inverse = np.unique(lin.reshape(-1), return_inverse=True)
-    node_ijk = np.empty((uniq.size, d), dtype=np.int64)
-    rest = uniq.copy()
-    for a in range(d):
-        node_ijk[:, a] = rest // strides[a]
-        rest = rest % strides[a]
+    node_ijk = np.stack(np.unravel_index(uniq, tuple(span)), axis=1)
     return inverse.reshape(lin.shape).astype(np.int64), (node_ijk + lo) * dx
 
 

@@ -104,11 +104,7 @@ def _check_data(block: str, kind: str, key: object, value: object, n: int) -> np
         raise ValueError(f"block {block!r}: {kind} name {key!r} must be a non-empty string")
     arr = np.asarray(value)
     where = f"block {block!r}: {kind} {key!r}"
-    if not (
-        arr.dtype == np.bool_
-        or np.issubdtype(arr.dtype, np.integer)
-        or np.issubdtype(arr.dtype, np.floating)
-    ):
+    if arr.dtype.kind not in "biuf":  # bool, signed or unsigned integer, floating
         raise ValueError(f"{where} has dtype {arr.dtype}; expected real numbers")
     if arr.ndim < 1 or arr.ndim > 3:
         raise ValueError(f"{where} has shape {arr.shape}; expected (n,), (n, c) or (n, a, b)")

@@ -31,10 +31,7 @@ def pair_codes(dim: int) -> np.ndarray:
     """(K, K) code in [0, 5^d) of the relative offset o_b - o_a of stencil entries a, b."""
     off = stencil_offsets(dim)
     rel = off[None, :, :] - off[:, None, :] + 2  # in {0..4}^d
-    code = np.zeros(rel.shape[:2], dtype=np.int64)
-    for c in range(dim):
-        code = code * 5 + rel[:, :, c]
-    return code
+    return np.ravel_multi_index(tuple(np.moveaxis(rel, -1, 0)), (5,) * dim).astype(np.int64)
 
 
 def mpm_particle_stencils(

@@ -101,13 +101,13 @@ class _Materials:
         return name
 
 
-def _file_numbering(scene: object, spec: object) -> np.ndarray | None:
-    """``(n,)`` file point index of each node when the mesh is written as a file with points
-    that no cell uses (node indices are read back in the file's numbering); else None."""
+def _node_list(scene: object, spec: object, idx: np.ndarray) -> list[int]:
+    """Node indices ``idx`` as written: in the file's numbering when the mesh is written as a
+    file with points that no cell uses (node indices are read back in that numbering)."""
     mesh = scene._sources.get((spec.name, "mesh"))
     if spec.numbering is not None and isinstance(mesh, dict) and "file" in mesh:
-        return spec.numbering.index
-    return None
+        return spec.numbering.index[idx].tolist()
+    return idx.tolist()
 
 
 def _fem_dict(scene: object, spec: object, materials: _Materials) -> dict:
@@ -124,9 +124,7 @@ def _fem_dict(scene: object, spec: object, materials: _Materials) -> dict:
         out["prescribed"] = motion_dict(spec.motion)
         nodes = sources.get((spec.name, "prescribed_nodes"))
         if nodes is None and not spec.prescribed.all():
-            idx = np.flatnonzero(spec.prescribed)
-            numbering = _file_numbering(scene, spec)
-            nodes = (idx if numbering is None else numbering[idx]).tolist()
+            nodes = _node_list(scene, spec, np.flatnonzero(spec.prescribed))
         if nodes is not None:
             out["prescribed_nodes"] = nodes
     return out
@@ -136,8 +134,7 @@ def _mpm_dict(scene: object, spec: object, materials: _Materials) -> dict:
     out: dict = {"name": spec.name}
     source = scene._sources.get((spec.name, "particles"))
     if source is None:
-        out["particles"] = spec.x.tolist()
-        out["volumes"] = spec.volume.tolist()
+        out.update(particles=spec.x.tolist(), volumes=spec.volume.tolist())
     else:
         out["particles"] = source
     out["material"] = materials.name(spec.name, spec.material)
@@ -195,8 +192,7 @@ def dumps(
         spec = scene._fem[body]
         load: dict = {"body": spec.name, "force": _uniform_or_rows(force)}
         if not np.array_equal(idx, np.arange(spec.mesh.n_points)):
-            numbering = _file_numbering(scene, spec)
-            load["nodes"] = (idx if numbering is None else numbering[idx]).tolist()
+            load["nodes"] = _node_list(scene, spec, idx)
         loads.append(load)
     for key, tables in (("fem", fem), ("mpm", mpm), ("boundary", boundaries), ("load", loads)):
         if tables:  # [[fem]], [[mpm]], [[boundary]], [[load]] after [contact], in this order
