@@ -214,6 +214,8 @@ def test_frame_writer_rejects_bad_times_and_closed_use(tmp_path):
         ({"point_data": {"v": np.zeros((3, 2))}}, "'ring': point_data 'v' has first dimension 3"),
         ({"cell_data": {"J": np.zeros(4)}}, "'ring': cell_data 'J' has first dimension 4"),
         ({"point_data": {"s": np.array(["x"] * 4)}}, "point_data 's' has dtype"),
+        # numpy counts timedelta64 among the integers; it is not a real number a frame can hold
+        ({"point_data": {"t": np.zeros(4, dtype="m8[s]")}}, "'t' has dtype timedelta64"),
         ({"point_data": {"z": np.zeros((4, 2, 2, 2))}}, "point_data 'z' has shape"),
         ({"point_data": {"": np.zeros(4)}}, "point_data name ''"),
     ],
