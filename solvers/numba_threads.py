@@ -17,14 +17,12 @@ count, never by the scheduler.
 from __future__ import annotations
 
 import ctypes
-import logging
 import os
 import sys
 from pathlib import Path
 
 __all__ = ["format_numba_threads", "numba_threads_report", "prefer_tbb"]
 
-log = logging.getLogger(__name__)
 
 _LIBTBB = "libtbb.so.12"  # the soname numba's TBB layer links and looks up (Linux)
 

@@ -50,7 +50,6 @@ plug in phases (``lr`` keeps one field per body).
 
 from __future__ import annotations
 
-import logging
 import math
 import time
 from dataclasses import dataclass, field
@@ -79,7 +78,6 @@ from geometry.grid import particle_stencils
 
 __all__ = ["ExplicitOptions", "ExplicitStepper", "GridStep", "Motion"]
 
-log = logging.getLogger(__name__)
 
 #: particles per chunk of the parallel P2G (fixed, so results do not depend on the thread count)
 P2G_CHUNK = 2048

@@ -69,7 +69,6 @@ design note ``measurements``, two_stage.
 
 from __future__ import annotations
 
-import logging
 import time
 from dataclasses import dataclass, field
 from typing import ClassVar
@@ -97,7 +96,6 @@ from solvers.options import NewtonOptions
 
 __all__ = ["FRICTION_LAGGING", "STARTS", "TwoStageOptions", "TwoStageStepper"]
 
-log = logging.getLogger(__name__)
 
 #: the names ``TwoStageOptions.friction`` accepts
 FRICTION_LAGGING = ("once", "loop")
