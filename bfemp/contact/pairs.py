@@ -73,20 +73,25 @@ def candidate_pairs(
     inflation: float,
     pos_end: np.ndarray | None = None,
 ) -> np.ndarray:
-    """(point, facet) candidates ``(n, 2)`` whose boxes (swept to ``pos_end``) overlap."""
-    if cs.facets.shape[0] == 0 or cs.n_points == 0:
-        return np.zeros((0, 2), dtype=np.int64)
+    """(point, facet) candidates ``(n, 2)`` of different bodies whose boxes (swept to
+    ``pos_end``) overlap, sorted. One broad phase per facet body, on the other bodies' points
+    (a body's own boundary nodes would each meet a dozen of its facets, only to be dropped)."""
+    found = [np.zeros((0, 2), dtype=np.int64)]
     nf = cs.n_fem_points
-    cand = point_simplex_candidates(
-        pos,
-        pos[:nf],
-        cs.facets,
-        inflation=inflation,
-        points_end=pos_end,
-        vertices_end=None if pos_end is None else pos_end[:nf],
-    )
-    keep = cs.point_body[cand[:, 0]] != cs.facet_body[cand[:, 1]]
-    return cand[keep]
+    for body in np.unique(cs.facet_body):  # a loop over FEM bodies
+        facets = np.flatnonzero(cs.facet_body == body)
+        points = np.flatnonzero(cs.point_body != body)
+        cand = point_simplex_candidates(
+            pos[points],
+            pos[:nf],
+            cs.facets[facets],
+            inflation=inflation,
+            points_end=None if pos_end is None else pos_end[points],
+            vertices_end=None if pos_end is None else pos_end[:nf],
+        )
+        found.append(np.column_stack([points[cand[:, 0]], facets[cand[:, 1]]]))
+    rows = np.concatenate(found)
+    return np.ascontiguousarray(rows[np.lexsort((rows[:, 1], rows[:, 0]))])
 
 
 def find_pairs(cs: CollisionSet, pos: np.ndarray, dhat: float) -> ContactPairs:

@@ -107,3 +107,45 @@ def test_lagging_friction_leaves_the_barrier_alone_and_matches_the_stateless_fun
     lifted[cs.n_fem_points :] += [0.0, 1.0]  # the particle 1 m above the plate
     empty = lag_contacts(cs, lifted, find_pairs(cs, lifted, DHAT), DHAT, bar.kappa, 0.4)
     assert empty.n_contacts == 0 and friction_energy(empty, U, 1e-5) == 0.0
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+@pytest.mark.parametrize("swept", [False, True])
+def test_candidates_per_body_are_every_overlap_of_different_bodies_in_order(dim, swept, rng):
+    """``candidate_pairs`` runs the broad phase once per facet body on the other bodies' points:
+    its rows are exactly the brute-force overlaps of all points and facets less the same-body
+    ones, sorted as the single-pass broad phase returned them (same pairs, same order)."""
+    from bfemp.contact.pairs import candidate_pairs
+    from geometry.broadphase import point_simplex_candidates
+
+    scene = bfemp.Scene(dim=dim)
+    h = 0.5 if dim == 2 else 0.6
+    for name, shift in (("a", 0.0), ("b", 1.05)):
+        lo, hi = (shift,) + (0.0,) * (dim - 1), (shift + 1.0,) + (1.0,) * (dim - 1)
+        mesh = (bfemp.shapes.rectangle if dim == 2 else bfemp.shapes.box)(lo, hi, h=h)
+        scene.add_fem(mesh, material=MAT, name=name)
+    x = rng.uniform(0.0, 2.0, size=(40, dim))
+    scene.add_mpm(x, np.full(40, 1e-4), material=MAT, name="p")
+    scene.set_grid(dx=0.1)
+    model = scene.build()
+    n_p = model.n_particles
+    cs = build_collision_set(
+        model, PointStencils(model.n_fem_nodes + np.arange(n_p)[:, None], np.ones((n_p, 1)))
+    )
+    pos = cs.positions(np.concatenate([model.fem_X, x])) + rng.normal(0.0, 0.02, (cs.n_points, dim))
+    end = pos + rng.normal(0.0, 0.1, pos.shape) if swept else None
+    nf = cs.n_fem_points
+    every = point_simplex_candidates(
+        pos,
+        pos[:nf],
+        cs.facets,
+        inflation=0.05,
+        points_end=end,
+        vertices_end=None if end is None else end[:nf],
+        method="brute",
+    )
+    every = every[np.lexsort((every[:, 1], every[:, 0]))]
+    expected = every[cs.point_body[every[:, 0]] != cs.facet_body[every[:, 1]]]
+    got = candidate_pairs(cs, pos, 0.05, end)
+    assert len(np.unique(cs.facet_body)) == 2 and expected.shape[0] > 10
+    np.testing.assert_array_equal(got, expected)
