@@ -94,13 +94,17 @@ def candidate_pairs(
     return np.ascontiguousarray(rows[np.lexsort((rows[:, 1], rows[:, 0]))])
 
 
-def find_pairs(cs: CollisionSet, pos: np.ndarray, dhat: float) -> ContactPairs:
-    """All terms of BFEMP eqs. 31-32 with distance below ``dhat`` at positions ``pos (C, d)``."""
+def find_pairs(
+    cs: CollisionSet, pos: np.ndarray, dhat: float, candidates: np.ndarray | None = None
+) -> ContactPairs:
+    """All terms of BFEMP eqs. 31-32 with distance below ``dhat`` at positions ``pos (C, d)``;
+    ``candidates``: (point, facet) rows holding every facet pair within ``dhat`` of ``pos``, sorted
+    (the broad phase's, found here when None)."""
     dim = pos.shape[1]
     bad = ~np.isfinite(pos).all(axis=1)
     if bad.any():
         raise ValueError(f"collision positions are not finite in rows {np.flatnonzero(bad)[:10]}")
-    cand = candidate_pairs(cs, pos, dhat)
+    cand = candidate_pairs(cs, pos, dhat) if candidates is None else candidates
     facet_kind = "pe" if dim == 2 else "pt"
     out_pts, out_coef, out_dist = {}, {}, {}
 

@@ -67,6 +67,7 @@ class BarrierTerm:
         self.collisions: CollisionSet = build_collision_set(ctx.model, particles)
         self._layout = ctx.layout
         self._fixed = ctx.fixed_positions
+        self._line: dict | None = None  # broad-phase candidates of the current line search
 
     def collision_positions(self, x: np.ndarray) -> np.ndarray:
         """Collision-point positions ``(C, d)`` in m for unknowns ``x (n_dof,)``."""
@@ -74,8 +75,18 @@ class BarrierTerm:
 
     def solution_changed(self, x: np.ndarray) -> None:
         """Active pairs and distances at ``x``."""
-        self._pos = self.collision_positions(x)
-        self.pairs = find_pairs(self.collisions, self._pos, self.dhat)
+        self._pos = pos = self.collision_positions(x)
+        line = self._line
+        if line is None or (pos.shape[1] == 3 and edge_edge_active(self.collisions)):
+            self.pairs = find_pairs(self.collisions, pos, self.dhat)
+            return
+        line["trials"] += 1
+        if line["trials"] == 2:  # the first backtrack: later trials lie between start and here
+            line["box"] = np.minimum(line["start"], pos), np.maximum(line["start"], pos)
+            line["cand"] = candidate_pairs(self.collisions, line["start"], self.dhat, pos)
+        cand, box = line.get("cand"), line.get("box")
+        inside = cand is not None and (pos >= box[0]).all() and (pos <= box[1]).all()
+        self.pairs = find_pairs(self.collisions, pos, self.dhat, cand if inside else None)
 
     # ------------------------------------------------------------------ energy
     def value(self, x: np.ndarray) -> float:
@@ -108,7 +119,13 @@ class BarrierTerm:
 
     # ------------------------------------------------------------------ feasibility
     def max_step_size(self, x: np.ndarray, p: np.ndarray) -> float:
-        """0.9 x the earliest time of impact along x -> x + p (CCD, section 5); at most 1."""
+        """0.9 x the earliest time of impact along x -> x + p (CCD, section 5); at most 1.
+
+        It starts a line search: from its first backtrack on, the trials x + alpha p (alpha
+        shrinking) lie between x and that trial, and the broad phase of the swept boxes from x
+        to it (grown by d-hat) serves them all; a point outside the swept boxes falls back to
+        a broad phase of its own. Same pairs, same order, as a broad phase per trial."""
+        self._line = {"start": self._pos, "trials": 0}
         return self._step_fraction(self._pos, self.collision_positions(x + p))
 
     def scripted_step(

@@ -149,3 +149,37 @@ def test_candidates_per_body_are_every_overlap_of_different_bodies_in_order(dim,
     got = candidate_pairs(cs, pos, 0.05, end)
     assert len(np.unique(cs.facet_body)) == 2 and expected.shape[0] > 10
     np.testing.assert_array_equal(got, expected)
+
+
+def test_line_search_trials_reuse_one_broad_phase_and_find_the_same_pairs(monkeypatch):
+    """From a line search's first backtrack on, the barrier's trials take their candidates from
+    one swept broad phase: every trial's pairs equal a fresh broad phase's (points, coefficients,
+    distances, bit for bit), and the reuse happens (a frictional disk thrown onto a plate
+    backtracks)."""
+    import bfemp.contact.term as term_module
+
+    reused = []
+
+    def checked(cs, pos, dhat, candidates=None):  # noqa: ANN001, ANN202
+        got = find_pairs(cs, pos, dhat, candidates)
+        if candidates is not None:
+            fresh = find_pairs(cs, pos, dhat)
+            for kind in fresh.points:
+                np.testing.assert_array_equal(got.points[kind], fresh.points[kind])
+                np.testing.assert_array_equal(got.coef[kind], fresh.coef[kind])
+                np.testing.assert_array_equal(got.distance[kind], fresh.distance[kind])
+            reused.append(fresh.n_pairs)
+        return got
+
+    monkeypatch.setattr(term_module, "find_pairs", checked)
+    scene = bfemp.Scene(dim=2, gravity=(0.0, -9.81))
+    plate = bfemp.shapes.rectangle((-0.4, -0.05), (0.8, 0.0), h=0.01)
+    scene.add_fem(plate, material=MAT, prescribed=bfemp.motion.Fixed(), name="plate")
+    x, vol = bfemp.sample.mesh(bfemp.shapes.disk((0.0, 0.12), 0.1, h=0.02), dx=0.02, ppc=4)
+    scene.add_mpm(x, vol, material=MAT, velocity=(1.0, -1.0), name="disk")
+    scene.set_grid(dx=0.02)
+    scene.set_contact(dhat=DHAT, kappa=1e5, mu=0.3)
+    sim = bfemp.Simulation(scene, strategy="barrier", dt=2e-3)
+    for _ in range(15):
+        sim.step()
+    assert len(reused) >= 5 and max(reused) > 0
