@@ -189,10 +189,6 @@ class BulkShearLaw(MaterialLaw):
     K = lam + 2 mu / 3; plane strain in 2D; psi = +inf (stresses NaN) where J <= 0."""
 
     __slots__ = ()
-    name = "bulk_shear"
-    _energy_kernel = staticmethod(_bs_energy)
-    _piola_kernel = staticmethod(_bs_piola)
-    _derivative_kernel = staticmethod(_bs_piola_derivative)
 
     def cauchy_stress(
         self, F: np.ndarray, mu: np.ndarray | float, lam: np.ndarray | float
@@ -205,4 +201,4 @@ class BulkShearLaw(MaterialLaw):
         return out
 
 
-BULK_SHEAR = BulkShearLaw()
+BULK_SHEAR = BulkShearLaw("bulk_shear", _bs_energy, _bs_piola, _bs_piola_derivative)

@@ -27,11 +27,12 @@ methods validate shapes and broadcast scalar Lame parameters, then call numba ke
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 from numba import njit, prange
 
-__all__ = ["LINEAR_ELASTIC", "NEO_HOOKEAN", "LinearElasticLaw", "MaterialLaw", "NeoHookeanLaw"]
+__all__ = ["LINEAR_ELASTIC", "NEO_HOOKEAN", "MaterialLaw", "NeoHookeanLaw"]
 
 
 # --------------------------------------------------------------------------------------------
@@ -335,16 +336,19 @@ def _prepare(
 class MaterialLaw:
     """A pointwise hyperelastic law psi(F) evaluated on batches of S points.
 
-    Subclasses set ``name`` and the three numba kernels. All methods take
-    ``F (S, d, d)`` (dimensionless, d = 2 or 3) and Lame parameters ``mu``, ``lam`` in Pa,
-    each either an array ``(S,)`` or a scalar shared by all points.
+    Made of its ``name`` and its three numba kernels ``kernel(F, mu, lam, out)`` (the energy
+    density, P and dP/dF). All methods take ``F (S, d, d)`` (dimensionless, d = 2 or 3) and Lame
+    parameters ``mu``, ``lam`` in Pa, each either an array ``(S,)`` or a scalar shared by all
+    points.
     """
 
-    __slots__ = ()
-    name: str = ""
-    _energy_kernel = None
-    _piola_kernel = None
-    _derivative_kernel = None
+    __slots__ = ("_derivative_kernel", "_energy_kernel", "_piola_kernel", "name")
+
+    def __init__(self, name: str, energy: Callable, piola: Callable, derivative: Callable) -> None:
+        self.name = name
+        self._energy_kernel = energy
+        self._piola_kernel = piola
+        self._derivative_kernel = derivative
 
     def energy_density(
         self, F: np.ndarray, mu: np.ndarray | float, lam: np.ndarray | float
@@ -418,10 +422,6 @@ class NeoHookeanLaw(MaterialLaw):
     """Compressible Neo-Hookean law of BFEMP eq. 7; psi = +inf (P, dP/dF NaN) where J <= 0."""
 
     __slots__ = ()
-    name = "neo_hookean"
-    _energy_kernel = staticmethod(_nh_energy)
-    _piola_kernel = staticmethod(_nh_piola)
-    _derivative_kernel = staticmethod(_nh_piola_derivative)
 
     def project_derivative(
         self, blocks: np.ndarray, F: np.ndarray, mu: np.ndarray, lam: np.ndarray
@@ -434,15 +434,6 @@ class NeoHookeanLaw(MaterialLaw):
         return project_nh_derivative(blocks, F, mu, lam)
 
 
-class LinearElasticLaw(MaterialLaw):
-    """Small-strain linear elasticity psi = mu eps:eps + lam/2 tr(eps)^2, eps = sym(F) - I."""
-
-    __slots__ = ()
-    name = "linear"
-    _energy_kernel = staticmethod(_lin_energy)
-    _piola_kernel = staticmethod(_lin_piola)
-    _derivative_kernel = staticmethod(_lin_piola_derivative)
-
-
-NEO_HOOKEAN = NeoHookeanLaw()
-LINEAR_ELASTIC = LinearElasticLaw()
+NEO_HOOKEAN = NeoHookeanLaw("neo_hookean", _nh_energy, _nh_piola, _nh_piola_derivative)
+#: small-strain linear elasticity psi = mu eps:eps + lam/2 tr(eps)^2, eps = sym(F) - I
+LINEAR_ELASTIC = MaterialLaw("linear", _lin_energy, _lin_piola, _lin_piola_derivative)

@@ -33,7 +33,7 @@ import math
 import numpy as np
 from numba import njit
 
-from geometry._distance_kernels import KIND_PE, KIND_PT, PARALLEL_SIN2
+from geometry._distance_kernels import KIND_PE, KIND_PT, PARALLEL_SIN2, _cross, _dot
 
 #: unit roundoff of float64
 U = 2.0**-53
@@ -93,16 +93,6 @@ def _pe_direction(Y: np.ndarray, ip: int, i0: int, i1: int, lam: float, sign: fl
 @njit(cache=True)
 def _vec3(Y: np.ndarray, i: int, j: int) -> tuple[float, float, float]:
     return Y[i, 0] - Y[j, 0], Y[i, 1] - Y[j, 1], Y[i, 2] - Y[j, 2]
-
-
-@njit(cache=True)
-def _cross(a: tuple, b: tuple) -> tuple[float, float, float]:
-    return a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]
-
-
-@njit(cache=True)
-def _dot(a: tuple, b: tuple) -> float:
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
 @njit(cache=True, inline="always")

@@ -25,7 +25,7 @@ distances). That boundary search needs no special cases and is also the fallback
 near-parallel edges and degenerate triangles (``|u x v|^2 <= 1e-20 |u|^2 |v|^2``): there the
 closest points of the lines are ill-defined, but the boundary minimum is exact for parallel
 segments. Interior tests use the stable cross-product forms of the parameters, e.g. for edges
-``s = ((r x b).n) / n.n``, ``t = ((r x a).n) / n.n`` with ``n = a x b``, ``r = b0 - a0``.
+``s = ((r x b).n) / n.n``, ``-t = ((a x r).n) / n.n`` with ``n = a x b``, ``r = b0 - a0``.
 """
 
 from __future__ import annotations
@@ -75,10 +75,12 @@ for _t, _b in enumerate(
 ):
     _set(KIND_EE, _t, (FEAT_PP, FEAT_PL, FEAT_LL)[min(_t // 4, 2)], _b)
 
-# Point-edge type (0: e0, 1: e1, 2: interior) of each boundary candidate -> pair type.
-# Triangle edges (t0, t1), (t1, t2), (t2, t0).
+# Boundary candidates (point, edge start, edge end) as the pair's vertex slots, and the
+# point-edge type (0: e0, 1: e1, 2: interior) of each -> pair type.
+# Point-triangle: p vs the triangle edges (t0, t1), (t1, t2), (t2, t0).
+_PT_CAND_VERTS = np.array([[0, 1, 2], [0, 2, 3], [0, 3, 1]], dtype=np.int64)
 _PT_EDGE_TYPE = np.array([[0, 1, 3], [1, 2, 4], [2, 0, 5]], dtype=np.int64)
-# Edge-edge candidates: b0 vs edge a, b1 vs edge a, a0 vs edge b, a1 vs edge b.
+# Edge-edge: b0 vs edge a, b1 vs edge a, a0 vs edge b, a1 vs edge b.
 _EE_CAND_TYPE = np.array([[0, 2, 4], [1, 3, 5], [0, 1, 6], [2, 3, 7]], dtype=np.int64)
 _EE_CAND_VERTS = np.array([[2, 0, 1], [3, 0, 1], [0, 2, 3], [1, 2, 3]], dtype=np.int64)
 
@@ -132,54 +134,53 @@ def _dot(a: tuple[float, float, float], b: tuple[float, float, float]) -> float:
 
 
 @njit(cache=True)
-def _pt_classify(X: np.ndarray) -> tuple[int, float]:
-    """Point-triangle type and squared distance; X (4, 3) = (p, t0, t1, t2)."""
-    u = _sub(X[2], X[1])
-    v = _sub(X[3], X[1])
-    r = _sub(X[0], X[1])
+def _plane_coords(
+    u: tuple[float, float, float], v: tuple[float, float, float], r: tuple[float, float, float]
+) -> tuple[float, float, float]:
+    """``(a, b, D)``: r's projection onto the plane of u and v is ``a u + b v`` (cross-product
+    forms), D its squared distance to the plane; ``(nan, nan, inf)`` for parallel u and v."""
     n = _cross(u, v)
     m = _dot(n, n)
-    if m > PARALLEL_SIN2 * _dot(u, u) * _dot(v, v):
-        # Barycentric coordinates of the projection onto the plane.
-        b1 = _dot(_cross(r, v), n) / m
-        b2 = _dot(_cross(u, r), n) / m
-        if b1 >= 0.0 and b2 >= 0.0 and b1 + b2 <= 1.0:
-            s = _dot(r, n)
-            return 6, s * s / m
+    if not m > PARALLEL_SIN2 * _dot(u, u) * _dot(v, v):
+        return np.nan, np.nan, np.inf
+    rn = _dot(r, n)
+    return _dot(_cross(r, v), n) / m, _dot(_cross(u, r), n) / m, rn * rn / m
+
+
+@njit(cache=True)
+def _boundary_min(X: np.ndarray, verts: np.ndarray, types: np.ndarray) -> tuple[int, float]:
+    """Type and squared distance of the closest of the point-edge candidates ``verts (k, 3)``
+    (slots of X); ``types (k, 3)`` maps each one's point-edge type to the pair's."""
     best_t = -1
     best_D = np.inf
-    for k in range(3):
-        t, D = _pe_classify(X[0], X[1 + k], X[1 + (k + 1) % 3])
+    for k in range(verts.shape[0]):
+        iv = verts[k]
+        t, D = _pe_classify(X[iv[0]], X[iv[1]], X[iv[2]])
         if D < best_D:
             best_D = D
-            best_t = _PT_EDGE_TYPE[k, t]
+            best_t = types[k, t]
     return best_t, best_D
+
+
+@njit(cache=True)
+def _pt_classify(X: np.ndarray) -> tuple[int, float]:
+    """Point-triangle type and squared distance; X (4, 3) = (p, t0, t1, t2)."""
+    # (b1, b2): barycentric coordinates of p's projection onto the triangle's plane.
+    b1, b2, D = _plane_coords(_sub(X[2], X[1]), _sub(X[3], X[1]), _sub(X[0], X[1]))
+    if b1 >= 0.0 and b2 >= 0.0 and b1 + b2 <= 1.0:
+        return 6, D
+    return _boundary_min(X, _PT_CAND_VERTS, _PT_EDGE_TYPE)
 
 
 @njit(cache=True)
 def _ee_classify(X: np.ndarray) -> tuple[int, float]:
     """Segment-segment type and squared distance; X (4, 3) = (a0, a1, b0, b1)."""
-    a = _sub(X[1], X[0])
-    b = _sub(X[3], X[2])
-    r = _sub(X[2], X[0])
-    n = _cross(a, b)
-    m = _dot(n, n)
-    if m > PARALLEL_SIN2 * _dot(a, a) * _dot(b, b):
-        # Parameters of the closest points a0 + s a and b0 + t b of the two lines.
-        s = _dot(_cross(r, b), n) / m
-        t = _dot(_cross(r, a), n) / m
-        if 0.0 <= s <= 1.0 and 0.0 <= t <= 1.0:
-            rn = _dot(r, n)
-            return 8, rn * rn / m
-    best_t = -1
-    best_D = np.inf
-    for k in range(4):
-        iv = _EE_CAND_VERTS[k]
-        t, D = _pe_classify(X[iv[0]], X[iv[1]], X[iv[2]])
-        if D < best_D:
-            best_D = D
-            best_t = _EE_CAND_TYPE[k, t]
-    return best_t, best_D
+    # The closest points a0 + s a and b0 + t b of the two lines: r = b0 - a0 has the plane
+    # coordinates (s, -t) in the basis (a, b).
+    s, minus_t, D = _plane_coords(_sub(X[1], X[0]), _sub(X[3], X[2]), _sub(X[2], X[0]))
+    if 0.0 <= s <= 1.0 and -1.0 <= minus_t <= 0.0:
+        return 8, D
+    return _boundary_min(X, _EE_CAND_VERTS, _EE_CAND_TYPE)
 
 
 @njit(cache=True)

@@ -1,4 +1,5 @@
-"""What every linear solver shares: the error it raises and the check of ``A x = b``'s inputs.
+"""What every linear solver shares: the error it raises, the check of ``A x = b``'s inputs, and
+the counters, phase timings and kept sparsity pattern of :class:`SolverBase`.
 
 A module of its own so that the concrete solvers (:mod:`solvers.linear`,
 :mod:`solvers.iterative`, :mod:`solvers.pardiso`) import it without importing each other.
@@ -7,12 +8,13 @@ A module of its own so that the concrete solvers (:mod:`solvers.linear`,
 from __future__ import annotations
 
 import importlib
+import time
 from types import ModuleType
 
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["LinearSolveError", "SparsityPattern", "optional_import"]
+__all__ = ["LinearSolveError", "SolverBase", "SparsityPattern", "optional_import"]
 
 
 class LinearSolveError(RuntimeError):
@@ -85,3 +87,43 @@ class SparsityPattern:
     def forget(self) -> None:
         """Match no matrix until the next :meth:`remember` (analyse afresh)."""
         self._indptr = None
+
+
+class SolverBase:
+    """The scaffolding of the solvers that keep an analysis per sparsity pattern; a subclass's
+    ``_analyse(A)`` analyses a new one (for :meth:`_analysed`).
+
+    Attributes:
+        n_symbolic: analyses performed (symbolic factorisations, AMG hierarchies).
+        n_numeric: numeric factorisations (solves, for an iterative solver) performed.
+        last_timings: seconds of the last call, keys ``analyze``, ``factorize``, ``solve``.
+    """
+
+    def __init__(self) -> None:
+        self.n_symbolic = 0
+        self.n_numeric = 0
+        self.last_timings = {"analyze": 0.0, "factorize": 0.0, "solve": 0.0}
+        self._pattern = SparsityPattern()
+
+    def _start(self) -> float:
+        """Zero the timings of a new call; the start time (s)."""
+        self.last_timings = {"analyze": 0.0, "factorize": 0.0, "solve": 0.0}
+        return time.perf_counter()
+
+    def _lap(self, phase: str, since: float) -> float:
+        """Record the seconds since ``since`` as ``phase``'s; the time now (s)."""
+        now = time.perf_counter()
+        self.last_timings[phase] = now - since
+        return now
+
+    def _analysed(
+        self, A: sp.csc_matrix, pattern_version: int | None, t0: float, *, anew: bool = False
+    ) -> float:
+        """Run :meth:`_analyse` unless A (n, n) has the pattern analysed last (and not ``anew``),
+        and remember it; the time since ``t0`` is the call's ``analyze``. The time now (s)."""
+        if anew or not self._pattern.matches(A, pattern_version):
+            self._analyse(A)
+            self._pattern.remember(A)
+            self.n_symbolic += 1
+        self._pattern.version = pattern_version
+        return self._lap("analyze", t0)

@@ -31,7 +31,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from solvers._linear_base import LinearSolveError, SparsityPattern, _check_system, optional_import
+from solvers._linear_base import LinearSolveError, SolverBase, _check_system, optional_import
 
 __all__ = ["AMG_INSTALL_HINT", "CgAmgSolver", "amg_available"]
 
@@ -53,7 +53,7 @@ def amg_available() -> bool:
     return _import_pyamg() is not None
 
 
-class CgAmgSolver:
+class CgAmgSolver(SolverBase):
     """CG preconditioned by a smoothed-aggregation AMG V-cycle, hierarchy kept per pattern.
 
     Args:
@@ -65,8 +65,7 @@ class CgAmgSolver:
             iterations of the solve right after the last build.
 
     Attributes:
-        n_symbolic: hierarchies built (the analogue of a symbolic analysis).
-        n_numeric: solves performed.
+        n_symbolic, n_numeric: hierarchies built (the analogue of an analysis), solves performed.
         last_iterations: CG iterations of the last solve.
         accepts_rtol: True: ``solve`` takes a per-solve ``rtol`` (an inexact Newton solve).
         last_timings: seconds of the last call: ``analyze`` (hierarchy build, 0 when reused),
@@ -94,21 +93,20 @@ class CgAmgSolver:
             raise ValueError(f"CgAmgSolver block_size must be 1, 2 or 3, got {block_size!r}")
         if not rebuild_factor >= 1.0:
             raise ValueError(f"CgAmgSolver rebuild_factor must be >= 1, got {rebuild_factor!r}")
+        super().__init__()
         self._pyamg = pyamg
         self.rtol = float(rtol)
         self.maxiter = maxiter
         self.block_size = block_size
         self.rebuild_factor = float(rebuild_factor)
-        self.n_symbolic = 0
-        self.n_numeric = 0
         self.last_iterations = 0
-        self.last_timings = {"analyze": 0.0, "factorize": 0.0, "solve": 0.0}
         self._M: spla.LinearOperator | None = None
         self._fresh_iterations = 0
-        self._pattern = SparsityPattern()
         self._A: sp.csr_matrix | None = None
 
-    def _build(self, A: sp.csr_matrix) -> None:
+    def _analyse(self, A: sp.csc_matrix) -> None:
+        """The AMG hierarchy of A (n, n), built on the solve's CSR copy ``self._A``."""
+        A = self._A
         n = A.shape[0]
         bs = self.block_size if n % self.block_size == 0 else 1
         near_null = np.kron(np.ones((n // bs, 1)), np.eye(bs))
@@ -117,7 +115,6 @@ class CgAmgSolver:
             matrix, B=near_null, symmetry="symmetric", max_coarse=500
         )
         self._M = hierarchy.aspreconditioner(cycle="V")
-        self.n_symbolic += 1
         logger.debug("AMG hierarchy: %d levels for a %d x %d matrix", len(hierarchy.levels), n, n)
 
     def _cg(
@@ -147,23 +144,19 @@ class CgAmgSolver:
         n = A.shape[0]
         if n == 0:
             return np.zeros(0)
-        timings = {"analyze": 0.0, "factorize": 0.0, "solve": 0.0}
-        self.last_timings = timings
-        csr = A.tocsr()  # A symmetric: the CSR of A is its CSC transposed, as cheap
-        t0 = time.perf_counter()
-        fresh = self._M is None or not self._pattern.matches(A, pattern_version)
-        if fresh:
-            self._build(csr)
-            self._pattern.remember(A)
-        self._pattern.version = pattern_version
-        t1 = time.perf_counter()
-        timings["analyze"] = t1 - t0
+        self._A = csr = A.tocsr()  # A symmetric: its CSR is its CSC transposed, as cheap
+        t0 = self._start()
+        built = self.n_symbolic
+        t1 = self._analysed(A, pattern_version, t0, anew=self._M is None)
+        fresh = self.n_symbolic > built
+        timings = self.last_timings
         x, info, its = self._cg(csr, b, rtol)
         limit = self.rebuild_factor * max(self._fresh_iterations, 1)
         if not fresh and (info != 0 or its > limit):
             # The kept hierarchy no longer fits the matrix: rebuild and solve again.
             t2 = time.perf_counter()
-            self._build(csr)
+            self._analyse(A)
+            self.n_symbolic += 1
             timings["analyze"] += time.perf_counter() - t2
             fresh = True
             x, info, its = self._cg(csr, b, rtol)
@@ -171,7 +164,6 @@ class CgAmgSolver:
             self._fresh_iterations = its
         self.n_numeric += 1
         self.last_iterations = its
-        self._A = csr
         timings["solve"] = time.perf_counter() - t1 - (timings["analyze"] - (t1 - t0))
         if info != 0 or not np.all(np.isfinite(x)):
             self._M = None

@@ -22,7 +22,6 @@ sum is not: :func:`solvers.newton.minimize` refactorises once with that diagonal
 from __future__ import annotations
 
 import logging
-import time
 import warnings
 from types import ModuleType
 from typing import Protocol, runtime_checkable
@@ -31,7 +30,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from solvers._linear_base import LinearSolveError, SparsityPattern, _check_system, optional_import
+from solvers._linear_base import LinearSolveError, SolverBase, _check_system, optional_import
 from solvers.blas import report_cholmod_blas_once
 from solvers.openmp import bounded_openmp
 
@@ -167,7 +166,7 @@ def _check_pivots(pivots: np.ndarray) -> None:
         )
 
 
-class CholmodSolver:
+class CholmodSolver(SolverBase):
     """Sparse Cholesky with CHOLMOD, reusing the symbolic analysis across equal patterns.
 
     Args:
@@ -176,10 +175,8 @@ class CholmodSolver:
             ``"metis"``, ``"nesdis"``, ``"colamd"``, ``"natural"``, ``"best"``).
 
     Attributes:
-        n_symbolic: number of symbolic analyses performed.
-        n_numeric: number of numeric factorisations performed.
-        last_timings: seconds of the last call, keys ``analyze`` (pattern comparison plus
-            symbolic analysis; only the comparison when reused), ``factorize``, ``solve``.
+        n_symbolic, n_numeric, last_timings: as in :class:`~solvers._linear_base.SolverBase`;
+            ``analyze`` is the pattern comparison plus the symbolic analysis (when not reused).
     """
 
     def __init__(self, *, mode: str = "auto", ordering_method: str = "default") -> None:
@@ -191,14 +188,17 @@ class CholmodSolver:
                 f"CholmodSolver mode must be 'auto', 'simplicial' or 'supernodal', got {mode!r}"
             )
         report_cholmod_blas_once()  # says once per process which BLAS CHOLMOD runs on
+        super().__init__()
         self._cholmod = cholmod
         self.mode = mode
         self.ordering_method = ordering_method
-        self.n_symbolic = 0
-        self.n_numeric = 0
-        self.last_timings = {"analyze": 0.0, "factorize": 0.0, "solve": 0.0}
         self._factor = None
-        self._pattern = SparsityPattern()
+
+    def _analyse(self, A: sp.csc_matrix) -> None:
+        self._factor = self._cholmod.analyze(
+            A, mode=self.mode, ordering_method=self.ordering_method
+        )
+        logger.debug("CHOLMOD symbolic analysis of a %d x %d matrix", *A.shape)
 
     def solve(
         self, A: sp.csc_matrix, b: np.ndarray, *, pattern_version: int | None = None
@@ -222,19 +222,7 @@ class CholmodSolver:
         if A.shape[0] == 0:
             return np.zeros(0)
         with bounded_openmp():  # CHOLMOD's compiled-in 4 OpenMP threads cost 1.3-1.8x on 2 cores
-            timings = {"analyze": 0.0, "factorize": 0.0, "solve": 0.0}
-            self.last_timings = timings
-            t0 = time.perf_counter()
-            if self._factor is None or not self._pattern.matches(A, pattern_version):
-                self._factor = self._cholmod.analyze(
-                    A, mode=self.mode, ordering_method=self.ordering_method
-                )
-                self._pattern.remember(A)
-                self.n_symbolic += 1
-                logger.debug("CHOLMOD symbolic analysis of a %d x %d matrix", *A.shape)
-            self._pattern.version = pattern_version
-            t1 = time.perf_counter()
-            timings["analyze"] = t1 - t0
+            t1 = self._analysed(A, pattern_version, self._start(), anew=self._factor is None)
             try:
                 self._factor.cholesky_inplace(A)
                 self.n_numeric += 1
@@ -242,14 +230,13 @@ class CholmodSolver:
             except (self._cholmod.CholmodError, LinearSolveError) as err:
                 # A failed numeric factorisation may leave the factor unusable: analyse afresh.
                 self._factor = None
-                timings["factorize"] = time.perf_counter() - t1
+                self._lap("factorize", t1)
                 if isinstance(err, LinearSolveError):
                     raise
                 raise LinearSolveError(f"CHOLMOD factorisation failed: {err}") from err
-            t2 = time.perf_counter()
-            timings["factorize"] = t2 - t1
+            t2 = self._lap("factorize", t1)
             x = np.asarray(self._factor.solve_A(b), dtype=np.float64).reshape(-1)
-            timings["solve"] = time.perf_counter() - t2
+            self._lap("solve", t2)
             if not np.all(np.isfinite(x)):
                 raise LinearSolveError("CHOLMOD solution has non-finite entries")
             return x
@@ -272,7 +259,7 @@ class CholmodSolver:
         return x if np.all(np.isfinite(x)) else None
 
 
-class ScipySolver:
+class ScipySolver(SolverBase):
     """Fallback SPD solver: SuperLU (``scipy.sparse.linalg.splu``) in symmetric mode.
 
     Every call orders and factorises afresh (SuperLU cannot reuse a symbolic analysis), so
@@ -281,9 +268,7 @@ class ScipySolver:
     """
 
     def __init__(self) -> None:
-        self.n_symbolic = 0
-        self.n_numeric = 0
-        self.last_timings = {"analyze": 0.0, "factorize": 0.0, "solve": 0.0}
+        super().__init__()
         self._lu: spla.SuperLU | None = None
 
     def solve(
@@ -295,9 +280,7 @@ class ScipySolver:
         A, b = _check_system(A, b)
         if A.shape[0] == 0:
             return np.zeros(0)
-        timings = {"analyze": 0.0, "factorize": 0.0, "solve": 0.0}
-        self.last_timings = timings
-        t0 = time.perf_counter()
+        t0 = self._start()
         try:
             # Symmetric mode with a zero pivot threshold keeps the pivots on the diagonal of
             # the symmetrically permuted matrix, so diag(U) are the LDL^T pivots.
@@ -308,21 +291,20 @@ class ScipySolver:
                 options={"SymmetricMode": True},
             )
         except RuntimeError as err:
-            timings["factorize"] = time.perf_counter() - t0
+            self._lap("factorize", t0)
             raise LinearSolveError(f"SuperLU factorisation failed: {err}") from err
         self.n_symbolic += 1
         self.n_numeric += 1
         if not np.array_equal(lu.perm_r, lu.perm_c):
-            timings["factorize"] = time.perf_counter() - t0
+            self._lap("factorize", t0)
             raise LinearSolveError(
                 "matrix is not positive definite: SuperLU needed off-diagonal pivoting"
             )
         _check_pivots(lu.U.diagonal())
         self._lu = lu
-        t1 = time.perf_counter()
-        timings["factorize"] = t1 - t0
+        t1 = self._lap("factorize", t0)
         x = lu.solve(b)
-        timings["solve"] = time.perf_counter() - t1
+        self._lap("solve", t1)
         if not np.all(np.isfinite(x)):
             raise LinearSolveError("SuperLU solution has non-finite entries")
         return x

@@ -14,13 +14,12 @@ it is installed and :class:`PardisoSolver` raises :data:`PARDISO_INSTALL_HINT` w
 from __future__ import annotations
 
 import logging
-import time
 from types import ModuleType
 
 import numpy as np
 import scipy.sparse as sp
 
-from solvers._linear_base import LinearSolveError, SparsityPattern, _check_system, optional_import
+from solvers._linear_base import LinearSolveError, SolverBase, _check_system, optional_import
 
 __all__ = ["PARDISO_INSTALL_HINT", "PardisoSolver", "pardiso_available"]
 
@@ -49,28 +48,24 @@ def pardiso_available() -> bool:
     return _import_pypardiso() is not None
 
 
-class PardisoSolver:
-    """Sparse Cholesky with MKL PARDISO, reusing the analysis across equal patterns.
-
-    Attributes:
-        n_symbolic: number of analyses (phase 11) performed.
-        n_numeric: number of numeric factorisations (phase 22) performed.
-        last_timings: seconds of the last call, keys ``analyze``, ``factorize``, ``solve``.
-    """
+class PardisoSolver(SolverBase):
+    """Sparse Cholesky with MKL PARDISO, reusing the analysis (phase 11) across equal patterns;
+    ``n_numeric`` counts the numeric factorisations (phase 22)."""
 
     def __init__(self) -> None:
         pypardiso = _import_pypardiso()
         if pypardiso is None:
             raise RuntimeError(PARDISO_INSTALL_HINT)
+        super().__init__()
         self._solver = pypardiso.PyPardisoSolver(mtype=_MTYPE_SPD)
         self._error = pypardiso.pardiso_wrapper.PyPardisoError
         self._solver.set_iparm(12, 0)  # CSR input, not transposed
-        self.n_symbolic = 0
-        self.n_numeric = 0
-        self.last_timings = {"analyze": 0.0, "factorize": 0.0, "solve": 0.0}
         self._upper: sp.csr_matrix | None = None
-        self._pattern = SparsityPattern()
         self._factorised = False
+
+    def _analyse(self, A: sp.csc_matrix) -> None:
+        self._call(_ANALYSIS, np.zeros(A.shape[0]))
+        logger.debug("PARDISO analysis of a %d x %d matrix", *A.shape)
 
     def _call(self, phase: int, b: np.ndarray) -> np.ndarray:
         self._solver.set_phase(phase)
@@ -93,9 +88,7 @@ class PardisoSolver:
         A, b = _check_system(A, b)
         if A.shape[0] == 0:
             return np.zeros(0)
-        timings = {"analyze": 0.0, "factorize": 0.0, "solve": 0.0}
-        self.last_timings = timings
-        t0 = time.perf_counter()
+        t0 = self._start()
         # A is symmetric, so the CSR arrays of its upper triangle are those of the CSC lower
         # triangle read transposed.
         lower = sp.tril(A, format="csc")
@@ -103,27 +96,18 @@ class PardisoSolver:
         self._upper = sp.csr_matrix((lower.data, lower.indices, lower.indptr), shape=A.shape)
         if np.any(np.diff(lower.indptr) == 0):
             raise LinearSolveError("matrix is singular: a row has no diagonal or upper entries")
-        zero = np.zeros(A.shape[0])
-        if not self._pattern.matches(A, pattern_version):
-            self._call(_ANALYSIS, zero)
-            self._pattern.remember(A)
-            self.n_symbolic += 1
-            logger.debug("PARDISO analysis of a %d x %d matrix", *A.shape)
-        self._pattern.version = pattern_version
-        t1 = time.perf_counter()
-        timings["analyze"] = t1 - t0
+        t1 = self._analysed(A, pattern_version, t0)
         try:
-            self._call(_NUMERIC, zero)
+            self._call(_NUMERIC, np.zeros(A.shape[0]))
         except LinearSolveError:
             self._pattern.forget()  # analyse afresh after a failed factorisation
-            timings["factorize"] = time.perf_counter() - t1
+            self._lap("factorize", t1)
             raise
         self.n_numeric += 1
         self._factorised = True
-        t2 = time.perf_counter()
-        timings["factorize"] = t2 - t1
+        t2 = self._lap("factorize", t1)
         x = np.asarray(self._call(_SOLVE, b), dtype=np.float64).reshape(-1)
-        timings["solve"] = time.perf_counter() - t2
+        self._lap("solve", t2)
         if not np.all(np.isfinite(x)):
             raise LinearSolveError("PARDISO solution has non-finite entries")
         return x

@@ -115,7 +115,6 @@ class AuguryStepper(ExplicitStepper):
     #: the barrier's couplings, kind by kind
     capabilities: ClassVar[Capabilities] = Capabilities(
         pairs=BARRIER_PAIRS,
-        friction=True,
         needs_contact_settings=False,
         penetration_bound_cells=AUGURY_PENETRATION_CELLS,
         penetration_note=AUGURY_PENETRATION_NOTE,

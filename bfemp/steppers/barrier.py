@@ -80,7 +80,6 @@ class BarrierStepper:
     #: BFEMP section 4)
     capabilities: ClassVar[Capabilities] = Capabilities(
         pairs=BARRIER_PAIRS,
-        friction=True,
         needs_contact_settings=True,
         penetration_bound_cells=0.0,
         penetration_note="none: the CCD- and det F-filtered line search keeps every particle "

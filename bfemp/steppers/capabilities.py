@@ -83,7 +83,6 @@ class Capabilities:
     Attributes:
         pairs: pair kind -> coupling (``"contact"`` or ``"grid"``); a kind not listed is not
             coupled: a scene with such a pair is refused.
-        friction: whether contact can carry Coulomb friction (``scene.set_contact(mu=...)``).
         needs_contact_settings: whether the contact pairs act only with
             ``scene.set_contact(...)`` (the barrier's d-hat and kappa).
         penetration_bound_cells: 0.0 when no particle or FEM node ever ends inside another FEM
@@ -91,6 +90,7 @@ class Capabilities:
             grid cells (dx of the MPM grid, or of the strategy's contact grid); None when the
             strategy couples nothing with a FEM body.
         penetration_note: how the bound was obtained, or why there is none.
+        friction: whether contact can carry Coulomb friction (``scene.set_contact(mu=...)``).
         inversion_free: whether every FEM cell and particle keeps J > 0 (a step that would
             invert is refused by the line search, not taken).
         needs_mpm_body: whether the strategy runs only scenes with an MPM body (``lr``: its
@@ -98,10 +98,10 @@ class Capabilities:
     """
 
     pairs: Mapping[str, str]
-    friction: bool
     needs_contact_settings: bool
     penetration_bound_cells: float | None
     penetration_note: str
+    friction: bool = True
     inversion_free: bool = False
     needs_mpm_body: bool = False
 

@@ -106,7 +106,6 @@ class LRStepper(ExplicitStepper):
     #: catalogue's stack a free FEM block on a fixed FEM plate sank 2.2 cells into it
     capabilities: ClassVar[Capabilities] = Capabilities(
         pairs={"mpm-mpm": "contact", "mpm-fem": "contact", "mpm-prescribed": "contact"},
-        friction=True,
         needs_contact_settings=False,
         penetration_bound_cells=LR_PENETRATION_CELLS,
         penetration_note=LR_PENETRATION_NOTE,

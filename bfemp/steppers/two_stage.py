@@ -163,7 +163,6 @@ class TwoStageStepper(ExplicitStepper):
     #: particles and FEM nodes against FEM boundaries; MPM bodies share the engine's grid
     capabilities: ClassVar[Capabilities] = Capabilities(
         pairs=BARRIER_PAIRS,
-        friction=True,
         needs_contact_settings=True,
         penetration_bound_cells=0.0,
         penetration_note="none: the contact stage is the barrier's CCD-filtered solve; a step "
