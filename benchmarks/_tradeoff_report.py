@@ -92,7 +92,7 @@ def winners(points: list[dict], cost: str = "wall_s") -> list[dict]:
     done = [p for p in done if not infeasible(p)]
     levels = sorted({p["error"] for p in done})
     ranges: list[dict] = []
-    for level, upper in zip(levels, [*levels[1:], math.inf], strict=True):
+    for level, upper in zip(levels, [*levels[1:], math.inf], strict=False):
         best: dict[str, float] = {}
         for p in done:
             if p["error"] <= level:
