@@ -1,12 +1,10 @@
 """Trade study across strategies (issues 6, 17): accuracy against cost of each coupling strategy
 and of its knobs, on the BFEMP scenes and one scene of each explicit paper.
 
-``python -m benchmarks tradeoff [--quick | --full] [--scenes rings,slope] [--strategies
-barrier,two_stage] [--knobs dt,tol] [--workers N | --scheduler tcp://host:port] [--cost
-wall|cpu] [--resume] [--points DIR] [--out DIR]``, also ``bfemp sweep`` with the same
-options. Replay one point:
-``python -m benchmarks tradeoff --replay tradeoff.json --id ID`` or ``--point '<record as
-JSON>'``.
+``python -m benchmarks tradeoff [--quick | --full] [--out DIR]`` with the options of
+``OPTIONS`` (scenes, strategies, knobs, workers or a Dask scheduler, cost axis, resume), also
+``bfemp sweep``; replay one point with ``--replay tradeoff.json --id ID`` or ``--point '<record
+as JSON>'``.
 
 Where each part lives: the scenes and what each point's error is against
 (``_tradeoff_scenes.SCENES``); the knobs and their ladders (``_tradeoff_knobs``; one knob at a
@@ -40,6 +38,7 @@ import os
 import shlex
 import time
 from collections import Counter
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -539,15 +538,12 @@ def _measure(
     """The trade study's payload; each point's measurement is also kept in the points folder
     as it arrives (``_tradeoff_cache``), so that a stopped sweep can be resumed.
 
-    Args:
-        mode, scenes, knobs, strategies, sweeps, threads: see :func:`plan`.
-        out: output folder.
-        workers, scheduler, timeout_s, cost, resume, points: the command-line options
-            (``OPTIONS``); ``workers`` defaults to the number of cores and is ignored with
-            ``scheduler``; a resumed point keeps the times and ``commit`` of the run that
-            measured it (the record lists it under ``resumed``).
-        warmup: first run a few steps of each scene to fill numba's cache (untimed).
-        progress: show a progress bar (points done of all, the last point's id) on stderr.
+    ``mode``, ``scenes``, ``knobs``, ``strategies``, ``sweeps``, ``threads``: see :func:`plan`;
+    ``workers`` (default: the number of cores, ignored with ``scheduler``), ``scheduler``,
+    ``timeout_s``, ``cost``, ``resume``, ``points``: the command-line options (``OPTIONS``; a
+    resumed point keeps the times and ``commit`` of the run that measured it); ``warmup``: first
+    run a few steps of each scene to fill numba's cache (untimed); ``progress``: a progress bar
+    (points done, the last point's id) on stderr.
     """
     if scheduler is not None:
         check_scheduler(scheduler)
@@ -563,25 +559,7 @@ def _measure(
     out = Path(out)
     jobs = [_job(r, timeout_s) for r in records]
     log.info("tradeoff (%s): %d points of %s", mode, len(jobs), ", ".join(scene_names))
-
-    def execute(ids: list[str], batch: list[dict], on_done=None, what="points") -> list[dict]:  # noqa: ANN001
-        from tqdm.auto import tqdm
-
-        bar = tqdm(total=len(ids), desc=f"tradeoff {what}", unit="point", disable=not progress)
-
-        def done(j: int, measurement: dict) -> None:
-            if on_done is not None:
-                on_done(j, measurement)
-            bar.update(1)
-            bar.set_postfix_str(ids[j], refresh=False)
-
-        try:
-            if scheduler is not None:
-                return execute_dask(ids, batch, scheduler, CONNECT_TIMEOUT_S, done)
-            return execute_local(ids, batch, workers, done)
-        finally:
-            bar.close()
-
+    execute = _executor(scheduler, workers, progress)
     cache = PointCache(out / CACHE_FOLDER if points is None else Path(points), commit)
     entries = [cache.entry(job) if resume else None for job in jobs]
     results = [e and e["measurement"] for e in entries]  # None: to run
@@ -619,15 +597,6 @@ def _measure(
         for record, result in zip(records, results, strict=True)
     ]
 
-    def not_run(scene: str) -> dict:
-        chosen = strategies.get(scene) if isinstance(strategies, dict) else strategies
-        why = SCENES[scene]["not_applicable"]
-        return {
-            st: why.get(st, "not declared for this scene")
-            for st in _names(chosen, "strategy", _registry())
-            if (scene, st) not in pairs
-        }
-
     mine = {s: [st for sc, st in pairs if sc == s] for s in scene_names}
     return _analysed(
         {
@@ -637,7 +606,7 @@ def _measure(
                 s: {st: SCENES[s]["strategies"][st].get("note") for st in mine[s]}
                 for s in scene_names
             },
-            "not_run": {s: not_run(s) for s in scene_names},
+            "not_run": {s: _not_run(s, strategies, pairs) for s in scene_names},
             "errors": {s: SCENES[s]["error"] for s in scene_names},
             "executor": {
                 "kind": "dask" if scheduler else "local",
@@ -660,6 +629,44 @@ def _measure(
             "points": finished,
         }
     )
+
+
+def _executor(scheduler: str | None, workers: int, progress: bool) -> Callable[..., list[dict]]:
+    """``execute(ids, jobs, on_done=None, what="points")``: ``execute_point`` of every job on
+    the Dask ``scheduler`` or ``workers`` local processes, a progress bar on stderr (points
+    done, the last point's id) when ``progress``; the ``(n,)`` measurements in job order."""
+
+    def execute(ids: list[str], jobs: list[dict], on_done=None, what="points") -> list[dict]:  # noqa: ANN001
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=len(ids), desc=f"tradeoff {what}", unit="point", disable=not progress)
+
+        def done(j: int, measurement: dict) -> None:
+            if on_done is not None:
+                on_done(j, measurement)
+            bar.update(1)
+            bar.set_postfix_str(ids[j], refresh=False)
+
+        try:
+            if scheduler is not None:
+                return execute_dask(ids, jobs, scheduler, CONNECT_TIMEOUT_S, done)
+            return execute_local(ids, jobs, workers, done)
+        finally:
+            bar.close()
+
+    return execute
+
+
+def _not_run(scene: str, strategies: str | list | dict | None, pairs: list[tuple]) -> dict:
+    """The chosen strategies that do not run ``scene`` (no (scene, strategy) in ``pairs``), each
+    with why (``SCENES[scene]["not_applicable"]``)."""
+    chosen = strategies.get(scene) if isinstance(strategies, dict) else strategies
+    why = SCENES[scene]["not_applicable"]
+    return {
+        st: why.get(st, "not declared for this scene")
+        for st in _names(chosen, "strategy", _registry())
+        if (scene, st) not in pairs
+    }
 
 
 def _plot(payload: dict, png: Path) -> None:
@@ -849,26 +856,14 @@ OPTIONS = {
     "--knobs": ("knobs", dict(help="comma-separated knobs (default: every knob of each strategy)")),
     "--strategies": (
         "strategies",
-        dict(help="comma-separated strategies (default: every one that applies to each scene)"),
+        dict(help="comma-separated strategies (default: all that apply)"),
     ),
     "--workers": ("workers", dict(type=int, help="local point processes at once (default: cores)")),
     "--scheduler": ("scheduler", dict(help="run the points on a Dask scheduler (tcp://host:port)")),
     "--threads-per-point": ("threads", dict(type=int, default=1, help="threads of each point")),
     "--point-timeout": ("timeout_s", dict(type=float, help="wall-time limit of one point in s")),
-    "--resume": (
-        "resume",
-        dict(
-            action="store_true",
-            help="take the points an earlier sweep of the same code kept in the points folder",
-        ),
-    ),
-    "--points": (
-        "points",
-        dict(
-            metavar="DIR",
-            help="where each point is kept as it finishes (default OUT/tradeoff_points/)",
-        ),
-    ),
+    "--resume": ("resume", dict(action="store_true", help="take the points kept of the same code")),
+    "--points": ("points", dict(metavar="DIR", help="kept points (default OUT/tradeoff_points/)")),
     "--cost": (
         "cost",
         dict(
