@@ -12,8 +12,8 @@ import math
 from pathlib import Path
 
 import numpy as np
-
-from benchmarks.common import figure
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
 
 #: a log-log slope needs the time to change by at least this factor along the sweep
 MIN_TIME_RATIO = 1.05
@@ -328,7 +328,9 @@ def plot_scene(
         title, error_label: the title and the error axis label.
         cost: the record key of the cost in s (``COSTS``).
     """
-    fig, ax = figure((8.5, 6.0), layout="constrained")
+    fig = Figure(figsize=(8.5, 6.0), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
     done = [r for r in records if r["error"] is not None and r[cost]]
     positive = [r["error"] for r in done if r["error"] > 0]
     floor = 0.1 * min(positive) if positive else 1e-16
