@@ -3,17 +3,14 @@
 ``settings``: ``scene`` (a key of ``_tradeoff_scenes.SCENES``), ``strategy`` (a registry name),
 ``dt`` (s, or ``"auto"``), ``options`` (the strategy's options as a dict: ``Options(**options)``),
 ``transfer`` where the scene declares one, and the scene's own settings (its ``base``). Each scene
-runs through the benchmark module that defines it (``rings``, ``slope``, ``hertz`` and its
-softened ``hertz_soft``, ``sine_boundary``, ``augury_blocks``, ``lr_compression``) with the
-variant each strategy needs (``_tradeoff_scenes`` states which). Returns JSON-ready scalars;
-``iterations`` is the sum over the run of the strategy's iteration counts (Newton for barrier and
-two_stage; 0 for the purely explicit ones), ``failure`` the ``StepError`` message (None when
-every step ran). Every point also returns ``max_penetration_m`` (m, the deepest any FEM node or
-particle went inside another FEM body over the run, from the shared ``penetration_depth`` check;
-None for a scene without FEM bodies, lr_compression) and, where the run built a stepper, the
-bound it is judged against: ``penetration_bound_m`` (m), ``penetration_bound_cells`` (read
-from the stepper's class when the point runs) and ``penetration_grid_dx_m``
-(``benchmarks._penetration``).
+runs through the benchmark module that defines it (``RUNNERS``), with the variant each strategy
+needs (``_tradeoff_scenes`` states which). Returns JSON-ready scalars: ``iterations`` (the run's
+summed iteration counts: Newton for barrier and two_stage, 0 for the purely explicit ones),
+``failure`` (the ``StepError`` message, None when every step ran), ``max_penetration_m`` (m, the
+deepest any FEM node or particle went inside another FEM body, the shared ``penetration_depth``
+check; None without FEM bodies) and, where the run built a stepper, the bound it is judged
+against (``penetration_bound_m`` in m, ``penetration_bound_cells``, ``penetration_grid_dx_m``:
+``benchmarks._penetration``).
 """
 
 from __future__ import annotations
