@@ -1,23 +1,19 @@
 """Measured points of a trade study kept on disk, so that a stopped sweep resumes (``--resume``).
 
-Each point's measurement is written as soon as it arrives, one JSON file per point in
-``<out>/tradeoff_points/`` (or ``--points DIR``), named by a hash of its benchmark module, its
-settings, its thread count and the code that computes it (``code_version``: every Python file of
-``bfemp``, ``solvers`` and ``geometry``, and the ``benchmarks`` modules a point's process
-imports, followed through every import statement). Keying on the code rather than the commit
-lets a sweep that takes several sessions go on across commits that touch only documentation,
-tests, records or benchmarks a point does not run; each kept point names the commit that
-measured it. A run that ended in a named step failure (``StepError``) is kept like any
-measurement (the same code and settings end the same way); points that gave no metrics (a
-crash, a timeout, a refusal) are not: a resumed sweep runs them again.
+One JSON file per point in ``<out>/tradeoff_points/`` (or ``--points DIR``), written as soon as
+it arrives and named by a hash of its module, settings, thread count and the code that computes
+it (``code_version``), not the commit: a sweep of several sessions goes on across commits that
+touch only what a point does not run; each kept point names the commit that measured it. A run
+that ended in a named step failure (``StepError``) is kept (the same code and settings end the
+same way); a point without metrics (a crash, a timeout, a refusal) runs again.
 """
 
 from __future__ import annotations
 
-import ast
 import hashlib
 import json
 import logging
+import modulefinder
 import os
 from pathlib import Path
 
@@ -31,58 +27,21 @@ POINT_MODULES = ("benchmarks._tradeoff_point", "benchmarks._tradeoff_runs")
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _module_file(root: Path, name: str) -> Path | None:
-    """The file of module ``name`` under ``root`` (``a/b.py`` or ``a/b/__init__.py``), or None
-    where it is not a module of the project."""
-    base = root.joinpath(*name.split("."))
-    for path in (base.with_suffix(".py"), base / "__init__.py"):
-        if path.is_file():
-            return path
-    return None
-
-
-def _imports(root: Path, name: str, path: Path) -> set[str]:
-    """The project modules that the file ``path`` of module ``name`` names in any import
-    statement (function bodies included), with the packages above each."""
-    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
-    found: set[str] = set()
-    for node in ast.walk(ast.parse(path.read_bytes(), filename=str(path))):
-        if isinstance(node, ast.Import):
-            found.update(alias.name for alias in node.names)
-        elif isinstance(node, ast.ImportFrom):
-            if node.level:  # relative: from the package ``level - 1`` above this one
-                parts = package.split(".")[: len(package.split(".")) - node.level + 1]
-                base = ".".join(parts + ([node.module] if node.module else []))
-            else:
-                base = node.module or ""
-            found.add(base)
-            found.update(f"{base}.{alias.name}" for alias in node.names)  # submodules
-    with_parents = {".".join(m.split(".")[: i + 1]) for m in found for i in range(m.count(".") + 1)}
-    return {m for m in with_parents if m and _module_file(root, m) is not None}
-
-
 def imported_modules(root: str | Path, modules: tuple[str, ...]) -> dict[str, Path]:
-    """``modules`` and every project module they import, directly or not (read statically from
-    the import statements, so an import inside a function counts): name -> file.
+    """``modules`` and every project module under ``root`` they import, directly or not (read
+    statically by ``modulefinder`` from the compiled code, so an import inside a function
+    counts): name -> file.
 
     Raises:
         ValueError: a module of ``modules`` has no file under ``root``.
     """
-    root = Path(root)
-    todo = list(modules)
+    finder = modulefinder.ModuleFinder(path=[str(root)])
     for name in modules:
-        if _module_file(root, name) is None:
-            raise ValueError(f"code_version: module {name!r} has no file under {root}")
-        todo += [".".join(name.split(".")[: i + 1]) for i in range(name.count("."))]
-    seen: dict[str, Path] = {}
-    while todo:
-        name = todo.pop()
-        path = _module_file(root, name)
-        if name in seen or path is None:
-            continue
-        seen[name] = path
-        todo += sorted(_imports(root, name, path) - set(seen))
-    return dict(sorted(seen.items()))
+        try:
+            finder.import_hook(name)
+        except ImportError:
+            raise ValueError(f"code_version: module {name!r} has no file under {root}") from None
+    return {n: Path(m.__file__) for n, m in sorted(finder.modules.items()) if m.__file__}
 
 
 def code_version(

@@ -2,17 +2,14 @@
 
 A strategy's own knobs are the fields of its options dataclass (``bfemp.steppers``) that declare
 ``sweep`` metadata (``StepperOptions``' docstring): ``finer`` (+1 / -1), ``factor`` or ``step``,
-optionally ``min``, ``max`` and ``first``. Nothing here lists them per strategy or per scene.
-The common knob ``dt`` (s) follows the same rule with ``DT_SWEEP``; an explicit strategy run at
-``dt="auto"`` sweeps its CFL fractions (``cfl_safety_*`` fields) instead of dt, and one run at a
-fixed dt sweeps dt and not the fractions (they then change nothing).
+optionally ``min``, ``max`` and ``first``. The common knob ``dt`` (s) follows the same rule with
+``DT_SWEEP``; an explicit strategy run at ``dt="auto"`` sweeps its CFL fractions
+(``cfl_safety_*``) instead of dt, one run at a fixed dt sweeps dt and not the fractions (they
+then change nothing).
 
-``ladder(spec, base, mode)`` turns a knob's declaration and its base value into the values swept:
-quick mode the base and one step finer (coarser where finer is out of range), full mode one step
-coarser, the base and one step finer, clipped to ``min`` / ``max``. A knob whose base is None
-("off", e.g. LR's ``xpic_order``) goes
-from None to ``first`` (quick) and one step beyond (full); one without ``first`` is not swept
-from None (augury's ``tau = None``, which is dt: the scene sets a number to sweep it).
+A knob whose base is None ("off", e.g. LR's ``xpic_order``) goes from None to ``first``
+(quick) and one step beyond (full); one without ``first`` is not swept from None (augury's
+``tau = None``, which is dt: the scene sets a number to sweep it).
 """
 
 from __future__ import annotations
@@ -30,30 +27,19 @@ CFL_FIELDS = ("cfl_safety_fem", "cfl_safety_mpm")
 
 def option_knobs(strategy: str) -> dict[str, dict]:
     """``{field: sweep spec}`` of the strategy's options fields that declare ``sweep``."""
-    options = stepper_class(strategy).Options
-    return {
-        f.name: dict(f.metadata["sweep"])
-        for f in dataclasses.fields(options)
-        if "sweep" in f.metadata
-    }
+    fields = dataclasses.fields(stepper_class(strategy).Options)
+    return {f.name: dict(f.metadata["sweep"]) for f in fields if "sweep" in f.metadata}
 
 
 def option_defaults(strategy: str) -> dict[str, object]:
     """The defaults of the strategy's options fields (those with a default)."""
-    options = stepper_class(strategy).Options
-    return {
-        f.name: f.default
-        for f in dataclasses.fields(options)
-        if f.default is not dataclasses.MISSING
-    }
+    fields = dataclasses.fields(stepper_class(strategy).Options)
+    return {f.name: f.default for f in fields if f.default is not dataclasses.MISSING}
 
 
 def strategy_knobs(strategy: str, dt: float | str) -> dict[str, dict]:
-    """Knob -> sweep spec of one strategy at a scene's base ``dt`` (a number or ``"auto"``).
-
-    ``dt`` itself is a knob when it is a number (then the CFL fractions are not: they change
-    nothing); at ``"auto"`` the CFL fractions are (and dt is not: it follows them).
-    """
+    """Knob -> sweep spec of one strategy at a scene's base ``dt`` (a number or ``"auto"``:
+    the CFL fractions are knobs, not dt)."""
     knobs = option_knobs(strategy)
     if dt == "auto":
         return knobs
@@ -70,8 +56,9 @@ def ladder(spec: dict, base: object, mode: str) -> tuple:
 
     Args:
         spec: the knob's sweep declaration (``finer``, ``factor`` or ``step``, ...).
-        base: the base value (a number, or None for "off").
-        mode: ``"quick"``: the base and one step finer; ``"full"``: one coarser, base, one finer.
+        base: the base value (a number, or None for "off": module docstring).
+        mode: ``"quick"``: the base and one step finer (coarser where finer is out of range);
+            ``"full"``: one coarser, base, one finer.
 
     Returns:
         the values, coarse to fine, without duplicates or values outside ``min`` / ``max``;

@@ -27,9 +27,10 @@ import tempfile
 import time
 import traceback
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor, as_completed
+from concurrent.futures import Executor, ThreadPoolExecutor, as_completed
 from pathlib import Path
 
+from benchmarks._shared import python_child
 from benchmarks.common import json_ready, peak_memory_mb
 
 log = logging.getLogger(__name__)
@@ -64,14 +65,8 @@ def execute_point(point: dict) -> dict:
         spec.write_text(json.dumps({"module": point["module"], "settings": point["settings"]}))
         started = time.perf_counter()
         try:
-            proc = subprocess.run(
-                [sys.executable, "-m", __name__, str(spec), str(result)],
-                env=env,
-                capture_output=True,
-                text=True,
-                timeout=point.get("timeout_s"),
-                check=False,
-            )
+            args = ["-m", __name__, str(spec), str(result)]
+            proc = python_child(args, env=env, timeout=point.get("timeout_s"))
         except subprocess.TimeoutExpired:
             return _failed(f"timed out after {point['timeout_s']} s", started)
         if proc.returncode != 0 or not result.exists():
@@ -82,15 +77,26 @@ def execute_point(point: dict) -> dict:
     return measurement
 
 
-def _log_done(point_id: str, measurement: dict) -> None:
-    metrics = measurement.get("metrics") or {}
-    log.info(
-        "%s: %.1f s, %s iterations%s",
-        point_id,
-        measurement.get("wall_s") or float("nan"),
-        metrics.get("iterations"),
-        f", FAILED: {measurement['failure']}" if measurement.get("failure") else "",
-    )
+def _execute(ids: list[str], jobs: list[dict], executor: Executor, on_done: OnDone | None) -> list:
+    """``execute_point`` of every job on ``executor`` (shut down at the end); ``(n,)``
+    measurements in the order of ``jobs``, ``on_done(k, measurement)`` called as job ``k``
+    finishes and each logged by its id."""
+    results: list[dict | None] = [None] * len(jobs)
+    with executor:
+        futures = {executor.submit(execute_point, job): k for k, job in enumerate(jobs)}
+        for future in as_completed(futures):
+            k = futures[future]
+            results[k] = measurement = future.result()
+            log.info(
+                "%s: %.1f s, %s iterations%s",
+                ids[k],
+                measurement.get("wall_s") or float("nan"),
+                (measurement.get("metrics") or {}).get("iterations"),
+                f", FAILED: {measurement['failure']}" if measurement.get("failure") else "",
+            )
+            if on_done is not None:
+                on_done(k, measurement)
+    return results
 
 
 def execute_local(
@@ -106,16 +112,7 @@ def execute_local(
     Returns:
         ``(n,)`` measurements, in the order of ``jobs``.
     """
-    results: list[dict | None] = [None] * len(jobs)
-    with ThreadPoolExecutor(max_workers=workers) as pool:
-        futures = {pool.submit(execute_point, job): k for k, job in enumerate(jobs)}
-        for future in as_completed(futures):
-            k = futures[future]
-            results[k] = future.result()
-            _log_done(ids[k], results[k])
-            if on_done is not None:
-                on_done(k, results[k])
-    return results
+    return _execute(ids, jobs, ThreadPoolExecutor(max_workers=workers), on_done)
 
 
 _ADDRESS = re.compile(r"(tcp|tls|ws|wss|ucx)://(\[[0-9a-fA-F:.]+\]|[^\s:/\[\]]+):(\d{1,5})")
@@ -134,15 +131,9 @@ def check_scheduler(address: str) -> str:
 def execute_dask(
     ids: list[str], jobs: list[dict], address: str, timeout_s: float, on_done: OnDone | None = None
 ) -> list[dict]:
-    """``execute_point`` of every job on the Dask cluster of the scheduler at ``address``.
-
-    Args:
-        ids, jobs, on_done: as for ``execute_local``.
-        address: ``tcp://host:port`` of the scheduler.
-        timeout_s: seconds to wait for the connection to the scheduler.
-
-    Returns:
-        ``(n,)`` measurements, in the order of ``jobs``.
+    """``execute_point`` of every job on the Dask cluster of the scheduler at ``address``
+    (``tcp://host:port``; ``timeout_s``: seconds to wait for the connection); ``ids``, ``jobs``,
+    ``on_done`` and the result as for ``execute_local``.
 
     Raises:
         ValueError: a malformed address, no ``distributed`` package, or no scheduler reached.
@@ -158,16 +149,8 @@ def execute_dask(
         client = distributed.Client(address, timeout=timeout_s)
     except (OSError, TimeoutError) as err:
         raise ValueError(f"cannot reach the Dask scheduler at {address}: {err}") from None
-    with client:
-        # pure=False: a replayed or repeated point runs again instead of reusing a result
-        futures = client.map(execute_point, jobs, pure=False)
-        index = {future.key: k for k, future in enumerate(futures)}
-        for future in distributed.as_completed(futures):
-            k = index[future.key]
-            _log_done(ids[k], future.result())
-            if on_done is not None:
-                on_done(k, future.result())
-        return client.gather(futures)
+    with client:  # pure=False: a replayed or repeated point runs again, no result reused
+        return _execute(ids, jobs, client.get_executor(pure=False), on_done)
 
 
 def _failed(why: str, started: float) -> dict:
@@ -183,27 +166,21 @@ def _failed(why: str, started: float) -> dict:
 
 def measure(module: str, settings: dict) -> dict:
     """In this process: ``module.run_point(settings)``, its wall time and the peak memory."""
-
     run_point = importlib.import_module(module).run_point
     started, cpu_started = time.perf_counter(), time.process_time()
     try:
         metrics = run_point(settings)
     except Exception as err:  # recorded as the point's failure; the sweep goes on
         log.error("%s.run_point failed:\n%s", module, traceback.format_exc())
-        return {
-            "metrics": None,
-            "wall_s": time.perf_counter() - started,
-            "cpu_s": time.process_time() - cpu_started,
-            "peak_memory_mb": peak_memory_mb(),
-            "failure": f"{type(err).__name__}: {err}",
-        }
-    wall, cpu = time.perf_counter() - started, time.process_time() - cpu_started
+        metrics, failure = None, f"{type(err).__name__}: {err}"
+    else:
+        failure = metrics.get("failure")
     return {
         "metrics": metrics,
-        "wall_s": wall,
-        "cpu_s": cpu,
+        "wall_s": time.perf_counter() - started,
+        "cpu_s": time.process_time() - cpu_started,
         "peak_memory_mb": peak_memory_mb(),
-        "failure": metrics.get("failure"),
+        "failure": failure,
     }
 
 

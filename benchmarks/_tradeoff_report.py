@@ -1,13 +1,9 @@
 """Analysis and reporting of the trade study (``benchmarks.tradeoff``): the Pareto front, what
 each knob buys per second, the Pareto plots and the markdown summary.
 
-Feasibility (issue 40): a point whose ``max_penetration_m`` (the deepest any FEM node or
-particle went inside another FEM body over its run) exceeds its ``penetration_bound_m`` (its
-strategy's stated bound, ``benchmarks._penetration``) is infeasible (:func:`infeasible`): it is
-drawn (a cross, with a legend entry), named in the report with its depth against the bound,
-and kept off every Pareto front and out of every winner of an error range, however cheap and
-accurate it is. A point without either number (no FEM body in the scene, a record from before
-the measurement) is not judged.
+Feasibility (issue 40, ``benchmarks._penetration``): an infeasible point (:func:`infeasible`)
+is drawn as a cross, named in the report with its depth against its bound, and kept off every
+Pareto front and out of every winner of an error range, however cheap and accurate it is.
 """
 
 from __future__ import annotations
@@ -23,10 +19,8 @@ from matplotlib.figure import Figure
 MIN_TIME_RATIO = 1.05
 #: refining a knob counts as a gain when the error drops by at least this factor
 MIN_ERROR_RATIO = 1.02
-#: two strategies' costs closer than this fraction are a close call, not a firm lead: one
-#: point's wall time varies by about this much between runs of the same work (the full rings
-#: sweep: augury's base and cfl_safety_fem=1 points, identical steps and error, 132.9 s and
-#: 139.1 s, 4.7 %)
+#: two strategies' costs closer than this fraction are a close call, not a firm lead: about the
+#: spread of one point's wall time between runs of the same work (4.7 % in the full rings sweep)
 CLOSE_COST_FRACTION = 0.05
 #: the cost axes: record key -> words
 COSTS = {"wall_s": "wall time", "cpu_s": "CPU time"}
@@ -94,32 +88,24 @@ def winners(points: list[dict], cost: str = "wall_s") -> list[dict]:
         with one winner merged (the runner-up and costs are those at the range's tightest
         target). No range below the smallest error any point reached.
     """
-    done = [
-        p
-        for p in points
-        if p.get("error") is not None
-        and not infeasible(p)
-        and math.isfinite(p["error"])
-        and p.get(cost) is not None
-        and math.isfinite(p[cost])
-    ]
+    done = [p for p in points if _finite(p.get("error")) and _finite(p.get(cost))]
+    done = [p for p in done if not infeasible(p)]
     levels = sorted({p["error"] for p in done})
     ranges: list[dict] = []
-    for k, level in enumerate(levels):
+    for level, upper in zip(levels, [*levels[1:], math.inf], strict=False):
         best: dict[str, float] = {}
         for p in done:
             if p["error"] <= level:
                 best[p["strategy"]] = min(best.get(p["strategy"], math.inf), p[cost])
-        order = sorted(best, key=lambda s: (best[s], s))
-        upper = levels[k + 1] if k + 1 < len(levels) else math.inf
+        winner, runner_up = [*sorted(best, key=lambda s: (best[s], s)), None][:2]
         ranges.append(
             {
                 "error_from": level,
                 "error_to": upper,
-                "winner": order[0],
-                "cost_s": best[order[0]],
-                "runner_up": order[1] if len(order) > 1 else None,
-                "runner_up_cost_s": best[order[1]] if len(order) > 1 else None,
+                "winner": winner,
+                "cost_s": best[winner],
+                "runner_up": runner_up,
+                "runner_up_cost_s": best.get(runner_up),
             }
         )
     merged: list[dict] = []
@@ -129,6 +115,10 @@ def winners(points: list[dict], cost: str = "wall_s") -> list[dict]:
         else:
             merged.append(dict(r))
     return merged[::-1]
+
+
+def _finite(value: float | None) -> bool:
+    return value is not None and math.isfinite(value)
 
 
 def crossovers(ranges: list[dict]) -> list[dict]:
@@ -324,17 +314,16 @@ STRATEGY_COLORS = {
 def plot_scene(
     records: list[dict], path: Path, title: str, error_label: str, cost: str = "wall_s"
 ) -> Path:
-    """Error against cost (log-log), one colour per strategy: every point labelled by its knob,
-    each strategy's one-at-a-time sweeps as thin lines, the scene's non-dominated front (over
-    every strategy) as a dashed black staircase.
+    """Error against cost (log-log), one colour per strategy: every point labelled by its knob
+    (square: base, circle: sweep, star: reference run, cross: infeasible), each strategy's
+    one-at-a-time sweeps as thin lines, the scene's non-dominated front as a dashed black
+    staircase. Failed points are left out; an error of exactly 0 (the reference run itself) is
+    drawn at a tenth of the smallest positive error; with no point left (the scene's reference
+    run failed) the figure says so on linear axes.
 
     Args:
-        records: the scene's point records (``strategy``, ``label``, ``role``, ``knob``,
-            ``sweeps``, ``settings``, ``error``, ``pareto`` and the cost); failed points are left
-            out; an infeasible point (:func:`infeasible`) is drawn as a cross. An error of
-            exactly 0 (the point is the reference run) is drawn at a tenth of the smallest
-            positive error. With no point left (the scene's reference run failed, so no error
-            exists) the figure says so on linear axes.
+        records: the scene's point records (``strategy``, ``label``, ``role``, ``sweeps``,
+            ``error``, ``pareto`` and the cost).
         path: the PNG file.
         title, error_label: the title and the error axis label.
         cost: the record key of the cost in s (``COSTS``).
@@ -355,63 +344,37 @@ def plot_scene(
     for s in strategies:
         mine = [r for r in done if r["strategy"] == s]
         for knob in sorted({k for r in mine for k in r["sweeps"]}):
-            sweep = [r for r in mine if knob in r["sweeps"]]
+            sweep = sorted((r for r in mine if knob in r["sweeps"]), key=lambda r: r[cost])
             if len(sweep) > 1:
-                sweep.sort(key=lambda r: r[cost])
-                ax.plot(
-                    [r[cost] for r in sweep],
-                    [shown(r) for r in sweep],
-                    "-",
-                    color=colors[s],
-                    lw=0.7,
-                    alpha=0.5,
-                )
+                x, y = [r[cost] for r in sweep], [shown(r) for r in sweep]
+                ax.plot(x, y, "-", color=colors[s], lw=0.7, alpha=0.5)
         for r in mine:
-            marker = {"base": "s", "reference": "*"}.get(r["role"], "o")
-            size = 11 if r["role"] == "reference" else 6
-            if infeasible(r):  # a cross: drawn, but never on the front nor a winner
-                marker, size = "X", 9
-            ax.plot(
-                r[cost], shown(r), linestyle="none", marker=marker, color=colors[s], markersize=size
-            )
+            bad = infeasible(r)  # a cross: drawn, but never on the front nor a winner
+            marker = "X" if bad else {"base": "s", "reference": "*"}.get(r["role"], "o")
+            size = 9 if bad else 11 if r["role"] == "reference" else 6
+            at = (r[cost], shown(r))
+            ax.plot(*at, linestyle="none", marker=marker, color=colors[s], markersize=size)
             text = r["label"] + (" (error 0)" if r["error"] == 0 else "")
-            text += " (infeasible)" if infeasible(r) else ""
+            text += " (infeasible)" if bad else ""
             ax.annotate(
-                text,
-                (r[cost], shown(r)),
-                xytext=(4, 3),
-                textcoords="offset points",
-                fontsize=6,
-                color=colors[s],
+                text, at, xytext=(4, 3), textcoords="offset points", fontsize=6, color=colors[s]
             )
         ax.plot([], [], "o", color=colors[s], label=s if mine else f"{s} (no finished point)")
     front = sorted((r for r in done if r["pareto"]), key=lambda r: r[cost])
     if front:
-        t = [r[cost] for r in front]
-        e = [shown(r) for r in front]
+        t, e = [r[cost] for r in front], [shown(r) for r in front]
         ax.step(t, e, where="post", color="k", ls="--", lw=1.2, label="non-dominated front")
     ax.plot([], [], "ks", mfc="none", label="base (square), sweep (circle)")
     if any(r["role"] == "reference" for r in done):
         ax.plot([], [], "k*", markersize=11, label="reference run")
     if any(infeasible(r) for r in done):
-        ax.plot(
-            [],
-            [],
-            "kX",
-            markersize=9,
-            label="infeasible: deeper inside a FEM body than its strategy's bound",
-        )
+        why = "infeasible: deeper inside a FEM body than its strategy's bound"
+        ax.plot([], [], "kX", markersize=9, label=why)
     if done:
         ax.set(xscale="log", yscale="log")
     else:  # nothing to place on log axes (the reference run failed, or every point did)
-        ax.text(
-            0.5,
-            0.5,
-            "no finished point with an error",
-            ha="center",
-            va="center",
-            transform=ax.transAxes,
-        )
+        text = "no finished point with an error"
+        ax.text(0.5, 0.5, text, ha="center", va="center", transform=ax.transAxes)
     ax.set(xlabel=f"{COSTS[cost]} of the point [s]", ylabel=error_label)
     ax.set_title(title, fontsize="medium")
     ax.grid(True, which="both", alpha=0.3)

@@ -3,17 +3,14 @@
 ``settings``: ``scene`` (a key of ``_tradeoff_scenes.SCENES``), ``strategy`` (a registry name),
 ``dt`` (s, or ``"auto"``), ``options`` (the strategy's options as a dict: ``Options(**options)``),
 ``transfer`` where the scene declares one, and the scene's own settings (its ``base``). Each scene
-runs through the benchmark module that defines it (``rings``, ``slope``, ``hertz`` and its
-softened ``hertz_soft``, ``sine_boundary``, ``augury_blocks``, ``lr_compression``) with the
-variant each strategy needs (``_tradeoff_scenes`` states which). Returns JSON-ready scalars;
-``iterations`` is the sum over the run of the strategy's iteration counts (Newton for barrier and
-two_stage; 0 for the purely explicit ones), ``failure`` the ``StepError`` message (None when
-every step ran). Every point also returns ``max_penetration_m`` (m, the deepest any FEM node or
-particle went inside another FEM body over the run, from the shared ``penetration_depth`` check;
-None for a scene without FEM bodies, lr_compression) and, where the run built a stepper, the
-bound it is judged against: ``penetration_bound_m`` (m), ``penetration_bound_cells`` (read
-from the stepper's class when the point runs) and ``penetration_grid_dx_m``
-(``benchmarks._penetration``).
+runs through the benchmark module that defines it (``RUNNERS``), with the variant each strategy
+needs (``_tradeoff_scenes`` states which). Returns JSON-ready scalars: ``iterations`` (the run's
+summed iteration counts: Newton for barrier and two_stage, 0 for the purely explicit ones),
+``failure`` (the ``StepError`` message, None when every step ran), ``max_penetration_m`` (m, the
+deepest any FEM node or particle went inside another FEM body, the shared ``penetration_depth``
+check; None without FEM bodies) and, where the run built a stepper, the bound it is judged
+against (``penetration_bound_m`` in m, ``penetration_bound_cells``, ``penetration_grid_dx_m``:
+``benchmarks._penetration``).
 """
 
 from __future__ import annotations
@@ -153,18 +150,22 @@ def _slope(s: dict) -> dict:
 
 
 # ----------------------------------------------------------------------------- hertz
+def _barrier_options(scene: str, options: dict) -> dict:
+    """barrier's ``tol`` and ``max_newton_iterations`` on the disk (``hertz.run_material``'s
+    settings); any other option is refused."""
+    keys = ("tol", "max_newton_iterations")
+    if set(options) - set(keys):
+        raise ValueError(f"{scene}: unsupported barrier options {sorted(set(options) - set(keys))}")
+    return {key: options[key] for key in keys}
+
+
 def _hertz(s: dict) -> dict:
     from benchmarks import hertz
 
     if s["strategy"] != "barrier":
         raise ValueError(f"hertz: only barrier applies here, got {s['strategy']!r}")
-    options = dict(s["options"])
     point = {k: v for k, v in s.items() if k != "options"}
-    point["tol"] = options.pop("tol")
-    point["max_newton_iterations"] = options.pop("max_newton_iterations")
-    if options:
-        raise ValueError(f"hertz: unsupported barrier options {sorted(options)}")
-    out = hertz.run_point(point)
+    out = hertz.run_point(point | _barrier_options("hertz", s["options"]))
     out["iterations"] = out.get("newton_iterations")
     return out
 
@@ -182,15 +183,10 @@ def _hertz_soft(s: dict) -> dict:
     strategy = s["strategy"]
     cfg = {k: v for k, v in s.items() if k != "options"} | hertz.SOFT
     cfg["plate_h"] = 0.5 * s["dx"]
-    options = dict(s["options"])
     if strategy == "barrier":
-        cfg.update(
-            tol=options.pop("tol"), max_newton_iterations=options.pop("max_newton_iterations")
-        )
-        if options:
-            raise ValueError(f"hertz_soft: unsupported barrier options {sorted(options)}")
+        cfg.update(_barrier_options("hertz_soft", s["options"]))
     else:
-        cfg.update(integrator=EXPLICIT_INTEGRATOR, options=_options(strategy, options))
+        cfg.update(integrator=EXPLICIT_INTEGRATOR, options=_options(strategy, s["options"]))
     run = hertz.run_material(cfg, s["material"])
     out = {k: v for k, v in run.items() if k not in ("samples", "error")}
     samples = run["samples"]
@@ -253,7 +249,7 @@ def _augury_blocks(s: dict) -> dict:
     options = _options("augury", {"grid_dx": 2.0 * h, **s["options"]})
     stepper = stepper_class("augury")(model, dt=s["dt"], options=options)
     state = stepper.initialize(model.initial_state())
-    ledger = _BlocksLedger(model, state)
+    ledger = _blocks_ledger(model, state)
     # the stepper runs without a Simulation, so without its penetration_depth column: the same
     # check (bfemp.contact.penetration) after every step, as Simulation does (and pays)
     check = PenetrationCheck.for_model(model)
@@ -268,7 +264,7 @@ def _augury_blocks(s: dict) -> dict:
         done += 1
         deepest = max(deepest, check.depth(state))
     return {
-        **ledger.end(state, done),
+        **ledger(state, done),
         "iterations": 0,
         "max_penetration_m": deepest,
         **penetration_bound(stepper),
@@ -276,35 +272,30 @@ def _augury_blocks(s: dict) -> dict:
     }
 
 
-class _BlocksLedger:
-    """The blocks' energy loss ``1 - E(end) / E0`` (kinetic + FEM elastic) and momentum drift
-    ``|p(end) - p0| / |p0|`` from a start state."""
+def _blocks_ledger(model: bfemp.Model, state: bfemp.State) -> Callable[[bfemp.State, int], dict]:
+    """``end(state, steps)``: the blocks' energy loss ``1 - E(end) / E0`` (kinetic + FEM
+    elastic, J) and momentum drift ``|p(end) - p0| / |p0|`` from the start ``state``."""
+    from bfemp import diagnostics
+    from bfemp.terms import fem_elastic_groups
 
-    def __init__(self, model: bfemp.Model, state: bfemp.State) -> None:
-        from bfemp.terms import fem_elastic_groups
+    groups = fem_elastic_groups(model)
 
-        self.model, self.groups = model, fem_elastic_groups(model)
-        self.e0, self.p0 = self.energy(state), self.momentum(state)
+    def energy(state: bfemp.State) -> float:
+        kinetic = diagnostics.kinetic_energy(model, state)
+        return kinetic + diagnostics.fem_elastic_energy(model, state, groups)
 
-    def energy(self, state: bfemp.State) -> float:
-        from bfemp import diagnostics
+    e0, p0 = energy(state), diagnostics.linear_momentum(model, state)
 
-        kinetic = diagnostics.kinetic_energy(self.model, state)
-        return kinetic + diagnostics.fem_elastic_energy(self.model, state, self.groups)
-
-    def momentum(self, state: bfemp.State) -> np.ndarray:
-        from bfemp import diagnostics
-
-        return diagnostics.linear_momentum(self.model, state)
-
-    def end(self, state: bfemp.State, steps: int) -> dict:
-        drift = np.linalg.norm(self.momentum(state) - self.p0) / np.linalg.norm(self.p0)
+    def end(state: bfemp.State, steps: int) -> dict:
+        drift = np.linalg.norm(diagnostics.linear_momentum(model, state) - p0) / np.linalg.norm(p0)
         return {
-            "energy_loss": 1.0 - self.energy(state) / self.e0,
+            "energy_loss": 1.0 - energy(state) / e0,
             "momentum_drift_rel": float(drift),
             "steps": steps,
-            "nodes_per_block": int(self.model.fem_bodies[0].n_nodes),
+            "nodes_per_block": int(model.fem_bodies[0].n_nodes),
         }
+
+    return end
 
 
 #: barrier contact of the blocks (m, Pa): the rotated block's nearest edge starts 0.07 m away
@@ -330,7 +321,7 @@ def _blocks_barrier(s: dict) -> dict:
         dt=s["dt"],
         options=_options(strategy, s["options"]),
     )
-    ledger = _BlocksLedger(sim.model, sim.state)
+    ledger = _blocks_ledger(sim.model, sim.state)
     failure, done, iterations = None, 0, 0
     for _ in range(int(round(s["t_end"] / sim.dt))):
         try:
@@ -347,7 +338,7 @@ def _blocks_barrier(s: dict) -> dict:
         else None
     )
     return {
-        **ledger.end(sim.state, done),
+        **ledger(sim.state, done),
         "dt_s": float(sim.dt),
         "iterations": int(iterations),
         "min_distance": closest,

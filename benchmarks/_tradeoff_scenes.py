@@ -61,9 +61,7 @@ _HERTZ_SOFT = (
     "E = 1e5 Pa instead of 1e10, kappa scaled with E, the top plate as stiff as the disk and "
     "16 x denser, both plates meshed at dx / 2"
 )
-# the strip is scripted whole: no FEM cell takes part in the explicit stable step, so the FEM
-# fraction changes nothing (measured: cfl_safety_fem = 0.25 took the base's steps, 1468 at the
-# quick base and 42 per 0.01 s at the full base, with the base's error in the quick sweep)
+# the strip is scripted whole: no FEM cell takes part in the explicit stable step
 _SINE_REFERENCE_TOL = (
     "the reference keeps barrier's base tol = 1e-4 m/s: in the quick sweep tol 1e-5 changed "
     "the error by 2e-6 (dt by 6e-4) at 2.3x the time, and at full resolution with tol 1e-5 "
@@ -261,8 +259,7 @@ SCENES = {
                 "options": {"tol": 1e-4, "max_newton_iterations": 1000},
                 "note": "backward Euler, the FEM strip (sine_boundary's 'bfemp' treatment)",
             },
-            # the box's E sets the stable step (6e-4 s at dx = 0.05 m): no softened variant;
-            # the Newton cap of 100 stopped the full base at step 3664 (measured at d578db5)
+            # the box's E sets the stable step (6e-4 s at dx = 0.05 m): no softened variant
             "two_stage": {
                 "dt": {"quick": "auto", "full": "auto"},
                 "options": {"tol": 1e-4, "max_newton_iterations": 1000},

@@ -1,38 +1,30 @@
 """Trade study across strategies (issues 6, 17): accuracy against cost of each coupling strategy
 and of its knobs, on the BFEMP scenes and one scene of each explicit paper.
 
-``python -m benchmarks tradeoff [--quick | --full] [--scenes rings,slope] [--strategies
-barrier,two_stage] [--knobs dt,tol] [--workers N | --scheduler tcp://host:port] [--cost
-wall|cpu] [--resume] [--points DIR] [--out DIR]``, also ``bfemp sweep`` with the same
-options. Replay one point:
-``python -m benchmarks tradeoff --replay tradeoff.json --id ID`` or ``--point '<record as
-JSON>'``.
+``python -m benchmarks tradeoff [--quick | --full] [--out DIR]`` with the options of
+``OPTIONS`` (scenes, strategies, knobs, workers or a Dask scheduler, cost axis, resume), also
+``bfemp sweep``; replay one point with ``--replay tradeoff.json --id ID`` or ``--point '<record
+as JSON>'``.
 
-Where each part lives: the scenes, what each point's error is against and which strategies run
-them (``_tradeoff_scenes.SCENES``); the knobs and their ladders (``_tradeoff_knobs``: quick mode
-one step finer than each strategy's base, full mode one coarser and one finer, one knob at a time,
-points with equal settings run once); one point per fresh process, locally or on a Dask cluster
-(``_tradeoff_point``, running ``_tradeoff_runs.run_point``; ``--cost cpu`` takes the points' CPU
-time instead of their wall time); the points kept as they arrive for ``--resume``
-(``_tradeoff_cache``); the fronts, winners, knob effects, feasibility (issue 40: a point deeper
-inside a FEM body than its strategy's bound is infeasible, never on a front nor a winner) and the
-report (``_tradeoff_report``). Before the timed points a few steps of each scene and strategy
-(``warmup``) fill numba's on-disk cache. A later run of some scenes merges into a record with
+Where each part lives: the scenes and what each point's error is against
+(``_tradeoff_scenes.SCENES``); the knobs and their ladders (``_tradeoff_knobs``; one knob at a
+time, points with equal settings run once); one point per fresh process, locally or on a Dask
+cluster (``_tradeoff_point`` running ``_tradeoff_runs.run_point``); the points kept for
+``--resume`` (``_tradeoff_cache``); the fronts, winners, knob effects, feasibility (issue 40)
+and the report (``_tradeoff_report``). Before the timed points a few steps of each scene and
+strategy fill numba's on-disk cache. A later run of some scenes merges into a record with
 ``merge(record, rerun)``.
 
 Outputs in ``--out`` (default ``results/``): ``tradeoff.json`` (every point's record, the
-fronts, the winners per error range and the crossovers, the knob effects, the infeasible points),
-``tradeoff_<scene>.png`` (error against cost, log-log, one colour per strategy, the scene's
-non-dominated front) and ``tradeoff.md``.
-
-Modes: ``quick`` (coarse settings, seconds to a minute per point) only shows the harness and
-the coarse end of each trade-off; ``full`` sweeps around the papers' settings (hours of CPU per
-point for the rings and hertz: meant for a Dask cluster).
+fronts, winners, crossovers, knob effects, infeasible points), ``tradeoff_<scene>.png`` (error
+against cost, log-log) and ``tradeoff.md``. Modes: ``quick`` (coarse settings, seconds to a
+minute per point) and ``full`` (around the papers' settings, hours of CPU per point for the
+rings and hertz: meant for a Dask cluster).
 
 A point's record holds everything to run it again (``scene``, ``settings``, ``mode``,
 ``threads``, the ``reference`` metrics its error is taken against, the ``commit``); the runs are
-deterministic (one process per point, fixed thread counts), so at the same commit replaying a
-record reproduces its error exactly (the wall time is not).
+deterministic, so at the same commit replaying a record reproduces its error exactly (the wall
+time is not).
 """
 
 from __future__ import annotations
@@ -45,6 +37,8 @@ import math
 import os
 import shlex
 import time
+from collections import Counter
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -80,6 +74,7 @@ log = logging.getLogger(__name__)
 NAME = "tradeoff"
 MODES = ("quick", "full")
 CONNECT_TIMEOUT_S = 10.0  # s, to reach a Dask scheduler
+RUNS_MODULE = "benchmarks._tradeoff_runs"
 
 
 # ----------------------------------------------------------------------------- planning
@@ -119,9 +114,7 @@ def _registry() -> tuple[str, ...]:
 
 def all_knobs() -> tuple[str, ...]:
     """Every knob name: dt, the scenes' knobs and every strategy's declared option knobs."""
-    names = ["dt", *SCENE_FINER]
-    for strategy in _registry():
-        names += list(option_knobs(strategy))
+    names = ["dt", *SCENE_FINER, *(k for s in _registry() for k in option_knobs(s))]
     return tuple(dict.fromkeys(names))
 
 
@@ -160,7 +153,7 @@ def _with(settings: dict, knob: str, value: object) -> dict:
 
 
 def knob_table(scene: str, strategy: str, mode: str, sweeps: dict | None = None) -> dict:
-    """Knob -> ``{"finer": +-1, "values": (...)}`` of one strategy on one scene.
+    """Knob -> ``{"finer": +-1, "values": (...), "spec": ...}`` of one strategy on one scene.
 
     The scene's knobs (less the strategy's ``no_knobs``) take the mode's values; dt (at a fixed
     dt) or the CFL fractions (at ``dt="auto"``) and the strategy's option knobs take
@@ -178,16 +171,13 @@ def knob_table(scene: str, strategy: str, mode: str, sweeps: dict | None = None)
             values = decl["modes"][mode]["sweeps"].get(knob, (base[knob],))
             table[knob] = {"finer": SCENE_FINER[knob], "values": tuple(values), "spec": None}
     for knob, spec in strategy_knobs(strategy, base["dt"]).items():
-        if knob in skip:
-            continue
         spec = {**spec, **sdecl.get("spec", {}).get(knob, {})}
-        values = ladder(spec, _knob_base(base, knob, strategy), mode)
+        values = () if knob in skip else ladder(spec, _knob_base(base, knob, strategy), mode)
         if values:
             table[knob] = {"finer": spec["finer"], "values": values, "spec": spec}
     overrides = dict((sweeps or {}).get(scene, {}))
     mine = overrides.pop(strategy, {}) if isinstance(overrides.get(strategy), dict) else {}
-    for name in _registry():
-        overrides.pop(name, None)
+    overrides = {k: v for k, v in overrides.items() if k not in _registry()}
     for knob, values in {**overrides, **mine}.items():
         if knob not in table:
             continue  # a scene-wide override of a knob this strategy does not have
@@ -202,17 +192,14 @@ def knob_table(scene: str, strategy: str, mode: str, sweeps: dict | None = None)
 
 
 def _check_sweeps(sweeps: dict | None) -> None:
+    known = all_knobs()
     for scene, by_knob in (sweeps or {}).items():
         if scene not in SCENES:
             raise ValueError(f"sweeps: unknown scene {scene!r}; available: {sorted(SCENES)}")
-        known = all_knobs()
         for key, value in by_knob.items():
-            if key in _registry():
-                if key not in SCENES[scene]["strategies"]:
-                    raise ValueError(f"sweeps[{scene!r}]: strategy {key!r} does not run {scene}")
-                unknown = [k for k in value if k not in known]
-            else:
-                unknown = [key] if key not in known else []
+            if key in _registry() and key not in SCENES[scene]["strategies"]:
+                raise ValueError(f"sweeps[{scene!r}]: strategy {key!r} does not run {scene}")
+            unknown = [k for k in (value if key in _registry() else [key]) if k not in known]
             if unknown:
                 raise ValueError(
                     f"sweeps[{scene!r}]: unknown knob {unknown[0]!r}; knobs: {', '.join(known)}"
@@ -221,9 +208,8 @@ def _check_sweeps(sweeps: dict | None) -> None:
 
 def run_order(records: list[dict], todo: list[int]) -> list[int]:
     """The indices ``todo`` of ``records`` in the order they are submitted: each scene's
-    reference run first (every error of its scene waits for it, and it is the longest, the
-    finest value of every knob at once, so a sweep stopped early has it kept), then the plan's
-    order."""
+    reference run first (every error of its scene waits for it, and it is the longest, so a
+    sweep stopped early has it kept), then the plan's order."""
     return sorted(todo, key=lambda k: not records[k]["is_reference"])
 
 
@@ -271,27 +257,21 @@ def plan(
     _check_sweeps(sweeps)
     points = []
     for scene in scenes:
-        chosen = (
-            _names(per_scene[scene], "strategy", _registry()) if scene in per_scene else everywhere
-        )
+        chosen = everywhere
+        if scene in per_scene:
+            chosen = _names(per_scene[scene], "strategy", _registry())
         runs = [s for s in chosen if s in SCENES[scene]["strategies"]]
         for s in chosen:
             if s not in runs:
                 why = SCENES[scene]["not_applicable"].get(s, "not declared for this scene")
                 log.info("%s: %s does not run here: %s", scene, s, why)
         ref = SCENES[scene].get("reference_strategy")
-        for strategy in runs:
+        extra = [ref] if runs and ref and ref not in runs else []  # the others' errors need it
+        for strategy in runs + extra:
             table = knob_table(scene, strategy, mode, sweeps)
             table = {k: v for k, v in table.items() if k in chosen_knobs}
-            points += _strategy_points(scene, strategy, mode, table, threads, strategy == ref)
-        if runs and ref and ref not in runs:  # the others' errors need the reference run
-            table = knob_table(scene, ref, mode, sweeps)
-            table = {k: v for k, v in table.items() if k in chosen_knobs}
-            points += [
-                p
-                for p in _strategy_points(scene, ref, mode, table, threads, True)
-                if p["is_reference"]
-            ]
+            mine = _strategy_points(scene, strategy, mode, table, threads, strategy == ref)
+            points += mine if strategy in runs else [p for p in mine if p["is_reference"]]
     if not points:
         raise ValueError(
             f"no scene among {', '.join(scenes)} runs any of the strategies "
@@ -309,9 +289,9 @@ def _strategy_points(
     finer = {k: v["finer"] for k, v in table.items()}
 
     def add(settings: dict, role: str, knob: str | None, label: str) -> dict:
-        key = json.dumps(settings, sort_keys=True)
-        if key not in by_settings:
-            by_settings[key] = {
+        record = by_settings.setdefault(
+            json.dumps(settings, sort_keys=True),
+            {
                 "id": f"{scene}/{strategy}/{label}",
                 "scene": scene,
                 "strategy": strategy,
@@ -325,8 +305,8 @@ def _strategy_points(
                 "settings": settings,
                 "mode": mode,
                 "threads": threads,
-            }
-        record = by_settings[key]
+            },
+        )
         if knob and knob not in record["sweeps"]:
             record["sweeps"].append(knob)
         return record
@@ -339,19 +319,15 @@ def _strategy_points(
         finest = dict(base)
         at_base = SCENES[scene]["modes"][mode].get("reference_at_base", {})
         for knob, entry in table.items():
-            if knob in at_base:  # declared with the reason (_tradeoff_scenes)
-                continue
-            value = max(entry["values"], key=lambda v, e=entry: finer_key(e, v))
-            finest = _with(finest, knob, value)
+            if knob not in at_base:  # declared with the reason (_tradeoff_scenes)
+                value = max(entry["values"], key=lambda v, e=entry: finer_key(e, v))
+                finest = _with(finest, knob, value)
         record = add(finest, "reference", None, "reference")  # or the sweep point it equals
         record["is_reference"], record["role"] = True, "reference"
     return list(by_settings.values())
 
 
 # ----------------------------------------------------------------------------- running
-RUNS_MODULE = "benchmarks._tradeoff_runs"
-
-
 def _job(record: dict, timeout_s: float | None) -> dict:
     """What ``execute_point`` runs for a record."""
     return {
@@ -360,6 +336,14 @@ def _job(record: dict, timeout_s: float | None) -> dict:
         "threads": int(record.get("threads", 1)),
         "timeout_s": timeout_s,
     }
+
+
+def _replay_line(record: str | Path, point_id: str) -> str:
+    """The command that replays point ``point_id`` of the record file ``record``."""
+    return (
+        f"python -m benchmarks tradeoff --replay {shlex.quote(str(record))} "
+        f"--id {shlex.quote(point_id)}"
+    )
 
 
 def point_error(scene: str, measurement: dict, reference: dict | None) -> tuple:
@@ -395,11 +379,11 @@ def _finish(record: dict, measurement: dict, reference: dict | None) -> dict:
     The penetration and its bound (``PENETRATION_KEYS``) come up from the metrics, and
     ``infeasible`` says whether the depth exceeds the bound (``_tradeoff_report.infeasible``)."""
     error, parts = point_error(record["scene"], measurement, reference)
-    metrics = measurement.get("metrics")
+    metrics = measurement.get("metrics") or {}
     wall, cpu = measurement.get("wall_s"), measurement.get("cpu_s")
-    if metrics and metrics.get("point_wall_s") is not None:
+    if metrics.get("point_wall_s") is not None:
         wall, cpu = metrics["point_wall_s"], metrics.get("point_cpu_s")
-    penetration = {key: (metrics or {}).get(key) for key in PENETRATION_KEYS}
+    penetration = {key: metrics.get(key) for key in PENETRATION_KEYS}
     return {
         **record,
         **penetration,
@@ -410,10 +394,10 @@ def _finish(record: dict, measurement: dict, reference: dict | None) -> dict:
         "cpu_s": cpu,
         "run_point_wall_s": measurement.get("wall_s"),
         "process_wall_s": measurement.get("process_wall_s"),
-        "iterations": (metrics or {}).get("iterations"),
+        "iterations": metrics.get("iterations"),
         "peak_memory_mb": measurement.get("peak_memory_mb"),
         "failure": measurement.get("failure"),
-        "metrics": metrics,
+        "metrics": measurement.get("metrics"),
         "reference": reference,
     }
 
@@ -445,16 +429,11 @@ def _reference(records: list[dict], results: list[dict]) -> dict[str, dict]:
 # ----------------------------------------------------------------------------- analysis
 def swept_knobs(records: list[dict], scene: str) -> dict[str, list[str]]:
     """strategy -> the knobs that took at least two values on ``scene`` (sorted)."""
-    out: dict[str, list[str]] = {}
-    for r in records:
-        if r["scene"] == scene:
-            out.setdefault(r["strategy"], [])
-    for strategy, knobs in out.items():
-        mine = [r for r in records if (r["scene"], r["strategy"]) == (scene, strategy)]
-        for knob in sorted({k for r in mine for k in r["sweeps"]}):
-            if sum(knob in r["sweeps"] for r in mine) >= 2:
-                knobs.append(knob)
-    return out
+    mine = [r for r in records if r["scene"] == scene]
+    counts = {r["strategy"]: Counter() for r in mine}
+    for r in mine:
+        counts[r["strategy"]].update(r["sweeps"])
+    return {s: sorted(k for k, n in c.items() if n >= 2) for s, c in counts.items()}
 
 
 def _front(recs: list[dict], cost: str) -> set[int]:
@@ -479,8 +458,8 @@ def analyse(records: list[dict], scenes: list[str], cost: str = "wall_s") -> dic
         knob}}, "winners": {scene: ranges}, "crossovers": {scene: [...]}, "infeasible":
         {scene: [point ids]}}``.
     """
-    out: dict = {"knob_effects": {}, "best_knob": {}, "winners": {}, "crossovers": {}}
-    out["infeasible"] = {}
+    keys = ("knob_effects", "best_knob", "winners", "crossovers", "infeasible")
+    out: dict = {key: {} for key in keys}
     for scene in scenes:
         recs = [r for r in records if r["scene"] == scene]
         for r in recs:
@@ -496,8 +475,7 @@ def analyse(records: list[dict], scenes: list[str], cost: str = "wall_s") -> dic
             for k, r in enumerate(mine):
                 r["strategy_pareto"] = k in own
             effects = {}
-            knobs = list(dict.fromkeys(k for r in mine for k in r["sweeps"]))
-            for knob in knobs:
+            for knob in dict.fromkeys(k for r in mine for k in r["sweeps"]):
                 sweep = [r for r in mine if knob in r["sweeps"]]
                 rows = [
                     {
@@ -513,10 +491,21 @@ def analyse(records: list[dict], scenes: list[str], cost: str = "wall_s") -> dic
                 effects[knob] = knob_effect(rows, sweep[0]["finer"][knob])
             out["knob_effects"][scene][strategy] = effects
             out["best_knob"][scene][strategy] = best_knob(effects)
-        ranges = winners(recs, cost)
-        out["winners"][scene] = ranges
-        out["crossovers"][scene] = crossovers(ranges)
+        out["winners"][scene] = winners(recs, cost)
+        out["crossovers"][scene] = crossovers(out["winners"][scene])
     return out
+
+
+def _analysed(payload: dict) -> dict:
+    """``payload`` (a trade study's record) with its analysis (``analyse``), each scene's swept
+    knobs (``swept_knobs``) and Pareto point ids taken again from its points; returns it."""
+    points, scenes = payload["points"], payload["scenes"]
+    payload.update(analyse(points, scenes, payload["cost"]))
+    payload["knobs"] = {s: swept_knobs(points, s) for s in scenes}
+    payload["pareto"] = {
+        s: [r["id"] for r in points if r["scene"] == s and r["pareto"]] for s in scenes
+    }
+    return payload
 
 
 # ----------------------------------------------------------------------------- entry points
@@ -546,34 +535,20 @@ def _measure(
     points: str | Path | None = None,
     progress: bool = False,
 ) -> dict:
-    """The trade study's payload. Every point's measurement is also kept in
-    ``out/tradeoff_points/`` as it arrives (``benchmarks._tradeoff_cache``), so that a stopped
-    sweep can be resumed.
+    """The trade study's payload; each point's measurement is also kept in the points folder
+    as it arrives (``_tradeoff_cache``), so that a stopped sweep can be resumed.
 
-    Args:
-        mode, scenes, knobs, strategies, sweeps, threads: see :func:`plan`.
-        out: output folder.
-        workers: local point processes at once (default: the number of cores); ignored with
-            ``scheduler``.
-        scheduler: a Dask scheduler address (``tcp://host:port``) to run the points on.
-        timeout_s: wall-time limit of one point's process in s (None: none).
-        cost: the cost axis of the Pareto fronts and knob effects: ``"wall"`` (the points' wall
-            time, the default) or ``"cpu"`` (their CPU time: steadier on a busy machine).
-        warmup: first run a few steps of each scene to fill numba's cache (untimed).
-        resume: take the points kept in the points folder by an earlier sweep of the same code
-            (same settings and threads) instead of running them again; the record lists them
-            under ``resumed`` (their times, and their ``commit``, are those of the run that
-            measured them).
-        points: the folder where each point is kept as it finishes (default
-            ``out/tradeoff_points/``); a committed folder lets a sweep go on in a later session.
-        progress: show a progress bar (points done of all, the last point's id) on stderr, for
-            the warm-up and for the points.
+    ``mode``, ``scenes``, ``knobs``, ``strategies``, ``sweeps``, ``threads``: see :func:`plan`;
+    ``workers`` (default: the number of cores, ignored with ``scheduler``), ``scheduler``,
+    ``timeout_s``, ``cost``, ``resume``, ``points``: the command-line options (``OPTIONS``; a
+    resumed point keeps the times and ``commit`` of the run that measured it); ``warmup``: first
+    run a few steps of each scene to fill numba's cache (untimed); ``progress``: a progress bar
+    (points done, the last point's id) on stderr.
     """
     if scheduler is not None:
         check_scheduler(scheduler)
     if cost not in ("wall", "cpu"):
         raise ValueError(f"--cost must be 'wall' or 'cpu', got {cost!r}")
-    cost_key = f"{cost}_s"
     workers = (os.cpu_count() or 1) if workers is None else workers
     if not (isinstance(workers, int) and workers >= 1):
         raise ValueError(f"--workers must be an integer >= 1, got {workers!r}")
@@ -584,41 +559,18 @@ def _measure(
     out = Path(out)
     jobs = [_job(r, timeout_s) for r in records]
     log.info("tradeoff (%s): %d points of %s", mode, len(jobs), ", ".join(scene_names))
-
-    def execute(ids: list[str], batch: list[dict], on_done=None, what="points") -> list[dict]:  # noqa: ANN001
-        from tqdm.auto import tqdm
-
-        bar = tqdm(total=len(ids), desc=f"tradeoff {what}", unit="point", disable=not progress)
-
-        def done(j: int, measurement: dict) -> None:
-            if on_done is not None:
-                on_done(j, measurement)
-            bar.update(1)
-            bar.set_postfix_str(ids[j], refresh=False)
-
-        try:
-            if scheduler is not None:
-                return execute_dask(ids, batch, scheduler, CONNECT_TIMEOUT_S, done)
-            return execute_local(ids, batch, workers, done)
-        finally:
-            bar.close()
-
+    execute = _executor(scheduler, workers, progress)
     cache = PointCache(out / CACHE_FOLDER if points is None else Path(points), commit)
     entries = [cache.entry(job) if resume else None for job in jobs]
-    kept = [None if e is None else e["measurement"] for e in entries]
-    todo = run_order(records, [k for k, m in enumerate(kept) if m is None])
+    results = [e and e["measurement"] for e in entries]  # None: to run
+    todo = run_order(records, [k for k, m in enumerate(results) if m is None])
     # kept point id -> the commit that measured it
-    measured_by = {
-        records[k]["id"]: entries[k].get("commit") for k, m in enumerate(kept) if m is not None
-    }
+    measured_by = {records[k]["id"]: e.get("commit") for k, e in enumerate(entries) if e}
     if resume:
         log.info("tradeoff: %d of %d points kept in %s", len(measured_by), len(jobs), cache.folder)
     started = time.perf_counter()
-    warm = [
-        pair
-        for pair in (pairs if warmup else [])
-        if any((records[k]["scene"], records[k]["strategy"]) == pair for k in todo)
-    ]
+    running = {(records[k]["scene"], records[k]["strategy"]) for k in todo}
+    warm = [pair for pair in pairs if pair in running] if warmup else []
     warmed = execute(
         [f"{scene}/{strategy}/warmup" for scene, strategy in warm],
         [_warmup_job(scene, strategy, threads) for scene, strategy in warm],
@@ -631,42 +583,30 @@ def _measure(
         [jobs[k] for k in todo],
         lambda j, measurement: cache.put(records[todo[j]]["id"], jobs[todo[j]], measurement),
     )
-    results = list(kept)
     for k, measurement in zip(todo, ran, strict=True):
         results[k] = measurement
     elapsed = time.perf_counter() - started
     references = _reference(records, results)
-    json_path = shlex.quote(str(out / f"{NAME}.json"))
-    finished = []
-    for record, result in zip(records, results, strict=True):
-        done = _finish(record, result, references.get(record["scene"]))
-        done["resumed"] = record["id"] in measured_by
-        done["commit"] = measured_by.get(record["id"], commit)
-        done["replay"] = (
-            f"python -m benchmarks tradeoff --replay {json_path} --id {shlex.quote(record['id'])}"
-        )
-        finished.append(done)
-
-    def not_run(scene: str) -> dict:
-        chosen = strategies.get(scene) if isinstance(strategies, dict) else strategies
-        why = SCENES[scene]["not_applicable"]
-        return {
-            st: why.get(st, "not declared for this scene")
-            for st in _names(chosen, "strategy", _registry())
-            if (scene, st) not in pairs
+    finished = [
+        _finish(record, result, references.get(record["scene"]))
+        | {
+            "resumed": record["id"] in measured_by,
+            "commit": measured_by.get(record["id"], commit),
+            "replay": _replay_line(out / f"{NAME}.json", record["id"]),
         }
+        for record, result in zip(records, results, strict=True)
+    ]
 
+    mine = {s: [st for sc, st in pairs if sc == s] for s in scene_names}
     return _analysed(
         {
             "scenes": scene_names,
-            "strategies": {
-                s: list(dict.fromkeys(st for sc, st in pairs if sc == s)) for s in scene_names
-            },
+            "strategies": mine,
             "strategy_notes": {
-                s: {st: SCENES[s]["strategies"][st].get("note") for sc, st in pairs if sc == s}
+                s: {st: SCENES[s]["strategies"][st].get("note") for st in mine[s]}
                 for s in scene_names
             },
-            "not_run": {s: not_run(s) for s in scene_names},
+            "not_run": {s: _not_run(s, strategies, pairs) for s in scene_names},
             "errors": {s: SCENES[s]["error"] for s in scene_names},
             "executor": {
                 "kind": "dask" if scheduler else "local",
@@ -675,7 +615,7 @@ def _measure(
                 "threads_per_point": threads,
                 "timeout_s": timeout_s,
             },
-            "cost": cost_key,
+            "cost": f"{cost}_s",
             "sweeps_override": sweeps,  # what replaced the mode's values (None: none)
             "strategies_chosen": strategies,
             "knobs_chosen": knobs,
@@ -691,28 +631,52 @@ def _measure(
     )
 
 
-def _analysed(payload: dict) -> dict:
-    """``payload`` (a trade study's record) with its analysis (``analyse``), each scene's swept
-    knobs (``swept_knobs``) and Pareto point ids taken again from its points; returns it."""
-    points, scenes = payload["points"], payload["scenes"]
-    payload.update(analyse(points, scenes, payload["cost"]))
-    payload["knobs"] = {s: swept_knobs(points, s) for s in scenes}
-    payload["pareto"] = {
-        s: [r["id"] for r in points if r["scene"] == s and r["pareto"]] for s in scenes
+def _executor(scheduler: str | None, workers: int, progress: bool) -> Callable[..., list[dict]]:
+    """``execute(ids, jobs, on_done=None, what="points")``: ``execute_point`` of every job on
+    the Dask ``scheduler`` or ``workers`` local processes, a progress bar on stderr (points
+    done, the last point's id) when ``progress``; the ``(n,)`` measurements in job order."""
+
+    def execute(ids: list[str], jobs: list[dict], on_done=None, what="points") -> list[dict]:  # noqa: ANN001
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=len(ids), desc=f"tradeoff {what}", unit="point", disable=not progress)
+
+        def done(j: int, measurement: dict) -> None:
+            if on_done is not None:
+                on_done(j, measurement)
+            bar.update(1)
+            bar.set_postfix_str(ids[j], refresh=False)
+
+        try:
+            if scheduler is not None:
+                return execute_dask(ids, jobs, scheduler, CONNECT_TIMEOUT_S, done)
+            return execute_local(ids, jobs, workers, done)
+        finally:
+            bar.close()
+
+    return execute
+
+
+def _not_run(scene: str, strategies: str | list | dict | None, pairs: list[tuple]) -> dict:
+    """The chosen strategies that do not run ``scene`` (no (scene, strategy) in ``pairs``), each
+    with why (``SCENES[scene]["not_applicable"]``)."""
+    chosen = strategies.get(scene) if isinstance(strategies, dict) else strategies
+    why = SCENES[scene]["not_applicable"]
+    return {
+        st: why.get(st, "not declared for this scene")
+        for st in _names(chosen, "strategy", _registry())
+        if (scene, st) not in pairs
     }
-    return payload
 
 
 def _plot(payload: dict, png: Path) -> None:
     """One figure per scene, ``<stem>_<scene>.png`` beside ``png`` (error against cost)."""
     for scene in payload["scenes"]:
-        recs = [r for r in payload["points"] if r["scene"] == scene]
-        title = f"{scene}: error against {COSTS[payload['cost']]} ({payload['mode']} mode)"
         kind = "reference run" if "reference_keys" in SCENES[scene] else "analytic"
         plot_scene(
-            recs,
+            [r for r in payload["points"] if r["scene"] == scene],
             png.with_name(f"{png.stem}_{scene}.png"),
-            title,
+            f"{scene}: error against {COSTS[payload['cost']]} ({payload['mode']} mode)",
             f"error vs {kind}",
             payload["cost"],
         )
@@ -768,26 +732,15 @@ def merge(record: str | Path, rerun: str | Path, keep_other_strategies: bool = F
             why = SCENES[s]["not_applicable"]
             old["not_run"][s] = {st: why.get(st, "not declared") for st in old["not_run"][s]}
     before = len(old["points"])
-    points = [p for p in old["points"] if p["scene"] not in scenes]
-    points += kept + new["points"]
+    points = [p for p in old["points"] if p["scene"] not in scenes] + kept + new["points"]
     for p in points:  # replay from the merged record, wherever each run was written
-        p["replay"] = (
-            f"python -m benchmarks tradeoff --replay {shlex.quote(str(record))} "
-            f"--id {shlex.quote(p['id'])}"
-        )
+        p["replay"] = _replay_line(record, p["id"])
     old["points"] = sorted(points, key=lambda p: order.index(p["scene"]))
     old["scenes"] = order
     old["failed"] = [p["id"] for p in old["points"] if p["failure"]]
-    part = {
-        "scenes": scenes,
-        "commit": new["environment"]["commit"],
-        "points": len(new["points"]),
-        "workers": new["executor"]["workers"],
-        "executor": new["executor"],
-        "wall_s": new["wall_s"],
-        "warmup_s": new["warmup_s"],
-        "environment": new["environment"],
-    }
+    part = {"scenes": scenes, "commit": new["environment"]["commit"], "points": len(new["points"])}
+    part["workers"] = new["executor"]["workers"]
+    part |= {key: new[key] for key in ("executor", "wall_s", "warmup_s", "environment")}
     if "merged" not in old:
         part["first_run_points"] = before
     old.setdefault("merged", []).append(part)
@@ -800,25 +753,19 @@ def _kept_points(old: dict, new: dict) -> list[dict]:
     in the rerun's scenes, those of strategies the rerun has no point of (its reference aside),
     not the old reference; errors again against the rerun's reference."""
     kept = []
-    commit = new["environment"]["commit"]
+    against = f"reference run at {new['environment']['commit']}"
     for scene in new["scenes"]:
         rerun = {
             p["strategy"] for p in new["points"] if p["scene"] == scene and not p["is_reference"]
         }
         reference = new["references"].get(scene)
         for p in old["points"]:
-            if p["scene"] != scene or p["strategy"] in rerun or p["is_reference"]:
-                continue
-            error, parts = point_error(scene, p, reference)
-            kept.append(
-                {
-                    **p,
-                    "error": error,
-                    "error_parts": parts,
-                    "reference": reference,
-                    "error_against": f"reference run at {commit}" if reference else None,
-                }
-            )
+            if p["scene"] == scene and p["strategy"] not in rerun and not p["is_reference"]:
+                error, parts = point_error(scene, p, reference)
+                kept.append(
+                    {**p, "error": error, "error_parts": parts, "reference": reference}
+                    | {"error_against": against if reference else None}
+                )
     return kept
 
 
@@ -827,18 +774,14 @@ def load_record(
 ) -> dict:
     """The record to replay: from a JSON file (one record, or a ``tradeoff.json`` and an id) or
     from a JSON string."""
-    if point is not None:
-        try:
-            data = json.loads(point)
-        except json.JSONDecodeError as err:
-            raise ValueError(f"--point is not valid JSON: {err}") from None
-    else:
-        try:
-            data = json.loads(Path(path).read_text())
-        except FileNotFoundError:
-            raise ValueError(f"--replay: no file {path}") from None
-        except json.JSONDecodeError as err:
-            raise ValueError(f"--replay: {path} is not valid JSON: {err}") from None
+    where = "--point" if point is not None else "--replay"
+    try:
+        data = json.loads(point if point is not None else Path(path).read_text())
+    except FileNotFoundError:
+        raise ValueError(f"--replay: no file {path}") from None
+    except json.JSONDecodeError as err:
+        what = "" if point is not None else f": {path}"
+        raise ValueError(f"{where}{what} is not valid JSON: {err}") from None
     if isinstance(data, dict) and "points" in data:
         ids = [p["id"] for p in data["points"]]
         if point_id is None:
@@ -870,9 +813,8 @@ def _check_settings(record: dict) -> None:
     if not isinstance(settings.get("options"), dict):
         raise ValueError(f"{scene} settings: 'options' must be a dict of the strategy's options")
     for knob, entry in knob_table(scene, strategy, record.get("mode", "quick")).items():
-        _check_value(
-            f"{scene}/{strategy}", knob, _knob_base(settings, knob, strategy), entry["spec"]
-        )
+        base = _knob_base(settings, knob, strategy)
+        _check_value(f"{scene}/{strategy}", knob, base, entry["spec"])
 
 
 def replay(record: dict, timeout_s: float | None = None) -> dict:
@@ -892,8 +834,7 @@ def replay(record: dict, timeout_s: float | None = None) -> dict:
     }
     measurement = execute_point(_job(point, timeout_s))
     done = _finish({**record, **point}, measurement, record.get("reference"))
-    recorded = record.get("error")
-    new = done["error"]
+    recorded, new = record.get("error"), done["error"]
     if recorded is None or new is None:
         same = recorded is None and new is None
     else:
@@ -915,26 +856,14 @@ OPTIONS = {
     "--knobs": ("knobs", dict(help="comma-separated knobs (default: every knob of each strategy)")),
     "--strategies": (
         "strategies",
-        dict(help="comma-separated strategies (default: every one that applies to each scene)"),
+        dict(help="comma-separated strategies (default: all that apply)"),
     ),
     "--workers": ("workers", dict(type=int, help="local point processes at once (default: cores)")),
     "--scheduler": ("scheduler", dict(help="run the points on a Dask scheduler (tcp://host:port)")),
     "--threads-per-point": ("threads", dict(type=int, default=1, help="threads of each point")),
     "--point-timeout": ("timeout_s", dict(type=float, help="wall-time limit of one point in s")),
-    "--resume": (
-        "resume",
-        dict(
-            action="store_true",
-            help="take the points an earlier sweep of the same code kept in the points folder",
-        ),
-    ),
-    "--points": (
-        "points",
-        dict(
-            metavar="DIR",
-            help="where each point is kept as it finishes (default OUT/tradeoff_points/)",
-        ),
-    ),
+    "--resume": ("resume", dict(action="store_true", help="take the points kept of the same code")),
+    "--points": ("points", dict(metavar="DIR", help="kept points (default OUT/tradeoff_points/)")),
     "--cost": (
         "cost",
         dict(
