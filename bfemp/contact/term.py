@@ -74,19 +74,17 @@ class BarrierTerm:
         return self.collisions.positions(self._layout.positions(x, self._fixed))
 
     def solution_changed(self, x: np.ndarray) -> None:
-        """Active pairs and distances at ``x``."""
+        """Active pairs and distances at ``x`` (a line search's trials share one broad phase)."""
         self._pos = pos = self.collision_positions(x)
-        line = self._line
-        if line is None or (pos.shape[1] == 3 and edge_edge_active(self.collisions)):
-            self.pairs = find_pairs(self.collisions, pos, self.dhat)
-            return
-        line["trials"] += 1
-        if line["trials"] == 2:  # the first backtrack: later trials lie between start and here
-            line["box"] = np.minimum(line["start"], pos), np.maximum(line["start"], pos)
-            line["cand"] = candidate_pairs(self.collisions, line["start"], self.dhat, pos)
-        cand, box = line.get("cand"), line.get("box")
-        inside = cand is not None and (pos >= box[0]).all() and (pos <= box[1]).all()
-        self.pairs = find_pairs(self.collisions, pos, self.dhat, cand if inside else None)
+        line, cand = self._line, None
+        if line is not None and not (pos.shape[1] == 3 and edge_edge_active(self.collisions)):
+            line["trials"] += 1
+            if line["trials"] == 2:  # first backtrack: later trials lie between start and here
+                line.update(lo=np.minimum(line["start"], pos), hi=np.maximum(line["start"], pos))
+                line["cand"] = candidate_pairs(self.collisions, line["start"], self.dhat, pos)
+            if "cand" in line and (pos >= line["lo"]).all() and (pos <= line["hi"]).all():
+                cand = line["cand"]  # the swept boxes (grown by d-hat) hold every pair near pos
+        self.pairs = find_pairs(self.collisions, pos, self.dhat, cand)
 
     # ------------------------------------------------------------------ energy
     def value(self, x: np.ndarray) -> float:
@@ -120,11 +118,7 @@ class BarrierTerm:
     # ------------------------------------------------------------------ feasibility
     def max_step_size(self, x: np.ndarray, p: np.ndarray) -> float:
         """0.9 x the earliest time of impact along x -> x + p (CCD, section 5); at most 1.
-
-        It starts a line search: from its first backtrack on, the trials x + alpha p (alpha
-        shrinking) lie between x and that trial, and the broad phase of the swept boxes from x
-        to it (grown by d-hat) serves them all; a point outside the swept boxes falls back to
-        a broad phase of its own. Same pairs, same order, as a broad phase per trial."""
+        Opens a line search, whose backtracked trials x + alpha p share one broad phase."""
         self._line = {"start": self._pos, "trials": 0}
         return self._step_fraction(self._pos, self.collision_positions(x + p))
 
