@@ -71,6 +71,13 @@ def warm_stepper(model, dt: float, tol: float, **options):
     return stepper, state
 
 
+def timed(fn):
+    """``(fn(), its wall time in s)``."""
+    start = time.perf_counter()
+    value = fn()
+    return value, time.perf_counter() - start
+
+
 def wall_times(fn, repeats: int) -> list[float]:
     """Wall times in s of ``repeats`` consecutive calls of ``fn()``."""
     times = []

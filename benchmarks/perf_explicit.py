@@ -36,7 +36,7 @@ import numba
 import numpy as np
 
 import bfemp
-from benchmarks._phases import barrier_stepper, wall_times
+from benchmarks._phases import barrier_stepper, timed, wall_times
 from benchmarks.runner import Benchmark, register
 from bfemp.steppers.single_field import SingleFieldStepper
 
@@ -253,14 +253,9 @@ def _term_route(model) -> dict:
     state = model.initial_state()
     phases = stepper.phases(state)  # warm-up
     term = next(t for t in phases.potential.potentials if hasattr(t, "particles"))
-    t0 = time.perf_counter()
-    term.begin_step(phases.context)
-    begin = time.perf_counter() - t0
+    _, begin = timed(lambda: term.begin_step(phases.context))
     x = stepper.phases(state).x0
-    t0 = time.perf_counter()
-    term.solution_changed(x)
-    term.gradient(x)
-    gradient = time.perf_counter() - t0
+    _, gradient = timed(lambda: (term.solution_changed(x), term.gradient(x)))
     return {"begin_step_s": begin, "gradient_s": gradient, "total_s": begin + gradient}
 
 
