@@ -12,13 +12,12 @@ from __future__ import annotations
 
 import json
 import os
-import subprocess
 import tempfile
 from pathlib import Path
 
 import scipy.sparse as sp
 
-from benchmarks._shared import python_child
+from benchmarks._shared import child_json
 
 __all__ = ["REFERENCE_DIRS", "factorisation_by_blas", "reference_blas_env"]
 
@@ -52,15 +51,6 @@ def reference_blas_env() -> dict | None:
     return env
 
 
-def _child(paths: dict, repeats: int, env: dict, timeout: float = 1800.0) -> dict:
-    try:
-        args = ["-c", _CHILD, json.dumps(paths), str(repeats)]
-        done = python_child(args, env, timeout, check=True)
-    except subprocess.TimeoutExpired:  # recorded, not fatal: the rest of the record stands
-        return {"blas": None, "factorize_s": {}, "error": f"timed out after {timeout:.0f} s"}
-    return json.loads(done.stdout.strip().splitlines()[-1])
-
-
 def factorisation_by_blas(matrices: dict[str, sp.spmatrix], repeats: int = 3) -> dict:
     """CHOLMOD numeric factorisation seconds (best of ``repeats``) under each BLAS.
 
@@ -74,23 +64,28 @@ def factorisation_by_blas(matrices: dict[str, sp.spmatrix], repeats: int = 3) ->
         reference / default}}``.
     """
     with tempfile.TemporaryDirectory() as tmp:
-        paths = {}
+        paths = {name: str(Path(tmp, f"{name}.npz")) for name in matrices}
         for name, A in matrices.items():
-            paths[name] = str(Path(tmp, f"{name}.npz"))
             sp.save_npz(paths[name], sp.csc_matrix(A))
-        default = _child(paths, repeats, dict(os.environ))
+
+        def child(env: dict | None) -> dict | None:  # a failed child is recorded, not fatal
+            if env is None:
+                return None
+            args = (json.dumps(paths), str(repeats))
+            return {"blas": None, "factorize_s": {}} | child_json(
+                _CHILD, *args, env=env, timeout=1800
+            )
+
+        default = child(dict(os.environ))
         # the same BLAS on one thread: oversubscription on a shared machine, measured
-        one_thread = _child(
-            paths, repeats, dict(os.environ, OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")
-        )
-        env = reference_blas_env()
-        reference = None if env is None else _child(paths, repeats, env)
+        one_thread = child(dict(os.environ, OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1"))
+        reference = child(reference_blas_env())
     speedup = {}
     if reference is not None and "error" not in reference and "error" not in default:
-        for name in matrices:
-            speedup[name] = float(
-                reference["factorize_s"][name] / max(default["factorize_s"][name], 1e-12)
-            )
+        speedup = {
+            name: float(reference["factorize_s"][name] / max(default["factorize_s"][name], 1e-12))
+            for name in matrices
+        }
     return {
         "default": default,
         "default_1_thread": one_thread,

@@ -8,6 +8,7 @@ import time
 import numpy as np
 
 from benchmarks._blas_switch import factorisation_by_blas
+from benchmarks.runner import Benchmark, name_unless, register
 from solvers.assembly import TripletAssembler
 from solvers.choice import make_linear_solver
 from solvers.linear import cholmod_available
@@ -17,44 +18,64 @@ PERF_TIMINGS = r"_s$|over_factorisation|below_factorisation|fraction_of_iteratio
 MACHINE_NOTE = "2 shared cores, loaded by other work: compare ratios within this run"
 
 
-def cases_and_blas(cases: dict, measure_one) -> dict:
-    """Each case of ``cases`` (name -> its parameters) measured by ``measure_one(name,
-    matrices, dim, **parameters)``, which adds the case's Hessian to ``matrices``; then
-    CHOLMOD's factorisation of each Hessian on the reference and the default BLAS (per process)."""
-    matrices: dict = {}
-    measured = {
-        name: measure_one(name, matrices, 2 if name == "2d" else 3, **cfg)
-        for name, cfg in cases.items()
-    }
-    return {
-        "cases": measured,
-        "blas_side_by_side": factorisation_by_blas(matrices),
-        "machine_note": MACHINE_NOTE,
-    }
+def newton_benchmark(
+    name: str, doc: str, cases: dict, measure_one, phases: tuple, size: str, title: str
+):
+    """Register the per-Newton-iteration benchmark ``name`` (``perf_fem``, ``perf_mpm``): each
+    case of a mode measured by ``measure_one(name, matrices, dim, **parameters)`` (dim 2 for the
+    case ``"2d"``, else 3), which adds the case's Hessian to ``matrices``; then CHOLMOD's
+    factorisation of each Hessian on the reference and the default BLAS (per process). Its plot:
+    bars of the seconds per Newton iteration of ``phases`` (record keys ``PHASE_s``) per case,
+    each labelled with its ``size`` key, under ``title``. Records: ``name.json`` (full mode),
+    ``name_MODE.json``."""
+
+    def measure(mode: str, cfg: dict) -> dict:
+        matrices: dict = {}
+        measured = {
+            case: measure_one(case, matrices, 2 if case == "2d" else 3, **parameters)
+            for case, parameters in cfg.items()
+        }
+        blas = factorisation_by_blas(matrices)
+        return {"cases": measured, "blas_side_by_side": blas, "machine_note": MACHINE_NOTE}
+
+    def plot(payload: dict, png) -> None:
+        from bfemp.plotting import plot_bars
+
+        cases = payload["cases"]
+        labels = [f"{k} ({c[size]} {size})" for k, c in cases.items()]
+        groups = {p: [c.get(f"{p}_s", np.nan) for c in cases.values()] for p in phases}
+        plot_bars(labels, groups, png, ylabel="seconds", title=title)
+
+    measure.__module__ = measure_one.__module__  # the module of the entry (runner.Benchmark)
+    record = name_unless("full", name)
+    return register(
+        Benchmark(name, doc, cases, measure, plot=plot, record=record, timings=PERF_TIMINGS)
+    )
 
 
-def plot_phases(payload: dict, png, phases: tuple[str, ...], size: str, title: str) -> None:
-    """Bars of the seconds per Newton iteration of ``phases`` (record keys ``PHASE_s``) per
-    case, each case labelled with its ``size`` key."""
-    from bfemp.plotting import plot_bars
-
-    cases = payload["cases"]
-    labels = [f"{k} ({c[size]} {size})" for k, c in cases.items()]
-    groups = {p: [c.get(f"{p}_s", np.nan) for c in cases.values()] for p in phases}
-    plot_bars(labels, groups, png, ylabel="seconds", title=title)
-
-
-def warm_stepper(model, dt: float, tol: float, **options):
-    """A barrier stepper (backward Euler, step ``dt`` s, Newton tolerance ``tol`` m/s, other
-    ``BarrierOptions`` fields from ``options``) on ``model`` and the state after one step (the
-    warm-up that compiles the numba kernels): ``(stepper, state)``."""
+def barrier_stepper(model, dt: float, tol: float | None = None, **options):
+    """A barrier stepper (backward Euler, step ``dt`` s, Newton tolerance ``tol`` m/s or the
+    default one, other ``BarrierOptions`` fields from ``options``) on ``model``."""
     from bfemp.integrators import BACKWARD_EULER
     from bfemp.steppers.barrier import BarrierOptions, BarrierStepper
 
-    options = BarrierOptions(tol=tol, **options)
-    stepper = BarrierStepper(model, integrator=BACKWARD_EULER, dt=dt, options=options)
+    options = BarrierOptions(**options, **({} if tol is None else {"tol": tol}))
+    return BarrierStepper(model, integrator=BACKWARD_EULER, dt=dt, options=options)
+
+
+def warm_stepper(model, dt: float, tol: float, **options):
+    """``barrier_stepper(model, dt, tol, **options)`` and the state after one step (the warm-up
+    that compiles the numba kernels): ``(stepper, state)``."""
+    stepper = barrier_stepper(model, dt, tol, **options)
     state, _ = stepper.step(stepper.initialize(model.initial_state()))
     return stepper, state
+
+
+def timed(fn):
+    """``(fn(), its wall time in s)``."""
+    start = time.perf_counter()
+    value = fn()
+    return value, time.perf_counter() - start
 
 
 def wall_times(fn, repeats: int) -> list[float]:
@@ -101,11 +122,9 @@ def newton_phases(
         start = time.perf_counter()
         _, report = stepper.step(state)
         wall = time.perf_counter() - start
-        n_after = getattr(stepper.linear_solver, "n_numeric", None)
-        made = None if n_before is None else int(n_after - n_before)
+        made = None if n_before is None else int(stepper.linear_solver.n_numeric - n_before)
         steps.append((report.timings.get("total", wall), wall, report, made))
-    ordered = sorted(steps, key=lambda s: s[0])
-    _, step_wall, report, n_made = ordered[(len(ordered) - 1) // 2]
+    newton_s, step_wall, report, n_made = sorted(steps, key=lambda s: s[0])[(step_repeats - 1) // 2]
     phases = stepper.phases(state)
     pot = phases.potential
     y = pot.to_unknowns(phases.x0)
@@ -124,8 +143,7 @@ def newton_phases(
         "newton_iterations": report.newton_iterations,
         "step_wall_s": step_wall,
         "step_phases_s": dict(report.timings),
-        "time_per_newton_iteration_s": report.timings.get("total", step_wall)
-        / max(report.newton_iterations, 1),
+        "time_per_newton_iteration_s": newton_s / max(report.newton_iterations, 1),
         "step_times_s": [s[0] for s in steps],
     }
     pot.solution_changed(y)
@@ -136,39 +154,33 @@ def newton_phases(
     out["nnz"] = int(matrix.nnz)
     if matrices is not None:
         matrices[name] = matrix
-    out["triplets_to_csc_s"] = max(
-        median_time(lambda: assembler.assemble(pot.hessian(y, psd=True))) - out["hessian_local_s"],
-        0.0,
-    )
+    csc_s = median_time(lambda: assembler.assemble(pot.hessian(y, psd=True)))
+    out["triplets_to_csc_s"] = max(csc_s - out["hessian_local_s"], 0.0)
     if n_made is not None:
-        out["linear_solves"] = n_made
         # one linear solve per iteration plus the convergence test at the last iterate (and
         # any rejected exact-Hessian try): the cost of one solve's worth of Newton work
-        out["time_per_linear_solve_s"] = report.timings.get("total", step_wall) / max(
-            out["linear_solves"], 1
-        )
+        out["linear_solves"] = n_made
+        out["time_per_linear_solve_s"] = newton_s / max(n_made, 1)
     out["linear_solver"] = solver_name
     if cholmod_available() or solver_name != "cholmod":
         solver = make_linear_solver(solver_name, block_size=stepper.model.dim)
         rhs = np.ones(y.size)
         solver.solve(matrix, rhs)
         out["analyze_s"] = solver.last_timings["analyze"]
-        best = {"factorize": float("inf"), "solve": float("inf")}
-        factorisations = []
+        runs = []
         for _ in range(3):
             solver.solve(matrix, rhs)
-            factorisations.append(solver.last_timings["factorize"])
-            for key in best:
-                best[key] = min(best[key], solver.last_timings[key])
-        out["factorize_median_s"] = statistics.median(factorisations)
-        floor = best["factorize"] if solver_name != "cg_amg" else best["solve"]
+            runs.append(dict(solver.last_timings))
+        factorize = [r["factorize"] for r in runs]
+        out["factorize_median_s"] = statistics.median(factorize)
+        out["solve_s"] = min(r["solve"] for r in runs)
+        floor = out["solve_s"] if solver_name == "cg_amg" else min(factorize)
         out["factorize_s"] = floor
-        out["solve_s"] = best["solve"]
         out["newton_over_factorisation"] = out["time_per_newton_iteration_s"] / max(floor, 1e-12)
-        if "time_per_linear_solve_s" in out:
+        if n_made is not None:
             out["linear_solve_over_factorisation"] = out["time_per_linear_solve_s"] / max(
                 floor, 1e-12
             )
         out["symbolic_saved_s"] = out["analyze_s"] * max(report.newton_iterations - 1, 0)
-        out["assembly_below_factorisation"] = bool(out["assembly_s"] < out["factorize_s"])
+        out["assembly_below_factorisation"] = bool(out["assembly_s"] < floor)
     return out

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -23,6 +24,18 @@ def python_child(
     return subprocess.run(
         [sys.executable, *args], capture_output=True, text=True, env=env, timeout=timeout, **run
     )
+
+
+def child_json(code: str, *args: str, env: dict | None = None, timeout: float = 3600.0) -> dict:
+    """The JSON object that ``python -c CODE ARGS`` (``python_child``) prints last; a child
+    past ``timeout`` s or failing gives ``{"error": why}`` (recorded, not fatal)."""
+    try:
+        done = python_child(["-c", code, *args], env, timeout)
+    except subprocess.TimeoutExpired:
+        return {"error": f"timed out after {timeout:.0f} s"}
+    if done.returncode != 0:
+        return {"error": done.stderr.strip().splitlines()[-1:]}
+    return json.loads(done.stdout.strip().splitlines()[-1])
 
 
 def falls_with_h(rows: list[dict], key: str, group: tuple[str, ...]) -> dict[tuple, bool]:

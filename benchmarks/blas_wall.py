@@ -29,10 +29,10 @@ import json
 import logging
 import os
 import subprocess
-import time
 from pathlib import Path
 
 from benchmarks._blas_switch import reference_blas_env
+from benchmarks._phases import timed
 from benchmarks._shared import ROOT, python_child
 from benchmarks.runner import Benchmark, register
 
@@ -53,12 +53,10 @@ def _run_child(
 ) -> dict:
     """Run benchmark ``name`` in ``mode`` in a child process with ``env``; its wall and record."""
     command = ["-m", "benchmarks", name, f"--{mode}", *options, "--out", str(out)]
-    start = time.perf_counter()
     try:
-        done = python_child(command, env, timeout, cwd=ROOT)
+        done, wall = timed(lambda: python_child(command, env, timeout, cwd=ROOT))
     except subprocess.TimeoutExpired:
         return {"error": f"timed out after {timeout:.0f} s"}
-    wall = time.perf_counter() - start
     if done.returncode != 0:
         tail = (done.stderr or done.stdout).strip().splitlines()[-3:]
         return {"error": f"exit status {done.returncode}: {' | '.join(tail)}", "wall_s": wall}

@@ -20,19 +20,21 @@ Measured results: ``benchmarks/records/perf_3d_full.md``.
 
 from __future__ import annotations
 
-import json
-import subprocess
 import time
 from pathlib import Path
 
 import bfemp
 from benchmarks._blas_switch import factorisation_by_blas
-from benchmarks._phases import MACHINE_NOTE, PERF_TIMINGS, newton_phases, warm_stepper
-from benchmarks._shared import python_child
+from benchmarks._phases import (
+    MACHINE_NOTE,
+    PERF_TIMINGS,
+    barrier_stepper,
+    newton_phases,
+    warm_stepper,
+)
+from benchmarks._shared import child_json
 from benchmarks.common import peak_memory_mb, write_json
 from benchmarks.runner import Benchmark, register
-from bfemp.integrators import BACKWARD_EULER
-from bfemp.steppers.barrier import BarrierOptions, BarrierStepper
 from solvers.choice import linear_algebra, make_linear_solver
 
 CASES = {
@@ -83,18 +85,11 @@ def _measure(mode: str, solver: str, matrices: dict | None = None) -> dict:
     return out
 
 
-def _measure_in_child(mode: str, solver: str) -> dict:
-    code = (
-        "import json; from benchmarks.perf_3d import _measure; "
-        f"print(json.dumps(_measure({mode!r}, {solver!r}), default=float))"
-    )
-    try:
-        done = python_child(["-c", code], timeout=1800)
-    except subprocess.TimeoutExpired:
-        return {"solver": solver, "error": "timed out after 1800 s"}
-    if done.returncode != 0:
-        return {"solver": solver, "error": done.stderr.strip().splitlines()[-1:]}
-    return json.loads(done.stdout.strip().splitlines()[-1])
+#: ``_measure(mode, solver)`` in a child process (its own peak memory): its record on stdout
+_CHILD = (
+    "import json, sys; from benchmarks.perf_3d import _measure; "
+    "print(json.dumps(_measure(*sys.argv[1:]), default=float))"
+)
 
 
 def measure(mode: str, cfg: dict, out: Path) -> dict:
@@ -107,11 +102,12 @@ def measure(mode: str, cfg: dict, out: Path) -> dict:
         if mode == "quick":
             results[name] = _measure(mode, name, matrices if name == "cholmod" else None)
         else:
-            results[name] = _measure_in_child(mode, name)
+            results[name] = {"solver": name} | child_json(_CHILD, mode, name, timeout=1800)
     if not matrices:  # full mode: the Hessian for the BLAS comparison, from a fresh model
-        model = _scene(cfg["cells"], cfg["dx"]).build()
-        stepper = BarrierStepper(model, integrator=BACKWARD_EULER, dt=DT, options=BarrierOptions())
-        newton_phases(stepper, stepper.initialize(model.initial_state()), "cholmod", matrices, mode)
+        stepper = barrier_stepper(_scene(cfg["cells"], cfg["dx"]).build(), DT)
+        newton_phases(
+            stepper, stepper.initialize(stepper.model.initial_state()), "cholmod", matrices, mode
+        )
     if mode != "quick":  # the solvers' hour of work is on disk before the BLAS comparison
         write_json(out, "perf_3d_solvers", {"mode": mode, "solvers": results})
     ok = {k: v for k, v in results.items() if "error" not in v}

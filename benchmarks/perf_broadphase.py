@@ -19,12 +19,11 @@ fcl is recorded as ``auto_choice``; ``geometry.broadphase`` uses it for ``method
 from __future__ import annotations
 
 import statistics
-import time
 from pathlib import Path
 
 import numpy as np
 
-from benchmarks._phases import wall_times
+from benchmarks._phases import timed, wall_times
 from benchmarks.runner import Benchmark, register
 from bfemp.plotting import plot_bars
 from geometry.broadphase import point_simplex_candidates
@@ -86,16 +85,13 @@ def _query(points, vertices, simplices, kwargs: dict) -> dict:
 
     pairs = call("hash")  # warm-up: loads (or compiles) the numba kernels
     t_hash = wall_times(lambda: call("hash"), 5)
-    start = time.perf_counter()
-    pairs_fcl = call("fcl")
-    t_fcl = time.perf_counter() - start
+    pairs_fcl, t_fcl = timed(lambda: call("fcl"))
     n_sub = min(BRUTE_POINTS, points.shape[0])
     sub_kwargs = {k: v[:n_sub] if k == "points_end" else v for k, v in kwargs.items()}
-    start = time.perf_counter()
-    pairs_brute = point_simplex_candidates(
-        points[:n_sub], vertices, simplices, method="brute", **sub_kwargs
+    brute = point_simplex_candidates  # on the first n_sub points
+    pairs_brute, t_brute = timed(
+        lambda: brute(points[:n_sub], vertices, simplices, method="brute", **sub_kwargs)
     )
-    t_brute = time.perf_counter() - start
     return {
         "pairs": int(pairs.shape[0]),
         "hash_s": statistics.median(t_hash),

@@ -51,15 +51,13 @@ import scipy.sparse as sp
 
 import bfemp
 from benchmarks import catalogue
-from benchmarks._phases import newton_phases, wall_times
+from benchmarks._phases import barrier_stepper, newton_phases, wall_times
 from benchmarks.common import figure
 from benchmarks.runner import Benchmark, name_unless, register
 from bfemp.contact._barrier_kernels import _barrier_gradients, _barrier_hessians
 from bfemp.contact.barrier import barrier, barrier_derivative, barrier_second_derivative
 from bfemp.contact.evaluation import KERNEL_KIND
 from bfemp.contact.pairs import _distance, candidate_pairs
-from bfemp.integrators import BACKWARD_EULER
-from bfemp.steppers.barrier import BarrierOptions, BarrierStepper
 from solvers.assembly import TripletAssembler
 from solvers.linear import default_linear_solver
 
@@ -136,11 +134,8 @@ def _configuration(dim: int, n_pairs: int, seed: int = 7) -> dict:
     scene.add_mpm(particles, volumes, material=material, name="particles")
     scene.set_grid(dx=geo["dx"])
     scene.set_contact(dhat=DHAT, kappa=KAPPA)
-    model = scene.build()
-    stepper = BarrierStepper(
-        model, integrator=BACKWARD_EULER, dt=1e-3, options=BarrierOptions(tol=1e-6)
-    )
-    phases = stepper.phases(model.initial_state())
+    stepper = barrier_stepper(scene.build(), dt=1e-3, tol=1e-6)
+    phases = stepper.phases(stepper.model.initial_state())
     x, term = phases.x0, phases.barrier
     term.solution_changed(x)
     direction = np.zeros(dim)
@@ -173,34 +168,38 @@ def _kernel(kind: str, pos: np.ndarray, pts: np.ndarray) -> tuple[float, np.ndar
     )
 
 
-def _bfemp_ops(case: dict, dofs: bool) -> tuple[dict, dict]:
-    """bfemp's timed operations (name -> callable) and facts about the configuration: pair
-    search, value, gradient, kernels; with ``dofs`` the projected Hessian chained to the
-    unknowns (triplets) and its CSC assembly (pattern reused)."""
+def _bfemp(case: dict, repeats: int) -> dict:
+    """bfemp's levels on one configuration, each ``_timed``: pair search, value, gradient,
+    kernels, the projected Hessian chained to the unknowns (triplets) and its CSC assembly
+    (pattern reused); their sums ``dofs_s`` and ``chain_rule_and_scatter_s``; facts about the
+    configuration."""
     term, x = case["term"], case["x"]
     kind = "pe" if case["dim"] == 2 else "pt"
     term.solution_changed(x)
     pts = term.pairs.points[kind]
     pos = term.collision_positions(x)
+    out = {
+        "pairs": int(term.pairs.n_pairs),
+        "pairs_by_kind": {k: int(v.shape[0]) for k, v in term.pairs.points.items()},
+        "energy": float(term.value(x)),
+    }
+    assembler = TripletAssembler(x.size)
+    triplets = term.hessian(x, psd=True)
+    out["hessian_triplets"] = int(triplets.nnz)
+    out["hessian_nnz"] = int(assembler.assemble(triplets).nnz)  # pattern built once
     ops = {
         "pair_search": lambda: term.solution_changed(x),
         "value": lambda: term.value(x),
         "gradient": lambda: term.gradient(x),
         "kernel": lambda: _kernel(kind, pos, pts),
+        "hessian": lambda: term.hessian(x, psd=True),
+        "assemble": lambda: assembler.assemble(triplets),
     }
-    info = {
-        "pairs": int(term.pairs.n_pairs),
-        "pairs_by_kind": {k: int(v.shape[0]) for k, v in term.pairs.points.items()},
-        "energy": float(term.value(x)),
-    }
-    if dofs:
-        assembler = TripletAssembler(x.size)
-        triplets = term.hessian(x, psd=True)
-        info["hessian_triplets"] = int(triplets.nnz)
-        info["hessian_nnz"] = int(assembler.assemble(triplets).nnz)  # pattern built once
-        ops["hessian"] = lambda: term.hessian(x, psd=True)
-        ops["assemble"] = lambda: assembler.assemble(triplets)
-    return ops, info
+    out.update(_timed(ops, repeats))
+    evaluation = out["value_s"] + out["gradient_s"] + out["hessian_s"]
+    out["dofs_s"] = evaluation + out["assemble_s"]
+    out["chain_rule_and_scatter_s"] = max(evaluation - out["kernel_s"], 0.0)
+    return out
 
 
 def _collision_map(case: dict) -> sp.csc_matrix:
@@ -215,12 +214,13 @@ def _collision_map(case: dict) -> sp.csc_matrix:
 
 
 # --------------------------------------------------------------------------- ipctk side
-def _ipctk_ops(case: dict, dofs: bool) -> tuple[dict, dict] | tuple[None, None]:
-    """ipctk's timed operations on the same collision points and facts: pair search, value,
-    gradient, projected Hessian; with ``dofs`` also ``to_full_dof`` (chain rule to the unknowns).
-    ``(None, None)`` without ipctk."""
+def _ipctk(case: dict, repeats: int) -> dict | None:
+    """ipctk's levels on the same collision points, each ``_timed``: pair search, value,
+    gradient, projected Hessian, ``to_full_dof`` (chain rule to the unknowns); their sums
+    ``collision_s`` and ``dofs_s``; facts (its ``mesh`` and ``vertex_gradient`` too, for the
+    CCD and the agreement). None without ipctk."""
     if ipctk is None:
-        return None, None
+        return None
     term, x = case["term"], case["x"]
     cs = term.collisions
     vertices = np.asfortranarray(term.collision_positions(x))
@@ -244,24 +244,26 @@ def _ipctk_ops(case: dict, dofs: bool) -> tuple[dict, dict] | tuple[None, None]:
 
     build()
     grad = potential.gradient(collisions, mesh, vertices)
+    hess = potential.hessian(collisions, mesh, vertices, psd)
+    out = {
+        "pairs": len(collisions),
+        "energy": float(potential(collisions, mesh, vertices)),
+        "vertex_gradient": np.asarray(grad).reshape(-1, case["dim"]),
+        "mesh": mesh,
+        "hessian_nnz_collision": int(hess.nnz),
+        "hessian_nnz_full": int(mesh.to_full_dof(hess).nnz),
+    }
     ops = {
         "pair_search": build,
         "value": lambda: potential(collisions, mesh, vertices),
         "gradient": lambda: potential.gradient(collisions, mesh, vertices),
         "hessian": lambda: potential.hessian(collisions, mesh, vertices, psd),
+        "to_full_dof": lambda: (mesh.to_full_dof(grad), mesh.to_full_dof(hess)),
     }
-    info = {
-        "pairs": len(collisions),
-        "energy": float(potential(collisions, mesh, vertices)),
-        "vertex_gradient": np.asarray(grad).reshape(-1, case["dim"]),
-        "mesh": mesh,
-    }
-    if dofs:
-        hess = potential.hessian(collisions, mesh, vertices, psd)
-        info["hessian_nnz_collision"] = int(hess.nnz)
-        info["hessian_nnz_full"] = int(mesh.to_full_dof(hess).nnz)
-        ops["to_full_dof"] = lambda: (mesh.to_full_dof(grad), mesh.to_full_dof(hess))
-    return ops, info
+    out.update(_timed(ops, repeats))
+    out["collision_s"] = out["value_s"] + out["gradient_s"] + out["hessian_s"]
+    out["dofs_s"] = out["collision_s"] + out["to_full_dof_s"]
+    return out
 
 
 def _timed(ops: dict, repeats: int) -> dict[str, float]:
@@ -272,27 +274,6 @@ def _timed(ops: dict, repeats: int) -> dict[str, float]:
         fn()
         out[f"{name}_s"] = min(wall_times(fn, repeats))
     return out
-
-
-def _barrier_levels(case: dict, repeats: int, dofs: bool) -> tuple[dict, dict | None]:
-    """Time both libraries on one configuration; sums per level."""
-    bf_ops, bf = _bfemp_ops(case, dofs)
-    ip_ops, ip = _ipctk_ops(case, dofs)
-    ops = {f"bfemp_{k}": v for k, v in bf_ops.items()}
-    ops.update({f"ipctk_{k}": v for k, v in (ip_ops or {}).items()})
-    times = _timed(ops, repeats)
-    bf.update({k[6:]: v for k, v in times.items() if k.startswith("bfemp_")})
-    evaluation = bf["value_s"] + bf["gradient_s"]
-    if dofs:
-        evaluation += bf["hessian_s"]
-        bf["dofs_s"] = evaluation + bf["assemble_s"]
-        bf["chain_rule_and_scatter_s"] = max(evaluation - bf["kernel_s"], 0.0)
-    if ip is not None:
-        ip.update({k[6:]: v for k, v in times.items() if k.startswith("ipctk_")})
-        ip["collision_s"] = ip["value_s"] + ip["gradient_s"] + ip["hessian_s"]
-        if dofs:
-            ip["dofs_s"] = ip["collision_s"] + ip["to_full_dof_s"]
-    return bf, ip
 
 
 # --------------------------------------------------------------------------- agreement
@@ -392,7 +373,7 @@ def _ccd(case: dict, ip: dict | None, repeats: int) -> dict:
 def _measure_case(dim: int, n_pairs: int, repeats: int) -> dict:
     """Barrier levels, agreement and CCD of one configuration."""
     case = _configuration(dim, n_pairs)
-    bf, ip = _barrier_levels(case, repeats, dofs=True)
+    bf, ip = _bfemp(case, repeats), _ipctk(case, repeats)
     out = {
         "dim": dim,
         "pairs": bf["pairs"],

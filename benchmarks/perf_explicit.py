@@ -36,9 +36,8 @@ import numba
 import numpy as np
 
 import bfemp
+from benchmarks._phases import barrier_stepper, timed, wall_times
 from benchmarks.runner import Benchmark, register
-from bfemp.integrators import BACKWARD_EULER
-from bfemp.steppers import BarrierOptions, stepper_class
 from bfemp.steppers.single_field import SingleFieldStepper
 
 try:  # optional: benchmark-only reference
@@ -250,35 +249,22 @@ def _throughput(model, steps: int, rounds: int) -> tuple[dict, dict | None]:
 # --------------------------------------------------------------------------- other figures
 def _term_route(model) -> dict:
     """MPM forces by the implicit term vs the fused kernel, at the start of one step."""
-    stepper = stepper_class("barrier")(
-        model,
-        integrator=BACKWARD_EULER,
-        dt=BARRIER_DT,
-        options=BarrierOptions(tol=1e-4),
-    )
+    stepper = barrier_stepper(model, BARRIER_DT, 1e-4)
     state = model.initial_state()
     phases = stepper.phases(state)  # warm-up
     term = next(t for t in phases.potential.potentials if hasattr(t, "particles"))
-    t0 = time.perf_counter()
-    term.begin_step(phases.context)
-    begin = time.perf_counter() - t0
+    _, begin = timed(lambda: term.begin_step(phases.context))
     x = stepper.phases(state).x0
-    t0 = time.perf_counter()
-    term.solution_changed(x)
-    term.gradient(x)
-    gradient = time.perf_counter() - t0
+    _, gradient = timed(lambda: (term.solution_changed(x), term.gradient(x)))
     return {"begin_step_s": begin, "gradient_s": gradient, "total_s": begin + gradient}
 
 
 def _barrier_step(scene) -> dict:
     """Two barrier steps; the second is timed (the first may load or compile kernels)."""
     sim = bfemp.Simulation(scene, dt=BARRIER_DT, tol=1e-4)
-    t0 = time.perf_counter()
-    sim.step()
-    first = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    report = sim.step()
-    wall = time.perf_counter() - t0
+    reports = []
+    first, wall = wall_times(lambda: reports.append(sim.step()), 2)
+    report = reports[-1]
     return {
         "dt_s": BARRIER_DT,
         "first_step_s": first,

@@ -15,17 +15,8 @@ Target: assembly < factorisation.
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from benchmarks import catalogue
-from benchmarks._phases import (
-    PERF_TIMINGS,
-    cases_and_blas,
-    newton_phases,
-    plot_phases,
-    warm_stepper,
-)
-from benchmarks.runner import Benchmark, name_unless, register
+from benchmarks._phases import newton_benchmark, newton_phases, warm_stepper
 
 CASES = {
     "full": {"3d": dict(n=(32, 16, 16)), "2d": dict(n=(448, 112))},
@@ -41,21 +32,7 @@ def _measure(name: str, matrices: dict, dim: int, n: tuple[int, ...]) -> dict:
     return out
 
 
-def measure(mode: str, cases: dict) -> dict:
-    """Both cases of ``mode``, and CHOLMOD on each case's Hessian per BLAS."""
-    return cases_and_blas(cases, _measure)
-
-
-def plot(payload: dict, png: Path) -> None:
-    """Seconds of assembly and CHOLMOD per Newton iteration, per case."""
-    title = "Per Newton iteration: assembly vs CHOLMOD"
-    plot_phases(payload, png, ("assembly", "factorize", "analyze"), "cells", title)
-
-
-QUICK_RECORD = name_unless("full", "perf_fem")
-BENCHMARK = register(
-    Benchmark(
-        "perf_fem", __doc__, CASES, measure, plot=plot, record=QUICK_RECORD, timings=PERF_TIMINGS
-    )
-)
+PHASES = ("assembly", "factorize", "analyze")
+TITLE = "Per Newton iteration: assembly vs CHOLMOD"
+BENCHMARK = newton_benchmark("perf_fem", __doc__, CASES, _measure, PHASES, "cells", TITLE)
 run = BENCHMARK.run

@@ -12,18 +12,8 @@ factorisation of the same system; P2G + G2P < 10 % of a Newton iteration.
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from benchmarks import catalogue
-from benchmarks._phases import (
-    PERF_TIMINGS,
-    cases_and_blas,
-    median_time,
-    newton_phases,
-    plot_phases,
-    warm_stepper,
-)
-from benchmarks.runner import Benchmark, name_unless, register
+from benchmarks._phases import median_time, newton_benchmark, newton_phases, warm_stepper
 from bfemp.mpm.step import prepare_mpm_step
 from bfemp.mpm.transfer import grid_to_particles
 
@@ -65,21 +55,7 @@ def _measure(name: str, matrices: dict, dim: int, cells: tuple[int, ...], ppc: i
     return out
 
 
-def measure(mode: str, cases: dict) -> dict:
-    """Both cases of ``mode``, and CHOLMOD on each case's Hessian per BLAS."""
-    return cases_and_blas(cases, _measure)
-
-
-def plot(payload: dict, png: Path) -> None:
-    """Seconds of the transfers, assembly and CHOLMOD per Newton iteration, per case."""
-    title = "MPM: transfers, assembly and CHOLMOD per Newton iteration"
-    plot_phases(payload, png, ("p2g", "g2p", "assembly", "factorize"), "particles", title)
-
-
-QUICK_RECORD = name_unless("full", "perf_mpm")
-BENCHMARK = register(
-    Benchmark(
-        "perf_mpm", __doc__, CASES, measure, plot=plot, record=QUICK_RECORD, timings=PERF_TIMINGS
-    )
-)
+PHASES = ("p2g", "g2p", "assembly", "factorize")
+TITLE = "MPM: transfers, assembly and CHOLMOD per Newton iteration"
+BENCHMARK = newton_benchmark("perf_mpm", __doc__, CASES, _measure, PHASES, "particles", TITLE)
 run = BENCHMARK.run

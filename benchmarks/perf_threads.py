@@ -17,7 +17,7 @@ import json
 import logging
 import os
 
-from benchmarks._shared import python_child
+from benchmarks._shared import child_json
 from benchmarks.runner import Benchmark, name_unless, register
 
 log = logging.getLogger(__name__)
@@ -32,10 +32,10 @@ MODES = {
 }
 
 _CHILD = """
-import json, sys, time
+import json, sys
 import numba
 from benchmarks import catalogue
-from benchmarks._phases import warm_stepper
+from benchmarks._phases import wall_times, warm_stepper
 from solvers.blas import cholmod_blas
 cfg = json.loads(sys.argv[1])
 scenes = {
@@ -49,12 +49,7 @@ for name, (scene, dt) in scenes.items():
     # warm-up: numba compilation (cached) and the symbolic analysis
     stepper, _ = warm_stepper(scene.build(), dt, 1e-4)
     state0 = stepper.initialize(stepper.model.initial_state())
-    best = float("inf")
-    for _ in range(cfg["repeats"]):
-        t = time.perf_counter()
-        stepper.step(state0)
-        best = min(best, time.perf_counter() - t)
-    out["step_s"][name] = best
+    out["step_s"][name] = min(wall_times(lambda: stepper.step(state0), cfg["repeats"]))
 print(json.dumps(out))
 """
 
@@ -62,43 +57,38 @@ _POOL_VARS = ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "OMP_NUM_THREADS", "NUM
 
 
 def _child(cfg: dict, blas_threads: int | None, numba_threads: int | None) -> dict:
+    """``_CHILD`` with the pools of the given sizes (None: the variable unset)."""
     env = {k: v for k, v in os.environ.items() if k not in _POOL_VARS}
     if blas_threads is not None:
         env["OPENBLAS_NUM_THREADS"] = env["MKL_NUM_THREADS"] = str(blas_threads)
     if numba_threads is not None:
         env["NUMBA_NUM_THREADS"] = str(numba_threads)
-    done = python_child(["-c", _CHILD, json.dumps(cfg)], env, 3600, check=True)
-    return json.loads(done.stdout.strip().splitlines()[-1])
+    row = child_json(_CHILD, json.dumps(cfg), env=env)
+    if "error" in row:
+        raise RuntimeError(f"{NAME}: blas {blas_threads}, numba {numba_threads}: {row['error']}")
+    return row
 
 
 def measure(mode: str, cfg: dict) -> dict:
     """The scenes of ``mode`` under each thread combination."""
     cores = os.cpu_count() or 1
+    counts = sorted({1, cores})
     combos = {"default": (None, None)}
-    for b in sorted({1, cores}):
-        for nb in sorted({1, cores}):
-            combos[f"blas{b}_numba{nb}"] = (b, nb)
+    combos |= {f"blas{b}_numba{nb}": (b, nb) for b in counts for nb in counts}
     rows = {name: _child(cfg, *threads) for name, threads in combos.items()}
-    scenes = list(rows["default"]["step_s"])
-    fastest = {s: min(rows, key=lambda r: rows[r]["step_s"][s]) for s in scenes}
-    record = {
+    step_s = {name: row["step_s"] for name, row in rows.items()}
+    fastest = {s: min(rows, key=lambda r: step_s[r][s]) for s in step_s["default"]}
+    for s, best in fastest.items():
+        log.info("%s: fastest %s %s, default %s", s, best, step_s[best][s], step_s["default"][s])
+    return {
         "cores": cores,
         "parameters": dict(cfg),
         "rows": rows,
         "fastest": fastest,
         "default_over_fastest": {
-            s: rows["default"]["step_s"][s] / rows[fastest[s]]["step_s"][s] for s in scenes
+            s: step_s["default"][s] / step_s[f][s] for s, f in fastest.items()
         },
     }
-    for s in scenes:
-        log.info(
-            "%s: fastest %s (%.3f s per step), default %.3f s",
-            s,
-            fastest[s],
-            rows[fastest[s]]["step_s"][s],
-            rows["default"]["step_s"][s],
-        )
-    return record
 
 
 BENCHMARK = register(

@@ -26,12 +26,12 @@ from __future__ import annotations
 import cProfile
 import logging
 import pstats
-import time
 from collections.abc import Callable
 
 import numpy as np
 
 import bfemp
+from benchmarks._phases import timed
 from benchmarks.runner import Benchmark, register
 from bfemp.demo import cantilever_scene, colliding_rings_scene
 
@@ -63,9 +63,7 @@ def _measure(make: Callable[[], bfemp.Simulation], t_end: float, repeats: int) -
     walls = []
     for _ in range(repeats):
         sim = make()
-        start = time.perf_counter()
-        sim.run(t_end, progress=False)
-        walls.append(time.perf_counter() - start)
+        walls.append(timed(lambda sim=sim: sim.run(t_end, progress=False))[1])
     positions = np.concatenate([sim.state.fem_x.ravel(), sim.state.mpm_x.ravel()])
     return {
         "newton_iterations": int(np.nansum(sim.metrics.column("iterations_newton"))),
