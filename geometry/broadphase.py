@@ -71,6 +71,7 @@ def point_simplex_candidates(
     inflation: float = 0.0,
     points_end: np.ndarray | None = None,
     vertices_end: np.ndarray | None = None,
+    groups: tuple[np.ndarray, np.ndarray] | None = None,
     method: str = "auto",
 ) -> np.ndarray:
     """Candidate (point, simplex) pairs whose swept boxes are within ``inflation`` of each other.
@@ -82,6 +83,9 @@ def point_simplex_candidates(
         inflation: distance in m (>= 0) by which the simplex boxes are grown, typically ``dhat``.
         points_end: (P, d) end positions in m of a linear motion, or None for static points.
         vertices_end: (V, d) end positions in m of a linear motion, or None.
+        groups: ``(point_group (P,), simplex_group (S,))`` integer labels (bodies): only pairs
+            of different groups, one pass per simplex group on the other groups' points (a
+            body's own nodes would each meet the simplices around them); None: every pair.
         method: ``"auto"``, ``"hash"``, ``"fcl"`` or ``"brute"`` (see the module docstring).
 
     Returns:
@@ -97,8 +101,23 @@ def point_simplex_candidates(
     simplices = indices("simplices", simplices, simplex_vertices.shape[0])
     points_end = _end("points_end", points_end, "points", points)
     vertices_end = _end("vertices_end", vertices_end, "simplex_vertices", simplex_vertices)
-    a = (points, points_end, None)
-    return _swept_pairs(a, (simplex_vertices, vertices_end, simplices), inflation, method)
+    if groups is None:
+        a = (points, points_end, None)
+        return _swept_pairs(a, (simplex_vertices, vertices_end, simplices), inflation, method)
+    point_group, simplex_group = (np.asarray(g) for g in groups)
+    if point_group.shape != points.shape[:1] or simplex_group.shape != simplices.shape[:1]:
+        raise ValueError(
+            f"groups must be ({points.shape[0]},) and ({simplices.shape[0]},) labels of the points "
+            f"and simplices, got {point_group.shape} and {simplex_group.shape}"
+        )
+    found = [np.zeros((0, 2), dtype=np.int64)]
+    for group in np.unique(simplex_group):  # a loop over groups (bodies)
+        si, pi = np.flatnonzero(simplex_group == group), np.flatnonzero(point_group != group)
+        a = (points[pi], points_end[pi], None)
+        cand = _swept_pairs(a, (simplex_vertices, vertices_end, simplices[si]), inflation, method)
+        found.append(np.column_stack([pi[cand[:, 0]], si[cand[:, 1]]]))
+    rows = np.concatenate(found)
+    return np.ascontiguousarray(rows[np.lexsort((rows[:, 1], rows[:, 0]))])
 
 
 def edge_edge_candidates(

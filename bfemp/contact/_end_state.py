@@ -106,8 +106,7 @@ def cells_containing(
     found = np.full(points.shape[0], -1, dtype=np.int64)
     depth = np.zeros(points.shape[0])
     # candidates of different bodies, unique and sorted by (point, cell) (the broad phase's order)
-    cand = point_simplex_candidates(points, vertices, cells)
-    cand = cand[point_body[cand[:, 0]] != cell_body[cand[:, 1]]]
+    cand = point_simplex_candidates(points, vertices, cells, groups=(point_body, cell_body))
     if cand.shape[0] == 0:  # no parallel region for nothing
         return found, depth
     cand_depth = _pair_depths(points, vertices, cells, cand)

@@ -74,24 +74,17 @@ def candidate_pairs(
     pos_end: np.ndarray | None = None,
 ) -> np.ndarray:
     """(point, facet) candidates ``(n, 2)`` of different bodies whose boxes (swept to
-    ``pos_end``) overlap, sorted. One broad phase per facet body, on the other bodies' points
-    (a body's own boundary nodes would each meet a dozen of its facets, only to be dropped)."""
-    found = [np.zeros((0, 2), dtype=np.int64)]
+    ``pos_end``) overlap, sorted."""
     nf = cs.n_fem_points
-    for body in np.unique(cs.facet_body):  # a loop over FEM bodies
-        facets = np.flatnonzero(cs.facet_body == body)
-        points = np.flatnonzero(cs.point_body != body)
-        cand = point_simplex_candidates(
-            pos[points],
-            pos[:nf],
-            cs.facets[facets],
-            inflation=inflation,
-            points_end=None if pos_end is None else pos_end[points],
-            vertices_end=None if pos_end is None else pos_end[:nf],
-        )
-        found.append(np.column_stack([points[cand[:, 0]], facets[cand[:, 1]]]))
-    rows = np.concatenate(found)
-    return np.ascontiguousarray(rows[np.lexsort((rows[:, 1], rows[:, 0]))])
+    return point_simplex_candidates(
+        pos,
+        pos[:nf],
+        cs.facets,
+        inflation=inflation,
+        points_end=pos_end,
+        vertices_end=None if pos_end is None else pos_end[:nf],
+        groups=(cs.point_body, cs.facet_body),
+    )
 
 
 def find_pairs(

@@ -99,6 +99,17 @@ def test_point_simplex_methods_equal_brute_force(dim, swept, inflation):
         pairs = point_simplex_candidates(points, vertices, simplices, method=method, **kwargs)
         _check_format(pairs)
         np.testing.assert_array_equal(pairs, reference, err_msg=method)
+    # with group labels (bodies): the same rows less those of one group, in the same order
+    groups = rng.integers(0, 3, points.shape[0]), rng.integers(0, 3, simplices.shape[0])
+    other = groups[0][reference[:, 0]] != groups[1][reference[:, 1]]
+    assert 0 < other.sum() < reference.shape[0]
+    for method in (*FAST, "brute"):
+        pairs = point_simplex_candidates(
+            points, vertices, simplices, groups=groups, method=method, **kwargs
+        )
+        np.testing.assert_array_equal(pairs, reference[other], err_msg=method)
+    with pytest.raises(ValueError, match=r"groups must be \(400,\) and \(150,\)"):
+        point_simplex_candidates(points, vertices, simplices, groups=(groups[0][:5], groups[1]))
 
 
 def test_brute_force_is_the_box_overlap_definition(monkeypatch):
