@@ -70,18 +70,9 @@ MODES = {
         compression=0.75,
         seed=0,
     ),
-    # what tests/benchmarks/test_lr_benchmarks.py runs: the quick box to 35 %, LR and CP only
-    "smoke": dict(
-        width=1e-3,
-        height=1e-3,
-        dx=1e-3 / 35,
-        semi=(0.08e-3, 0.2e-3),
-        classes=6,
-        compression=0.35,
-        seed=0,
-        detectors=("lr", "cp_0.8"),
-    ),
 }
+#: what tests/benchmarks/test_lr_benchmarks.py runs: the quick box to 35 %, LR and CP only
+MODES["smoke"] = dict(MODES["quick"], compression=0.35, detectors=("lr", "cp_0.8"))
 DETECTORS = {
     "lr": {},
     "cp_0.8": {"detector": "cp", "cp_offset": 0.8},
