@@ -44,6 +44,7 @@ import logging
 import math
 import time
 import traceback
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -297,7 +298,7 @@ def _run(
         sim, energy_ref, ENERGY_TOL[sim.integrator.name], crossing_allowed=reason is not None
     )
     iters, distances, heights = [], [], []
-    notes: dict[str, int] = {}
+    notes: Counter[str] = Counter()  # note code -> steps that reported it
     ended = None  # (status, outcome) of a run stopped before its last step
     friction_bad = 0
     block = sim.model.mpm_bodies[0].particles
@@ -316,9 +317,7 @@ def _run(
         iters.append(report.newton_iterations)
         distances.append(report.min_distance)
         heights.append(float(sim.state.mpm_x[block, 1].mean()))
-        for note in report.notes:
-            key = note.split(":", 1)[0]
-            notes[key] = notes.get(key, 0) + 1
+        notes.update(note.split(":", 1)[0] for note in report.notes)
         if not report.friction_converged:
             friction_bad += 1
             last_friction = (k, report.friction_iterations)
@@ -374,7 +373,7 @@ def _run(
         friction_unconverged_steps=friction_bad,
         drift_m=drift,
         final_speed=_finite(float(np.abs(sim.state.mpm_v[block]).max())),
-        notes=notes,
+        notes=dict(notes),
     )
     log_row(log, f"{case.name} {strategy} {mode}", row, "steps wall_s outcome")
     return row

@@ -324,6 +324,10 @@ def stress_error(case: dict, reference: dict) -> tuple[list[float], float]:
     return [float(e) for e in err], float(np.nanmax(np.abs(err[mask])))
 
 
+#: the per-pair lists of a ``_switch_event``
+_EVENT_PAIR_KEYS = ("node_x_mm", "d_lr_cells_before", "d_lr_cells", "v_n_m_s", "d_n_kg_m_s")
+
+
 def _d_lr_released(event: dict) -> np.ndarray:
     """``(n,)`` bool over an event's pairs: released while approaching (d_n < 0), i.e. by
     d_LR >= 0 (eq. 24) and not by separation (eq. 14)."""
@@ -373,12 +377,8 @@ def release_cause(runs: dict, errors: dict) -> dict:
                 "step": ev["step"],
                 "strain": ev["strain"],
                 "nodes": int(rel.sum()),
-                "node_x_mm": [ev["node_x_mm"][k] for k in pick],
-                "d_lr_cells_before": [ev["d_lr_cells_before"][k] for k in pick],
-                "d_lr_cells": [ev["d_lr_cells"][k] for k in pick],
+                **{key: [ev[key][k] for k in pick] for key in _EVENT_PAIR_KEYS},
                 "overlap_when_contact_resumes_cells": back,
-                "v_n_m_s": [ev["v_n_m_s"][k] for k in pick],
-                "d_n_kg_m_s": [ev["d_n_kg_m_s"][k] for k in pick],
                 "sample_before": {
                     "strain": float(strain[j - 1]),
                     "error_percent": float(err[j - 1]),

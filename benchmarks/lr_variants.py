@@ -159,12 +159,11 @@ def rings_case(options: dict, reference: dict) -> dict:
     }
 
 
-def compression_case(mode: str, options: dict, reference: dict) -> dict:
-    """``lr_compression``'s column with ``options``; error against the ``reference`` run."""
+def compression_case(v0: float, strain: float, options: dict, reference: dict) -> dict:
+    """``lr_compression``'s column pressed at ``v0`` m/s to ``strain`` with ``options``; error
+    against the ``reference`` run."""
     from benchmarks import lr_compression as lc
 
-    frac, strain = lc.MODES[mode]
-    v0 = frac * lc.C_K
     started = time.perf_counter()
     case = lc.run_case(lc.column_scene(v0=v0), strain=strain, v0=v0, **options)
     _, worst = lc.stress_error(case, reference)
@@ -184,7 +183,7 @@ def _compression(mode: str, variants: tuple[str, ...]) -> dict:
             scene = lc.column_scene(v0=v0, single=True)
             references[key] = lc.run_case(scene, strain=strain, v0=v0, **_SMM_REFERENCE[name])
         log.info("lr_variants compression %s: %s", cmode, name)
-        runs[name] = compression_case(cmode, VARIANTS[name], references[key])
+        runs[name] = compression_case(v0, strain, VARIANTS[name], references[key])
     return {"mode": cmode, "v0_m_s": v0, "final_strain": strain, "runs": runs}
 
 
