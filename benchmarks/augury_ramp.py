@@ -249,7 +249,7 @@ def _plot(payload: dict, path: Path, conforming: bool = False) -> None:
             "-" if solid in (c["placement"], c["transfer"]) else "--",
             color=f"C{hs.index(c['h']) if conforming else mus.index(c['mu'])}",
             lw=1.5 if (c["mu"] == 0.0 if conforming else c["h"] == hs[-1]) else 0.7,
-            label=f"{c['placement'] + ' ' if conforming else c['transfer']} mu={c['mu']:g} "
+            label=f"{c['placement'] if conforming else c['transfer']} mu={c['mu']:g} "
             f"h={c['h']:.3g}",
         )
     for mu in mus:
