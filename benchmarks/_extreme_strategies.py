@@ -1,44 +1,27 @@
 """How each case of ``extremes`` maps to each coupling strategy, and what each strategy promises.
 
-Every strategy of ``bfemp.steppers.STRATEGIES`` runs the same scenes (``_extreme_cases``). Per
-strategy:
+Every strategy of ``bfemp.steppers.STRATEGIES`` runs the same scenes (``_extreme_cases``).
+**barrier** (BFEMP, implicit) takes every knob as the case states it (backward Euler or Newmark,
+APIC, the case's Newton settings) and promises no crossing and J > 0. The others are explicit
+(symplectic Euler, no det F > 0 guard: an inversion is a named ``INVERTED``); a case outside a
+strategy's knobs is ``NOT_APPLICABLE`` (``not_applicable``), its options come from
+``strategy_options``:
 
-- **barrier** (BFEMP, implicit): every knob as the case states it (backward Euler or Newmark,
-  APIC, the case's Newton settings). Promise: no particle crosses a FEM boundary, J > 0.
-- **two_stage** (explicit elasticity, implicit barrier contact at the particles): the barrier's
-  d-hat, kappa and friction reach it through ``scene.set_contact`` (the same scene), and the
-  case's Newton tolerance and cap through ``TwoStageOptions``. Promise: no crossing (its
-  contact solve is the barrier's CCD-filtered Newton), but not J > 0: its elasticity is
-  explicit, without a det F > 0 guard, so an inversion is a named ``INVERTED`` (as for every
-  explicit strategy). ``kappa = "auto"`` is refused by it.
-  Newmark cases are NOT_APPLICABLE (symplectic Euler only).
-- **augury** (APIC augury contact on a background grid) and **lr** (multimaterial MPM,
-  logistic-regression contact; FLIP, its default transfer): no barrier, so the d-hat and kappa
-  cases are NOT_APPLICABLE (the scene's d-hat only sets the initial gap, which the case changes);
-  friction comes from ``scene.set_contact(mu=...)``. augury takes the fixed slab of the resting
-  case as kinematic foreground (``AuguryOptions(kinematic_foreground=True)``, its default since
-  issue 40; without it the block fell through). Promise: none
-  about crossing (AUG pitfall A9; LR detects contact on the grid, a cell or so wide): particles
-  inside the FEM body are a named ``PENETRATION``, not a bug. Their inversions are named too
-  (``INVERTED``, as for every explicit strategy: no det F > 0 guard).
-- **single_field** (no contact algorithm): FEM bodies meet only level sets, so the block passes
-  through the slab: ``PENETRATION`` is its named, expected outcome; the friction case is
-  NOT_APPLICABLE (nothing to rub).
+- **two_stage** (explicit elasticity, the barrier's CCD-filtered contact solve at the
+  particles): d-hat, kappa and friction through ``scene.set_contact``, the Newton settings through
+  ``TwoStageOptions``; promises no crossing (``NO_CROSSING``); refuses ``kappa = "auto"``.
+- **augury** and **lr**: no barrier; friction from ``scene.set_contact(mu=...)``; no promise
+  about crossing (``crossing_reason``): particles inside the FEM body are a named
+  ``PENETRATION``. augury takes the fixed slab of the resting case as kinematic foreground.
+- **single_field** (no contact algorithm): the block passes through the slab, ``PENETRATION``.
 
-Explicit strategies (all but barrier) integrate with symplectic Euler at the case's dt when it
-is below their stable step; above it the construction refuses with the bound named
-(``REFUSED: ... exceeds the explicit stable step ...``), which is the case's outcome. Beside the
-refusal an extra run at ``dt = "auto"`` (the stable step) is recorded (``row["auto"]``), except
+A case's dt above an explicit strategy's stable step is refused with the bound named (the
+case's outcome); beside it an extra run at ``dt = "auto"`` is recorded (``row["auto"]``), except
 for the dt cases (it would repeat the base case's). A run whose stable step needs more than
-``MAX_STEPS[mode]`` steps is not started: ``TOO_MANY_STEPS`` (decided before running; E = 1e12
-Pa at dx = 0.05 m has a stable step of ~5e-7 s, 4000 steps for 2 ms).
-
-The resting case runs ``EXPLICIT_DURATION`` under the explicit strategies instead of 0.5 s: at
-their stable step (~5e-5 s against the barrier's 5e-3 s) 0.5 s is 10^4 steps. The block falls
-its 3 mm gap in about 22 ms, so the quick run (0.06 s) sees it land and what follows for 38 ms
-(the drift is measured over the second half, 30-60 ms). Where an explicit strategy's block then
-moves by more than the barrier's tolerance the outcome is a named ``DRIFT`` with the reason of
-``drift_reason`` (no undamped integrator can settle a dropped block).
+``MAX_STEPS[mode]`` steps is not started: ``TOO_MANY_STEPS``. The resting case runs
+``EXPLICIT_DURATION`` under the explicit strategies (at their stable step 0.5 s is 10^4 steps;
+the block lands after about 22 ms, the drift is measured over the second half); a block that
+then moves by more than the barrier's tolerance is a named ``DRIFT`` (``drift_reason``).
 """
 
 from __future__ import annotations

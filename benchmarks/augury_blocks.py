@@ -51,6 +51,19 @@ T_END = 0.06
 MODES = {"quick": (1.0, 0.5), "full": (1.0, 0.5, 0.25)}
 VARIANTS = [(t, n) for t in ("pic", "apic") for n in (0, 1)]
 SAMPLES = 60
+#: the settings of every record (``parameters``)
+PARAMETERS = {
+    **MATERIAL,
+    "v1": V1,
+    "v2": V2,
+    "rotation_deg_about_x": ANGLE_DEG,
+    "shift_y": SHIFT,
+    "dt": "1e-4 h",
+    "tau": "dt",
+    "grid_dx": "2 h",
+    "mode": "separate (eq. 38), mu 0",
+    "mesh": "bfemp box, 6 tets per cube",
+}
 
 
 def blocks_scene(h: float) -> bfemp.Scene:
@@ -162,7 +175,9 @@ def run_variant(h: float, transfer: str, iterations: int, t_end: float = T_END) 
     }
 
 
-def _plot(runs: list[dict], path: Path) -> None:
+def plot(payload: dict, path: Path) -> None:
+    """Momentum drifts and energy of the recorded runs against time."""
+    runs = payload["runs"]
     fig, axes = figure((13, 4), 1, 3)
     for k, r in enumerate(runs):
         lab = f"{r['transfer']} N={r['iterations']} h={r['h']:g}"
@@ -231,21 +246,12 @@ def measure(mode: str, cfg) -> dict:
         ),
         "speed": speed,
         "parameters": {
-            **MATERIAL,
-            "v1": V1,
-            "v2": V2,
-            "rotation_deg_about_x": ANGLE_DEG,
-            "shift_y": SHIFT,
+            **PARAMETERS,
             "t_end_s": T_END,
-            "dt": "1e-4 h",
-            "tau": "dt",
-            "grid_dx": "2 h",
             "grid_origin": 0.0,
-            "mode": "separate (eq. 38), mu 0",
             "kernel": "quadratic (bfemp)",
             "predictor": "symplectic",
             "hs": list(hs),
-            "mesh": "bfemp box, 6 tets per cube",
         },
     }
     return payload
@@ -314,26 +320,12 @@ def measure_long(
         "not_run": not_run or {},
         **LONG_NOTES,
         "parameters": {
-            **MATERIAL,
-            "v1": V1,
-            "v2": V2,
-            "rotation_deg_about_x": ANGLE_DEG,
-            "shift_y": SHIFT,
+            **PARAMETERS,
             "t_end_s": t_end,
-            "dt": "1e-4 h",
-            "tau": "dt",
-            "grid_dx": "2 h",
-            "mode": "separate (eq. 38), mu 0",
             "plan_h_transfer_N": [[r["h"], r["transfer"], r["iterations"]] for r in runs],
-            "mesh": "bfemp box, 6 tets per cube",
         },
         "wall_s": time.perf_counter() - started if ran else sum(r["wall_s"] for r in runs),
     }
-
-
-def plot(payload: dict, png: Path) -> None:
-    """``_plot`` of the recorded runs."""
-    _plot(payload["runs"], png)
 
 
 #: a comparison of two measured times, not a result (``runner.verify`` leaves it out)

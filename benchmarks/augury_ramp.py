@@ -49,6 +49,18 @@ THETA = np.deg2rad(30.0)
 G = 100.0
 MU_STICK = 0.7
 VARIANT_ITERATIONS = 30
+#: the settings of every record (``parameters``)
+PARAMETERS = {
+    **MATERIAL,
+    "theta_deg": 30.0,
+    "g": G,
+    "dt": "2.5e-5 h",
+    "tau": "dt",
+    "grid_dx": "0.5 h",
+    "iterations": 1,
+    "mode": "friction",
+    "energy_guard": True,
+}
 MODES = {
     "quick": {"hs": (1.0, 0.5), "mus": (0.0, 0.2), "t_end": 0.1},
     "full": {"hs": (1.0, 0.5, 0.25), "mus": (0.0, 0.2, 0.4), "t_end": 0.2},
@@ -219,42 +231,48 @@ def run_case(
     }
 
 
-def _plot(cases: list[dict], path: Path) -> None:
+def _plot(payload: dict, path: Path, conforming: bool = False) -> None:
+    """Slope displacement against time (``conforming``: APIC only; solid: conforming or APIC,
+    dashed: spec or PIC) beside 1/2 g (sin - mu cos) t^2, and the relative error at t_end
+    against h per (placement, transfer, mu)."""
+    cases = payload["cases"]
     fig, axes = figure((11, 4.2), 1, 2)
+    hs = sorted({c["h"] for c in cases}, reverse=True)
     mus = sorted({c["mu"] for c in cases})
+    solid = "conforming" if conforming else "apic"
     for c in cases:
-        color = f"C{mus.index(c['mu'])}"
-        ls = "-" if c["transfer"] == "apic" else "--"
-        lw = 2.0 if c["h"] == min(x["h"] for x in cases) else 0.8
+        if conforming and c["transfer"] != "apic":
+            continue
         axes[0].plot(
             c["t"],
             c["s"],
-            ls,
-            color=color,
-            lw=lw,
-            label=f"{c['transfer']} mu={c['mu']:g} h={c['h']:g}",
+            "-" if solid in (c["placement"], c["transfer"]) else "--",
+            color=f"C{hs.index(c['h']) if conforming else mus.index(c['mu'])}",
+            lw=1.5 if (c["mu"] == 0.0 if conforming else c["h"] == hs[-1]) else 0.7,
+            label=f"{c['placement'] if conforming else c['transfer']} mu={c['mu']:g} "
+            f"h={c['h']:.3g}",
         )
     for mu in mus:
         t = np.linspace(0.0, max(c["t"][-1] for c in cases), 100)
         axes[0].plot(t, [analytic_s(mu, tt) for tt in t], "k:", lw=1)
-    for transfer, ls in (("apic", "o-"), ("pic", "s--")):
-        for mu in mus:
-            rows = [
-                c
-                for c in cases
-                if c["transfer"] == transfer and c["mu"] == mu and c["rel_error"] is not None
-            ]
-            if rows:
-                axes[1].loglog(
-                    [r["h"] for r in rows],
-                    [max(r["rel_error"], 1e-6) for r in rows],
-                    ls,
-                    color=f"C{mus.index(mu)}",
-                    label=f"{transfer} mu={mu:g}",
-                )
+    groups = sorted({(c["placement"], c["transfer"], c["mu"]) for c in cases})
+    for k, group in enumerate(groups):
+        rows = sorted(
+            (c for c in cases if (c["placement"], c["transfer"], c["mu"]) == group),
+            key=lambda c: c["h"],
+        )
+        rows = [r for r in rows if r["rel_error"] is not None]
+        axes[1].loglog(
+            [r["h"] for r in rows],
+            [max(r["rel_error"], 1e-6) for r in rows],
+            "o-" if solid in group else "s--",
+            color=f"C{k}",
+            label=" ".join(group[:2]) + f" mu={group[2]:g}",
+        )
     axes[0].set(xlabel="t (s)", ylabel="slope displacement s (m)", title="block on 30 deg ramp")
     axes[1].set(xlabel="h (m)", ylabel="relative error of s(t_end)", title="refinement")
-    save(fig, path, axes, "augury_ramp (Fig. 11): dotted = 1/2 g (sin - mu cos) t^2", "xx-small")
+    title = "paper settings (N = 1)" if conforming else "(Fig. 11)"
+    save(fig, path, axes, f"augury_ramp {title}: dotted = 1/2 g (sin - mu cos) t^2", "xx-small")
 
 
 def measure(mode: str, cfg) -> dict:
@@ -267,7 +285,7 @@ def measure(mode: str, cfg) -> dict:
                 log_row(log, f"{NAME} h={h:g} mu={mu:g} {transfer}", c, "s_end s_analytic wall_s")
                 cases.append(c)
     control = run_case(cfg["hs"][0], MU_STICK, "apic", cfg["t_end"])
-    # bfemp's variant (not the paper's settings): "facing" normals and N = 10, APIC
+    # bfemp's variant (not the paper's settings): "facing" normals, N = VARIANT_ITERATIONS, APIC
     variant = [
         run_case(h, mu, "apic", cfg["t_end"], normals="facing", iterations=VARIANT_ITERATIONS)
         for h in cfg["hs"]
@@ -303,20 +321,12 @@ def measure(mode: str, cfg) -> dict:
         "targets": targets,
         "targets_met": all(v if isinstance(v, bool) else all(v.values()) for v in targets.values()),
         "parameters": {
-            **MATERIAL,
-            "theta_deg": 30.0,
-            "g": G,
+            **PARAMETERS,
             **{k: list(v) if isinstance(v, tuple) else v for k, v in cfg.items()},
-            "dt": "2.5e-5 h",
-            "tau": "dt",
-            "grid_dx": "0.5 h",
             "grid_origin": 0.0,
-            "iterations": 1,
-            "mode": "friction",
             "placement": "ramp s [0,4] w [-0.75,0.75] n [-0.25,0]; block s [0.25,1.25] "
             "w [-0.5,0.5] n [0,1] (ours)",
             "ramp_bottom": "scripted Fixed",
-            "energy_guard": True,
         },
     }
     return payload
@@ -390,79 +400,22 @@ def measure_conforming(
         "not_run": not_run or {},
         **CONFORMING_NOTES,
         "parameters": {
-            **MATERIAL,
-            "theta_deg": 30.0,
-            "g": G,
+            **PARAMETERS,
             "plan_placement_h_mu_transfer": [
                 [c["placement"], c["h"], c["mu"], c["transfer"]] for c in cases
             ],
             "t_end": t_end,
-            "dt": "2.5e-5 h",
-            "tau": "dt",
-            "grid_dx": "0.5 h",
-            "iterations": 1,
             "normals": "own (AUG section 2.3, area-weighted averaged)",
-            "mode": "friction",
             "placements": {
                 k: {kk: list(map(list, vv)) for kk, vv in v.items()} for k, v in PLACEMENTS.items()
             },
             "ramp_bottom": "scripted Fixed, kinematic_foreground=False",
-            "energy_guard": True,
         },
         "wall_s": sum(c["wall_s"] for c in cases) if not ran else time.perf_counter() - started,
     }
 
 
-def _plot_conforming(payload: dict, path: Path) -> None:
-    """Slope displacement against time (APIC; solid: conforming, dashed: spec) and the
-    relative error at t_end against h per (placement, transfer, mu)."""
-    cases = payload["cases"]
-    fig, axes = figure((11, 4.2), 1, 2)
-    hs = sorted({c["h"] for c in cases}, reverse=True)
-    mus = sorted({c["mu"] for c in cases})
-    for c in cases:
-        if c["transfer"] != "apic":
-            continue
-        axes[0].plot(
-            c["t"],
-            c["s"],
-            "-" if c["placement"] == "conforming" else "--",
-            color=f"C{hs.index(c['h'])}",
-            lw=1.5 if c["mu"] == 0.0 else 0.7,
-            label=f"{c['placement']} mu={c['mu']:g} h={c['h']:.3g}",
-        )
-    for mu in mus:
-        t = np.linspace(0.0, max(c["t"][-1] for c in cases), 100)
-        axes[0].plot(t, [analytic_s(mu, tt) for tt in t], "k:", lw=1)
-    groups = sorted({(c["placement"], c["transfer"], c["mu"]) for c in cases})
-    for k, (placement, transfer, mu) in enumerate(groups):
-        rows = sorted(
-            (
-                c
-                for c in cases
-                if (c["placement"], c["transfer"], c["mu"]) == (placement, transfer, mu)
-                and c["rel_error"] is not None
-            ),
-            key=lambda c: c["h"],
-        )
-        if rows:
-            axes[1].semilogx(
-                [r["h"] for r in rows],
-                [r["rel_error"] for r in rows],
-                ("o-" if placement == "conforming" else "s--"),
-                color=f"C{k}",
-                label=f"{placement} {transfer} mu={mu:g}",
-            )
-    axes[0].set(xlabel="t (s)", ylabel="slope displacement s (m)", title="block on 30 deg ramp")
-    axes[1].set(xlabel="h (m)", ylabel="relative error of s(t_end)", title="refinement")
-    axes[1].set_ylim(0.0, 1.05)
-    title = "augury_ramp, paper settings (N = 1): dotted = 1/2 g (sin - mu cos) t^2"
-    save(fig, path, axes, title, legend="xx-small")
-
-
-BENCHMARK = register(
-    Benchmark(NAME, __doc__, MODES, measure, plot=lambda payload, png: _plot(payload["cases"], png))
-)
+BENCHMARK = register(Benchmark(NAME, __doc__, MODES, measure, plot=_plot))
 run = BENCHMARK.run
 register(
     Benchmark(
@@ -470,6 +423,6 @@ register(
         "The ramp with the block's nodes on the ramp's (issue 40), AUG's settings",
         {"full": {}},
         measure_conforming,
-        plot=_plot_conforming,
+        plot=lambda payload, png: _plot(payload, png, conforming=True),
     )
 )

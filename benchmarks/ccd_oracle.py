@@ -29,7 +29,7 @@ positive where the pair touches at ``t = 0``.
 Recorded per family and kind: cases, exact contacts, false negatives of bfemp (and ipctk), toi
 statistics on no-contact cases (fraction returning ``t_max``), ACCD iterations (max, median) and
 microseconds per query (one call of the public function on the family's pairs, its overhead
-included: a few hundred microseconds per call on the 2-core machine). ipctk (optional ``bench``
+included). ipctk (optional ``bench``
 extra: ``pip install .[bench]``) is the second oracle: its Tight-Inclusion CCD,
 ``conservative_rescaling = 1``, queried in a subprocess with a time limit (``IPCTK_TIMEOUT``;
 timeouts are counted apart); without it its columns are ``None``.

@@ -76,13 +76,12 @@ LIMITS = {
 class _Recorder:
     """Per step: every body's centre of mass, its velocity and its extent along each axis."""
 
+    KEYS = ("com", "vel", "lo", "hi")
+
     def __init__(self, sim: bfemp.Simulation) -> None:
         self.masses = body_mass_arrays(sim.model)
         self.t: list[float] = []
-        self.com: dict[str, list] = {n: [] for n in self.masses}
-        self.vel: dict[str, list] = {n: [] for n in self.masses}
-        self.lo: dict[str, list] = {n: [] for n in self.masses}
-        self.hi: dict[str, list] = {n: [] for n in self.masses}
+        self.series = {key: {n: [] for n in self.masses} for key in self.KEYS}
         self(sim)
 
     def __call__(self, sim: bfemp.Simulation) -> None:
@@ -92,16 +91,14 @@ class _Recorder:
         self.t.append(state.t)
         for name, x in body_positions(sim.model, state).items():
             m = self.masses[name]
-            self.com[name].append(m @ x / m.sum())
-            self.vel[name].append(m @ velocities[name] / m.sum())
-            self.lo[name].append(x.min(axis=0))
-            self.hi[name].append(x.max(axis=0))
+            com, vel = m @ x / m.sum(), m @ velocities[name] / m.sum()
+            for key, value in zip(self.KEYS, (com, vel, x.min(axis=0), x.max(axis=0)), strict=True):
+                self.series[key][name].append(value)
 
     def arrays(self) -> dict:
-        out = {"t": np.array(self.t)}
-        for key in ("com", "vel", "lo", "hi"):
-            out[key] = {n: np.array(v) for n, v in getattr(self, key).items()}
-        return out
+        """``t (T,)`` in s and, per key of ``KEYS`` and body, ``(T, d)`` (m or m/s)."""
+        out = {key: {n: np.array(v) for n, v in by.items()} for key, by in self.series.items()}
+        return {"t": np.array(self.t), **out}
 
 
 def _result(value: float, limit: float, passed: bool, text: str) -> dict:

@@ -2,22 +2,20 @@
 
 The cases (``benchmarks/_extreme_cases.CASES``) push stiffness, Poisson ratio, dt, dhat, the
 density ratio, the contact geometry, kappa, friction and the integrator, and rest a block on a
-fixed slab for many steps (drift).
-Quick mode runs the subset marked ``quick`` (the tests assert its expected outcomes); full mode
-runs every case on the finer discretisation for longer; ``--mode coarse`` runs every case at the
-quick discretisation and duration (the whole table under every strategy in minutes).
+fixed slab for many steps (drift). Modes: ``quick`` runs the cases marked ``quick`` (the tests
+assert their expected outcomes), ``full`` every case finer and longer, ``coarse`` every case at
+the quick discretisation and duration.
 
-Every step of every case is checked independently of the solver:
+Every step of every case is checked independently of the solver (``_Checks``):
 
 - no penetration: no particle inside any FEM mesh at its current positions
   (``geometry.sampling.points_in_mesh``, points on a facet count as inside);
 - J > 0 for every FEM cell (``F = sum_a x_a grad N_a^T``) and every particle (``det mpm_F``);
 - no NaN or inf in positions, velocities, F or the energies;
-- bounded energy: ``(E(t) - E(0)) / E_ref < ENERGY_TOL[integrator]`` with ``E = energy_total`` of
-  ``sim.metrics`` (kinetic + elastic + gravity + barrier) and ``E_ref = E(0)`` (the block's
-  kinetic energy), or the block's weight times its
-  height for the resting case; no friction or external work enters these scenes (friction only
-  dissipates), so backward Euler must not gain energy; Newmark gets a small allowance;
+- bounded energy: ``(E(t) - E(0)) / E_ref < ENERGY_TOL[integrator]``, ``E = energy_total`` of
+  ``sim.metrics`` (kinetic + elastic + gravity + barrier), ``E_ref = E(0)`` (the block's kinetic
+  energy) or, resting, the block's weight times its height; no work enters these scenes
+  (friction only dissipates);
 - resting case: the block's mean height must not drift by more than ``DRIFT_TOL`` dhat over the
   second half of the run.
 
@@ -25,34 +23,28 @@ The outcome of a case is ``"pass"``; or the solver's named failure (``StepError`
 message, or ``FRICTION_NOT_CONVERGED`` when a step's report says the friction loop hit its cap);
 ``"REFUSED: ..."`` when the library rejects the set-up with a ``ValueError`` that names the field;
 or ``"UNEXPLAINED: ..."`` when a check fails without a reason from the solver (or the library
-raised something other than ``StepError``): those are bugs. Each case records its min distance
-(the reports' ``min_distance``, and an independent particle-to-boundary distance), min J, max
-energy growth, Newton iterations (sum, max), steps, wall time and outcome.
+raised something other than ``StepError``): those are bugs. Every strategy (``--strategy NAME``,
+repeatable, or ``all``) runs the same cases; ``benchmarks/_extreme_strategies.py`` maps them and
+names the outcomes beside those above (``NOT_APPLICABLE``, ``TOO_MANY_STEPS``, ``PENETRATION``,
+``INVERTED``, ``DRIFT``, the extra run at ``dt = "auto"`` in ``row["auto"]``).
 
-Every strategy (``--strategy NAME``, repeatable, or ``all``, the default) runs the same cases;
-``benchmarks/_extreme_strategies.py`` says how each case maps to each strategy, what each
-promises and the outcomes beside those above (``NOT_APPLICABLE``, a refused dt with an extra run
-at ``dt = "auto"`` in ``row["auto"]``, ``TOO_MANY_STEPS``, ``PENETRATION``, ``INVERTED``,
-``DRIFT``).
-
-Energy allowance per integrator (``ENERGY_TOL``): backward Euler 1e-2 (it only dissipates; the
-allowance is round-off and Newton tolerance), Newmark 2e-2, symplectic Euler 5e-2: its
-velocities are half-step ones, so the kinetic energy it reports is off by O(dt omega) from the
-full-step one, and the energy of symplectic Euler oscillates (bounded) at that order about the
-conserved modified energy; at the CFL numbers of ``dt = "auto"`` (0.4-0.5) that is a few
-per cent of the elastic energy of a vibrating body.
-
-The table goes to ``extremes.json`` (``extremes_quick.json`` in quick mode; one row per case and
-strategy), ``extremes.md`` and ``extremes.png`` (``_extreme_report``).
+Energy allowance (``ENERGY_TOL``, this benchmark's choice): backward Euler 1e-2 (it only
+dissipates: round-off and Newton tolerance), Newmark 2e-2, symplectic Euler 5e-2: its velocities
+are half-step ones, so its reported kinetic energy is off by O(dt omega) and oscillates (bounded)
+about the conserved modified energy, a few per cent of a vibrating body's elastic energy at the
+CFL numbers of ``dt = "auto"`` (0.4-0.5). Records: ``extremes[_MODE].json`` (one row per case and
+strategy), ``.md`` and ``.png`` (``_extreme_report``).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import logging
 import math
 import time
 import traceback
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -81,7 +73,7 @@ from benchmarks._extreme_strategies import (
     not_applicable,
     strategy_options,
 )
-from benchmarks.common import json_ready
+from benchmarks.common import json_ready, log_row
 from benchmarks.runner import Benchmark, name_unless, register
 from geometry.mesh import TriMesh
 from geometry.sampling import points_in_mesh
@@ -191,22 +183,18 @@ def _finite(value: float) -> float | None:
     return float(value) if value is not None and math.isfinite(value) else None
 
 
-class _WarningLog(logging.Handler):
-    """Collects the library's warnings (``bfemp`` loggers) while installed."""
-
-    def __init__(self) -> None:
-        super().__init__(level=logging.WARNING)
-        self.messages: list[str] = []
-
-    def emit(self, record: logging.LogRecord) -> None:
-        self.messages.append(record.getMessage())
-
-    def __enter__(self) -> _WarningLog:
-        logging.getLogger("bfemp").addHandler(self)
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        logging.getLogger("bfemp").removeHandler(self)
+@contextlib.contextmanager
+def _warnings_logged():
+    """Collects the library's warnings (``bfemp`` loggers) while inside: yields the list their
+    messages go to."""
+    handler = logging.Handler(logging.WARNING)
+    messages: list[str] = []
+    handler.emit = lambda record: messages.append(record.getMessage())
+    logging.getLogger("bfemp").addHandler(handler)
+    try:
+        yield messages
+    finally:
+        logging.getLogger("bfemp").removeHandler(handler)
 
 
 def _simulation(scene: bfemp.Scene, cfg: CaseConfig, strategy: str, dt: float | str):
@@ -256,14 +244,14 @@ def run_case(case: Case, mode: str, strategy: str = "barrier") -> dict:
     scene, info = build_scene(cfg, mode)
     row.update(info)
     try:
-        with _WarningLog() as warned:
+        with _warnings_logged() as warned:
             sim = _simulation(scene, cfg, strategy, cfg.dt)
     except ValueError as err:  # the library refused the input and said why
         row.update(_not_run("REFUSED", err))
         if strategy in EXPLICIT and _is_stable_step_refusal(err) and case.group != "dt":
             # the extra run at the stable step (the dt cases would repeat the base case's)
             try:
-                with _WarningLog() as warned:
+                with _warnings_logged() as warned:
                     sim = _simulation(build_scene(cfg, mode)[0], cfg, strategy, "auto")
             except ValueError as auto_err:  # refused for another reason (two_stage: kappa auto)
                 row["auto"] = {
@@ -272,9 +260,9 @@ def run_case(case: Case, mode: str, strategy: str = "barrier") -> dict:
                     "steps_planned": planned,
                 }
                 return row
-            row["auto"] = _run(sim, case, mode, strategy, info, warned.messages)
+            row["auto"] = _run(sim, case, mode, strategy, info, warned)
         return row
-    row.update(_run(sim, case, mode, strategy, info, warned.messages))
+    row.update(_run(sim, case, mode, strategy, info, warned))
     return row
 
 
@@ -310,7 +298,7 @@ def _run(
         sim, energy_ref, ENERGY_TOL[sim.integrator.name], crossing_allowed=reason is not None
     )
     iters, distances, heights = [], [], []
-    notes: dict[str, int] = {}
+    notes: Counter[str] = Counter()  # note code -> steps that reported it
     ended = None  # (status, outcome) of a run stopped before its last step
     friction_bad = 0
     block = sim.model.mpm_bodies[0].particles
@@ -329,9 +317,7 @@ def _run(
         iters.append(report.newton_iterations)
         distances.append(report.min_distance)
         heights.append(float(sim.state.mpm_x[block, 1].mean()))
-        for note in report.notes:
-            key = note.split(":", 1)[0]
-            notes[key] = notes.get(key, 0) + 1
+        notes.update(note.split(":", 1)[0] for note in report.notes)
         if not report.friction_converged:
             friction_bad += 1
             last_friction = (k, report.friction_iterations)
@@ -387,17 +373,9 @@ def _run(
         friction_unconverged_steps=friction_bad,
         drift_m=drift,
         final_speed=_finite(float(np.abs(sim.state.mpm_v[block]).max())),
-        notes=notes,
+        notes=dict(notes),
     )
-    log.info(
-        "%-16s %-12s %-6s steps %5d  %.1f s  %s",
-        case.name,
-        strategy,
-        mode,
-        row["steps"],
-        row["wall_s"],
-        outcome,
-    )
+    log_row(log, f"{case.name} {strategy} {mode}", row, "steps wall_s outcome")
     return row
 
 

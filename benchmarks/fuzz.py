@@ -319,13 +319,8 @@ def measure(
             sink.flush()
             results.append(result)
             if result["outcome"] in DEFECTS:
-                log.warning(
-                    "fuzz: %s seed %d %s: %s",
-                    result["cls"],
-                    result["seed"],
-                    result["strategy"],
-                    result["outcome"],
-                )
+                which = (result[k] for k in ("cls", "seed", "strategy", "outcome"))
+                log.warning("fuzz: %s seed %d %s: %s", *which)
             if i % 50 == 0 or i == n:
                 log.info("fuzz: %d of %d cases (%.0f s)", i, n, time.perf_counter() - t0)
 

@@ -27,13 +27,11 @@ contact state recorded), and the diagnostic ``lr_xpic5_dlr_forced`` (LR-XPIC(5) 
 forced: contact iff approaching) against SMM-XPIC(5).
 
 Targets (T): max |error| of LR-FLIP < 1 %, of LR-XPIC(5) < 0.5 % (paper: 1 % and 0.24 %); LR
-once above LR. Measured
-results (quick and full) and the cause of LR-XPIC(5)'s miss:
-``benchmarks/records/lr_compression_quick.md``. The paper states d_LR < 0 strictly; whether a
-touching interface should tolerate d_LR ~ 0 is a choice it leaves open, not taken here.
-The record also carries the time per step split into P2G, LR fits, corrections
-and G2P (XPIC inside G2P), the share of contact nodes and the LR / velocity-detector time ratio
-(the paper reports LR about 55 % slower).
+once above LR. The paper states d_LR < 0 strictly; whether a touching interface should tolerate
+d_LR ~ 0 is a choice it leaves open, not taken here. The record also carries the time per step
+split into P2G, LR fits, corrections and G2P (XPIC inside G2P), the share of contact nodes and the
+LR / velocity-detector time ratio (the paper reports LR about 55 % slower). Measured results
+and the cause of LR-XPIC(5)'s miss: ``benchmarks/records/lr_compression_quick.md``.
 
 ``lr_contact_time`` (Fig. 2B) uses the same column (``benchmarks.lr_contact_time``).
 """
@@ -71,12 +69,8 @@ MODES = {"quick": (0.005, 0.10), "full": (0.0005, 0.15)}
 TOL_LR, TOL_XPIC = 1.0, 0.5  # % (T)
 MIN_STRAIN = 0.01
 #: the top nodes move down at v0 with v_x free (slip, the spec's reading): the interface then
-#: carries no shear, and a frictional interface can match the bonded single material. Measured
-#: alternative: held sideways (sticky), the column barrels, the mu = 0.2 interface slips where the
-#: bonded column cannot, and LR-FLIP differs by 2.6 % at 20 % (full), a difference of physics.
-#: With v_x free the column is fixed-free (Euler stress pi^2 E w^2 / (48 L^2) = 82 MPa, reached
-#: at 3 % strain): the single-material column buckled at 18 % in the full run (mean stress
-#: 521 -> 51 MPa), so the full run stops at 15 %.
+#: carries no shear, and a frictional interface can match the bonded single material (the
+#: sticky alternative and why the full run stops at 15 %: ``records/lr_compression_quick.md``)
 TOP_KIND = "slip"
 
 
@@ -290,7 +284,7 @@ def run_case(
                 hist_d.append((float(d_lr.mean()), float(d_lr.max())) if d_lr.size else (0.0, 0.0))
     wall = time.perf_counter() - started
     out = {
-        "options": {k: v for k, v in options.items()},
+        "options": dict(options),
         "transfer": transfer,
         "dt": stepper.dt,
         "steps": n_steps,
@@ -330,6 +324,10 @@ def stress_error(case: dict, reference: dict) -> tuple[list[float], float]:
     return [float(e) for e in err], float(np.nanmax(np.abs(err[mask])))
 
 
+#: the per-pair lists of a ``_switch_event``
+_EVENT_PAIR_KEYS = ("node_x_mm", "d_lr_cells_before", "d_lr_cells", "v_n_m_s", "d_n_kg_m_s")
+
+
 def _d_lr_released(event: dict) -> np.ndarray:
     """``(n,)`` bool over an event's pairs: released while approaching (d_n < 0), i.e. by
     d_LR >= 0 (eq. 24) and not by separation (eq. 14)."""
@@ -354,14 +352,7 @@ def release_cause(runs: dict, errors: dict) -> dict:
     column's shortening (strain x HEIGHT): the stress loss a rigid overlap of that size gives.
     ``variant``: the same run with d_LR < 0 forced (``WatchedLRStepper``, ``TOUCHING``).
 
-    Why d_LR reaches 0 (``d_lr_drift``, measured): with two corrections the particles move
-    with the first-corrected fields (eqs. 32, 35-37: no relative normal velocity at a node in
-    contact), while the radii R_p (eq. 25) follow F, so the measured gap opens slowly; held in
-    contact regardless (the variant) d_LR rises to +2.4e-3 cells by 9 % strain (quick) and
-    is >= 0 at almost every step. With one correction the particles keep the approach of the
-    uncorrected fields and overlap more and more (d_LR -8.6e-3 cells at 9 %, quick), so the
-    pairs never reach d_LR = 0 and LR once + XPIC(5) is not released. The paper gives d_LR < 0
-    strictly (eq. 24) and no tolerance; a tolerance is a choice it leaves open, not taken here.
+    Why d_LR reaches 0 (``d_lr_drift``): ``benchmarks/records/lr_compression_quick.md``.
     """
     run = runs["lr_xpic5"]
     strain = np.asarray(run["strain"])
@@ -386,12 +377,8 @@ def release_cause(runs: dict, errors: dict) -> dict:
                 "step": ev["step"],
                 "strain": ev["strain"],
                 "nodes": int(rel.sum()),
-                "node_x_mm": [ev["node_x_mm"][k] for k in pick],
-                "d_lr_cells_before": [ev["d_lr_cells_before"][k] for k in pick],
-                "d_lr_cells": [ev["d_lr_cells"][k] for k in pick],
+                **{key: [ev[key][k] for k in pick] for key in _EVENT_PAIR_KEYS},
                 "overlap_when_contact_resumes_cells": back,
-                "v_n_m_s": [ev["v_n_m_s"][k] for k in pick],
-                "d_n_kg_m_s": [ev["d_n_kg_m_s"][k] for k in pick],
                 "sample_before": {
                     "strain": float(strain[j - 1]),
                     "error_percent": float(err[j - 1]),
@@ -440,37 +427,29 @@ def compression(mode: str) -> dict:
     """Fig. 5: the stress error of each detector against the single-material run."""
     frac, strain = MODES[mode]
     v0 = frac * C_K
-    runs = {
-        "smm_flip": (dict(single=True), "flip", {}),
-        "smm_xpic5": (dict(single=True), "flip", {"xpic_order": 5}),
+    single = {"single": True}
+    runs = {  # name -> (column_scene options, run_case options)
+        "smm_flip": (single, {}),
+        "smm_xpic5": (single, {"xpic_order": 5}),
         # the paper's two corrections (lr's default is one since issue 40)
-        "lr_flip": ({}, "flip", {"corrections": 2}),
-        "lr_xpic5": ({}, "flip", {"xpic_order": 5, "corrections": 2, "watch": "lr"}),
-        "lr_once": ({}, "flip", {"corrections": 1}),
-        "lr_once_xpic5": ({}, "flip", {"corrections": 1, "xpic_order": 5, "watch": "lr"}),
-        "velocity": ({}, "flip", {"detector": "velocity", "corrections": 2}),
-        "cp_0.8": ({}, "flip", {"detector": "cp", "cp_offset": 0.8, "corrections": 2}),
+        "lr_flip": ({}, {"corrections": 2}),
+        "lr_xpic5": ({}, {"xpic_order": 5, "corrections": 2, "watch": "lr"}),
+        "lr_once": ({}, {"corrections": 1}),
+        "lr_once_xpic5": ({}, {"corrections": 1, "xpic_order": 5, "watch": "lr"}),
+        "velocity": ({}, {"detector": "velocity", "corrections": 2}),
+        "cp_0.8": ({}, {"detector": "cp", "cp_offset": 0.8, "corrections": 2}),
         # the diagnostic variant of the release edge (``TOUCHING``, ``release_cause``)
-        FORCED: ({}, "flip", {"xpic_order": 5, "corrections": 2, "watch": "forced"}),
+        FORCED: ({}, {"xpic_order": 5, "corrections": 2, "watch": "forced"}),
     }
     results = {}
-    for name, (scene_kw, transfer, opts) in runs.items():
+    for name, (scene_kw, opts) in runs.items():
         log.info("lr_compression %s: %s", mode, name)
-        scene = column_scene(v0=v0, **scene_kw)
-        results[name] = run_case(scene, strain=strain, v0=v0, transfer=transfer, **opts)
+        results[name] = run_case(column_scene(v0=v0, **scene_kw), strain=strain, v0=v0, **opts)
     errors = {}
-    for name, ref in (
-        ("lr_flip", "smm_flip"),
-        ("lr_once", "smm_flip"),
-        ("velocity", "smm_flip"),
-        ("cp_0.8", "smm_flip"),
-        ("lr_xpic5", "smm_xpic5"),
-        ("lr_once_xpic5", "smm_xpic5"),
-        (FORCED, "smm_xpic5"),
-    ):
-        series, worst = stress_error(results[name], results[ref])
-        results[name]["error_percent"] = series
-        errors[name] = worst
+    for name, (scene_kw, opts) in runs.items():
+        if scene_kw is not single:  # against the single material of the same particle update
+            ref = results["smm_xpic5" if "xpic_order" in opts else "smm_flip"]
+            results[name]["error_percent"], errors[name] = stress_error(results[name], ref)
     ratio = results["lr_flip"]["wall_s"] / results["velocity"]["wall_s"]
     return {
         "v0": v0,

@@ -58,16 +58,12 @@ def contact_time(mode: str) -> dict:
                 "stress": case["stress"],
             }
     early = t_c - 0.5 * DX / v0
+    lr = [cases[f"{w}/lr"] for w in ("grid_line", "mid_cell")]
+    velocity = [cases[f"{w}/velocity"]["t_detect"] for w in ("grid_line", "mid_cell")]
     lr_ok = all(
-        cases[f"{w}/lr"]["t_detect"] is not None
-        and abs(cases[f"{w}/lr"]["relative_error"]) < TOL_CONTACT_TIME
-        for w in ("grid_line", "mid_cell")
+        c["t_detect"] is not None and abs(c["relative_error"]) < TOL_CONTACT_TIME for c in lr
     )
-    velocity_early = all(
-        cases[f"{w}/velocity"]["t_detect"] is not None
-        and cases[f"{w}/velocity"]["t_detect"] < early
-        for w in ("grid_line", "mid_cell")
-    )
+    velocity_early = all(t is not None and t < early for t in velocity)
     return {
         "v0": v0,
         "gap": GAP,

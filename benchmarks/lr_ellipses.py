@@ -34,14 +34,19 @@ from pathlib import Path
 import numpy as np
 
 import bfemp
-from benchmarks._ellipse_bodies import add_ellipse_classes
 from benchmarks._shared import StepCost
 from benchmarks.common import figure, save
 from benchmarks.runner import Benchmark, name_unless, register
 from bfemp.materials import BulkShearHyperelastic
 from bfemp.motion import Linear
 from bfemp.steppers.lr import LROptions, LRStepper
-from geometry.ellipse_classes import colour_ellipses, interpenetrating, sample_ellipses
+from geometry.ellipse_classes import (
+    EllipseParticles,
+    class_particles,
+    colour_ellipses,
+    interpenetrating,
+    sample_ellipses,
+)
 from geometry.ellipses import pack_ellipses
 from geometry.levelset import HalfPlane
 
@@ -70,24 +75,50 @@ MODES = {
         compression=0.75,
         seed=0,
     ),
-    # what tests/benchmarks/test_lr_benchmarks.py runs: the quick box to 35 %, LR and CP only
-    "smoke": dict(
-        width=1e-3,
-        height=1e-3,
-        dx=1e-3 / 35,
-        semi=(0.08e-3, 0.2e-3),
-        classes=6,
-        compression=0.35,
-        seed=0,
-        detectors=("lr", "cp_0.8"),
-    ),
 }
+#: what tests/benchmarks/test_lr_benchmarks.py runs: the quick box to 35 %, LR and CP only
+MODES["smoke"] = dict(MODES["quick"], compression=0.35, detectors=("lr", "cp_0.8"))
 DETECTORS = {
     "lr": {},
     "cp_0.8": {"detector": "cp", "cp_offset": 0.8},
     "velocity": {"detector": "velocity"},
 }
 TARGET_FRACTION = 1e-3
+
+
+def add_ellipse_classes(
+    scene: bfemp.Scene,
+    particles: EllipseParticles,
+    classes: np.ndarray,
+    material: bfemp.materials.Material,
+    *,
+    velocity: tuple[float, float] | None = None,
+    prefix: str = "class",
+) -> list[bfemp.MpmBody]:
+    """Add one MPM body per class (named ``f"{prefix}{k}"``) and return their handles.
+
+    Args:
+        scene: a 2D scene.
+        particles: the particles of every ellipse (``sample_ellipses``).
+        classes: (E,) class of each ellipse (``colour_ellipses``).
+        material: the material of every class (LR: one law, many classes).
+        velocity: initial velocity (2,) in m/s of every particle; default zero.
+        prefix: body name prefix.
+
+    Raises:
+        ValueError: a class without particles (its ellipses are too small for the grid).
+    """
+    bodies = []
+    for k, (x, vol) in enumerate(class_particles(particles, classes)):  # classes (<= 20)
+        if x.shape[0] == 0:
+            raise ValueError(
+                f"add_ellipse_classes: class {k} has no particle: its ellipses are smaller than "
+                "the particle spacing"
+            )
+        bodies.append(
+            scene.add_mpm(x, vol, material=material, velocity=velocity, name=f"{prefix}{k}")
+        )
+    return bodies
 
 
 def build(cfg: dict) -> tuple[bfemp.Scene, dict]:

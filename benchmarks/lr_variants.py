@@ -1,17 +1,11 @@
 """``lr_variants``: which of lr's settings holds on which kind of contact (issue 17).
 
-lr's update variants side by side on three scenes, each a different kind of contact: where
-each one breaks (why it was asked: ``benchmarks/records/lr_variants.md``).
-
-Variants (``LROptions``, all other options the scene's):
-
-- ``flip_c1``: FLIP, two corrections, f^{C,1} (eq. 33): the paper's (lr's default before
-  issue 40);
-- ``flip_c0``: the same with ``contact_force="c0"`` (f^{C,0}: the particles get both corrections);
-- ``once``: ``corrections=1`` ("LR once", Fig. 5): lr's default since issue 40 (chosen by this
-  benchmark and the drop on a deformable plate, ``LROptions.corrections``);
-- ``pic``: ``xpic_order=1`` (PIC, eq. 38), two corrections;
-- ``xpic5``: ``xpic_order=5`` (the paper's validation setting), two corrections.
+lr's update variants (``VARIANTS``: ``LROptions`` over the scene's own) side by side on three
+scenes, each a different kind of contact: where each one breaks (why it was asked:
+``benchmarks/records/lr_variants.md``). ``flip_c1`` is the paper's (FLIP, two corrections,
+f^{C,1}, eq. 33), ``flip_c0`` takes f^{C,0}, ``once`` is "LR once" (Fig. 5; lr's default since
+issue 40, ``LROptions.corrections``), ``pic`` PIC (eq. 38) and ``xpic5`` XPIC(5), the paper's
+validation setting.
 
 Scenes:
 
@@ -26,19 +20,16 @@ Scenes:
   max(|L - L_ref| / L_ref, |T - T_ref| / T_ref) of the energy loss L and contact duration T
   against the barrier reference run of that discretisation (run here); also the particles found
   inside the FEM ring at any step (``catalogue.RingsPenetration``).
-- ``compression``: ``lr_compression``'s column (mu = 0.2, v0 = 0.5 % of c_K quick, 0.05 % full);
-  error = the largest |stress error| in % past 1 % strain against the single-material run with
-  the same particle update (FLIP for flip_c1, flip_c0 and once; PIC; XPIC(5)).
+- ``compression``: ``lr_compression``'s column; error = the largest |stress error| in % past
+  1 % strain against the single-material run with the same particle update
+  (``_SMM_REFERENCE``).
 
-Per run also the wall time and ``LRStepper``'s run totals: the first and second corrections'
-sum |dp| over the steps with contact, their ratio, and the windows of 100 contact steps given the
-``LR_FIRST_CORRECTION`` note (ratio above ``bfemp.steppers.lr.FIRST_CORRECTION_RATIO``).
-
-Modes: ``smoke`` (what the tests run: slope at 0.02 s settling and 0.03 s sliding, compression
-quick; variants flip_c1, flip_c0, once), ``quick`` (every variant; slope as smoke, rings,
-compression quick) and ``full`` (slope at the full trade study's 0.1 s + 0.2 s, fit from 0.05 s;
-rings as quick: the full rings discretisation costs hours per explicit run; compression full).
-No (T) target: the record says where each variant holds.
+Per run also the wall time and ``LRStepper``'s run totals (``_totals``): the first and second
+corrections' sum |dp| over the steps with contact, their ratio, and the windows of 100 contact
+steps given the ``LR_FIRST_CORRECTION`` note (``bfemp.steppers.lr.FIRST_CORRECTION_RATIO``).
+Modes (``MODES``, ``_SLOPE``): ``smoke`` (the tests), ``quick``, ``full`` (the slope at the full
+trade study's times; rings as quick: the full rings discretisation costs hours per explicit
+run). No (T) target: the record says where each variant holds.
 """
 
 from __future__ import annotations
@@ -168,12 +159,11 @@ def rings_case(options: dict, reference: dict) -> dict:
     }
 
 
-def compression_case(mode: str, options: dict, reference: dict) -> dict:
-    """``lr_compression``'s column with ``options``; error against the ``reference`` run."""
+def compression_case(v0: float, strain: float, options: dict, reference: dict) -> dict:
+    """``lr_compression``'s column pressed at ``v0`` m/s to ``strain`` with ``options``; error
+    against the ``reference`` run."""
     from benchmarks import lr_compression as lc
 
-    frac, strain = lc.MODES[mode]
-    v0 = frac * lc.C_K
     started = time.perf_counter()
     case = lc.run_case(lc.column_scene(v0=v0), strain=strain, v0=v0, **options)
     _, worst = lc.stress_error(case, reference)
@@ -193,7 +183,7 @@ def _compression(mode: str, variants: tuple[str, ...]) -> dict:
             scene = lc.column_scene(v0=v0, single=True)
             references[key] = lc.run_case(scene, strain=strain, v0=v0, **_SMM_REFERENCE[name])
         log.info("lr_variants compression %s: %s", cmode, name)
-        runs[name] = compression_case(cmode, VARIANTS[name], references[key])
+        runs[name] = compression_case(v0, strain, VARIANTS[name], references[key])
     return {"mode": cmode, "v0_m_s": v0, "final_strain": strain, "runs": runs}
 
 

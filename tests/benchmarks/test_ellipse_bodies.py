@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import bfemp
-from benchmarks._ellipse_bodies import add_ellipse_classes
+from benchmarks.lr_ellipses import add_ellipse_classes
 from geometry.ellipse_classes import EllipseParticles, colour_ellipses, sample_ellipses
 from geometry.ellipses import pack_ellipses
 
