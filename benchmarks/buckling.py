@@ -31,12 +31,9 @@ Choices where the paper is silent or the library forces a change (recorded in th
   a flat plate would flatten a wider crown. ``--mode plate_quick`` runs the paper's plate
   (``PLATE_HALF_WIDTH`` x ``PLATE_THICKNESS``, scripted down at 1 m/s, half d-hat above the
   crown) with ``scene.set_friction("plate", "outer_ring", PLATE_MU)`` and the rings at mu; it
-  costs 11x to 16x the Newton iterations of the cap, hence the cap. ``--mode plate_partial`` and
-  ``--mode plate_full`` run the plate at the partial and full discretisations; the full one is
-  resumable: ``python -m benchmarks buckling --mode plate_full --mu 0.5 --budget-s 7200
-  --resumable --out DIR`` checkpoints the case in ``DIR/cases/`` every ``CHECKPOINT_EVERY``
-  steps and at the budget (``benchmarks._case_checkpoint``), and ``merge`` joins the per-mu
-  records.
+  costs 11x to 16x the Newton iterations of the cap, hence the cap. ``plate_partial`` and
+  ``plate_full`` run the plate at the partial and full discretisations; ``--resumable`` (see
+  ``measure``) lets a case run over several sessions, and ``merge`` joins per-mu records.
 - Feet: the outer ring's nodes on y = 0 are fixed (level sets act on MPM grid nodes only); the
   inner ring's feet are held by two sticky level-set boxes ``9 <= |x| <= 13, -2 <= y <= 0``; a
   slip box ``|x| <= 9, -2 <= y <= 0`` lies under the middle. One scripted motion serves the cap
@@ -44,15 +41,11 @@ Choices where the paper is silent or the library forces a change (recorded in th
 - Particles: ``bfemp.sample.mesh`` of a fine inner-ring mesh at the grid's sub-cell centres,
   PPC 9 in full mode (9898 particles; the paper's 10261 at dx = 0.25 m is 9.3 per cell); the
   MPM grid origin shifted by a quarter of the particle spacing (see ``benchmarks.rings``).
-- Full mode: dx = 0.25 m, PPC 9, FEM mesh size ``FULL_FEM_H`` (close to the paper's 2714
-  vertices), the paper's dt, run to u = 8 m (800 steps per mu).
-- Quick mode: dx = 0.5 m, PPC 4 (1104 particles), FEM h = 0.5 m (537 vertices), dt = 5e-2 s
-  (5 cm of push per step; the loading is quasi-static: waves cross the ring in 0.1 s), to
-  u = 3 m.
-- Partial mode (``--mode partial``): the quick discretisation and dt pressed to u = 7 m, with a
-  Newton cap of 2000, for u_buckle at a coarse resolution.
-- Newton iteration cap 500 (partial mode 2000); lagged-friction loop capped at 20 iterations
-  (the default). The loop stops earlier when it stalls (``bfemp.steppers._barrier_solve``).
+- Modes (``MODES``): full at the paper's grid and dt (FEM mesh ``FULL_FEM_H``, close to the
+  paper's 2714 vertices) to u = 8 m; quick coarsens grid, mesh and dt (5 cm of push per step:
+  the loading is quasi-static, waves cross the ring in 0.1 s) to u = 3 m; partial presses the
+  quick discretisation to u = 7 m for u_buckle. The lagged-friction loop stops at 20 iterations
+  (the default) or earlier when it stalls (``bfemp.steppers._barrier_solve``).
 
 Measured results, with the commits they ran on: ``benchmarks/records/buckling.md``.
 """
@@ -66,13 +59,11 @@ import time
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 import bfemp
 from benchmarks import catalogue
 from benchmarks._case_checkpoint import CaseCheckpoint
-from benchmarks.common import cases_by_mu, environment, log_row, note_merge, peak_memory_mb, save
+from benchmarks.common import cases_by_mu, figure, log_row, note_merge, save
 from benchmarks.runner import Benchmark, name_unless, register, write_record
 
 log = logging.getLogger(__name__)
@@ -142,39 +133,32 @@ def _scene(cfg: dict, mu: float) -> bfemp.Scene:
     outer = bfemp.shapes.semicircular_ring((0.0, 0.0), *OUTER_RADII, h=cfg["fem_h"])
     p = outer.points
     feet = p[:, 1] < 1e-9
-    if cfg.get("pusher", "cap") == "plate":
-        scene.add_fem(
-            outer,
-            material=material,
-            prescribed=bfemp.motion.Fixed(),
-            prescribed_nodes=feet,
-            name="outer_ring",
+    plate = cfg.get("pusher", "cap") == "plate"
+    if plate:
+        motion, held = bfemp.motion.Fixed(), feet
+    else:
+        cap = (np.linalg.norm(p, axis=1) > OUTER_RADII[1] - 1e-6) & (
+            np.abs(p[:, 0]) <= CAP_HALF_WIDTH
         )
+        # the cap's lowest node is far above the feet: split the two at half the inner radius
+        motion, held = _CapAndFeet(SPEED, 0.5 * OUTER_RADII[0]), feet | cap
+    scene.add_fem(
+        outer, material=material, prescribed=motion, prescribed_nodes=held, name="outer_ring"
+    )
+    if plate:
         # the plate starts half d-hat above the crown's arc (radius OUTER_RADII[1]) and at least
         # half d-hat clear of the barrier of the mesh's highest node: the full mesh has no node
         # on the crown's top, its highest two are 0.33 mm below the arc (0.83 mm from the plate,
         # inside d-hat = 1 mm, which the scene refuses at the start); the quick mesh's highest
         # is 1.9 mm below it, where the first rule holds
         bottom = max(OUTER_RADII[1] + 0.5 * DHAT, p[:, 1].max() + 1.5 * DHAT)
-        plate = bfemp.shapes.rectangle(
+        plate_mesh = bfemp.shapes.rectangle(
             (-PLATE_HALF_WIDTH, bottom),
             (PLATE_HALF_WIDTH, bottom + PLATE_THICKNESS),
             h=cfg["fem_h"],
         )
         down = bfemp.motion.Linear(velocity=(0.0, -SPEED))
-        scene.add_fem(plate, material=material, prescribed=down, name="plate")
-    else:
-        cap = (np.linalg.norm(p, axis=1) > OUTER_RADII[1] - 1e-6) & (
-            np.abs(p[:, 0]) <= CAP_HALF_WIDTH
-        )
-        # the cap's lowest node is far above the feet: split the two at half the inner radius
-        scene.add_fem(
-            outer,
-            material=material,
-            prescribed=_CapAndFeet(SPEED, 0.5 * OUTER_RADII[0]),
-            prescribed_nodes=feet | cap,
-            name="outer_ring",
-        )
+        scene.add_fem(plate_mesh, material=material, prescribed=down, name="plate")
     dx, ppc = cfg["dx"], cfg["ppc"]
     shape = bfemp.shapes.semicircular_ring((0.0, 0.0), *INNER_RADII, h=0.25 * dx)
     particles, volumes = bfemp.sample.mesh(shape, dx=dx, ppc=ppc)
@@ -186,7 +170,7 @@ def _scene(cfg: dict, mu: float) -> bfemp.Scene:
     scene.add_boundary(box(lower=(-13.0, -2.0), upper=(-9.0, 0.0)), kind="sticky")
     scene.add_boundary(box(lower=(-9.0, -2.0), upper=(9.0, 0.0)), kind="slip")
     scene.set_contact(dhat=DHAT, kappa=KAPPA, mu=mu, eps_v=EPS_V)
-    if cfg.get("pusher", "cap") == "plate":
+    if plate:
         scene.set_friction("plate", "outer_ring", PLATE_MU)
     return scene
 
@@ -306,12 +290,13 @@ def _run_one(
     }
 
 
-def _plot(runs: list[dict], path: Path, title: str) -> None:
+def plot(payload: dict, path: Path) -> None:
     """Detachment against plate displacement per mu, and each run's final shape."""
-    fig = Figure(figsize=(12.0, 8.0), layout="constrained")
-    FigureCanvasAgg(fig)
-    grid = fig.add_gridspec(2, len(runs))
-    ax = fig.add_subplot(grid[0, :])
+    runs = payload["_runs"]
+    fig, axes = figure((12.0, 8.0), 2, len(runs), layout="constrained", squeeze=False)
+    for top in axes[0]:  # one panel across the top row
+        top.remove()
+    ax = fig.add_subplot(axes[1, 0].get_gridspec()[0, :])
     threshold = BUCKLE_FRACTION * (INNER_RADII[1] - INNER_RADII[0])
     for k, run in enumerate(runs):
         s = run["series"]
@@ -322,13 +307,13 @@ def _plot(runs: list[dict], path: Path, title: str) -> None:
     ax.axhline(threshold, color="k", ls=":", lw=0.8, label="buckling threshold")
     ax.set(xlabel="plate displacement u [m]", ylabel="detachment of the inner ring [m]")
     for k, run in enumerate(runs):
-        sub = fig.add_subplot(grid[1, k])
+        sub = axes[1, k]
         fem, mpm = np.array(run["final_fem_x"]), np.array(run["final_mpm_x"])
         sub.plot(fem[:, 0], fem[:, 1], ".", ms=1.0, color="C0")
         sub.plot(mpm[:, 0], mpm[:, 1], ".", ms=1.0, color="C1")
         sub.set_aspect("equal")
         sub.set_title(f"mu = {run['mu']:g}, u = {run['u_end_m']:.2f} m", fontsize="medium")
-    save(fig, path, [ax], title)
+    save(fig, path, [ax], f"Semicircular rings pressed at the crown ({payload['mode']} mode)")
 
 
 def measure(
@@ -361,24 +346,18 @@ def measure(
     if not budget_s >= 0.0:
         raise ValueError(f"budget_s / --budget-s must be >= 0, got {budget_s}")
     mus = MUS if mus is None else tuple(float(m) for m in mus)
-    stem, env = BENCHMARK.stem(mode), environment()
+    stem = BENCHMARK.stem(mode)
     out.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
     runs: list[dict] = []
     for mu in mus:
         checkpoint = CaseCheckpoint(out / "cases" / f"{mode}_mu{mu:g}") if resumable else None
         runs.append(_run_one(cfg, mu, budget_s=budget_s, checkpoint=checkpoint))
-        payload = _payload(mode, cfg, mus, runs, time.perf_counter() - started, env)
+        payload = _payload(mode, cfg, mus, runs, time.perf_counter() - started)
         _save_shapes(runs, out / f"{stem}_final.npz")
         if len(runs) < len(mus):  # the runner writes the last one
             write_record(out, stem, payload, plot)
     return payload
-
-
-def plot(payload: dict, png: Path) -> None:
-    """``_plot`` of the payload's runs (with their final shapes)."""
-    title = f"Semicircular rings pressed at the crown ({payload['mode']} mode)"
-    _plot(payload["_runs"], png, title)
 
 
 def _save_shapes(runs: list[dict], path: Path) -> None:
@@ -389,9 +368,7 @@ def _save_shapes(runs: list[dict], path: Path) -> None:
     np.savez_compressed(path, **arrays)
 
 
-def _payload(
-    mode: str, cfg: dict, mus: tuple[float, ...], runs: list[dict], wall_s: float, env: dict
-) -> dict:
+def _payload(mode: str, cfg: dict, mus: tuple[float, ...], runs: list[dict], wall_s: float) -> dict:
     """The record of ``mode`` after the finished ``runs`` (in ``mus`` order)."""
     end = [r["detachment_end_m"] for r in runs]
     complete = all(r["error"] is None and r.get("cut_at_budget_s") is None for r in runs) and len(
@@ -409,7 +386,6 @@ def _payload(
         "cut_cases": [r["mu"] for r in runs if r.get("cut_at_budget_s") is not None],
         "cases": [{k: v for k, v in r.items() if not k.startswith("final_")} for r in runs],
         "wall_s": wall_s,
-        "peak_memory_mb": peak_memory_mb(),
         "paper": PAPER,
         "targets": {
             "full": "u_buckle(0) < u_buckle(0.2); mu = 0.5 later still or not at all",
@@ -434,7 +410,6 @@ def _payload(
             "fem_vertices": runs[0]["fem_vertices"],
             "fem_triangles": runs[0]["fem_triangles"],
         },
-        "environment": env,
         "_runs": runs,
     }
 
@@ -445,9 +420,8 @@ def merge(records: list[str | Path], out: str | Path = "results") -> dict:
     it), cases sorted by mu; ``wall_s`` is the sum of the cases' wall times."""
     mode, loaded, runs = cases_by_mu(records, _with_shapes)
     mus = tuple(r["mu"] for r in runs)
-    payload = _payload(
-        mode, MODES[mode], mus, runs, sum(r["wall_s"] for r in runs), loaded[0]["environment"]
-    )
+    payload = _payload(mode, MODES[mode], mus, runs, sum(r["wall_s"] for r in runs))
+    payload["environment"] = loaded[0]["environment"]
     note_merge(payload, records, loaded)
     Path(out).mkdir(parents=True, exist_ok=True)
     _save_shapes(runs, Path(out) / f"{NAME}_final.npz")

@@ -44,10 +44,9 @@ Choices where the paper is silent or the library forces a change (recorded in th
   validation finds the nearest particle within d-hat by round-off); eps_v = 1e-5 m/s.
 - Newton tolerance 1e-6 m/s (1e-4 d-hat per step), not the paper's 1e-8 m/s (a round-off
   stall).
-- Full mode: dx = 0.025 m (the paper's grid), 60 steps (t_end 0.6 s, a/R up to ~0.14).
-- Quick mode and sweep: dt = 6e-2 s (sweep 3e-2 s), tol 1e-4 m/s, eps_v = 1e-3 m/s. The
-  compression is quasi-static (waves cross the disk in 2e-4 s). mu stays 1 (frictionless
-  plates leave the disk a neutral, rolling mode).
+- Full mode at the paper's grid (t_end 0.6 s: a/R up to ~0.14). Quick mode and the sweep take
+  coarser steps and looser tolerances (``_FAST``): the compression is quasi-static (waves cross
+  the disk in 2e-4 s). mu stays 1 (frictionless plates leave the disk a neutral, rolling mode).
 """
 
 from __future__ import annotations
@@ -116,24 +115,11 @@ MODES = {
 #: scaled with dx. Written to ``hertz_refined.json``; ``full`` stays the paper's grid.
 MODES["refined"] = {**MODES["full"], "dx": 0.02, "spacing": MODES["full"]["spacing"] * 0.8}
 #: The softened disk of the trade study (``benchmarks.tradeoff``, scene ``hertz_soft``: the
-#: explicit strategies beside barrier on one scene). E = 1e5 Pa instead of 1e10 (the explicit
-#: stable step at dx = 0.05 m: 5.4e-4 s instead of ~1.7e-6 s), kappa scaled with E (the barrier
-#: as stiff relative to the disk), C_hertz from the softened E. The top plate stays elastic with
-#: its top face scripted (both plates scripted whole, barrier failed at step 1:
-#: SCRIPTED_MOTION_BLOCKED, the disk squeezed between two scripted bodies), as stiff as the disk
-#: (at 1000 x the step would follow the plate) and 16 x denser (its P-wave speed a quarter of
-#: the disk's: its elements do not bound the step below the disk's), and starts at the push
-#: velocity (no wave from a plate set moving at once). The trade study meshes both plates at
-#: dx / 2 along x (``plate_h``: the FEM nodes augury's and lr's contact needs in the contact
-#: patch). The fixed bottom plate is 1e4 x denser: its nodes weigh in augury's and lr's
-#: mass-weighted velocity mixing (scripted nodes enter with their mass; at the disk's density
-#: lr let the disk through it, 63.6 mm deep at t = 0.6 s, measured); barrier and two_stage do not
-#: see the mass of scripted nodes. The contact half-width is that of the particles the bottom
-#: plate pushes (``width_from="force"``: upward contact force above ``PUSHED_FRACTION`` of the
-#: largest), the same set as within d-hat of the plate for barrier and two_stage (a barrier
-#: force is nonzero within d-hat only) and defined for any strategy. Quasi-static still: a wave
-#: crosses the disk in 0.05 s, the compression lasts 0.6 s. Measured, quick trade-study base:
-#: the stresses carry the contact force (``stress_force``: 1635 against 1629 N/m at t = 0.6 s).
+#: explicit strategies beside barrier): E = 1e5 Pa (an explicit stable step of 5.4e-4 s at
+#: dx = 0.05 m), kappa scaled with E; the top plate as stiff as the disk, 16 x denser and
+#: starting at the push velocity; the fixed plate 1e4 x denser (its nodes weigh in augury's and
+#: lr's velocity mixing); a from the particles the bottom plate pushes (``width_from="force"``).
+#: Why each, and what was measured: ``benchmarks/records/hertz.md``.
 SOFT_E = 1e5  # Pa
 SOFT = dict(
     E_Pa=SOFT_E,
@@ -491,9 +477,11 @@ def _grid_sweep() -> dict:
     }
 
 
-def _plot(runs: dict, cfg: dict, path: Path, title: str, sweep: dict | None = None) -> None:
+def plot(payload: dict, path: Path) -> None:
     """Figure 10 style: F against a (both materials, Hertz, fits); F against the plate travel;
-    with a sweep, C_fit / C_hertz against the grid spacing."""
+    with the full mode's grid sweep, C_fit / C_hertz against the grid spacing."""
+    runs, cfg, sweep = payload["_runs"], MODES[payload["mode"]], payload["grid_convergence"]
+    title = f"Brazilian disk (MPM) between FEM plates, {payload['mode']} mode"
     fig, axes = figure((16.0 if sweep else 11.0, 4.8), 1, 3 if sweep else 2, layout="constrained")
     c_h = hertz_constant()
     a_max = max(max(r["samples"]["a"], default=0.0) for r in runs.values())
@@ -578,13 +566,6 @@ def measure(mode: str, cfg: dict) -> dict:
         },
         "_runs": runs,
     }
-
-
-def plot(payload: dict, png: Path) -> None:
-    """``_plot`` of both materials (and the grid sweep in full mode)."""
-    mode = payload["mode"]
-    title = f"Brazilian disk (MPM) between FEM plates, {mode} mode"
-    _plot(payload["_runs"], MODES[mode], png, title, payload["grid_convergence"])
 
 
 BENCHMARK = register(

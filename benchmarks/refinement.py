@@ -33,9 +33,6 @@ Choices where the paper is silent (all recorded in the JSON ``parameters``):
 - Rest criterion: the MPM box's centre-of-mass height changes by less than ``rest_tol`` = 1e-6 m
   over ``rest_steps`` = 2 consecutive steps, at most ``max_steps`` = 60 steps; a resolution
   that does not come to rest is recorded (``at_rest`` false) and is not used in the fit.
-- Quick mode: one PPC (16), N = 4, 8, 12 against the reference N = 16; full mode: N = 2, 4, ..., 20
-  against N = 30, PPC 4, 9 and 16; ``ppc16`` mode (``--mode ppc16``): the full series at PPC 16
-  only.
 """
 
 from __future__ import annotations
@@ -193,8 +190,10 @@ def _series(runs: list[dict], ref: dict) -> dict:
     }
 
 
-def _plot(series: dict, path: Path, title: str) -> None:
+def plot(payload: dict, path: Path) -> None:
     """Figure 14: error of the centre-of-mass height against dx, log-log, per PPC."""
+    series = {int(k): v for k, v in payload["series"].items()}
+    title = f"MPM box on FEM box: centre-of-mass height error ({payload['mode']} mode)"
     fig, ax = figure((6.4, 4.8), layout="constrained")
     for k, (ppc, s) in enumerate(series.items()):
         dx = 1.0 / np.array(s["ns"], dtype=float)
@@ -214,16 +213,15 @@ def _plot(series: dict, path: Path, title: str) -> None:
 
 
 def measure(mode: str, cfg) -> dict:
-    """Settle every resolution and PPC of ``mode``: ``"full"`` (N = 2..20 even against N = 30,
-    PPC 4, 9, 16), ``"ppc16"`` (the same at PPC 16 only) or ``"quick"`` (N = 4, 8, 12 against
-    N = 16, PPC 16); ``series[ppc]`` holds the errors and fitted orders."""
+    """Settle every resolution ``cfg["ns"]`` and its reference ``cfg["n_ref"]`` at each PPC of
+    ``cfg["ppcs"]`` (``MODES``); ``series[ppc]`` holds the errors and fitted orders."""
     runs, series = {}, {}
     for ppc in cfg["ppcs"]:
         ref = settle(cfg["n_ref"], ppc)
         tests = [settle(n, ppc) for n in cfg["ns"]]
         runs[ppc] = {"reference": ref, "runs": tests}
         series[ppc] = {**_series(tests, ref), "reference_at_rest": ref["at_rest"]}
-    payload = {
+    return {
         "series": {str(k): v for k, v in series.items()},
         "paper": PAPER,
         "targets": {
@@ -246,14 +244,6 @@ def measure(mode: str, cfg) -> dict:
         },
         "runs": {str(k): v for k, v in runs.items()},
     }
-    return payload
-
-
-def plot(payload: dict, png: Path) -> None:
-    """The errors against dx per PPC (``_plot``)."""
-    series = {int(k): v for k, v in payload["series"].items()}
-    mode = payload["mode"]
-    _plot(series, png, f"MPM box on FEM box: centre-of-mass height error ({mode} mode)")
 
 
 BENCHMARK = register(

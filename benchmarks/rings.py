@@ -10,55 +10,36 @@ Metrics (top level of ``rings.json``):
 
 - ``momentum_drift_rel``: max over the steps of both runs of ``|P(t) - P(0)|`` divided by
   ``|P_mpm(0)| + |P_fem(0)|`` (P: total linear momentum, kg m/s per unit thickness);
-- ``min_distance``: the smallest particle-boundary distance seen at any step of either run (the
-  per-step ``min_distance`` of the metrics table; NaN rows, no pair within dhat, are skipped);
-- ``energy_loss_pct``: ``{"apic": ..., "flip": ...}``, ``(E(0.025) - E(0.293)) / E(0.025) * 100``
-  with ``E = kinetic + elastic`` (sim.metrics ``energy_kinetic + energy_elastic``; the barrier
-  energy ``energy_contact`` is recorded and plotted apart); E(0.025) is taken at the last step at
-  or before 0.025 s (the rings touch then: before, E is constant) and E(0.293) at the first step
-  at or after 0.293 s (both exact steps at dt = 2e-4 s);
-- ``steps`` (per run), ``wall_s`` (all runs).
+- ``min_distance``: the smallest particle-boundary distance seen at any step of either run (NaN
+  rows, no pair within dhat, are skipped);
+- ``energy_loss_pct``: ``(E(0.025) - E(0.293)) / E(0.025) * 100`` per transfer with ``E =
+  kinetic + elastic`` (the barrier energy is recorded and plotted apart); E(0.025) at the last
+  step at or before 0.025 s, E(0.293) at the first at or after 0.293 s
+  (``catalogue.window_energies``);
+- ``penetrations``: the largest count at any step of particles inside the deformed FEM ring,
+  checked independently of the solver (``catalogue.RingsPenetration``; must be 0).
 
 Integrator (``INTEGRATOR``): ``"newmark_implicit_contact"``, mid-point Newmark for both rings
 with the barrier forces memory-free (:mod:`bfemp.integrators`). The paper's mid-point Newmark
 read literally, with the barrier inside the trapezoidal rule, gains energy here: at the paper's
-dt the closing speed (80 m/s) carries a point through dhat (1e-2 m) within one step, and the
-trapezoidal rule carries the stiff barrier force of one step into the next through a^n, which
-pumps energy into the contact nodes (partial mode: +25 % over the window instead of the paper's
-8.6 % loss; two FEM rings alone: the energy peaks at 2.4 x its start; at dt = 5e-5 s no gain).
-Partial and full modes also run it (``COMPARED_INTEGRATORS``, unless ``compare=False``) and
-record it under ``compared_integrators``. Every run records ``energy_peak_over_start`` (max of
-kinetic + elastic + barrier over its value at t = 0).
-
-Measured results, with the commits they ran on: ``benchmarks/records/rings.md``.
-
-Besides, every step is checked independently of the solver for particles inside the deformed FEM
-ring (even-odd ray casting against the FEM boundary polygon): ``penetrations`` is the largest
-count seen at any step (must be 0).
+dt the closing speed carries a point through dhat within one step, and the trapezoidal rule
+carries the stiff barrier force of one step into the next through a^n. Partial and full modes
+also run it (``COMPARED_INTEGRATORS``, unless ``--no-compare``), recorded under
+``compared_integrators``; ``energy_peak_over_start`` is the max of kinetic + elastic + barrier
+over its value at t = 0. Measured results: ``benchmarks/records/rings.md``.
 
 Choices where the paper is silent (recorded in the JSON ``parameters``):
 
-- FEM ring: ``bfemp.shapes.ring(h=0.13)``: 1714 vertices, 3085 triangles (paper: 1830 / 3310;
-  h = 0.125 gives 2095 / 3809, farther away).
-- MPM ring: ``bfemp.sample.mesh`` of a fine ring mesh at dx = 0.1 m with ppc = 9 (3 x 3 per cell):
-  19796 particles (paper: 20098; ppc = 4 gives 8804).
+- The discretisations are ``catalogue.RINGS_DISCRETISATION``'s (full: FEM ring h = 0.13, 1714
+  vertices against the paper's 1830; MPM ring at dx = 0.1 m, ppc = 9, 19796 particles against
+  20098); quick mode coarsens them (its energy loss is not expected to match the paper),
+  partial mode coarsens the MPM grid only.
 - Ring centres at (-5, 0) (MPM) and (5, 0) (FEM); run to t = 0.3 s, which holds the paper's
   collision window 0.025 s - 0.293 s.
-- Particles sit on the sub-cell lattice of a grid at the origin; the MPM grid itself is shifted
-  by a quarter of the particle spacing (``dx / (4 k)``, k = sqrt(ppc)) so that no particle sits
-  on a half-integer grid coordinate (see ``rings_grid_origin``: with ppc = 9 and an unshifted grid
-  Newton cannot converge, even in free flight).
-- Quick mode keeps the geometry and the physics and coarsens the discretisation: dx = 1/3 m
-  (three cells across the ring), ppc = 4, FEM h = 1/3 m, dt = 2e-3 s, t_end = 0.3 s (both
-  transfers in < 60 s on 2 cores). Its energy loss is not expected to match the paper.
-- Partial mode (``run("partial")``, ``--mode partial``): the paper's dt, FEM mesh and physics,
-  MPM grid dx = 0.2 m with ppc = 4 (2196 particles); a few minutes per run where full mode
-  takes 15-20 (2 cores).
-- Probe mode (``--mode full_probe``, record ``rings_full_probe.json``): the full mode's scene
-  and stepper cut at t = 0.035 s (125 free-flight steps and 50 in contact per transfer), for
-  the seconds of each phase of a step and the full mode's wall extrapolated from them
-  (:mod:`benchmarks._rings_probe`). Full mode records ``phase_s`` too: per run, and summed over
-  both transfers at the top level.
+- The MPM grid is shifted by a quarter of the particle spacing (``rings_grid_origin``: with
+  ppc = 9 and an unshifted grid Newton cannot converge, even in free flight).
+- ``--mode full_probe`` (record ``rings_full_probe.json``): the full scene cut at t = 0.035 s,
+  for the seconds of each phase of a step (:mod:`benchmarks._rings_probe`).
 """
 
 from __future__ import annotations
@@ -119,6 +100,25 @@ MODES = {
 SERIES_POINTS = 400  # per-step curves stored in the JSON are subsampled to about this many
 
 
+def collide(sim: bfemp.Simulation, t_end: float, callback: object = None) -> tuple:
+    """Run ``sim`` to ``t_end`` s with the per-step ``callback``: ``(the StepError message or
+    None, wall time in s)``; a failed step ends the run, the metrics so far stand."""
+    started, error = time.perf_counter(), None
+    try:
+        sim.run(t_end=t_end, progress=False, callback=callback)
+    except bfemp.StepError as err:
+        error = str(err)
+        log.error("rings under %s: %s", sim.strategy, err)
+    return error, time.perf_counter() - started
+
+
+def momentum_drift(metrics: object, scale: float) -> np.ndarray:
+    """``|P(t) - P(0)| / scale`` ``(n,)`` of the total linear momentum of each row of the
+    ``metrics`` (``scale`` in kg m/s per unit thickness)."""
+    momentum = np.stack([metrics.column("momentum_x"), metrics.column("momentum_y")], axis=1)
+    return np.linalg.norm(momentum - momentum[0], axis=1) / scale
+
+
 def run_transfer(cfg: dict, transfer: str, keep: dict | None = None) -> dict:
     """One transfer: run to ``t_end`` and reduce the metrics table (``keep`` given: the
     simulation is stored under ``keep["sim"]``)."""
@@ -135,15 +135,7 @@ def run_transfer(cfg: dict, transfer: str, keep: dict | None = None) -> dict:
     if keep is not None:
         keep["sim"] = sim
     check = RingsPenetration(sim)
-    start = time.perf_counter()
-    error = None
-    try:
-        sim.run(t_end=cfg["t_end"], progress=False, callback=check)
-    except bfemp.StepError as err:  # recorded; the metrics so far are still reduced
-        error = str(err)
-        log.error("rings/%s: %s", transfer, err)
-    wall = time.perf_counter() - start
-
+    error, wall = collide(sim, cfg["t_end"], check)
     m = sim.metrics
     t = m.column("t")
     # the spec's E = kinetic + elastic (no gravity here); the barrier energy is kept apart
@@ -151,11 +143,10 @@ def run_transfer(cfg: dict, transfer: str, keep: dict | None = None) -> dict:
     contact_energy = (
         m.column("energy_contact") if "energy_contact" in m.columns else np.zeros_like(t)
     )
-    momentum = np.stack([m.column("momentum_x"), m.column("momentum_y")], axis=1)
     p_fem = model.fem_mass @ model.fem_v0
     p_mpm = model.mpm_mass @ model.mpm_v0
     scale = float(np.linalg.norm(p_fem) + np.linalg.norm(p_mpm))
-    drift = np.linalg.norm(momentum - momentum[0], axis=1) / scale
+    drift = momentum_drift(m, scale)
     dist = m.column("min_distance")[1:]
     pairs = m.column("contact_pairs")[1:]
     touching = t[1:][pairs > 0]
@@ -250,9 +241,36 @@ def _for_json(run: dict) -> dict:
     return out
 
 
-def _plot(runs: dict, path: Path, title: str, compared: dict | None = None) -> None:
-    """Figure 7 style: energies of each transfer over time (with ``compared``, {integrator:
-    {transfer: run}}, the total energy of those runs too), and the momentum drift."""
+def _summary(runs: dict) -> dict:
+    """The record's entries over the transfers' ``runs`` (transfer -> ``run_transfer``'s
+    result): largest drift and penetration count, smallest distance, summed wall time and
+    Newton iterations, each transfer's energy loss and peak, the runs subsampled."""
+    return {
+        "momentum_drift_rel": max(r["momentum_drift_rel"] for r in runs.values()),
+        "min_distance": float(np.nanmin([r["min_distance"] for r in runs.values()])),
+        "energy_loss_pct": {k: r["energy_loss_pct"] for k, r in runs.items()},
+        "energy_peak_over_start": {k: r["energy_peak_over_start"] for k, r in runs.items()},
+        "penetrations": max(r["penetrations"] for r in runs.values()),
+        "wall_s": sum(r["wall_s"] for r in runs.values()),
+        "newton_iterations": sum(r["newton_iterations"] for r in runs.values()),
+        "runs": {k: _for_json(r) for k, r in runs.items()},
+    }
+
+
+def plot(payload: dict, path: Path) -> None:
+    """Figure 7 style: energies of each transfer over time (with the total energy of the
+    ``compared_integrators`` runs), and the momentum drift; none for the probe."""
+    if payload["mode"] == "full_probe":
+        return
+
+    def arrays(runs: dict) -> dict:
+        return {
+            k: {**r, "series": {s: np.asarray(v, dtype=float) for s, v in r["series"].items()}}
+            for k, r in runs.items()
+        }
+
+    runs = arrays(payload["runs"])
+    compared = {k: arrays(c["runs"]) for k, c in payload["compared_integrators"].items()}
     fig, axes = figure((8.0, 9.0), 3, 1, sharex=True, layout="constrained")
     for ax, (transfer, run) in zip(axes[:2], runs.items(), strict=True):
         s = run["series"]
@@ -263,7 +281,7 @@ def _plot(runs: dict, path: Path, title: str, compared: dict | None = None) -> N
             ("contact", "C2:", "barrier"),
         ):
             ax.plot(s["t"], s[key] / 1e6, style, label=label)
-        for k, (integrator, by_transfer) in enumerate((compared or {}).items()):
+        for k, (integrator, by_transfer) in enumerate(compared.items()):
             other = by_transfer[transfer]
             loss = other["energy_loss_pct"]
             label = f"total, {integrator} (lost {loss:.2f} %)"
@@ -287,7 +305,7 @@ def _plot(runs: dict, path: Path, title: str, compared: dict | None = None) -> N
         for k, edge in enumerate(window or ()):
             label = "first / last step with contact" if k == 0 else None
             ax.axvline(edge, color="0.3", ls="--", lw=0.8, label=label)
-    save(fig, path, axes, title)
+    save(fig, path, axes, f"Colliding rings, MPM (left) vs FEM (right), {payload['mode']} mode")
 
 
 def _arguments(group: argparse._ActionsContainer) -> None:
@@ -315,21 +333,15 @@ def measure(mode: str, cfg: dict, compare: bool = True) -> dict:
             for name in COMPARED_INTEGRATORS
         }
     first = runs["apic"]
-    min_distance = np.nanmin([r["min_distance"] for r in runs.values()])
     payload = {
-        "momentum_drift_rel": max(r["momentum_drift_rel"] for r in runs.values()),
-        "min_distance": float(min_distance),
-        "energy_loss_pct": {k: r["energy_loss_pct"] for k, r in runs.items()},
+        **_summary(runs),
         "steps": first["steps"],
         "steps_total": sum(r["steps"] for r in runs.values()),
-        "wall_s": sum(r["wall_s"] for r in runs.values()),
         # seconds per step phase summed over both transfers (each run's own under runs.*)
         "phase_s": {
             phase: sum(r["phase_s"].get(phase, 0.0) for r in runs.values())
             for phase in sorted({p for r in runs.values() for p in r["phase_s"]})
         },
-        "newton_iterations": sum(r["newton_iterations"] for r in runs.values()),
-        "penetrations": max(r["penetrations"] for r in runs.values()),
         "paper": PAPER,
         "targets": {
             "momentum_drift_rel": "< 1e-9",
@@ -355,43 +367,17 @@ def measure(mode: str, cfg: dict, compare: bool = True) -> dict:
             "fem_vertices": first["fem_vertices"],
             "fem_triangles": first["fem_triangles"],
         },
-        "runs": {k: _for_json(r) for k, r in runs.items()},
     }
-    payload["energy_peak_over_start"] = {k: r["energy_peak_over_start"] for k, r in runs.items()}
-    payload["compared_integrators"] = {}
-    for name, by_transfer in compared.items():
-        payload["compared_integrators"][name] = {
-            "energy_loss_pct": {k: r["energy_loss_pct"] for k, r in by_transfer.items()},
-            "energy_peak_over_start": {
-                k: r["energy_peak_over_start"] for k, r in by_transfer.items()
-            },
-            "momentum_drift_rel": max(r["momentum_drift_rel"] for r in by_transfer.values()),
-            "min_distance": float(np.nanmin([r["min_distance"] for r in by_transfer.values()])),
-            "penetrations": max(r["penetrations"] for r in by_transfer.values()),
-            "wall_s": sum(r["wall_s"] for r in by_transfer.values()),
-            "newton_iterations": sum(r["newton_iterations"] for r in by_transfer.values()),
+    payload["compared_integrators"] = {
+        name: {
+            **_summary(by_transfer),
             "diagnostics": {k: r["diagnostics"] for k, r in by_transfer.items()},
-            "runs": {k: _for_json(r) for k, r in by_transfer.items()},
         }
-        payload["wall_s"] += payload["compared_integrators"][name]["wall_s"]
+        for name, by_transfer in compared.items()
+    }
+    payload["wall_s"] += sum(c["wall_s"] for c in payload["compared_integrators"].values())
     log_row(log, NAME, payload, "momentum_drift_rel min_distance energy_loss_pct")
     return payload
-
-
-def plot(payload: dict, png: Path) -> None:
-    """``_plot`` of the recorded runs (their subsampled series); none for the probe."""
-    if payload["mode"] == "full_probe":
-        return
-
-    def arrays(runs: dict) -> dict:
-        return {
-            k: {**r, "series": {s: np.asarray(v, dtype=float) for s, v in r["series"].items()}}
-            for k, r in runs.items()
-        }
-
-    compared = {k: arrays(c["runs"]) for k, c in payload["compared_integrators"].items()}
-    title = f"Colliding rings, MPM (left) vs FEM (right), {payload['mode']} mode"
-    _plot(arrays(payload["runs"]), png, title, compared)
 
 
 def record(mode: str, options: dict) -> str:

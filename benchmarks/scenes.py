@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import argparse
 import logging
-import math
 import time
 from collections.abc import Mapping
 from pathlib import Path
@@ -42,7 +41,7 @@ import numpy as np
 import bfemp
 from benchmarks import catalogue as cat
 from benchmarks import rings, slope
-from benchmarks.common import figure, save
+from benchmarks.common import figure, log_row, save
 from benchmarks.runner import Benchmark, register
 from bfemp.steppers.augury import AuguryOptions
 from bfemp.steppers.lr import LROptions
@@ -126,13 +125,7 @@ def _run_rings(sim: bfemp.Simulation, t_end: float, callback: object = None) -> 
     rings run has (its ``StepError`` message or None, dt and steps, wall time, particles, energy
     loss (%) over the paper's window when reached), ``t (n,)`` s and the kinetic plus elastic
     energy ``(n,)`` J/m of every step."""
-    started, error = time.perf_counter(), None
-    try:
-        sim.run(t_end=t_end, progress=False, callback=callback)
-    except bfemp.StepError as err:
-        error = str(err)
-        log.error("rings under %s: %s", sim.strategy, err)
-    wall = time.perf_counter() - started
+    error, wall = rings.collide(sim, t_end, callback)
     m = sim.metrics
     t = m.column("t")
     energy = m.column("energy_kinetic") + m.column("energy_elastic")
@@ -147,12 +140,6 @@ def _run_rings(sim: bfemp.Simulation, t_end: float, callback: object = None) -> 
         "energy_loss_pct": 100.0 * (e0 - e1) / e0 if reached else None,
     }
     return common, t, energy
-
-
-def _drift(m: object, scale: float) -> float:
-    """Largest ``|p(t) - p(0)| / scale`` of the linear momentum of the metrics ``m``."""
-    momentum = np.stack([m.column("momentum_x"), m.column("momentum_y")], axis=1)
-    return float((np.linalg.norm(momentum - momentum[0], axis=1) / scale).max())
 
 
 def run_rings(
@@ -183,7 +170,7 @@ def run_rings(
         "transfer": transfer,
         **common,
         "fem_vertices": int(model.n_fem_nodes),
-        "momentum_drift_rel": _drift(m, scale),
+        "momentum_drift_rel": float(rings.momentum_drift(m, scale).max()),
         "min_distance": float(np.nanmin(dist)) if np.isfinite(dist).any() else None,
         "contact_steps": int(np.count_nonzero(pairs > 0)),
         "penetrations": int(check.worst),
@@ -209,7 +196,7 @@ def _run_mpm_rings(cfg: dict) -> dict:
     gap = float(cKDTree(x[~left]).query(x[left])[0].min())
     return {
         **common,
-        "momentum_drift_rel": _drift(sim.metrics, scale),
+        "momentum_drift_rel": float(rings.momentum_drift(sim.metrics, scale).max()),
         "closest_particles_end_m": gap,
     }
 
@@ -233,12 +220,8 @@ def _compared_rings(mode: str, strategy: str) -> dict:
             ),
             "lr_mpm_rings": _run_mpm_rings(cfg),
         }
-    barrier_cfg = {**rings.MODES["quick" if COMPARE_MODES[mode]["rings"] == "quick" else "partial"]}
-    barrier_cfg["t_end"] = cfg["t_end"]
-    started = time.perf_counter()
-    out["barrier"] = rings.run_transfer(barrier_cfg, transfer)
-    out["barrier"]["wall_s"] = time.perf_counter() - started
-    out["barrier"]["dt_s"] = barrier_cfg["dt"]
+    barrier_cfg = {**rings.MODES[COMPARE_MODES[mode]["rings"]], "t_end": cfg["t_end"]}
+    out["barrier"] = {**rings.run_transfer(barrier_cfg, transfer), "dt_s": barrier_cfg["dt"]}
     for name, r in out.items():
         log.info("rings %s: drift %.2e, %.1f s", name, r["momentum_drift_rel"], r["wall_s"])
     found = {"discretisation": cfg}
@@ -316,14 +299,7 @@ def run_cases(
         after = v[tau >= cfg["fit_start_s"]]
         case["max_speed_after_fit_start"] = float(after.max()) if after.size else None
         case["kappa"] = kappa
-        log.info(
-            "%s mu=%g: accel %s (analytic %.6g), %.1f s",
-            kappa,
-            mu,
-            case["accel"],
-            case["accel_analytic"],
-            case["wall_s"],
-        )
+        log_row(log, f"{kappa} mu={mu:g}", case, "accel accel_analytic wall_s")
         cases.append(case)
     return {"settle": settle, "cases": cases}
 
@@ -493,15 +469,8 @@ def sticking(mode: str, cfg: Mapping, release_from: str | None = None) -> dict:
         case = cat.release_slope("tilted_gravity", mu, rest, steps, fit_start_s, p)
         case.update(start=start, eps_v=eps_v, mu_over_tan_theta=f)
         sticking_metrics(case, fit_start_s)
-        log.info(
-            "start=%s eps_v=%g mu=%.3g: %.2f Newton/step, mean speed %s m/s, %.1f s",
-            start,
-            eps_v,
-            mu,
-            case["newton_per_step"],
-            case["mean_speed_after_fit_start"],
-            case["wall_s"],
-        )
+        label = f"start={start} eps_v={eps_v:g} mu={mu:.3g}"
+        log_row(log, label, case, "newton_per_step mean_speed_after_fit_start wall_s")
         cases.append(case)
     return {
         "settle": settle,
@@ -594,7 +563,7 @@ def _scene_of(strategy: str, scene: str | None) -> str:
     return scene
 
 
-def _modes_of(strategy: str, scene: str) -> Mapping:
+def _modes_of(scene: str) -> Mapping:
     if scene == "both":
         return COMPARE_MODES
     return RINGS_MODES if scene == "rings" else {**SLOPE_MODES, "sticking": {}}
@@ -605,33 +574,27 @@ def measure(
 ) -> dict:
     """The record of ``strategy`` on ``scene`` (see the module docstring)."""
     scene = _scene_of(strategy, scene)
-    modes = _modes_of(strategy, scene)
+    modes, name = _modes_of(scene), RECORD_NAMES[strategy, scene]
     if mode not in modes:
-        name = RECORD_NAMES[strategy, scene]
         raise ValueError(f"{name}: mode must be one of {sorted(modes)}, got {mode!r}")
-    name = RECORD_NAMES[strategy, scene]
     if scene == "rings":
         return {"benchmark": name, **_two_stage_rings(mode)}
     if scene == "slope":
         return {"benchmark": name, **_two_stage_slope(mode)}
-    started = time.perf_counter()
     payload = {
         "benchmark": name,
         "rings": _compared_rings(mode, strategy),
         "slope": _compared_slope(mode, strategy),
     }
-    if strategy == "augury":
+    runs = payload["rings"]["runs"]
+    if strategy == "augury":  # run_rings' min_distance: finite or None
         payload["paper_bfemp_energy_loss_pct"] = rings.PAPER["energy_loss_pct"]
-    payload["wall_s"] = time.perf_counter() - started
-    if payload["benchmark"] == "augury_scenes":
-        aug = payload["rings"]["runs"]["augury"]
-        payload["augury_momentum_drift_below_1e-10"] = bool(aug["momentum_drift_rel"] < 1e-10)
-        dist = aug.get("min_distance")
-        nan = dist is None or (isinstance(dist, float) and math.isnan(dist))
-        payload["augury_min_distance"] = None if nan else dist
-    elif payload["benchmark"] == "lr_scenes":
-        mpm = payload["rings"]["runs"]["lr_mpm_rings"]
-        payload["lr_mpm_rings_drift_below_1e-10"] = bool(mpm["momentum_drift_rel"] < 1e-10)
+        drift = runs["augury"]["momentum_drift_rel"]
+        payload["augury_momentum_drift_below_1e-10"] = bool(drift < 1e-10)
+        payload["augury_min_distance"] = runs["augury"]["min_distance"]
+    else:
+        drift = runs["lr_mpm_rings"]["momentum_drift_rel"]
+        payload["lr_mpm_rings_drift_below_1e-10"] = bool(drift < 1e-10)
     return payload
 
 

@@ -51,11 +51,9 @@ Choices where the paper is silent (recorded in the JSON ``parameters``):
   regular lattice count, ppc = 4 would give 10000); APIC transfer;
 - Newton iteration cap 1000 per step (``benchmarks/records/sine_boundary.md``: why);
 - ``partial`` mode (the recorded run, the full one being too slow for 2 cores): the paper's
-  scene, path and dt on a coarser grid, dx = 0.04 m, ppc = 4 (2500 particles);
-- quick mode halves every length but the sine's (box 0.5 m, gap 0.1 m, path 0.3 m down, 0.25 m
-  left) and coarsens: dx = 0.05 m, ppc = 4 (400 particles), strip edge length 0.025 m,
-  dt = 5e-3 s (5 mm of boundary travel per step). At dx = 0.05 the grid cannot resolve the 0.1 m
-  wavelength, so quick-mode numbers are qualitative.
+  scene, path and dt on a coarser grid; quick mode halves every length but the sine's
+  (``scale``) and coarsens further: its grid cannot resolve the 0.1 m wavelength, so its
+  numbers are qualitative.
 """
 
 from __future__ import annotations
@@ -70,7 +68,7 @@ import numpy as np
 import bfemp
 from benchmarks import catalogue
 from benchmarks._penetration import penetration_summary
-from benchmarks.common import figure, log_row
+from benchmarks.common import figure, log_row, save
 from benchmarks.runner import Benchmark, register
 
 log = logging.getLogger(__name__)
@@ -322,9 +320,11 @@ def run_treatment(cfg: dict, treatment: str) -> dict:
     return out
 
 
-def _plot(runs: dict, geo: Geometry, path_png: Path, title: str) -> None:
+def plot(payload: dict, path: Path) -> None:
     """Side by side per treatment: force and penetrations over time, snapshots at the deepest
     point and during separation (when the level set pulls hardest)."""
+    runs, mode = payload["_runs"], payload["mode"]
+    geo = Geometry(scale=MODES[mode]["scale"])
     fig, axes = figure((11.0, 12.0), 3, 2, layout="constrained")
     ls = runs["levelset"]["series"]
     up = ls["t"] > geo.t_up
@@ -379,8 +379,8 @@ def _plot(runs: dict, geo: Geometry, path_png: Path, title: str) -> None:
                 f"t = {snap['t']:.3f} s, {phase}: {int(inside.sum())} inside (red)",
                 fontsize="medium",
             )
-    fig.suptitle(title)
-    fig.savefig(path_png, dpi=110)
+    title = f"Sine boundary on an MPM box: BFEMP vs level-set slip, {mode} mode"
+    save(fig, path, title=title)
 
 
 def measure(mode: str, cfg: dict) -> dict:
@@ -456,13 +456,6 @@ def measure(mode: str, cfg: dict) -> dict:
     for name, r in runs.items():
         log_row(log, f"{NAME} {name}", r, "penetrations max_tensile_force")
     return {**payload, "_runs": runs}
-
-
-def plot(payload: dict, png: Path) -> None:
-    """``_plot`` of both treatments."""
-    mode = payload["mode"]
-    title = f"Sine boundary on an MPM box: BFEMP vs level-set slip, {mode} mode"
-    _plot(payload["_runs"], Geometry(scale=MODES[mode]["scale"]), png, title)
 
 
 BENCHMARK = register(Benchmark(NAME, __doc__, MODES, measure, plot=plot))

@@ -49,26 +49,17 @@ Choices where the paper is silent or contradicts itself (recorded in the JSON):
   as in every mode here; the top particle layer is half a particle spacing lower still), meshed
   by ``bfemp.shapes.spherical_shell`` (cubed sphere, one radial layer of hexahedra split into
   tetrahedra).
-- Full mode: dx = 0.0625 m, 27 particles per cell (110,592 particles; the paper's 90,929 is 22.2
-  per cell), shell h = 0.08 m (1204 vertices, 3600 tetrahedra; the paper's 1364 / 3920), the
-  paper's dt and motion, the four mu; its cost is estimated from the full timing probe
-  (``FULL_ESTIMATE``).
-- Partial mode: dx = 0.125 m, 8 particles per cell (4,096 particles), shell h = 0.1 m (772
-  vertices, 2304 tetrahedra), dt = 2e-2 s (2x), the paper's motion, the four mu; like quick
-  mode, each case stops ``STOP_AFTER_SLIP_S`` after its slip starts (mu = 1 runs to the end).
-  The record is rewritten after every case, so a stopped run keeps the cases it finished.
-- Quick mode: dx = 0.25 m, 8 per cell (512 particles), shell h = 0.15 m (436 vertices, 1296
-  tetrahedra), dt = 5e-2 s (5x), the paper's press; the twist at 2 pi/5 rad/s (2x) for 2.25 s
-  (the same 0.9 pi); the four mu (the test, ``tests/benchmarks/test_twist.py``, runs 0, 0.2
-  and 0.5: mu = 1 does not slip and is the longest case). Each run stops
-  ``STOP_AFTER_SLIP_S`` = 0.15 s after its slip starts (the slipping steps take many Newton
-  iterations).
-- Timing probes (``--mode partial_probe`` / ``full_probe``: the mu = 0.5 case cut after
-  ``PROBE_BUDGET_S`` of wall time, or after ``max_steps`` steps with ``probe``, its kernels
-  compiled beforehand; ``--mode partial_solvers``: the first ``SOLVER_PROBE_STEPS`` partial
-  steps per linear solver) record per-step wall and CPU time, Newton iterations, contact pairs,
-  phases (the Hessian and the factorisation per Newton iteration, the Hessian split by term)
-  and peak memory: they are measurements of cost, not results.
+- Modes (``MODES``): full, the paper's dt and motion at dx = 0.0625 m with 27 particles per
+  cell (110,592 particles; the paper's 90,929 is 22.2 per cell) and a shell of 1204 vertices /
+  3600 tetrahedra (the paper's 1364 / 3920), its cost estimated from the full timing probe
+  (``FULL_ESTIMATE``); partial and quick coarsen the grid, the shell and dt (quick also twists
+  2x faster for half the time: the same 0.9 pi) and stop each case ``STOP_AFTER_SLIP_S`` after
+  its slip starts (the slipping steps take many Newton iterations; mu = 1 runs to the end). The
+  record is rewritten after every case, so a stopped run keeps the cases it finished.
+- Timing probes (``PROBES``: the mu = 0.5 case cut at ``PROBE_BUDGET_S`` of wall time or at
+  ``max_steps``, its kernels compiled first; ``partial_solvers``: the first
+  ``SOLVER_PROBE_STEPS`` partial steps per linear solver) record per-step wall and CPU time,
+  Newton iterations, contact pairs and phases: measurements of cost, not results.
 - Newton iteration cap 1000 per minimisation; lagged-friction loop capped at 20 updates (the
   default; a step that hits it logs "friction loop did not converge" and goes on, as the
   library does).
@@ -89,7 +80,7 @@ import numpy as np
 
 import bfemp
 from benchmarks import catalogue
-from benchmarks.common import cases_by_mu, figure, note_merge, save
+from benchmarks.common import cases_by_mu, figure, log_row, note_merge, save
 from benchmarks.runner import Benchmark, name_unless, register, write_record
 from geometry.mesh import TetMesh
 from solvers.choice import make_linear_solver
@@ -264,7 +255,9 @@ def _run_one(
     friction_max, friction_unconverged, min_d, error = 0, 0, math.inf, None
     slip_t = slip_angle = None
     cut = False  # stopped by budget_s before the end of the run
-    series = {k: [] for k in ("step_wall_s", "step_cpu_s", "newton", "pairs", "split")}
+    # per step (the record's series; step_phase_s and the Hessian split for the probes only)
+    keys = ("step_wall_s", "step_cpu_s", "step_newton_iterations", "step_contact_pairs")
+    series = {k: [] for k in (*keys, "step_hessian_phases_s")}
     phases: dict[str, float] = {}
     step_phases: dict[str, list[float]] = {k: [] for k in STEP_PHASES}
     started = time.perf_counter()
@@ -276,14 +269,16 @@ def _run_one(
             break
         series["step_wall_s"].append(time.perf_counter() - tick)
         series["step_cpu_s"].append(time.process_time() - cpu)
-        series["newton"].append(report.newton_iterations)
-        series["pairs"].append(report.contact_pairs)
+        series["step_newton_iterations"].append(report.newton_iterations)
+        series["step_contact_pairs"].append(report.contact_pairs)
         for name, seconds in report.timings.items():
             phases[name] = phases.get(name, 0.0) + seconds
         for name, values in step_phases.items():
             values.append(report.timings.get(name, 0.0))
         after = sim.stepper.potential.hessian_seconds()  # the Hessian split by term
-        series["split"].append({k: v - before.get(k, 0.0) for k, v in after.items()})
+        series["step_hessian_phases_s"].append(
+            {k: v - before.get(k, 0.0) for k, v in after.items()}
+        )
         friction_max = max(friction_max, report.friction_iterations)
         friction_unconverged += int(not report.friction_converged)
         if np.isfinite(report.min_distance):
@@ -297,13 +292,8 @@ def _run_one(
         elif cfg["stop_after_slip"] and sim.state.t >= slip_t + STOP_AFTER_SLIP_S - 1e-9:
             break
         if len(t) % PROGRESS_EVERY == 1:
-            log.info(
-                "twist mu=%g: t = %.2f s, cube %.3f pi, %.0f s",
-                mu,
-                t[-1],
-                cube[-1] / math.pi,
-                time.perf_counter() - started,
-            )
+            row = {"t": t[-1], "cube_pi": cube[-1] / math.pi, "s": time.perf_counter() - started}
+            log_row(log, f"twist mu={mu:g}", row, "t cube_pi s")
         if time.perf_counter() - started > budget_s:
             cut = True
             break
@@ -323,7 +313,7 @@ def _run_one(
             None if slip_t is None else cfg["omega"] * (slip_t - PRESS_TIME) / math.pi
         ),
         "max_cube_angle_pi": max(cube) / math.pi,
-        "newton_iterations": sum(series["newton"]),
+        "newton_iterations": sum(series["step_newton_iterations"]),
         "friction_iterations_max": friction_max,
         "friction_unconverged_steps": friction_unconverged,
         "min_distance_m": min_d if math.isfinite(min_d) else None,
@@ -342,12 +332,8 @@ def _run_one(
             "t_s": t,
             "cube_angle_rad": cube,
             "shell_angle_rad": [cfg["omega"] * max(0.0, s - PRESS_TIME) for s in t],
-            "step_wall_s": step_wall,
-            "step_cpu_s": series["step_cpu_s"],
-            "step_newton_iterations": series["newton"],
-            "step_contact_pairs": series["pairs"],
+            **series,
             "step_phase_s": step_phases,
-            "step_hessian_phases_s": series["split"],
         },
     }
 
