@@ -137,40 +137,16 @@ def nodes_of_step(
     its P2G; ``two_stage`` with the explicit engine's P2G)."""
     d, n_fem = model.dim, model.n_fem_nodes
     fem_fixed = model.prescribed_positions(t_next)
+    fem = (state.fem_x, state.fem_v, state.fem_a, model.fem_mass, fem_fixed, np.zeros((n_fem, d)))
     if mpm is None:
         layout = DofLayout(d, ~model.fem_prescribed, n_fem)
-        zeros = np.zeros_like(state.fem_x)
-        return StepNodes(
-            t_next,
-            dt,
-            layout,
-            None,
-            state.fem_x,
-            state.fem_v,
-            state.fem_a,
-            model.fem_mass,
-            fem_fixed,
-            zeros,
-            None,
-        )
-    grid_x = mpm.stencils.active_x
+        return StepNodes(t_next, dt, layout, None, *fem, None)
+    grid_x, shift = mpm.stencils.active_x, mpm.constraints.shift
     grid_a = mpm.acceleration if mpm.acceleration is not None else 0.0 * grid_x
-    free = np.concatenate([~model.fem_prescribed, ~mpm.constraints.sticky])
-    layout = DofLayout(d, free, n_fem)
-    shift = np.concatenate([np.zeros((n_fem, d)), mpm.constraints.shift])
-    return StepNodes(
-        t_next=t_next,
-        dt=dt,
-        layout=layout,
-        mpm=mpm,
-        x=np.concatenate([state.fem_x, grid_x]),
-        v=np.concatenate([state.fem_v, mpm.fields.velocity]),
-        a=np.concatenate([state.fem_a, grid_a]),
-        mass=np.concatenate([model.fem_mass, mpm.fields.mass]),
-        fixed=np.concatenate([fem_fixed, grid_x + mpm.constraints.shift]),
-        shift=shift,
-        frames=_slip_frames(layout, mpm),
-    )
+    grid = (grid_x, mpm.fields.velocity, grid_a, mpm.fields.mass, grid_x + shift, shift)
+    layout = DofLayout(d, np.concatenate([~model.fem_prescribed, ~mpm.constraints.sticky]), n_fem)
+    all_nodes = map(np.concatenate, zip(fem, grid, strict=True))  # x, v, a, mass, fixed, shift
+    return StepNodes(t_next, dt, layout, mpm, *all_nodes, _slip_frames(layout, mpm))
 
 
 def _slip_frames(layout: DofLayout, mpm: MpmStep) -> NodeFrames | None:
