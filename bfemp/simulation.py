@@ -306,20 +306,17 @@ class Simulation:
         The run takes whole steps of ``dt``: it ends at the first ``t = t0 + n dt >= t_end`` (within
         ``1e-9 dt``), past ``t_end`` by less than one step when ``dt`` does not divide the time
         to go (``dt="auto"``: 0.300539 s for 0.3 s; logged). The last step is not shortened to
-        land on ``t_end``: a run continued from its checkpoint (``resume``) must equal an
-        uninterrupted one bit for bit, which a short step in its middle would break, and the
-        explicit strategies derive settings from ``dt`` once (augury's ``tau``, the CFL checks).
-
-        ``callback(sim)`` is called after every step (to record custom quantities).
+        land on ``t_end``: a run continued from its checkpoint (``resume``) equals an uninterrupted
+        one bit for bit (frames, PVD files and metrics; wall-clock ``time_*`` columns excepted),
+        which a short step in its middle would break, and the explicit strategies derive
+        settings from ``dt`` once (augury's ``tau``, the CFL checks).
 
         With an output folder ``out`` the run also writes ``metrics.csv``, ``metrics.png``, a
         run manifest (``manifest.json``, see :mod:`bfemp.manifest`) and checkpoints
         (:mod:`bfemp.checkpoint`): at the end, every ``checkpoint_every`` steps if given, when a
         step fails (the last good state), and on Ctrl-C: the first Ctrl-C finishes the current
         step, writes a checkpoint and raises ``KeyboardInterrupt``; a second one aborts at once
-        (the last periodic checkpoint remains). ``resume=True`` continues the run of ``out``
-        from its checkpoint; the continued run equals an uninterrupted one bit for bit (frames,
-        PVD files and metrics; wall-clock ``time_*`` columns excepted).
+        (the last periodic checkpoint remains).
 
         A fresh run refuses a folder that holds an earlier run's outputs unless ``overwrite``
         (then deletes them first: :mod:`bfemp.io.outputs`). One run writes a folder at a time:
@@ -327,8 +324,7 @@ class Simulation:
         naming the holder), as are, on resume, a corrupt checkpoint, manifest or frame; the
         temporary files of a killed run are removed. Every run with ``out`` writes
         ``snapshots.png`` (the bodies at up to 6 frame times, coloured by von Mises stress) and
-        ``scene.toml``; ``animation="gif"`` (or ``"mp4"``, with ffmpeg) also writes
-        ``animation.gif`` of every frame (:mod:`bfemp.io.snapshots`).
+        ``scene.toml``.
 
         Args:
             t_end: end time in s.
@@ -336,13 +332,14 @@ class Simulation:
             every: frame interval in steps (>= 1); None: 1, or on resume the interval of the
                 run being continued (its checkpoint's).
             progress: show a tqdm progress bar.
-            callback: called as ``callback(sim)`` after every step.
+            callback: called as ``callback(sim)`` after every step (to record custom quantities).
             checkpoint_every: checkpoint interval in steps (0: only at the end); None: 0, or on
                 resume the interval of the run being continued (its manifest's).
             resume: continue from the checkpoint in ``out``.
             metadata: extra parameters recorded in the manifest (e.g. the scene file).
             overwrite: replace the outputs of an earlier run in ``out`` (else refused).
-            animation: ``"gif"`` or ``"mp4"``: also write ``out/animation.FMT``.
+            animation: ``"gif"`` or ``"mp4"`` (with ffmpeg): also write ``out/animation.FMT`` of
+                every frame (:mod:`bfemp.io.snapshots`).
             scene_toml: text of ``out/scene.toml`` (default: the scene of this simulation with
                 its settings; nothing for a simulation built from a ``Model``).
 

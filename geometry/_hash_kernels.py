@@ -229,45 +229,31 @@ def _query(
     """
     n_query = a_lo.shape[0]
     counts = np.zeros(n_query, dtype=np.int64)
-    dummy = np.empty(0, dtype=np.int64)
-    for i in prange(n_query):
-        if a_active[i]:
-            counts[i] = _query_one(
-                i,
-                a_lo,
-                a_hi,
-                a_cell_lo,
-                a_cell_hi,
-                b_lo,
-                b_hi,
-                b_cell_lo,
-                bucket_start,
-                bucket_items,
-                mask,
-                dummy,
-                0,
-                False,
-            )
     offsets = np.zeros(n_query + 1, dtype=np.int64)
-    for i in range(n_query):
-        offsets[i + 1] = offsets[i] + counts[i]
-    out_b = np.empty(offsets[n_query], dtype=np.int64)
-    for i in prange(n_query):
-        if counts[i] > 0:
-            _query_one(
-                i,
-                a_lo,
-                a_hi,
-                a_cell_lo,
-                a_cell_hi,
-                b_lo,
-                b_hi,
-                b_cell_lo,
-                bucket_start,
-                bucket_items,
-                mask,
-                out_b,
-                offsets[i],
-                True,
-            )
+    out_b = np.empty(0, dtype=np.int64)
+    for write in (False, True):  # count each query's pairs, then store them at its offset
+        for i in prange(n_query):
+            if a_active[i] and (counts[i] > 0 or not write):
+                n = _query_one(
+                    i,
+                    a_lo,
+                    a_hi,
+                    a_cell_lo,
+                    a_cell_hi,
+                    b_lo,
+                    b_hi,
+                    b_cell_lo,
+                    bucket_start,
+                    bucket_items,
+                    mask,
+                    out_b,
+                    offsets[i],
+                    write,
+                )
+                if not write:
+                    counts[i] = n
+        if not write:
+            for i in range(n_query):
+                offsets[i + 1] = offsets[i] + counts[i]
+            out_b = np.empty(offsets[n_query], dtype=np.int64)
     return counts, out_b

@@ -470,12 +470,8 @@ def _shake_and_grow(gen: np.random.Generator, placed: _Placed, goal: float, s_ma
             ok, _ = placed.free(c[None], (f * size)[None], np.array([theta]), skip=int(e))
             f_lo, f_hi = (f, f_hi) if ok[0] else (f_lo, f)
         if f_lo > 1.0:
-            placed.set(
-                e,
-                c,
-                f_lo * size,
-                theta,
-                ellipse_polygons(c[None], (f_lo * size)[None], np.array([theta]))[0],
-            )
+            grown = f_lo * size
+            poly = ellipse_polygons(c[None], grown[None], np.array([theta]))[0]
+            placed.set(e, c, grown, theta, poly)
         if placed.area >= goal:
             return

@@ -1,8 +1,8 @@
 """The scaffolding every grid-based step shares: gather all-node fields, write the new state.
 
 A step works on "all nodes": the FEM nodes ``[0, N)`` then the active MPM grid nodes of the step
-``[N, N + G)`` (``bfemp.dofs``): ``gather_nodes`` (P2G, Tables 1-3) and ``write_state`` (one
-G2P) convert between those and ``State``.
+``[N, N + G)`` (``bfemp.dofs``): ``nodes_of_step`` (after the P2G, Tables 1-3) and
+``write_state`` (one G2P) convert between those and ``State``.
 """
 
 from __future__ import annotations
@@ -17,14 +17,14 @@ from bfemp.dofs import DofLayout
 from bfemp.frames import NodeFrames
 from bfemp.model import Model
 from bfemp.mpm.boundaries import normal_frames
-from bfemp.mpm.step import MpmStep, prepare_mpm_step
+from bfemp.mpm.step import MpmStep
 from bfemp.mpm.transfer import grid_to_particles
 from bfemp.potential import IncrementalPotential
 from bfemp.state import State
 from bfemp.terms import StepContext
 from solvers.linear import LinearSolver
 
-__all__ = ["StepNodes", "StepPhases", "gather_nodes", "nodes_of_step", "write_state"]
+__all__ = ["StepNodes", "StepPhases", "nodes_of_step", "write_state"]
 
 
 @dataclass(frozen=True)
@@ -111,66 +111,24 @@ class StepPhases:
         return self.context.layout
 
 
-def gather_nodes(
-    model: Model,
-    state: State,
-    *,
-    transfer: str,
-    with_acceleration: bool,
-    dt: float,
-    t_next: float,
-) -> StepNodes:
-    """All-node fields of the step from ``state`` to ``t_next`` (P2G included)."""
-    mpm = None
-    if model.n_particles:
-        mpm = prepare_mpm_step(
-            model, state, transfer, with_acceleration=with_acceleration, dt=t_next - state.t
-        )
-    return nodes_of_step(model, state, mpm, dt=dt, t_next=t_next)
-
-
 def nodes_of_step(
     model: Model, state: State, mpm: MpmStep | None, *, dt: float, t_next: float
 ) -> StepNodes:
     """All-node fields of a step whose grid part (stencils, P2G, constraints) is ``mpm`` (None
-    without particles): the FEM nodes of ``state`` then the grid nodes (``gather_nodes`` after
-    its P2G; ``two_stage`` with the explicit engine's P2G)."""
+    without particles): the FEM nodes of ``state`` then the grid nodes (``barrier`` after its P2G,
+    ``bfemp.mpm.step.prepare_mpm_step``; ``two_stage`` with the explicit engine's P2G)."""
     d, n_fem = model.dim, model.n_fem_nodes
     fem_fixed = model.prescribed_positions(t_next)
+    fem = (state.fem_x, state.fem_v, state.fem_a, model.fem_mass, fem_fixed, np.zeros((n_fem, d)))
     if mpm is None:
         layout = DofLayout(d, ~model.fem_prescribed, n_fem)
-        zeros = np.zeros_like(state.fem_x)
-        return StepNodes(
-            t_next,
-            dt,
-            layout,
-            None,
-            state.fem_x,
-            state.fem_v,
-            state.fem_a,
-            model.fem_mass,
-            fem_fixed,
-            zeros,
-            None,
-        )
-    grid_x = mpm.stencils.active_x
+        return StepNodes(t_next, dt, layout, None, *fem, None)
+    grid_x, shift = mpm.stencils.active_x, mpm.constraints.shift
     grid_a = mpm.acceleration if mpm.acceleration is not None else 0.0 * grid_x
-    free = np.concatenate([~model.fem_prescribed, ~mpm.constraints.sticky])
-    layout = DofLayout(d, free, n_fem)
-    shift = np.concatenate([np.zeros((n_fem, d)), mpm.constraints.shift])
-    return StepNodes(
-        t_next=t_next,
-        dt=dt,
-        layout=layout,
-        mpm=mpm,
-        x=np.concatenate([state.fem_x, grid_x]),
-        v=np.concatenate([state.fem_v, mpm.fields.velocity]),
-        a=np.concatenate([state.fem_a, grid_a]),
-        mass=np.concatenate([model.fem_mass, mpm.fields.mass]),
-        fixed=np.concatenate([fem_fixed, grid_x + mpm.constraints.shift]),
-        shift=shift,
-        frames=_slip_frames(layout, mpm),
-    )
+    grid = (grid_x, mpm.fields.velocity, grid_a, mpm.fields.mass, grid_x + shift, shift)
+    layout = DofLayout(d, np.concatenate([~model.fem_prescribed, ~mpm.constraints.sticky]), n_fem)
+    all_nodes = map(np.concatenate, zip(fem, grid, strict=True))  # x, v, a, mass, fixed, shift
+    return StepNodes(t_next, dt, layout, mpm, *all_nodes, _slip_frames(layout, mpm))
 
 
 def _slip_frames(layout: DofLayout, mpm: MpmStep) -> NodeFrames | None:
@@ -203,7 +161,7 @@ def write_state(
     Args:
         model: the static model.
         state: the state at t^n.
-        nodes: the step's start fields (``gather_nodes``).
+        nodes: the step's start fields (``nodes_of_step``).
         transfer: ``"apic"``, ``"pic"`` or ``"flip"``.
         x_end: end positions ``(n_all, d)`` in m.
         v_end: end velocities ``(n_all, d)`` in m/s (sticky grid nodes are set here to ride

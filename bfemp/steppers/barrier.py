@@ -3,7 +3,7 @@
 One step:
 1. MPM: quadratic B-spline stencils at x_p^n and P2G of mass, velocity (and acceleration for
    Newmark) per Tables 1-3 (line 2); level-set constraints of the active grid nodes
-   (``bfemp.steppers._scaffold.gather_nodes``).
+   (``bfemp.mpm.step.prepare_mpm_step``).
 2. Unknowns: free FEM nodes and unconstrained grid nodes, prescribed FEM nodes follow their motion,
    sticky grid nodes stay, slip grid nodes move tangentially only (rotated frames).
 3. Predict x_hat (BFEMP eqs. 21-22), minimise the incremental potential with projected Newton from
@@ -41,11 +41,12 @@ from bfemp.contact.intersection import step_intersection, step_inversion
 from bfemp.contact.term import BarrierTerm
 from bfemp.integrators import Integrator
 from bfemp.model import Model
+from bfemp.mpm.step import prepare_mpm_step
 from bfemp.state import State
 from bfemp.steppers._barrier_options import LINEAR_SOLVERS, BarrierOptions
 from bfemp.steppers._barrier_potential import build_potential, contact_view, has_contact
 from bfemp.steppers._barrier_solve import ScriptedSolve
-from bfemp.steppers._scaffold import StepNodes, StepPhases, gather_nodes, write_state
+from bfemp.steppers._scaffold import StepNodes, StepPhases, nodes_of_step, write_state
 from bfemp.steppers.base import ContactView, StepError, StepReport, finite_or_nan
 from bfemp.steppers.capabilities import BARRIER_PAIRS, Capabilities
 from bfemp.terms import StepContext
@@ -164,17 +165,14 @@ class BarrierStepper:
         integrator's weights (BFEMP eq. 22); ``frames=False``: without slip frames."""
         integ, dt = self.integrator, self.dt
         started = time.perf_counter()
-        nodes = gather_nodes(
-            self.model,
-            state,
-            transfer=self.transfer,
-            with_acceleration=integ.uses_acceleration,
-            dt=dt,
-            t_next=t_next,
-        )
+        model, mpm = self.model, None
+        if model.n_particles:
+            with_a = integ.uses_acceleration
+            mpm = prepare_mpm_step(model, state, self.transfer, with_a, dt=t_next - state.t)
+        nodes = nodes_of_step(model, state, mpm, dt=dt, t_next=t_next)
         gathered = time.perf_counter()
         x_hat_all = integ.predict(nodes.x, nodes.v, nodes.a, dt)
-        ctx = nodes.context(self.model, state, x_hat_all)
+        ctx = nodes.context(model, state, x_hat_all)
         if self.friction is not None:  # the sliding map of BFEMP eq. 37
             ctx.sliding = self._sliding_map(nodes, x_hat_all)
         weights = integ.weight(dt), nodes.frames if frames else None

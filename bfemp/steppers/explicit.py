@@ -263,7 +263,8 @@ class ExplicitStepper:
         return self.auto_dt_bound(self.model, state, self.options).dt
 
     def contact(self) -> ContactView:
-        """No contact algorithm here: zero forces, no pairs, NaN distance and energy."""
+        """The contact view a strategy stored for the last step (``lr``); without one (the engine
+        has no contact algorithm): zero forces, no pairs, NaN distance and energy."""
         if self._last_contact is None:
             m = self.model
             self._last_contact = ContactView.empty(m.n_fem_nodes, m.n_particles, m.dim)

@@ -434,9 +434,3 @@ class LRStepper(ExplicitStepper):
             min_distance=float(sep.min()) if sep.size else float("nan"),
             pairs=int(np.unique(planes.node).size),
         )
-
-    def contact(self) -> ContactView:
-        """The contact forces of the last step (zero before the first)."""
-        if self._last_contact is None:
-            return super().contact()
-        return self._last_contact
