@@ -53,7 +53,6 @@ import numpy as np
 
 import bfemp
 from benchmarks._rings_probe import measure_probe
-from benchmarks._shared import check_settings
 from benchmarks.catalogue import (
     DHAT,
     GAP,
@@ -187,48 +186,6 @@ def run_transfer(cfg: dict, transfer: str, keep: dict | None = None) -> dict:
             "drift": drift,
             "min_distance": m.column("min_distance"),
         },
-    }
-
-
-#: the keys of a ``run_point`` settings dict (the trade study's knobs and fixed settings)
-POINT_KEYS = ("dx", "ppc", "fem_h", "dt", "t_end", "dhat", "tol", "strategy", "transfer")
-#: the entries of ``run_transfer``'s result a ``run_point`` result copies
-POINT_RESULTS = (
-    "steps",
-    "newton_iterations",
-    "newton_iterations_max",
-    "momentum_drift_rel",
-    "min_distance",
-    "penetrations",
-    "particles",
-    "fem_vertices",
-)
-
-
-def run_point(settings: dict) -> dict:
-    """One transfer at one setting of the discretisation knobs (``benchmarks.tradeoff``).
-
-    Args:
-        settings: every key of ``POINT_KEYS``: MPM grid ``dx`` (m), particles per cell ``ppc``
-            (a square), FEM mesh size ``fem_h`` (m), time step ``dt`` (s), ``t_end`` (s, at least
-            0.293), barrier ``dhat`` (m), Newton ``tol`` (m/s), the library's ``strategy`` name
-            and the ``transfer``.
-
-    Returns:
-        JSON-ready scalars: ``energy_loss_pct`` and ``contact_duration_s`` (last minus first step
-        with a contact pair; None without contact), the run's ``steps``, ``newton_iterations``,
-        ``momentum_drift_rel``, ``min_distance`` (m), ``penetrations``, ``particles`` and the
-        ``StepError`` message in ``failure`` (None when every step converged).
-    """
-    check_settings("rings.run_point", settings, POINT_KEYS)
-    run = run_transfer(dict(settings), settings["transfer"])
-    window = run["contact_window_s"]
-    return {
-        "energy_loss_pct": run["energy_loss_pct"],
-        "contact_window_s": window,
-        "contact_duration_s": window[1] - window[0] if window else None,
-        **{k: run[k] for k in POINT_RESULTS},
-        "failure": run["error"],
     }
 
 
