@@ -154,7 +154,7 @@ def mode_options(parser: argparse.ArgumentParser) -> None:
         dest="mode",
         help="another mode of the benchmark (rings: partial; hertz: refined; "
         "buckling: partial, plate_quick, plate_partial, plate_full; "
-        "twist: partial, partial_probe, full_probe; extremes: coarse)",
+        "twist: partial, partial_probe, full_probe)",
     )
     parser.add_argument("--out", default="results", help="output folder (default results/)")
 
