@@ -64,7 +64,7 @@ class Benchmark:
             argparse group; ``python -m benchmarks NAME`` passes their values to ``measure``.
         needs_out: ``measure`` also takes ``out=Path(out)``, the output folder, for a benchmark
             that keeps files beside its record (finished cases to resume a stopped run,
-            checkpoints, child processes' records, a previous record).
+            checkpoints, child processes' records).
     """
 
     name: str
