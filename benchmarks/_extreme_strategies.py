@@ -42,10 +42,10 @@ _CROSSING_REASON = {
     "single_field": "single_field's FEM bodies meet nothing but level sets",
 }
 #: most steps a run may take per mode (more: TOO_MANY_STEPS, decided before running)
-MAX_STEPS = {"quick": 2500, "coarse": 2500, "full": 25000}
+MAX_STEPS = {"quick": 2500, "full": 25000}
 #: simulated time of cases under the explicit strategies, per mode, where it differs from the
 #: case's (s)
-EXPLICIT_DURATION = {"resting": {"quick": 0.06, "coarse": 0.06, "full": 0.2}}
+EXPLICIT_DURATION = {"resting": {"quick": 0.06, "full": 0.2}}
 #: why the resting block of an explicit strategy may move by more than the barrier's tolerance
 #: (measured on the quick run; named outcome ``DRIFT``)
 _DRIFT_REASON = {

@@ -266,7 +266,7 @@ def slope_rotation(frame: str, theta: float) -> np.ndarray:
 def slope_scene(variant: str, mu: float, with_stop: bool, p: dict = SLOPE_PHYSICS) -> bfemp.Scene:
     """Slope (+ the downhill stop plane) and the box dhat away from both, in world coordinates.
 
-    ``p`` is ``SLOPE_PHYSICS`` or a copy with some entries changed (``run_point``).
+    ``p`` is ``SLOPE_PHYSICS`` or a copy with some entries changed (``slope.point_physics``).
     """
     frame, slope_h = SLOPE_VARIANTS[variant]
     theta = math.atan(p["tan_theta"])

@@ -3,8 +3,7 @@
 The cases (``benchmarks/_extreme_cases.CASES``) push stiffness, Poisson ratio, dt, dhat, the
 density ratio, the contact geometry, kappa, friction and the integrator, and rest a block on a
 fixed slab for many steps (drift). Modes: ``quick`` runs the cases marked ``quick`` (the tests
-assert their expected outcomes), ``full`` every case finer and longer, ``coarse`` every case at
-the quick discretisation and duration.
+assert their expected outcomes), ``full`` every case finer and longer.
 
 Every step of every case is checked independently of the solver (``_Checks``):
 

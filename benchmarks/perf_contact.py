@@ -33,13 +33,11 @@
 Every operation is called once, then ``repeats`` times in a row; its time (s) is the fastest call.
 Parts 1 and 2 run both libraries on ``COMPARE_THREADS`` threads (per-core throughput), part 3 on
 the default threads. ipctk is optional (``pip install .[bench]``); without it its columns are
-``null``. ``before_after``: ``[the record of the same mode already in the output folder, this
-run]`` for the headline rates, CCD times and the rings' per-iteration phases, or ``null``.
+``null``.
 """
 
 from __future__ import annotations
 
-import json
 import logging
 import math
 import time
@@ -465,28 +463,6 @@ def _rings_breakdown(resolution: str, repeats: int) -> dict:
 
 
 # --------------------------------------------------------------------------- report
-def _before_after(previous: dict | None, payload: dict) -> dict | None:
-    """``[previous record, this run]`` of the headline metrics, where ``out`` held a record of
-    the same mode (its commit and the ipctk columns tell how comparable the two runs are: both
-    libraries ran on the same shared machine, ipctk's drift is the load's)."""
-    if not previous or previous.get("mode") != payload["mode"]:
-        return None
-    out: dict = {"before_commit": previous.get("environment", {}).get("commit")}
-    for group in ("barrier_pairs_per_s", "ccd_s"):
-        for dim_key, new in payload[group].items():
-            old = previous.get(group, {}).get(dim_key, {})
-            for lib, value in new.items():
-                out[f"{group}_{dim_key}_{lib}"] = [old.get(lib), value]
-    ring_old = previous.get("rings_breakdown", {})
-    ring_new = payload["rings_breakdown"]
-    for key in ("time_per_newton_iteration_s", "pair_search_s", "ccd_s"):
-        out[f"rings_{key}"] = [ring_old.get(key), ring_new.get(key)]
-    phases_old = ring_old.get("step_phases_per_iteration_s", {})
-    for key, value in ring_new["step_phases_per_iteration_s"].items():
-        out[f"rings_per_iteration_{key}_s"] = [phases_old.get(key), value]
-    return out
-
-
 def _per_s(pairs: int, seconds: float | None) -> float | None:
     return None if seconds is None or seconds <= 0.0 else pairs / seconds
 
@@ -537,10 +513,9 @@ def _plot(payload: dict, path: Path) -> None:
     fig.savefig(path, dpi=110)
 
 
-def measure(mode: str, cfg: dict, out: Path) -> dict:
+def measure(mode: str, cfg: dict) -> dict:
     """Both configurations and the rings breakdown of ``mode`` (``"full"``: 50k pairs, rings at
-    full resolution; ``"quick"``: 5k, coarse rings); ``before_after`` against the record of
-    the same mode in ``out``, if any."""
+    full resolution; ``"quick"``: 5k, coarse rings)."""
     threads = numba.get_num_threads(), ipctk.get_num_threads() if ipctk is not None else None
     numba.set_num_threads(COMPARE_THREADS)  # per-core throughput: robust on a shared machine
     if ipctk is not None:
@@ -615,17 +590,12 @@ def measure(mode: str, cfg: dict, out: Path) -> dict:
         },
         "cases": cases,
     }
-    record = out / f"{BENCHMARK.stem(mode)}.json"
-    previous = json.loads(record.read_text()) if record.exists() else None
-    payload["before_after"] = _before_after(previous, payload)
     log.info("perf_contact: pairs/s %s; CCD s %s", pairs_per_s, ccd_s)
     return payload
 
 
 # the committed records of modes other than full carry the mode in their names
 BENCHMARK = register(
-    Benchmark(
-        NAME, __doc__, MODES, measure, plot=_plot, record=name_unless("full", NAME), needs_out=True
-    )
+    Benchmark(NAME, __doc__, MODES, measure, plot=_plot, record=name_unless("full", NAME))
 )
 run = BENCHMARK.run

@@ -38,8 +38,6 @@ Choices where the paper is silent (recorded in the JSON ``parameters``):
   collision window 0.025 s - 0.293 s.
 - The MPM grid is shifted by a quarter of the particle spacing (``rings_grid_origin``: with
   ppc = 9 and an unshifted grid Newton cannot converge, even in free flight).
-- ``--mode full_probe`` (record ``rings_full_probe.json``): the full scene cut at t = 0.035 s,
-  for the seconds of each phase of a step (:mod:`benchmarks._rings_probe`).
 """
 
 from __future__ import annotations
@@ -52,8 +50,6 @@ from pathlib import Path
 import numpy as np
 
 import bfemp
-from benchmarks._rings_probe import measure_probe
-from benchmarks._shared import check_settings
 from benchmarks.catalogue import (
     DHAT,
     GAP,
@@ -89,13 +85,11 @@ INTEGRATOR = "newmark_implicit_contact"
 COMPARED_INTEGRATORS = ("newmark",)
 
 #: the catalogue's discretisations (partial: paper dt and FEM mesh, MPM grid coarsened 2x) with
-#: their steps; full_probe: the full scene cut after 125 free-flight and about 50 contact steps,
-#: for per-phase timings (benchmarks._rings_probe)
+#: their steps
 MODES = {
     "full": dict(**RINGS_DISCRETISATION["full"], dt=2e-4, t_end=0.3),
     "partial": dict(**RINGS_DISCRETISATION["partial"], dt=2e-4, t_end=0.3),
     "quick": dict(**RINGS_DISCRETISATION["quick"], dt=2e-3, t_end=0.3),
-    "full_probe": dict(**RINGS_DISCRETISATION["full"], dt=2e-4, t_end=0.035),
 }
 SERIES_POINTS = 400  # per-step curves stored in the JSON are subsampled to about this many
 
@@ -190,48 +184,6 @@ def run_transfer(cfg: dict, transfer: str, keep: dict | None = None) -> dict:
     }
 
 
-#: the keys of a ``run_point`` settings dict (the trade study's knobs and fixed settings)
-POINT_KEYS = ("dx", "ppc", "fem_h", "dt", "t_end", "dhat", "tol", "strategy", "transfer")
-#: the entries of ``run_transfer``'s result a ``run_point`` result copies
-POINT_RESULTS = (
-    "steps",
-    "newton_iterations",
-    "newton_iterations_max",
-    "momentum_drift_rel",
-    "min_distance",
-    "penetrations",
-    "particles",
-    "fem_vertices",
-)
-
-
-def run_point(settings: dict) -> dict:
-    """One transfer at one setting of the discretisation knobs (``benchmarks.tradeoff``).
-
-    Args:
-        settings: every key of ``POINT_KEYS``: MPM grid ``dx`` (m), particles per cell ``ppc``
-            (a square), FEM mesh size ``fem_h`` (m), time step ``dt`` (s), ``t_end`` (s, at least
-            0.293), barrier ``dhat`` (m), Newton ``tol`` (m/s), the library's ``strategy`` name
-            and the ``transfer``.
-
-    Returns:
-        JSON-ready scalars: ``energy_loss_pct`` and ``contact_duration_s`` (last minus first step
-        with a contact pair; None without contact), the run's ``steps``, ``newton_iterations``,
-        ``momentum_drift_rel``, ``min_distance`` (m), ``penetrations``, ``particles`` and the
-        ``StepError`` message in ``failure`` (None when every step converged).
-    """
-    check_settings("rings.run_point", settings, POINT_KEYS)
-    run = run_transfer(dict(settings), settings["transfer"])
-    window = run["contact_window_s"]
-    return {
-        "energy_loss_pct": run["energy_loss_pct"],
-        "contact_window_s": window,
-        "contact_duration_s": window[1] - window[0] if window else None,
-        **{k: run[k] for k in POINT_RESULTS},
-        "failure": run["error"],
-    }
-
-
 def _for_json(run: dict) -> dict:
     """A run's summary with its per-step curves subsampled (every k-th step and the last)."""
     out = {key: value for key, value in run.items() if key != "series"}
@@ -259,9 +211,7 @@ def _summary(runs: dict) -> dict:
 
 def plot(payload: dict, path: Path) -> None:
     """Figure 7 style: energies of each transfer over time (with the total energy of the
-    ``compared_integrators`` runs), and the momentum drift; none for the probe."""
-    if payload["mode"] == "full_probe":
-        return
+    ``compared_integrators`` runs), and the momentum drift."""
 
     def arrays(runs: dict) -> dict:
         return {
@@ -321,10 +271,7 @@ def _arguments(group: argparse._ActionsContainer) -> None:
 def measure(mode: str, cfg: dict, compare: bool = True) -> dict:
     """Both transfers in ``mode``: ``"full"`` (paper resolution), ``"partial"`` (paper dt and
     FEM mesh, MPM grid 2x coarser) or ``"quick"`` (coarse, < 60 s); with ``compare``, in
-    partial and full modes, also ``COMPARED_INTEGRATORS`` (doubles the time). ``"full_probe"``:
-    the timing probe of ``benchmarks._rings_probe`` (no compared integrators)."""
-    if mode == "full_probe":
-        return {"parameters": dict(cfg), **measure_probe(cfg, run_transfer, TRANSFERS)}
+    partial and full modes, also ``COMPARED_INTEGRATORS`` (doubles the time)."""
     runs = {transfer: run_transfer(cfg, transfer) for transfer in TRANSFERS}
     compared = {}
     if compare and mode != "quick":  # the paper's literal mid-point Newmark (see the docstring)
@@ -380,12 +327,5 @@ def measure(mode: str, cfg: dict, compare: bool = True) -> dict:
     return payload
 
 
-def record(mode: str, options: dict) -> str:
-    """Record stem: ``rings`` (every mode but the probe), ``rings_full_probe`` (the probe)."""
-    return f"{NAME}_{mode}" if mode == "full_probe" else NAME
-
-
-BENCHMARK = register(
-    Benchmark(NAME, __doc__, MODES, measure, plot=plot, record=record, arguments=_arguments)
-)
+BENCHMARK = register(Benchmark(NAME, __doc__, MODES, measure, plot=plot, arguments=_arguments))
 run = BENCHMARK.run

@@ -64,7 +64,7 @@ class Benchmark:
             argparse group; ``python -m benchmarks NAME`` passes their values to ``measure``.
         needs_out: ``measure`` also takes ``out=Path(out)``, the output folder, for a benchmark
             that keeps files beside its record (finished cases to resume a stopped run,
-            checkpoints, child processes' records, a previous record).
+            checkpoints, child processes' records).
     """
 
     name: str
@@ -154,7 +154,7 @@ def mode_options(parser: argparse.ArgumentParser) -> None:
         dest="mode",
         help="another mode of the benchmark (rings: partial; hertz: refined; "
         "buckling: partial, plate_quick, plate_partial, plate_full; "
-        "twist: partial, partial_probe, full_probe, partial_solvers; extremes: coarse)",
+        "twist: partial, partial_probe, full_probe)",
     )
     parser.add_argument("--out", default="results", help="output folder (default results/)")
 

@@ -51,8 +51,6 @@ from pathlib import Path
 
 import numpy as np
 
-import bfemp
-from benchmarks._shared import check_settings
 from benchmarks.catalogue import SLOPE_PHYSICS as PHYSICS
 from benchmarks.catalogue import SLOPE_VARIANTS as VARIANTS
 from benchmarks.catalogue import release_slope, settle_slope
@@ -144,12 +142,10 @@ def _strip(cases: list[dict]) -> list[dict]:
     return [{k: v for k, v in c.items() if k != "series"} for c in cases]
 
 
-#: the keys of a ``run_point`` settings dict (the trade study's knobs and fixed settings)
-POINT_KEYS = tuple("dt dx ppc dhat eps_v tol strategy mu settle_s release_s fit_start_s".split())
-
-
 def point_physics(settings: dict) -> dict:
-    """``PHYSICS`` with the knobs of a ``run_point`` settings dict applied.
+    """``PHYSICS`` with a trade-study point's knobs applied (``_tradeoff_runs.slope_physics``):
+    time step ``dt`` (s), grid ``dx`` (m), particles per cell ``ppc`` (a square), barrier ``dhat``
+    (m), friction ``eps_v`` (m/s), Newton ``tol`` (m/s) and the library's ``strategy`` name.
 
     The particle lattice keeps the box edges: ``k = sqrt(ppc)`` particles per cell and axis at
     spacing ``dx / k``, i.e. ``(round(0.1 k / dx) + 1) x (round(0.02 k / dx) + 1)`` particles
@@ -174,50 +170,6 @@ def point_physics(settings: dict) -> dict:
         "tol_m_s": settings["tol"],
         "strategy": settings["strategy"],
     }
-
-
-def run_point(settings: dict) -> dict:
-    """Settle and release the ``tilted_gravity`` box at one friction coefficient and one setting of
-    the discretisation knobs (``benchmarks.tradeoff``).
-
-    Args:
-        settings: every key of ``POINT_KEYS``: time step ``dt`` (s), grid ``dx`` (m), particles
-            per cell ``ppc`` (a square), barrier ``dhat`` (m), friction ``eps_v`` (m/s), Newton
-            ``tol`` (m/s), the library's ``strategy`` name, friction coefficient ``mu`` (below
-            tan theta = 0.2), the settling and release periods ``settle_s``, ``release_s`` and
-            the fit's start ``fit_start_s`` (s after release).
-
-    Returns:
-        JSON-ready scalars of the release (``release`` without its series): ``accel``,
-        ``accel_analytic`` (m/s^2), ``accel_rel_error``, ``steps``, ``newton_iterations`` (settling
-        and release), ``particles``, and the ``StepError`` message in ``failure``.
-    """
-    check_settings("slope.run_point", settings, POINT_KEYS)
-    p = point_physics(settings)
-    dt = settings["dt"]
-    try:
-        settled, settle = settle_slope("tilted_gravity", round(settings["settle_s"] / dt), p)
-    except bfemp.StepError as err:  # no release without a settled box
-        log.warning("slope settling: %s", err)
-        return {"accel": None, "accel_rel_error": None, "steps": None, "failure": str(err)}
-    case = release_slope(
-        "tilted_gravity",
-        settings["mu"],
-        settled,
-        round(settings["release_s"] / dt),
-        settings["fit_start_s"],
-        p,
-    )
-    out = {k: v for k, v in case.items() if k not in ("series", "error")}
-    nx, ny = p["particle_lattice"]
-    out.update(
-        steps=settle["steps"] + case["steps"],
-        newton_iterations=settle["newton_iterations"] + case["newton_iterations"],
-        release_newton_iterations=case["newton_iterations"],
-        particles=nx * ny,
-        failure=case["error"],
-    )
-    return out
 
 
 def measure(mode: str, cfg: dict) -> dict:

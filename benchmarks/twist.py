@@ -57,15 +57,14 @@ Choices where the paper is silent or contradicts itself (recorded in the JSON):
   its slip starts (the slipping steps take many Newton iterations; mu = 1 runs to the end). The
   record is rewritten after every case, so a stopped run keeps the cases it finished.
 - Timing probes (``PROBES``: the mu = 0.5 case cut at ``PROBE_BUDGET_S`` of wall time or at
-  ``max_steps``, its kernels compiled first; ``partial_solvers``: the first
-  ``SOLVER_PROBE_STEPS`` partial steps per linear solver) record per-step wall and CPU time,
-  Newton iterations, contact pairs and phases: measurements of cost, not results.
+  ``max_steps``, its kernels compiled first) record per-step wall and CPU time, Newton
+  iterations, contact pairs and phases: measurements of cost, not results.
 - Newton iteration cap 1000 per minimisation; lagged-friction loop capped at 20 updates (the
   default; a step that hits it logs "friction loop did not converge" and goes on, as the
   library does).
 
 Measured results, with their commits: ``benchmarks/records/twist_quick.md`` (quick, partial,
-the partial and solver probes), ``benchmarks/records/twist_full_probe.md`` (the full probe and
+the partial probe), ``benchmarks/records/twist_full_probe.md`` (the full probe and
 the full mode's estimate).
 """
 
@@ -83,7 +82,6 @@ from benchmarks import catalogue
 from benchmarks.common import cases_by_mu, figure, log_row, note_merge, save
 from benchmarks.runner import Benchmark, name_unless, register, write_record
 from geometry.mesh import TetMesh
-from solvers.choice import make_linear_solver
 
 log = logging.getLogger(__name__)
 
@@ -106,7 +104,6 @@ PROBE_BUDGET_S = {"partial": 480.0, "full": 300.0}
 #: phases of ``StepReport.timings`` kept per step (the probes' per-iteration split)
 STEP_PHASES = ("hessian", "hessian_projection", "assemble", "analyze", "factorize", "solve")
 WARM_UP_CONTACT_STEPS = 2  # quick-mode contact steps run before a probe (``_warm_up``)
-SOLVER_PROBE_STEPS, SOLVER_PROBE_BUDGET_S = 25, 150.0  # per linear solver in the solver probe
 PAPER = {
     "particles": 90929,
     "shell_vertices": 1364,
@@ -140,7 +137,7 @@ MODES = {
     "quick": _mode(0.25, 8, 0.15, 5e-2, speed=2.0),
 }
 #: the timing probes, modes of the runner beside ``MODES``: mode -> the mode probed
-PROBES = {"partial_probe": "partial", "full_probe": "full", "partial_solvers": "partial"}
+PROBES = {"partial_probe": "partial", "full_probe": "full"}
 #: where the full mode's wall-time estimate is (the probe's numbers change with the code)
 FULL_ESTIMATE = "see benchmarks/records/twist_full_probe.md (from the full timing probe)"
 
@@ -168,9 +165,8 @@ def shell_motion(omega: float) -> bfemp.motion.Motion:
     )
 
 
-def _simulation(cfg: dict, mu: float, solver: str = "default") -> bfemp.Simulation:
-    """Cube on a sticky floor, the shell d-hat above it with its upper hemisphere scripted;
-    ``solver``: a ``solvers.choice`` linear-solver name."""
+def _simulation(cfg: dict, mu: float) -> bfemp.Simulation:
+    """Cube on a sticky floor, the shell d-hat above it with its upper hemisphere scripted."""
     scene = bfemp.Scene(dim=3, gravity=(0.0, 0.0, GRAVITY))
     half = 0.5 * CUBE_EDGE
     x, vol = bfemp.sample.box(
@@ -189,10 +185,7 @@ def _simulation(cfg: dict, mu: float, solver: str = "default") -> bfemp.Simulati
     floor = bfemp.levelset.Box(lower=(-2.0, -2.0, -1.0), upper=(2.0, 2.0, 0.0))
     scene.add_boundary(floor, kind="sticky")
     scene.set_contact(dhat=DHAT, kappa=KAPPA, mu=mu, eps_v=EPS_V)
-    linear_solver = make_linear_solver(solver, block_size=3)
-    return catalogue.paper_simulation(
-        scene, cfg["dt"], TOL, MAX_NEWTON, linear_solver=linear_solver
-    )
+    return catalogue.paper_simulation(scene, cfg["dt"], TOL, MAX_NEWTON)
 
 
 class TopTwist:
@@ -236,18 +229,14 @@ def slip_onset(t: np.ndarray, cube: np.ndarray, omega: float, t_press: float, dt
 
 
 def _run_one(
-    cfg: dict,
-    mu: float,
-    budget_s: float = math.inf,
-    max_steps: int | None = None,
-    solver: str = "default",
+    cfg: dict, mu: float, budget_s: float = math.inf, max_steps: int | None = None
 ) -> dict:
     """Press and twist at friction ``mu``; the cube's twist angle after every step.
 
     ``budget_s``: stop after the step that ends past this wall time in s, ``max_steps``: after
-    that many steps (timing probes); ``solver``: a ``solvers.choice`` linear-solver name.
+    that many steps (timing probes).
     """
-    sim = _simulation(cfg, mu, solver)
+    sim = _simulation(cfg, mu)
     measure = TopTwist(sim.state.mpm_x, cfg["dx"] / round(cfg["ppc"] ** (1.0 / 3.0)))
     steps = round((PRESS_TIME + cfg["twist_time"]) / cfg["dt"])
     steps = steps if max_steps is None else min(steps, max_steps)
@@ -483,56 +472,6 @@ def probe(mode: str, mu: float = 0.5, max_steps: int | None = None, budget_s=Non
     }
 
 
-def solver_probe(out: Path, mu: float = 0.5) -> dict:
-    """Timing probe (not a result) of the linear solvers of the speed issue (``perf_3d``): the
-    first ``SOLVER_PROBE_STEPS`` steps of the partial mode's ``mu`` case with each installed
-    solver, each cut after ``SOLVER_PROBE_BUDGET_S`` of wall time; the record
-    (``twist_partial_solvers.json``, written after every solver) holds the wall time of the
-    steps that every solver reached, Newton iterations, phases, and the largest
-    particle-position difference from CHOLMOD's run where both reached the same step."""
-    cfg = MODES["partial"]
-    results, reference, payload = {}, None, {}
-    for name in ("cholmod", "pardiso", "cg_amg"):
-        try:
-            make_linear_solver(name, block_size=3)
-        except RuntimeError as err:  # not installed
-            results[name] = {"error": str(err)}
-            continue
-        case = _run_one(
-            cfg, mu, budget_s=SOLVER_PROBE_BUDGET_S, max_steps=SOLVER_PROBE_STEPS, solver=name
-        )
-        x, s = case["final_mpm_x"], case["series"]
-        reference = reference or (case["steps"], x)
-        results[name] = {
-            "steps": case["steps"],
-            "wall_s": case["wall_s"],
-            "step_wall_s": s["step_wall_s"],
-            "step_newton_iterations": s["step_newton_iterations"],
-            "newton_iterations": case["newton_iterations"],
-            "phase_s": case["phase_s"],
-            "contact_pairs_end": s["step_contact_pairs"][-1],
-            "max_position_difference_from_cholmod_m": (
-                float(np.abs(x - reference[1]).max()) if reference[0] == case["steps"] else None
-            ),
-        }
-        common = min(r["steps"] for r in results.values() if "steps" in r)
-        payload = {
-            "kind": "TIMING PROBE, not a result: the first steps of the partial mode per solver",
-            "probe_mu": mu,
-            "max_steps": SOLVER_PROBE_STEPS,
-            "budget_s": SOLVER_PROBE_BUDGET_S,
-            "order": "one process, solvers in the order listed (the first pays any warm-up)",
-            "common_steps": common,
-            "wall_s_common_steps": {
-                k: float(sum(r["step_wall_s"][:common])) for k, r in results.items() if "steps" in r
-            },
-            "solvers": results,
-            "parameters": dict(cfg),
-        }
-        _checkpoint(out, "partial_solvers", payload)
-    return payload
-
-
 def _checkpoint(out: Path, mode: str, payload: dict) -> None:
     """The record of ``mode`` so far (and its plot), written before the runner's final one: a
     long run that is stopped keeps what it finished."""
@@ -541,7 +480,7 @@ def _checkpoint(out: Path, mode: str, payload: dict) -> None:
 
 def measure(mode: str, cfg: dict, out: Path, mus=None, budget_s=None, **probe_options) -> dict:
     """Press and twist at each mu of ``mode`` (``"full"``: the paper's resolution, ``"partial"``
-    or ``"quick"``), or a timing probe (``PROBES``: ``probe``, ``solver_probe``).
+    or ``"quick"``), or a timing probe (``PROBES``: ``probe``).
 
     Args:
         mus: friction coefficients to run instead of the mode's (the quick-mode test runs two).
@@ -550,8 +489,6 @@ def measure(mode: str, cfg: dict, out: Path, mus=None, budget_s=None, **probe_op
             probe, its wall budget.
         probe_options: ``mu`` and ``max_steps`` of ``probe``.
     """
-    if mode == "partial_solvers":
-        return solver_probe(out, **probe_options)
     if mode in PROBES:
         return probe(PROBES[mode], budget_s=budget_s, **probe_options)
     cfg = dict(cfg, mus=cfg["mus"] if mus is None else tuple(float(m) for m in mus))

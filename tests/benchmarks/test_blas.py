@@ -1,5 +1,11 @@
 """The optimised BLAS against the reference one: the same Newton trajectories (rings quick), and
-a set-up that still works, and says so once, when no optimised BLAS can be installed."""
+a set-up that still works, and says so once, when no optimised BLAS can be installed.
+
+``python tests/benchmarks/test_blas.py OUT.npz [T_END]`` (``_trajectory`` runs it, once per
+BLAS) runs the colliding rings of ``benchmarks.rings`` in quick mode (APIC) to ``T_END``
+(default 0.04 s: 20 steps, contact from step 13) under the BLAS of its process and saves the FEM
+node and particle positions of every step and the name of the BLAS CHOLMOD ran on.
+"""
 
 import os
 import subprocess
@@ -9,17 +15,43 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import bfemp
+from benchmarks import catalogue, rings
 from benchmarks._blas_switch import reference_blas_env
 from solvers.blas import cholmod_blas
+from solvers.linear import CholmodSolver
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
+def trajectory(t_end: float) -> dict:
+    """Positions of every step: ``fem_x`` (steps, N, 2), ``mpm_x`` (steps, P, 2) in m, ``blas``."""
+    cfg = rings.MODES["quick"]
+    sim = bfemp.Simulation(
+        catalogue.rings_scene(cfg),
+        integrator=rings.INTEGRATOR,
+        transfer="apic",
+        dt=cfg["dt"],
+        tol=rings.TOL,
+        # supernodal: the factorisation that runs on BLAS (simplicial would not touch it)
+        linear_solver=CholmodSolver(mode="supernodal"),
+    )
+    fem, mpm = [], []
+
+    def keep(s: bfemp.Simulation) -> None:
+        fem.append(s.state.fem_x.copy())
+        mpm.append(s.state.mpm_x.copy())
+
+    sim.run(t_end=t_end, progress=False, callback=keep)
+    return {"fem_x": np.array(fem), "mpm_x": np.array(mpm), "blas": cholmod_blas().name}
+
+
 def _trajectory(out: Path, env: dict) -> dict:
+    """``trajectory`` in a process of its own under ``env`` (its BLAS), through ``out``."""
     env = dict(env)
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")])
     subprocess.run(
-        [sys.executable, "-m", "benchmarks._blas_trajectory", str(out)],
+        [sys.executable, __file__, str(out)],
         env=env,
         check=True,
         timeout=600,
@@ -63,3 +95,8 @@ def test_setup_without_openblas_goes_on_and_says_so_once(tmp_path):
     present = dict(env, OPENBLAS_GLOB=str(ROOT / "tools" / "install_openblas.sh"))
     quiet = _install_openblas(present)
     assert quiet.returncode == 0 and quiet.stdout == ""
+
+
+if __name__ == "__main__":
+    result = trajectory(float(sys.argv[2]) if len(sys.argv) > 2 else 0.04)
+    np.savez(sys.argv[1], **result)

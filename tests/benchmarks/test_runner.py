@@ -182,11 +182,11 @@ def test_a_benchmarks_own_options_reach_its_measure_and_unset_ones_stay_out(monk
 
     monkeypatch.setattr(Benchmark, "run", fake_run)
     assert main(["fuzz", "--quick", "--workers", "3", "--resume", "--out", str(tmp_path)]) == 0
-    assert main(["extremes", "--mode", "coarse", "--strategy", "lr", "--out", str(tmp_path)]) == 0
+    assert main(["extremes", "--mode", "quick", "--strategy", "lr", "--out", str(tmp_path)]) == 0
     assert main(["conformance", "--out", str(tmp_path)]) == 0
     assert seen == [
         ("fuzz", "quick", {"workers": 3, "resume": True}),
-        ("extremes", "coarse", {"strategy": ["lr"]}),
+        ("extremes", "quick", {"strategy": ["lr"]}),
         ("conformance", "full", {}),
     ]
 

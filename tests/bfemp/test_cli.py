@@ -252,7 +252,7 @@ def test_bench_names_a_mode_the_benchmark_lacks(capsys):
     import benchmarks.__main__ as bench_main
 
     message = _error(capsys, ["bench", "rings", "--mode", "fastest"])
-    assert "bench rings: mode must be one of ['full', 'full_probe', 'partial', 'quick']" in message
+    assert "bench rings: mode must be one of ['full', 'partial', 'quick']" in message
     with pytest.raises(SystemExit) as exc:
         bench_main.main(["hertz", "--mode", "fastest"])
     assert exc.value.code == 2
