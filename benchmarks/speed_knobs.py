@@ -11,10 +11,9 @@ Knobs:
   (``Simulation(warm_start=True)``) instead of x^n. Scenes: the rings demo (to 0.1 s: flight
   and impact; quick: 0.04 s) and the cantilever demo (1 s; quick: 0.2 s). Off by default: it
   does not pay (the JSON says how much).
-- ``broad_phase_share``: what reusing broad-phase candidates across line-search trials could save
-  at most: the share of the step time spent in ``bfemp.contact.pairs.candidate_pairs``
-  (cProfile, rings demo from 0.02 s to 0.1 s; quick: to 0.04 s). Not implemented (why:
-  ``benchmarks/records/speed_knobs.md``).
+- ``broad_phase_share``: the share of the step time spent in
+  ``bfemp.contact.pairs.candidate_pairs`` (cProfile, rings demo from 0.02 s to 0.1 s; quick: to
+  0.04 s), with a line search's trials sharing one broad phase (``BarrierTerm``).
 
 For each run: Newton iterations, numeric factorisations, wall seconds (min of ``repeats`` runs;
 the machine is shared) and a result (final positions) whose on/off difference is recorded, so the
