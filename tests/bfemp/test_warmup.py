@@ -51,3 +51,35 @@ def test_warmup_fills_an_empty_kernel_cache(tmp_path):
     assert done.returncode == 0, done.stderr
     assert "1 scenes" in done.stdout and str(cache) in done.stdout
     assert len(list(cache.rglob("*.nbi"))) >= 5  # the explicit MPM kernels, compiled and kept
+
+
+_MISSES = """
+import gc, sys
+from numba.core.dispatcher import Dispatcher
+from bfemp.warmup import WarmupJob, _run_job
+_run_job(WarmupJob("probe", sys.argv[1], 2))
+for obj in gc.get_objects():
+    if isinstance(obj, Dispatcher) and obj.stats.cache_misses:
+        module = obj.py_func.__module__
+        if module.split(".")[0] in ("bfemp", "geometry", "solvers"):
+            print(module, obj.py_func.__qualname__)
+"""
+
+
+def test_a_second_process_finds_every_kernel_it_calls_in_the_cache():
+    """The kernels of an MPM-on-FEM barrier step with friction (MPM and FEM Hessians, barrier,
+    friction, CCD) compile in the first process at most, never again in the next one. Fails
+    when a kernel's cache entry cannot be found again: a closure over another kernel (numba
+    keys it by the pickled closure cells, which differ in every process) compiled anew in
+    every process (``_hessian_kernels`` until 2026-12-07, 3 s in 2D and 8 s in 3D)."""
+    scene = str(ROOT / "references" / "barrier_friction_2d.toml")
+    for _ in range(2):
+        done = subprocess.run(
+            [sys.executable, "-c", _MISSES, scene],
+            capture_output=True,
+            text=True,
+            cwd=ROOT,
+            timeout=600,
+        )
+        assert done.returncode == 0, done.stderr
+    assert done.stdout == "", f"compiled again in a second process:\n{done.stdout}"
