@@ -162,6 +162,28 @@ def _overlap(a_lo: np.ndarray, a_hi: np.ndarray, b_lo: np.ndarray, b_hi: np.ndar
 
 
 @njit(cache=True)
+def _scan(a_lo: np.ndarray, a_hi: np.ndarray, b_lo: np.ndarray, b_hi: np.ndarray) -> np.ndarray:
+    """Every overlapping (a, b) box pair by testing all P S pairs: (n, 2) int64 rows, unique and
+    sorted lexicographically as found (a in the outer loop); a counting pass, then a storing one.
+
+    No table to build: on small sets it costs less than the hash's set-up.
+    """
+    n = 0
+    for i in range(a_lo.shape[0]):
+        for j in range(b_lo.shape[0]):
+            n += _overlap(a_lo[i], a_hi[i], b_lo[j], b_hi[j])
+    out = np.empty((n, 2), dtype=np.int64)
+    n = 0
+    for i in range(a_lo.shape[0]):
+        for j in range(b_lo.shape[0]):
+            if _overlap(a_lo[i], a_hi[i], b_lo[j], b_hi[j]):
+                out[n, 0] = i
+                out[n, 1] = j
+                n += 1
+    return out
+
+
+@njit(cache=True)
 def _query_one(
     i: int,
     a_lo: np.ndarray,

@@ -31,8 +31,12 @@ point predicate (checked by the tests):
   the fcl objects and the callback are Python-level per box / per pair (python-fcl offers nothing
   else); this is the independent cross-check, not the production path.
 - ``"brute"``: O(P S) numpy broadcasting in chunks; the reference for small inputs.
-- ``"auto"``: ``"hash"``, the faster one by measurement (``benchmarks.perf_broadphase``: 10-100x
-  faster than fcl in every query; the timings are in ``docs/guide/performance.md``).
+- ``"scan"``: O(P S) numba loop over every pair, output in order: no set-up at all.
+- ``"auto"``: ``"scan"`` up to ``P S = 100,000`` box pairs, ``"hash"`` above. The hash is 10-100x
+  faster than fcl in every query (``benchmarks.perf_broadphase``; the timings are in
+  ``docs/guide/performance.md``), but its set-up costs about 0.2 ms whatever the size (five
+  kernel launches, the table, the sort), where a scan of 20,000 pairs takes 0.02 ms and one of
+  200,000 as long as the hash (measured on 2 cores; small scenes query thousands of times).
 
 Output: (n, 2) int64 rows ``(index in the first set, index in the second set)``, unique and
 sorted lexicographically. Memory is proportional to the number of pairs: a huge inflation makes
@@ -55,8 +59,9 @@ __all__ = ["METHODS", "box_overlap_pairs", "edge_edge_candidates", "point_simple
 logger = logging.getLogger(__name__)
 
 #: Accepted values of the ``method`` argument.
-METHODS = ("auto", "hash", "fcl", "brute")
-_AUTO = "hash"
+METHODS = ("auto", "scan", "hash", "fcl", "brute")
+# "auto" scans every pair up to this many (P S), and hashes above
+_SCAN_PAIRS = 100_000
 # Elements of the (chunk, S, d) comparison array of the brute force, per chunk.
 _BRUTE_CHUNK = 1 << 22
 # The hash doubles its cell size while it would visit more than this many cells per box.
@@ -86,7 +91,8 @@ def point_simplex_candidates(
         groups: ``(point_group (P,), simplex_group (S,))`` integer labels (bodies): only pairs
             of different groups, one pass per simplex group on the other groups' points (a
             body's own nodes would each meet the simplices around them); None: every pair.
-        method: ``"auto"``, ``"hash"``, ``"fcl"`` or ``"brute"`` (see the module docstring).
+        method: ``"auto"``, ``"scan"``, ``"hash"``, ``"fcl"`` or ``"brute"`` (see the module
+            docstring).
 
     Returns:
         (n, 2) int64 rows ``(point index, simplex index)``, unique, sorted lexicographically.
@@ -137,7 +143,7 @@ def edge_edge_candidates(
         edges_b: (B, 2) int vertex indices of the second edge set (may be ``edges_a``).
         inflation: distance in m (>= 0) by which the boxes of ``edges_b`` are grown.
         vertices_end: (V, d) end positions in m of a linear motion, or None.
-        method: ``"auto"``, ``"hash"``, ``"fcl"`` or ``"brute"``.
+        method: ``"auto"``, ``"scan"``, ``"hash"``, ``"fcl"`` or ``"brute"``.
 
     Returns:
         (n, 2) int64 rows ``(index in edges_a, index in edges_b)``, unique, sorted. Pairs of
@@ -166,7 +172,7 @@ def box_overlap_pairs(
     Args:
         a_lo, a_hi: (P, d) lower / upper corners in m of the first box set, d = 2 or 3.
         b_lo, b_hi: (S, d) lower / upper corners in m of the second box set.
-        method: ``"auto"``, ``"hash"``, ``"fcl"`` or ``"brute"``.
+        method: ``"auto"``, ``"scan"``, ``"hash"``, ``"fcl"`` or ``"brute"``.
 
     Returns:
         (n, 2) int64 rows ``(index in a, index in b)``, unique, sorted lexicographically.
@@ -190,7 +196,7 @@ def box_overlap_pairs(
 def _check_method(method: str) -> str:
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
-    return _AUTO if method == "auto" else method
+    return method
 
 
 def _check_inflation(inflation: float) -> float:
@@ -271,7 +277,9 @@ def _pairs(
 ) -> np.ndarray:
     if a_lo.shape[0] == 0 or b_lo.shape[0] == 0:
         return np.empty((0, 2), dtype=np.int64)
-    impl = {"hash": _hash_pairs, "fcl": _fcl_pairs, "brute": _brute_pairs}[method]
+    if method == "auto":
+        method = "scan" if a_lo.shape[0] * b_lo.shape[0] <= _SCAN_PAIRS else "hash"
+    impl = {"scan": hk._scan, "hash": _hash_pairs, "fcl": _fcl_pairs, "brute": _brute_pairs}[method]
     return impl(a_lo, a_hi, b_lo, b_hi)
 
 

@@ -10,8 +10,8 @@ from geometry.broadphase import (
     point_simplex_candidates,
 )
 
-FAST = ("hash", "fcl")
-ALL = ("brute", "hash", "fcl")
+FAST = ("scan", "hash", "fcl")
+ALL = ("brute", "scan", "hash", "fcl")
 
 
 # ---------------------------------------------------------------------------- helpers
@@ -110,6 +110,34 @@ def test_point_simplex_methods_equal_brute_force(dim, swept, inflation):
         np.testing.assert_array_equal(pairs, reference[other], err_msg=method)
     with pytest.raises(ValueError, match=r"groups must be \(400,\) and \(150,\)"):
         point_simplex_candidates(points, vertices, simplices, groups=(groups[0][:5], groups[1]))
+
+
+def test_auto_scans_up_to_its_pair_count_and_hashes_above(monkeypatch):
+    """auto: the all-pairs scan up to ``_SCAN_PAIRS`` point-simplex pairs, the hash from one
+    pair more; both give the brute-force rows."""
+    used = []
+
+    def spy(name, impl):
+        def run(*args):
+            used.append(name)
+            return impl(*args)
+
+        return run
+
+    monkeypatch.setattr(broadphase, "_hash_pairs", spy("hash", broadphase._hash_pairs))
+    monkeypatch.setattr(broadphase.hk, "_scan", spy("scan", broadphase.hk._scan))
+    rng = np.random.default_rng(3)
+    vertices, simplices = _soup(rng, 2, 100)
+    n_points = broadphase._SCAN_PAIRS // 100
+    points = rng.random((n_points + 1, 2))
+    for pts in (points[:n_points], points):
+        reference = point_simplex_candidates(
+            pts, vertices, simplices, method="brute", inflation=0.01
+        )
+        pairs = point_simplex_candidates(pts, vertices, simplices, inflation=0.01, method="auto")
+        np.testing.assert_array_equal(pairs, reference)
+        assert reference.shape[0] > 100
+    assert used == ["scan", "hash"]
 
 
 def test_brute_force_is_the_box_overlap_definition(monkeypatch):
