@@ -18,3 +18,11 @@ if _WORKERS:
     _THREADS = str(max(1, (os.cpu_count() or 1) // _WORKERS))
     for _name in _POOLS:
         os.environ.setdefault(_name, _THREADS)
+
+
+def pytest_collection_modifyitems(items: list) -> None:
+    """Files with a test marked ``slow`` run first, in their collected order, the rest after:
+    the workers share out the long files first and end together on short ones (the docs build
+    came last in collection order, and one worker ran it alone at the end)."""
+    slow = {item.path for item in items if item.get_closest_marker("slow")}
+    items.sort(key=lambda item: item.path not in slow)

@@ -17,6 +17,9 @@ from pathlib import Path
 
 import pytest
 
+#: started first (tests/conftest.py): one of the suite's longest files
+pytestmark = pytest.mark.slow
+
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
 RECORDS = ROOT / "benchmarks" / "records"

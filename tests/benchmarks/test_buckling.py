@@ -9,6 +9,9 @@ import pytest
 from benchmarks import buckling
 from tests.benchmarks._records import check_written, record_fixture
 
+#: started first (tests/conftest.py): one of the suite's longest files
+pytestmark = pytest.mark.slow
+
 result = record_fixture("buckling")
 
 

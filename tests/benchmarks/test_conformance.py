@@ -15,6 +15,9 @@ from benchmarks._conformance_scenes import CASES, cases
 from bfemp.steppers import STRATEGIES
 from bfemp.steppers.capabilities import scene_pairs
 
+#: started first (tests/conftest.py): one of the suite's longest files
+pytestmark = pytest.mark.slow
+
 #: (case, strategy) cells allowed to end in a named failure, with the measured reason (none:
 #: every strategy runs every scene it claims)
 NAMED_FAILURES_ALLOWED: dict[tuple[str, str], str] = {}

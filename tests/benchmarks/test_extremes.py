@@ -13,6 +13,9 @@ from benchmarks._extreme_cases import CASES, build_scene, quick_cases
 from benchmarks._extreme_strategies import EXPLICIT, MAX_STEPS, NO_CROSSING, STRATEGY_NAMES
 from tests.benchmarks._records import record_fixture
 
+#: started first (tests/conftest.py): one of the suite's longest files
+pytestmark = pytest.mark.slow
+
 #: the dt of every case but E_1e3 (1e-4 s and more) exceeds the explicit stable step at dx = 0.05
 #: m (4.8e-5 s at E = 1e8 Pa): "REFUSED" there, and "REFUSED/X" means X for the extra run at
 #: dt = "auto". E_1e3: c_p = 3.7 m/s, stable step 4.6e-4 s, so its dt = 1e-4 s runs as given.

@@ -9,6 +9,9 @@ import pytest
 from benchmarks import hertz
 from tests.benchmarks._records import check_written, record_fixture
 
+#: started first (tests/conftest.py): one of the suite's longest files
+pytestmark = pytest.mark.slow
+
 C_HERTZ = math.pi * 1e10 / (4.0 * (1.0 - 0.3**2) * 1.0)
 
 

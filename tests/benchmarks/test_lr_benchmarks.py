@@ -7,6 +7,9 @@ import pytest
 from benchmarks import lr_compression, lr_contact_time, lr_ellipses, lr_variants, scenes
 from bfemp.steppers.lr import LROptions, LRStepper
 
+#: started first (tests/conftest.py): one of the suite's longest files
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture(scope="module")
 def compression_quick(tmp_path_factory):

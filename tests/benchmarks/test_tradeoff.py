@@ -25,6 +25,9 @@ from benchmarks._tradeoff_report import (
 )
 from bfemp import cli
 
+#: started first (tests/conftest.py): one of the suite's longest files
+pytestmark = pytest.mark.slow
+
 #: two cheap points per strategy: barrier along dt, augury along its iterations (rings), barrier
 #: along its option tol (slope); the knobs not chosen keep their base values
 MINIMAL = {

@@ -6,6 +6,9 @@ import pytest
 
 from benchmarks import scenes, two_stage_gap
 
+#: started first (tests/conftest.py): one of the suite's longest files
+pytestmark = pytest.mark.slow
+
 
 def _run(name, tmp_path_factory, **options):
     out = tmp_path_factory.mktemp(name)

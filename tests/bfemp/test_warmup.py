@@ -12,6 +12,9 @@ import tomllib
 from bfemp import regress
 from bfemp.warmup import FIRST, warm_up, warmup_jobs
 
+#: started first (tests/conftest.py): one of the suite's longest files
+pytestmark = pytest.mark.slow
+
 ROOT = Path(__file__).resolve().parents[2]
 
 
