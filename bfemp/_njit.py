@@ -9,7 +9,10 @@ from collections.abc import Callable
 
 from numba import njit
 
-__all__ = ["serial_or_parallel"]
+__all__ = ["compile_parallel_builds", "serial_or_parallel"]
+
+#: every function built by :func:`serial_or_parallel`, for :func:`compile_parallel_builds`
+_BUILT: list[Callable] = []
 
 
 def serial_or_parallel(min_rows: int) -> Callable[[Callable], Callable]:
@@ -37,6 +40,23 @@ def serial_or_parallel(min_rows: int) -> Callable[[Callable], Callable]:
             return (parallel if args[0].shape[0] >= min_rows else serial)(*args)
 
         run.serial, run.parallel = serial, parallel
+        _BUILT.append(run)
         return run
 
     return build
+
+
+def compile_parallel_builds(functions: list[Callable] | None = None) -> int:
+    """Compile (and cache) the parallel build of each :func:`serial_or_parallel` function
+    (default: every one) for each signature its serial build was called with in this process;
+    the number compiled.
+
+    ``bfemp warmup`` runs small scenes, which reach only the serial builds: without this, the
+    first large scene of every later process compiled the parallel ones itself."""
+    compiled = 0
+    for run in _BUILT if functions is None else functions:
+        for signature in run.serial.signatures:
+            if signature not in run.parallel.signatures:
+                run.parallel.compile(signature)
+                compiled += 1
+    return compiled

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bfemp._njit import serial_or_parallel
+from bfemp._njit import compile_parallel_builds, serial_or_parallel
 
 MODULE = """
 from numba import prange
@@ -63,3 +63,18 @@ def test_builds_agree_and_dispatch_by_size() -> None:
     assert square.parallel.targetoptions.get("parallel") and not square.serial.targetoptions.get(
         "parallel"
     )
+
+
+def test_warmup_compiles_the_parallel_build_for_each_signature_the_serial_one_met() -> None:
+    @serial_or_parallel(1000)
+    def halve(a: np.ndarray, out: np.ndarray) -> None:
+        for i in range(a.shape[0]):
+            out[i] = 0.5 * a[i]
+
+    a = np.arange(4.0)
+    out = np.empty(4)
+    halve(a, out)  # below the threshold: the serial build only
+    assert halve.serial.signatures and not halve.parallel.signatures
+    assert compile_parallel_builds([halve]) == 1
+    assert halve.parallel.signatures == halve.serial.signatures
+    assert compile_parallel_builds([halve]) == 0  # nothing left to compile

@@ -27,6 +27,9 @@ def test_jobs_are_every_reference_and_the_quick_examples_3d_and_2d_first():
     scenes = [tomllib.loads(Path(j.scene_file).read_text()) for j in jobs]
     strategies = {s["simulation"].get("strategy", "barrier") for s in scenes}
     assert {"barrier", "augury", "lr", "two_stage", "single_field"} <= strategies
+    # every explicit strategy in 3D too, on the 3D example
+    explicit_3d = {j.strategy for j in jobs if j.name.startswith("cube_on_plate_3d:")}
+    assert explicit_3d == {"augury", "lr", "two_stage"}
 
 
 def test_bad_process_count_and_empty_folder_are_named(tmp_path):
