@@ -28,7 +28,7 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install -q "scikit-sparse<0.5" \
 	  || echo "warning: scikit-sparse did not build; bfemp will use the scipy fallback"
 	@$(BIN)/python -m bfemp --version
-	@# compile the numba kernels once, 2D and 3D scenes side by side (about 3 min on 2 cores),
+	@# compile the numba kernels once, 2D and 3D scenes side by side (about 2 min on 2 cores),
 	@# so that the demo and the parallel test workers find them cached instead of each compiling
 	$(BIN)/python -m bfemp warmup \
 	  || echo "warning: bfemp warmup failed; the first run will compile the kernels itself"
