@@ -11,8 +11,7 @@ from numba import njit
 
 __all__ = ["compile_parallel_builds", "serial_or_parallel"]
 
-#: every function built by :func:`serial_or_parallel`, for :func:`compile_parallel_builds`
-_BUILT: list[Callable] = []
+_BUILT: list[Callable] = []  # every serial_or_parallel function
 
 
 def serial_or_parallel(min_rows: int) -> Callable[[Callable], Callable]:
@@ -47,12 +46,9 @@ def serial_or_parallel(min_rows: int) -> Callable[[Callable], Callable]:
 
 
 def compile_parallel_builds(functions: list[Callable] | None = None) -> int:
-    """Compile (and cache) the parallel build of each :func:`serial_or_parallel` function
-    (default: every one) for each signature its serial build was called with in this process;
-    the number compiled.
-
-    ``bfemp warmup`` runs small scenes, which reach only the serial builds: without this, the
-    first large scene of every later process compiled the parallel ones itself."""
+    """Compile and cache the parallel builds of ``functions`` (default: every one) for the
+    signatures their serial builds met in this process (``bfemp warmup``'s small scenes reach
+    only the serial ones); the number compiled."""
     compiled = 0
     for run in _BUILT if functions is None else functions:
         for signature in run.serial.signatures:

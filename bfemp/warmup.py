@@ -10,11 +10,8 @@ of every strategy, with and without friction, FEM-FEM contact, in 2D and 3D:
 - every regression reference of a folder (``references/``: barrier 2D and 3D, with friction,
   FEM-FEM, augury, lr, two_stage, single_field), for its stored number of steps;
 - the example scenes ``cube_on_plate_3d`` (3D MPM on FEM, in contact) and ``rings`` (the demo), in
-  their quick forms;
-- a few steps of ``cube_on_plate_3d`` under each explicit strategy (the references are 2D).
-
-After each scene, the parallel builds of the kernels it called serially are compiled too (small
-scenes stay below their size thresholds).
+  their quick forms, and 3 steps of the first under each explicit strategy (references are 2D);
+- after each scene, the parallel builds of the kernels it called (small scenes stay serial).
 
 Nothing is compared or written but the kernel cache: the references are checked by ``bfemp
 regress``. ``make setup`` runs it last, so ``make demo`` and ``make test`` find the cache warm.
@@ -42,11 +39,8 @@ EXAMPLES = ("cube_on_plate_3d", "rings")
 #: started first, one per process: a 3D and a 2D scene share few kernels, so two processes on an
 #: empty cache do not compile the same ones at once (the others find most of theirs cached)
 FIRST = ("barrier_3d", "rings")
-#: the explicit strategies run a few steps of the 3D example at their stable step: the
-#: references are 2D, so their 3D kernels (the explicit engine's, FEM cell altitudes, the
-#: strategies' own) otherwise compiled in the first run or test worker that met a 3D scene
+#: run on ``cube_on_plate_3d`` for 3 steps: their 3D kernels compiled in the first test worker
 EXPLICIT_3D = ("augury", "lr", "two_stage")
-EXPLICIT_3D_STEPS = 3
 
 
 @dataclass(frozen=True)
@@ -78,10 +72,7 @@ def warmup_jobs(references: str | os.PathLike | None = None) -> list[WarmupJob]:
         if (examples / f"{name}.toml").is_file()
     ]
     cube = examples / "cube_on_plate_3d.toml"
-    if cube.is_file():
-        jobs += [
-            WarmupJob(f"cube_on_plate_3d:{s}", str(cube), EXPLICIT_3D_STEPS, s) for s in EXPLICIT_3D
-        ]
+    jobs += [WarmupJob(f"{cube.stem}:{s}", str(cube), 3, s) for s in EXPLICIT_3D if cube.is_file()]
     if not jobs:
         raise SceneError(f"no scene to warm up with in {folder}", hint="give --dir DIR")
     rank = {name: k for k, name in enumerate(FIRST)}
@@ -89,8 +80,7 @@ def warmup_jobs(references: str | os.PathLike | None = None) -> list[WarmupJob]:
 
 
 def _run_job(job: WarmupJob) -> float:
-    """Run ``job`` in this process, then compile the parallel builds of the kernels it called
-    (:func:`bfemp._njit.compile_parallel_builds`); its wall time (s)."""
+    """Run ``job`` here, then the parallel builds of the kernels it called; its wall time (s)."""
     from bfemp import scenefile
     from bfemp._njit import compile_parallel_builds
     from bfemp.simulation import Simulation

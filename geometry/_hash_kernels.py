@@ -163,11 +163,8 @@ def _overlap(a_lo: np.ndarray, a_hi: np.ndarray, b_lo: np.ndarray, b_hi: np.ndar
 
 @njit(cache=True)
 def _scan(a_lo: np.ndarray, a_hi: np.ndarray, b_lo: np.ndarray, b_hi: np.ndarray) -> np.ndarray:
-    """Every overlapping (a, b) box pair by testing all P S pairs: (n, 2) int64 rows, unique and
-    sorted lexicographically as found (a in the outer loop); a counting pass, then a storing one.
-
-    No table to build: on small sets it costs less than the hash's set-up.
-    """
+    """Every overlapping (a, b) box pair, testing all P S pairs (count, then store): (n, 2) int64
+    rows, unique and sorted as found. No table to build: on small sets cheaper than the hash."""
     n = 0
     for i in range(a_lo.shape[0]):
         for j in range(b_lo.shape[0]):

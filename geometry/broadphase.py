@@ -32,11 +32,9 @@ point predicate (checked by the tests):
   else); this is the independent cross-check, not the production path.
 - ``"brute"``: O(P S) numpy broadcasting in chunks; the reference for small inputs.
 - ``"scan"``: O(P S) numba loop over every pair, output in order: no set-up at all.
-- ``"auto"``: ``"scan"`` up to ``P S = 100,000`` box pairs, ``"hash"`` above. The hash is 10-100x
-  faster than fcl in every query (``benchmarks.perf_broadphase``; the timings are in
-  ``docs/guide/performance.md``), but its set-up costs about 0.2 ms whatever the size (five
-  kernel launches, the table, the sort), where a scan of 20,000 pairs takes 0.02 ms and one of
-  200,000 as long as the hash (measured on 2 cores; small scenes query thousands of times).
+- ``"auto"``: ``"scan"`` up to ``P S = 100,000`` box pairs, ``"hash"`` above: the hash is 10-100x
+  faster than fcl (``benchmarks.perf_broadphase``), but its set-up costs 0.2 ms at any size, where
+  scanning 20,000 pairs takes 0.02 ms (2 cores; ``docs/guide/performance.md``).
 
 Output: (n, 2) int64 rows ``(index in the first set, index in the second set)``, unique and
 sorted lexicographically. Memory is proportional to the number of pairs: a huge inflation makes
@@ -60,8 +58,7 @@ logger = logging.getLogger(__name__)
 
 #: Accepted values of the ``method`` argument.
 METHODS = ("auto", "scan", "hash", "fcl", "brute")
-# "auto" scans every pair up to this many (P S), and hashes above
-_SCAN_PAIRS = 100_000
+_SCAN_PAIRS = 100_000  # "auto" scans every pair up to this many (P S), hashes above
 # Elements of the (chunk, S, d) comparison array of the brute force, per chunk.
 _BRUTE_CHUNK = 1 << 22
 # The hash doubles its cell size while it would visit more than this many cells per box.
@@ -91,8 +88,7 @@ def point_simplex_candidates(
         groups: ``(point_group (P,), simplex_group (S,))`` integer labels (bodies): only pairs
             of different groups, one pass per simplex group on the other groups' points (a
             body's own nodes would each meet the simplices around them); None: every pair.
-        method: ``"auto"``, ``"scan"``, ``"hash"``, ``"fcl"`` or ``"brute"`` (see the module
-            docstring).
+        method: one of :data:`METHODS` (see the module docstring).
 
     Returns:
         (n, 2) int64 rows ``(point index, simplex index)``, unique, sorted lexicographically.

@@ -96,10 +96,6 @@ class EllipsePacking:
         """Solid fraction: total ellipse area over the box area."""
         return float(self.areas.sum() / np.prod(self.upper - self.lower))
 
-    def polygons(self, sides: int = POLYGON_SIDES) -> np.ndarray:
-        """(E, sides, 2) circumscribed polygons in m (see :func:`ellipse_polygons`)."""
-        return ellipse_polygons(self.centers, self.semi_axes, self.angles, sides)
-
     def inside(self, x: np.ndarray) -> np.ndarray:
         """(P,) index of the ellipse containing each point of ``x (P, 2)`` (m), -1 if none."""
         owner = np.full(x.shape[0], -1, dtype=np.int64)
