@@ -237,6 +237,9 @@ def verify(name: str, mode: str = "quick", records: Path = RECORDS) -> list[str]
     committed = records / f"{bench.stem(mode, options)}.json"
     if not committed.exists():
         raise ValueError(f"{name}: no committed record {committed}")
+    recorded = json.loads(committed.read_text()).get("mode", mode)
+    if recorded != mode:  # e.g. hertz.json is the full run: every field would differ
+        raise ValueError(f"{name}: the committed {committed.name} is a {recorded} run, not {mode}")
     with tempfile.TemporaryDirectory() as tmp:
         summary = bench.run(mode, tmp, **options)
         new = json.loads(Path(summary["json"]).read_text())

@@ -9,7 +9,7 @@ import pytest
 
 from benchmarks import runner
 from benchmarks.__main__ import BENCHMARKS, main
-from benchmarks.runner import Benchmark, differences
+from benchmarks.runner import Benchmark, differences, verify
 
 
 def _fake(calls):
@@ -87,6 +87,13 @@ def test_verify_names_an_unknown_benchmark(capsys):
     with pytest.raises(SystemExit):
         main(["verify", "no_such_benchmark"])
     assert "invalid choice: 'no_such_benchmark'" in capsys.readouterr().err
+
+
+def test_verify_refuses_a_committed_record_of_another_mode(tmp_path):
+    """hertz's committed record is its full run: a quick rerun is not compared with it."""
+    (tmp_path / "hertz.json").write_text(json.dumps({"mode": "full"}))
+    with pytest.raises(ValueError, match="hertz.json is a full run, not quick"):
+        verify("hertz", "quick", records=tmp_path)
 
 
 def test_figure_draws_without_a_display(tmp_path):
