@@ -139,7 +139,7 @@ def edge_edge_candidates(
         edges_b: (B, 2) int vertex indices of the second edge set (may be ``edges_a``).
         inflation: distance in m (>= 0) by which the boxes of ``edges_b`` are grown.
         vertices_end: (V, d) end positions in m of a linear motion, or None.
-        method: ``"auto"``, ``"scan"``, ``"hash"``, ``"fcl"`` or ``"brute"``.
+        method: one of :data:`METHODS` (see the module docstring).
 
     Returns:
         (n, 2) int64 rows ``(index in edges_a, index in edges_b)``, unique, sorted. Pairs of
@@ -168,7 +168,7 @@ def box_overlap_pairs(
     Args:
         a_lo, a_hi: (P, d) lower / upper corners in m of the first box set, d = 2 or 3.
         b_lo, b_hi: (S, d) lower / upper corners in m of the second box set.
-        method: ``"auto"``, ``"scan"``, ``"hash"``, ``"fcl"`` or ``"brute"``.
+        method: one of :data:`METHODS` (see the module docstring).
 
     Returns:
         (n, 2) int64 rows ``(index in a, index in b)``, unique, sorted lexicographically.
