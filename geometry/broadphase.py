@@ -86,8 +86,7 @@ def point_simplex_candidates(
         points_end: (P, d) end positions in m of a linear motion, or None for static points.
         vertices_end: (V, d) end positions in m of a linear motion, or None.
         groups: ``(point_group (P,), simplex_group (S,))`` integer labels (bodies): only pairs
-            of different groups, one pass per simplex group on the other groups' points (a
-            body's own nodes would each meet the simplices around them); None: every pair.
+            of different groups (a body's own nodes meet the simplices around them); None: all.
         method: one of :data:`METHODS` (see the module docstring).
 
     Returns:
@@ -103,23 +102,19 @@ def point_simplex_candidates(
     simplices = indices("simplices", simplices, simplex_vertices.shape[0])
     points_end = _end("points_end", points_end, "points", points)
     vertices_end = _end("vertices_end", vertices_end, "simplex_vertices", simplex_vertices)
-    if groups is None:
-        a = (points, points_end, None)
-        return _swept_pairs(a, (simplex_vertices, vertices_end, simplices), inflation, method)
-    point_group, simplex_group = (np.asarray(g) for g in groups)
-    if point_group.shape != points.shape[:1] or simplex_group.shape != simplices.shape[:1]:
+    point_group, simplex_group = (None, None) if groups is None else map(np.asarray, groups)
+    if groups is not None and (
+        point_group.shape != points.shape[:1] or simplex_group.shape != simplices.shape[:1]
+    ):
         raise ValueError(
             f"groups must be ({points.shape[0]},) and ({simplices.shape[0]},) labels of the points "
             f"and simplices, got {point_group.shape} and {simplex_group.shape}"
         )
-    found = [np.zeros((0, 2), dtype=np.int64)]
-    for group in np.unique(simplex_group):  # a loop over groups (bodies)
-        si, pi = np.flatnonzero(simplex_group == group), np.flatnonzero(point_group != group)
-        a = (points[pi], points_end[pi], None)
-        cand = _swept_pairs(a, (simplex_vertices, vertices_end, simplices[si]), inflation, method)
-        found.append(np.column_stack([pi[cand[:, 0]], si[cand[:, 1]]]))
-    rows = np.concatenate(found)
-    return np.ascontiguousarray(rows[np.lexsort((rows[:, 1], rows[:, 0]))])
+    a, b = (points, points_end, None), (simplex_vertices, vertices_end, simplices)
+    pairs = _swept_pairs(a, b, inflation, method)
+    if groups is None:
+        return pairs
+    return np.ascontiguousarray(pairs[point_group[pairs[:, 0]] != simplex_group[pairs[:, 1]]])
 
 
 def edge_edge_candidates(
