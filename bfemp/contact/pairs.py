@@ -16,7 +16,7 @@ import numpy as np
 from bfemp.contact._barrier_kernels import _pair_distances
 from bfemp.contact.collision import CollisionSet
 from geometry._distance_kernels import KIND_EE, KIND_PE, KIND_PP, KIND_PT
-from geometry.broadphase import edge_edge_candidates, point_simplex_candidates
+from geometry.broadphase import edge_edge_candidates, point_simplex_candidates, unique_keys
 
 __all__ = ["ContactPairs", "PAIR_KINDS", "candidate_pairs", "edge_edge_active", "find_pairs"]
 
@@ -56,15 +56,6 @@ def _distance(kind: str, pos: np.ndarray, pts: np.ndarray) -> np.ndarray:
     if pts.shape[0] == 0:
         return np.zeros(0)
     return _pair_distances(pos, np.ascontiguousarray(pts), _KIND[kind])
-
-
-def _unique(keys: np.ndarray) -> np.ndarray:
-    """Sorted unique values of the int64 ``keys`` (n,): a sort and a mask (numpy 2's
-    ``np.unique`` hashes first and was 30x slower here)."""
-    keys = np.sort(keys)
-    if keys.size:
-        keys = keys[np.concatenate(([True], keys[1:] != keys[:-1]))]
-    return keys
 
 
 def candidate_pairs(
@@ -119,7 +110,7 @@ def find_pairs(
     q, facets = q[near], facets[near]
     nf = cs.n_fem_points
     # vertex (point-point) terms of those facets, once per (point, vertex): int64 keys q nf + v
-    keys = _unique(np.repeat(q, dim) * nf + facets.ravel())
+    keys = unique_keys(np.repeat(q, dim) * nf + facets.ravel())
     vertex = keys % max(nf, 1)
     vcoef = cs.vertex_coef[vertex]
     nz = vcoef != 0.0
@@ -132,7 +123,7 @@ def find_pairs(
         n_edges = max(cs.edges.shape[0], 1)
         edge_key = cs.edges[:, 0] * (nf + 1) + cs.edges[:, 1]  # sorted (unique edges)
         edge = np.searchsorted(edge_key, tri_edges[:, 0] * (nf + 1) + tri_edges[:, 1])
-        keys = _unique(np.tile(q, 3) * n_edges + edge)
+        keys = unique_keys(np.tile(q, 3) * n_edges + edge)
         edge = keys % n_edges
         ecoef = cs.edge_coef[edge]
         nz = ecoef != 0.0
