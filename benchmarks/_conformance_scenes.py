@@ -4,7 +4,8 @@ Each case builds a ``bfemp.Scene`` for a mode (``"quick"``: what the tests run; 
 longer, for the record) and names the checks that judge it (``benchmarks.conformance``). All
 bodies are Neo-Hookean; the soft bodies (E = 100 kPa, 1000 kg/m^3, c ~ 10 m/s) keep the explicit
 stable step near 1e-3 s at the 2 cm grid. Fixed plates are fully scripted FEM bodies meshed at
-half a grid cell (``lr`` asks for FEM boundary edges <= dx / 2, docs/design/explicit_strategies.md sec. 2.6).
+half a grid cell (``lr`` asks for FEM boundary edges <= dx / 2:
+docs/design/explicit_strategies.md, sec. 2.6).
 
 - ``drop_2d_mu0``, ``drop_2d_mu0.3``: an MPM disk (r 0.1 m) thrown at (1, -1) m/s onto a fixed
   plate (top y = 0); ``drop_3d_mu0``, ``drop_3d_mu0.3``: an MPM cube (0.2 m) at (0.5, 0, -1) m/s.
