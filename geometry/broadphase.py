@@ -86,8 +86,8 @@ def point_simplex_candidates(
         points_end: (P, d) end positions in m of a linear motion, or None for static points.
         vertices_end: (V, d) end positions in m of a linear motion, or None.
         groups: ``(point_group (P,), simplex_group (S,))`` integer labels (bodies): only pairs
-            of different groups (scan: one pass, then a mask; else a pass per simplex group, as
-            a body's own nodes each meet the many simplices around them); None: every pair.
+            of different groups, one pass per simplex group on the other groups' points (a
+            body's own nodes would each meet the simplices around them); None: every pair.
         method: one of :data:`METHODS` (see the module docstring).
 
     Returns:
@@ -103,23 +103,20 @@ def point_simplex_candidates(
     simplices = indices("simplices", simplices, simplex_vertices.shape[0])
     points_end = _end("points_end", points_end, "points", points)
     vertices_end = _end("vertices_end", vertices_end, "simplex_vertices", simplex_vertices)
-    b = (simplex_vertices, vertices_end, simplices)
     if groups is None:
-        return _swept_pairs((points, points_end, None), b, inflation, method)
+        a = (points, points_end, None)
+        return _swept_pairs(a, (simplex_vertices, vertices_end, simplices), inflation, method)
     point_group, simplex_group = (np.asarray(g) for g in groups)
     if point_group.shape != points.shape[:1] or simplex_group.shape != simplices.shape[:1]:
         raise ValueError(
             f"groups must be ({points.shape[0]},) and ({simplices.shape[0]},) labels of the points "
             f"and simplices, got {point_group.shape} and {simplex_group.shape}"
         )
-    if _method(method, points.shape[0] * simplices.shape[0]) == "scan":  # one pass and a mask
-        rows = _swept_pairs((points, points_end, None), b, inflation, "scan")
-        return np.ascontiguousarray(rows[point_group[rows[:, 0]] != simplex_group[rows[:, 1]]])
     found = [np.zeros((0, 2), dtype=np.int64)]
     for group in np.unique(simplex_group):  # a loop over groups (bodies)
         si, pi = np.flatnonzero(simplex_group == group), np.flatnonzero(point_group != group)
         a = (points[pi], points_end[pi], None)
-        cand = _swept_pairs(a, (*b[:2], simplices[si]), inflation, method)
+        cand = _swept_pairs(a, (simplex_vertices, vertices_end, simplices[si]), inflation, method)
         found.append(np.column_stack([pi[cand[:, 0]], si[cand[:, 1]]]))
     rows = np.concatenate(found)
     return np.ascontiguousarray(rows[np.lexsort((rows[:, 1], rows[:, 0]))])
@@ -280,13 +277,10 @@ def _pairs(
 ) -> np.ndarray:
     if a_lo.shape[0] == 0 or b_lo.shape[0] == 0:
         return np.empty((0, 2), dtype=np.int64)
-    impl = {"scan": hk._scan, "hash": _hash_pairs, "fcl": _fcl_pairs, "brute": _brute_pairs}
-    return impl[_method(method, a_lo.shape[0] * b_lo.shape[0])](a_lo, a_hi, b_lo, b_hi)
-
-
-def _method(method: str, n_box_pairs: int) -> str:
-    """The implementation ``method`` runs for ``n_box_pairs`` box pairs ("auto" resolved)."""
-    return ("scan" if n_box_pairs <= _SCAN_PAIRS else "hash") if method == "auto" else method
+    if method == "auto":
+        method = "scan" if a_lo.shape[0] * b_lo.shape[0] <= _SCAN_PAIRS else "hash"
+    impl = {"scan": hk._scan, "hash": _hash_pairs, "fcl": _fcl_pairs, "brute": _brute_pairs}[method]
+    return impl(a_lo, a_hi, b_lo, b_hi)
 
 
 # ---------------------------------------------------------------------------- brute force
