@@ -88,7 +88,7 @@ class FemPoints:
                 warn_user(
                     f"LR_GRID_FINE: the MPM grid (dx = {dx:.4g} m) is finer than twice the FEM "
                     f"boundary edge (up to {edge.max():.4g} m): the FEM material's grid mass "
-                    "has gaps between its nodes (docs/design/explicit_strategies.md, sec. 2.6)",
+                    "has gaps between its nodes (spec section 2.6 asks for dx >= 2 x the edge)",
                     logger=log,
                 )
             # facet samples at spacing <= dx / 2 (barycentric, the vertices left out)
