@@ -52,7 +52,13 @@ from geometry import _hash_kernels as hk
 from geometry._checks import indices
 from geometry._checks import points as _positions
 
-__all__ = ["METHODS", "box_overlap_pairs", "edge_edge_candidates", "point_simplex_candidates"]
+__all__ = [
+    "METHODS",
+    "box_overlap_pairs",
+    "edge_edge_candidates",
+    "point_simplex_candidates",
+    "unique_keys",
+]
 
 logger = logging.getLogger(__name__)
 

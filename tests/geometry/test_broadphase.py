@@ -8,6 +8,7 @@ from geometry.broadphase import (
     box_overlap_pairs,
     edge_edge_candidates,
     point_simplex_candidates,
+    unique_keys,
 )
 
 FAST = ("scan", "hash", "fcl")
@@ -373,3 +374,11 @@ def test_invalid_input_names_the_argument():
         edge_edge_candidates(verts, np.array([[0, 1]]), np.array([[0, 1, 2]]))
     with pytest.raises(ValueError, match="b_lo > b_hi"):
         box_overlap_pairs(pts, pts, np.ones((1, 3)), np.zeros((1, 3)))
+
+
+def test_unique_keys_are_numpys_unique_values():
+    rng = np.random.default_rng(5)
+    for keys in (rng.integers(-50, 50, 400), rng.integers(0, 3, 7), np.zeros(0, dtype=np.int64)):
+        got = unique_keys(keys)
+        np.testing.assert_array_equal(got, np.unique(keys))
+        assert got.dtype == np.int64
